@@ -1,0 +1,312 @@
+"""Calibration sequences: an initial attitude, dwells, and flips about body axes.
+
+A sequence file is the TOML of ``files.md``. In memory a :class:`Sequence`
+is expanded into a :class:`Timeline` of segments (rest or constant-rate
+rotation) from which the nominal attitude at any time follows exactly.
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field, replace
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from .errors import CalibError
+from .transform import attitude_from_directions, axis_index, rot_axis
+
+DEFAULT_RATE_DPS = 10.0
+DEFAULT_DWELL_S = 180.0
+DEFAULT_LATITUDE_DEG = 40.0
+DEFAULT_HEIGHT_M = 0.0
+DEFAULT_SAMPLE_RATE_HZ = 200.0
+
+
+@dataclass(frozen=True)
+class Step:
+    """One flip: rotate about body ``axis`` by ``angle_deg`` at ``rate_dps``, then rest."""
+
+    axis: str
+    angle_deg: float
+    rate_dps: float = DEFAULT_RATE_DPS
+    dwell_s: float = DEFAULT_DWELL_S
+
+    @property
+    def duration_s(self) -> float:
+        return abs(self.angle_deg) / self.rate_dps
+
+
+@dataclass(frozen=True)
+class Sequence:
+    """A calibration sequence (see ``files.md``)."""
+
+    name: str
+    start: tuple[str, str, str]
+    steps: tuple[Step, ...]
+    initial_dwell_s: float = DEFAULT_DWELL_S
+    description: str = ""
+    latitude_deg: float | None = None
+    height_m: float | None = None
+    provenance: dict = field(default_factory=dict, compare=False)
+
+    @property
+    def C_start(self) -> np.ndarray:
+        """Nominal start attitude ``C_b_n`` (before the base mounting rotation)."""
+        return attitude_from_directions(*self.start)
+
+    @property
+    def duration_s(self) -> float:
+        return self.initial_dwell_s + sum(s.duration_s + s.dwell_s for s in self.steps)
+
+    def with_flip_errors(self, errors_deg: np.ndarray) -> "Sequence":
+        """The same sequence with each flip's angle off by ``errors_deg[i]`` (same sign convention)."""
+        steps = tuple(replace(s, angle_deg=s.angle_deg + float(e))
+                      for s, e in zip(self.steps, errors_deg))
+        return replace(self, steps=steps)
+
+    def to_toml_dict(self) -> dict:
+        d = {"name": self.name, "description": self.description,
+             "start": list(self.start), "initial_dwell_s": self.initial_dwell_s}
+        if self.latitude_deg is not None:
+            d["latitude_deg"] = self.latitude_deg
+        if self.height_m is not None:
+            d["height_m"] = self.height_m
+        d["step"] = [{"axis": s.axis, "angle_deg": s.angle_deg, "rate_dps": s.rate_dps,
+                      "dwell_s": s.dwell_s} for s in self.steps]
+        if self.provenance:
+            d["provenance"] = dict(self.provenance)
+        return d
+
+
+# ---------------------------------------------------------------------------
+# Reading and writing
+
+
+def _number(table: dict, key: str, where: str, default=None, positive=False,
+            nonnegative=False) -> float:
+    if key not in table:
+        if default is None:
+            raise CalibError(f"missing key '{key}'", where, f"add '{key} = <number>'")
+        return float(default)
+    value = table[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise CalibError(f"'{key}' must be a number, got {value!r}", where)
+    value = float(value)
+    if not math.isfinite(value):
+        raise CalibError(f"'{key}' must be finite, got {value}", where)
+    if positive and value <= 0:
+        raise CalibError(f"'{key}' must be > 0, got {value}", where)
+    if nonnegative and value < 0:
+        raise CalibError(f"'{key}' must be >= 0, got {value}", where)
+    return value
+
+
+def sequence_from_dict(doc: dict, where: str) -> Sequence:
+    """Validate a parsed sequence TOML document and build a :class:`Sequence`."""
+    start = doc.get("start")
+    if (not isinstance(start, list) or len(start) != 3
+            or not all(isinstance(s, str) for s in start)):
+        raise CalibError("'start' must be a list of three directions, e.g. "
+                         "[\"east\", \"up\", \"south\"]", f"{where}: key 'start'")
+    attitude_from_directions(*start, where=f"{where}: key 'start'")
+    name = doc.get("name", Path(where).stem)
+    if not isinstance(name, str) or not name:
+        raise CalibError("'name' must be a non-empty string", f"{where}: key 'name'")
+    description = doc.get("description", "")
+    if not isinstance(description, str):
+        raise CalibError("'description' must be a string", f"{where}: key 'description'")
+    initial_dwell = _number(doc, "initial_dwell_s", where, DEFAULT_DWELL_S, positive=True)
+    latitude = None
+    if "latitude_deg" in doc:
+        latitude = _number(doc, "latitude_deg", where)
+        if not -90.0 < latitude < 90.0:
+            raise CalibError(f"latitude_deg = {latitude} is outside (-90, 90)",
+                             f"{where}: key 'latitude_deg'")
+    height = _number(doc, "height_m", where) if "height_m" in doc else None
+    raw_steps = doc.get("step", [])
+    if not isinstance(raw_steps, list):
+        raise CalibError("'step' must be an array of tables ([[step]])", where)
+    steps = []
+    for i, raw in enumerate(raw_steps, start=1):
+        here = f"{where}: step {i}"
+        if not isinstance(raw, dict):
+            raise CalibError("each [[step]] must be a table", here)
+        axis = raw.get("axis")
+        if not isinstance(axis, str) or axis.upper() not in ("X", "Y", "Z"):
+            raise CalibError(f"axis must be \"X\", \"Y\" or \"Z\", got {axis!r}", here)
+        angle = _number(raw, "angle_deg", here)
+        if angle == 0.0 or abs(angle) > 3600.0:
+            raise CalibError(f"angle_deg = {angle} must be non-zero and within +-3600", here)
+        rate = _number(raw, "rate_dps", here, DEFAULT_RATE_DPS, positive=True)
+        if rate > 1000.0:
+            raise CalibError(f"rate_dps = {rate} is beyond any gimbal (max 1000 deg/s)", here)
+        dwell = _number(raw, "dwell_s", here, DEFAULT_DWELL_S, nonnegative=True)
+        steps.append(Step(axis.upper(), angle, rate, dwell))
+    if not steps:
+        raise CalibError("a sequence needs at least one [[step]]", where)
+    provenance = doc.get("provenance", {})
+    seq = Sequence(name=name, start=tuple(s.lower() for s in start), steps=tuple(steps),
+                   initial_dwell_s=initial_dwell, description=description,
+                   latitude_deg=latitude, height_m=height,
+                   provenance=provenance if isinstance(provenance, dict) else {})
+    if seq.duration_s > 6 * 3600:
+        raise CalibError(f"sequence lasts {seq.duration_s / 3600:.1f} h; more than 6 h is refused",
+                         where, "shorten dwells")
+    return seq
+
+
+def builtin_sequence_dir() -> Path:
+    """Folder of the sequences shipped with the tool."""
+    return Path(str(resources.files("sequences")))
+
+
+def resolve_sequence_path(name_or_path: str | Path) -> Path:
+    """A path as given, or the name of a shipped sequence (``paper-9pos``)."""
+    p = Path(name_or_path)
+    if p.exists():
+        return p
+    shipped = builtin_sequence_dir() / f"{p.name}.toml"
+    if p.suffix == "" and shipped.exists():
+        return shipped
+    available = ", ".join(sorted(f.stem for f in builtin_sequence_dir().glob("*.toml")))
+    raise CalibError(f"no sequence file {str(name_or_path)!r}", None,
+                     f"give a path to a .toml file or a shipped name: {available}")
+
+
+def load_sequence(name_or_path: str | Path) -> Sequence:
+    """Read a sequence file (or a shipped sequence by name)."""
+    path = resolve_sequence_path(name_or_path)
+    try:
+        doc = tomllib.loads(path.read_bytes().decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise CalibError(f"not UTF-8 text (byte {exc.start})", str(path)) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise CalibError(f"not valid TOML: {exc}", str(path)) from None
+    except OSError as exc:
+        raise CalibError(f"cannot read: {exc.strerror}", str(path)) from None
+    return sequence_from_dict(doc, str(path))
+
+
+def save_sequence(seq: Sequence, path: str | Path) -> None:
+    """Write a sequence file atomically."""
+    import tomli_w
+
+    from .fileio import atomic_write_text
+    atomic_write_text(path, tomli_w.dumps(seq.to_toml_dict()))
+
+
+# ---------------------------------------------------------------------------
+# Timeline
+
+
+@dataclass(frozen=True)
+class Timeline:
+    """Segments of a sequence: ``t0[i]..t1[i]`` at rate ``rate[i]`` (rad/s) about body ``axis[i]``.
+
+    ``C0[i]`` is the nominal attitude at the segment's start (without the base
+    mounting rotation). Rest segments have ``rate == 0`` and ``axis == -1``;
+    ``position[i]`` numbers rest positions from 1 (0 for rotations) and
+    ``step[i]`` is the step index (0-based) that a rotation segment realises.
+    """
+
+    t0: np.ndarray
+    t1: np.ndarray
+    rate: np.ndarray
+    axis: np.ndarray
+    C0: np.ndarray
+    position: np.ndarray
+    step: np.ndarray
+    C_end: np.ndarray
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.t1[-1])
+
+    @property
+    def rest(self) -> np.ndarray:
+        return self.rate == 0.0
+
+
+def timeline(seq: Sequence) -> Timeline:
+    """Expand a sequence into rest and rotation segments (zero-length rests dropped)."""
+    t, C = 0.0, seq.C_start
+    rows = []
+    position = 1
+    rows.append((t, t + seq.initial_dwell_s, 0.0, -1, C, position, -1))
+    t += seq.initial_dwell_s
+    for k, s in enumerate(seq.steps):
+        ax = axis_index(s.axis)
+        sign = 1.0 if s.angle_deg > 0 else -1.0
+        rate = sign * math.radians(s.rate_dps)
+        rows.append((t, t + s.duration_s, rate, ax, C, 0, k))
+        t += s.duration_s
+        C = C @ rot_axis(ax, math.radians(s.angle_deg))
+        if s.dwell_s > 0:
+            position += 1
+            rows.append((t, t + s.dwell_s, 0.0, -1, C, position, k))
+            t += s.dwell_s
+    cols = list(zip(*rows))
+    return Timeline(t0=np.array(cols[0]), t1=np.array(cols[1]), rate=np.array(cols[2]),
+                    axis=np.array(cols[3], dtype=int), C0=np.array(cols[4]),
+                    position=np.array(cols[5], dtype=int), step=np.array(cols[6], dtype=int),
+                    C_end=C)
+
+
+def nominal_attitude(tl: Timeline, t: np.ndarray) -> np.ndarray:
+    """Nominal ``C_b_n`` (without mounting rotation) at times ``t``, shape ``(n, 3, 3)``."""
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    seg = np.clip(np.searchsorted(tl.t1, t, side="left"), 0, len(tl.t0) - 1)
+    C = tl.C0[seg].copy()
+    moving = tl.rate[seg] != 0.0
+    if np.any(moving):
+        idx = np.nonzero(moving)[0]
+        angle = tl.rate[seg[idx]] * (np.minimum(t[idx], tl.t1[seg[idx]]) - tl.t0[seg[idx]])
+        for ax in range(3):
+            sel = tl.axis[seg[idx]] == ax
+            if np.any(sel):
+                C[idx[sel]] = C[idx[sel]] @ rot_axis(ax, angle[sel])
+    return C
+
+
+@dataclass(frozen=True)
+class RestPosition:
+    """A rest position of a sequence, as ``show`` prints it."""
+
+    number: int
+    C_b_n: np.ndarray
+    directions: tuple[str, str, str]
+    gimbal_deg: np.ndarray  # outer, middle, inner; continuous along the sequence
+    start_s: float
+    end_s: float
+    gimbal_lock: bool
+
+
+def rest_positions(seq: Sequence) -> list[RestPosition]:
+    """Rest positions with their attitudes and continuous gimbal angles.
+
+    Gimbal angles are tracked through every flip in steps of at most 15 deg,
+    as encoders count, so multi-turn flips and 180 deg turns unwrap correctly.
+    """
+    from .transform import directions_of, gimbal_from_relative, is_gimbal_lock, unwrap_gimbal
+
+    tl = timeline(seq)
+    times, marks = [], []
+    for i in range(len(tl.t0)):
+        if tl.rate[i] == 0.0:
+            marks.append((i, len(times)))
+            times.append(0.5 * (tl.t0[i] + tl.t1[i]))
+        else:
+            n = max(2, int(math.ceil(abs(tl.rate[i]) * (tl.t1[i] - tl.t0[i]) / math.radians(15))))
+            times.extend(np.linspace(tl.t0[i], tl.t1[i], n + 1)[1:-1])
+    C = nominal_attitude(tl, np.array(times))
+    C_rel = np.einsum("ji,njk->nik", seq.C_start, C)
+    angles = np.degrees(unwrap_gimbal(gimbal_from_relative(C_rel)))
+    out = []
+    for seg, k in marks:
+        out.append(RestPosition(
+            number=int(tl.position[seg]), C_b_n=C[k], directions=directions_of(C[k]),
+            gimbal_deg=np.round(angles[k], 9) + 0.0, start_s=float(tl.t0[seg]),
+            end_s=float(tl.t1[seg]), gimbal_lock=bool(is_gimbal_lock(C_rel[k], 1e-6))))
+    return out

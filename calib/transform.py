@@ -1,0 +1,147 @@
+"""Rotations, direction names and the gimbal decomposition of the conventions.
+
+Attitude is the DCM ``C_b_n`` (columns = body axes written in ENU). A flip
+about a body axis is a right-multiplication ``C_new = C_old @ rot_axis(...)``.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from .errors import CalibError
+
+AXES = "XYZ"
+DIRECTIONS = {
+    "east": (1.0, 0.0, 0.0), "west": (-1.0, 0.0, 0.0),
+    "north": (0.0, 1.0, 0.0), "south": (0.0, -1.0, 0.0),
+    "up": (0.0, 0.0, 1.0), "down": (0.0, 0.0, -1.0),
+}
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """Cross-product matrix ``[v x]`` of a 3-vector (or ``(..., 3)`` array)."""
+    v = np.asarray(v, dtype=float)
+    out = np.zeros(v.shape[:-1] + (3, 3))
+    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
+    return out
+
+
+def axis_index(axis: str) -> int:
+    """Index 0, 1, 2 of a body axis name ``X``, ``Y`` or ``Z``."""
+    return AXES.index(axis.upper())
+
+
+def rot_axis(axis: int, angle_rad: np.ndarray | float) -> np.ndarray:
+    """Right-hand rotation matrix about coordinate axis ``axis`` (0, 1, 2).
+
+    ``angle_rad`` may be an array; the result then has shape ``(..., 3, 3)``.
+    """
+    a = np.asarray(angle_rad, dtype=float)
+    c, s = np.cos(a), np.sin(a)
+    out = np.zeros(a.shape + (3, 3))
+    i, j, k = axis, (axis + 1) % 3, (axis + 2) % 3
+    out[..., i, i] = 1.0
+    out[..., j, j] = c
+    out[..., k, k] = c
+    out[..., j, k] = -s
+    out[..., k, j] = s
+    return out
+
+
+def rotvec_to_dcm(rotvec: np.ndarray) -> np.ndarray:
+    """``exp([rotvec x])`` for a rotation vector or ``(n, 3)`` array of them."""
+    return Rotation.from_rotvec(rotvec).as_matrix()
+
+
+def dcm_to_rotvec(dcm: np.ndarray) -> np.ndarray:
+    """Rotation vector of a DCM (inverse of :func:`rotvec_to_dcm`)."""
+    return Rotation.from_matrix(dcm).as_rotvec()
+
+
+def direction_vector(name: str, where: str = "") -> np.ndarray:
+    """ENU unit vector of a direction name (``east``, ``up``, ...)."""
+    key = str(name).strip().lower()
+    if key not in DIRECTIONS:
+        raise CalibError(f"unknown direction {name!r}", where,
+                         "use one of " + ", ".join(DIRECTIONS))
+    return np.array(DIRECTIONS[key])
+
+
+def attitude_from_directions(x: str, y: str, z: str, where: str = "") -> np.ndarray:
+    """``C_b_n`` of a grid attitude given where body X, Y, Z point."""
+    C = np.column_stack([direction_vector(d, where) for d in (x, y, z)])
+    if not np.allclose(C.T @ C, np.eye(3)) or np.linalg.det(C) < 0.5:
+        raise CalibError(f"body axes pointing {x}, {y}, {z} are not a right-handed frame",
+                         where, "choose three mutually perpendicular directions with X x Y = Z")
+    return C
+
+
+def nearest_direction(v: np.ndarray) -> str:
+    """Name of the grid direction closest to the ENU vector ``v``."""
+    names = list(DIRECTIONS)
+    dots = np.array([DIRECTIONS[n] for n in names]) @ np.asarray(v)
+    return names[int(np.argmax(dots))]
+
+
+def directions_of(C_b_n: np.ndarray) -> tuple[str, str, str]:
+    """Where body X, Y, Z point (nearest grid directions) for an attitude."""
+    return tuple(nearest_direction(C_b_n[:, i]) for i in range(3))
+
+
+def gimbal_from_relative(C_rel: np.ndarray) -> np.ndarray:
+    """Principal gimbal angles (rad) of ``C_rel = R_Z(outer) R_X(middle) R_Y(inner)``.
+
+    Works on ``(3, 3)`` or ``(n, 3, 3)``; ``middle`` lies in ``[-pi/2, pi/2]``.
+    At gimbal lock (``|middle| = pi/2``) outer and inner are not separable:
+    the split returned there puts the whole rotation on the outer gimbal;
+    callers that care test :func:`is_gimbal_lock`.
+    """
+    C = np.asarray(C_rel, dtype=float)
+    middle = np.arcsin(np.clip(C[..., 2, 1], -1.0, 1.0))
+    outer = np.arctan2(-C[..., 0, 1], C[..., 1, 1])
+    inner = np.arctan2(-C[..., 2, 0], C[..., 2, 2])
+    lock = is_gimbal_lock(C)
+    if np.any(lock):
+        # Only outer + inner (or outer - inner) is defined: put it all on outer.
+        outer_lock = np.arctan2(C[..., 1, 0], C[..., 0, 0])
+        outer = np.where(lock, outer_lock, outer)
+        inner = np.where(lock, 0.0, inner)
+    return np.stack([outer, middle, inner], axis=-1)
+
+
+def is_gimbal_lock(C_rel: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+    """True where the middle gimbal is at +-90 deg (body Y along the outer axis)."""
+    C = np.asarray(C_rel, dtype=float)
+    return np.hypot(C[..., 0, 1], C[..., 1, 1]) < tol
+
+
+def gimbal_to_relative(angles_rad: np.ndarray) -> np.ndarray:
+    """``R_Z(outer) R_X(middle) R_Y(inner)`` from ``(..., 3)`` angles in rad."""
+    a = np.asarray(angles_rad, dtype=float)
+    return rot_axis(2, a[..., 0]) @ rot_axis(0, a[..., 1]) @ rot_axis(1, a[..., 2])
+
+
+def unwrap_gimbal(angles_rad: np.ndarray) -> np.ndarray:
+    """Continuous (encoder-like) gimbal angles along a ``(n, 3)`` series.
+
+    Each principal decomposition has a twin ``(o + pi, pi - m, i + pi)``; at
+    every step the branch and the 2 pi multiples closest to the previous
+    angles are kept, as an encoder counting through the motion would.
+    """
+    a = np.asarray(angles_rad, dtype=float).reshape(-1, 3)
+    out = np.empty_like(a)
+    prev = a[0]
+    out[0] = prev
+    twin_shift = np.array([np.pi, np.pi, np.pi])
+    two_pi = 2.0 * np.pi
+    for k in range(1, len(a)):
+        best, best_cost = None, np.inf
+        for cand in (a[k], twin_shift + np.array([1.0, -1.0, 1.0]) * a[k]):
+            cand = cand + two_pi * np.round((prev - cand) / two_pi)
+            cost = np.sum(np.abs(cand - prev))
+            if cost < best_cost:
+                best, best_cost = cand, cost
+        out[k] = prev = best
+    return out

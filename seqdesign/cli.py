@@ -1,0 +1,209 @@
+"""The ``seqdesign`` command line: show, simulate, calibrate, analyze, compare.
+
+Every command refuses bad input with one line on stderr naming what, where
+and how to fix it, and exits non-zero without a traceback. ``--json`` puts a
+single JSON document on stdout; progress and logs go to stderr.
+"""
+from __future__ import annotations
+
+import functools
+import json
+import math
+import shlex
+import sys
+from pathlib import Path
+
+import click
+import numpy as np
+
+from calib.errors import CalibError
+
+EXIT_BAD_INPUT = 2
+
+
+def tool_version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version("seqdesign")
+    except PackageNotFoundError:
+        return "0+unknown"
+
+
+def command_line() -> str:
+    return "seqdesign " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+
+
+def provenance(**extra) -> dict:
+    out = {"tool_version": tool_version(), "command": command_line()}
+    out.update({k: v for k, v in extra.items() if v is not None})
+    return out
+
+
+def guarded(fn):
+    """Turn the tool's own errors (and Ctrl-C) into a message and an exit code."""
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        try:
+            return fn(*args, **kwargs)
+        except CalibError as exc:
+            click.echo(f"error: {exc.message}", err=True)
+            sys.exit(EXIT_BAD_INPUT)
+        except KeyboardInterrupt:
+            click.echo("interrupted; nothing was written", err=True)
+            sys.exit(130)
+    return wrapper
+
+
+def emit_json(doc) -> None:
+    click.echo(json.dumps(doc, indent=2, allow_nan=False))
+
+
+def info(msg: str) -> None:
+    click.echo(msg, err=True)
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(tool_version(), prog_name="seqdesign")
+def main():
+    """Self-calibration of a three-axis hybrid INS: design, analyse, simulate,
+    calibrate and view multi-position sequences (21 IMU error parameters)."""
+
+
+# ---------------------------------------------------------------------------
+# show
+
+
+@main.command(short_help="Print a sequence's rest positions: axes, gimbal angles, times.")
+@click.argument("sequence")
+@click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
+@guarded
+def show(sequence, as_json):
+    """Print where body X, Y, Z point at every rest position of SEQUENCE (a
+    file or a shipped name such as paper-9pos), its gimbal angles (outer,
+    middle, inner; continuous along the run) and its start and end times."""
+    from calib.sequence import load_sequence, rest_positions
+
+    seq = load_sequence(sequence)
+    positions = rest_positions(seq)
+    if as_json:
+        emit_json({
+            "sequence": seq.name, "duration_s": seq.duration_s,
+            "positions": [{
+                "position": p.number, "x": p.directions[0], "y": p.directions[1],
+                "z": p.directions[2], "outer_deg": float(p.gimbal_deg[0]),
+                "middle_deg": float(p.gimbal_deg[1]), "inner_deg": float(p.gimbal_deg[2]),
+                "start_s": p.start_s, "end_s": p.end_s, "gimbal_lock": p.gimbal_lock}
+                for p in positions]})
+        return
+    click.echo(f"{seq.name}: {seq.description}".rstrip(": "))
+    click.echo(f"{'pos':>3}  {'X':<6}{'Y':<6}{'Z':<6} {'outer':>8}{'middle':>8}{'inner':>8}"
+               f"  {'start s':>8}{'end s':>8}")
+    for p in positions:
+        lock = "  GIMBAL LOCK" if p.gimbal_lock else ""
+        click.echo(f"{p.number:>3}  {p.directions[0]:<6}{p.directions[1]:<6}{p.directions[2]:<6}"
+                   f" {p.gimbal_deg[0]:8.1f}{p.gimbal_deg[1]:8.1f}{p.gimbal_deg[2]:8.1f}"
+                   f"  {p.start_s:8.1f}{p.end_s:8.1f}{lock}")
+    click.echo(f"{len(positions)} rest positions, {len(seq.steps)} flips, "
+               f"total {seq.duration_s:.1f} s ({seq.duration_s / 60:.1f} min)")
+
+
+# ---------------------------------------------------------------------------
+# simulate
+
+
+def _site(seq, latitude, height):
+    from calib.sequence import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
+    lat = latitude if latitude is not None else (
+        seq.latitude_deg if seq.latitude_deg is not None else DEFAULT_LATITUDE_DEG)
+    h = height if height is not None else (
+        seq.height_m if seq.height_m is not None else DEFAULT_HEIGHT_M)
+    if not -89.0 <= lat <= 89.0:
+        raise CalibError(f"latitude {lat} deg is outside [-89, 89]", "--latitude",
+                         "stationary calibration needs the Earth rate to have a horizontal part")
+    return lat, h
+
+
+def _run_suffix(path: str, option: str) -> None:
+    if Path(path).suffix.lower() not in (".csv", ".npz"):
+        raise CalibError(f"unknown run format {Path(path).suffix!r}", option,
+                         "name the file .csv or .npz")
+
+
+@main.command(short_help="Simulate a calibration run of a sequence to a run log + truth file.")
+@click.argument("sequence")
+@click.option("-o", "--output", required=True, help="Run log to write: .csv or .npz.")
+@click.option("--profile", default="navigation", show_default=True,
+              help="Noise profile: built-in name or TOML file.")
+@click.option("--errors", "errors_file", type=click.Path(dir_okay=False),
+              help="TOML file with an [errors] table (spec names and units).")
+@click.option("--table2", is_flag=True, help="Inject the paper's Table 2 standard values.")
+@click.option("--setup-deg", nargs=3, type=float, metavar="E N U",
+              help="Base mounting rotation vector, degrees.")
+@click.option("--random-setup", is_flag=True,
+              help="Draw the mounting rotation uniformly within the +-3 deg tolerance.")
+@click.option("--seed", type=int, default=None, help="Random seed (noise, setup, flip errors).")
+@click.option("--latitude", type=float, help="Site latitude, deg (default: sequence, else 40).")
+@click.option("--height", type=float, help="Site height, m (default: sequence, else 0).")
+@click.option("--gravity", "gravity_mps2", type=float,
+              help="Measured site gravity, m/s^2 (default: WGS-84 normal gravity).")
+@click.option("--sample-rate-hz", type=float, default=200.0, show_default=True)
+@click.option("--flip-error-deg", type=float, default=0.0, show_default=True,
+              help="Each flip misses its angle by up to this much (uniform).")
+@click.option("--noise-free", is_flag=True, help="No sensor noise.")
+@click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
+@guarded
+def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_setup, seed,
+             latitude, height, gravity_mps2, sample_rate_hz, flip_error_deg, noise_free, as_json):
+    """Simulate the IMU increments of SEQUENCE on a stationary base with exact
+    kinematics, the 21 errors and white noise; write the run log (-o) and its
+    truth file beside it (run.truth.toml)."""
+    from calib.errormodel import ErrorModel
+    from calib.profiles import load_profile
+    from calib.runlog import write_run
+    from calib.sequence import load_sequence
+    from calib.sim import SimConfig, simulate as run_simulation
+    from calib.truth import read_errors, truth_path_for, write_truth
+
+    _run_suffix(output, "-o/--output")
+    if errors_file and table2:
+        raise CalibError("--errors and --table2 both given", None, "choose one")
+    if setup_deg and random_setup:
+        raise CalibError("--setup-deg and --random-setup both given", None, "choose one")
+    if setup_deg and any(abs(a) > 10 or not math.isfinite(a) for a in setup_deg):
+        raise CalibError(f"--setup-deg {setup_deg} beyond 10 deg", "--setup-deg",
+                         "the mounting tolerance of the conventions is +-3 deg")
+    if not (1.0 <= sample_rate_hz <= 10000.0):
+        raise CalibError(f"--sample-rate-hz {sample_rate_hz} outside [1, 10000]", "--sample-rate-hz")
+    if not (0.0 <= flip_error_deg <= 10.0):
+        raise CalibError(f"--flip-error-deg {flip_error_deg} outside [0, 10]", "--flip-error-deg")
+    if gravity_mps2 is not None and not (9.7 < gravity_mps2 < 9.9):
+        raise CalibError(f"--gravity {gravity_mps2} m/s^2 is not an Earth gravity", "--gravity",
+                         "give m/s^2, e.g. 9.80123")
+    seq = load_sequence(sequence)
+    prof = load_profile(profile)
+    errors = (read_errors(errors_file) if errors_file
+              else ErrorModel.from_table2() if table2 else ErrorModel.zero())
+    lat, h = _site(seq, latitude, height)
+    cfg = SimConfig(latitude_rad=math.radians(lat), height_m=h, sample_rate_hz=sample_rate_hz,
+                    gravity_mps2=gravity_mps2)
+    run, truth = run_simulation(
+        seq, cfg, errors, prof, setup_rotvec=np.radians(setup_deg) if setup_deg else (0, 0, 0),
+        flip_error_deg=flip_error_deg, noise=not noise_free, seed=seed,
+        random_setup_deg=3.0 if random_setup else None)
+    truth_path = truth_path_for(output)
+    write_run(run, output)
+    write_truth(truth_path, truth, provenance(sequence=seq.name))
+    summary = {"run": str(output), "truth": str(truth_path), "sequence": seq.name,
+               "samples": int(run.time_s.size), "duration_s": float(run.time_s[-1]),
+               "profile": prof.name, "noise": not noise_free,
+               "setup_deg": [float(x) for x in np.degrees(truth.setup_rotvec)],
+               "latitude_deg": lat, "height_m": h}
+    if as_json:
+        emit_json(summary)
+    else:
+        click.echo(f"wrote {output} ({summary['samples']} samples, {summary['duration_s']:.1f} s, "
+                   f"{'noise-free' if noise_free else 'profile ' + prof.name}) and {truth_path}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,1 @@
+"""Sequence files shipped with the tool (data only; see calib.sequence)."""
