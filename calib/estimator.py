@@ -1,0 +1,208 @@
+"""Iterated least squares for the 21 parameters from a run (the paper's 2.3.1-2.3.5).
+
+Each iteration compensates the raw increments with the current estimate,
+navigates on the stationary base, and fits the navigation velocity errors
+with the linearised model of :mod:`calib.jacobian` weighted by the exact
+noise structure of :mod:`calib.noise` (a Gauss-Newton step of the GLS
+problem). The unknowns are the 21 parameters and the initial attitude
+error; nothing about the heading is assumed: the first guess comes from
+levelling and gyrocompassing on the first rest.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import earth
+from . import params as P
+from .errormodel import ErrorModel
+from .errors import CalibError
+from .jacobian import (N_UNKNOWN, PHI0, observation_grid, observation_matrix, sensitivities,
+                       state_matrix, trajectory_moments)
+from .noise import interval_models, whiten, whitener
+from .profiles import NoiseProfile
+from .strapdown import navigate
+from .transform import rotvec_to_dcm
+
+MOTION_THRESHOLD = 0.01  # rad/s: far above Earth rate + bias + noise, far below a flip
+MIN_ALIGN_S = 10.0
+REST_STEP_S = 1.0
+MOVE_STEP_S = 0.1
+PHI0_SCALE = 1e-4  # rad, for scaling the normal equations only
+
+
+@dataclass(frozen=True)
+class Segmentation:
+    """Which samples are turning, and the first rest used for alignment."""
+
+    moving: np.ndarray  # (n,) bool
+    first_rest_end: int  # samples [0, first_rest_end) are the first rest
+
+
+def detect_motion(dtheta: np.ndarray, dt: np.ndarray, where: str = "run") -> Segmentation:
+    """Rest/rotation segments from the gyro increments alone."""
+    rate = np.linalg.norm(dtheta, axis=1) / dt
+    moving = rate > MOTION_THRESHOLD
+    # Grow by two samples each side so that partial samples at a flip's ends count as turning.
+    grown = moving.copy()
+    for s in (1, 2):
+        grown[s:] |= moving[:-s]
+        grown[:-s] |= moving[s:]
+    if not grown.any():
+        raise CalibError("no rotation found in the run (gyro rates never exceed "
+                         f"{math.degrees(MOTION_THRESHOLD):.2f} deg/s)", where,
+                         "a calibration run must flip the IMU")
+    first = int(np.argmax(grown))
+    return Segmentation(moving=grown, first_rest_end=first)
+
+
+def coarse_alignment(dtheta: np.ndarray, dv: np.ndarray, dt: np.ndarray) -> np.ndarray:
+    """``C_b_n`` from levelling and gyrocompassing over a rest segment."""
+    T = dt.sum()
+    f = dv.sum(axis=0) / T
+    w = dtheta.sum(axis=0) / T
+    up = f / np.linalg.norm(f)
+    east = np.cross(w, up)
+    east /= np.linalg.norm(east)
+    north = np.cross(up, east)
+    return np.vstack([east, north, up])
+
+
+@dataclass
+class Fit:
+    """Everything an iteration leaves behind (SI)."""
+
+    values: np.ndarray  # (21,)
+    C_b_n0: np.ndarray  # (3, 3) at the run's start instant
+    covariance: np.ndarray  # (24, 24) of [params, phi0]
+    converged: bool
+    iterations: int
+    residual_rms_mps: float
+    chi2_per_dof: float
+    n_observations: int
+    history: list = field(default_factory=list)
+
+    @property
+    def sigma(self) -> np.ndarray:
+        return np.sqrt(np.diag(self.covariance)[:P.N_PARAMS])
+
+    @property
+    def correlation(self) -> np.ndarray:
+        d = np.sqrt(np.diag(self.covariance))
+        return self.covariance / np.outer(d, d)
+
+
+def _scale() -> np.ndarray:
+    return np.concatenate([P.REQUIREMENTS_SI, np.full(3, PHI0_SCALE)])
+
+
+def normal_equations(Hw: np.ndarray, zw: np.ndarray | None = None):
+    """Information (scaled by requirements) and right-hand side from whitened columns."""
+    D = _scale()
+    Hs = Hw.reshape(-1, Hw.shape[-1]) * D
+    N = Hs.T @ Hs
+    b = None if zw is None else Hs.T @ zw.reshape(-1)
+    return N, b, D
+
+
+def solve_information(N: np.ndarray, what: str = "run"):
+    """Inverse of a scaled information matrix, refusing unobservable directions by name."""
+    evals, evecs = np.linalg.eigh(N)
+    if evals[0] <= evals[-1] * 1e-14:
+        v = evecs[:, 0]
+        names = list(P.NAMES) + ["phi0_E", "phi0_N", "phi0_U"]
+        top = np.argsort(-np.abs(v))[:4]
+        combo = " ".join(f"{v[i]:+.2f} {names[i]}" for i in top if abs(v[i]) > 0.05)
+        raise CalibError(f"the {what} cannot observe all parameters: the direction {combo} "
+                         "is unobservable", None, "use a sequence that excites it (seqdesign analyze)")
+    return (evecs / evals) @ evecs.T
+
+
+def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitude_rad: float,
+              gravity_mps2: float, profile: NoiseProfile, moving: np.ndarray | None = None,
+              max_iterations: int = 12, tol_sigma: float = 1e-3, where: str = "run") -> Fit:
+    """Identify the 21 parameters and the initial attitude from raw increments.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,)
+        End time of each sample.
+    dtheta_m, dv_m : ndarray, shape (n, 3)
+        Raw (uncompensated) increments.
+    latitude_rad, gravity_mps2 : float
+    profile : NoiseProfile
+        Weights the observations and scales the covariance.
+    moving : ndarray of bool, optional
+        Which samples turn (from the sequence); detected from the gyros if None.
+    max_iterations : int
+    tol_sigma : float
+        Converged when every correction is below this fraction of its sigma.
+
+    Returns
+    -------
+    Fit
+    """
+    dt = np.diff(np.concatenate([[time_s[0] - (time_s[1] - time_s[0])], time_s]))
+    seg = detect_motion(dtheta_m, dt, where)
+    if moving is not None:
+        seg = Segmentation(moving=moving, first_rest_end=int(np.argmax(moving)))
+    t_align = float(dt[:seg.first_rest_end].sum())
+    if t_align < MIN_ALIGN_S:
+        raise CalibError(f"the first rest lasts {t_align:.1f} s, too short to align "
+                         f"(needs >= {MIN_ALIGN_S:.0f} s)", where,
+                         "start the run with the IMU at rest")
+    fs = 1.0 / np.median(dt)
+    grid = observation_grid(seg.moving, max(1, round(REST_STEP_S * fs)),
+                            max(1, round(MOVE_STEP_S * fs)))
+    t_nav = np.concatenate([[time_s[0] - dt[0]], time_s])
+    T = np.diff(t_nav[grid.bounds])
+    A = state_matrix(latitude_rad, gravity_mps2)
+    models = interval_models(A, T, profile)
+    W = whitener(models)
+    Phi_vv = np.array([m.Phi[3:, 3:] for m in models])
+
+    values = np.zeros(P.N_PARAMS)
+    C0 = coarse_alignment(dtheta_m[:seg.first_rest_end], dv_m[:seg.first_rest_end],
+                          dt[:seg.first_rest_end])
+    history = []
+    converged = False
+    N = cov = None
+    for it in range(1, max_iterations + 1):
+        model = ErrorModel(values)
+        dth, dvv = model.compensate(dtheta_m, dv_m, dt)
+        nav = navigate(dth, dvv, time_s, C0, latitude_rad, gravity_mps2, t0=t_nav[0])
+        y = nav.v_n[grid.bounds]
+        z = y[1:] - np.einsum("kij,kj->ki", Phi_vv, y[:-1])
+        if not np.all(np.isfinite(z)) or np.abs(y).max() > 1e5:
+            raise CalibError(f"the fit diverged at iteration {it} (navigation velocity "
+                             f"{np.abs(y).max():.3g} m/s)", where,
+                             "check units and that the run is a stationary-base calibration")
+        if N is None or it <= 3:
+            # The Jacobian changes little once the big errors are compensated.
+            moments = trajectory_moments(nav.C_b_n, dth, dvv, nav.time_s, grid)
+            S_v = sensitivities(moments, T, latitude_rad, gravity_mps2)
+            H = observation_matrix(S_v, Phi_vv)
+            Hw = whiten(W, H)
+            N, _, D = normal_equations(Hw)
+            cov_scaled = solve_information(N, where)
+            cov = cov_scaled * np.outer(D, D)
+        zw = whiten(W, z[:, :, None])[:, :, 0]
+        b = (Hw.reshape(-1, N_UNKNOWN) * D).T @ zw.reshape(-1)
+        delta = D * (cov_scaled @ b)
+        values = values + delta[:P.N_PARAMS]
+        C0 = rotvec_to_dcm(delta[PHI0]) @ C0
+        step = np.max(np.abs(delta) / np.sqrt(np.diag(cov)))
+        resid = zw.reshape(-1) - (Hw.reshape(-1, N_UNKNOWN) @ delta)
+        history.append({"iteration": it, "max_step_sigma": float(step),
+                        "chi2_per_dof": float(resid @ resid / max(1, resid.size - N_UNKNOWN))})
+        if step < tol_sigma:
+            converged = True
+            break
+    # Residual in m/s of the velocity changes after the last correction.
+    z_fit = z - np.einsum("kin,n->ki", H, delta)
+    return Fit(values=values, C_b_n0=C0, covariance=cov, converged=converged, iterations=it,
+               residual_rms_mps=float(np.sqrt(np.mean(z_fit ** 2))),
+               chi2_per_dof=history[-1]["chi2_per_dof"], n_observations=int(z.size),
+               history=history)

@@ -1,0 +1,208 @@
+"""The linearised error-to-observation Jacobian (casadi), shared by the estimator and the analyser.
+
+Error state ``x = [phi, dv]`` (attitude error with ``C~ = (I - [phi x]) C``,
+velocity error), ENU, on a stationary base::
+
+    phi' = -omega_ie x phi - C_b_n d_omega
+    dv'  =  f_n x phi + C_b_n d_f - 2 omega_ie x dv
+
+with ``f_n = [0, 0, g]`` and the sensor errors ``d_omega = E_g omega + b_g``,
+``d_f = E_a f + b_a`` of :mod:`calib.errormodel`. The dynamics are
+time-invariant; only the input ``C_b_n (E w + b)`` varies. Over an
+observation interval ``[t_{k-1}, t_k]`` the input of every sample is
+propagated to ``t_k`` with ``exp(A tau)`` expanded to second order in
+``tau`` (the neglected terms are ``(omega_ie tau)^2 ~ 1e-7`` relative), so
+the interval needs only kinematic *moments* of the trajectory::
+
+    sum_j tau_j^w  C_j[:, i] dtheta_j[m]   and   sum_j tau_j^w C_j[:, i] h_j
+
+Casadi differentiates the interval step (error model composed with the
+propagation) with respect to the state and the parameters; the sensitivity
+``S = dx / d(params, phi0)`` is carried through a compiled ``mapaccum`` over
+fixed-size chunks of intervals.
+
+Observations: the navigation velocity at the interval ends ``y_k``, taken as
+``z_k = y_k - Phi_vv(T_k) y_{k-1}``, so that ``z_k = H_k p + Phi_vphi phi_noise
++ w_k`` with ``H_k = E S_k - Phi_vv E S_{k-1}`` (see :mod:`calib.noise`).
+"""
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from . import earth
+from . import params as P
+from .transform import skew
+
+N_UNKNOWN = P.N_PARAMS + 3  # the 21 parameters and the initial attitude error phi0
+PHI0 = slice(P.N_PARAMS, N_UNKNOWN)
+N_MOMENTS = 5 * 36  # gyro (1, tau, tau^2) and accel (1, tau), 27 + 9 each
+CHUNK = 256
+
+
+@dataclass(frozen=True)
+class ObservationGrid:
+    """Interval ends as sample indices into the navigation arrays (0 = start)."""
+
+    bounds: np.ndarray  # (K + 1,), increasing, bounds[0] == 0
+
+    @property
+    def n_intervals(self) -> int:
+        return len(self.bounds) - 1
+
+
+def observation_grid(moving: np.ndarray, rest_step: int, move_step: int) -> ObservationGrid:
+    """Split samples into intervals: ``rest_step`` samples at rest, ``move_step`` while turning.
+
+    Parameters
+    ----------
+    moving : ndarray of bool, shape (n,)
+        Per sample, whether the IMU is turning.
+    rest_step, move_step : int
+        Interval lengths in samples.
+    """
+    n = len(moving)
+    change = np.flatnonzero(np.diff(moving.astype(np.int8))) + 1
+    starts = np.concatenate([[0], change])
+    ends = np.concatenate([change, [n]])
+    bounds = [0]
+    for a, b in zip(starts, ends):
+        step = move_step if moving[a] else rest_step
+        m = max(1, int(round((b - a) / step)))
+        bounds.extend(np.round(np.linspace(a, b, m + 1)[1:]).astype(int))
+    return ObservationGrid(np.unique(np.array(bounds)))
+
+
+def state_matrix(latitude_rad: float, gravity_mps2: float) -> np.ndarray:
+    """Continuous error-state matrix ``A`` (6 x 6)."""
+    W = skew(earth.omega_ie_n(latitude_rad))
+    F = skew(earth.specific_force_n(gravity_mps2))
+    A = np.zeros((6, 6))
+    A[:3, :3] = -W
+    A[3:, :3] = F
+    A[3:, 3:] = -2.0 * W
+    return A
+
+
+def trajectory_moments(C_b_n: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
+                       time_s: np.ndarray, grid: ObservationGrid) -> np.ndarray:
+    """Kinematic moments of every interval, shape ``(K, N_MOMENTS)``.
+
+    Parameters
+    ----------
+    C_b_n : ndarray, shape (n + 1, 3, 3)
+        Attitude at the sample boundaries (index 0 = start).
+    dtheta, dv : ndarray, shape (n, 3)
+        Increments of the samples (compensated, as navigated).
+    time_s : ndarray, shape (n + 1,)
+        Sample boundary times.
+    """
+    C_mid = 0.5 * (C_b_n[1:] + C_b_n[:-1])
+    h = np.diff(time_s)
+    s_mid = 0.5 * (time_s[1:] + time_s[:-1])
+    b = grid.bounds
+    interval = np.repeat(np.arange(len(b) - 1), np.diff(b))
+    tau = time_s[b[1:]][interval] - s_mid[b[0]:b[-1]]
+    sl = slice(b[0], b[-1])
+
+    def block(inc):
+        K = np.einsum("nai,nm->naim", C_mid[sl], inc[sl]).reshape(-1, 27)
+        B = (C_mid[sl] * h[sl, None, None]).reshape(-1, 9)
+        return np.hstack([K, B])
+
+    gyro, accel = block(dtheta), block(dv)
+    starts = b[:-1] - b[0]
+    out = [np.add.reduceat(gyro, starts, axis=0),
+           np.add.reduceat(gyro * tau[:, None], starts, axis=0),
+           np.add.reduceat(gyro * (tau ** 2)[:, None], starts, axis=0),
+           np.add.reduceat(accel, starts, axis=0),
+           np.add.reduceat(accel * tau[:, None], starts, axis=0)]
+    return np.hstack(out)
+
+
+def _sensor_terms(moments, values, sensor: str, K_off: int):
+    """``sum C (E inc + b h)`` written with casadi: moments (27 + 9) and parameter symbols."""
+    bias = P.GYRO_BIAS if sensor == "gyro" else P.ACCEL_BIAS
+    K = moments[K_off:K_off + 27]
+    B = moments[K_off + 27:K_off + 36]
+    out = ca.SX.zeros(3)
+    for p in P.PARAMETERS:
+        if p.sensor != sensor or p.kind == "bias":
+            continue
+        # K is laid out [a, i, m] -> a*9 + i*3 + m: nav axis a, sensor i, body axis m.
+        out += ca.vertcat(*[K[a * 9 + p.row * 3 + p.col] for a in range(3)]) * values[p.index]
+    for i, idx in enumerate(range(bias.start, bias.stop)):
+        out += ca.vertcat(*[B[a * 3 + i] for a in range(3)]) * values[idx]
+    return out
+
+
+@functools.lru_cache(maxsize=16)
+def _chunk_function(latitude_rad: float, gravity_mps2: float) -> ca.Function:
+    """Compiled sensitivity propagation over ``CHUNK`` intervals (cached per site)."""
+    A = state_matrix(latitude_rad, gravity_mps2)
+    W = skew(earth.omega_ie_n(latitude_rad))
+    F = skew(earth.specific_force_n(gravity_mps2))
+    A2_vphi = -F @ W - 2.0 * W @ F
+    x = ca.SX.sym("x", 6)
+    p = ca.SX.sym("p", N_UNKNOWN)
+    m = ca.SX.sym("m", N_MOMENTS)
+    T = ca.SX.sym("T")
+    g0, g1, g2 = (_sensor_terms(m, p, "gyro", 36 * w) for w in range(3))
+    a0, a1 = (_sensor_terms(m, p, "accel", 36 * (3 + w)) for w in range(2))
+    AT = ca.DM(A) * T
+    Phi = ca.DM.eye(6)
+    term = ca.DM.eye(6)
+    for k in range(1, 6):  # (omega_ie T)^5 terms are far below rounding
+        term = ca.mtimes(term, AT) / k
+        Phi = Phi + term
+    u_phi = -(g0 - ca.mtimes(ca.DM(W), g1) + 0.5 * ca.mtimes(ca.DM(W @ W), g2))
+    u_v = (-(ca.mtimes(ca.DM(F), g1) + 0.5 * ca.mtimes(ca.DM(A2_vphi), g2))
+           + a0 - 2.0 * ca.mtimes(ca.DM(W), a1))
+    x_next = ca.mtimes(Phi, x) + ca.vertcat(u_phi, u_v)
+    # Sensitivities by AD of the step: S_next = dx_next/dx S + dx_next/dp.
+    S = ca.SX.sym("S", 6, N_UNKNOWN)
+    S_next = ca.mtimes(ca.jacobian(x_next, x), S) + ca.jacobian(x_next, p)
+    step = ca.Function("step", [S, ca.vertcat(m, T)], [S_next, S_next[3:, :]])
+    chunk = step.mapaccum("chunk", CHUNK, [0], [0])
+    return chunk
+
+
+def sensitivities(moments: np.ndarray, T: np.ndarray, latitude_rad: float,
+                  gravity_mps2: float) -> np.ndarray:
+    """``d(dv at each interval end) / d(params, phi0)``, shape ``(K + 1, 3, N_UNKNOWN)``.
+
+    Row 0 is the start (zero). Intervals are pushed through the compiled
+    chunk function ``CHUNK`` at a time; the last chunk is padded with
+    zero-length intervals, which leave the state unchanged.
+    """
+    chunk = _chunk_function(float(latitude_rad), float(gravity_mps2))
+    K = len(T)
+    n_chunks = -(-K // CHUNK)
+    inputs = np.zeros((N_MOMENTS + 1, n_chunks * CHUNK))
+    inputs[:N_MOMENTS, :K] = moments.T
+    inputs[N_MOMENTS, :K] = T
+    S = np.zeros((6, N_UNKNOWN))
+    S[:3, PHI0] = np.eye(3)
+    out = np.zeros((K + 1, 3, N_UNKNOWN))
+    for c in range(n_chunks):
+        S_all, Sv = chunk(S, inputs[:, c * CHUNK:(c + 1) * CHUNK])
+        Sv = _split_columns(np.asarray(Sv), 3)
+        lo = c * CHUNK
+        hi = min(K, lo + CHUNK)
+        out[lo + 1:hi + 1] = Sv[:hi - lo]
+        S = np.asarray(S_all)[:, -N_UNKNOWN:]
+    return out
+
+
+def _split_columns(stacked: np.ndarray, rows: int) -> np.ndarray:
+    """``[M_0, M_1, ...]`` horizontally stacked ``rows x N_UNKNOWN`` blocks -> ``(n, rows, N_UNKNOWN)``."""
+    n = stacked.shape[1] // N_UNKNOWN
+    return stacked.reshape(rows, n, N_UNKNOWN).transpose(1, 0, 2)
+
+
+def observation_matrix(S_v: np.ndarray, Phi_vv: np.ndarray) -> np.ndarray:
+    """``H_k = S_v[k] - Phi_vv[k] S_v[k-1]``, shape ``(K, 3, N_UNKNOWN)``."""
+    return S_v[1:] - np.einsum("kij,kjn->kin", Phi_vv, S_v[:-1])
