@@ -206,3 +206,42 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
                residual_rms_mps=float(np.sqrt(np.mean(z_fit ** 2))),
                chi2_per_dof=history[-1]["chi2_per_dof"], n_observations=int(z.size),
                history=history)
+
+
+def sequence_motion(seq, time_s: np.ndarray, dt: np.ndarray) -> np.ndarray:
+    """Per sample, whether a sequence says the IMU turns (grown by two samples as detected motion is)."""
+    from .sequence import timeline
+
+    tl = timeline(seq)
+    start = time_s - dt - (time_s[0] - dt[0])
+    end = time_s - (time_s[0] - dt[0])
+    moving = np.zeros(len(time_s), dtype=bool)
+    for a, b in zip(tl.t0[~tl.rest], tl.t1[~tl.rest]):
+        moving |= (end > a) & (start < b)
+    grown = moving.copy()
+    for s in (1, 2):
+        grown[s:] |= moving[:-s]
+        grown[:-s] |= moving[s:]
+    return grown
+
+
+def check_sequence_matches(seq, detected: np.ndarray, from_sequence: np.ndarray, dt: np.ndarray,
+                           where: str) -> None:
+    """Refuse a sequence file whose flips are not where the log turns."""
+    def runs(mask):
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+        return edges[::2], edges[1::2]
+
+    d0, _ = runs(detected)
+    s0, _ = runs(from_sequence)
+    if len(d0) != len(s0):
+        raise CalibError(f"the sequence {seq.name!r} has {len(s0)} flips where the log turns "
+                         f"{len(d0)} times", where,
+                         "give the sequence the run was made with, or omit --sequence")
+    t = np.cumsum(dt)
+    offsets = np.abs(t[d0] - t[s0])
+    if offsets.max() > 2.0:
+        k = int(np.argmax(offsets))
+        raise CalibError(f"flip {k + 1} of sequence {seq.name!r} starts at {t[s0[k]]:.2f} s but the "
+                         f"log turns at {t[d0[k]]:.2f} s", where,
+                         "give the sequence the run was made with, or omit --sequence")

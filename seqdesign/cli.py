@@ -205,5 +205,92 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
                    f"{'noise-free' if noise_free else 'profile ' + prof.name}) and {truth_path}")
 
 
+# ---------------------------------------------------------------------------
+# calibrate
+
+
+@main.command(short_help="Identify the 21 parameters (value and sigma) from a run log.")
+@click.argument("run_path", metavar="RUN")
+@click.option("--sequence", help="Sequence file the run followed (default: detect flips from the gyros).")
+@click.option("--profile", default="navigation", show_default=True,
+              help="Noise profile that weights the fit and scales the sigmas.")
+@click.option("-o", "--output", help="Result TOML (default: RUN with .result.toml).")
+@click.option("--truth", "truth_path", type=click.Path(dir_okay=False),
+              help="Truth file to compare with (default: RUN.truth.toml if it exists).")
+@click.option("--allow-gaps", is_flag=True, help="Accept time gaps in the log.")
+@click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
+@guarded
+def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, as_json):
+    """Align, navigate on the stationary base and fit the 21 error parameters of
+    RUN (CSV or NPZ) by iterated, noise-weighted least squares."""
+    from calib import earth
+    from calib.estimator import calibrate as fit_run, check_sequence_matches, detect_motion, \
+        sequence_motion
+    from calib.fileio import sha256_file
+    from calib.profiles import load_profile
+    from calib.result import CalibrationResult
+    from calib.runlog import read_run
+    from calib.sequence import load_sequence
+    from calib.truth import read_truth, truth_path_for
+    from seqdesign.report import format_table, parameter_entries, worst
+
+    prof = load_profile(profile)
+    run = read_run(run_path, allow_gaps=allow_gaps)
+    out_path = Path(output) if output else Path(run_path).with_name(Path(run_path).stem + ".result.toml")
+    if truth_path is None and truth_path_for(run_path).exists():
+        truth_path = truth_path_for(run_path)
+    truth = read_truth(truth_path) if truth_path else None
+    lat = math.radians(run.latitude_deg)
+    g = run.gravity_mps2 if run.gravity_mps2 is not None else earth.gravity(lat, run.height_m)
+    t = run.time_s
+    dt = np.diff(np.concatenate([[t[0] - run.dt_nominal], t]))
+    moving = None
+    if sequence:
+        seq = load_sequence(sequence)
+        moving = sequence_motion(seq, t, dt)
+        check_sequence_matches(seq, detect_motion(run.dtheta_rad, dt, run.source).moving,
+                               moving, dt, run.source)
+    info(f"calibrating {run_path}: {t.size} samples, {t[-1] - t[0] + run.dt_nominal:.1f} s, "
+         f"profile {prof.name}")
+    fit = fit_run(t, run.dtheta_rad, run.dv_mps, lat, g, prof, moving=moving, where=run.source)
+    if not fit.converged:
+        raise CalibError(f"the fit did not converge in {fit.iterations} iterations (last step "
+                         f"{fit.history[-1]['max_step_sigma']:.3g} sigma)", run.source,
+                         "no result written; check the run and the noise profile")
+    sigma = fit.sigma
+    scale = 1.0
+    if fit.chi2_per_dof > 1.2:
+        # The profile understates the noise: inflate by the Birge ratio, and say so.
+        scale = math.sqrt(fit.chi2_per_dof)
+        sigma = sigma * scale
+        info(f"warning: residuals are {fit.chi2_per_dof:.2f}x the profile's noise power; "
+             f"sigmas inflated by {scale:.2f}")
+    result = CalibrationResult(
+        values=fit.values, sigma=sigma, C_b_n0=fit.C_b_n0, converged=fit.converged,
+        iterations=fit.iterations, residual_rms_mps=fit.residual_rms_mps, profile=prof.name,
+        chi2_per_dof=fit.chi2_per_dof, correlation=fit.correlation[:21, :21],
+        provenance=provenance(run_sha256=sha256_file(run_path), sequence=sequence,
+                              sigma_scale=scale if scale != 1.0 else None))
+    result.save(out_path)
+    entries = parameter_entries(sigma, fit.values, truth.errors.values if truth else None)
+    if as_json:
+        doc = {"parameters": entries, "worst": worst(entries), "profile": prof.name,
+               "result": str(out_path),
+               "fit": {"converged": fit.converged, "iterations": fit.iterations,
+                       "residual_rms_mps": fit.residual_rms_mps,
+                       "chi2_per_dof": fit.chi2_per_dof, "sigma_scale": scale}}
+        if truth is not None:
+            e = (fit.values - truth.errors.values)
+            doc["nees"] = float(e @ np.linalg.solve(fit.covariance[:21, :21] * scale ** 2, e))
+        emit_json(doc)
+        return
+    click.echo(format_table(entries))
+    w = worst(entries)
+    click.echo(f"profile {prof.name}; converged in {fit.iterations} iterations; residual RMS "
+               f"{fit.residual_rms_mps:.3g} m/s; chi2/dof {fit.chi2_per_dof:.3f}; "
+               f"worst 3 sigma/requirement {w['ratio']:.2f} ({w['name']})")
+    click.echo(f"wrote {out_path}")
+
+
 if __name__ == "__main__":
     main()

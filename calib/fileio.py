@@ -1,0 +1,136 @@
+"""Small file helpers: atomic writes and content hashes.
+
+A file the tool writes is either complete or absent: a crash, a full disk or
+Ctrl-C half way through never leaves a truncated run log or result behind
+that a later command would trust.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+from pathlib import Path
+
+from calib.errors import CalibError
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    """Write ``data`` to ``path`` so that the file is either complete or untouched.
+
+    The bytes go to a temporary file in the same directory (so that the final
+    rename stays on one file system), are flushed to disk, and the temporary
+    file then replaces ``path`` in one step. On any exception, including
+    ``KeyboardInterrupt``, the temporary file is removed and an existing
+    ``path`` keeps its old content.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination file. Its directory must exist.
+    data : bytes
+        Complete new content.
+
+    Raises
+    ------
+    CalibError
+        If the file cannot be written (missing directory, no permission,
+        disk full, ...).
+    """
+    target = Path(path)
+    directory = target.parent
+    try:
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp",
+                                        dir=directory)
+    except OSError as exc:
+        raise CalibError(f"cannot write the file: {exc.strerror or exc}", str(target),
+                         "check that the directory exists and is writable") from exc
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
+            handle.flush()
+            os.fsync(handle.fileno())
+        # mkstemp creates the file private (0600); give it the permissions an
+        # ordinary open() would, so results can be shared like any other file.
+        os.chmod(tmp_name, _default_mode(target))
+        os.replace(tmp_name, target)
+    except BaseException as exc:
+        _remove_quietly(tmp_name)
+        if isinstance(exc, OSError):
+            raise CalibError(f"cannot write the file: {exc.strerror or exc}", str(target),
+                             "check free disk space and permissions") from exc
+        raise
+    _fsync_directory(directory)
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+    """Write ``text`` as UTF-8 to ``path`` atomically (see `atomic_write_bytes`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination file. Its directory must exist.
+    text : str
+        Complete new content; newlines are written as ``"\\n"`` on every
+        platform so files compare equal across machines.
+    """
+    atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def sha256_file(path: str | os.PathLike) -> str:
+    """Hex SHA-256 of a file's content, to tie a result to the exact run it came from.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        File to hash.
+
+    Returns
+    -------
+    str
+        64 lowercase hex digits.
+
+    Raises
+    ------
+    CalibError
+        If the file cannot be read.
+    """
+    try:
+        with open(path, "rb") as handle:
+            return hashlib.file_digest(handle, "sha256").hexdigest()
+    except OSError as exc:
+        raise CalibError(f"cannot read the file: {exc.strerror or exc}", str(path),
+                         "check the path and permissions") from exc
+
+
+def _default_mode(target: Path) -> int:
+    """Permission bits for ``target``: keep an existing file's, else 0666 minus umask."""
+    try:
+        return target.stat().st_mode & 0o7777
+    except OSError:
+        pass
+    # The umask can only be read by setting it; restore it at once.
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+def _remove_quietly(name: str) -> None:
+    """Remove a temporary file; it may already be gone."""
+    try:
+        os.unlink(name)
+    except OSError:
+        pass
+
+
+def _fsync_directory(directory: Path) -> None:
+    """Make the rename itself durable where the OS allows it (POSIX)."""
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return  # e.g. Windows cannot open directories; the rename is still atomic
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)

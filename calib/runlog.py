@@ -1,0 +1,743 @@
+"""Run logs: the raw IMU increments of one calibration run, in CSV or NPZ.
+
+The formats are specified in ``spec/files.md`` ("Run log, CSV" and "Run log,
+NPZ"). Both readers return the same `Run` and apply the same checks, so a run
+that loads from one format loads from the other.
+
+Every refusal is a `CalibError` naming the file and where in it the problem is:
+for CSV the 1-based line number counted from the top of the file (plus the
+column and the 0-based sample index), for NPZ the array element (``dv_mps[12, 1]``)
+or the metadata key.
+"""
+from __future__ import annotations
+
+import io
+import json
+import math
+import os
+import zipfile
+import zlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from calib.errors import CalibError
+from calib.fileio import atomic_write_bytes, atomic_write_text
+
+FORMAT = "imu-run/1"
+REQUIRED_META = ("format", "latitude_deg", "height_m", "sample_rate_hz")
+
+TIME_COLUMN = "time_s"
+DTHETA_COLUMNS = ("dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad")
+DV_COLUMNS = ("dv_x_mps", "dv_y_mps", "dv_z_mps")
+GIMBAL_COLUMNS = ("outer_deg", "middle_deg", "inner_deg")
+REQUIRED_COLUMNS = (TIME_COLUMN, *DTHETA_COLUMNS, *DV_COLUMNS)
+
+# CSV column names of each Run array, by component.
+_ARRAY_COLUMNS = {
+    "time_s": (TIME_COLUMN,),
+    "dtheta_rad": DTHETA_COLUMNS,
+    "dv_mps": DV_COLUMNS,
+    "gimbal_deg": GIMBAL_COLUMNS,
+}
+
+GAP_PERIODS = 2.0  # a time step longer than this many nominal periods is a gap
+
+_GAP_FIX = "fill the gap, or pass --allow-gaps to accept a run with gaps"
+
+
+@dataclass
+class Run:
+    """One run log: IMU increments as the IMU output them, plus site metadata.
+
+    Attributes
+    ----------
+    time_s : numpy.ndarray
+        ``(n,)`` float64, end of each sample interval, s.
+    dtheta_rad : numpy.ndarray
+        ``(n, 3)`` gyro angle increments over each interval, body frame, rad.
+    dv_mps : numpy.ndarray
+        ``(n, 3)`` accelerometer velocity increments, body frame, m/s.
+    meta : dict of str to str
+        All ``# key: value`` metadata as strings, in file order, including
+        ``format``; unknown keys are kept.
+    gimbal_deg : numpy.ndarray or None
+        ``(n, 3)`` outer, middle, inner encoder angles in degrees, or None.
+    source : str
+        Path the run was read from, used to name it in messages.
+    """
+
+    time_s: np.ndarray
+    dtheta_rad: np.ndarray
+    dv_mps: np.ndarray
+    meta: dict[str, str]
+    gimbal_deg: np.ndarray | None = None
+    source: str = "<memory>"
+
+    @property
+    def latitude_deg(self) -> float:
+        """Geodetic latitude of the site, degrees."""
+        return _meta_float(self.meta, "latitude_deg", self.source)
+
+    @property
+    def height_m(self) -> float:
+        """Ellipsoidal height of the site, m."""
+        return _meta_float(self.meta, "height_m", self.source)
+
+    @property
+    def sample_rate_hz(self) -> float:
+        """Nominal IMU output rate, Hz."""
+        return _meta_float(self.meta, "sample_rate_hz", self.source)
+
+    @property
+    def gravity_mps2(self) -> float | None:
+        """Measured gravity at the site, m/s^2, or None to use normal gravity."""
+        if "gravity_mps2" not in self.meta:
+            return None
+        return _meta_float(self.meta, "gravity_mps2", self.source)
+
+    @property
+    def sequence_name(self) -> str | None:
+        """Name of the sequence the run executed (``sequence`` key), or None."""
+        name = self.meta.get("sequence", "").strip()
+        return name or None
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples."""
+        return int(self.time_s.shape[0])
+
+    @property
+    def dt_nominal(self) -> float:
+        """Nominal sample period ``1 / sample_rate_hz``, s."""
+        return 1.0 / self.sample_rate_hz
+
+    @property
+    def duration_s(self) -> float:
+        """Time the samples cover, s.
+
+        Each ``time_s`` ends its interval, so the first sample starts one
+        nominal period before ``time_s[0]``: ``time_s[-1] - time_s[0] + dt_nominal``.
+        """
+        return float(self.time_s[-1] - self.time_s[0]) + self.dt_nominal
+
+
+def make_meta(latitude_deg: float, height_m: float, sample_rate_hz: float,
+              gravity_mps2: float | None = None, sequence: str | None = None,
+              **extra: str) -> dict[str, str]:
+    """Build a valid ``Run.meta`` dict, ``format`` first, numbers as exact reprs.
+
+    Parameters
+    ----------
+    latitude_deg, height_m, sample_rate_hz : float
+        Required site and rate metadata.
+    gravity_mps2 : float, optional
+        Measured gravity; omitted when None.
+    sequence : str, optional
+        Sequence name; omitted when None.
+    **extra : str
+        Further keys, kept as given (converted with ``str``).
+
+    Returns
+    -------
+    dict of str to str
+    """
+    meta = {"format": FORMAT,
+            "latitude_deg": repr(float(latitude_deg)),
+            "height_m": repr(float(height_m)),
+            "sample_rate_hz": repr(float(sample_rate_hz))}
+    if gravity_mps2 is not None:
+        meta["gravity_mps2"] = repr(float(gravity_mps2))
+    if sequence is not None:
+        meta["sequence"] = str(sequence)
+    meta.update({key: str(value) for key, value in extra.items()})
+    return meta
+
+
+# --------------------------------------------------------------------------
+# Public entry points
+# --------------------------------------------------------------------------
+
+def read_run(path: str | os.PathLike, allow_gaps: bool = False) -> Run:
+    """Read and check a run log, ``.csv`` or ``.npz`` (suffix case-insensitive).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Run log file.
+    allow_gaps : bool
+        Accept time steps longer than two nominal periods (``--allow-gaps``).
+
+    Returns
+    -------
+    Run
+        Arrays in float64, ``source`` set to ``str(path)``.
+
+    Raises
+    ------
+    CalibError
+        On any unreadable or invalid content, naming the file and the line,
+        key or sample.
+    """
+    kind = _kind(path)
+    if kind == ".csv":
+        return _read_csv(path, allow_gaps)
+    return _read_npz(path, allow_gaps)
+
+
+def write_run(run: Run, path: str | os.PathLike) -> None:
+    """Write a run log atomically as ``.csv`` or ``.npz`` (by suffix).
+
+    The run is checked first as a reader would check it (gaps excepted), so
+    the tool never writes a file it would refuse to read. CSV numbers use
+    Python's shortest round-trip repr, so reading gives back the exact floats.
+
+    Parameters
+    ----------
+    run : Run
+        Run to write; ``meta`` must contain ``format: imu-run/1`` and the
+        required keys (see `make_meta`).
+    path : str or os.PathLike
+        Destination, ``.csv`` or ``.npz``.
+
+    Raises
+    ------
+    CalibError
+        If the suffix is unknown, the run is invalid, or the file cannot be
+        written.
+    """
+    kind = _kind(path)
+    check_run(run, allow_gaps=True)
+    if kind == ".csv":
+        _check_meta_writable_as_csv(run.meta, run.source)
+        atomic_write_text(path, _format_csv(run))
+    else:
+        atomic_write_bytes(path, _format_npz(run))
+
+
+def check_run(run: Run, allow_gaps: bool = False) -> None:
+    """Apply the run-log checks to an in-memory run.
+
+    Parameters
+    ----------
+    run : Run
+        Run to check; messages name ``run.source`` and array elements.
+    allow_gaps : bool
+        Accept time steps longer than two nominal periods.
+
+    Raises
+    ------
+    CalibError
+        On the first problem found.
+    """
+    name = run.source
+    for key, value in run.meta.items():
+        if not isinstance(key, str) or not isinstance(value, str):
+            raise CalibError(f"metadata {key!r}: {value!r} is not a pair of strings", name,
+                             "metadata keys and values are strings, e.g. from make_meta()")
+    time = np.asarray(run.time_s)
+    n = time.shape[0] if time.ndim >= 1 else 0
+    for array_name in _ARRAY_COLUMNS:
+        array = getattr(run, array_name)
+        if array is not None:
+            _check_array_shape(np.asarray(array), array_name, n, f"{name}, array '{array_name}'")
+    locate = _ArrayLocator(name)
+    _check_meta(run.meta, locate)
+    _check_samples(run, locate, allow_gaps)
+
+
+# --------------------------------------------------------------------------
+# Shared checks
+# --------------------------------------------------------------------------
+
+class _ArrayLocator:
+    """Names places in an NPZ file or in-memory run: array elements and meta keys."""
+
+    def __init__(self, name: str):
+        self.name = name
+
+    def key(self, key: str) -> str:
+        return f"{self.name}, meta key '{key}'"
+
+    def sample(self, array: str, index: int, component: int | None = None) -> str:
+        element = f"{index}" if component is None else f"{index}, {component}"
+        return f"{self.name}, {array}[{element}]"
+
+
+class _CsvLocator:
+    """Names places in a CSV file: 1-based line numbers, column names, sample index."""
+
+    def __init__(self, name: str, key_lines: dict[str, int], sample_lines: np.ndarray):
+        self.name = name
+        self.key_lines = key_lines
+        self.sample_lines = sample_lines
+
+    def key(self, key: str) -> str:
+        line = self.key_lines.get(key)
+        return self.name if line is None else f"{self.name}, line {line}"
+
+    def sample(self, array: str, index: int, component: int | None = None) -> str:
+        text = f"{self.name}, line {int(self.sample_lines[index])}"
+        if component is not None or array == "time_s":
+            text += f", column {_ARRAY_COLUMNS[array][component or 0]}"
+        return text + f" (sample {index})"
+
+
+# What each numeric key means, for the fix part of messages.
+_META_HINTS = {
+    "latitude_deg": "geodetic latitude in degrees, north positive, within [-90, 90]",
+    "height_m": "ellipsoidal height in metres",
+    "sample_rate_hz": "the IMU output rate in Hz, greater than 0",
+    "gravity_mps2": "measured gravity in m/s^2, greater than 0, or leave the key out",
+}
+
+
+def _meta_float(meta: dict[str, str], key: str, where: str) -> float:
+    """Parse one numeric metadata value; refuse missing, non-numeric or non-finite."""
+    if key not in meta:
+        raise CalibError(f"required metadata '{key}' is missing", where,
+                         f"add a line '# {key}: <value>' ({_META_HINTS[key]})")
+    text = meta[key]
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        raise CalibError(f"metadata '{key}' is {text!r}, not a number", where,
+                         f"write a plain number: {_META_HINTS[key]}") from None
+    if not math.isfinite(value):
+        raise CalibError(f"metadata '{key}' is {text!r}, not a finite number", where,
+                         f"write a plain number: {_META_HINTS[key]}")
+    return value
+
+
+def _check_meta(meta: dict[str, str], locate) -> None:
+    """Refuse missing/unknown format, missing required keys and out-of-range values."""
+    if "format" not in meta:
+        raise CalibError("no 'format' metadata: this does not look like a run log",
+                         locate.key("format"),
+                         f"start the file with '# format: {FORMAT}'")
+    if meta["format"].strip() != FORMAT:
+        raise CalibError(f"unknown format {meta['format']!r}", locate.key("format"),
+                         f"this tool reads '{FORMAT}'; convert the file to that format")
+    values = {key: _meta_float(meta, key, locate.key(key)) for key in REQUIRED_META[1:]}
+    if not -90.0 <= values["latitude_deg"] <= 90.0:
+        raise CalibError(f"latitude_deg = {values['latitude_deg']} is outside [-90, 90]",
+                         locate.key("latitude_deg"),
+                         "give the geodetic latitude in degrees")
+    if values["sample_rate_hz"] <= 0.0:
+        raise CalibError(f"sample_rate_hz = {values['sample_rate_hz']} is not positive",
+                         locate.key("sample_rate_hz"),
+                         "give the IMU output rate in Hz")
+    if "gravity_mps2" in meta:
+        gravity = _meta_float(meta, "gravity_mps2", locate.key("gravity_mps2"))
+        if gravity <= 0.0:
+            raise CalibError(f"gravity_mps2 = {gravity} is not positive",
+                             locate.key("gravity_mps2"),
+                             "give the measured gravity in m/s^2, or leave the key out")
+
+
+def _check_array_shape(array: np.ndarray, name: str, n: int, where: str) -> None:
+    """Refuse arrays that are not real numbers of shape (n,) for time, (n, 3) otherwise."""
+    if array.dtype.kind not in "iuf":
+        raise CalibError(f"array '{name}' has dtype {array.dtype}, not real numbers", where,
+                         "store float64 values")
+    expected = (n,) if name == "time_s" else (n, 3)
+    if array.shape != expected:
+        text = "(n,)" if name == "time_s" else "(n, 3)"
+        raise CalibError(f"array '{name}' has shape {array.shape}, expected {text} "
+                         f"with n = {n} (the length of time_s)", where,
+                         "store one row per sample, all arrays the same length")
+
+
+def _check_samples(run: Run, locate, allow_gaps: bool) -> None:
+    """Refuse too few samples, non-finite values, non-increasing time and (unless allowed) gaps."""
+    time = np.asarray(run.time_s)
+    n = time.shape[0]
+    if n < 2:
+        raise CalibError(f"the run has {n} sample{'s' if n != 1 else ''}; at least 2 are needed",
+                         run.source, "record a longer run")
+    _check_finite(run, locate)
+    step = np.diff(time)
+    backwards = np.flatnonzero(step <= 0.0)
+    if backwards.size:
+        i = int(backwards[0]) + 1
+        raise CalibError(
+            f"time does not strictly increase: time_s = {float(time[i])!r} follows "
+            f"{float(time[i - 1])!r}"
+            + (f" ({backwards.size} such steps in all)" if backwards.size > 1 else ""),
+            locate.sample("time_s", i),
+            "samples must be in time order without repeats; sort the log or remove duplicates")
+    if allow_gaps:
+        return
+    dt = 1.0 / run.sample_rate_hz
+    # Float time stamps carry rounding: do not call a step of exactly two periods a gap.
+    limit = GAP_PERIODS * dt * (1.0 + 1e-9) + 8.0 * float(np.spacing(np.max(np.abs(time))))
+    gaps = np.flatnonzero(step > limit)
+    if gaps.size:
+        i = int(gaps[0]) + 1
+        raise CalibError(
+            f"{gaps.size} gap{'s' if gaps.size > 1 else ''} in time (steps longer than "
+            f"{GAP_PERIODS:g} nominal periods = {GAP_PERIODS * dt:g} s); the first is "
+            f"{step[i - 1]:.6g} s between time_s = {float(time[i - 1])!r} and {float(time[i])!r}",
+            locate.sample("time_s", i), _GAP_FIX)
+
+
+def _check_finite(run: Run, locate) -> None:
+    """Refuse NaN or infinity anywhere, naming the earliest sample that has one."""
+    first: tuple[int, str, int | None] | None = None
+    for name in _ARRAY_COLUMNS:
+        array = getattr(run, name)
+        if array is None:
+            continue
+        array = np.asarray(array)
+        bad = ~np.isfinite(array)
+        rows = np.flatnonzero(bad if array.ndim == 1 else bad.any(axis=1))
+        if rows.size and (first is None or rows[0] < first[0]):
+            i = int(rows[0])
+            component = None if array.ndim == 1 else int(np.flatnonzero(bad[i])[0])
+            first = (i, name, component)
+    if first is None:
+        return
+    i, name, component = first
+    array = np.asarray(getattr(run, name))
+    value = array[i] if component is None else array[i, component]
+    raise CalibError(f"value {float(value)!r} is not a finite number",
+                     locate.sample(name, i, component),
+                     "every sample must be a finite number; remove or repair the sample")
+
+
+def _kind(path: str | os.PathLike) -> str:
+    """Lower-case suffix, refused unless .csv or .npz."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in (".csv", ".npz"):
+        raise CalibError(f"unknown run log type {suffix or '(no suffix)'!r}", str(path),
+                         "name run logs *.csv (interchange) or *.npz (fast native)")
+    return suffix
+
+
+def _require_file(path: str | os.PathLike) -> None:
+    """Refuse a missing path or a directory before a parser sees it."""
+    if not Path(path).exists():
+        raise CalibError("file not found", str(path), "check the path")
+    if not Path(path).is_file():
+        raise CalibError("not a regular file", str(path), "give the path of a run log file")
+
+
+def _read_bytes(path: str | os.PathLike) -> bytes:
+    """Read a whole file, turning OS errors into CalibError."""
+    _require_file(path)
+    try:
+        return Path(path).read_bytes()
+    except OSError as exc:
+        raise CalibError(f"cannot read the file: {exc.strerror or exc}", str(path),
+                         "check the path and permissions") from None
+
+
+# --------------------------------------------------------------------------
+# CSV
+# --------------------------------------------------------------------------
+
+def _read_csv(path: str | os.PathLike, allow_gaps: bool) -> Run:
+    """Read a CSV run log (see module docstring for how places are named)."""
+    name = str(path)
+    lines = _decode_lines(_read_bytes(path), name)
+    meta, key_lines, header_index = _parse_preamble(lines, name)
+    columns = _parse_header(lines[header_index], header_index + 1, name)
+    rows, row_lines = _data_rows(lines, header_index + 1)
+    if not rows:
+        raise CalibError("the header row is not followed by any data rows",
+                         f"{name}, line {header_index + 1}",
+                         "a run log needs one row per sample")
+    n_fields = len(lines[header_index].split(","))
+    _check_field_counts(rows, row_lines, n_fields, name)
+    wanted = [columns[c] for c in REQUIRED_COLUMNS]
+    has_gimbal = all(c in columns for c in GIMBAL_COLUMNS)
+    if has_gimbal:
+        wanted += [columns[c] for c in GIMBAL_COLUMNS]
+    all_names = [c.strip() for c in lines[header_index].split(",")]
+    data = _parse_numbers(rows, row_lines, wanted, all_names, name)
+    run = Run(time_s=np.ascontiguousarray(data[:, 0]),
+              dtheta_rad=np.ascontiguousarray(data[:, 1:4]),
+              dv_mps=np.ascontiguousarray(data[:, 4:7]),
+              meta=meta,
+              gimbal_deg=np.ascontiguousarray(data[:, 7:10]) if has_gimbal else None,
+              source=name)
+    locate = _CsvLocator(name, key_lines, row_lines)
+    _check_meta(meta, locate)
+    _check_samples(run, locate, allow_gaps)
+    return run
+
+
+def _decode_lines(data: bytes, name: str) -> list[str]:
+    """UTF-8 (optional BOM) to lines split on LF; CRLF files read the same."""
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise CalibError(f"byte 0x{data[exc.start]:02x} is not valid UTF-8 "
+                         f"(byte offset {exc.start})", f"{name}, line {line}",
+                         "save the file as UTF-8") from None
+    if not text.strip():
+        raise CalibError("the file is empty", name,
+                         f"a run log starts with '# format: {FORMAT}', metadata, "
+                         "a header row and one row per sample")
+    if "\r" in text:
+        text = text.replace("\r\n", "\n")
+    return text.split("\n")
+
+
+def _parse_preamble(lines: list[str], name: str) -> tuple[dict[str, str], dict[str, int], int]:
+    """Collect ``# key: value`` lines up to the header row.
+
+    Returns
+    -------
+    meta : dict of str to str
+        Metadata in file order.
+    key_lines : dict of str to int
+        1-based line of each key.
+    header_index : int
+        0-based index of the header row.
+    """
+    meta: dict[str, str] = {}
+    key_lines: dict[str, int] = {}
+    for index, line in enumerate(lines):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if not stripped.startswith("#"):
+            return meta, key_lines, index
+        key, colon, value = stripped[1:].partition(":")
+        if not colon:
+            continue  # a plain comment line
+        key = key.strip()
+        if not key:
+            raise CalibError("metadata line has no key before ':'",
+                             f"{name}, line {index + 1}", "write '# key: value'")
+        if key in meta:
+            raise CalibError(f"metadata key '{key}' appears twice (first on line "
+                             f"{key_lines[key]})", f"{name}, line {index + 1}",
+                             "keep one of the two lines")
+        meta[key] = value.strip()
+        key_lines[key] = index + 1
+    raise CalibError("no header row after the metadata", name,
+                     "add the header row: " + ",".join(REQUIRED_COLUMNS))
+
+
+def _parse_header(line: str, line_number: int, name: str) -> dict[str, int]:
+    """Map each column name to its position; refuse missing or duplicated needed columns."""
+    names = [c.strip() for c in line.split(",")]
+    where = f"{name}, line {line_number}"
+    positions: dict[str, int] = {}
+    for position, column in enumerate(names):
+        if column in positions and column in (*REQUIRED_COLUMNS, *GIMBAL_COLUMNS):
+            raise CalibError(f"column '{column}' appears twice in the header", where,
+                             "keep one of the two columns")
+        positions.setdefault(column, position)
+    missing = [c for c in REQUIRED_COLUMNS if c not in positions]
+    if missing:
+        lower = {c.lower(): c for c in names}
+        hints = [f"'{lower[c.lower()]}' should be '{c}'" for c in missing if c.lower() in lower]
+        hint = f"; column names are case-sensitive: {', '.join(hints)}" if hints else ""
+        raise CalibError(f"header row lacks column{'s' if len(missing) > 1 else ''} "
+                         f"{', '.join(repr(c) for c in missing)}{hint}", where,
+                         "the header row (first line not starting with '#') must name "
+                         "at least " + ",".join(REQUIRED_COLUMNS))
+    gimbal = [c for c in GIMBAL_COLUMNS if c in positions]
+    if gimbal and len(gimbal) < 3:
+        absent = [c for c in GIMBAL_COLUMNS if c not in positions]
+        raise CalibError(f"header row has gimbal column{'s' if len(gimbal) > 1 else ''} "
+                         f"{', '.join(gimbal)} but lacks {', '.join(absent)}", where,
+                         "give all three of " + ",".join(GIMBAL_COLUMNS) + " or none")
+    return positions
+
+
+def _data_rows(lines: list[str], first: int) -> tuple[list[str], np.ndarray]:
+    """Non-blank lines after the header and their 1-based line numbers."""
+    body = lines[first:]
+    blank = [i for i, line in enumerate(body) if not line.strip()]
+    if not blank:
+        return body, np.arange(first + 1, first + 1 + len(body))
+    keep = np.ones(len(body), dtype=bool)
+    keep[blank] = False
+    numbers = np.flatnonzero(keep) + first + 1
+    return [line for line, k in zip(body, keep.tolist()) if k], numbers
+
+
+def _check_field_counts(rows: list[str], row_lines: np.ndarray, n_fields: int,
+                        name: str) -> None:
+    """Refuse rows whose field count differs from the header's."""
+    commas = np.fromiter((row.count(",") for row in rows), dtype=np.int64, count=len(rows))
+    bad = np.flatnonzero(commas != n_fields - 1)
+    if bad.size:
+        i = int(bad[0])
+        more = f" ({bad.size} such rows in all)" if bad.size > 1 else ""
+        raise CalibError(f"row has {commas[i] + 1} fields, the header has {n_fields}{more}",
+                         f"{name}, line {int(row_lines[i])} (sample {i})",
+                         "every data row needs one value per header column")
+
+
+def _parse_numbers(rows: list[str], row_lines: np.ndarray, wanted: list[int],
+                   names: list[str], name: str) -> np.ndarray:
+    """Parse the wanted columns as float64, fast; on failure find and name the bad field."""
+    try:
+        data = np.loadtxt(rows, delimiter=",", comments=None, dtype=np.float64,
+                          usecols=wanted, ndmin=2)
+    except ValueError:
+        data = None
+    if data is not None and data.shape == (len(rows), len(wanted)):
+        return data
+    return _parse_numbers_slowly(rows, row_lines, wanted, names, name)
+
+
+def _parse_numbers_slowly(rows: list[str], row_lines: np.ndarray, wanted: list[int],
+                          names: list[str], name: str) -> np.ndarray:
+    """Field-by-field parse: slow, but it can say exactly which field is bad."""
+    data = np.empty((len(rows), len(wanted)))
+    for i, row in enumerate(rows):
+        fields = row.split(",")
+        for j, position in enumerate(wanted):
+            try:
+                data[i, j] = float(fields[position])
+            except ValueError:
+                raise CalibError(f"field {fields[position].strip()!r} is not a number",
+                                 f"{name}, line {int(row_lines[i])}, column "
+                                 f"{names[position]} (sample {i})",
+                                 "write plain decimal numbers such as 1.5e-07") from None
+    return data
+
+
+def _format_csv(run: Run) -> str:
+    """The CSV text of a run: metadata (format first), header, shortest-repr rows."""
+    meta_lines = [f"# format: {FORMAT}"]
+    meta_lines += [f"# {key}: {value}" for key, value in run.meta.items() if key != "format"]
+    header = list(REQUIRED_COLUMNS)
+    columns = [np.reshape(run.time_s, (-1, 1)), run.dtheta_rad, run.dv_mps]
+    if run.gimbal_deg is not None:
+        header += GIMBAL_COLUMNS
+        columns.append(run.gimbal_deg)
+    table = np.hstack([np.asarray(c, dtype=np.float64) for c in columns])
+    # repr() is the shortest text that reads back to the same float, and
+    # mapping it column by column is as fast as np.savetxt('%.17g').
+    text_columns = [list(map(repr, column)) for column in table.T.tolist()]
+    body = "\n".join(map(",".join, zip(*text_columns)))
+    return "\n".join(meta_lines) + "\n" + ",".join(header) + "\n" + body + "\n"
+
+
+def _check_meta_writable_as_csv(meta: dict[str, str], name: str) -> None:
+    """Refuse metadata that would not read back the same from '# key: value' lines."""
+    for key, value in meta.items():
+        if (not key or key != key.strip() or ":" in key or "\n" in key or "\r" in key):
+            raise CalibError(f"metadata key {key!r} cannot be written as '# key: value'",
+                             name, "use keys without ':', line breaks or surrounding spaces")
+        if "\n" in value or "\r" in value:
+            raise CalibError(f"metadata '{key}' contains a line break", name,
+                             "keep metadata values on one line")
+
+
+# --------------------------------------------------------------------------
+# NPZ
+# --------------------------------------------------------------------------
+
+_NPZ_ARRAYS = ("time_s", "dtheta_rad", "dv_mps")
+
+# Everything numpy/zipfile raise for a damaged or foreign file.
+_ARCHIVE_ERRORS = (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error)
+
+
+def _read_npz(path: str | os.PathLike, allow_gaps: bool) -> Run:
+    """Read an NPZ run log; pickled content is never loaded."""
+    name = str(path)
+    _require_file(path)
+    arrays = _load_npz_arrays(path, name)
+    meta = _parse_npz_meta(arrays.pop("meta"), name)
+    n = arrays["time_s"].shape[0] if arrays["time_s"].ndim >= 1 else 0
+    for array_name, array in arrays.items():
+        _check_array_shape(array, array_name, n, f"{name}, array '{array_name}'")
+    as_float = {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in arrays.items()}
+    run = Run(time_s=as_float["time_s"], dtheta_rad=as_float["dtheta_rad"],
+              dv_mps=as_float["dv_mps"], meta=meta, gimbal_deg=as_float.get("gimbal_deg"),
+              source=name)
+    locate = _ArrayLocator(name)
+    _check_meta(meta, locate)
+    _check_samples(run, locate, allow_gaps)
+    return run
+
+
+def _load_npz_arrays(path: str | os.PathLike, name: str) -> dict[str, np.ndarray]:
+    """The run's arrays from an NPZ archive, refusing damaged, foreign or pickled content."""
+    fix = "write the file again with numpy.savez, or use the CSV format"
+    # Open the file ourselves: np.load leaks its handle when the zip is damaged.
+    try:
+        handle = open(path, "rb")
+    except OSError as exc:
+        raise CalibError(f"cannot read the file: {exc.strerror or exc}", name,
+                         "check the path and permissions") from None
+    with handle:
+        try:
+            archive = np.load(handle, allow_pickle=False)
+        except _ARCHIVE_ERRORS as exc:
+            raise CalibError(f"not a readable NPZ archive: {exc}", name, fix) from None
+        if not isinstance(archive, np.lib.npyio.NpzFile):
+            raise CalibError("the file is a single .npy array, not an NPZ archive", name, fix)
+        with archive:
+            present = set(archive.files)
+            missing = [a for a in (*_NPZ_ARRAYS, "meta") if a not in present]
+            if missing:
+                raise CalibError(f"archive lacks array{'s' if len(missing) > 1 else ''} "
+                                 f"{', '.join(repr(m) for m in missing)}", name,
+                                 "store time_s, dtheta_rad, dv_mps and meta "
+                                 "(see spec/files.md)")
+            try:
+                return {a: archive[a] for a in (*_NPZ_ARRAYS, "gimbal_deg", "meta")
+                        if a in present}
+            except _ARCHIVE_ERRORS as exc:
+                raise CalibError(f"cannot read the archive's arrays: {exc}", name,
+                                 fix) from None
+
+
+def _parse_npz_meta(array: np.ndarray, name: str) -> dict[str, str]:
+    """Decode the ``meta`` array: one JSON object of string (or number) values."""
+    where = f"{name}, array 'meta'"
+    fix = "store meta as a JSON object string, e.g. json.dumps(run.meta)"
+    if array.size != 1 or array.dtype.kind not in "US":
+        raise CalibError(f"meta is a {array.dtype} array of shape {array.shape}, "
+                         "not one JSON string", where, fix)
+    text = array.reshape(()).item()
+    if isinstance(text, bytes):
+        try:
+            text = text.decode("utf-8")
+        except UnicodeDecodeError:
+            raise CalibError("meta is not valid UTF-8", where, fix) from None
+    try:
+        raw = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise CalibError(f"meta is not valid JSON ({exc.msg} at line {exc.lineno}, "
+                         f"column {exc.colno})", where, fix) from None
+    if not isinstance(raw, dict):
+        raise CalibError(f"meta is a JSON {type(raw).__name__}, not an object", where, fix)
+    meta: dict[str, str] = {}
+    for key, value in raw.items():
+        if isinstance(value, str):
+            meta[key] = value
+        elif isinstance(value, (int, float)) and not isinstance(value, bool):
+            # Other programs may store numbers as numbers; keep them exactly.
+            meta[key] = repr(value)
+        else:
+            raise CalibError(f"meta value {value!r} is neither a string nor a number",
+                             f"{name}, meta key '{key}'", fix)
+    return meta
+
+
+def _format_npz(run: Run) -> bytes:
+    """The bytes of an uncompressed NPZ archive of the run."""
+    arrays = {"time_s": np.asarray(run.time_s, dtype=np.float64),
+              "dtheta_rad": np.asarray(run.dtheta_rad, dtype=np.float64),
+              "dv_mps": np.asarray(run.dv_mps, dtype=np.float64),
+              "meta": np.array(json.dumps(run.meta, ensure_ascii=False))}
+    if run.gimbal_deg is not None:
+        arrays["gimbal_deg"] = np.asarray(run.gimbal_deg, dtype=np.float64)
+    buffer = io.BytesIO()
+    np.savez(buffer, **arrays)
+    return buffer.getvalue()
