@@ -19,17 +19,14 @@ from . import earth
 from . import params as P
 from .errormodel import ErrorModel
 from .errors import CalibError
-from .jacobian import (N_UNKNOWN, PHI0, observation_grid, observation_matrix, sensitivities,
-                       state_matrix, trajectory_moments)
-from .noise import interval_models, whiten, whitener
+from .jacobian import N_UNKNOWN, PHI0, default_grid, observation_jacobian, state_matrix
+from .noise import noise_model, whiten
 from .profiles import NoiseProfile
 from .strapdown import navigate
 from .transform import rotvec_to_dcm
 
 MOTION_THRESHOLD = 0.01  # rad/s: far above Earth rate + bias + noise, far below a flip
 MIN_ALIGN_S = 10.0
-REST_STEP_S = 1.0
-MOVE_STEP_S = 0.1
 PHI0_SCALE = 1e-4  # rad, for scaling the normal equations only
 
 
@@ -154,14 +151,11 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
                          f"(needs >= {MIN_ALIGN_S:.0f} s)", where,
                          "start the run with the IMU at rest")
     fs = 1.0 / np.median(dt)
-    grid = observation_grid(seg.moving, max(1, round(REST_STEP_S * fs)),
-                            max(1, round(MOVE_STEP_S * fs)))
+    grid = default_grid(seg.moving, fs)
     t_nav = np.concatenate([[time_s[0] - dt[0]], time_s])
-    T = np.diff(t_nav[grid.bounds])
-    A = state_matrix(latitude_rad, gravity_mps2)
-    models = interval_models(A, T, profile)
-    W = whitener(models)
-    Phi_vv = np.array([m.Phi[3:, 3:] for m in models])
+    noise = noise_model(state_matrix(latitude_rad, gravity_mps2),
+                        np.diff(t_nav[grid.bounds]), profile)
+    W, Phi_vv = noise.whitener, noise.Phi_vv
 
     values = np.zeros(P.N_PARAMS)
     C0 = coarse_alignment(dtheta_m[:seg.first_rest_end], dv_m[:seg.first_rest_end],
@@ -181,9 +175,8 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
                              "check units and that the run is a stationary-base calibration")
         if N is None or it <= 3:
             # The Jacobian changes little once the big errors are compensated.
-            moments = trajectory_moments(nav.C_b_n, dth, dvv, nav.time_s, grid)
-            S_v = sensitivities(moments, T, latitude_rad, gravity_mps2)
-            H = observation_matrix(S_v, Phi_vv)
+            H = observation_jacobian(nav.C_b_n, dth, dvv, nav.time_s, grid, latitude_rad,
+                                     gravity_mps2, Phi_vv)
             Hw = whiten(W, H)
             N, _, D = normal_equations(Hw)
             cov_scaled = solve_information(N, where)

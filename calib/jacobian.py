@@ -41,6 +41,8 @@ N_UNKNOWN = P.N_PARAMS + 3  # the 21 parameters and the initial attitude error p
 PHI0 = slice(P.N_PARAMS, N_UNKNOWN)
 N_MOMENTS = 5 * 36  # gyro (1, tau, tau^2) and accel (1, tau), 27 + 9 each
 CHUNK = 256
+REST_STEP_S = 1.0  # observation interval at rest; 0.25 s changes no sigma by 1e-4
+MOVE_STEP_S = 0.1  # observation interval while turning
 
 
 @dataclass(frozen=True)
@@ -74,6 +76,12 @@ def observation_grid(moving: np.ndarray, rest_step: int, move_step: int) -> Obse
         m = max(1, int(round((b - a) / step)))
         bounds.extend(np.round(np.linspace(a, b, m + 1)[1:]).astype(int))
     return ObservationGrid(np.unique(np.array(bounds)))
+
+
+def default_grid(moving: np.ndarray, sample_rate_hz: float) -> ObservationGrid:
+    """The observation intervals the estimator and the analyser both use."""
+    return observation_grid(moving, max(1, round(REST_STEP_S * sample_rate_hz)),
+                            max(1, round(MOVE_STEP_S * sample_rate_hz)))
 
 
 def state_matrix(latitude_rad: float, gravity_mps2: float) -> np.ndarray:
@@ -206,3 +214,16 @@ def _split_columns(stacked: np.ndarray, rows: int) -> np.ndarray:
 def observation_matrix(S_v: np.ndarray, Phi_vv: np.ndarray) -> np.ndarray:
     """``H_k = S_v[k] - Phi_vv[k] S_v[k-1]``, shape ``(K, 3, N_UNKNOWN)``."""
     return S_v[1:] - np.einsum("kij,kjn->kin", Phi_vv, S_v[:-1])
+
+
+def observation_jacobian(C_b_n: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
+                         time_nav: np.ndarray, grid: ObservationGrid, latitude_rad: float,
+                         gravity_mps2: float, Phi_vv: np.ndarray) -> np.ndarray:
+    """``H`` of every interval along a trajectory, shape ``(K, 3, N_UNKNOWN)``.
+
+    The one linear model of the tool: the estimator evaluates it along the
+    navigated trajectory, the analyser along the nominal one.
+    """
+    moments = trajectory_moments(C_b_n, dtheta, dv, time_nav, grid)
+    T = np.diff(time_nav[grid.bounds])
+    return observation_matrix(sensitivities(moments, T, latitude_rad, gravity_mps2), Phi_vv)

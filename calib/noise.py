@@ -108,3 +108,16 @@ def whiten(w: Whitener, X: np.ndarray) -> np.ndarray:
         phi = w.Phi_pp[k] @ phi + w.gain[k] @ e
         out[k] = w.L_inv[k] @ e
     return out
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """Whitening gains and the velocity transition of every interval."""
+
+    whitener: Whitener
+    Phi_vv: np.ndarray  # (K, 3, 3)
+
+
+def noise_model(A: np.ndarray, T: np.ndarray, profile: NoiseProfile) -> NoiseModel:
+    models = interval_models(A, T, profile)
+    return NoiseModel(whitener(models), np.array([m.Phi[3:, 3:] for m in models]))
