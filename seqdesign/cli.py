@@ -292,5 +292,126 @@ def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, as_js
     click.echo(f"wrote {out_path}")
 
 
+# ---------------------------------------------------------------------------
+# analyze / compare
+
+
+def _analysis(sequence, profile, latitude, tolerance_deg):
+    from calib import earth
+    from calib.profiles import load_profile
+    from calib.sequence import load_sequence
+    from seqdesign.observability import accel_scale_bound, analyze_tolerance
+
+    if not (0.0 <= tolerance_deg <= 10.0):
+        raise CalibError(f"--tolerance-deg {tolerance_deg} outside [0, 10]", "--tolerance-deg")
+    seq = load_sequence(sequence)
+    prof = load_profile(profile)
+    lat, h = _site(seq, latitude, None)
+    rob = analyze_tolerance(seq, prof, math.radians(lat), h, tolerance_deg)
+    bound = accel_scale_bound(seq.duration_s, prof, earth.gravity(math.radians(lat), h))
+    return seq, prof, lat, rob, bound
+
+
+def _analysis_doc(seq, prof, lat, rob, bound) -> dict:
+    from calib import params as P
+    from seqdesign.report import parameter_entries, worst
+
+    w = rob.worst
+    # Each parameter's figure is its own worst over the box (conventions.md).
+    entries = parameter_entries(rob.per_parameter_worst_sigma)
+    for p in P.PARAMETERS:
+        entries[p.name]["ratio_nominal"] = float(rob.nominal.ratio[p.index])
+    doc = {"sequence": seq.name, "duration_s": seq.duration_s, "profile": prof.name,
+           "latitude_deg": lat, "tolerance_deg": rob.tolerance_deg, "setups_evaluated": rob.points,
+           "parameters": entries, "worst": worst(entries),
+           "worst_setup_deg": [float(x) for x in np.degrees(w.setup_rotvec)],
+           "rank": w.rank, "unobservable": w.unobservable,
+           "correlated_pairs": [{"a": a, "b": b, "rho": r} for a, b, r in w.correlated_pairs()],
+           "criteria": w.criteria(),
+           "accel_scale_bound": {"best_possible_ratio": bound,
+                                 "achieved_ratio": float(max(entries[n]["ratio"]
+                                                             for n in ("sax", "say", "saz")))}}
+    return doc
+
+
+@main.command(short_help="Predict sigma and separability of the 21 parameters for a sequence.")
+@click.argument("sequence")
+@click.option("--profile", default="navigation", show_default=True, help="Noise profile.")
+@click.option("--latitude", type=float, help="Site latitude, deg (default: sequence, else 40).")
+@click.option("--tolerance-deg", type=float, default=3.0, show_default=True,
+              help="Base mounting tolerance; the figures are the worst over the box (0: nominal only).")
+@click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
+@guarded
+def analyze(sequence, profile, latitude, tolerance_deg, as_json):
+    """Fisher information of SEQUENCE under a noise profile: predicted sigma of
+    each parameter against its requirement (3 sigma / requirement), correlated
+    pairs, unobservable directions, worst case over the +-tolerance mounting box."""
+    seq, prof, lat, rob, bound = _analysis(sequence, profile, latitude, tolerance_deg)
+    doc = _analysis_doc(seq, prof, lat, rob, bound)
+    if as_json:
+        emit_json(doc)
+        return
+    from seqdesign.report import format_table
+    click.echo(f"{seq.name}: {seq.duration_s:.0f} s ({seq.duration_s / 60:.1f} min), profile "
+               f"{prof.name}, latitude {lat:g} deg, worst case over +-{rob.tolerance_deg:g} deg "
+               f"({rob.points} mountings)")
+    click.echo(format_table(doc["parameters"]))
+    _verdict(doc)
+
+
+def _verdict(doc) -> None:
+    misses = [n for n, e in doc["parameters"].items() if e["ratio"] > 1.0]
+    if doc["unobservable"]:
+        click.echo("UNOBSERVABLE directions: " + "; ".join(doc["unobservable"]))
+    if doc["correlated_pairs"]:
+        click.echo("correlated pairs (|rho| > 0.9): " + ", ".join(
+            f"{p['a']}/{p['b']} {p['rho']:+.3f}" for p in doc["correlated_pairs"]))
+    b = doc["accel_scale_bound"]
+    click.echo(f"accel scale-factor bound for {doc['duration_s']:.0f} s: best possible ratio "
+               f"{b['best_possible_ratio']:.2f}, this sequence {b['achieved_ratio']:.2f}")
+    w = doc["worst"]
+    if doc["rank"] < 21:
+        verdict = (f"Verdict: only {doc['rank']} of 21 parameters are observable; calibration "
+                   "with this sequence cannot separate them.")
+    elif not misses:
+        verdict = (f"Verdict: all 21 parameters meet their requirements (worst ratio {w['ratio']:.2f}, "
+                   f"{w['name']}) under profile {doc['profile']}, worst case over the mounting box.")
+    else:
+        verdict = (f"Verdict: {len(misses)} of 21 parameters miss their requirement ("
+                   + ", ".join(misses) + f"); the worst is {w['name']} at {w['ratio']:.2f} x the "
+                   f"requirement (3 sigma), under profile {doc['profile']}, worst case over the "
+                   "mounting box.")
+    if doc["tolerance_deg"] == 0:
+        verdict = verdict.replace("worst case over the mounting box", "at the nominal mounting")
+    click.echo(verdict)
+
+
+@main.command(short_help="Compare sequences side by side: time, worst ratio, per-parameter ratios.")
+@click.argument("sequences", nargs=-1, required=True)
+@click.option("--profile", default="navigation", show_default=True, help="Noise profile.")
+@click.option("--latitude", type=float, help="Site latitude, deg (default: each sequence's, else 40).")
+@click.option("--tolerance-deg", type=float, default=3.0, show_default=True)
+@click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
+@guarded
+def compare(sequences, profile, latitude, tolerance_deg, as_json):
+    """Analyse several sequences and print their 3 sigma / requirement ratios side by side."""
+    from calib import params as P
+
+    docs = [_analysis_doc(*_analysis(s, profile, latitude, tolerance_deg)) for s in sequences]
+    if as_json:
+        emit_json({"sequences": docs})
+        return
+    names = [d["sequence"] for d in docs]
+    width = max(10, *(len(n) + 2 for n in names))
+    click.echo(f"{'':<12}" + "".join(f"{n:>{width}}" for n in names))
+    click.echo(f"{'time min':<12}" + "".join(f"{d['duration_s'] / 60:>{width}.1f}" for d in docs))
+    click.echo(f"{'worst':<12}" + "".join(
+        f"{d['worst']['name'] + ' ' + format(d['worst']['ratio'], '.2f'):>{width}}" for d in docs))
+    for p in P.PARAMETERS:
+        click.echo(f"{p.name:<12}" + "".join(f"{d['parameters'][p.name]['ratio']:>{width}.2f}"
+                                              for d in docs))
+    click.echo(f"ratios are 3 sigma / requirement, worst over +-{tolerance_deg:g} deg, profile {profile}")
+
+
 if __name__ == "__main__":
     main()

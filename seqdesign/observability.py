@@ -187,9 +187,13 @@ class Robustness:
 
     nominal: Observability
     worst: Observability  # the mounting with the largest worst ratio
-    per_parameter_worst_ratio: np.ndarray  # (21,) max over the box of each ratio
+    per_parameter_worst_sigma: np.ndarray  # (21,) SI, max over the box of each sigma
     points: int
     tolerance_deg: float
+
+    @property
+    def per_parameter_worst_ratio(self) -> np.ndarray:
+        return P.ratio(self.per_parameter_worst_sigma)
 
 
 def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
@@ -197,8 +201,8 @@ def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
     """Worst case over the 27 corner/edge/face/centre mountings of the tolerance box."""
     nominal = analyze(seq, profile, latitude_rad, height_m)
     if tolerance_deg == 0:
-        return Robustness(nominal, nominal, nominal.ratio, 1, 0.0)
-    worst, per_param = nominal, nominal.ratio.copy()
+        return Robustness(nominal, nominal, nominal.sigma, 1, 0.0)
+    worst, per_param = nominal, nominal.sigma.copy()
     levels = (-tolerance_deg, 0.0, tolerance_deg)
     count = 1
     for e, n, u in itertools.product(levels, levels, levels):
@@ -206,7 +210,7 @@ def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
             continue
         obs = analyze(seq, profile, latitude_rad, height_m, np.radians([e, n, u]))
         count += 1
-        per_param = np.maximum(per_param, obs.ratio)
+        per_param = np.maximum(per_param, obs.sigma)
         if obs.worst[1] > worst.worst[1]:
             worst = obs
     return Robustness(nominal, worst, per_param, count, tolerance_deg)
