@@ -110,12 +110,24 @@ def _marginal(info: np.ndarray) -> np.ndarray:
     return a - b @ np.linalg.solve(c, b.T)
 
 
-def _unobservable(M_scaled: np.ndarray, evals: np.ndarray, evecs: np.ndarray, tol: float):
+def _unobservable(evals: np.ndarray, evecs: np.ndarray, tol: float) -> list[str]:
+    """Null directions of the requirement-scaled information, as sparse name combinations.
+
+    The null space has no preferred basis, so it is put in reduced row-echelon
+    form: each direction then has one pivot parameter and as few others as the
+    physics forces (e.g. ``+1.00*saz -0.02*baz``: z bias and scale factor only
+    ever seen together). Coefficients are in units of each requirement.
+    """
+    from scipy.linalg import qr
+
+    null = evecs[:, evals <= tol].T  # (k, 21)
+    _, _, piv = qr(null, pivoting=True)
+    k = null.shape[0]
+    basis = np.linalg.solve(null[:, piv[:k]], null)  # identity on the pivot columns
     out = []
-    for k in np.flatnonzero(evals <= tol):
-        v = evecs[:, k]
-        top = [i for i in np.argsort(-np.abs(v)) if abs(v[i]) > 0.1][:6]
-        out.append(" ".join(f"{v[i]:+.2f}*{P.NAMES[i]}" for i in top))
+    for row in basis:
+        idx = [i for i in np.argsort(-np.abs(row)) if abs(row[i]) > 0.01][:6]
+        out.append(" ".join(f"{row[i]:+.2f}*{P.NAMES[i]}" for i in idx))
     return out
 
 
@@ -132,7 +144,7 @@ def from_information(info: np.ndarray, duration_s: float, profile: str,
     if rank == P.N_PARAMS:
         cov = ((evecs / evals) @ evecs.T) * np.outer(D, D)
     else:
-        unobs = _unobservable(Ms, evals, evecs, tol)
+        unobs = _unobservable(evals, evecs, tol)
     return Observability(information=info, covariance=cov, rank=rank, unobservable=unobs,
                          duration_s=duration_s, profile=profile,
                          setup_rotvec=np.asarray(setup_rotvec, dtype=float))

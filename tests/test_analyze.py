@@ -1,0 +1,139 @@
+"""Analysis: the casadi Jacobian against finite differences, rank, CLI."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from calib import earth
+from calib import params as P
+from calib.errormodel import ErrorModel
+from calib.jacobian import N_UNKNOWN, default_grid, observation_jacobian, state_matrix
+from calib.noise import noise_model
+from calib.profiles import load_profile
+from calib.sequence import load_sequence, sequence_from_dict
+from calib.sim import SimConfig, simulate
+from calib.strapdown import navigate
+from calib.transform import rotvec_to_dcm
+from seqdesign.cli import main
+from seqdesign.observability import analyze, nominal_run
+
+LAT = math.radians(40.0)
+SETUP = np.radians([1.0, -2.0, 3.0])
+RATE = 50.0  # Hz: the finite difference runs the whole pipeline 48 times
+
+
+def _observations(seq, values, phi0, grid, Phi_vv):
+    """Full nonlinear pipeline: simulate (errors injected) -> navigate raw data -> z."""
+    cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=RATE)
+    run, _ = simulate(seq, cfg, ErrorModel(values), load_profile("navigation"),
+                      setup_rotvec=SETUP, noise=False)
+    C_true = rotvec_to_dcm(SETUP) @ seq.C_start
+    # C~ = (I - [phi x]) C  <=>  C~ = exp(-[phi x]) C to first order.
+    C0 = rotvec_to_dcm(-phi0) @ C_true
+    nav = navigate(run.dtheta_rad, run.dv_mps, run.time_s, C0, LAT, cfg.gravity, t0=0.0)
+    y = nav.v_n[grid.bounds]
+    return y[1:] - np.einsum("kij,kj->ki", Phi_vv, y[:-1])
+
+
+def test_casadi_jacobian_matches_central_finite_difference():
+    """Every column of H equals a central difference of simulate -> navigate to 1e-3 relative."""
+    seq = load_sequence("paper-9pos")
+    g = earth.gravity(LAT)
+    nom = nominal_run(seq, LAT, 0.0, SETUP, RATE)
+    grid = default_grid(nom.moving, RATE)
+    Phi_vv = noise_model(state_matrix(LAT, g), np.diff(nom.time_nav[grid.bounds]),
+                         load_profile("navigation")).Phi_vv
+    H = observation_jacobian(nom.C_b_n, nom.dtheta, nom.dv, nom.time_nav, grid, LAT, g, Phi_vv)
+    # Steps: the requirement of each parameter (the scale the fit resolves) and
+    # 1e-5 rad of initial attitude. Central differences cancel the second order;
+    # third-order terms are ~(1e-4 rad)^2 relative, rounding ~1e-16 / 1e-9 m/s.
+    steps = np.concatenate([P.REQUIREMENTS_SI, np.full(3, 1e-5)])
+    bad = {}
+    for j in range(N_UNKNOWN):
+        dp = np.zeros(N_UNKNOWN)
+        dp[j] = steps[j]
+        z_plus = _observations(seq, dp[:21], dp[21:], grid, Phi_vv)
+        z_minus = _observations(seq, -dp[:21], -dp[21:], grid, Phi_vv)
+        fd = (z_plus - z_minus) / (2 * steps[j])
+        rel = np.linalg.norm(H[:, :, j] - fd) / np.linalg.norm(fd)
+        if rel > 1e-3:
+            bad[j] = rel
+    assert not bad, bad
+
+
+def test_paper_sequence_is_full_rank_and_matches_physical_bound():
+    seq = load_sequence("paper-9pos")
+    prof = load_profile("navigation")
+    obs = analyze(seq, prof, LAT)
+    assert obs.rank == 21 and not obs.unobservable
+    # Accelerometer scale factors cannot beat the gravity-only bound of conventions.md:
+    # sigma >= VRW sqrt(3/T)/g for the best-served axis of the three together.
+    from seqdesign.observability import accel_scale_bound
+    bound = accel_scale_bound(seq.duration_s, prof, earth.gravity(LAT))
+    assert max(obs.ratio[P.ACCEL_SCALE]) >= bound * 0.999
+    # Information adds: the sum over the three of 1/sigma^2 is at most g^2 T / VRW^2.
+    info_sum = np.sum(1.0 / obs.sigma[P.ACCEL_SCALE] ** 2)
+    assert info_sum <= earth.gravity(LAT) ** 2 * seq.duration_s / prof.vrw ** 2 * 1.0001
+
+
+def test_sigma_scales_with_noise():
+    # Halving both noise densities halves every sigma (information is 1/noise^2).
+    seq = load_sequence("paper-9pos")
+    from calib.profiles import NoiseProfile
+    a = analyze(seq, NoiseProfile("a", 0.002, 20.0), LAT)
+    b = analyze(seq, NoiseProfile("b", 0.001, 10.0), LAT)
+    assert np.allclose(a.sigma / b.sigma, 2.0, rtol=1e-6)
+
+
+def test_single_axis_sequence_is_rank_deficient_and_names_directions():
+    # Only turning about the vertical Z axis: X and Y stay level, so their
+    # accelerometers never see gravity (sax, say unexcited), and the z
+    # accelerometer always sees +g, so its bias and scale factor appear only as
+    # baz + g * saz.
+    doc = {"name": "spin", "start": ["east", "north", "up"], "initial_dwell_s": 60.0,
+           "step": [{"axis": "Z", "angle_deg": 90.0, "dwell_s": 60.0} for _ in range(4)]}
+    seq = sequence_from_dict(doc, "spin")
+    obs = analyze(seq, load_profile("navigation"), LAT)
+    assert obs.rank < 21
+    text = " ".join(obs.unobservable)
+    for name in ("sax", "say", "saz"):
+        assert name in text
+    # The physical null direction: +g in baz cancels -1 in saz (SI).
+    v = np.zeros(21)
+    v[P.INDEX["baz"]], v[P.INDEX["saz"]] = earth.gravity(LAT), -1.0
+    M = obs.information[:21, :21]
+    w = np.zeros(21)
+    w[P.INDEX["baz"]] = earth.gravity(LAT)  # same size, not a null direction
+    # Rounding leaves ~1e-9 of the information a non-null direction of that size has.
+    assert v @ M @ v < 1e-6 * (w @ M @ w)
+
+
+def test_cli_analyze_json_layout_and_tolerance():
+    r = CliRunner().invoke(main, ["analyze", "paper-9pos", "--tolerance-deg", "0", "--json"])
+    assert r.exit_code == 0, r.output
+    doc = json.loads(r.stdout)
+    assert list(doc["parameters"]) == list(P.NAMES)
+    for e in doc["parameters"].values():
+        assert e["ratio"] == pytest.approx(3 * e["sigma"] / e["requirement"])
+    assert doc["worst"]["ratio"] == max(e["ratio"] for e in doc["parameters"].values())
+    assert doc["setups_evaluated"] == 1
+
+
+def test_cli_analyze_worst_case_is_not_better_than_nominal():
+    r0 = CliRunner().invoke(main, ["analyze", "paper-9pos", "--tolerance-deg", "0", "--json"])
+    r3 = CliRunner().invoke(main, ["analyze", "paper-9pos", "--tolerance-deg", "3", "--json"])
+    d0, d3 = json.loads(r0.stdout), json.loads(r3.stdout)
+    assert d3["setups_evaluated"] == 27
+    for n in P.NAMES:
+        assert d3["parameters"][n]["ratio"] >= d0["parameters"][n]["ratio"] * (1 - 1e-12)
+
+
+def test_cli_analyze_bad_input():
+    r = CliRunner().invoke(main, ["analyze", "nope-seq"])
+    assert r.exit_code != 0 and "nope-seq" in r.output and "Traceback" not in r.output
+    r = CliRunner().invoke(main, ["analyze", "paper-9pos", "--tolerance-deg", "45"])
+    assert r.exit_code != 0 and "tolerance" in r.output
