@@ -18,8 +18,7 @@ the interval needs only kinematic *moments* of the trajectory::
 
 Casadi differentiates the interval step (error model composed with the
 propagation) with respect to the state and the parameters; the sensitivity
-``S = dx / d(params, phi0)`` is carried through a compiled ``mapaccum`` over
-fixed-size chunks of intervals.
+``S = dx / d(params, phi0)`` is then carried through the intervals.
 
 Observations: the navigation velocity at the interval ends ``y_k``, taken as
 ``z_k = y_k - Phi_vv(T_k) y_{k-1}``, so that ``z_k = H_k p + Phi_vphi phi_noise
@@ -40,7 +39,6 @@ from .transform import skew
 N_UNKNOWN = P.N_PARAMS + 3  # the 21 parameters and the initial attitude error phi0
 PHI0 = slice(P.N_PARAMS, N_UNKNOWN)
 N_MOMENTS = 5 * 36  # gyro (1, tau, tau^2) and accel (1, tau), 27 + 9 each
-CHUNK = 256
 REST_STEP_S = 1.0  # observation interval at rest; 0.25 s changes no sigma by 1e-4
 MOVE_STEP_S = 0.1  # observation interval while turning
 
@@ -147,9 +145,22 @@ def _sensor_terms(moments, values, sensor: str, K_off: int):
     return out
 
 
+@dataclass(frozen=True)
+class StepModel:
+    """Derivatives of the interval step, from casadi's AD of the symbolic step.
+
+    ``x_next = Phi(T) x + u(moments, params)``; the step is affine, so its
+    derivatives are exact: ``Phi(T) = d x_next / d x`` (a function of the
+    interval length) and ``d x_next / d params = input_map . moments``.
+    """
+
+    transition: ca.Function  # T -> Phi (6 x 6)
+    input_map: np.ndarray  # (N_MOMENTS, 6 * N_UNKNOWN), column-major blocks of d x_next / d p
+
+
 @functools.lru_cache(maxsize=16)
-def _chunk_function(latitude_rad: float, gravity_mps2: float) -> ca.Function:
-    """Compiled sensitivity propagation over ``CHUNK`` intervals (cached per site)."""
+def step_model(latitude_rad: float, gravity_mps2: float) -> StepModel:
+    """Build the symbolic interval step for a site and differentiate it (cached per site)."""
     A = state_matrix(latitude_rad, gravity_mps2)
     W = skew(earth.omega_ie_n(latitude_rad))
     F = skew(earth.specific_force_n(gravity_mps2))
@@ -170,45 +181,37 @@ def _chunk_function(latitude_rad: float, gravity_mps2: float) -> ca.Function:
     u_v = (-(ca.mtimes(ca.DM(F), g1) + 0.5 * ca.mtimes(ca.DM(A2_vphi), g2))
            + a0 - 2.0 * ca.mtimes(ca.DM(W), a1))
     x_next = ca.mtimes(Phi, x) + ca.vertcat(u_phi, u_v)
-    # Sensitivities by AD of the step: S_next = dx_next/dx S + dx_next/dp.
-    S = ca.SX.sym("S", 6, N_UNKNOWN)
-    S_next = ca.mtimes(ca.jacobian(x_next, x), S) + ca.jacobian(x_next, p)
-    step = ca.Function("step", [S, ca.vertcat(m, T)], [S_next, S_next[3:, :]])
-    chunk = step.mapaccum("chunk", CHUNK, [0], [0])
-    return chunk
+    transition = ca.Function("Phi", [T], [ca.jacobian(x_next, x)])
+    # d x_next / d p is linear in the moments: its Jacobian w.r.t. them is constant.
+    dx_dp = ca.vec(ca.jacobian(x_next, p))
+    input_map = ca.Function("G", [m], [ca.jacobian(dx_dp, m)])(np.zeros(N_MOMENTS))
+    return StepModel(transition=transition, input_map=np.asarray(ca.DM(input_map)).T)
 
 
 def sensitivities(moments: np.ndarray, T: np.ndarray, latitude_rad: float,
                   gravity_mps2: float) -> np.ndarray:
     """``d(dv at each interval end) / d(params, phi0)``, shape ``(K + 1, 3, N_UNKNOWN)``.
 
-    Row 0 is the start (zero). Intervals are pushed through the compiled
-    chunk function ``CHUNK`` at a time; the last chunk is padded with
-    zero-length intervals, which leave the state unchanged.
+    Carries ``S = dx / d(params, phi0)`` through the intervals:
+    ``S_k = Phi(T_k) S_{k-1} + input_map . moments_k``. The inputs of all
+    intervals are one matrix product; only the 6 x 24 recursion is a loop.
+    (Measured: a casadi ``mapaccum`` of the same step took 33 ms for the
+    paper's 1044 intervals against 15 ms here, most of it in casadi's VM and
+    DM-to-numpy conversion.)
     """
-    chunk = _chunk_function(float(latitude_rad), float(gravity_mps2))
+    model = step_model(float(latitude_rad), float(gravity_mps2))
     K = len(T)
-    n_chunks = -(-K // CHUNK)
-    inputs = np.zeros((N_MOMENTS + 1, n_chunks * CHUNK))
-    inputs[:N_MOMENTS, :K] = moments.T
-    inputs[N_MOMENTS, :K] = T
+    inputs = (moments @ model.input_map).reshape(K, N_UNKNOWN, 6).transpose(0, 2, 1)
+    # Interval lengths repeat up to rounding; 1 ns changes Phi by ~1e-8 of its g T block.
+    keys, index = np.unique(np.round(T, 9), return_inverse=True)
+    Phis = [np.asarray(model.transition(t)) for t in keys]
     S = np.zeros((6, N_UNKNOWN))
     S[:3, PHI0] = np.eye(3)
     out = np.zeros((K + 1, 3, N_UNKNOWN))
-    for c in range(n_chunks):
-        S_all, Sv = chunk(S, inputs[:, c * CHUNK:(c + 1) * CHUNK])
-        Sv = _split_columns(np.asarray(Sv), 3)
-        lo = c * CHUNK
-        hi = min(K, lo + CHUNK)
-        out[lo + 1:hi + 1] = Sv[:hi - lo]
-        S = np.asarray(S_all)[:, -N_UNKNOWN:]
+    for k in range(K):
+        S = Phis[index[k]] @ S + inputs[k]
+        out[k + 1] = S[3:]
     return out
-
-
-def _split_columns(stacked: np.ndarray, rows: int) -> np.ndarray:
-    """``[M_0, M_1, ...]`` horizontally stacked ``rows x N_UNKNOWN`` blocks -> ``(n, rows, N_UNKNOWN)``."""
-    n = stacked.shape[1] // N_UNKNOWN
-    return stacked.reshape(rows, n, N_UNKNOWN).transpose(1, 0, 2)
 
 
 def observation_matrix(S_v: np.ndarray, Phi_vv: np.ndarray) -> np.ndarray:

@@ -17,7 +17,7 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm, solve_triangular
+from scipy.linalg import expm
 
 from .profiles import NoiseProfile
 
@@ -76,7 +76,7 @@ def whitener(models: list[IntervalModel]) -> Whitener:
         Qpp, Qpv, Qvv = m.Q[:3, :3], m.Q[:3, 3:], m.Q[3:, 3:]
         S = Fvp @ P @ Fvp.T + Qvv
         L = np.linalg.cholesky(S)
-        Li = solve_triangular(L, np.eye(3), lower=True)
+        Li = np.linalg.inv(L)
         G = (Fpp @ P @ Fvp.T + Qpv) @ (Li.T @ Li)
         P = Fpp @ P @ Fpp.T + Qpp - G @ S @ G.T
         P = 0.5 * (P + P.T)

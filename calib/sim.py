@@ -77,8 +77,12 @@ def _rotated_integral(axis: np.ndarray, theta_a: np.ndarray, theta_b: np.ndarray
     return out
 
 
-def true_increments(tl: Timeline, R_setup: np.ndarray, cfg: SimConfig):
+def true_increments(tl: Timeline, R_setup: np.ndarray, cfg: SimConfig,
+                    time_s: np.ndarray | None = None):
     """Exact gyro and accelerometer increments of a timeline.
+
+    Samples are uniform at ``cfg.sample_rate_hz`` unless ``time_s`` (the end
+    of every sample, increasing, the first interval starting at 0) is given.
 
     Returns
     -------
@@ -87,9 +91,10 @@ def true_increments(tl: Timeline, R_setup: np.ndarray, cfg: SimConfig):
     dtheta, dv : ndarray, shape (n, 3)
         ``int omega_ib_b dt`` and ``int f_b dt`` over each sample.
     """
-    fs = cfg.sample_rate_hz
-    n = int(math.floor(tl.duration_s * fs + 1e-9))
-    time_s = np.arange(1, n + 1) / fs
+    if time_s is None:
+        fs = cfg.sample_rate_hz
+        time_s = np.arange(1, int(math.floor(tl.duration_s * fs + 1e-9)) + 1) / fs
+    n = len(time_s)
     # Break points: every sample end and every segment boundary inside the run.
     inner = tl.t1[:-1][tl.t1[:-1] < time_s[-1]]
     cuts = np.union1d(np.concatenate([[0.0], time_s]), inner)

@@ -8,6 +8,7 @@ reach with that noise profile; the Monte Carlo tests check that it does.
 """
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from dataclasses import dataclass
@@ -16,16 +17,14 @@ import numpy as np
 
 from calib import earth
 from calib import params as P
-from calib.errormodel import ErrorModel
-from calib.estimator import sequence_motion
-from calib.jacobian import N_UNKNOWN, PHI0, default_grid, observation_jacobian, state_matrix
+from calib.jacobian import (MOVE_STEP_S, N_UNKNOWN, PHI0, ObservationGrid, observation_jacobian,
+                            state_matrix)
 from calib.noise import noise_model, whiten
 from calib.profiles import NoiseProfile
 from calib.sequence import Sequence, nominal_attitude, timeline
 from calib.sim import SimConfig, true_increments
 from calib.transform import rotvec_to_dcm
 
-ANALYSIS_RATE_HZ = 50.0  # sample rate of the nominal trajectory; C_mid error ~ (w h)^2 = 1e-5
 UNKNOWN_NAMES = list(P.NAMES) + ["phi0_E", "phi0_N", "phi0_U"]
 CORRELATION_LIMIT = 0.9
 
@@ -152,36 +151,70 @@ def from_information(info: np.ndarray, duration_s: float, profile: str,
 
 @dataclass(frozen=True)
 class NominalRun:
-    """The error-free trajectory of a sequence at the analysis rate, ready for the model."""
+    """The error-free trajectory of a sequence, sampled for the linear model.
 
-    time_nav: np.ndarray
-    C_b_n: np.ndarray
-    dtheta: np.ndarray
-    dv: np.ndarray
-    moving: np.ndarray
+    Observation intervals are the estimator's while turning (``MOVE_STEP_S``)
+    and ``ANALYSIS_REST_STEP_S`` at rest. At rest the attitude is constant, so
+    a few sub-samples per interval give the moments exactly but for the
+    ``tau^2`` weighting of a term that is itself ``(omega_ie T)^2`` small;
+    while turning, sub-samples are at most ``FLIP_SUBSAMPLE_DEG`` apart, so
+    the mid-sample attitude is good to ``(0.5 deg)^2 / 8 ~ 1e-5``.
+    """
+
+    time_nav: np.ndarray  # (n + 1,) sample boundaries, 0 first
+    C_b_n: np.ndarray  # (n + 1, 3, 3)
+    dtheta: np.ndarray  # (n, 3)
+    dv: np.ndarray  # (n, 3)
+    grid: ObservationGrid
 
 
-def nominal_run(seq: Sequence, latitude_rad: float, height_m: float, setup_rotvec,
-                rate_hz: float = ANALYSIS_RATE_HZ) -> NominalRun:
+ANALYSIS_REST_STEP_S = 5.0  # at rest; 1 s (the estimator's) changes no sigma by more than 0.2 %
+REST_SUBSAMPLES = 4
+FLIP_SUBSAMPLE_DEG = 0.5
+
+
+def nominal_samples(tl) -> tuple[np.ndarray, np.ndarray]:
+    """Sample end times and observation bounds (indices into ``[0] + times``) of a timeline."""
+    times, bounds = [np.zeros(1)], [0]
+    n = 0
+    for t0, t1, rate in zip(tl.t0, tl.t1, tl.rate):
+        step = ANALYSIS_REST_STEP_S if rate == 0.0 else MOVE_STEP_S
+        m = max(1, int(round((t1 - t0) / step)))
+        sub = REST_SUBSAMPLES if rate == 0.0 else max(
+            1, int(math.ceil(abs(math.degrees(rate)) * (t1 - t0) / m / FLIP_SUBSAMPLE_DEG)))
+        edges = np.linspace(t0, t1, m * sub + 1)[1:]
+        edges[-1] = t1
+        times.append(edges)
+        bounds.extend(n + sub * np.arange(1, m + 1))
+        n += m * sub
+    return np.concatenate(times), np.array(bounds)
+
+
+def nominal_run(seq: Sequence, latitude_rad: float, height_m: float, setup_rotvec) -> NominalRun:
     tl = timeline(seq)
     R = rotvec_to_dcm(np.asarray(setup_rotvec, dtype=float))
-    cfg = SimConfig(latitude_rad=latitude_rad, height_m=height_m, sample_rate_hz=rate_hz)
-    time_s, dtheta, dv = true_increments(tl, R, cfg)
-    t_nav = np.concatenate([[0.0], time_s])
+    cfg = SimConfig(latitude_rad=latitude_rad, height_m=height_m)
+    t_nav, bounds = nominal_samples(tl)
+    _, dtheta, dv = true_increments(tl, R, cfg, time_s=t_nav[1:])
     C = np.einsum("ij,njk->nik", R, nominal_attitude(tl, t_nav))
-    dt = np.diff(t_nav)
-    return NominalRun(t_nav, C, dtheta, dv, sequence_motion(seq, time_s, dt))
+    return NominalRun(t_nav, C, dtheta, dv, ObservationGrid(bounds))
+
+
+@functools.lru_cache(maxsize=64)
+def _noise(T_bytes: bytes, latitude_rad: float, gravity_mps2: float, profile: NoiseProfile):
+    """Whitening of an interval pattern: shared by every mounting of one sequence."""
+    return noise_model(state_matrix(latitude_rad, gravity_mps2), np.frombuffer(T_bytes), profile)
 
 
 def information(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float = 0.0,
-                setup_rotvec=(0.0, 0.0, 0.0), rate_hz: float = ANALYSIS_RATE_HZ) -> np.ndarray:
+                setup_rotvec=(0.0, 0.0, 0.0)) -> np.ndarray:
     """Fisher information (24 x 24, SI) of [21 parameters, phi0] for one base mounting."""
     g = earth.gravity(latitude_rad, height_m)
-    nom = nominal_run(seq, latitude_rad, height_m, setup_rotvec, rate_hz)
-    grid = default_grid(nom.moving, rate_hz)
-    noise = noise_model(state_matrix(latitude_rad, g), np.diff(nom.time_nav[grid.bounds]), profile)
-    H = observation_jacobian(nom.C_b_n, nom.dtheta, nom.dv, nom.time_nav, grid, latitude_rad, g,
-                             noise.Phi_vv)
+    nom = nominal_run(seq, latitude_rad, height_m, setup_rotvec)
+    T = np.diff(nom.time_nav[nom.grid.bounds])
+    noise = _noise(T.tobytes(), latitude_rad, g, profile)
+    H = observation_jacobian(nom.C_b_n, nom.dtheta, nom.dv, nom.time_nav, nom.grid,
+                             latitude_rad, g, noise.Phi_vv)
     Hw = whiten(noise.whitener, H).reshape(-1, N_UNKNOWN)
     return Hw.T @ Hw
 

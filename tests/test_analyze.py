@@ -11,7 +11,7 @@ from click.testing import CliRunner
 from calib import earth
 from calib import params as P
 from calib.errormodel import ErrorModel
-from calib.jacobian import N_UNKNOWN, default_grid, observation_jacobian, state_matrix
+from calib.jacobian import N_UNKNOWN, observation_jacobian, state_matrix
 from calib.noise import noise_model
 from calib.profiles import load_profile
 from calib.sequence import load_sequence, sequence_from_dict
@@ -26,7 +26,7 @@ SETUP = np.radians([1.0, -2.0, 3.0])
 RATE = 50.0  # Hz: the finite difference runs the whole pipeline 48 times
 
 
-def _observations(seq, values, phi0, grid, Phi_vv):
+def _observations(seq, values, phi0, t_obs, Phi_vv):
     """Full nonlinear pipeline: simulate (errors injected) -> navigate raw data -> z."""
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=RATE)
     run, _ = simulate(seq, cfg, ErrorModel(values), load_profile("navigation"),
@@ -35,7 +35,7 @@ def _observations(seq, values, phi0, grid, Phi_vv):
     # C~ = (I - [phi x]) C  <=>  C~ = exp(-[phi x]) C to first order.
     C0 = rotvec_to_dcm(-phi0) @ C_true
     nav = navigate(run.dtheta_rad, run.dv_mps, run.time_s, C0, LAT, cfg.gravity, t0=0.0)
-    y = nav.v_n[grid.bounds]
+    y = nav.v_n[np.round(t_obs * RATE).astype(int)]
     return y[1:] - np.einsum("kij,kj->ki", Phi_vv, y[:-1])
 
 
@@ -43,11 +43,13 @@ def test_casadi_jacobian_matches_central_finite_difference():
     """Every column of H equals a central difference of simulate -> navigate to 1e-3 relative."""
     seq = load_sequence("paper-9pos")
     g = earth.gravity(LAT)
-    nom = nominal_run(seq, LAT, 0.0, SETUP, RATE)
-    grid = default_grid(nom.moving, RATE)
-    Phi_vv = noise_model(state_matrix(LAT, g), np.diff(nom.time_nav[grid.bounds]),
-                         load_profile("navigation")).Phi_vv
-    H = observation_jacobian(nom.C_b_n, nom.dtheta, nom.dv, nom.time_nav, grid, LAT, g, Phi_vv)
+    nom = nominal_run(seq, LAT, 0.0, SETUP)  # the analyser's own sampling and intervals
+    t_obs = nom.time_nav[nom.grid.bounds]
+    # Every interval end is a multiple of 0.02 s, so the 50 Hz pipeline samples it exactly.
+    assert np.allclose(t_obs * RATE, np.round(t_obs * RATE), atol=1e-6)
+    Phi_vv = noise_model(state_matrix(LAT, g), np.diff(t_obs), load_profile("navigation")).Phi_vv
+    H = observation_jacobian(nom.C_b_n, nom.dtheta, nom.dv, nom.time_nav, nom.grid, LAT, g,
+                             Phi_vv)
     # Steps: the requirement of each parameter (the scale the fit resolves) and
     # 1e-5 rad of initial attitude. Central differences cancel the second order;
     # third-order terms are ~(1e-4 rad)^2 relative, rounding ~1e-16 / 1e-9 m/s.
@@ -56,8 +58,8 @@ def test_casadi_jacobian_matches_central_finite_difference():
     for j in range(N_UNKNOWN):
         dp = np.zeros(N_UNKNOWN)
         dp[j] = steps[j]
-        z_plus = _observations(seq, dp[:21], dp[21:], grid, Phi_vv)
-        z_minus = _observations(seq, -dp[:21], -dp[21:], grid, Phi_vv)
+        z_plus = _observations(seq, dp[:21], dp[21:], t_obs, Phi_vv)
+        z_minus = _observations(seq, -dp[:21], -dp[21:], t_obs, Phi_vv)
         fd = (z_plus - z_minus) / (2 * steps[j])
         rel = np.linalg.norm(H[:, :, j] - fd) / np.linalg.norm(fd)
         if rel > 1e-3:
