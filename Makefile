@@ -18,6 +18,7 @@ demo: venv
 	mkdir -p $(DEMO)
 	$(BIN)/seqdesign show paper-9pos
 	$(BIN)/seqdesign simulate paper-9pos --table2 --setup-deg 1 -2 3 --seed 7 -o $(DEMO)/run.npz
+	$(BIN)/seqdesign analyze paper-9pos
 	$(BIN)/seqdesign calibrate $(DEMO)/run.npz -o $(DEMO)/result.toml
 
 test: venv
