@@ -286,7 +286,7 @@ class RestPosition:
 def rest_positions(seq: Sequence) -> list[RestPosition]:
     """Rest positions with their attitudes and continuous gimbal angles.
 
-    Gimbal angles are tracked through every flip in steps of at most 15 deg,
+    Gimbal angles are tracked through every flip in steps of at most 1 deg,
     as encoders count, so multi-turn flips and 180 deg turns unwrap correctly.
     """
     from .transform import directions_of, gimbal_from_relative, is_gimbal_lock, unwrap_gimbal
@@ -298,7 +298,7 @@ def rest_positions(seq: Sequence) -> list[RestPosition]:
             marks.append((i, len(times)))
             times.append(0.5 * (tl.t0[i] + tl.t1[i]))
         else:
-            n = max(2, int(math.ceil(abs(tl.rate[i]) * (tl.t1[i] - tl.t0[i]) / math.radians(15))))
+            n = max(2, int(math.ceil(abs(tl.rate[i]) * (tl.t1[i] - tl.t0[i]) / math.radians(1))))
             times.extend(np.linspace(tl.t0[i], tl.t1[i], n + 1)[1:-1])
     C = nominal_attitude(tl, np.array(times))
     C_rel = np.einsum("ji,njk->nik", seq.C_start, C)

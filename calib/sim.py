@@ -19,7 +19,7 @@ from .errormodel import ErrorModel
 from .profiles import NoiseProfile
 
 from .sequence import Sequence, Timeline, nominal_attitude, timeline
-from .transform import gimbal_from_relative, rotvec_to_dcm
+from .transform import gimbal_from_relative, rotvec_to_dcm, unwrap_gimbal
 
 
 @dataclass(frozen=True)
@@ -132,7 +132,7 @@ def encoder_angles(tl: Timeline, time_s: np.ndarray, C_start: np.ndarray) -> np.
     relative to the start attitude; the mounting rotation does not enter.
     """
     C_rel = np.einsum("ji,njk->nik", C_start, nominal_attitude(tl, time_s))
-    return np.degrees(np.unwrap(gimbal_from_relative(C_rel), axis=0))
+    return np.degrees(unwrap_gimbal(gimbal_from_relative(C_rel)))
 
 
 def simulate(seq: Sequence, cfg: SimConfig, errors: ErrorModel, profile: NoiseProfile,

@@ -124,24 +124,20 @@ def gimbal_to_relative(angles_rad: np.ndarray) -> np.ndarray:
 
 
 def unwrap_gimbal(angles_rad: np.ndarray) -> np.ndarray:
-    """Continuous (encoder-like) gimbal angles along a ``(n, 3)`` series.
+    """Continuous (encoder-like) gimbal angles along a densely sampled ``(n, 3)`` series.
 
-    Each principal decomposition has a twin ``(o + pi, pi - m, i + pi)``; at
-    every step the branch and the 2 pi multiples closest to the previous
-    angles are kept, as an encoder counting through the motion would.
+    Each principal decomposition has a twin ``(o + pi, pi - m, i + pi)``. When
+    the middle gimbal passes +-90 deg the principal branch swaps to the twin,
+    which shows as a jump of ~180 deg in outer between two samples; motion
+    between samples is far smaller than that (at most a few degrees for the
+    sampling used here), so each such jump toggles the branch. The result is
+    then unwrapped by 360 deg, as an encoder counting through the motion would.
     """
-    a = np.asarray(angles_rad, dtype=float).reshape(-1, 3)
-    out = np.empty_like(a)
-    prev = a[0]
-    out[0] = prev
-    twin_shift = np.array([np.pi, np.pi, np.pi])
-    two_pi = 2.0 * np.pi
-    for k in range(1, len(a)):
-        best, best_cost = None, np.inf
-        for cand in (a[k], twin_shift + np.array([1.0, -1.0, 1.0]) * a[k]):
-            cand = cand + two_pi * np.round((prev - cand) / two_pi)
-            cost = np.sum(np.abs(cand - prev))
-            if cost < best_cost:
-                best, best_cost = cand, cost
-        out[k] = prev = best
-    return out
+    a = np.asarray(angles_rad, dtype=float).reshape(-1, 3).copy()
+    d_outer = np.angle(np.exp(1j * np.diff(a[:, 0])))  # wrapped to (-pi, pi]
+    flips = np.abs(d_outer) > 0.5 * np.pi
+    twin = np.concatenate([[False], np.cumsum(flips) % 2 == 1])
+    a[twin, 0] += np.pi
+    a[twin, 1] = np.pi - a[twin, 1]
+    a[twin, 2] += np.pi
+    return np.unwrap(a, axis=0)
