@@ -188,30 +188,55 @@ def step_model(latitude_rad: float, gravity_mps2: float) -> StepModel:
     return StepModel(transition=transition, input_map=np.asarray(ca.DM(input_map)).T)
 
 
+def propagate(inputs: np.ndarray, T: np.ndarray, S0: np.ndarray, latitude_rad: float,
+              gravity_mps2: float) -> np.ndarray:
+    """Velocity rows of ``S_k = Phi(T_k) S_{k-1} + inputs_k`` for any number of columns.
+
+    Parameters
+    ----------
+    inputs : ndarray, shape (K, 6, c)
+    T : ndarray, shape (K,)
+    S0 : ndarray, shape (6, c)
+
+    Returns
+    -------
+    ndarray, shape (K + 1, 3, c)
+    """
+    model = step_model(float(latitude_rad), float(gravity_mps2))
+    # Interval lengths repeat up to rounding; 1 ns changes Phi by ~1e-8 of its g T block.
+    keys, index = np.unique(np.round(T, 9), return_inverse=True)
+    Phis = [np.asarray(model.transition(t)) for t in keys]
+    S = S0.copy()
+    out = np.empty((len(T) + 1, 3, S0.shape[1]))
+    out[0] = S[3:]
+    for k in range(len(T)):
+        S = Phis[index[k]] @ S + inputs[k]
+        out[k + 1] = S[3:]
+    return out
+
+
+def moment_inputs(moments: np.ndarray, latitude_rad: float, gravity_mps2: float) -> np.ndarray:
+    """``d x_next / d(params, phi0)`` of each interval from its moments: ``(..., 6, N_UNKNOWN)``."""
+    G = step_model(float(latitude_rad), float(gravity_mps2)).input_map
+    lead = moments.shape[:-1]
+    return (moments @ G).reshape(lead + (N_UNKNOWN, 6)).swapaxes(-1, -2)
+
+
 def sensitivities(moments: np.ndarray, T: np.ndarray, latitude_rad: float,
                   gravity_mps2: float) -> np.ndarray:
     """``d(dv at each interval end) / d(params, phi0)``, shape ``(K + 1, 3, N_UNKNOWN)``.
 
     Carries ``S = dx / d(params, phi0)`` through the intervals:
-    ``S_k = Phi(T_k) S_{k-1} + input_map . moments_k``. The inputs of all
-    intervals are one matrix product; only the 6 x 24 recursion is a loop.
-    (Measured: a casadi ``mapaccum`` of the same step took 33 ms for the
-    paper's 1044 intervals against 15 ms here, most of it in casadi's VM and
-    DM-to-numpy conversion.)
+    ``S_k = Phi(T_k) S_{k-1} + input_map . moments_k``, starting from
+    ``dx/dphi0 = [I; 0]``. The inputs of all intervals are one matrix product;
+    only the 6 x 24 recursion is a loop. (Measured: a casadi ``mapaccum`` of
+    the same step took 33 ms for the paper's 1044 intervals against 15 ms
+    here, most of it in casadi's VM and DM-to-numpy conversion.)
     """
-    model = step_model(float(latitude_rad), float(gravity_mps2))
-    K = len(T)
-    inputs = (moments @ model.input_map).reshape(K, N_UNKNOWN, 6).transpose(0, 2, 1)
-    # Interval lengths repeat up to rounding; 1 ns changes Phi by ~1e-8 of its g T block.
-    keys, index = np.unique(np.round(T, 9), return_inverse=True)
-    Phis = [np.asarray(model.transition(t)) for t in keys]
-    S = np.zeros((6, N_UNKNOWN))
-    S[:3, PHI0] = np.eye(3)
-    out = np.zeros((K + 1, 3, N_UNKNOWN))
-    for k in range(K):
-        S = Phis[index[k]] @ S + inputs[k]
-        out[k + 1] = S[3:]
-    return out
+    S0 = np.zeros((6, N_UNKNOWN))
+    S0[:3, PHI0] = np.eye(3)
+    return propagate(moment_inputs(moments, latitude_rad, gravity_mps2), T, S0,
+                     latitude_rad, gravity_mps2)
 
 
 def observation_matrix(S_v: np.ndarray, Phi_vv: np.ndarray) -> np.ndarray:

@@ -77,6 +77,58 @@ def _rotated_integral(axis: np.ndarray, theta_a: np.ndarray, theta_b: np.ndarray
     return out
 
 
+def uniform_times(tl: Timeline, sample_rate_hz: float) -> np.ndarray:
+    """Sample end times at a uniform rate over a timeline."""
+    return np.arange(1, int(math.floor(tl.duration_s * sample_rate_hz + 1e-9)) + 1) / sample_rate_hz
+
+
+def body_integrals(tl: Timeline, time_s: np.ndarray):
+    """Per sample, the flip angle increment and ``E = int C_nom^T dt`` (nominal attitude).
+
+    The base mounting and the site enter only through constant ENU vectors,
+    so for a true attitude ``R_setup C_nom`` any such vector ``u`` integrates
+    to ``E (R_setup^T u)``: one pass over the samples serves every mounting.
+
+    Parameters
+    ----------
+    tl : Timeline
+    time_s : ndarray, shape (n,)
+        End of each sample; the first starts at 0.
+
+    Returns
+    -------
+    flip : ndarray, shape (n, 3)
+        ``int rate * axis dt`` (body frame).
+    E : ndarray, shape (n, 3, 3)
+    """
+    n = len(time_s)
+    # Break points: every sample end and every segment boundary inside the run.
+    inner = tl.t1[:-1][tl.t1[:-1] < time_s[-1]]
+    cuts = np.union1d(np.concatenate([[0.0], time_s]), inner)
+    a, b = cuts[:-1], cuts[1:]
+    keep = b - a > 0
+    a, b = a[keep], b[keep]
+    seg = np.clip(np.searchsorted(tl.t1, 0.5 * (a + b)), 0, len(tl.t0) - 1)
+    sample = np.clip(np.searchsorted(time_s, 0.5 * (a + b)), 0, n - 1)
+    rate = tl.rate[seg]
+    axis = np.where(tl.axis[seg] < 0, 0, tl.axis[seg])
+    theta_a = rate * (a - tl.t0[seg])
+    theta_b = rate * (b - tl.t0[seg])
+    length = b - a
+    pieces = np.empty((len(a), 3, 3))
+    for c in range(3):  # column c of E integrates C^T e_c, i.e. row c of C
+        pieces[:, :, c] = _rotated_integral(axis, theta_a, theta_b, length, tl.C0[seg][:, c, :])
+    flip = np.zeros((len(a), 3))
+    flip[np.arange(len(a)), axis] = rate * length
+    E = np.zeros((n, 9))
+    out_flip = np.zeros((n, 3))
+    for i in range(9):
+        E[:, i] = np.bincount(sample, pieces.reshape(-1, 9)[:, i], minlength=n)
+    for i in range(3):
+        out_flip[:, i] = np.bincount(sample, flip[:, i], minlength=n)
+    return out_flip, E.reshape(n, 3, 3)
+
+
 def true_increments(tl: Timeline, R_setup: np.ndarray, cfg: SimConfig,
                     time_s: np.ndarray | None = None):
     """Exact gyro and accelerometer increments of a timeline.
@@ -92,37 +144,11 @@ def true_increments(tl: Timeline, R_setup: np.ndarray, cfg: SimConfig,
         ``int omega_ib_b dt`` and ``int f_b dt`` over each sample.
     """
     if time_s is None:
-        fs = cfg.sample_rate_hz
-        time_s = np.arange(1, int(math.floor(tl.duration_s * fs + 1e-9)) + 1) / fs
-    n = len(time_s)
-    # Break points: every sample end and every segment boundary inside the run.
-    inner = tl.t1[:-1][tl.t1[:-1] < time_s[-1]]
-    cuts = np.union1d(np.concatenate([[0.0], time_s]), inner)
-    a, b = cuts[:-1], cuts[1:]
-    keep = b - a > 0
-    a, b = a[keep], b[keep]
-    seg = np.clip(np.searchsorted(tl.t1, 0.5 * (a + b)), 0, len(tl.t0) - 1)
-    sample = np.clip(np.searchsorted(time_s, 0.5 * (a + b)), 0, n - 1)
-
-    C_seg = R_setup @ tl.C0  # true attitude at each segment start
-    rate = tl.rate[seg]
-    axis = np.where(tl.axis[seg] < 0, 0, tl.axis[seg])
-    theta_a = rate * (a - tl.t0[seg])
-    theta_b = rate * (b - tl.t0[seg])
-    length = b - a
-    w_omega = np.einsum("sji,j->si", C_seg, earth.omega_ie_n(cfg.latitude_rad))[seg]
-    w_force = np.einsum("sji,j->si", C_seg, earth.specific_force_n(cfg.gravity))[seg]
-
-    d_theta = _rotated_integral(axis, theta_a, theta_b, length, w_omega)
-    d_theta[np.arange(len(a)), axis] += rate * length
-    d_v = _rotated_integral(axis, theta_a, theta_b, length, w_force)
-
-    dtheta = np.zeros((n, 3))
-    dv = np.zeros((n, 3))
-    for i in range(3):
-        dtheta[:, i] = np.bincount(sample, d_theta[:, i], minlength=n)
-        dv[:, i] = np.bincount(sample, d_v[:, i], minlength=n)
-    return time_s, dtheta, dv
+        time_s = uniform_times(tl, cfg.sample_rate_hz)
+    flip, E = body_integrals(tl, time_s)
+    w_ie = R_setup.T @ earth.omega_ie_n(cfg.latitude_rad)
+    f = R_setup.T @ earth.specific_force_n(cfg.gravity)
+    return time_s, flip + E @ w_ie, E @ f
 
 
 def encoder_angles(tl: Timeline, time_s: np.ndarray, C_start: np.ndarray) -> np.ndarray:

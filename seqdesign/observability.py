@@ -17,12 +17,13 @@ import numpy as np
 
 from calib import earth
 from calib import params as P
-from calib.jacobian import (MOVE_STEP_S, N_UNKNOWN, PHI0, ObservationGrid, observation_jacobian,
+from calib.jacobian import (MOVE_STEP_S, N_MOMENTS, N_UNKNOWN, PHI0, ObservationGrid,
+                            moment_inputs, observation_jacobian, observation_matrix, propagate,
                             state_matrix)
 from calib.noise import noise_model, whiten
 from calib.profiles import NoiseProfile
 from calib.sequence import Sequence, nominal_attitude, timeline
-from calib.sim import SimConfig, true_increments
+from calib.sim import SimConfig, body_integrals, true_increments
 from calib.transform import rotvec_to_dcm
 
 UNKNOWN_NAMES = list(P.NAMES) + ["phi0_E", "phi0_N", "phi0_U"]
@@ -191,6 +192,7 @@ def nominal_samples(tl) -> tuple[np.ndarray, np.ndarray]:
 
 
 def nominal_run(seq: Sequence, latitude_rad: float, height_m: float, setup_rotvec) -> NominalRun:
+    """The nominal trajectory of one mounting, sampled as the analyser samples it."""
     tl = timeline(seq)
     R = rotvec_to_dcm(np.asarray(setup_rotvec, dtype=float))
     cfg = SimConfig(latitude_rad=latitude_rad, height_m=height_m)
@@ -206,24 +208,133 @@ def _noise(T_bytes: bytes, latitude_rad: float, gravity_mps2: float, profile: No
     return noise_model(state_matrix(latitude_rad, gravity_mps2), np.frombuffer(T_bytes), profile)
 
 
+def information_along(nom: NominalRun, profile: NoiseProfile, latitude_rad: float,
+                      gravity_mps2: float) -> np.ndarray:
+    """Fisher information (24 x 24, SI) of the shared model along one trajectory."""
+    T = np.diff(nom.time_nav[nom.grid.bounds])
+    noise = _noise(T.tobytes(), latitude_rad, gravity_mps2, profile)
+    H = observation_jacobian(nom.C_b_n, nom.dtheta, nom.dv, nom.time_nav, nom.grid,
+                             latitude_rad, gravity_mps2, noise.Phi_vv)
+    Hw = whiten(noise.whitener, H).reshape(-1, N_UNKNOWN)
+    return Hw.T @ Hw
+
+
+N_BASIS = 9 + 27 + 27
+
+
+def basis_weights(R: np.ndarray, omega_ie_n: np.ndarray, f_n: np.ndarray) -> np.ndarray:
+    """Weights of the mounting basis: ``R[a,b]``, ``R[a,b] (R^T w)_c``, ``R[a,b] (R^T f)_c``."""
+    w, f = R.T @ omega_ie_n, R.T @ f_n
+    return np.concatenate([R.reshape(9), np.einsum("ab,c->abc", R, w).reshape(27),
+                           np.einsum("ab,c->abc", R, f).reshape(27)])
+
+
+@dataclass(frozen=True)
+class SequenceModel:
+    """Whitened observation model of a sequence for every base mounting at once.
+
+    The mounting ``R`` enters the moments only as ``R C_nom`` and through the
+    Earth rate and gravity seen in the body, ``E R^T w`` and ``E R^T f`` (see
+    :func:`calib.sim.body_integrals`). So the moments, and with them the
+    linear, whitened ``H``, are a fixed combination of 63 basis terms weighted
+    by :func:`basis_weights`; the initial-attitude columns do not depend on
+    ``R`` at all. Building costs one pass over the basis; each mounting then
+    costs one contraction.
+    """
+
+    Hw_basis: np.ndarray  # (3K, N_BASIS, 21)
+    Hw_phi0: np.ndarray  # (3K, 3)
+    omega_ie_n: np.ndarray
+    f_n: np.ndarray
+    duration_s: float
+    profile: str
+
+    def whitened(self, setup_rotvec) -> np.ndarray:
+        """Whitened ``H`` (3K x 24) for one mounting."""
+        R = rotvec_to_dcm(np.asarray(setup_rotvec, dtype=float))
+        Hp = np.einsum("nbj,b->nj", self.Hw_basis, basis_weights(R, self.omega_ie_n, self.f_n))
+        return np.hstack([Hp, self.Hw_phi0])
+
+    def information(self, setup_rotvec=(0.0, 0.0, 0.0)) -> np.ndarray:
+        H = self.whitened(setup_rotvec)
+        return H.T @ H
+
+    def analyze(self, setup_rotvec=(0.0, 0.0, 0.0)) -> "Observability":
+        return from_information(self.information(setup_rotvec), self.duration_s, self.profile,
+                                setup_rotvec)
+
+
+def _basis_moments(C_mid: np.ndarray, flip: np.ndarray, E: np.ndarray, h: np.ndarray,
+                   tau: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Moment vectors (K, N_BASIS, N_MOMENTS) of the 63 mounting basis terms."""
+    def interval_sum(x, w):
+        return np.add.reduceat(x * (tau ** w).reshape((-1,) + (1,) * (x.ndim - 1)), starts, axis=0)
+
+    K = len(starts)
+    M = np.zeros((K, N_BASIS, N_MOMENTS))
+    kflip_all = np.einsum("nbi,nm->nbim", C_mid, flip)
+    t4_all = np.einsum("nbi,nmc->nbimc", C_mid, E)
+    bias_all = C_mid * h[:, None, None]
+    for w in range(3):  # gyro blocks at 36 w; accel blocks (w < 2) at 36 (3 + w)
+        kflip, t4, bias = (interval_sum(x, w) for x in (kflip_all, t4_all, bias_all))
+        for a in range(3):
+            for b in range(3):
+                q = a * 3 + b
+                g0 = 36 * w
+                M[:, q, g0 + a * 9:g0 + a * 9 + 9] = kflip[:, b].reshape(K, 9)
+                M[:, q, g0 + 27 + a * 3:g0 + 27 + a * 3 + 3] = bias[:, b]
+                if w < 2:
+                    a0 = 36 * (3 + w)
+                    M[:, q, a0 + 27 + a * 3:a0 + 27 + a * 3 + 3] = bias[:, b]
+                for c in range(3):
+                    qe = 9 + (a * 3 + b) * 3 + c
+                    M[:, qe, g0 + a * 9:g0 + a * 9 + 9] = t4[:, b, :, :, c].reshape(K, 9)
+                    if w < 2:
+                        M[:, qe + 27, a0 + a * 9:a0 + a * 9 + 9] = t4[:, b, :, :, c].reshape(K, 9)
+    return M
+
+
+@functools.lru_cache(maxsize=32)
+def sequence_model(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
+                   height_m: float = 0.0) -> SequenceModel:
+    """Build (and cache) the mounting-independent model of a sequence."""
+    g = earth.gravity(latitude_rad, height_m)
+    tl = timeline(seq)
+    t_nav, bounds = nominal_samples(tl)
+    flip, E = body_integrals(tl, t_nav[1:])
+    C = nominal_attitude(tl, t_nav)
+    C_mid = 0.5 * (C[1:] + C[:-1])
+    h = np.diff(t_nav)
+    interval = np.repeat(np.arange(len(bounds) - 1), np.diff(bounds))
+    tau = t_nav[bounds[1:]][interval] - 0.5 * (t_nav[1:] + t_nav[:-1])
+    M = _basis_moments(C_mid, flip, E, h, tau, bounds[:-1])
+    T = np.diff(t_nav[bounds])
+    noise = _noise(T.tobytes(), latitude_rad, g, profile)
+    K = len(T)
+    inputs = moment_inputs(M, latitude_rad, g)[..., :P.N_PARAMS]  # (K, NB, 6, 21)
+    inputs = inputs.transpose(0, 2, 1, 3).reshape(K, 6, N_BASIS * P.N_PARAMS)
+    S0 = np.zeros((6, N_BASIS * P.N_PARAMS + 3))
+    S0[:3, -3:] = np.eye(3)
+    inputs = np.concatenate([inputs, np.zeros((K, 6, 3))], axis=2)
+    S_v = propagate(inputs, T, S0, latitude_rad, g)
+    H = observation_matrix(S_v, noise.Phi_vv)
+    Hw = whiten(noise.whitener, H).reshape(3 * K, -1)
+    return SequenceModel(Hw_basis=Hw[:, :-3].reshape(3 * K, N_BASIS, P.N_PARAMS),
+                         Hw_phi0=Hw[:, -3:], omega_ie_n=earth.omega_ie_n(latitude_rad),
+                         f_n=earth.specific_force_n(g), duration_s=seq.duration_s,
+                         profile=profile.name)
+
+
 def information(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float = 0.0,
                 setup_rotvec=(0.0, 0.0, 0.0)) -> np.ndarray:
     """Fisher information (24 x 24, SI) of [21 parameters, phi0] for one base mounting."""
-    g = earth.gravity(latitude_rad, height_m)
-    nom = nominal_run(seq, latitude_rad, height_m, setup_rotvec)
-    T = np.diff(nom.time_nav[nom.grid.bounds])
-    noise = _noise(T.tobytes(), latitude_rad, g, profile)
-    H = observation_jacobian(nom.C_b_n, nom.dtheta, nom.dv, nom.time_nav, nom.grid,
-                             latitude_rad, g, noise.Phi_vv)
-    Hw = whiten(noise.whitener, H).reshape(-1, N_UNKNOWN)
-    return Hw.T @ Hw
+    return sequence_model(seq, profile, latitude_rad, height_m).information(setup_rotvec)
 
 
 def analyze(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float = 0.0,
             setup_rotvec=(0.0, 0.0, 0.0)) -> Observability:
     """Observability of a sequence at one base mounting."""
-    info = information(seq, profile, latitude_rad, height_m, setup_rotvec)
-    return from_information(info, seq.duration_s, profile.name, setup_rotvec)
+    return sequence_model(seq, profile, latitude_rad, height_m).analyze(setup_rotvec)
 
 
 @dataclass(frozen=True)
@@ -244,7 +355,8 @@ class Robustness:
 def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
                       height_m: float = 0.0, tolerance_deg: float = 3.0) -> Robustness:
     """Worst case over the 27 corner/edge/face/centre mountings of the tolerance box."""
-    nominal = analyze(seq, profile, latitude_rad, height_m)
+    model = sequence_model(seq, profile, latitude_rad, height_m)
+    nominal = model.analyze()
     if tolerance_deg == 0:
         return Robustness(nominal, nominal, nominal.sigma, 1, 0.0)
     worst, per_param = nominal, nominal.sigma.copy()
@@ -253,7 +365,7 @@ def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
     for e, n, u in itertools.product(levels, levels, levels):
         if e == n == u == 0.0:
             continue
-        obs = analyze(seq, profile, latitude_rad, height_m, np.radians([e, n, u]))
+        obs = model.analyze(np.radians([e, n, u]))
         count += 1
         per_param = np.maximum(per_param, obs.sigma)
         if obs.worst[1] > worst.worst[1]:

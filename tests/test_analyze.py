@@ -139,3 +139,18 @@ def test_cli_analyze_bad_input():
     assert r.exit_code != 0 and "nope-seq" in r.output and "Traceback" not in r.output
     r = CliRunner().invoke(main, ["analyze", "paper-9pos", "--tolerance-deg", "45"])
     assert r.exit_code != 0 and "tolerance" in r.output
+
+
+def test_mounting_basis_model_equals_direct_evaluation():
+    # The analyser's SequenceModel writes H for any mounting as a fixed combination of
+    # 63 basis terms; it must equal the model evaluated directly along that mounting's
+    # trajectory (same arithmetic reordered: agreement to rounding, 1e-10).
+    from seqdesign.observability import information_along, sequence_model
+    seq = load_sequence("paper-9pos")
+    prof = load_profile("navigation")
+    g = earth.gravity(LAT)
+    model = sequence_model(seq, prof, LAT, 0.0)
+    for setup in ([0.0, 0.0, 0.0], [1.0, -2.0, 3.0], [-3.0, 3.0, -3.0]):
+        rv = np.radians(setup)
+        direct = information_along(nominal_run(seq, LAT, 0.0, rv), prof, LAT, g)
+        assert np.allclose(model.information(rv), direct, rtol=1e-10, atol=1e-10 * np.abs(direct).max())
