@@ -323,6 +323,7 @@ def _analysis_doc(seq, prof, lat, rob, bound) -> dict:
         entries[p.name]["ratio_nominal"] = float(rob.nominal.ratio[p.index])
     doc = {"sequence": seq.name, "duration_s": seq.duration_s, "profile": prof.name,
            "latitude_deg": lat, "tolerance_deg": rob.tolerance_deg, "setups_evaluated": rob.points,
+           "ipopt_search": rob.searched,
            "parameters": entries, "worst": worst(entries),
            "worst_setup_deg": [float(x) for x in np.degrees(w.setup_rotvec)],
            "rank": w.rank, "unobservable": w.unobservable,
@@ -354,7 +355,7 @@ def analyze(sequence, profile, latitude, tolerance_deg, as_json):
     from seqdesign.report import format_table
     click.echo(f"{seq.name}: {seq.duration_s:.0f} s ({seq.duration_s / 60:.1f} min), profile "
                f"{prof.name}, latitude {lat:g} deg, worst case over +-{rob.tolerance_deg:g} deg "
-               f"({rob.points} mountings)")
+               f"({rob.points} mountings{' + IPOPT search' if rob.searched else ''})")
     click.echo(format_table(doc["parameters"]))
     _verdict(doc)
 

@@ -346,31 +346,101 @@ class Robustness:
     per_parameter_worst_sigma: np.ndarray  # (21,) SI, max over the box of each sigma
     points: int
     tolerance_deg: float
+    searched: bool = False  # whether IPOPT refined the worst parameter beyond the 27 points
 
     @property
     def per_parameter_worst_ratio(self) -> np.ndarray:
         return P.ratio(self.per_parameter_worst_sigma)
 
 
+class _SigmaCallback:
+    """sigma of one parameter as a function of the mounting (deg), for IPOPT.
+
+    Wrapped in a casadi Callback with finite-difference derivatives (three
+    variables; each evaluation is one contraction of the sequence model).
+    """
+
+    def __new__(cls, model: SequenceModel, index: int):
+        import casadi as ca
+
+        class _CB(ca.Callback):
+            def __init__(self):
+                ca.Callback.__init__(self)
+                self.construct(f"sigma_{P.NAMES[index]}", {"enable_fd": True})
+
+            def get_n_in(self):
+                return 1
+
+            def get_n_out(self):
+                return 1
+
+            def get_sparsity_in(self, i):
+                return ca.Sparsity.dense(3, 1)
+
+            def get_sparsity_out(self, i):
+                return ca.Sparsity.dense(1, 1)
+
+            def eval(self, arg):
+                theta = np.radians(np.asarray(arg[0], dtype=float).ravel())
+                cov = np.linalg.inv(_marginal(model.information(theta)))
+                return [math.sqrt(cov[index, index]) / P.REQUIREMENTS_SI[index]]
+
+        return _CB()
+
+
+def search_worst_mounting(model: SequenceModel, index: int, starts_deg: list,
+                          tolerance_deg: float) -> tuple[np.ndarray, float]:
+    """Maximise one parameter's sigma over the mounting box with IPOPT, from several starts.
+
+    Returns the mounting (rotation vector, rad) and that parameter's sigma (SI).
+    """
+    import casadi as ca
+
+    cb = _SigmaCallback(model, index)
+    x = ca.MX.sym("theta_deg", 3)
+    solver = ca.nlpsol("worst", "ipopt", {"x": x, "f": -cb(x)},
+                       {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
+                        "ipopt.hessian_approximation": "limited-memory",
+                        "ipopt.max_iter": 25, "ipopt.tol": 1e-6})
+    best_x, best = None, -np.inf
+    for x0 in starts_deg:
+        sol = solver(x0=x0, lbx=-tolerance_deg, ubx=tolerance_deg)
+        value = -float(sol["f"])
+        if value > best:
+            best, best_x = value, np.asarray(sol["x"]).ravel()
+    return np.radians(best_x), best * P.REQUIREMENTS_SI[index]
+
+
 def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
-                      height_m: float = 0.0, tolerance_deg: float = 3.0) -> Robustness:
-    """Worst case over the 27 corner/edge/face/centre mountings of the tolerance box."""
+                      height_m: float = 0.0, tolerance_deg: float = 3.0,
+                      search: bool = True, starts: int = 2) -> Robustness:
+    """Worst case over the +-tolerance box of base mountings.
+
+    The 27 corner/edge/face/centre points are evaluated; then, if ``search``,
+    IPOPT maximises the sigma of the worst parameter from its ``starts`` worst
+    grid points, since the worst mounting need not be a grid point.
+    """
     model = sequence_model(seq, profile, latitude_rad, height_m)
     nominal = model.analyze()
     if tolerance_deg == 0:
         return Robustness(nominal, nominal, nominal.sigma, 1, 0.0)
-    worst, per_param = nominal, nominal.sigma.copy()
     levels = (-tolerance_deg, 0.0, tolerance_deg)
-    count = 1
-    for e, n, u in itertools.product(levels, levels, levels):
-        if e == n == u == 0.0:
-            continue
-        obs = model.analyze(np.radians([e, n, u]))
-        count += 1
-        per_param = np.maximum(per_param, obs.sigma)
-        if obs.worst[1] > worst.worst[1]:
-            worst = obs
-    return Robustness(nominal, worst, per_param, count, tolerance_deg)
+    grid = [np.array(p) for p in itertools.product(levels, levels, levels)]
+    results = [model.analyze(np.radians(p)) for p in grid]
+    sigmas = np.array([r.sigma for r in results])
+    per_param = sigmas.max(axis=0)
+    worst = max(results, key=lambda r: r.worst[1])
+    if not search or worst.rank < P.N_PARAMS:
+        return Robustness(nominal, worst, per_param, len(grid), tolerance_deg)
+    index = int(np.argmax(P.ratio(per_param)))
+    order = np.argsort(-sigmas[:, index])[:starts]
+    rotvec, sigma = search_worst_mounting(model, index, [grid[i] for i in order], tolerance_deg)
+    if sigma > per_param[index]:
+        found = model.analyze(rotvec)
+        per_param = np.maximum(per_param, found.sigma)
+        if found.worst[1] > worst.worst[1]:
+            worst = found
+    return Robustness(nominal, worst, per_param, len(grid), tolerance_deg, searched=True)
 
 
 def accel_scale_bound(duration_s: float, profile: NoiseProfile, gravity_mps2: float) -> float:
