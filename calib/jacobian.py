@@ -185,7 +185,8 @@ def step_model(latitude_rad: float, gravity_mps2: float) -> StepModel:
     # d x_next / d p is linear in the moments: its Jacobian w.r.t. them is constant.
     dx_dp = ca.vec(ca.jacobian(x_next, p))
     input_map = ca.Function("G", [m], [ca.jacobian(dx_dp, m)])(np.zeros(N_MOMENTS))
-    return StepModel(transition=transition, input_map=np.asarray(ca.DM(input_map)).T)
+    return StepModel(transition=transition,
+                     input_map=np.ascontiguousarray(np.asarray(ca.DM(input_map)).T))
 
 
 def propagate(inputs: np.ndarray, T: np.ndarray, S0: np.ndarray, latitude_rad: float,

@@ -60,16 +60,22 @@ class Whitener:
     gain: np.ndarray  # (K, 3, 3)
     L_inv: np.ndarray  # (K, 3, 3) inverse Cholesky factor of the innovation covariance
     logdet_S: float  # sum of log det of the innovation covariances
+    P_end: np.ndarray  # (3, 3) covariance of the noise part of phi after the last interval
 
 
-def whitener(models: list[IntervalModel]) -> Whitener:
-    """Riccati recursion of the three-state noise filter (data-independent)."""
+def whitener(models: list[IntervalModel], P0: np.ndarray | None = None) -> Whitener:
+    """Riccati recursion of the three-state noise filter (data-independent).
+
+    ``P0`` is the covariance of the noise part of phi before the first
+    interval: zero at the start of a run (the initial attitude error is an
+    unknown of the fit, not noise).
+    """
     K = len(models)
     Phi_pp = np.empty((K, 3, 3))
     Phi_vp = np.empty((K, 3, 3))
     gain = np.empty((K, 3, 3))
     L_inv = np.empty((K, 3, 3))
-    P = np.zeros((3, 3))  # the noise part of phi starts at zero
+    P = np.zeros((3, 3)) if P0 is None else np.array(P0, dtype=float)
     logdet = 0.0
     for k, m in enumerate(models):
         Fpp, Fvp = m.Phi[:3, :3], m.Phi[3:, :3]
@@ -82,7 +88,7 @@ def whitener(models: list[IntervalModel]) -> Whitener:
         P = 0.5 * (P + P.T)
         Phi_pp[k], Phi_vp[k], gain[k], L_inv[k] = Fpp, Fvp, G, Li
         logdet += 2.0 * np.sum(np.log(np.diag(L)))
-    return Whitener(Phi_pp, Phi_vp, gain, L_inv, logdet)
+    return Whitener(Phi_pp, Phi_vp, gain, L_inv, logdet, P)
 
 
 def whiten(w: Whitener, X: np.ndarray) -> np.ndarray:
@@ -118,6 +124,7 @@ class NoiseModel:
     Phi_vv: np.ndarray  # (K, 3, 3)
 
 
-def noise_model(A: np.ndarray, T: np.ndarray, profile: NoiseProfile) -> NoiseModel:
+def noise_model(A: np.ndarray, T: np.ndarray, profile: NoiseProfile,
+                P0: np.ndarray | None = None) -> NoiseModel:
     models = interval_models(A, T, profile)
-    return NoiseModel(whitener(models), np.array([m.Phi[3:, 3:] for m in models]))
+    return NoiseModel(whitener(models, P0), np.array([m.Phi[3:, 3:] for m in models]))

@@ -10,6 +10,7 @@ import csv
 import math
 from pathlib import Path
 
+import calib  # noqa: F401  first: pins BLAS threads (calib/__init__.py) before numpy loads
 import numpy as np
 import pytest
 

@@ -1,0 +1,461 @@
+"""Sequence design: a search over flip walks, then dwell refinement with casadi/IPOPT.
+
+The search scores thousands of candidate walks per second with the same
+linear model and noise whitening as the analyser, cut into *segments* (a
+move from one grid attitude, or a rest at one): every segment acts on the
+lifted state ``X = [S; phi_hat]`` (9 x 24: sensitivities and the whitening
+filter's state) linearly, and adds a quadratic form in ``X`` to the
+information::
+
+    X_out = A X + B,     dN = X' M1 X + X' M2 + M2' X + M3
+
+The segment matrices depend only on the segment's attitude and move, so
+they are computed once per search; a candidate is scored by a few small
+matrix products, batched over all children of a beam. The one
+approximation is that the noise filter's covariance is at its rest steady
+state at each segment start (the first rest starts from zero exactly); the
+finalists are then re-scored with the exact analyser, worst case over the
+mounting tolerance, which is the figure reported.
+"""
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from calib import earth
+from calib import params as P
+from calib.errors import CalibError
+from calib.jacobian import (N_UNKNOWN, PHI0, ObservationGrid, moment_inputs, step_model,
+                            state_matrix, trajectory_moments)
+from calib.noise import interval_models, noise_model, whitener
+from calib.profiles import NoiseProfile
+from calib.sequence import Sequence, Step, Timeline, nominal_attitude
+from calib.sim import body_integrals
+from calib.transform import AXES
+
+from .graph import Move, Node, apply_move, attitude_of, flip_graph, moves as all_moves
+
+SEARCH_REST_INTERVALS = 12  # per rest, whatever its length: smooth in the dwell for IPOPT
+SEARCH_MOVE_STEP_S = 0.5  # observation interval while turning (0.1 s changes sigmas < 0.2 %)
+SEARCH_SUB_DEG = 2.0  # sub-samples while turning
+PRIOR_RATIO = 1e4  # partial walks: a prior of 1e4 x each requirement keeps them rankable
+OBJECTIVES = ("worst", "D", "A", "E")
+
+
+@dataclass(frozen=True)
+class SegmentEffect:
+    """Linear action of one segment on the lifted state and the information."""
+
+    A: np.ndarray  # (9, 9)
+    B: np.ndarray  # (9, 24)
+    M1: np.ndarray  # (9, 9)
+    M2: np.ndarray  # (9, 24)
+    M3: np.ndarray  # (24, 24)
+
+
+def _segment_timeline(C: np.ndarray, duration: float, rate: float = 0.0, axis: int = -1) -> Timeline:
+    return Timeline(t0=np.array([0.0]), t1=np.array([duration]), rate=np.array([rate]),
+                    axis=np.array([axis]), C0=C[None], position=np.array([1]),
+                    step=np.array([-1]), C_end=C)
+
+
+def segment_effect(C: np.ndarray, duration: float, rate: float, axis: int, latitude_rad: float,
+                   gravity_mps2: float, profile: NoiseProfile, P0: np.ndarray | None,
+                   n_intervals: int | None = None, initial: bool = False) -> SegmentEffect:
+    """The segment matrices of one rest (``rate == 0``) or turn, by running the model on basis columns."""
+    tl = _segment_timeline(C, duration, rate, axis)
+    if n_intervals is None:
+        n_intervals = max(1, int(round(duration / SEARCH_MOVE_STEP_S)))
+    sub = 4 if rate == 0.0 else max(1, int(math.ceil(
+        abs(math.degrees(rate)) * duration / n_intervals / SEARCH_SUB_DEG)))
+    t_nav = np.linspace(0.0, duration, n_intervals * sub + 1)
+    flip, E = body_integrals(tl, t_nav[1:])
+    dtheta = flip + E @ earth.omega_ie_n(latitude_rad)
+    dv = E @ earth.specific_force_n(gravity_mps2)
+    grid = ObservationGrid(np.arange(0, n_intervals * sub + 1, sub))
+    moments = trajectory_moments(nominal_attitude(tl, t_nav), dtheta, dv, t_nav, grid)
+    inputs = moment_inputs(moments, latitude_rad, gravity_mps2)  # (K, 6, 24)
+    T = np.diff(t_nav[grid.bounds])
+    noise = noise_model(state_matrix(latitude_rad, gravity_mps2), T, profile, P0)
+    w = noise.whitener
+    model = step_model(float(latitude_rad), float(gravity_mps2))
+    Phi = np.asarray(model.transition(float(T[0])))  # all intervals of a segment are equal
+    n_hom = 9
+    X = np.zeros((9, n_hom + N_UNKNOWN))
+    X[:, :n_hom] = np.eye(9)
+    if initial:  # the run's start: S = [I; 0] on phi0, filter state zero, nothing else
+        X[:, :n_hom] = 0.0
+        X[:3, n_hom + P.N_PARAMS:] = np.eye(3)
+    M1 = np.zeros((9, 9))
+    M2 = np.zeros((9, N_UNKNOWN))
+    M3 = np.zeros((N_UNKNOWN, N_UNKNOWN))
+    for k in range(len(T)):
+        S, phi = X[:6], X[6:]
+        S_new = Phi @ S
+        S_new[:, n_hom:] += inputs[k]
+        H = S_new[3:] - noise.Phi_vv[k] @ S[3:]
+        e = H - w.Phi_vp[k] @ phi
+        phi_new = w.Phi_pp[k] @ phi + w.gain[k] @ e
+        wk = w.L_inv[k] @ e
+        Wh, Wp = wk[:, :n_hom], wk[:, n_hom:]
+        M1 += Wh.T @ Wh
+        M2 += Wh.T @ Wp
+        M3 += Wp.T @ Wp
+        X = np.vstack([S_new, phi_new])
+    return SegmentEffect(A=X[:, :n_hom], B=X[:, n_hom:], M1=M1, M2=M2, M3=M3)
+
+
+def rest_steady_state(latitude_rad: float, gravity_mps2: float, profile: NoiseProfile,
+                      dwell_s: float) -> np.ndarray:
+    """Noise-filter covariance after a long rest observed with the search's rest intervals."""
+    T = np.full(40 * SEARCH_REST_INTERVALS, dwell_s / SEARCH_REST_INTERVALS)
+    return whitener(interval_models(state_matrix(latitude_rad, gravity_mps2), T, profile)).P_end
+
+
+# ---------------------------------------------------------------------------
+# Objectives on information matrices (batched)
+
+
+def scaled_marginal(N: np.ndarray, prior: bool) -> np.ndarray:
+    """Requirement-scaled information of the 21 after eliminating phi0: ``(..., 21, 21)``."""
+    a = N[..., :P.N_PARAMS, :P.N_PARAMS]
+    b = N[..., :P.N_PARAMS, PHI0]
+    c = N[..., PHI0, PHI0]
+    M = a - b @ np.linalg.solve(c, np.swapaxes(b, -1, -2))
+    D = P.REQUIREMENTS_SI
+    M = M * np.outer(D, D)
+    if prior:
+        M = M + np.eye(P.N_PARAMS) * (9.0 / PRIOR_RATIO ** 2)
+    return M
+
+
+def score(N: np.ndarray, objective: str, prior: bool = True) -> np.ndarray:
+    """Figure of merit, smaller is better, for ``(..., 24, 24)`` information matrices.
+
+    ``worst``: max 3 sigma / requirement; ``A``: sum of (sigma/requirement)^2;
+    ``D``: -log det of the scaled information; ``E``: -smallest eigenvalue.
+    """
+    M = scaled_marginal(N, prior)
+    M = 0.5 * (M + np.swapaxes(M, -1, -2))
+    if objective in ("worst", "A"):
+        try:
+            Minv = np.linalg.inv(M)
+        except np.linalg.LinAlgError:
+            Minv = np.linalg.pinv(M)
+        d = np.einsum("...ii->...i", Minv)
+        bad = ~np.all(d > 0, axis=-1)
+        out = 3.0 * np.sqrt(np.abs(d)).max(axis=-1) if objective == "worst" else d.sum(axis=-1)
+        return np.where(bad, np.inf, out)
+    ev = np.linalg.eigvalsh(M)
+    if objective == "D":
+        return np.where(ev[..., 0] > 0, -np.sum(np.log(np.abs(ev)), axis=-1), np.inf)
+    if objective == "E":
+        return -ev[..., 0]
+    raise CalibError(f"unknown objective {objective!r}", "--objective", "use worst, D, A or E")
+
+
+# ---------------------------------------------------------------------------
+# The search
+
+
+@dataclass(frozen=True)
+class Constraints:
+    """What a user may fix about a design (SI: seconds, rad/s)."""
+
+    start: Node = ("east", "up", "south")
+    end: Node | None = None
+    max_flips: int = 10
+    axes: str = AXES
+    max_quarters: int = 5
+    rate_dps: float = 10.0
+    min_dwell_s: float = 30.0
+    max_dwell_s: float = 300.0
+    budget_s: float = 900.0
+
+
+@dataclass
+class Candidate:
+    walk: tuple[Move, ...]
+    node: Node
+    X: np.ndarray
+    N: np.ndarray
+    time_s: float
+    score: float = math.inf
+
+
+@dataclass
+class SearchModel:
+    """Everything a search at one dwell needs, precomputed."""
+
+    constraints: Constraints
+    dwell_s: float
+    latitude_rad: float
+    gravity_mps2: float
+    profile: NoiseProfile
+    graph: object
+    moves: list[Move]
+    initial: SegmentEffect
+    rest: dict
+    turn: dict = field(default_factory=dict)
+
+    @classmethod
+    def build(cls, c: Constraints, dwell_s: float, latitude_rad: float, height_m: float,
+              profile: NoiseProfile) -> "SearchModel":
+        g = earth.gravity(latitude_rad, height_m)
+        graph = flip_graph(c.start, c.axes)
+        P_ss = rest_steady_state(latitude_rad, g, profile, dwell_s)
+        rest = {node: segment_effect(attitude_of(node), dwell_s, 0.0, -1, latitude_rad, g, profile,
+                                     P_ss, SEARCH_REST_INTERVALS) for node in graph.nodes}
+        initial = segment_effect(attitude_of(c.start), dwell_s, 0.0, -1, latitude_rad, g, profile,
+                                 None, SEARCH_REST_INTERVALS, initial=True)
+        model = cls(c, dwell_s, latitude_rad, g, profile, graph,
+                    all_moves(c.axes, c.max_quarters), initial, rest)
+        rate = math.radians(c.rate_dps)
+        for node in graph.nodes:
+            C = attitude_of(node)
+            for mv in model.moves:
+                model.turn[(node, mv)] = segment_effect(
+                    C, abs(mv.angle_deg) / c.rate_dps, mv.sign * rate, AXES.index(mv.axis),
+                    latitude_rad, g, profile, P_ss)
+        return model
+
+    def turn_time(self, mv: Move) -> float:
+        return abs(mv.angle_deg) / self.constraints.rate_dps
+
+    def start_candidate(self) -> Candidate:
+        """After the initial rest (its effect already holds the run's start state)."""
+        e = self.initial
+        return Candidate(walk=(), node=tuple(self.constraints.start), X=e.B.copy(), N=e.M3.copy(),
+                         time_s=self.dwell_s)
+
+    def extend(self, parents: list[Candidate], objective: str,
+               prior: bool = True) -> list[Candidate]:
+        """All feasible children of ``parents``, scored (batched)."""
+        c = self.constraints
+        kids, effs = [], []
+        for par in parents:
+            if len(par.walk) >= c.max_flips:
+                continue
+            for mv in self.moves:
+                t = par.time_s + self.turn_time(mv) + self.dwell_s
+                if t > c.budget_s + 1e-9:
+                    continue
+                end = apply_move(self.graph, par.node, mv)
+                kids.append(Candidate(par.walk + (mv,), end, par.X, par.N, t))
+                effs.append((self.turn[(par.node, mv)], self.rest[end]))
+        if not kids:
+            return []
+        X = np.stack([k.X for k in kids])
+        N = np.stack([k.N for k in kids])
+        for part in (0, 1):
+            A = np.stack([e[part].A for e in effs])
+            B = np.stack([e[part].B for e in effs])
+            M1 = np.stack([e[part].M1 for e in effs])
+            M2 = np.stack([e[part].M2 for e in effs])
+            M3 = np.stack([e[part].M3 for e in effs])
+            XM2 = np.swapaxes(X, 1, 2) @ M2
+            N = N + np.swapaxes(X, 1, 2) @ M1 @ X + XM2 + np.swapaxes(XM2, 1, 2) + M3
+            X = A @ X + B
+        s = score(N, objective, prior)
+        for k, x, n, v in zip(kids, X, N, s):
+            k.X, k.N, k.score = x, n, float(v)
+        return kids
+
+    def complete(self, cand: Candidate) -> bool:
+        return len(cand.walk) > 0 and (self.constraints.end is None
+                                        or cand.node == tuple(self.constraints.end))
+
+
+def _key(c: Candidate):
+    return (c.score, " ".join(m.label() for m in c.walk))
+
+
+def beam_search(model: SearchModel, objective: str = "worst", beam_width: int | None = 200,
+                keep: int = 5, progress=None) -> tuple[list[Candidate], int]:
+    """Best complete walks (``keep`` of them) and the number of candidates scored.
+
+    ``beam_width=None`` keeps every partial walk: an exhaustive search.
+    """
+    frontier = [model.start_candidate()]
+    finals: list[Candidate] = []
+    evaluated = 0
+    for depth in range(model.constraints.max_flips):
+        kids = model.extend(frontier, objective)
+        evaluated += len(kids)
+        if progress is not None:
+            progress(depth + 1, evaluated)
+        if not kids:
+            break
+        finals.extend(k for k in kids if model.complete(k))
+        finals = sorted(finals, key=_key)[:keep]
+        kids.sort(key=_key)
+        frontier = kids if beam_width is None else kids[:beam_width]
+    return finals, evaluated
+
+
+def brute_force(model: SearchModel, depth: int, objective: str = "worst") -> Candidate:
+    """Every walk of up to ``depth`` moves, each folded from scratch (for tests)."""
+    import itertools
+    best = None
+    for d in range(1, depth + 1):
+        for walk in itertools.product(model.moves, repeat=d):
+            cand = model.start_candidate()
+            ok = True
+            for mv in walk:
+                kids = [k for k in model.extend([cand], objective) if k.walk[-1] == mv]
+                if not kids:
+                    ok = False
+                    break
+                cand = kids[0]
+            if ok and model.complete(cand) and (best is None or _key(cand) < _key(best)):
+                best = cand
+    return best
+
+
+def to_sequence(walk, c: Constraints, dwells: list[float], name: str,
+                provenance: dict | None = None) -> Sequence:
+    """A sequence file's content for a walk and its dwells (initial first)."""
+    steps = tuple(Step(mv.axis, mv.angle_deg, c.rate_dps, float(d))
+                  for mv, d in zip(walk, dwells[1:]))
+    return Sequence(name=name, start=tuple(c.start), steps=steps, initial_dwell_s=float(dwells[0]),
+                    description=f"designed: {' '.join(m.label() for m in walk)}",
+                    provenance=provenance or {})
+
+
+# ---------------------------------------------------------------------------
+# Dwell refinement (casadi + IPOPT)
+
+
+def walk_information(walk, c: Constraints, dwells, latitude_rad: float, gravity_mps2: float,
+                     profile: NoiseProfile, P_ss: np.ndarray) -> np.ndarray:
+    """Search-model information of a walk with individual dwells (smooth in the dwells)."""
+    graph = flip_graph(c.start, c.axes)
+    node = tuple(c.start)
+    e = segment_effect(attitude_of(node), dwells[0], 0.0, -1, latitude_rad, gravity_mps2, profile,
+                       None, SEARCH_REST_INTERVALS, initial=True)
+    X, N = e.B, e.M3
+    for mv, d in zip(walk, dwells[1:]):
+        parts = [_turn_effect(node, mv, c.rate_dps, latitude_rad, gravity_mps2, profile,
+                              P_ss.tobytes())]
+        node = apply_move(graph, node, mv)
+        parts.append(segment_effect(attitude_of(node), d, 0.0, -1, latitude_rad, gravity_mps2,
+                                    profile, P_ss, SEARCH_REST_INTERVALS))
+        for eff in parts:
+            XM2 = X.T @ eff.M2
+            N = N + X.T @ eff.M1 @ X + XM2 + XM2.T + eff.M3
+            X = eff.A @ X + eff.B
+    return N
+
+
+@functools.lru_cache(maxsize=4096)
+def _turn_effect(node, mv, rate_dps, latitude_rad, gravity_mps2, profile, P_bytes):
+    P_ss = np.frombuffer(P_bytes).reshape(3, 3)
+    return segment_effect(attitude_of(node), abs(mv.angle_deg) / rate_dps,
+                          mv.sign * math.radians(rate_dps), AXES.index(mv.axis), latitude_rad,
+                          gravity_mps2, profile, P_ss)
+
+
+def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, height_m: float,
+                  profile: NoiseProfile, objective: str = "worst") -> tuple[list[float], float, float]:
+    """Optimise the dwells of a walk under the time budget (IPOPT).
+
+    Minimises ``t`` subject to ``ratio_i(dwells) <= t`` for all 21 (the
+    worst ratio, made smooth by the epigraph form) and ``sum(dwells) +
+    turns <= budget``, ``min_dwell <= dwell <= max_dwell``. Ratios come from
+    a casadi Callback over the search model with finite-difference
+    derivatives.
+
+    Returns the dwells, the objective with uniform dwells and after.
+    """
+    import casadi as ca
+
+    g = earth.gravity(latitude_rad, height_m)
+    P_ss = rest_steady_state(latitude_rad, g, profile, dwell0)
+    n = len(walk) + 1
+    turn_time = sum(abs(m.angle_deg) / c.rate_dps for m in walk)
+    scale = 100.0  # dwells in units of 100 s for IPOPT
+
+    def ratios(dw):
+        N = walk_information(walk, c, list(dw), latitude_rad, g, profile, P_ss)
+        M = scaled_marginal(N, prior=False)
+        return 3.0 * np.sqrt(np.abs(np.diag(np.linalg.inv(M))))
+
+    class _Ratios(ca.Callback):
+        def __init__(self):
+            ca.Callback.__init__(self)
+            self.construct("ratios", {"enable_fd": True, "fd_method": "central"})
+
+        def get_n_in(self):
+            return 1
+
+        def get_n_out(self):
+            return 1
+
+        def get_sparsity_in(self, i):
+            return ca.Sparsity.dense(n, 1)
+
+        def get_sparsity_out(self, i):
+            return ca.Sparsity.dense(P.N_PARAMS, 1)
+
+        def eval(self, arg):
+            return [ratios(np.asarray(arg[0], dtype=float).ravel() * scale)]
+
+    cb = _Ratios()
+    x = ca.MX.sym("d", n)
+    t = ca.MX.sym("t")
+    r = cb(x)
+    if objective == "worst":
+        f, gcon = t, ca.vertcat(r - t, ca.sum1(x) * scale + turn_time - c.budget_s)
+        ubg = np.zeros(P.N_PARAMS + 1)
+    else:  # A-optimal in the refinement for the other objectives
+        f, gcon = ca.sum1(r ** 2) / 9.0, ca.vertcat(ca.sum1(x) * scale + turn_time - c.budget_s)
+        ubg = np.zeros(1)
+    uniform = np.full(n, dwell0)
+    r0 = ratios(uniform)
+    solver = ca.nlpsol("dwells", "ipopt", {"x": ca.vertcat(x, t), "f": f, "g": gcon},
+                       {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
+                        "ipopt.hessian_approximation": "limited-memory", "ipopt.max_iter": 40,
+                        "ipopt.tol": 1e-4})
+    sol = solver(x0=np.concatenate([uniform / scale, [r0.max()]]),
+                 lbx=np.concatenate([np.full(n, c.min_dwell_s / scale), [0.0]]),
+                 ubx=np.concatenate([np.full(n, c.max_dwell_s / scale), [np.inf]]),
+                 lbg=np.full(len(ubg), -np.inf), ubg=ubg)
+    dw = np.asarray(sol["x"]).ravel()[:n] * scale
+    dw = np.clip(dw, c.min_dwell_s, c.max_dwell_s)
+    over = dw.sum() + turn_time - c.budget_s
+    if over > 0:  # IPOPT's tolerance: shave the excess off the longest dwell
+        dw[np.argmax(dw)] -= over
+    r1 = ratios(dw)
+    if r1.max() >= r0.max():  # never return worse than the uniform start
+        return list(uniform), float(r0.max()), float(r0.max())
+    return [float(round(d, 3)) for d in dw], float(r0.max()), float(r1.max())
+
+
+def uniform_dwell(c: Constraints, n_moves_guess: int, quarters_guess: float = 2.0) -> float:
+    """A dwell that lets ``n_moves_guess`` moves fit the budget."""
+    turn = n_moves_guess * quarters_guess * 90.0 / c.rate_dps
+    d = (c.budget_s - turn) / (n_moves_guess + 1)
+    return float(min(max(d, c.min_dwell_s), c.max_dwell_s))
+
+
+def check_constraints(c: Constraints) -> None:
+    if c.budget_s <= 0 or not math.isfinite(c.budget_s):
+        raise CalibError(f"budget {c.budget_s} s must be positive", "--budget-min")
+    if not 1 <= c.max_flips <= 30:
+        raise CalibError(f"--max-flips {c.max_flips} outside [1, 30]", "--max-flips")
+    if not 1 <= c.max_quarters <= 12:
+        raise CalibError(f"--max-quarters {c.max_quarters} outside [1, 12]", "--max-quarters")
+    if not c.axes or any(a not in AXES for a in c.axes):
+        raise CalibError(f"--axes {c.axes!r} must be letters from XYZ", "--axes")
+    if not 0 < c.min_dwell_s <= c.max_dwell_s:
+        raise CalibError(f"dwell range [{c.min_dwell_s}, {c.max_dwell_s}] s is empty",
+                         "--min-dwell-s/--max-dwell-s")
+    if not 0.1 <= c.rate_dps <= 100:
+        raise CalibError(f"--rate-dps {c.rate_dps} outside [0.1, 100]", "--rate-dps")
+    if c.min_dwell_s * 2 + 90.0 / c.rate_dps > c.budget_s:
+        raise CalibError(f"a budget of {c.budget_s:.0f} s cannot hold two dwells of "
+                         f"{c.min_dwell_s:.0f} s and one flip", "--budget-min",
+                         "raise the budget or lower --min-dwell-s")
