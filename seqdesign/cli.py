@@ -414,5 +414,187 @@ def compare(sequences, profile, latitude, tolerance_deg, as_json):
     click.echo(f"ratios are 3 sigma / requirement, worst over +-{tolerance_deg:g} deg, profile {profile}")
 
 
+# ---------------------------------------------------------------------------
+# design
+
+
+def _write_design(result, path, args_doc) -> None:
+    from calib.sequence import save_sequence
+    from dataclasses import replace as _replace
+
+    seq = _replace(result.sequence, provenance=provenance(**args_doc))
+    save_sequence(seq, path)
+
+
+@main.command(short_help="Search for a sequence that beats the paper's, robust to the mounting tolerance.")
+@click.option("--budget-min", type=float, default=15.0, show_default=True, help="Total time budget, minutes.")
+@click.option("--max-flips", type=int, default=10, show_default=True, help="Most moves (continuous turns).")
+@click.option("--max-quarters", type=int, default=5, show_default=True,
+              help="Longest move in quarter turns (5 = a turn and a quarter).")
+@click.option("--start", default="east,up,south", show_default=True, help="Where X, Y, Z point at the start.")
+@click.option("--end", default=None, help="Required final attitude (optional), e.g. \"east,up,south\".")
+@click.option("--axes", default="XYZ", show_default=True, help="Body axes the gimbal may turn about.")
+@click.option("--rate-dps", type=float, default=10.0, show_default=True, help="Rotation rate, deg/s.")
+@click.option("--min-dwell-s", type=float, default=30.0, show_default=True)
+@click.option("--max-dwell-s", type=float, default=300.0, show_default=True)
+@click.option("--objective", type=click.Choice(["worst", "D", "A", "E"]), default="worst",
+              show_default=True, help="worst 3 sigma/requirement, or D-, A-, E-optimal.")
+@click.option("--profile", default="navigation", show_default=True, help="Noise profile.")
+@click.option("--latitude", type=float, default=40.0, show_default=True, help="Site latitude, deg.")
+@click.option("--tolerance-deg", type=float, default=3.0, show_default=True)
+@click.option("--beam-width", type=int, default=200, show_default=True)
+@click.option("--no-refine", is_flag=True, help="Keep uniform dwells (skip the IPOPT refinement).")
+@click.option("-o", "--output", help="Sequence file to write (default: designed-<budget>min.toml).")
+@click.option("--pareto", is_flag=True, help="Sweep budgets and print/save the time vs worst-ratio front.")
+@click.option("--budgets", default="10,15,20,25,30", show_default=True,
+              help="Budgets (min) of the --pareto sweep.")
+@click.option("--workers", type=int, default=1, show_default=True, help="Local processes.")
+@click.option("--scheduler", default=None, help="dask.distributed scheduler address.")
+@click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
+@guarded
+def design(budget_min, max_flips, max_quarters, start, end, axes, rate_dps, min_dwell_s,
+           max_dwell_s, objective, profile, latitude, tolerance_deg, beam_width, no_refine, output,
+           pareto, budgets, workers, scheduler, as_json):
+    """Search flip walks on the graph of the 24 grid attitudes (beam search with
+    incremental information), re-score the finalists exactly at the worst
+    case of the mounting tolerance, refine the best's dwells with IPOPT, and
+    write it as a sequence file with its provenance."""
+    from calib import earth
+    from calib.profiles import load_profile
+    from seqdesign.design import Constraints, design as run_design
+    from seqdesign.graph import parse_node
+    from seqdesign.observability import accel_scale_bound
+
+    prof = load_profile(profile)
+    lat = math.radians(latitude)
+    if not -89.0 <= latitude <= 89.0:
+        raise CalibError(f"latitude {latitude} outside [-89, 89]", "--latitude")
+    if not (0.0 <= tolerance_deg <= 10.0):
+        raise CalibError(f"--tolerance-deg {tolerance_deg} outside [0, 10]", "--tolerance-deg")
+    if workers < 1 or beam_width < 1:
+        raise CalibError("--workers and --beam-width must be >= 1", "--workers/--beam-width")
+    base = dict(start=parse_node(start, "--start"), end=parse_node(end, "--end") if end else None,
+                max_flips=max_flips, axes=axes.upper(), max_quarters=max_quarters,
+                rate_dps=rate_dps, min_dwell_s=min_dwell_s, max_dwell_s=max_dwell_s)
+    if pareto:
+        try:
+            sweep = [float(b) for b in budgets.split(",") if b.strip()]
+        except ValueError:
+            raise CalibError(f"--budgets {budgets!r} is not a list of minutes", "--budgets") from None
+    else:
+        sweep = [budget_min]
+    g = earth.gravity(lat)
+    rows = []
+    for b in sweep:
+        c = Constraints(budget_s=b * 60.0, **base)
+        info(f"designing for {b:g} min ({prof.name}, objective {objective}) ...")
+        with click.progressbar(length=1, label="search", file=sys.stderr) as bar:
+            res = run_design(c, prof, lat, 0.0, objective, tolerance_deg, beam_width,
+                             name=f"designed-{b:g}min", workers=workers, scheduler=scheduler,
+                             progress=info)
+            bar.update(1)
+        bound = accel_scale_bound(res.sequence.duration_s, prof, g)
+        rows.append((b, res, bound))
+        path = output if (output and not pareto) else f"designed-{b:g}min.toml"
+        _write_design(res, path, {
+            "objective": objective, "profile": prof.name, "score": res.worst_ratio,
+            "score_parameter": res.worst_name, "tolerance_deg": tolerance_deg,
+            "latitude_deg": latitude, "budget_min": b,
+            "uniform_dwell_score": res.uniform_worst_ratio,
+            "candidates_evaluated": res.evaluated})
+        info(f"wrote {path}")
+    paper_T, paper_worst = _paper_point(prof, lat, tolerance_deg)
+    doc = {"profile": prof.name, "objective": objective, "tolerance_deg": tolerance_deg,
+           "designs": [{"budget_min": b, "duration_s": r.sequence.duration_s,
+                        "worst": {"name": r.worst_name, "ratio": r.worst_ratio},
+                        "uniform_dwell_worst_ratio": r.uniform_worst_ratio,
+                        "accel_scale_bound_ratio": bound,
+                        "steps": [{"axis": s.axis, "angle_deg": s.angle_deg, "dwell_s": s.dwell_s}
+                                  for s in r.sequence.steps],
+                        "initial_dwell_s": r.sequence.initial_dwell_s,
+                        "candidates_evaluated": r.evaluated,
+                        "search_seconds": r.search_seconds} for b, r, bound in rows],
+           "paper_9pos": {"duration_s": paper_T, "worst_ratio": paper_worst}}
+    if pareto:
+        _write_pareto(doc, prof, g, output or "pareto")
+    if as_json:
+        emit_json(doc)
+        return
+    click.echo(f"{'budget':>7} {'time':>7} {'worst ratio':>16} {'uniform':>8} {'bound':>6}  moves")
+    for b, r, bound in rows:
+        moves_txt = " ".join(f"{s.angle_deg:+.0f}{s.axis}" for s in r.sequence.steps)
+        click.echo(f"{b:6g}m {r.sequence.duration_s / 60:6.1f}m {r.worst_name:>5} {r.worst_ratio:9.3f} "
+                   f"{r.uniform_worst_ratio:8.3f} {bound:6.3f}  {moves_txt}")
+    click.echo(f"paper-9pos: {paper_T / 60:.1f} min, worst ratio {paper_worst:.2f}. Ratios are "
+               f"3 sigma/requirement, worst over +-{tolerance_deg:g} deg, profile {prof.name}; "
+               "bound = best possible for the accelerometer scale factors at that time.")
+
+
+def _paper_point(prof, lat, tolerance_deg):
+    from calib.sequence import load_sequence
+    from seqdesign.observability import analyze_tolerance
+    seq = load_sequence("paper-9pos")
+    rob = analyze_tolerance(seq, prof, lat, 0.0, tolerance_deg, search=False)
+    return seq.duration_s, float(rob.per_parameter_worst_ratio.max())
+
+
+def _write_pareto(doc, prof, g, stem) -> None:
+    """The front as CSV and as an SVG drawn against the physical bound curve."""
+    from calib.fileio import atomic_write_text
+    from seqdesign.observability import accel_scale_bound
+
+    stem = str(stem).removesuffix(".toml")
+    lines = ["budget_min,duration_s,worst_ratio,worst_parameter,bound_ratio"]
+    for d in doc["designs"]:
+        lines.append(f"{d['budget_min']},{d['duration_s']:.1f},{d['worst']['ratio']:.4f},"
+                     f"{d['worst']['name']},{d['accel_scale_bound_ratio']:.4f}")
+    p = doc["paper_9pos"]
+    lines.append(f"paper-9pos,{p['duration_s']:.1f},{p['worst_ratio']:.4f},,"
+                 f"{accel_scale_bound(p['duration_s'], prof, g):.4f}")
+    atomic_write_text(stem + ".csv", "\n".join(lines) + "\n")
+    # SVG: x = minutes (0..max), y = log worst ratio.
+    W, H, m = 640, 400, 60
+    tmax = max([d["duration_s"] for d in doc["designs"]] + [p["duration_s"]]) / 60 * 1.1
+    ys = [d["worst"]["ratio"] for d in doc["designs"]] + [p["worst_ratio"], 1.0]
+    lo, hi = math.log10(min(ys) * 0.8), math.log10(max(ys) * 1.3)
+
+    def X(t):
+        return m + (W - 2 * m) * t / tmax
+
+    def Y(r):
+        return H - m - (H - 2 * m) * (math.log10(r) - lo) / (hi - lo)
+
+    curve = " ".join(f"{X(t):.1f},{Y(accel_scale_bound(t * 60, prof, g)):.1f}"
+                     for t in np.linspace(max(1.0, tmax / 40), tmax, 80)
+                     if lo <= math.log10(accel_scale_bound(t * 60, prof, g)) <= hi)
+    pts = "".join(f'<circle cx="{X(d["duration_s"] / 60):.1f}" cy="{Y(d["worst"]["ratio"]):.1f}" r="5" '
+                  f'fill="#1f77b4"><title>{d["budget_min"]} min: {d["worst"]["ratio"]:.2f}</title></circle>'
+                  for d in doc["designs"])
+    front = " ".join(f"{X(d['duration_s'] / 60):.1f},{Y(d['worst']['ratio']):.1f}"
+                     for d in sorted(doc["designs"], key=lambda d: d["duration_s"]))
+    ticks = "".join(f'<text x="{X(t):.0f}" y="{H - m + 18}" font-size="11" text-anchor="middle">{t:g}</text>'
+                    for t in range(0, int(tmax) + 1, 5))
+    yt = "".join(f'<text x="{m - 8}" y="{Y(r) + 4:.0f}" font-size="11" text-anchor="end">{r:g}</text>'
+                 f'<line x1="{m}" x2="{W - m}" y1="{Y(r):.1f}" y2="{Y(r):.1f}" stroke="#ddd"/>'
+                 for r in (0.5, 1, 1.5, 2, 3, 5, 10, 20) if lo <= math.log10(r) <= hi)
+    svg = (f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" font-family="sans-serif">'
+           f'<rect width="{W}" height="{H}" fill="white"/>{yt}{ticks}'
+           f'<line x1="{m}" y1="{H - m}" x2="{W - m}" y2="{H - m}" stroke="black"/>'
+           f'<line x1="{m}" y1="{m}" x2="{m}" y2="{H - m}" stroke="black"/>'
+           f'<polyline points="{curve}" fill="none" stroke="#d62728" stroke-dasharray="6,4"/>'
+           f'<polyline points="{front}" fill="none" stroke="#1f77b4"/>{pts}'
+           f'<rect x="{X(p["duration_s"] / 60) - 5:.1f}" y="{Y(p["worst_ratio"]) - 5:.1f}" width="10" '
+           f'height="10" fill="#ff7f0e"/>'
+           f'<text x="{X(p["duration_s"] / 60) + 8:.1f}" y="{Y(p["worst_ratio"]) + 4:.1f}" font-size="12">'
+           f'paper-9pos</text>'
+           f'<text x="{W / 2}" y="{H - 15}" font-size="13" text-anchor="middle">total time, min</text>'
+           f'<text x="15" y="{H / 2}" font-size="13" transform="rotate(-90 15 {H / 2})" '
+           f'text-anchor="middle">worst 3 sigma / requirement (+-{doc["tolerance_deg"]:g} deg)</text>'
+           f'<text x="{W - m}" y="{m - 10}" font-size="12" text-anchor="end" fill="#d62728">'
+           f'dashed: accelerometer scale-factor bound ({prof.name})</text></svg>')
+    atomic_write_text(stem + ".svg", svg)
+    info(f"wrote {stem}.csv and {stem}.svg")
+
+
 if __name__ == "__main__":
     main()

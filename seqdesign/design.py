@@ -459,3 +459,120 @@ def check_constraints(c: Constraints) -> None:
         raise CalibError(f"a budget of {c.budget_s:.0f} s cannot hold two dwells of "
                          f"{c.min_dwell_s:.0f} s and one flip", "--budget-min",
                          "raise the budget or lower --min-dwell-s")
+
+
+# ---------------------------------------------------------------------------
+# The whole design: search at a few dwells, exact re-scoring, refinement
+
+
+@dataclass
+class DesignResult:
+    """A designed sequence and the figures that justify it."""
+
+    sequence: Sequence
+    worst_ratio: float  # exact, worst case over the tolerance box
+    worst_name: str
+    uniform_worst_ratio: float  # exact, same walk with uniform dwells
+    evaluated: int  # candidates scored by the search
+    search_seconds: float
+    finalists: list  # (walk label, dwell, exact worst ratio)
+    robustness: object
+
+
+def _search_at_dwell(args):
+    c, dwell, latitude_rad, height_m, profile, objective, beam_width, keep = args
+    import time as _time
+    t = _time.perf_counter()
+    model = SearchModel.build(c, dwell, latitude_rad, height_m, profile)
+    finals, n = beam_search(model, objective, beam_width, keep)
+    return dwell, [(f.walk, f.score) for f in finals], n, _time.perf_counter() - t
+
+
+def search_dwells(c: Constraints) -> list[float]:
+    """Uniform dwells the search tries: fitting roughly all, two thirds and half the flips."""
+    counts = sorted({max(1, c.max_flips), max(1, (2 * c.max_flips) // 3), max(1, c.max_flips // 2)})
+    return sorted({round(uniform_dwell(c, n, 3.0), 1) for n in counts})
+
+
+def map_jobs(fn, jobs, workers: int = 1, scheduler: str | None = None):
+    """Run jobs serially, on local processes, or on a dask.distributed cluster; same order out."""
+    if scheduler:
+        try:
+            from dask.distributed import Client
+        except ImportError:
+            raise CalibError("--scheduler needs dask.distributed", "--scheduler",
+                             "pip install 'seqdesign[dask]'") from None
+        client = scheduler if not isinstance(scheduler, str) else Client(scheduler)
+        try:
+            return client.gather(client.map(fn, jobs, pure=False))
+        finally:
+            if isinstance(scheduler, str):
+                client.close()
+    if workers > 1:
+        from concurrent.futures import ProcessPoolExecutor
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            return list(pool.map(fn, jobs))
+    return [fn(j) for j in jobs]
+
+
+def _exact_worst(seq: Sequence, profile, latitude_rad, height_m, tolerance_deg, search):
+    from .observability import analyze_tolerance
+    rob = analyze_tolerance(seq, profile, latitude_rad, height_m, tolerance_deg, search=search)
+    r = rob.per_parameter_worst_ratio
+    i = int(np.argmax(r))
+    return float(r[i]), P.NAMES[i], rob
+
+
+def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m: float = 0.0,
+           objective: str = "worst", tolerance_deg: float = 3.0, beam_width: int = 200,
+           keep: int = 4, refine: bool = True, name: str = "designed", workers: int = 1,
+           scheduler=None, progress=None) -> DesignResult:
+    """Search walks, re-score finalists exactly over the tolerance box, refine the best's dwells."""
+    import time as _time
+    check_constraints(c)
+    if objective not in OBJECTIVES:
+        raise CalibError(f"unknown objective {objective!r}", "--objective", "use worst, D, A or E")
+    t0 = _time.perf_counter()
+    jobs = [(c, d, latitude_rad, height_m, profile, objective, beam_width, keep)
+            for d in search_dwells(c)]
+    results = map_jobs(_search_at_dwell, jobs, workers, scheduler)
+    evaluated = sum(r[2] for r in results)
+    search_seconds = _time.perf_counter() - t0
+    if progress:
+        progress(f"searched {evaluated} candidates in {search_seconds:.1f} s")
+    finalists = []
+    seen = set()
+    for dwell, finals, _, _ in results:
+        for walk, _score in finals:
+            if (walk, dwell) in seen:
+                continue
+            seen.add((walk, dwell))
+            seq = to_sequence(walk, c, [dwell] * (len(walk) + 1), name)
+            worst, wname, rob = _exact_worst(seq, profile, latitude_rad, height_m, tolerance_deg,
+                                             search=False)
+            finalists.append((worst, " ".join(m.label() for m in walk), dwell, walk, wname, rob))
+    if not finalists:
+        raise CalibError("no walk fits the constraints", "design",
+                         "raise --budget-min or --max-flips, or lower --min-dwell-s")
+    finalists.sort(key=lambda f: (f[0], f[1]))
+    worst, label, dwell, walk, wname, rob = finalists[0]
+    uniform = worst
+    dwells = [dwell] * (len(walk) + 1)
+    if refine:
+        if progress:
+            progress(f"refining the dwells of {label} with IPOPT")
+        new_dwells, _, _ = refine_dwells(walk, c, dwell, latitude_rad, height_m, profile,
+                                         objective)
+        if new_dwells != dwells:
+            seq = to_sequence(walk, c, new_dwells, name)
+            w2, n2, rob2 = _exact_worst(seq, profile, latitude_rad, height_m, tolerance_deg,
+                                        search=False)
+            if w2 < worst:
+                worst, wname, rob, dwells = w2, n2, rob2, new_dwells
+    seq = to_sequence(walk, c, dwells, name)
+    worst, wname, rob = _exact_worst(seq, profile, latitude_rad, height_m, tolerance_deg,
+                                     search=True)
+    return DesignResult(sequence=seq, worst_ratio=worst, worst_name=wname,
+                        uniform_worst_ratio=uniform, evaluated=evaluated,
+                        search_seconds=search_seconds,
+                        finalists=[(f[1], f[2], f[0]) for f in finalists], robustness=rob)

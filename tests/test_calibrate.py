@@ -80,7 +80,8 @@ def test_any_heading_works(paper):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["paper-9pos", "paper-9pos-turns"])
+@pytest.mark.parametrize("name", ["paper-9pos", "paper-9pos-turns", "designed-15min",
+                                  "designed-30min"])
 def test_monte_carlo_statistical_honesty(name):
     """N = 50 noisy runs: mean NEES in the 99 % interval of chi2(1050)/50 and
     RMS(error)/mean(sigma) in [0.67, 1.36] for every parameter (99 % over 21 at N = 50)."""

@@ -1,0 +1,463 @@
+"""rerun recordings: read back with rerun's own reader and compared with independent constructions.
+
+Every recording here is read with ``rerun.chunk.RrdReader`` (not with the
+code that wrote it). Attitudes are rebuilt by composing the logged transforms
+along the entity path and compared with matrices built from Table 1's
+direction names (conftest.attitude). rerun keeps analytics files under the
+home directory, so HOME and XDG_* point into a temporary directory for the
+whole module.
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from conftest import (DWELL_S, FLIP_S, N_POS, SPEC_NAMES, attitude, normal_gravity, rest_window,
+                      table1_positions)
+
+RATE_HZ = 40.0          # a short, fast run: 67680 samples for the 28-min sequence
+N_SAMPLES = int(round((N_POS * DWELL_S + (N_POS - 1) * FLIP_S) * RATE_HZ))
+GIMBAL_PATH = ["world/base", "world/base/gimbal", "world/base/gimbal/outer",
+               "world/base/gimbal/outer/middle", "world/base/gimbal/outer/middle/inner"]
+REQ = {"bg": 0.03, "sg": 1.0, "mg": 15.0, "ba": 50.0, "sa": 1.0, "ma": 10.0}  # conventions.md
+
+
+@pytest.fixture(scope="module", autouse=True)
+def private_home(tmp_path_factory):
+    """Keep rerun's analytics/config files out of the real home directory."""
+    home = tmp_path_factory.mktemp("home")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("HOME", str(home))
+        for var, sub in (("XDG_CONFIG_HOME", ".config"), ("XDG_DATA_HOME", ".local/share"),
+                         ("XDG_CACHE_HOME", ".cache")):
+            mp.setenv(var, str(home / sub))
+        yield home
+
+
+# ---------------------------------------------------------------------------
+# Reading back, with rerun's reader only
+
+
+def read_back(path) -> dict[str, list]:
+    from rerun.chunk import RrdReader
+
+    out: dict[str, list] = {}
+    for chunk in RrdReader(str(path)).stream():
+        out.setdefault(chunk.entity_path.lstrip("/"), []).append(chunk.to_record_batch())
+    return out
+
+
+def batch_with(rec, entity, column):
+    found = [b for b in rec[entity] if column in b.schema.names]
+    assert len(found) == 1, (entity, column, [b.schema.names for b in rec[entity]])
+    return found[0]
+
+
+def times_of(batch) -> np.ndarray:
+    return batch.column("time").cast("int64").to_numpy() / 1e9
+
+
+def scalars(rec, entity):
+    b = batch_with(rec, entity, "Scalars:scalars")
+    flat = b.column("Scalars:scalars").flatten().to_numpy()
+    return times_of(b), flat.reshape(b.num_rows, -1)
+
+
+def matrices(batch) -> np.ndarray:
+    """Transform3D:mat3x3 rows as (n, 3, 3); rerun stores each matrix column-major."""
+    flat = batch.column("Transform3D:mat3x3").flatten().flatten().to_numpy()
+    return flat.astype(float).reshape(-1, 3, 3).transpose(0, 2, 1)
+
+
+def world_attitude(rec, t: float) -> np.ndarray:
+    """C_b^n of the IMU at time t: the transforms along the gimbal path, latest at or before t."""
+    C = np.eye(3)
+    for entity in GIMBAL_PATH:
+        b = batch_with(rec, entity, "Transform3D:mat3x3")
+        M = matrices(b)
+        if "time" in b.schema.names:
+            k = np.searchsorted(times_of(b), t, side="right") - 1
+            assert k >= 0
+            M = M[k:k + 1]
+        C = C @ M[0]
+    return C
+
+
+def tensor(batch, column) -> np.ndarray:
+    """A BarChart or Tensor cell: its flat buffer reshaped by its stored shape."""
+    cell = batch.column(column).to_pylist()[0][0]
+    return np.array(cell["buffer"], dtype=float).reshape([int(n) for n in cell["shape"]])
+
+
+def bars(rec, entity) -> np.ndarray:
+    return tensor(batch_with(rec, entity, "BarChart:values"), "BarChart:values")
+
+
+def text_of(rec, entity) -> str:
+    return batch_with(rec, entity, "TextDocument:text").column("TextDocument:text").to_pylist()[0][0]
+
+
+# ---------------------------------------------------------------------------
+# Fixtures: one short simulated run (Table 2 errors, noise) and a result near its truth
+
+
+@pytest.fixture(scope="module")
+def sim():
+    from calib.errormodel import ErrorModel
+    from calib.profiles import load_profile
+    from calib.sequence import load_sequence
+    from calib.sim import SimConfig, simulate
+
+    seq = load_sequence("paper-9pos")
+    run, truth = simulate(seq, SimConfig(math.radians(40.0), sample_rate_hz=RATE_HZ),
+                          ErrorModel.from_table2(), load_profile("navigation"), seed=3)
+    assert run.n_samples == N_SAMPLES
+    return seq, run, truth
+
+
+def requirement_si(name: str) -> float:
+    deg = math.pi / 180
+    si = {"bg": deg / 3600, "sg": 1e-6, "mg": deg / 3600, "ba": 9.80665e-6,
+          "sa": 1e-6, "ma": deg / 3600}[name[:2]]
+    return REQ[name[:2]] * si
+
+
+@pytest.fixture(scope="module")
+def result(sim):
+    """A result 0.5 sigma off the truth with sigma = 0.3 x requirement (3 sigma / req = 0.9)."""
+    from calib.result import CalibrationResult
+
+    seq, run, truth = sim
+    req = np.array([requirement_si(n) for n in SPEC_NAMES])
+    sigma = 0.3 * req
+    return CalibrationResult(values=truth.errors.values + 0.5 * sigma, sigma=sigma,
+                             C_b_n0=attitude("east", "up", "south"), converged=True,
+                             iterations=3, residual_rms_mps=1e-4, profile="navigation",
+                             chi2_per_dof=1.0, correlation=np.eye(21))
+
+
+@pytest.fixture(scope="module")
+def recorded(sim, result, tmp_path_factory):
+    from viz.record import record_run
+
+    seq, run, truth = sim
+    path = tmp_path_factory.mktemp("rec") / "run.rrd"
+    summary = record_run(run, path, sequence=seq, result=result, truth=truth)
+    return path, summary, read_back(path)
+
+
+# ---------------------------------------------------------------------------
+# Run recording
+
+
+def test_entities_present(recorded):
+    path, summary, rec = recorded
+    for entity in ["about", "events", "world", "world/enu", "world/gravity", "world/label",
+                   *GIMBAL_PATH, "world/base/gimbal/outer/middle/inner/imu",
+                   "world/base/gimbal/outer/middle/inner/imu/axes",
+                   "signals/gyro_dps", "signals/accel_mps2", "residuals/before/velocity_mps",
+                   "residuals/after/velocity_mps", "attitude/gimbal_deg",
+                   "attitude/nav_minus_gimbal_arcsec", "sequence/position", "results/ratio",
+                   "results/error_over_requirement", "results/error_over_sigma",
+                   "results/correlation", "results/table"]:
+        assert entity in rec, entity
+        assert entity in summary.entities, entity
+    assert "encoders" in summary.scene_source and "truth" in summary.mount_source
+
+
+def test_residuals_full_rate_one_row_per_sample(recorded, sim):
+    _, summary, rec = recorded
+    run = sim[1]
+    for stage in ("before", "after"):
+        t, v = scalars(rec, f"residuals/{stage}/velocity_mps")
+        assert v.shape == (N_SAMPLES, 3)
+        assert summary.entities[f"residuals/{stage}/velocity_mps"] == N_SAMPLES
+        # time line = seconds since the first sample starts; the run starts at 0.
+        np.testing.assert_allclose(t, run.time_s, atol=1e-9)
+    # After compensating with a result 0.5 sigma off the truth the velocity stays small;
+    # before, Table 2's 3 deg/h gyro biases drive it far away.
+    _, after = scalars(rec, "residuals/after/velocity_mps")
+    _, before = scalars(rec, "residuals/before/velocity_mps")
+    assert np.abs(after).max() < 0.5
+    assert np.abs(before).max() > 10 * np.abs(after).max()
+
+
+def test_attitude_at_every_rest_position_matches_table1(recorded):
+    _, _, rec = recorded
+    for row in table1_positions():
+        k = int(row["position"])
+        start, end = rest_window(k)
+        C = world_attitude(rec, 0.5 * (start + end))
+        expected = attitude(row["pre_x"], row["pre_y"], row["pre_z"])
+        np.testing.assert_allclose(C, expected, atol=1e-6, err_msg=f"position {k}")
+
+
+def test_attitude_at_position_3(recorded):
+    """Table 1, position 3: X north, Y west, Z up."""
+    _, _, rec = recorded
+    start, end = rest_window(3)
+    expected = np.column_stack([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    for t in (start + 1.0, 0.5 * (start + end), end - 1.0):
+        np.testing.assert_allclose(world_attitude(rec, t), expected, atol=1e-6)
+
+
+def test_flip_is_drawn_smoothly(recorded):
+    """Inside flip 2 (about Y, the inner gimbal) the transforms are at most ~2 deg apart."""
+    _, _, rec = recorded
+    b = batch_with(rec, "world/base/gimbal/outer/middle/inner", "Transform3D:mat3x3")
+    t, M = times_of(b), matrices(b)
+    a, z = rest_window(2)[1], rest_window(3)[0]
+    sel = (t >= a) & (t <= z)
+    angle = np.degrees(np.arctan2(M[sel, 0, 2], M[sel, 0, 0]))
+    assert sel.sum() >= 45
+    assert np.abs(np.diff(angle)).max() <= 2.5
+    assert angle[0] == pytest.approx(0.0, abs=1.5) and angle[-1] == pytest.approx(90.0, abs=1.5)
+
+
+def test_signals_decimated_and_physical(recorded, sim):
+    _, _, rec = recorded
+    run = sim[1]
+    t, gyro = scalars(rec, "signals/gyro_dps")
+    _, acc = scalars(rec, "signals/accel_mps2")
+    assert len(t) == N_SAMPLES // 2  # 40 Hz shown as 20 Hz block means
+    # Each row is the mean over two samples: sum(increments) / sum(dt), at the pair's middle.
+    pairs = lambda x: x.reshape(-1, 2, 3).sum(axis=1) / (2.0 / RATE_HZ)  # noqa: E731
+    np.testing.assert_allclose(t, run.time_s[1::2] - 1.0 / RATE_HZ, atol=1e-9)
+    np.testing.assert_allclose(acc, pairs(run.dv_mps), rtol=1e-9)  # dt from the time stamps
+    np.testing.assert_allclose(gyro, np.degrees(pairs(run.dtheta_rad)), rtol=1e-9, atol=1e-12)
+    # Physics: |f| = g at rest (Table 2's mg-level biases and 100-ppm-level scale factors aside).
+    g = normal_gravity(math.radians(40.0), 0.0)
+    rest = (t > 10) & (t < 170)
+    np.testing.assert_allclose(np.linalg.norm(acc[rest], axis=1), g, rtol=5e-3)
+    flip1 = (t > 181) & (t < 188)  # about body Z at +10 deg/s
+    np.testing.assert_allclose(gyro[flip1, 2], 10.0, atol=0.01)
+    about = text_of(rec, "about")
+    assert "DECIMATED" in about and "FULL rate" in about and str(N_SAMPLES) in about
+    assert run.n_samples == N_SAMPLES
+
+
+def test_positions_and_flips_as_text(recorded):
+    _, _, rec = recorded
+    b = rec["events"][0]
+    t = times_of(b)
+    text = [x[0] for x in b.column("TextLog:text").to_pylist()]
+    assert len(text) == 2 * N_POS - 1
+    k = text.index(next(x for x in text if x.startswith("position 3:")))
+    assert t[k] == pytest.approx(rest_window(3)[0], abs=1e-9)
+    assert "X north, Y west, Z up" in text[k]
+    flips = [(ti, x) for ti, x in zip(t, text) if x.startswith("flip")]
+    assert [ti for ti, _ in flips] == pytest.approx([rest_window(i)[1] for i in range(1, N_POS)])
+    assert "about body Y by +90 deg" in flips[1][1]
+    # The position marker series steps through 1..9 and is 0 while turning.
+    ts, pos = scalars(rec, "sequence/position")
+    for i in range(1, N_POS + 1):
+        start, end = rest_window(i)
+        inside = (ts > start + 1) & (ts < end - 1)
+        assert np.all(pos[inside, 0] == i)
+    assert np.all(pos[(ts > 181) & (ts < 188), 0] == 0)
+
+
+def test_result_bars(recorded):
+    _, _, rec = recorded
+    np.testing.assert_allclose(bars(rec, "results/ratio"), 0.9, rtol=1e-6)
+    np.testing.assert_allclose(bars(rec, "results/error_over_requirement"), 0.15, rtol=1e-6)
+    np.testing.assert_allclose(bars(rec, "results/error_over_sigma"), 0.5, rtol=1e-6)
+    table = text_of(rec, "results/table")
+    for name in SPEC_NAMES:
+        assert f"| {name} |" in table
+    corr = tensor(batch_with(rec, "results/correlation", "Tensor:data"), "Tensor:data")
+    np.testing.assert_allclose(corr, np.eye(21))
+
+
+def test_no_wall_clock_timeline(recorded):
+    """Only the explicit 'time' timeline: nothing logged per sample with log()."""
+    _, _, rec = recorded
+    indexes = set()
+    for entity, batches in rec.items():
+        for b in batches:
+            for f in b.schema:
+                if (f.metadata or {}).get(b"rerun:kind") == b"index":
+                    indexes.add(f.name)
+    assert indexes == {"time"}
+
+
+def test_blueprint_is_stored(recorded):
+    from rerun.chunk import RrdReader
+
+    path = recorded[0]
+    kinds = {e.kind for e in RrdReader(str(path)).blueprints()}
+    assert kinds == {"blueprint"}
+
+
+# ---------------------------------------------------------------------------
+# Other sources of the gimbal angles
+
+
+def test_scene_from_sequence_without_encoders(sim, tmp_path):
+    from dataclasses import replace
+
+    from viz.record import record_run
+
+    seq, run, truth = sim
+    bare = replace(run, gimbal_deg=None)
+    summary = record_run(bare, tmp_path / "seq.rrd", sequence=seq)
+    assert summary.scene_source.startswith("sequence")
+    rec = read_back(tmp_path / "seq.rrd")
+    for row in table1_positions():
+        start, end = rest_window(int(row["position"]))
+        np.testing.assert_allclose(world_attitude(rec, 0.5 * (start + end)),
+                                   attitude(row["pre_x"], row["pre_y"], row["pre_z"]), atol=1e-6)
+    assert "residuals/after/velocity_mps" not in rec and "results/ratio" not in rec
+
+
+def test_scene_from_navigation(sim, result, tmp_path):
+    """No encoders, no sequence: the calibrated navigation attitude drives the scene."""
+    from dataclasses import replace
+
+    from viz.record import record_run
+
+    seq, run, truth = sim
+    bare = replace(run, gimbal_deg=None, meta={k: v for k, v in run.meta.items() if k != "sequence"})
+    summary = record_run(bare, tmp_path / "nav.rrd", result=result)
+    assert summary.scene_source.startswith("navigation attitude after calibration")
+    rec = read_back(tmp_path / "nav.rrd")
+    for row in table1_positions():
+        start, end = rest_window(int(row["position"]))
+        np.testing.assert_allclose(world_attitude(rec, 0.5 * (start + end)),
+                                   attitude(row["pre_x"], row["pre_y"], row["pre_z"]), atol=1e-3)
+    text = [x[0] for x in rec["events"][0].column("TextLog:text").to_pylist()]
+    assert sum(x.startswith("flip") for x in text) == N_POS - 1
+    assert sum(x.startswith("position") for x in text) == N_POS
+
+
+# ---------------------------------------------------------------------------
+# Analysis recording
+
+
+def test_analysis_recording(tmp_path):
+    from calib.profiles import load_profile
+    from calib.sequence import load_sequence
+    from seqdesign.observability import analyze
+    from viz.record import record_analysis
+
+    seq = load_sequence("paper-9pos")
+    obs = analyze(seq, load_profile("navigation"), math.radians(40.0))
+    record_analysis(obs, seq, tmp_path / "analysis.rrd")
+    rec = read_back(tmp_path / "analysis.rrd")
+    corr = tensor(batch_with(rec, "analysis/correlation", "Tensor:data"), "Tensor:data")
+    assert corr.shape == (21, 21)
+    np.testing.assert_allclose(np.diag(corr), 1.0, atol=1e-12)
+    np.testing.assert_allclose(corr, corr.T, atol=1e-12)
+    i, j = SPEC_NAMES.index("sgy"), SPEC_NAMES.index("mazx")
+    assert corr[i, j] < -0.9  # the README's most correlated pair
+    np.testing.assert_allclose(bars(rec, "analysis/ratio"), obs.ratio, rtol=1e-12)
+    for row in table1_positions():
+        k = int(row["position"])
+        M = matrices(batch_with(rec, f"positions/p{k}", "Transform3D:mat3x3"))[0]
+        np.testing.assert_allclose(M, attitude(row["pre_x"], row["pre_y"], row["pre_z"]),
+                                   atol=1e-6)
+        start, end = rest_window(k)
+        np.testing.assert_allclose(world_attitude(rec, 0.5 * (start + end)),
+                                   attitude(row["pre_x"], row["pre_y"], row["pre_z"]), atol=1e-6)
+    assert "sgy" in text_of(rec, "analysis/table")
+
+
+# ---------------------------------------------------------------------------
+# Command line
+
+
+def _write_run(sim, result, folder: Path, sha_of_run: bool = True) -> Path:
+    from dataclasses import replace
+
+    from calib.fileio import sha256_file
+    from calib.runlog import write_run
+    from calib.truth import write_truth
+
+    seq, run, truth = sim
+    path = folder / "run.npz"
+    write_run(run, path)
+    write_truth(folder / "run.truth.toml", truth)
+    sha = sha256_file(path) if sha_of_run else "0" * 64
+    replace(result, provenance={"run_sha256": sha}).save(folder / "run.result.toml")
+    return path
+
+
+def test_cli_defaults_beside_the_run(sim, result, tmp_path):
+    from viz.cli import view
+
+    run_path = _write_run(sim, result, tmp_path)
+    res = CliRunner().invoke(view, [str(run_path), "--json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["rrd"] == str(tmp_path / "run.rrd")
+    assert doc["result"] == str(tmp_path / "run.result.toml")
+    assert doc["truth"] == str(tmp_path / "run.truth.toml")
+    assert doc["sequence"] == "paper-9pos"
+    assert doc["entities"]["residuals/after/velocity_mps"] == N_SAMPLES
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "run.npz", "run.result.toml", "run.rrd", "run.truth.toml"]
+    rec = read_back(tmp_path / "run.rrd")
+    np.testing.assert_allclose(bars(rec, "results/error_over_requirement"), 0.15, rtol=1e-6)
+
+
+def test_cli_skips_a_result_of_another_run(sim, result, tmp_path):
+    from viz.cli import view
+
+    run_path = _write_run(sim, result, tmp_path, sha_of_run=False)
+    res = CliRunner().invoke(view, [str(run_path), "-o", str(tmp_path / "x.rrd"), "--json"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["result"] is None
+    assert "different run" in res.stderr
+    # Given explicitly, the same result is refused and nothing is written.
+    res = CliRunner().invoke(view, [str(run_path), "--result", str(tmp_path / "run.result.toml"),
+                                    "-o", str(tmp_path / "y.rrd")])
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    assert not (tmp_path / "y.rrd").exists()
+
+
+@pytest.mark.parametrize("args", [
+    ["missing.npz"],
+    ["run.npz", "-o", "out.txt"],
+    ["run.npz", "--sequence", "no-such-sequence"],
+    ["run.npz", "--result", "missing.result.toml"],
+    ["run.npz", "-o", "no/such/dir/run.rrd"],
+])
+def test_cli_bad_input_one_line_nothing_written(sim, result, tmp_path, monkeypatch, args):
+    from viz.cli import view
+
+    _write_run(sim, result, tmp_path)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    monkeypatch.chdir(tmp_path)
+    res = CliRunner().invoke(view, args)
+    assert res.exit_code == 2, res.output
+    assert "Traceback" not in res.output
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ")
+    assert sorted(p.name for p in tmp_path.iterdir()) == before  # no .rrd, no temporary file
+
+
+def test_failure_midway_leaves_old_file_untouched(sim, tmp_path, monkeypatch):
+    import calib.strapdown
+    from viz.record import record_run
+
+    seq, run, truth = sim
+    target = tmp_path / "run.rrd"
+    target.write_bytes(b"old")
+
+    def boom(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(calib.strapdown, "navigate", boom)
+    with pytest.raises(KeyboardInterrupt):
+        record_run(run, target, sequence=seq)
+    assert target.read_bytes() == b"old"
+    assert [p.name for p in tmp_path.iterdir()] == ["run.rrd"]
+
+
+def test_nothing_written_to_the_real_home(private_home):
+    assert Path.home() == private_home
