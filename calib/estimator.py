@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import earth
 from . import params as P
+from . import sanity
 from .errormodel import ErrorModel
 from .errors import CalibError
 from .jacobian import N_UNKNOWN, PHI0, default_grid, observation_jacobian, state_matrix
@@ -142,6 +142,7 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
     Fit
     """
     dt = np.diff(np.concatenate([[time_s[0] - (time_s[1] - time_s[0])], time_s]))
+    sanity.check_rates(dtheta_m, dt, where)
     seg = detect_motion(dtheta_m, dt, where)
     if moving is not None:
         seg = Segmentation(moving=moving, first_rest_end=int(np.argmax(moving)))
@@ -150,6 +151,10 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
         raise CalibError(f"the first rest lasts {t_align:.1f} s, too short to align "
                          f"(needs >= {MIN_ALIGN_S:.0f} s)", where,
                          "start the run with the IMU at rest")
+    sanity.check_rest_rate(dtheta_m, dt, slice(0, seg.first_rest_end), where)
+    sanity.check_gravity(dv_m, dt, slice(0, seg.first_rest_end), gravity_mps2, where)
+    sanity.check_saturation(dtheta_m, dv_m, where)
+    sanity.check_rests(dv_m, dt, seg.moving, profile.vrw, where)
     fs = 1.0 / np.median(dt)
     grid = default_grid(seg.moving, fs)
     t_nav = np.concatenate([[time_s[0] - dt[0]], time_s])

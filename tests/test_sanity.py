@@ -1,0 +1,112 @@
+"""Physical sanity checks on runs and estimator guards: each gives the message a user sees."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from calib.errormodel import ErrorModel
+from calib.profiles import load_profile
+from calib.runlog import Run, write_run
+from calib.sequence import sequence_from_dict
+from calib.sim import SimConfig, simulate
+from seqdesign.cli import main
+
+LAT = math.radians(40.0)
+RATE = 50.0  # Hz: enough for every check, fast to calibrate
+
+
+@pytest.fixture(scope="module")
+def good_run():
+    doc = {"name": "short", "start": ["east", "up", "south"], "initial_dwell_s": 40.0,
+           "step": [{"axis": a, "angle_deg": g, "dwell_s": 40.0}
+                    for a, g in [("Z", 90), ("Y", 90), ("X", -90), ("Y", -90), ("Y", -90),
+                                 ("X", -90), ("Y", -90), ("Z", 90)]]}
+    seq = sequence_from_dict(doc, "short")
+    run, _ = simulate(seq, SimConfig(latitude_rad=LAT, sample_rate_hz=RATE),
+                      ErrorModel.from_table2(), load_profile("navigation"), seed=5)
+    return run
+
+
+def _calibrate(run, tmp_path, name="bad.npz"):
+    path = tmp_path / name
+    write_run(run, path)
+    out = tmp_path / "res.toml"
+    r = CliRunner().invoke(main, ["calibrate", str(path), "-o", str(out)])
+    assert "Traceback" not in r.output
+    return r, out
+
+
+def _variant(run, **arrays):
+    fields = dict(time_s=run.time_s, dtheta_rad=run.dtheta_rad, dv_mps=run.dv_mps,
+                  meta=dict(run.meta), gimbal_deg=None)
+    fields.update(arrays)
+    return Run(**fields)
+
+
+def test_good_run_passes_every_check(good_run, tmp_path):
+    r, out = _calibrate(good_run, tmp_path, "good.npz")
+    assert r.exit_code == 0, r.output
+    assert out.exists()
+
+
+def test_gyro_in_degrees_is_refused(good_run, tmp_path):
+    r, out = _calibrate(_variant(good_run, dtheta_rad=np.degrees(good_run.dtheta_rad)), tmp_path)
+    assert r.exit_code == 2 and "rad/s" in r.output and "degrees" in r.output
+    assert not out.exists()
+
+
+def test_gyro_rates_instead_of_increments_are_refused(good_run, tmp_path):
+    # Rates logged as increments are RATE times too big: a 10 deg/s flip reads 8.7 rad/s.
+    run = _variant(good_run, dtheta_rad=good_run.dtheta_rad * RATE)
+    r, out = _calibrate(run, tmp_path)
+    assert r.exit_code == 2 and "increments" in r.output
+    assert not out.exists()
+
+
+def test_accelerometer_in_g_is_refused(good_run, tmp_path):
+    r, out = _calibrate(_variant(good_run, dv_mps=good_run.dv_mps / 9.80665), tmp_path)
+    assert r.exit_code == 2 and "look like g*s" in r.output
+    assert not out.exists()
+
+
+def test_specific_force_instead_of_increments_is_refused(good_run, tmp_path):
+    r, out = _calibrate(_variant(good_run, dv_mps=good_run.dv_mps * RATE), tmp_path)
+    assert r.exit_code == 2 and "not increments" in r.output
+
+
+def test_gravity_far_from_the_site_is_refused(good_run, tmp_path):
+    run = _variant(good_run)
+    run.meta["gravity_mps2"] = "9.60"  # 2 % low: no accelerometer error explains that
+    r, out = _calibrate(run, tmp_path)
+    assert r.exit_code == 2 and "gravity at the site" in r.output
+
+
+def test_saturated_channel_is_refused(good_run, tmp_path):
+    dv = good_run.dv_mps.copy()
+    peak = np.abs(dv[:, 0]).max()
+    dv[1000:1020, 0] = peak  # clipped for 20 samples
+    r, out = _calibrate(_variant(good_run, dv_mps=dv), tmp_path)
+    assert r.exit_code == 2 and "stuck at" in r.output and "sample 1000" in r.output
+
+
+def test_rest_that_moves_is_refused(good_run, tmp_path):
+    dv = good_run.dv_mps.copy()
+    n0 = int(55 * RATE)  # inside the second rest (49..89 s)
+    rng = np.random.default_rng(0)
+    dv[n0:n0 + 500] += rng.normal(0, 0.05, (500, 3)) / RATE  # 0.05 m/s^2 vibration
+    r, out = _calibrate(_variant(good_run, dv_mps=dv), tmp_path)
+    assert r.exit_code == 2 and "is not at rest" in r.output and "rest 2" in r.output
+
+
+def test_fit_stopped_early_reports_not_converged(good_run):
+    from calib.estimator import calibrate
+    # One Gauss-Newton step cannot absorb the ~15 deg gyrocompassing error that Table 2's
+    # 3 deg/h gyro bias causes: the fit must say it has not converged (the CLI then
+    # refuses to write a result) rather than return numbers as if it had.
+    fit = calibrate(good_run.time_s, good_run.dtheta_rad, good_run.dv_mps, LAT, 9.8016969,
+                    load_profile("navigation"), max_iterations=1)
+    assert not fit.converged
+    assert fit.history[-1]["max_step_sigma"] > 1.0
