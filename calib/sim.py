@@ -158,7 +158,7 @@ def encoder_angles(tl: Timeline, time_s: np.ndarray, C_start: np.ndarray) -> np.
     relative to the start attitude; the mounting rotation does not enter.
     """
     C_rel = np.einsum("ji,njk->nik", C_start, nominal_attitude(tl, time_s))
-    return np.degrees(unwrap_gimbal(gimbal_from_relative(C_rel)))
+    return np.degrees(unwrap_gimbal(gimbal_from_relative(C_rel))) + 0.0  # no negative zeros
 
 
 def simulate(seq: Sequence, cfg: SimConfig, errors: ErrorModel, profile: NoiseProfile,

@@ -30,11 +30,37 @@ def tool_version() -> str:
 
 
 def command_line() -> str:
-    return "seqdesign " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+    """The command as a user would retype it: subcommand and every non-default parameter."""
+    ctx = click.get_current_context(silent=True)
+    if ctx is None:
+        return "seqdesign " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+    parts = ["seqdesign", ctx.info_name]
+    for param in ctx.command.params:
+        if ctx.get_parameter_source(param.name) is click.core.ParameterSource.DEFAULT:
+            continue
+        value = ctx.params.get(param.name)
+        values = list(value) if isinstance(value, (tuple, list)) else [value]
+        if isinstance(param, click.Argument):
+            parts += [shlex.quote(str(v)) for v in values]
+        elif getattr(param, "is_flag", False):
+            parts.append(param.opts[0] if value else (param.secondary_opts or param.opts)[0])
+        else:
+            parts += [param.opts[0]] + [shlex.quote(str(v)) for v in values]
+    return " ".join(parts)
 
 
-def provenance(**extra) -> dict:
+def provenance(inputs: dict | None = None, **extra) -> dict:
+    """Tool version, command line, SHA-256 of every input file, and ``extra`` facts."""
+    from calib.fileio import sha256_file
+    from calib.sequence import resolve_sequence_path
+
     out = {"tool_version": tool_version(), "command": command_line()}
+    for key, path in (inputs or {}).items():
+        if path is None:
+            continue
+        if key == "sequence":
+            path = resolve_sequence_path(path)
+        out[f"{key}_sha256"] = sha256_file(path)
     out.update({k: v for k, v in extra.items() if v is not None})
     return out
 
@@ -62,7 +88,7 @@ def info(msg: str) -> None:
     click.echo(msg, err=True)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(name="seqdesign", context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(tool_version(), prog_name="seqdesign")
 def main():
     """Self-calibration of a three-axis hybrid INS: design, analyse, simulate,
@@ -191,8 +217,13 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
         flip_error_deg=flip_error_deg, noise=not noise_free, seed=seed,
         random_setup_deg=3.0 if random_setup else None)
     truth_path = truth_path_for(output)
+    prov = provenance({"sequence": sequence, "errors": errors_file,
+                       "profile": profile if Path(profile).exists() else None},
+                      sequence=seq.name, profile=prof.name)
+    run.meta.update({"tool_version": prov["tool_version"], "command": prov["command"],
+                     "sequence_sha256": prov["sequence_sha256"], "profile": prof.name})
     write_run(run, output)
-    write_truth(truth_path, truth, provenance(sequence=seq.name))
+    write_truth(truth_path, truth, prov)
     summary = {"run": str(output), "truth": str(truth_path), "sequence": seq.name,
                "samples": int(run.time_s.size), "duration_s": float(run.time_s[-1]),
                "profile": prof.name, "noise": not noise_free,
@@ -269,7 +300,9 @@ def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, as_js
         values=fit.values, sigma=sigma, C_b_n0=fit.C_b_n0, converged=fit.converged,
         iterations=fit.iterations, residual_rms_mps=fit.residual_rms_mps, profile=prof.name,
         chi2_per_dof=fit.chi2_per_dof, correlation=fit.correlation[:21, :21],
-        provenance=provenance(run_sha256=sha256_file(run_path), sequence=sequence,
+        provenance=provenance({"run": run_path, "sequence": sequence, "truth": truth_path,
+                               "profile": profile if Path(profile).exists() else None},
+                              sequence=sequence, profile=prof.name,
                               sigma_scale=scale if scale != 1.0 else None))
     result.save(out_path)
     entries = parameter_entries(sigma, fit.values, truth.errors.values if truth else None)
