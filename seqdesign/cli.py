@@ -521,11 +521,13 @@ def design(budget_min, max_flips, max_quarters, start, end, axes, rate_dps, min_
     for b in sweep:
         c = Constraints(budget_s=b * 60.0, **base)
         info(f"designing for {b:g} min ({prof.name}, objective {objective}) ...")
-        with click.progressbar(length=1, label="search", file=sys.stderr) as bar:
-            res = run_design(c, prof, lat, 0.0, objective, tolerance_deg, beam_width,
+        from seqdesign.design import check_constraints, design_steps
+        check_constraints(c)
+        with click.progressbar(length=design_steps(c, 4), label=f"{b:g} min", file=sys.stderr,
+                               item_show_func=lambda m: m, show_pos=True) as bar:
+            res = run_design(c, prof, lat, 0.0, objective, tolerance_deg, beam_width, keep=4,
                              name=f"designed-{b:g}min", workers=workers, scheduler=scheduler,
-                             progress=info)
-            bar.update(1)
+                             progress=lambda msg, n: bar.update(n, msg))
         bound = accel_scale_bound(res.sequence.duration_s, prof, g)
         rows.append((b, res, bound))
         path = output if (output and not pareto) else f"designed-{b:g}min.toml"

@@ -488,6 +488,12 @@ def _search_at_dwell(args):
     return dwell, [(f.walk, f.score) for f in finals], n, _time.perf_counter() - t
 
 
+def design_steps(c: Constraints, keep: int) -> int:
+    """Progress steps of :func:`design`: searches, finalists, refinement, final check."""
+    n = len(search_dwells(c))
+    return n + n * keep + 2
+
+
 def search_dwells(c: Constraints) -> list[float]:
     """Uniform dwells the search tries: fitting roughly all, two thirds and half the flips."""
     counts = sorted({max(1, c.max_flips), max(1, (2 * c.max_flips) // 3), max(1, c.max_flips // 2)})
@@ -527,7 +533,11 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
            objective: str = "worst", tolerance_deg: float = 3.0, beam_width: int = 200,
            keep: int = 4, refine: bool = True, name: str = "designed", workers: int = 1,
            scheduler=None, progress=None) -> DesignResult:
-    """Search walks, re-score finalists exactly over the tolerance box, refine the best's dwells."""
+    """Search walks, re-score finalists exactly over the tolerance box, refine the best's dwells.
+
+    ``progress(message, steps)`` is told each stage as it ends; there are
+    ``design_steps(c, keep)`` steps in all.
+    """
     import time as _time
     check_constraints(c)
     if objective not in OBJECTIVES:
@@ -539,7 +549,7 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
     evaluated = sum(r[2] for r in results)
     search_seconds = _time.perf_counter() - t0
     if progress:
-        progress(f"searched {evaluated} candidates in {search_seconds:.1f} s")
+        progress(f"searched {evaluated} candidates in {search_seconds:.1f} s", len(jobs))
     finalists = []
     seen = set()
     for dwell, finals, _, _ in results:
@@ -551,6 +561,8 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
             worst, wname, rob = _exact_worst(seq, profile, latitude_rad, height_m, tolerance_deg,
                                              search=False)
             finalists.append((worst, " ".join(m.label() for m in walk), dwell, walk, wname, rob))
+            if progress:
+                progress(f"finalist {len(finalists)}: worst ratio {worst:.3f}", 1)
     if not finalists:
         raise CalibError("no walk fits the constraints", "design",
                          "raise --budget-min or --max-flips, or lower --min-dwell-s")
@@ -560,7 +572,7 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
     dwells = [dwell] * (len(walk) + 1)
     if refine:
         if progress:
-            progress(f"refining the dwells of {label} with IPOPT")
+            progress(f"refining the dwells of {label} with IPOPT", 0)
         new_dwells, _, _ = refine_dwells(walk, c, dwell, latitude_rad, height_m, profile,
                                          objective)
         if new_dwells != dwells:
@@ -570,8 +582,12 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
             if w2 < worst:
                 worst, wname, rob, dwells = w2, n2, rob2, new_dwells
     seq = to_sequence(walk, c, dwells, name)
+    if progress:
+        progress("refined" if refine else "kept uniform dwells", 1)
     worst, wname, rob = _exact_worst(seq, profile, latitude_rad, height_m, tolerance_deg,
                                      search=True)
+    if progress:
+        progress(f"worst case over +-{tolerance_deg:g} deg: {worst:.3f} ({wname})", 1)
     return DesignResult(sequence=seq, worst_ratio=worst, worst_name=wname,
                         uniform_worst_ratio=uniform, evaluated=evaluated,
                         search_seconds=search_seconds,
