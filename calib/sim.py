@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -20,6 +21,9 @@ from .profiles import NoiseProfile
 
 from .sequence import Sequence, Timeline, nominal_attitude, timeline
 from .transform import gimbal_from_relative, rotvec_to_dcm, unwrap_gimbal
+
+if TYPE_CHECKING:
+    from .runlog import Run
 
 
 @dataclass(frozen=True)
@@ -164,7 +168,7 @@ def encoder_angles(tl: Timeline, time_s: np.ndarray, C_start: np.ndarray) -> np.
 def simulate(seq: Sequence, cfg: SimConfig, errors: ErrorModel, profile: NoiseProfile,
              setup_rotvec=(0.0, 0.0, 0.0), flip_error_deg: float = 0.0,
              noise: bool = True, seed: int | None = None,
-             random_setup_deg: float | None = None) -> tuple["runlog.Run", Truth]:
+             random_setup_deg: float | None = None) -> tuple[Run, Truth]:
     """Simulate a calibration run.
 
     Parameters

@@ -6,10 +6,7 @@ single JSON document on stdout; progress and logs go to stderr.
 """
 from __future__ import annotations
 
-import functools
-import json
 import math
-import shlex
 import sys
 from pathlib import Path
 
@@ -18,74 +15,7 @@ import numpy as np
 
 from calib.errors import CalibError
 
-EXIT_BAD_INPUT = 2
-
-
-def tool_version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-    try:
-        return version("seqdesign")
-    except PackageNotFoundError:
-        return "0+unknown"
-
-
-def command_line() -> str:
-    """The command as a user would retype it: subcommand and every non-default parameter."""
-    ctx = click.get_current_context(silent=True)
-    if ctx is None:
-        return "seqdesign " + " ".join(shlex.quote(a) for a in sys.argv[1:])
-    parts = ["seqdesign", ctx.info_name]
-    for param in ctx.command.params:
-        if ctx.get_parameter_source(param.name) is click.core.ParameterSource.DEFAULT:
-            continue
-        value = ctx.params.get(param.name)
-        values = list(value) if isinstance(value, (tuple, list)) else [value]
-        if isinstance(param, click.Argument):
-            parts += [shlex.quote(str(v)) for v in values]
-        elif getattr(param, "is_flag", False):
-            parts.append(param.opts[0] if value else (param.secondary_opts or param.opts)[0])
-        else:
-            parts += [param.opts[0]] + [shlex.quote(str(v)) for v in values]
-    return " ".join(parts)
-
-
-def provenance(inputs: dict | None = None, **extra) -> dict:
-    """Tool version, command line, SHA-256 of every input file, and ``extra`` facts."""
-    from calib.fileio import sha256_file
-    from calib.sequence import resolve_sequence_path
-
-    out = {"tool_version": tool_version(), "command": command_line()}
-    for key, path in (inputs or {}).items():
-        if path is None:
-            continue
-        if key == "sequence":
-            path = resolve_sequence_path(path)
-        out[f"{key}_sha256"] = sha256_file(path)
-    out.update({k: v for k, v in extra.items() if v is not None})
-    return out
-
-
-def guarded(fn):
-    """Turn the tool's own errors (and Ctrl-C) into a message and an exit code."""
-    @functools.wraps(fn)
-    def wrapper(*args, **kwargs):
-        try:
-            return fn(*args, **kwargs)
-        except CalibError as exc:
-            click.echo(f"error: {exc.message}", err=True)
-            sys.exit(EXIT_BAD_INPUT)
-        except KeyboardInterrupt:
-            click.echo("interrupted; nothing was written", err=True)
-            sys.exit(130)
-    return wrapper
-
-
-def emit_json(doc) -> None:
-    click.echo(json.dumps(doc, indent=2, allow_nan=False))
-
-
-def info(msg: str) -> None:
-    click.echo(msg, err=True)
+from seqdesign.clitools import emit_json, guarded, info, provenance, tool_version
 
 
 @click.group(name="seqdesign", context_settings={"help_option_names": ["-h", "--help"]})
@@ -257,7 +187,6 @@ def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, as_js
     from calib import earth
     from calib.estimator import calibrate as fit_run, check_sequence_matches, detect_motion, \
         sequence_motion
-    from calib.fileio import sha256_file
     from calib.profiles import load_profile
     from calib.result import CalibrationResult
     from calib.runlog import read_run
@@ -629,6 +558,11 @@ def _write_pareto(doc, prof, g, stem) -> None:
            f'dashed: accelerometer scale-factor bound ({prof.name})</text></svg>')
     atomic_write_text(stem + ".svg", svg)
     info(f"wrote {stem}.csv and {stem}.svg")
+
+
+from viz.cli import view  # noqa: E402  (its own module; registered here)
+
+main.add_command(view)
 
 
 if __name__ == "__main__":

@@ -12,7 +12,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib import earth
 from calib import params as P
 from calib.errormodel import ErrorModel
 from calib.estimator import calibrate

@@ -1,0 +1,84 @@
+"""Helpers every command shares: refusals without tracebacks, JSON on stdout, provenance.
+
+Kept apart from :mod:`seqdesign.cli` so that commands living elsewhere
+(``viz.cli``) use the same ones without importing the command group.
+"""
+from __future__ import annotations
+
+import functools
+import json
+import shlex
+import sys
+
+import click
+
+from calib.errors import CalibError
+
+EXIT_BAD_INPUT = 2
+
+
+def tool_version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version("seqdesign")
+    except PackageNotFoundError:
+        return "0+unknown"
+
+
+def command_line() -> str:
+    """The command as a user would retype it: subcommand and every non-default parameter."""
+    ctx = click.get_current_context(silent=True)
+    if ctx is None:
+        return "seqdesign " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+    parts = ["seqdesign", ctx.info_name]
+    for param in ctx.command.params:
+        if ctx.get_parameter_source(param.name) is click.core.ParameterSource.DEFAULT:
+            continue
+        value = ctx.params.get(param.name)
+        values = list(value) if isinstance(value, (tuple, list)) else [value]
+        if isinstance(param, click.Argument):
+            parts += [shlex.quote(str(v)) for v in values]
+        elif getattr(param, "is_flag", False):
+            parts.append(param.opts[0] if value else (param.secondary_opts or param.opts)[0])
+        else:
+            parts += [param.opts[0]] + [shlex.quote(str(v)) for v in values]
+    return " ".join(parts)
+
+
+def provenance(inputs: dict | None = None, **extra) -> dict:
+    """Tool version, command line, SHA-256 of every input file, and ``extra`` facts."""
+    from calib.fileio import sha256_file
+    from calib.sequence import resolve_sequence_path
+
+    out = {"tool_version": tool_version(), "command": command_line()}
+    for key, path in (inputs or {}).items():
+        if path is None:
+            continue
+        if key == "sequence":
+            path = resolve_sequence_path(path)
+        out[f"{key}_sha256"] = sha256_file(path)
+    out.update({k: v for k, v in extra.items() if v is not None})
+    return out
+
+
+def guarded(fn):
+    """Turn the tool's own errors (and Ctrl-C) into a message and an exit code."""
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        try:
+            return fn(*args, **kwargs)
+        except CalibError as exc:
+            click.echo(f"error: {exc.message}", err=True)
+            sys.exit(EXIT_BAD_INPUT)
+        except KeyboardInterrupt:
+            click.echo("interrupted; nothing was written", err=True)
+            sys.exit(130)
+    return wrapper
+
+
+def emit_json(doc) -> None:
+    click.echo(json.dumps(doc, indent=2, allow_nan=False))
+
+
+def info(msg: str) -> None:
+    click.echo(msg, err=True)

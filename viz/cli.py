@@ -1,0 +1,160 @@
+"""``seqdesign view``: write a rerun recording (.rrd) of a run and optionally open the viewer.
+
+The command is a plain click command; ``seqdesign/cli.py`` registers it with
+``main.add_command(view)``. It shares the commands' helpers from
+:mod:`seqdesign.clitools` (the tool's own errors become one line on stderr
+and exit code 2, no traceback). rerun itself is imported only inside the
+command.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import click
+
+from calib.errors import CalibError
+
+from seqdesign.clitools import guarded  # noqa: E402
+
+
+def _info(msg: str) -> None:
+    click.echo(msg, err=True)
+
+
+def _beside(run_path: str, suffix: str) -> Path:
+    p = Path(run_path)
+    return p.with_name(p.stem + suffix)
+
+
+def _check_output(path: Path) -> None:
+    if path.suffix.lower() != ".rrd":
+        raise CalibError(f"unknown recording format {path.suffix!r}", "-o/--output",
+                         "name the recording .rrd")
+    directory = path.parent if str(path.parent) else Path(".")
+    if not directory.is_dir():
+        raise CalibError(f"directory {str(directory)!r} does not exist", "-o/--output",
+                         "create it first or choose another path")
+
+
+def _load_sequence(run, explicit):
+    """The sequence to show: ``--sequence`` (must match the log), else the run's ``sequence`` key
+    if it names a shipped sequence that matches the log, else None."""
+    import numpy as np
+
+    from calib.estimator import check_sequence_matches, detect_motion, sequence_motion
+    from calib.sequence import load_sequence
+
+    name = explicit or run.sequence_name
+    if not name:
+        return None, None
+    try:
+        seq = load_sequence(name)
+        t = run.time_s
+        dt = np.diff(np.concatenate([[t[0] - run.dt_nominal], t]))
+        check_sequence_matches(seq, detect_motion(run.dtheta_rad, dt, run.source).moving,
+                               sequence_motion(seq, t, dt), dt, run.source)
+    except CalibError as exc:
+        if explicit:
+            raise
+        return None, f"the run names sequence {name!r} but it was not used: {exc.message}"
+    return seq, None
+
+
+def _load_result(run_path, explicit):
+    """``--result``, else ``RUN.result.toml`` beside the run when it exists.
+
+    A result whose provenance names a different run file (SHA-256) is refused
+    when given explicitly and skipped with a warning when found by default.
+    """
+    from calib.fileio import sha256_file
+    from calib.result import CalibrationResult
+
+    path = Path(explicit) if explicit else _beside(run_path, ".result.toml")
+    if not explicit and not path.exists():
+        return None, None, None
+    result = CalibrationResult.load(path)
+    recorded = result.provenance.get("run_sha256")
+    if recorded and recorded != sha256_file(run_path):
+        message = f"result {str(path)!r} was computed from a different run (SHA-256 differs)"
+        if explicit:
+            raise CalibError(message, "--result", "give the result of this run, or recalibrate")
+        return None, None, message + "; not shown"
+    return result, path, None
+
+
+@click.command(short_help="Write a rerun recording (.rrd) of a run; --spawn opens the viewer.")
+@click.argument("run_path", metavar="RUN")
+@click.option("--sequence", help="Sequence the run followed (default: the run's 'sequence' key "
+              "if it is a shipped sequence matching the log).")
+@click.option("--result", "result_path", type=click.Path(dir_okay=False),
+              help="Calibration result (default: RUN.result.toml beside the run, if it exists).")
+@click.option("--truth", "truth_path", type=click.Path(dir_okay=False),
+              help="Truth file of a simulated run (default: RUN.truth.toml, if it exists).")
+@click.option("-o", "--output", help="Recording to write (default: RUN with .rrd).")
+@click.option("--spawn", is_flag=True, help="Open the recording in the rerun viewer.")
+@click.option("--allow-gaps", is_flag=True, help="Accept time gaps in the log.")
+@click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
+@guarded
+def view(run_path, sequence, result_path, truth_path, output, spawn, allow_gaps, as_json):
+    """Record RUN (CSV or NPZ) for the rerun viewer: the gimbal and IMU in 3D,
+    raw gyro and accelerometer signals, navigation velocity errors before and
+    after calibration, the positions and flips, and the result against its
+    requirements (and against the truth of a simulated run)."""
+    from calib.runlog import read_run
+    from calib.truth import read_truth, truth_path_for
+
+    out = Path(output) if output else _beside(run_path, ".rrd")
+    _check_output(out)
+    run = read_run(run_path, allow_gaps=allow_gaps)
+    seq, seq_note = _load_sequence(run, sequence)
+    result, used_result, result_note = _load_result(run_path, result_path)
+    if truth_path is None and truth_path_for(run_path).exists():
+        truth_path = truth_path_for(run_path)
+    truth = read_truth(truth_path) if truth_path else None
+    for note in (seq_note, result_note):
+        if note:
+            _info(f"warning: {note}")
+    try:
+        import rerun  # noqa: F401  (a clear message if the optional viewer SDK is missing)
+    except ImportError:
+        raise CalibError("rerun-sdk is not installed", None,
+                         "pip install 'rerun-sdk>=0.41'") from None
+    from viz.record import record_run
+
+    summary = record_run(run, out, sequence=seq, result=result, truth=truth)
+    if spawn:
+        _spawn_viewer(out)
+    doc = summary.to_dict()
+    doc.update({"run": str(run_path), "samples": run.n_samples,
+                "sequence": seq.name if seq is not None else None,
+                "result": str(used_result) if used_result else None,
+                "truth": str(truth_path) if truth_path else None,
+                "notes": doc["notes"] + [n for n in (seq_note, result_note) if n]})
+    if as_json:
+        click.echo(json.dumps(doc, indent=2, allow_nan=False))
+        return
+    rows = sum(doc["entities"].values())
+    size = out.stat().st_size / 1e6
+    click.echo(f"wrote {out} ({len(doc['entities'])} entities, {rows} rows, {size:.1f} MB; "
+               f"scene from {doc['scene_source']})")
+    if not spawn:
+        click.echo(f"open it with: rerun {out}")
+
+
+def _spawn_viewer(path: Path) -> None:
+    """Open the recording in a detached rerun viewer (``python -m rerun FILE``).
+
+    The viewer reads the finished file, so the recording on disk is exactly
+    what it shows. Failing to start the viewer is reported, not fatal: the
+    file is already written.
+    """
+    try:
+        subprocess.Popen([sys.executable, "-m", "rerun", str(path)], stdin=subprocess.DEVNULL,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                         start_new_session=True, env=os.environ.copy())
+    except OSError as exc:
+        _info(f"warning: could not start the rerun viewer ({exc}); open {path} with 'rerun {path}'")
