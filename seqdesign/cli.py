@@ -303,14 +303,24 @@ def _analysis_doc(seq, prof, lat, rob, bound) -> dict:
 @click.option("--latitude", type=float, help="Site latitude, deg (default: sequence, else 40).")
 @click.option("--tolerance-deg", type=float, default=3.0, show_default=True,
               help="Base mounting tolerance; the figures are the worst over the box (0: nominal only).")
+@click.option("--view", "view_path", is_flag=False, flag_value="", default=None, metavar="[FILE.rrd]",
+              help="Also write a rerun recording (default: <sequence>-analysis.rrd).")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 @guarded
-def analyze(sequence, profile, latitude, tolerance_deg, as_json):
+def analyze(sequence, profile, latitude, tolerance_deg, view_path, as_json):
     """Fisher information of SEQUENCE under a noise profile: predicted sigma of
     each parameter against its requirement (3 sigma / requirement), correlated
     pairs, unobservable directions, worst case over the +-tolerance mounting box."""
+    if view_path and Path(view_path).suffix != ".rrd":
+        raise CalibError(f"recording {view_path!r} must end in .rrd", "--view")
     seq, prof, lat, rob, bound = _analysis(sequence, profile, latitude, tolerance_deg)
     doc = _analysis_doc(seq, prof, lat, rob, bound)
+    if view_path is not None:
+        from viz.record import record_analysis
+        path = view_path or f"{seq.name}-analysis.rrd"
+        record_analysis(rob.worst, seq, path)
+        doc["recording"] = str(path)
+        info(f"wrote {path} (open it with: rerun {path})")
     if as_json:
         emit_json(doc)
         return

@@ -154,3 +154,24 @@ def test_mounting_basis_model_equals_direct_evaluation():
         rv = np.radians(setup)
         direct = information_along(nominal_run(seq, LAT, 0.0, rv), prof, LAT, g)
         assert np.allclose(model.information(rv), direct, rtol=1e-10, atol=1e-10 * np.abs(direct).max())
+
+
+def test_cli_analyze_view_writes_a_recording_of_the_analysis(tmp_path, monkeypatch):
+    # rerun writes analytics under HOME: keep it in the test's folder.
+    for var in ("HOME", "XDG_CONFIG_HOME", "XDG_DATA_HOME", "XDG_CACHE_HOME"):
+        monkeypatch.setenv(var, str(tmp_path / "home"))
+    from test_viz import bars  # rerun's BarChart values read back from the recording
+    from viz.record import read_recording
+    out = tmp_path / "a.rrd"
+    r = CliRunner().invoke(main, ["analyze", "paper-9pos", "--tolerance-deg", "0", "--view",
+                                  str(out), "--json"])
+    assert r.exit_code == 0, r.output
+    doc = json.loads(r.stdout)
+    assert doc["recording"] == str(out)
+    chunks = read_recording(out)
+    assert "analysis/correlation" in chunks and "analysis/ratio" in chunks
+    # The bars hold the 21 ratios the JSON reports (nominal mounting here).
+    expected = [doc["parameters"][n]["ratio"] for n in P.NAMES]
+    assert np.allclose(bars(chunks, "analysis/ratio"), expected, rtol=1e-9)
+    r = CliRunner().invoke(main, ["analyze", "paper-9pos", "--view", str(tmp_path / "x.txt")])
+    assert r.exit_code == 2 and "must end in .rrd" in r.output
