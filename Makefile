@@ -19,7 +19,9 @@ demo: venv
 	$(BIN)/seqdesign show paper-9pos
 	$(BIN)/seqdesign simulate paper-9pos --table2 --setup-deg 1 -2 3 --seed 7 -o $(DEMO)/run.npz
 	$(BIN)/seqdesign analyze paper-9pos
-	$(BIN)/seqdesign calibrate $(DEMO)/run.npz -o $(DEMO)/result.toml
+	$(BIN)/seqdesign calibrate $(DEMO)/run.npz -o $(DEMO)/run.result.toml
+	$(BIN)/seqdesign view $(DEMO)/run.npz -o $(DEMO)/run.rrd
+	@echo "open the recording with: $(BIN)/rerun $(DEMO)/run.rrd"
 
 test: venv
 	$(BIN)/python -m pytest -q
