@@ -19,6 +19,7 @@ from . import params as P
 from . import sanity
 from .errormodel import ErrorModel
 from .errors import CalibError
+from .information import null_directions
 from .jacobian import N_UNKNOWN, PHI0, default_grid, observation_jacobian, state_matrix
 from .noise import noise_model, whiten
 from .profiles import NoiseProfile
@@ -104,16 +105,23 @@ def normal_equations(Hw: np.ndarray, zw: np.ndarray | None = None):
     return N, b, D
 
 
-def solve_information(N: np.ndarray, what: str = "run"):
-    """Inverse of a scaled information matrix, refusing unobservable directions by name."""
+WEAK_INFORMATION = 1e-6  # scaled by the requirements: sigma > 1000 x requirement
+
+
+def solve_information(N: np.ndarray, where: str = "run"):
+    """Inverse of a requirement-scaled information matrix.
+
+    Directions the run cannot observe (numerically singular, or so weak that
+    their sigma exceeds 1000 times the requirement) are refused by name
+    instead of being returned as numbers.
+    """
     evals, evecs = np.linalg.eigh(N)
-    if evals[0] <= evals[-1] * 1e-14:
-        v = evecs[:, 0]
-        names = list(P.NAMES) + ["phi0_E", "phi0_N", "phi0_U"]
-        top = np.argsort(-np.abs(v))[:4]
-        combo = " ".join(f"{v[i]:+.2f} {names[i]}" for i in top if abs(v[i]) > 0.05)
-        raise CalibError(f"the {what} cannot observe all parameters: the direction {combo} "
-                         "is unobservable", None, "use a sequence that excites it (seqdesign analyze)")
+    weak = evals < max(evals[-1] * 1e-14, WEAK_INFORMATION)
+    if np.any(weak):
+        dirs = null_directions(evecs, weak)
+        raise CalibError(f"the run cannot observe {len(dirs)} direction(s) of the parameters "
+                         "(in units of each requirement): " + "; ".join(dirs), where,
+                         "use a sequence that excites them; `seqdesign analyze` shows which")
     return (evecs / evals) @ evecs.T
 
 

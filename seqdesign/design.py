@@ -28,7 +28,8 @@ import numpy as np
 from calib import earth
 from calib import params as P
 from calib.errors import CalibError
-from calib.jacobian import (N_UNKNOWN, PHI0, ObservationGrid, moment_inputs, step_model,
+from calib.information import marginal
+from calib.jacobian import (N_UNKNOWN, ObservationGrid, moment_inputs, step_model,
                             state_matrix, trajectory_moments)
 from calib.noise import interval_models, noise_model, whitener
 from calib.profiles import NoiseProfile
@@ -121,10 +122,7 @@ def rest_steady_state(latitude_rad: float, gravity_mps2: float, profile: NoisePr
 
 def scaled_marginal(N: np.ndarray, prior: bool) -> np.ndarray:
     """Requirement-scaled information of the 21 after eliminating phi0: ``(..., 21, 21)``."""
-    a = N[..., :P.N_PARAMS, :P.N_PARAMS]
-    b = N[..., :P.N_PARAMS, PHI0]
-    c = N[..., PHI0, PHI0]
-    M = a - b @ np.linalg.solve(c, np.swapaxes(b, -1, -2))
+    M = marginal(N)
     D = P.REQUIREMENTS_SI
     M = M * np.outer(D, D)
     if prior:

@@ -17,7 +17,8 @@ import numpy as np
 
 from calib import earth
 from calib import params as P
-from calib.jacobian import (MOVE_STEP_S, N_MOMENTS, N_UNKNOWN, PHI0, ObservationGrid,
+from calib.information import marginal, null_directions
+from calib.jacobian import (MOVE_STEP_S, N_MOMENTS, N_UNKNOWN, ObservationGrid,
                             moment_inputs, observation_jacobian, observation_matrix, propagate,
                             state_matrix)
 from calib.noise import noise_model, whiten
@@ -26,7 +27,6 @@ from calib.sequence import Sequence, nominal_attitude, timeline
 from calib.sim import SimConfig, body_integrals, true_increments
 from calib.transform import rotvec_to_dcm
 
-UNKNOWN_NAMES = list(P.NAMES) + ["phi0_E", "phi0_N", "phi0_U"]
 CORRELATION_LIMIT = 0.9
 
 
@@ -85,7 +85,7 @@ class Observability:
 
     def scaled_information(self) -> np.ndarray:
         """Marginal information of the 21, in units of the requirements (dimensionless)."""
-        return _marginal(self.information) * np.outer(P.REQUIREMENTS_SI, P.REQUIREMENTS_SI)
+        return marginal(self.information) * np.outer(P.REQUIREMENTS_SI, P.REQUIREMENTS_SI)
 
     def criteria(self) -> dict[str, float]:
         """D-, A-, E-criteria and condition number of the requirement-scaled information.
@@ -102,38 +102,9 @@ class Observability:
                 "E": float(ev[0]), "condition": float(ev[-1] / ev[0])}
 
 
-def _marginal(info: np.ndarray) -> np.ndarray:
-    """Information of the 21 after eliminating the initial attitude (Schur complement)."""
-    a = info[:P.N_PARAMS, :P.N_PARAMS]
-    b = info[:P.N_PARAMS, PHI0]
-    c = info[PHI0, PHI0]
-    return a - b @ np.linalg.solve(c, b.T)
-
-
-def _unobservable(evals: np.ndarray, evecs: np.ndarray, tol: float) -> list[str]:
-    """Null directions of the requirement-scaled information, as sparse name combinations.
-
-    The null space has no preferred basis, so it is put in reduced row-echelon
-    form: each direction then has one pivot parameter and as few others as the
-    physics forces (e.g. ``+1.00*saz -0.02*baz``: z bias and scale factor only
-    ever seen together). Coefficients are in units of each requirement.
-    """
-    from scipy.linalg import qr
-
-    null = evecs[:, evals <= tol].T  # (k, 21)
-    _, _, piv = qr(null, pivoting=True)
-    k = null.shape[0]
-    basis = np.linalg.solve(null[:, piv[:k]], null)  # identity on the pivot columns
-    out = []
-    for row in basis:
-        idx = [i for i in np.argsort(-np.abs(row)) if abs(row[i]) > 0.01][:6]
-        out.append(" ".join(f"{row[i]:+.2f}*{P.NAMES[i]}" for i in idx))
-    return out
-
-
 def from_information(info: np.ndarray, duration_s: float, profile: str,
                      setup_rotvec) -> Observability:
-    M = _marginal(info)
+    M = marginal(info)
     D = P.REQUIREMENTS_SI
     Ms = M * np.outer(D, D)
     evals, evecs = np.linalg.eigh(Ms)
@@ -144,7 +115,7 @@ def from_information(info: np.ndarray, duration_s: float, profile: str,
     if rank == P.N_PARAMS:
         cov = ((evecs / evals) @ evecs.T) * np.outer(D, D)
     else:
-        unobs = _unobservable(evals, evecs, tol)
+        unobs = null_directions(evecs, evals <= tol, P.NAMES)
     return Observability(information=info, covariance=cov, rank=rank, unobservable=unobs,
                          duration_s=duration_s, profile=profile,
                          setup_rotvec=np.asarray(setup_rotvec, dtype=float))
@@ -382,7 +353,7 @@ class _SigmaCallback:
 
             def eval(self, arg):
                 theta = np.radians(np.asarray(arg[0], dtype=float).ravel())
-                cov = np.linalg.inv(_marginal(model.information(theta)))
+                cov = np.linalg.inv(marginal(model.information(theta)))
                 return [math.sqrt(cov[index, index]) / P.REQUIREMENTS_SI[index]]
 
         return _CB()

@@ -110,3 +110,19 @@ def test_fit_stopped_early_reports_not_converged(good_run):
                     load_profile("navigation"), max_iterations=1)
     assert not fit.converged
     assert fit.history[-1]["max_step_sigma"] > 1.0
+
+
+def test_run_that_cannot_observe_parameters_is_refused_by_name(tmp_path):
+    # Spinning about a vertical Z never lets X or Y see gravity: sax, say (and the
+    # z accelerometer's bias vs scale factor) are unobservable. The CLI must name
+    # them, not print numbers.
+    doc = {"name": "spin", "start": ["east", "north", "up"], "initial_dwell_s": 40.0,
+           "step": [{"axis": "Z", "angle_deg": 90.0, "dwell_s": 40.0} for _ in range(4)]}
+    seq = sequence_from_dict(doc, "spin")
+    run, _ = simulate(seq, SimConfig(latitude_rad=LAT, sample_rate_hz=RATE), ErrorModel.zero(),
+                      load_profile("navigation"), seed=2)
+    r, out = _calibrate(run, tmp_path, "spin.npz")
+    assert r.exit_code == 2 and "cannot observe" in r.output
+    for name in ("sax", "say", "saz"):
+        assert name in r.output
+    assert not out.exists()
