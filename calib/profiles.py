@@ -47,15 +47,30 @@ def builtin_profiles() -> list[str]:
     return sorted(Path(p.name).stem for p in folder.iterdir() if p.name.endswith(".toml"))
 
 
+# Plausible white noise, from the best navigation-grade sensors to the cheapest
+# MEMS with a wide margin. Far outside, the analysis' noise weighting overflows
+# (or loses positive definiteness) and its figures would mean nothing.
+_RANGES = {"gyro_arw_dph": (1e-6, 100.0), "accel_vrw_ug": (1e-3, 1e5)}
+
+
 def _from_doc(doc: dict, where: str) -> NoiseProfile:
     values = {}
     for key in ("gyro_arw_dph", "accel_vrw_ug"):
         if key not in doc:
             raise CalibError(f"missing key '{key}'", where, f"add '{key} = <number>'")
         v = doc[key]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+        try:
+            number = float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None
+        except OverflowError:  # an integer beyond the float range
+            number = None
+        if number is None or not math.isfinite(number) or number <= 0:
             raise CalibError(f"'{key}' must be a positive finite number, got {v!r}", where)
-        values[key] = float(v)
+        low, high = _RANGES[key]
+        if not low <= number <= high:
+            raise CalibError(f"'{key}' = {number:g} is outside the plausible range "
+                             f"[{low:g}, {high:g}]", where,
+                             "give ARW in deg/sqrt(h) and VRW in ug/sqrt(Hz)")
+        values[key] = number
     name = doc.get("name", Path(where).stem)
     if not isinstance(name, str) or not name:
         raise CalibError("'name' must be a non-empty string", where)
@@ -76,9 +91,16 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> NoiseProfile:
     try:
         doc = tomllib.loads(path.read_bytes().decode("utf-8"))
     except UnicodeDecodeError as exc:
-        raise CalibError(f"not UTF-8 text (byte {exc.start})", str(path)) from None
+        line = exc.object.count(b"\n", 0, exc.start) + 1
+        raise CalibError(f"not UTF-8 text (line {line}, byte {exc.start})", str(path),
+                         "save the file as UTF-8") from None
     except tomllib.TOMLDecodeError as exc:
         raise CalibError(f"not valid TOML: {exc}", str(path)) from None
+    except ValueError as exc:  # tomllib: an integer of more than 4300 digits
+        raise CalibError(f"not valid TOML: {str(exc).split(';')[0]}", str(path),
+                         "write numbers with fewer digits") from None
+    except RecursionError:
+        raise CalibError("not valid TOML: arrays or tables nested too deeply", str(path)) from None
     except OSError as exc:
         raise CalibError(f"cannot read: {exc.strerror}", str(path)) from None
     return _from_doc(doc, str(path))

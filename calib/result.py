@@ -76,13 +76,73 @@ class CalibrationResult:
 
     @classmethod
     def load(cls, path: str | Path) -> "CalibrationResult":
+        """Read a result TOML; refuse it, naming the file and table, unless it is complete.
+
+        ``[parameters]`` (all 21 with finite value and non-negative sigma) and
+        ``[initial_attitude]`` are required; ``[fit]`` keys, ``[correlation]``
+        and ``[provenance]`` are optional, but when present must be well-formed.
+        """
+
+        def _number(value) -> float | None:
+            """``value`` as a float if it is a TOML number (not a boolean), else None."""
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                return None
+            try:
+                return float(value)
+            except OverflowError:  # an integer beyond the float range
+                return math.inf if value > 0 else -math.inf
+
+        def _matrix(rows, n: int) -> np.ndarray | None:
+            """An ``n x n`` float array from a list of lists of TOML numbers, else None."""
+            if not isinstance(rows, list) or len(rows) != n:
+                return None
+            out = np.empty((n, n))
+            for i, row in enumerate(rows):
+                if not isinstance(row, list) or len(row) != n:
+                    return None
+                for j, x in enumerate(row):
+                    v = _number(x)
+                    if v is None or not math.isfinite(v):
+                        return None
+                    out[i, j] = v
+            return out
+
+        def _attitude(table, where: str) -> np.ndarray:
+            """``[initial_attitude] C_b_n``: a 3x3 rotation matrix."""
+            C = _matrix(table.get("C_b_n") if isinstance(table, dict) else None, 3)
+            if (C is None or np.any(np.abs(C) > 1.0 + 1e-6)
+                    or not np.allclose(C @ C.T, np.eye(3), atol=1e-6) or np.linalg.det(C) < 0):
+                raise CalibError("initial_attitude.C_b_n must be a 3x3 rotation matrix", where)
+            return C
+
+        def _correlation(table, where: str) -> np.ndarray:
+            """``[correlation]``: the 21 names in order and a 21x21 matrix within [-1, 1]."""
+            fix = "remove the [correlation] table or write the 21x21 matrix of the fit"
+            if not isinstance(table, dict):
+                raise CalibError("[correlation] must be a table", where, fix)
+            names = table.get("names", list(P.NAMES))
+            if names != list(P.NAMES):
+                raise CalibError("'names' must list the 21 parameters in order", where, fix)
+            corr = _matrix(table.get("matrix"), P.N_PARAMS)
+            if corr is None or np.any(np.abs(corr) > 1.0 + 1e-6):
+                raise CalibError("'matrix' must be a 21x21 matrix of numbers within [-1, 1]",
+                                 where, fix)
+            return corr
+
         where = str(path)
         try:
             doc = tomllib.loads(Path(path).read_bytes().decode("utf-8"))
         except UnicodeDecodeError as exc:
-            raise CalibError(f"not UTF-8 text (byte {exc.start})", where) from None
+            line = exc.object.count(b"\n", 0, exc.start) + 1
+            raise CalibError(f"not UTF-8 text (line {line}, byte {exc.start})", where,
+                             "save the file as UTF-8") from None
         except tomllib.TOMLDecodeError as exc:
             raise CalibError(f"not valid TOML: {exc}", where) from None
+        except ValueError as exc:  # tomllib: an integer of more than 4300 digits
+            raise CalibError(f"not valid TOML: {str(exc).split(';')[0]}", where,
+                             "write numbers with fewer digits") from None
+        except RecursionError:
+            raise CalibError("not valid TOML: arrays or tables nested too deeply", where) from None
         except OSError as exc:
             raise CalibError(f"cannot read: {exc.strerror}", where) from None
         table = doc.get("parameters")
@@ -95,36 +155,44 @@ class CalibrationResult:
             if not isinstance(entry, dict):
                 raise CalibError("missing", here, "a result carries all 21 parameters")
             for key, out in (("value", vals), ("sigma", sig)):
-                v = entry.get(key)
-                if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                    raise CalibError(f"'{key}' must be a finite number, got {v!r}", here,
-                                     "a result without uncertainties is not a result")
-                out.append(float(v))
+                v = _number(entry.get(key))
+                if v is None or not math.isfinite(v):
+                    raise CalibError(f"'{key}' must be a finite number, got {entry.get(key)!r}",
+                                     here, "a result without uncertainties is not a result")
+                out.append(v)
             if sig[-1] < 0:
                 raise CalibError(f"sigma {sig[-1]} is negative", here)
-        att = doc.get("initial_attitude", {}).get("C_b_n") if isinstance(
-            doc.get("initial_attitude"), dict) else None
-        try:
-            C = np.array(att, dtype=float)
-            if C.shape != (3, 3) or not np.allclose(C @ C.T, np.eye(3), atol=1e-6):
-                raise ValueError
-        except (TypeError, ValueError):
-            raise CalibError("initial_attitude.C_b_n must be a 3x3 rotation matrix",
-                             f"{where}: [initial_attitude]") from None
-        fit = doc.get("fit", {}) if isinstance(doc.get("fit"), dict) else {}
+        C = _attitude(doc.get("initial_attitude"), f"{where}: [initial_attitude]")
+        fit = doc.get("fit", {})
+        if not isinstance(fit, dict):
+            raise CalibError("[fit] must be a table", where)
+        converged = fit.get("converged", False)
+        if not isinstance(converged, bool):
+            raise CalibError(f"must be true or false, got {converged!r}",
+                             f"{where}: [fit] converged")
+        iterations = fit.get("iterations", 0)
+        if isinstance(iterations, bool) or not isinstance(iterations, int) or iterations < 0:
+            raise CalibError(f"must be a non-negative integer, got {iterations!r}",
+                             f"{where}: [fit] iterations")
+        figures = {}
+        for key in ("residual_rms_mps", "chi2_per_dof"):
+            # NaN stands for "not computed"; anything else must be a finite number >= 0.
+            v = _number(fit.get(key, math.nan))
+            if v is None or math.isinf(v) or v < 0:
+                raise CalibError(f"must be a finite number >= 0 (or nan), got {fit.get(key)!r}",
+                                 f"{where}: [fit] {key}")
+            figures[key] = v
+        profile = fit.get("profile", "")
+        if not isinstance(profile, str):
+            raise CalibError(f"must be a string, got {profile!r}", f"{where}: [fit] profile")
         corr = None
-        if isinstance(doc.get("correlation"), dict):
-            try:
-                corr = np.array(doc["correlation"]["matrix"], dtype=float)
-                if corr.shape != (P.N_PARAMS, P.N_PARAMS):
-                    corr = None
-            except (KeyError, TypeError, ValueError):
-                corr = None
+        if "correlation" in doc:
+            corr = _correlation(doc["correlation"], f"{where}: [correlation]")
+        provenance = doc.get("provenance", {})
+        if not isinstance(provenance, dict):
+            raise CalibError("[provenance] must be a table", where)
         return cls(values=P.to_si(vals), sigma=P.to_si(sig), C_b_n0=C,
-                   converged=bool(fit.get("converged", False)),
-                   iterations=int(fit.get("iterations", 0)),
-                   residual_rms_mps=float(fit.get("residual_rms_mps", float("nan"))),
-                   profile=str(fit.get("profile", "")),
-                   chi2_per_dof=float(fit.get("chi2_per_dof", float("nan"))),
-                   correlation=corr,
-                   provenance=doc.get("provenance", {}) if isinstance(doc.get("provenance"), dict) else {})
+                   converged=converged, iterations=iterations,
+                   residual_rms_mps=figures["residual_rms_mps"], profile=profile,
+                   chi2_per_dof=figures["chi2_per_dof"], correlation=corr,
+                   provenance=provenance)

@@ -13,8 +13,10 @@ from __future__ import annotations
 
 import io
 import json
+import lzma
 import math
 import os
+import tokenize
 import zipfile
 import zlib
 from dataclasses import dataclass
@@ -43,6 +45,10 @@ _ARRAY_COLUMNS = {
 }
 
 GAP_PERIODS = 2.0  # a time step longer than this many nominal periods is a gap
+
+# A calibration site is on the Earth's surface (Dead Sea to Everest, with margin);
+# far outside, normal gravity is meaningless and its formula overflows.
+HEIGHT_RANGE_M = (-1000.0, 10000.0)
 
 _GAP_FIX = "fill the gap, or pass --allow-gaps to accept a run with gaps"
 
@@ -287,7 +293,7 @@ class _CsvLocator:
 # What each numeric key means, for the fix part of messages.
 _META_HINTS = {
     "latitude_deg": "geodetic latitude in degrees, north positive, within [-90, 90]",
-    "height_m": "ellipsoidal height in metres",
+    "height_m": "ellipsoidal height in metres, within [-1000, 10000]",
     "sample_rate_hz": "the IMU output rate in Hz, greater than 0",
     "gravity_mps2": "measured gravity in m/s^2, greater than 0, or leave the key out",
 }
@@ -324,6 +330,11 @@ def _check_meta(meta: dict[str, str], locate) -> None:
         raise CalibError(f"latitude_deg = {values['latitude_deg']} is outside [-90, 90]",
                          locate.key("latitude_deg"),
                          "give the geodetic latitude in degrees")
+    low, high = HEIGHT_RANGE_M
+    if not low <= values["height_m"] <= high:
+        raise CalibError(f"height_m = {values['height_m']} is outside [{low:g}, {high:g}] m",
+                         locate.key("height_m"),
+                         "give the ellipsoidal height of the site in metres")
     if values["sample_rate_hz"] <= 0.0:
         raise CalibError(f"sample_rate_hz = {values['sample_rate_hz']} is not positive",
                          locate.key("sample_rate_hz"),
@@ -367,19 +378,27 @@ def _check_samples(run: Run, locate, allow_gaps: bool) -> None:
             + (f" ({backwards.size} such steps in all)" if backwards.size > 1 else ""),
             locate.sample("time_s", i),
             "samples must be in time order without repeats; sort the log or remove duplicates")
-    if allow_gaps:
-        return
     dt = 1.0 / run.sample_rate_hz
-    # Float time stamps carry rounding: do not call a step of exactly two periods a gap.
-    limit = GAP_PERIODS * dt * (1.0 + 1e-9) + 8.0 * float(np.spacing(np.max(np.abs(time))))
-    gaps = np.flatnonzero(step > limit)
-    if gaps.size:
-        i = int(gaps[0]) + 1
+    if not allow_gaps:
+        # Float time stamps carry rounding: do not call a step of exactly two periods a gap.
+        limit = GAP_PERIODS * dt * (1.0 + 1e-9) + 8.0 * float(np.spacing(np.max(np.abs(time))))
+        gaps = np.flatnonzero(step > limit)
+        if gaps.size:
+            i = int(gaps[0]) + 1
+            raise CalibError(
+                f"{gaps.size} gap{'s' if gaps.size > 1 else ''} in time (steps longer than "
+                f"{GAP_PERIODS:g} nominal periods = {GAP_PERIODS * dt:g} s); the first is "
+                f"{step[i - 1]:.6g} s between time_s = {float(time[i - 1])!r} and "
+                f"{float(time[i])!r}", locate.sample("time_s", i), _GAP_FIX)
+    # The nominal period must describe the time stamps (gaps and jitter aside), or
+    # gap detection, durations and the first sample's interval are all wrong.
+    typical = float(np.median(step))
+    if not 0.5 * dt <= typical <= GAP_PERIODS * dt:
         raise CalibError(
-            f"{gaps.size} gap{'s' if gaps.size > 1 else ''} in time (steps longer than "
-            f"{GAP_PERIODS:g} nominal periods = {GAP_PERIODS * dt:g} s); the first is "
-            f"{step[i - 1]:.6g} s between time_s = {float(time[i - 1])!r} and {float(time[i])!r}",
-            locate.sample("time_s", i), _GAP_FIX)
+            f"sample_rate_hz = {run.sample_rate_hz:g} (a period of {dt:g} s) does not match "
+            f"the time stamps, which are typically {typical:.6g} s apart",
+            locate.key("sample_rate_hz"),
+            "give the IMU output rate in Hz, the inverse of the time between samples")
 
 
 def _check_finite(run: Run, locate) -> None:
@@ -642,8 +661,18 @@ def _check_meta_writable_as_csv(meta: dict[str, str], name: str) -> None:
 
 _NPZ_ARRAYS = ("time_s", "dtheta_rad", "dv_mps")
 
-# Everything numpy/zipfile raise for a damaged or foreign file.
-_ARCHIVE_ERRORS = (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error)
+# Everything numpy/zipfile raise for a damaged or foreign file: RuntimeError covers
+# an encrypted member and (NotImplementedError) an unknown compression method,
+# LZMAError a damaged LZMA member, MemoryError a header that declares a huge shape;
+# numpy parses the .npy header as a Python literal, which adds TokenError,
+# SyntaxError, TypeError (e.g. an unhashable key) and RecursionError.
+_ARCHIVE_ERRORS = (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error,
+                   RuntimeError, lzma.LZMAError, MemoryError, tokenize.TokenError,
+                   SyntaxError, TypeError, RecursionError)
+
+# How a zip archive (empty or not) and a single .npy array start.
+_ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
+_NPY_MAGIC = b"\x93NUMPY"
 
 
 def _read_npz(path: str | os.PathLike, allow_gaps: bool) -> Run:
@@ -655,7 +684,8 @@ def _read_npz(path: str | os.PathLike, allow_gaps: bool) -> Run:
     n = arrays["time_s"].shape[0] if arrays["time_s"].ndim >= 1 else 0
     for array_name, array in arrays.items():
         _check_array_shape(array, array_name, n, f"{name}, array '{array_name}'")
-    as_float = {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in arrays.items()}
+    with np.errstate(over="ignore"):  # e.g. longdouble beyond float64: inf, refused below
+        as_float = {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in arrays.items()}
     run = Run(time_s=as_float["time_s"], dtheta_rad=as_float["dtheta_rad"],
               dv_mps=as_float["dv_mps"], meta=meta, gimbal_deg=as_float.get("gimbal_deg"),
               source=name)
@@ -676,6 +706,17 @@ def _load_npz_arrays(path: str | os.PathLike, name: str) -> dict[str, np.ndarray
                          "check the path and permissions") from None
     with handle:
         try:
+            head = handle.read(len(_NPY_MAGIC))
+            handle.seek(0)
+        except OSError as exc:
+            raise CalibError(f"cannot read the file: {exc.strerror or exc}", name,
+                             "check the path and permissions") from None
+        if not head:
+            raise CalibError("not a readable NPZ archive: the file is empty", name, fix)
+        if not head.startswith(_ZIP_MAGIC) and not head.startswith(_NPY_MAGIC):
+            raise CalibError("not a readable NPZ archive: the file does not start with a "
+                             "zip signature", name, fix)
+        try:
             archive = np.load(handle, allow_pickle=False)
         except _ARCHIVE_ERRORS as exc:
             raise CalibError(f"not a readable NPZ archive: {exc}", name, fix) from None
@@ -689,12 +730,21 @@ def _load_npz_arrays(path: str | os.PathLike, name: str) -> dict[str, np.ndarray
                                  f"{', '.join(repr(m) for m in missing)}", name,
                                  "store time_s, dtheta_rad, dv_mps and meta "
                                  "(see spec/files.md)")
-            try:
-                return {a: archive[a] for a in (*_NPZ_ARRAYS, "gimbal_deg", "meta")
-                        if a in present}
-            except _ARCHIVE_ERRORS as exc:
-                raise CalibError(f"cannot read the archive's arrays: {exc}", name,
-                                 fix) from None
+            arrays = {}
+            for a in (*_NPZ_ARRAYS, "gimbal_deg", "meta"):
+                if a not in present:
+                    continue
+                try:
+                    arrays[a] = archive[a]
+                except _ARCHIVE_ERRORS as exc:
+                    raise CalibError(f"cannot read the archive member: {exc}",
+                                     f"{name}, array '{a}'", fix) from None
+    for a, array in arrays.items():
+        # numpy hands back the raw bytes of a member that is not in .npy format.
+        if not isinstance(array, np.ndarray):
+            raise CalibError(f"archive member '{a}.npy' is not a numpy array (.npy format)",
+                             f"{name}, array '{a}'", fix)
+    return arrays
 
 
 def _parse_npz_meta(array: np.ndarray, name: str) -> dict[str, str]:
@@ -715,6 +765,11 @@ def _parse_npz_meta(array: np.ndarray, name: str) -> dict[str, str]:
     except json.JSONDecodeError as exc:
         raise CalibError(f"meta is not valid JSON ({exc.msg} at line {exc.lineno}, "
                          f"column {exc.colno})", where, fix) from None
+    except ValueError as exc:  # e.g. an integer of more than 4300 digits
+        raise CalibError(f"meta is not valid JSON ({str(exc).split(';')[0]})", where,
+                         fix) from None
+    except RecursionError:
+        raise CalibError("meta is not valid JSON (nested too deeply)", where, fix) from None
     if not isinstance(raw, dict):
         raise CalibError(f"meta is a JSON {type(raw).__name__}, not an object", where, fix)
     meta: dict[str, str] = {}

@@ -93,7 +93,10 @@ def _number(table: dict, key: str, where: str, default=None, positive=False,
     value = table[key]
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise CalibError(f"'{key}' must be a number, got {value!r}", where)
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:  # an integer beyond the float range
+        value = math.inf if value > 0 else -math.inf
     if not math.isfinite(value):
         raise CalibError(f"'{key}' must be finite, got {value}", where)
     if positive and value <= 0:
@@ -125,6 +128,9 @@ def sequence_from_dict(doc: dict, where: str) -> Sequence:
             raise CalibError(f"latitude_deg = {latitude} is outside (-90, 90)",
                              f"{where}: key 'latitude_deg'")
     height = _number(doc, "height_m", where) if "height_m" in doc else None
+    if height is not None and not -1000.0 <= height <= 10000.0:
+        raise CalibError(f"height_m = {height} is outside [-1000, 10000] m",
+                         f"{where}: key 'height_m'", "give the ellipsoidal height of the site")
     raw_steps = doc.get("step", [])
     if not isinstance(raw_steps, list):
         raise CalibError("'step' must be an array of tables ([[step]])", where)
@@ -181,9 +187,16 @@ def load_sequence(name_or_path: str | Path) -> Sequence:
     try:
         doc = tomllib.loads(path.read_bytes().decode("utf-8"))
     except UnicodeDecodeError as exc:
-        raise CalibError(f"not UTF-8 text (byte {exc.start})", str(path)) from None
+        line = exc.object.count(b"\n", 0, exc.start) + 1
+        raise CalibError(f"not UTF-8 text (line {line}, byte {exc.start})", str(path),
+                         "save the file as UTF-8") from None
     except tomllib.TOMLDecodeError as exc:
         raise CalibError(f"not valid TOML: {exc}", str(path)) from None
+    except ValueError as exc:  # tomllib: an integer of more than 4300 digits
+        raise CalibError(f"not valid TOML: {str(exc).split(';')[0]}", str(path),
+                         "write numbers with fewer digits") from None
+    except RecursionError:
+        raise CalibError("not valid TOML: arrays or tables nested too deeply", str(path)) from None
     except OSError as exc:
         raise CalibError(f"cannot read: {exc.strerror}", str(path)) from None
     return sequence_from_dict(doc, str(path))

@@ -23,17 +23,42 @@ def _load_toml(path: Path) -> dict:
     try:
         return tomllib.loads(Path(path).read_bytes().decode("utf-8"))
     except UnicodeDecodeError as exc:
-        raise CalibError(f"not UTF-8 text (byte {exc.start})", str(path)) from None
+        line = exc.object.count(b"\n", 0, exc.start) + 1
+        raise CalibError(f"not UTF-8 text (line {line}, byte {exc.start})", str(path),
+                         "save the file as UTF-8") from None
     except tomllib.TOMLDecodeError as exc:
         raise CalibError(f"not valid TOML: {exc}", str(path)) from None
+    except ValueError as exc:  # tomllib: an integer of more than 4300 digits
+        raise CalibError(f"not valid TOML: {str(exc).split(';')[0]}", str(path),
+                         "write numbers with fewer digits") from None
+    except RecursionError:
+        raise CalibError("not valid TOML: arrays or tables nested too deeply", str(path)) from None
     except OSError as exc:
         raise CalibError(f"cannot read: {exc.strerror}", str(path)) from None
 
 
 def _finite(value, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+    try:
+        number = (float(value) if isinstance(value, (int, float)) and not isinstance(value, bool)
+                  else None)
+    except OverflowError:  # an integer beyond the float range
+        number = None
+    if number is None or not math.isfinite(number):
         raise CalibError(f"must be a finite number, got {value!r}", where)
-    return float(value)
+    return number
+
+
+# What ``simulate`` can produce (its --setup-deg and --flip-error-deg limits), degrees.
+SETUP_LIMIT_DEG = 10.0
+FLIP_ERROR_LIMIT_DEG = 10.0
+
+
+def _within(value, limit: float, where: str) -> float:
+    number = _finite(value, where)
+    if abs(number) > limit:
+        raise CalibError(f"{number:g} deg is beyond +-{limit:g} deg", where,
+                         "a simulated run's mounting rotation and flip errors are small angles")
+    return number
 
 
 def errors_from_table(table, where: str) -> ErrorModel:
@@ -46,11 +71,13 @@ def errors_from_table(table, where: str) -> ErrorModel:
         raise CalibError("[errors] lacks " + ", ".join(missing), where,
                          "give all 21 parameters in the units of conventions.md")
     values = [_finite(table[n], f"{where}: [errors] {n}") for n in P.NAMES]
-    # Beyond these the small-error model of the conventions no longer holds.
-    limits = {"bias": None, "scale": 0.05, "misalignment": 0.05}
+    # Beyond these the small-error model of the conventions no longer holds (SI):
+    # 5 % for scale factors and misalignments; a gyro bias of 1 deg/s (a tenth of
+    # the flip rate) and an accelerometer bias of 0.05 g.
+    limits = {("gyro", "bias"): math.radians(1.0), ("accel", "bias"): 0.05 * P.STANDARD_GRAVITY}
     for p, v in zip(P.PARAMETERS, values):
-        lim = limits[p.kind]
-        if lim is not None and abs(v * p.si_per_unit) > lim:
+        lim = limits.get((p.sensor, p.kind), 0.05)
+        if abs(v * p.si_per_unit) > lim:
             raise CalibError(f"{p.name} = {v} {p.unit} is beyond the small-error model (|.| <= "
                              f"{lim / p.si_per_unit:g} {p.unit})", f"{where}: [errors] {p.name}")
     return ErrorModel.from_units(values)
@@ -69,14 +96,32 @@ def read_truth(path: str | Path) -> Truth:
     setup = doc.get("setup", {})
     if not isinstance(setup, dict):
         raise CalibError("[setup] must be a table", where)
-    rotvec = np.radians([_finite(setup.get(k, 0.0), f"{where}: [setup] {k}")
+    rotvec = np.radians([_within(setup.get(k, 0.0), SETUP_LIMIT_DEG, f"{where}: [setup] {k}")
                          for k in ("east_deg", "north_deg", "up_deg")])
-    meta = doc.get("meta", {}) if isinstance(doc.get("meta", {}), dict) else {}
-    flips = doc.get("flips", {}).get("angle_error_deg", []) if isinstance(doc.get("flips"), dict) else []
-    return Truth(errors=errors, setup_rotvec=rotvec,
-                 flip_errors_deg=np.array([_finite(f, f"{where}: [flips]") for f in flips]),
-                 profile=str(meta.get("profile", "")), seed=meta.get("seed"),
-                 noise=bool(meta.get("noise", True)))
+    meta = doc.get("meta", {})
+    if not isinstance(meta, dict):
+        raise CalibError("[meta] must be a table", where)
+    flips_table = doc.get("flips", {})
+    if not isinstance(flips_table, dict):
+        raise CalibError("[flips] must be a table", where)
+    flips = flips_table.get("angle_error_deg", [])
+    if not isinstance(flips, list):
+        raise CalibError(f"must be an array of numbers (degrees), got {flips!r}",
+                         f"{where}: [flips] angle_error_deg")
+    flip_errors = np.array([_within(f, FLIP_ERROR_LIMIT_DEG,
+                                    f"{where}: [flips] angle_error_deg[{i}]")
+                            for i, f in enumerate(flips)], dtype=float)
+    profile = meta.get("profile", "")
+    if not isinstance(profile, str):
+        raise CalibError(f"must be a string, got {profile!r}", f"{where}: [meta] profile")
+    seed = meta.get("seed")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
+        raise CalibError(f"must be an integer, got {seed!r}", f"{where}: [meta] seed")
+    noise = meta.get("noise", True)
+    if not isinstance(noise, bool):
+        raise CalibError(f"must be true or false, got {noise!r}", f"{where}: [meta] noise")
+    return Truth(errors=errors, setup_rotvec=rotvec, flip_errors_deg=flip_errors,
+                 profile=profile, seed=seed, noise=noise)
 
 
 def truth_to_dict(truth: Truth) -> dict:
