@@ -134,3 +134,25 @@ def _fsync_directory(directory: Path) -> None:
         pass
     finally:
         os.close(fd)
+
+
+def load_toml(path: str | os.PathLike) -> dict:
+    """Parse a TOML file; every way it can fail becomes a :class:`CalibError` naming the file."""
+    import tomllib
+
+    where = str(path)
+    try:
+        return tomllib.loads(Path(path).read_bytes().decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        line = exc.object.count(b"\n", 0, exc.start) + 1
+        raise CalibError(f"not UTF-8 text (line {line}, byte {exc.start})", where,
+                         "save the file as UTF-8") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise CalibError(f"not valid TOML: {exc}", where) from None
+    except ValueError as exc:  # tomllib: an integer of more than 4300 digits
+        raise CalibError(f"not valid TOML: {str(exc).split(';')[0]}", where,
+                         "write numbers with fewer digits") from None
+    except RecursionError:
+        raise CalibError("not valid TOML: arrays or tables nested too deeply", where) from None
+    except OSError as exc:
+        raise CalibError(f"cannot read: {exc.strerror}", where) from None

@@ -8,6 +8,7 @@ from importlib import resources
 from pathlib import Path
 
 from .errors import CalibError
+from .fileio import load_toml
 from .params import DEG, MICRO_G
 
 DEFAULT_PROFILE = "navigation"
@@ -88,19 +89,5 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> NoiseProfile:
         raise CalibError(f"no noise profile {text!r}", None,
                          "give a built-in name (" + ", ".join(builtin_profiles())
                          + ") or a path to a profile TOML file")
-    try:
-        doc = tomllib.loads(path.read_bytes().decode("utf-8"))
-    except UnicodeDecodeError as exc:
-        line = exc.object.count(b"\n", 0, exc.start) + 1
-        raise CalibError(f"not UTF-8 text (line {line}, byte {exc.start})", str(path),
-                         "save the file as UTF-8") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise CalibError(f"not valid TOML: {exc}", str(path)) from None
-    except ValueError as exc:  # tomllib: an integer of more than 4300 digits
-        raise CalibError(f"not valid TOML: {str(exc).split(';')[0]}", str(path),
-                         "write numbers with fewer digits") from None
-    except RecursionError:
-        raise CalibError("not valid TOML: arrays or tables nested too deeply", str(path)) from None
-    except OSError as exc:
-        raise CalibError(f"cannot read: {exc.strerror}", str(path)) from None
+    doc = load_toml(path)
     return _from_doc(doc, str(path))

@@ -5,7 +5,6 @@ Saved and loaded as the result TOML of ``files.md`` (values in spec units).
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -14,6 +13,7 @@ import numpy as np
 from . import params as P
 from .errormodel import ErrorModel
 from .errors import CalibError
+from .fileio import load_toml
 
 
 @dataclass(frozen=True)
@@ -130,21 +130,7 @@ class CalibrationResult:
             return corr
 
         where = str(path)
-        try:
-            doc = tomllib.loads(Path(path).read_bytes().decode("utf-8"))
-        except UnicodeDecodeError as exc:
-            line = exc.object.count(b"\n", 0, exc.start) + 1
-            raise CalibError(f"not UTF-8 text (line {line}, byte {exc.start})", where,
-                             "save the file as UTF-8") from None
-        except tomllib.TOMLDecodeError as exc:
-            raise CalibError(f"not valid TOML: {exc}", where) from None
-        except ValueError as exc:  # tomllib: an integer of more than 4300 digits
-            raise CalibError(f"not valid TOML: {str(exc).split(';')[0]}", where,
-                             "write numbers with fewer digits") from None
-        except RecursionError:
-            raise CalibError("not valid TOML: arrays or tables nested too deeply", where) from None
-        except OSError as exc:
-            raise CalibError(f"cannot read: {exc.strerror}", where) from None
+        doc = load_toml(path)
         table = doc.get("parameters")
         if not isinstance(table, dict):
             raise CalibError("missing table [parameters]", where, "is this a result file?")

@@ -7,7 +7,6 @@ rotation) from which the nominal attitude at any time follows exactly.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
@@ -15,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import CalibError
+from .fileio import load_toml
 from .transform import attitude_from_directions, axis_index, rot_axis
 
 DEFAULT_RATE_DPS = 10.0
@@ -184,21 +184,7 @@ def resolve_sequence_path(name_or_path: str | Path) -> Path:
 def load_sequence(name_or_path: str | Path) -> Sequence:
     """Read a sequence file (or a shipped sequence by name)."""
     path = resolve_sequence_path(name_or_path)
-    try:
-        doc = tomllib.loads(path.read_bytes().decode("utf-8"))
-    except UnicodeDecodeError as exc:
-        line = exc.object.count(b"\n", 0, exc.start) + 1
-        raise CalibError(f"not UTF-8 text (line {line}, byte {exc.start})", str(path),
-                         "save the file as UTF-8") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise CalibError(f"not valid TOML: {exc}", str(path)) from None
-    except ValueError as exc:  # tomllib: an integer of more than 4300 digits
-        raise CalibError(f"not valid TOML: {str(exc).split(';')[0]}", str(path),
-                         "write numbers with fewer digits") from None
-    except RecursionError:
-        raise CalibError("not valid TOML: arrays or tables nested too deeply", str(path)) from None
-    except OSError as exc:
-        raise CalibError(f"cannot read: {exc.strerror}", str(path)) from None
+    doc = load_toml(path)
     return sequence_from_dict(doc, str(path))
 
 

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +9,7 @@ import numpy as np
 from . import params as P
 from .errormodel import ErrorModel
 from .errors import CalibError
+from .fileio import load_toml
 from .sim import Truth
 
 
@@ -17,24 +17,6 @@ def truth_path_for(run_path: str | Path) -> Path:
     """``run.csv`` / ``run.npz`` -> ``run.truth.toml`` beside it."""
     p = Path(run_path)
     return p.with_name(p.stem + ".truth.toml")
-
-
-def _load_toml(path: Path) -> dict:
-    try:
-        return tomllib.loads(Path(path).read_bytes().decode("utf-8"))
-    except UnicodeDecodeError as exc:
-        line = exc.object.count(b"\n", 0, exc.start) + 1
-        raise CalibError(f"not UTF-8 text (line {line}, byte {exc.start})", str(path),
-                         "save the file as UTF-8") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise CalibError(f"not valid TOML: {exc}", str(path)) from None
-    except ValueError as exc:  # tomllib: an integer of more than 4300 digits
-        raise CalibError(f"not valid TOML: {str(exc).split(';')[0]}", str(path),
-                         "write numbers with fewer digits") from None
-    except RecursionError:
-        raise CalibError("not valid TOML: arrays or tables nested too deeply", str(path)) from None
-    except OSError as exc:
-        raise CalibError(f"cannot read: {exc.strerror}", str(path)) from None
 
 
 def _finite(value, where: str) -> float:
@@ -85,12 +67,12 @@ def errors_from_table(table, where: str) -> ErrorModel:
 
 def read_errors(path: str | Path) -> ErrorModel:
     """The ``[errors]`` table of an error or truth file."""
-    return errors_from_table(_load_toml(Path(path)).get("errors"), str(path))
+    return errors_from_table(load_toml(Path(path)).get("errors"), str(path))
 
 
 def read_truth(path: str | Path) -> Truth:
     """Read a truth file written by :func:`write_truth` (or by hand)."""
-    doc = _load_toml(Path(path))
+    doc = load_toml(Path(path))
     where = str(path)
     errors = errors_from_table(doc.get("errors"), where)
     setup = doc.get("setup", {})
