@@ -51,10 +51,10 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
             os.fsync(handle.fileno())
         # mkstemp creates the file private (0600); give it the permissions an
         # ordinary open() would, so results can be shared like any other file.
-        os.chmod(tmp_name, _default_mode(target))
+        os.chmod(tmp_name, default_mode(target))
         os.replace(tmp_name, target)
     except BaseException as exc:
-        _remove_quietly(tmp_name)
+        remove_quietly(tmp_name)
         if isinstance(exc, OSError):
             raise CalibError(f"cannot write the file: {exc.strerror or exc}", str(target),
                              "check free disk space and permissions") from exc
@@ -102,7 +102,7 @@ def sha256_file(path: str | os.PathLike) -> str:
                          "check the path and permissions") from exc
 
 
-def _default_mode(target: Path) -> int:
+def default_mode(target: Path) -> int:
     """Permission bits for ``target``: keep an existing file's, else 0666 minus umask."""
     try:
         return target.stat().st_mode & 0o7777
@@ -114,7 +114,7 @@ def _default_mode(target: Path) -> int:
     return 0o666 & ~umask
 
 
-def _remove_quietly(name: str) -> None:
+def remove_quietly(name: str) -> None:
     """Remove a temporary file; it may already be gone."""
     try:
         os.unlink(name)

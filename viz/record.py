@@ -81,6 +81,7 @@ import numpy as np
 from calib import earth
 from calib import params as P
 from calib.errors import CalibError
+from calib.fileio import default_mode, remove_quietly
 
 TIMELINE = "time"
 APPLICATION_ID = "seqdesign"
@@ -175,7 +176,7 @@ class _Writer:
             rec.save(tmp, default_blueprint=blueprint)
             rec.send_recording_name(name)
         except BaseException:
-            _remove_quietly(tmp)
+            remove_quietly(tmp)
             raise
         self.rec = rec
 
@@ -218,10 +219,10 @@ class _Writer:
             self.rec.disconnect()
             with open(self.tmp, "rb+") as handle:
                 os.fsync(handle.fileno())
-            os.chmod(self.tmp, _default_mode(self.target))
+            os.chmod(self.tmp, default_mode(self.target))
             os.replace(self.tmp, self.target)
         except OSError as exc:
-            _remove_quietly(self.tmp)
+            remove_quietly(self.tmp)
             raise CalibError(f"cannot write the file: {exc.strerror or exc}", str(self.target),
                              "check free disk space and permissions") from None
         except BaseException:
@@ -234,24 +235,7 @@ class _Writer:
             self.rec.disconnect()
         except Exception:  # noqa: BLE001 - nothing more to do for a file we throw away
             pass
-        _remove_quietly(self.tmp)
-
-
-def _remove_quietly(name: str) -> None:
-    try:
-        os.unlink(name)
-    except OSError:
-        pass
-
-
-def _default_mode(target: Path) -> int:
-    try:
-        return target.stat().st_mode & 0o7777
-    except OSError:
-        pass
-    umask = os.umask(0)
-    os.umask(umask)
-    return 0o666 & ~umask
+        remove_quietly(self.tmp)
 
 
 def _recording_id(*parts) -> str:
