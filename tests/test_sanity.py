@@ -126,3 +126,31 @@ def test_run_that_cannot_observe_parameters_is_refused_by_name(tmp_path):
     for name in ("sax", "say", "saz"):
         assert name in r.output
     assert not out.exists()
+
+
+def test_profile_too_optimistic_inflates_sigmas_and_says_so(good_run, tmp_path):
+    # The run carries the navigation profile's noise; calibrating with a profile of half
+    # that noise density makes the whitened residual power ~4 per degree of freedom.
+    # The tool must say so and scale every sigma by sqrt(chi2/dof) (Birge ratio).
+    import json
+    prof = tmp_path / "half.toml"
+    prof.write_text('name = "half"\ngyro_arw_dph = 0.0005\naccel_vrw_ug = 5.0\n')
+    path = tmp_path / "r.npz"
+    write_run(good_run, path)
+    r = CliRunner().invoke(main, ["calibrate", str(path), "--profile", str(prof),
+                                  "-o", str(tmp_path / "half.toml.res"), "--json"])
+    assert r.exit_code == 0, r.output
+    assert "warning: residuals are" in r.stderr and "sigmas inflated" in r.stderr
+    doc = json.loads(r.stdout)
+    chi2 = doc["fit"]["chi2_per_dof"]
+    assert 3.0 < chi2 < 5.0  # 4 expected; +-25 % covers the ARW/VRW mix of this short run
+    assert doc["fit"]["sigma_scale"] == pytest.approx(math.sqrt(chi2))
+    r2 = CliRunner().invoke(main, ["calibrate", str(path), "-o", str(tmp_path / "nav.res"),
+                                   "--json"])
+    nav = json.loads(r2.stdout)
+    assert nav["fit"]["sigma_scale"] == 1.0
+    # Halving the noise halves the raw sigmas; the Birge scaling brings them back near the
+    # navigation profile's (within the 25 % the chi2 estimate allows).
+    for name in ("bgx", "sax", "mgxy"):
+        ratio = doc["parameters"][name]["sigma"] / nav["parameters"][name]["sigma"]
+        assert 0.75 < ratio < 1.25, (name, ratio)
