@@ -190,7 +190,7 @@ def step_model(latitude_rad: float, gravity_mps2: float) -> StepModel:
 
 
 def propagate(inputs: np.ndarray, T: np.ndarray, S0: np.ndarray, latitude_rad: float,
-              gravity_mps2: float) -> np.ndarray:
+              gravity_mps2: float, return_final: bool = False):
     """Velocity rows of ``S_k = Phi(T_k) S_{k-1} + inputs_k`` for any number of columns.
 
     Parameters
@@ -202,6 +202,7 @@ def propagate(inputs: np.ndarray, T: np.ndarray, S0: np.ndarray, latitude_rad: f
     Returns
     -------
     ndarray, shape (K + 1, 3, c)
+        And, with ``return_final``, the whole final ``S`` (6, c).
     """
     model = step_model(float(latitude_rad), float(gravity_mps2))
     # Interval lengths repeat up to rounding; 1 ns changes Phi by ~1e-8 of its g T block.
@@ -213,7 +214,7 @@ def propagate(inputs: np.ndarray, T: np.ndarray, S0: np.ndarray, latitude_rad: f
     for k in range(len(T)):
         S = Phis[index[k]] @ S + inputs[k]
         out[k + 1] = S[3:]
-    return out
+    return (out, S) if return_final else out
 
 
 def moment_inputs(moments: np.ndarray, latitude_rad: float, gravity_mps2: float) -> np.ndarray:

@@ -91,7 +91,8 @@ def whitener(models: list[IntervalModel], P0: np.ndarray | None = None) -> White
     return Whitener(Phi_pp, Phi_vp, gain, L_inv, logdet, P)
 
 
-def whiten(w: Whitener, X: np.ndarray) -> np.ndarray:
+def whiten(w: Whitener, X: np.ndarray, phi0: np.ndarray | None = None,
+           return_final: bool = False):
     """Whitened innovations of observation columns.
 
     Parameters
@@ -99,6 +100,10 @@ def whiten(w: Whitener, X: np.ndarray) -> np.ndarray:
     w : Whitener
     X : ndarray, shape (K, 3, c)
         Observation-shaped columns (``H`` and/or ``z[..., None]``).
+    phi0 : ndarray, shape (3, c), optional
+        The filter's state before the first interval (zero at a run's start).
+    return_final : bool
+        Also return the filter's state after the last interval.
 
     Returns
     -------
@@ -108,12 +113,12 @@ def whiten(w: Whitener, X: np.ndarray) -> np.ndarray:
     """
     K, _, c = X.shape
     out = np.empty_like(X)
-    phi = np.zeros((3, c))
+    phi = np.zeros((3, c)) if phi0 is None else np.array(phi0, dtype=float)
     for k in range(K):
         e = X[k] - w.Phi_vp[k] @ phi
         phi = w.Phi_pp[k] @ phi + w.gain[k] @ e
         out[k] = w.L_inv[k] @ e
-    return out
+    return (out, phi) if return_final else out
 
 
 @dataclass(frozen=True)

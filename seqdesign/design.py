@@ -29,9 +29,9 @@ from calib import earth
 from calib import params as P
 from calib.errors import CalibError
 from calib.information import marginal
-from calib.jacobian import (N_UNKNOWN, ObservationGrid, moment_inputs, step_model,
-                            state_matrix, trajectory_moments)
-from calib.noise import interval_models, noise_model, whitener
+from calib.jacobian import (N_UNKNOWN, ObservationGrid, moment_inputs, observation_matrix,
+                            propagate, state_matrix, trajectory_moments)
+from calib.noise import interval_models, noise_model, whiten, whitener
 from calib.profiles import NoiseProfile
 from calib.sequence import Sequence, Step, Timeline, nominal_attitude
 from calib.sim import body_integrals
@@ -81,31 +81,28 @@ def segment_effect(C: np.ndarray, duration: float, rate: float, axis: int, latit
     inputs = moment_inputs(moments, latitude_rad, gravity_mps2)  # (K, 6, 24)
     T = np.diff(t_nav[grid.bounds])
     noise = noise_model(state_matrix(latitude_rad, gravity_mps2), T, profile, P0)
-    w = noise.whitener
-    model = step_model(float(latitude_rad), float(gravity_mps2))
-    Phi = np.asarray(model.transition(float(T[0])))  # all intervals of a segment are equal
+    # Columns: 6 + 3 homogeneous (unit S, unit filter state, no input), then the 24 unknowns'
+    # particular responses (zero start, this segment's inputs). The same recursions as the
+    # analyser (propagate, whiten) run on all of them at once.
     n_hom = 9
-    X = np.zeros((9, n_hom + N_UNKNOWN))
-    X[:, :n_hom] = np.eye(9)
+    c = n_hom + N_UNKNOWN
+    S0 = np.zeros((6, c))
+    phi0 = np.zeros((3, c))
     if initial:  # the run's start: S = [I; 0] on phi0, filter state zero, nothing else
-        X[:, :n_hom] = 0.0
-        X[:3, n_hom + P.N_PARAMS:] = np.eye(3)
-    M1 = np.zeros((9, 9))
-    M2 = np.zeros((9, N_UNKNOWN))
-    M3 = np.zeros((N_UNKNOWN, N_UNKNOWN))
-    for k in range(len(T)):
-        S, phi = X[:6], X[6:]
-        S_new = Phi @ S
-        S_new[:, n_hom:] += inputs[k]
-        H = S_new[3:] - noise.Phi_vv[k] @ S[3:]
-        e = H - w.Phi_vp[k] @ phi
-        phi_new = w.Phi_pp[k] @ phi + w.gain[k] @ e
-        wk = w.L_inv[k] @ e
-        Wh, Wp = wk[:, :n_hom], wk[:, n_hom:]
-        M1 += Wh.T @ Wh
-        M2 += Wh.T @ Wp
-        M3 += Wp.T @ Wp
-        X = np.vstack([S_new, phi_new])
+        S0[:3, n_hom + P.N_PARAMS:] = np.eye(3)
+    else:
+        S0[:, :6] = np.eye(6)
+        phi0[:, 6:9] = np.eye(3)
+    all_inputs = np.zeros((len(T), 6, c))
+    all_inputs[:, :, n_hom:] = inputs
+    S_v, S_end = propagate(all_inputs, T, S0, latitude_rad, gravity_mps2, return_final=True)
+    w, phi_end = whiten(noise.whitener, observation_matrix(S_v, noise.Phi_vv), phi0,
+                        return_final=True)
+    Wh, Wp = w[:, :, :n_hom], w[:, :, n_hom:]
+    M1 = np.einsum("kia,kib->ab", Wh, Wh)
+    M2 = np.einsum("kia,kib->ab", Wh, Wp)
+    M3 = np.einsum("kia,kib->ab", Wp, Wp)
+    X = np.vstack([S_end, phi_end])
     return SegmentEffect(A=X[:, :n_hom], B=X[:, n_hom:], M1=M1, M2=M2, M3=M3)
 
 
