@@ -39,15 +39,19 @@ class Segmentation:
     first_rest_end: int  # samples [0, first_rest_end) are the first rest
 
 
+def _grow(moving: np.ndarray, samples: int = 2) -> np.ndarray:
+    """Widen turning stretches by ``samples`` each side: partial samples at a flip's ends turn too."""
+    grown = moving.copy()
+    for s in range(1, samples + 1):
+        grown[s:] |= moving[:-s]
+        grown[:-s] |= moving[s:]
+    return grown
+
+
 def detect_motion(dtheta: np.ndarray, dt: np.ndarray, where: str = "run") -> Segmentation:
     """Rest/rotation segments from the gyro increments alone."""
     rate = np.linalg.norm(dtheta, axis=1) / dt
-    moving = rate > MOTION_THRESHOLD
-    # Grow by two samples each side so that partial samples at a flip's ends count as turning.
-    grown = moving.copy()
-    for s in (1, 2):
-        grown[s:] |= moving[:-s]
-        grown[:-s] |= moving[s:]
+    grown = _grow(rate > MOTION_THRESHOLD)
     if not grown.any():
         raise CalibError("no rotation found in the run (gyro rates never exceed "
                          f"{math.degrees(MOTION_THRESHOLD):.2f} deg/s)", where,
@@ -150,6 +154,7 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
     Fit
     """
     dt = np.diff(np.concatenate([[time_s[0] - (time_s[1] - time_s[0])], time_s]))
+    sanity.check_latitude(latitude_rad, where)
     sanity.check_rates(dtheta_m, dt, where)
     seg = detect_motion(dtheta_m, dt, where)
     if moving is not None:
@@ -224,11 +229,7 @@ def sequence_motion(seq, time_s: np.ndarray, dt: np.ndarray) -> np.ndarray:
     moving = np.zeros(len(time_s), dtype=bool)
     for a, b in zip(tl.t0[~tl.rest], tl.t1[~tl.rest]):
         moving |= (end > a) & (start < b)
-    grown = moving.copy()
-    for s in (1, 2):
-        grown[s:] |= moving[:-s]
-        grown[:-s] |= moving[s:]
-    return grown
+    return _grow(moving)
 
 
 def check_sequence_matches(seq, detected: np.ndarray, from_sequence: np.ndarray, dt: np.ndarray,

@@ -20,6 +20,18 @@ SATURATION_RUN = 10  # consecutive samples stuck at the same extreme value
 REST_NOISE_FACTOR = 20.0  # a rest whose specific force varies 20x more than the noise moved
 
 
+MAX_LATITUDE_DEG = 89.0
+
+
+def check_latitude(latitude_rad: float, where: str) -> None:
+    """Refuse a site at the poles: the Earth rate there has no horizontal part to find north by."""
+    if abs(math.degrees(latitude_rad)) > MAX_LATITUDE_DEG:
+        raise CalibError(f"latitude {math.degrees(latitude_rad):.3f} deg is within "
+                         f"{90 - MAX_LATITUDE_DEG:g} deg of a pole", where,
+                         "stationary self-calibration needs the Earth rate's horizontal part "
+                         "(W cos L) to find the heading; check the latitude_deg metadata")
+
+
 def check_rates(dtheta: np.ndarray, dt: np.ndarray, where: str) -> None:
     """Refuse gyro data in degrees, or rates for increments (from magnitudes)."""
     rate = np.linalg.norm(dtheta, axis=1) / dt

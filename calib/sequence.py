@@ -18,6 +18,7 @@ from .fileio import load_toml
 from .transform import attitude_from_directions, axis_index, rot_axis
 
 DEFAULT_RATE_DPS = 10.0
+MIN_RATE_DPS = 1.0  # twice the estimator's motion threshold (0.01 rad/s = 0.57 deg/s)
 DEFAULT_DWELL_S = 180.0
 DEFAULT_LATITUDE_DEG = 40.0
 DEFAULT_HEIGHT_M = 0.0
@@ -148,6 +149,10 @@ def sequence_from_dict(doc: dict, where: str) -> Sequence:
         rate = _number(raw, "rate_dps", here, DEFAULT_RATE_DPS, positive=True)
         if rate > 1000.0:
             raise CalibError(f"rate_dps = {rate} is beyond any gimbal (max 1000 deg/s)", here)
+        if rate < MIN_RATE_DPS:
+            raise CalibError(f"rate_dps = {rate} is below {MIN_RATE_DPS:g} deg/s: such a slow turn "
+                             "cannot be told from rest in the log (flips are detected above "
+                             "0.57 deg/s)", here, f"turn at {MIN_RATE_DPS:g} deg/s or faster")
         dwell = _number(raw, "dwell_s", here, DEFAULT_DWELL_S, nonnegative=True)
         steps.append(Step(axis.upper(), angle, rate, dwell))
     if not steps:
@@ -280,6 +285,7 @@ class RestPosition:
     start_s: float
     end_s: float
     gimbal_lock: bool
+    on_grid: bool = True  # False: some axis is off the E/N/U grid (non-90-degree flips)
 
 
 def rest_positions(seq: Sequence) -> list[RestPosition]:
@@ -288,7 +294,8 @@ def rest_positions(seq: Sequence) -> list[RestPosition]:
     Gimbal angles are tracked through every flip in steps of at most 1 deg,
     as encoders count, so multi-turn flips and 180 deg turns unwrap correctly.
     """
-    from .transform import directions_of, gimbal_from_relative, is_gimbal_lock, unwrap_gimbal
+    from .transform import (describe_axis, gimbal_from_relative, is_gimbal_lock, on_grid,
+                            unwrap_gimbal)
 
     tl = timeline(seq)
     times, marks = [], []
@@ -305,7 +312,9 @@ def rest_positions(seq: Sequence) -> list[RestPosition]:
     out = []
     for seg, k in marks:
         out.append(RestPosition(
-            number=int(tl.position[seg]), C_b_n=C[k], directions=directions_of(C[k]),
+            number=int(tl.position[seg]), C_b_n=C[k],
+            directions=tuple(describe_axis(C[k][:, i]) for i in range(3)),
             gimbal_deg=np.round(angles[k], 9) + 0.0, start_s=float(tl.t0[seg]),
-            end_s=float(tl.t1[seg]), gimbal_lock=bool(is_gimbal_lock(C_rel[k], 1e-6))))
+            end_s=float(tl.t1[seg]), gimbal_lock=bool(is_gimbal_lock(C_rel[k], 1e-6)),
+            on_grid=on_grid(C[k])))
     return out

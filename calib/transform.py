@@ -90,6 +90,19 @@ def directions_of(C_b_n: np.ndarray) -> tuple[str, str, str]:
     return tuple(nearest_direction(C_b_n[:, i]) for i in range(3))
 
 
+def describe_axis(v: np.ndarray, tol: float = 1e-6) -> str:
+    """A direction name for a grid axis, else its ENU components, e.g. ``[+0.707 -0.707 +0.000]``."""
+    v = np.asarray(v, dtype=float)
+    if np.max(np.abs(v)) > 1.0 - tol:
+        return nearest_direction(v)
+    return "[" + " ".join(f"{x:+.3f}" for x in v) + "]"
+
+
+def on_grid(C_b_n: np.ndarray, tol: float = 1e-6) -> bool:
+    """Whether every body axis points along a grid direction (E, N, U or opposite)."""
+    return bool(np.all(np.max(np.abs(C_b_n), axis=0) > 1.0 - tol))
+
+
 def gimbal_from_relative(C_rel: np.ndarray) -> np.ndarray:
     """Principal gimbal angles (rad) of ``C_rel = R_Z(outer) R_X(middle) R_Y(inner)``.
 

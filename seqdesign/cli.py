@@ -48,17 +48,21 @@ def show(sequence, as_json):
                 "position": p.number, "x": p.directions[0], "y": p.directions[1],
                 "z": p.directions[2], "outer_deg": float(p.gimbal_deg[0]),
                 "middle_deg": float(p.gimbal_deg[1]), "inner_deg": float(p.gimbal_deg[2]),
-                "start_s": p.start_s, "end_s": p.end_s, "gimbal_lock": p.gimbal_lock}
+                "start_s": p.start_s, "end_s": p.end_s, "gimbal_lock": p.gimbal_lock,
+                "on_grid": p.on_grid}
                 for p in positions]})
         return
     click.echo(f"{seq.name}: {seq.description}".rstrip(": "))
-    click.echo(f"{'pos':>3}  {'X':<6}{'Y':<6}{'Z':<6} {'outer':>8}{'middle':>8}{'inner':>8}"
+    w = max(6, *(len(d) + 1 for p in positions for d in p.directions))  # off-grid axes are vectors
+    click.echo(f"{'pos':>3}  {'X':<{w}}{'Y':<{w}}{'Z':<{w}} {'outer':>8}{'middle':>8}{'inner':>8}"
                f"  {'start s':>8}{'end s':>8}")
     for p in positions:
         lock = "  GIMBAL LOCK" if p.gimbal_lock else ""
-        click.echo(f"{p.number:>3}  {p.directions[0]:<6}{p.directions[1]:<6}{p.directions[2]:<6}"
+        click.echo(f"{p.number:>3}  {p.directions[0]:<{w}}{p.directions[1]:<{w}}{p.directions[2]:<{w}}"
                    f" {p.gimbal_deg[0]:8.1f}{p.gimbal_deg[1]:8.1f}{p.gimbal_deg[2]:8.1f}"
                    f"  {p.start_s:8.1f}{p.end_s:8.1f}{lock}")
+    if not all(p.on_grid for p in positions):
+        click.echo("off-grid axes are shown as [east north up] components")
     click.echo(f"{len(positions)} rest positions, {len(seq.steps)} flips, "
                f"total {seq.duration_s:.1f} s ({seq.duration_s / 60:.1f} min)")
 
@@ -76,6 +80,8 @@ def _site(seq, latitude, height):
     if not -89.0 <= lat <= 89.0:
         raise CalibError(f"latitude {lat} deg is outside [-89, 89]", "--latitude",
                          "stationary calibration needs the Earth rate to have a horizontal part")
+    if not -1000.0 <= h <= 10000.0:
+        raise CalibError(f"height {h} m is outside [-1000, 10000]", "--height")
     return lat, h
 
 
@@ -465,11 +471,16 @@ def design(budget_min, max_flips, max_quarters, start, end, axes, rate_dps, min_
         with click.progressbar(length=design_steps(c, 4), label=f"{b:g} min", file=sys.stderr,
                                item_show_func=lambda m: m, show_pos=True) as bar:
             res = run_design(c, prof, lat, 0.0, objective, tolerance_deg, beam_width, keep=4,
+                             refine=not no_refine,
                              name=f"designed-{b:g}min", workers=workers, scheduler=scheduler,
                              progress=lambda msg, n: bar.update(n, msg))
         bound = accel_scale_bound(res.sequence.duration_s, prof, g)
         rows.append((b, res, bound))
-        path = output if (output and not pareto) else f"designed-{b:g}min.toml"
+        default = f"designed-{b:g}min.toml"
+        if pareto:  # every budget's design goes beside the front's files
+            path = str(Path(output).parent / default) if output else default
+        else:
+            path = output or default
         _write_design(res, path, {
             "objective": objective, "profile": prof.name, "score": res.worst_ratio,
             "score_parameter": res.worst_name, "tolerance_deg": tolerance_deg,

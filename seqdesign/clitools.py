@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 import shlex
 import sys
 
@@ -76,8 +77,19 @@ def guarded(fn):
     return wrapper
 
 
+def _json_safe(x):
+    """Non-finite numbers (an unobservable parameter's sigma) become null: JSON has no inf."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {k: _json_safe(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_json_safe(v) for v in x]
+    return x
+
+
 def emit_json(doc) -> None:
-    click.echo(json.dumps(doc, indent=2, allow_nan=False))
+    click.echo(json.dumps(_json_safe(doc), indent=2, allow_nan=False))
 
 
 def info(msg: str) -> None:

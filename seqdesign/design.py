@@ -311,13 +311,14 @@ def brute_force(model: SearchModel, depth: int, objective: str = "worst") -> Can
 
 
 def to_sequence(walk, c: Constraints, dwells: list[float], name: str,
-                provenance: dict | None = None) -> Sequence:
-    """A sequence file's content for a walk and its dwells (initial first)."""
+                provenance: dict | None = None, latitude_deg: float | None = None,
+                height_m: float | None = None) -> Sequence:
+    """A sequence file's content for a walk and its dwells (initial first), with its site."""
     steps = tuple(Step(mv.axis, mv.angle_deg, c.rate_dps, float(d))
                   for mv, d in zip(walk, dwells[1:]))
     return Sequence(name=name, start=tuple(c.start), steps=steps, initial_dwell_s=float(dwells[0]),
                     description=f"designed: {' '.join(m.label() for m in walk)}",
-                    provenance=provenance or {})
+                    latitude_deg=latitude_deg, height_m=height_m, provenance=provenance or {})
 
 
 # ---------------------------------------------------------------------------
@@ -538,6 +539,7 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
     if objective not in OBJECTIVES:
         raise CalibError(f"unknown objective {objective!r}", "--objective", "use worst, D, A or E")
     t0 = _time.perf_counter()
+    site = (math.degrees(latitude_rad), height_m)  # written into the sequence: analyse it there
     jobs = [(c, d, latitude_rad, height_m, profile, objective, beam_width, keep)
             for d in search_dwells(c)]
     results = map_jobs(_search_at_dwell, jobs, workers, scheduler)
@@ -552,7 +554,7 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
             if (walk, dwell) in seen:
                 continue
             seen.add((walk, dwell))
-            seq = to_sequence(walk, c, [dwell] * (len(walk) + 1), name)
+            seq = to_sequence(walk, c, [dwell] * (len(walk) + 1), name, None, *site)
             worst, wname, rob = _exact_worst(seq, profile, latitude_rad, height_m, tolerance_deg,
                                              search=False)
             finalists.append((worst, " ".join(m.label() for m in walk), dwell, walk, wname, rob))
@@ -571,12 +573,12 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
         new_dwells, _, _ = refine_dwells(walk, c, dwell, latitude_rad, height_m, profile,
                                          objective)
         if new_dwells != dwells:
-            seq = to_sequence(walk, c, new_dwells, name)
+            seq = to_sequence(walk, c, new_dwells, name, None, *site)
             w2, n2, rob2 = _exact_worst(seq, profile, latitude_rad, height_m, tolerance_deg,
                                         search=False)
             if w2 < worst:
                 worst, wname, rob, dwells = w2, n2, rob2, new_dwells
-    seq = to_sequence(walk, c, dwells, name)
+    seq = to_sequence(walk, c, dwells, name, None, *site)
     if progress:
         progress("refined" if refine else "kept uniform dwells", 1)
     worst, wname, rob = _exact_worst(seq, profile, latitude_rad, height_m, tolerance_deg,

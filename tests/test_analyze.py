@@ -175,3 +175,31 @@ def test_cli_analyze_view_writes_a_recording_of_the_analysis(tmp_path, monkeypat
     assert np.allclose(bars(chunks, "analysis/ratio"), expected, rtol=1e-9)
     r = CliRunner().invoke(main, ["analyze", "paper-9pos", "--view", str(tmp_path / "x.txt")])
     assert r.exit_code == 2 and "must end in .rrd" in r.output
+
+
+def test_cli_analyze_json_on_a_rank_deficient_sequence_names_it_without_traceback(tmp_path):
+    # JSON has no inf: an unobservable parameter's sigma and ratio are null, and the
+    # unobservable directions are listed by name.
+    seq = tmp_path / "onez.toml"
+    seq.write_text('name = "onez"\nstart = ["east", "up", "south"]\ninitial_dwell_s = 60\n'
+                   '[[step]]\naxis = "Z"\nangle_deg = 90\ndwell_s = 60\n')
+    for args in (["analyze", str(seq), "--tolerance-deg", "0", "--json"],
+                 ["compare", str(seq), "paper-9pos", "--tolerance-deg", "0", "--json"]):
+        r = CliRunner().invoke(main, args)
+        assert r.exit_code == 0, r.output
+        doc = json.loads(r.stdout)
+        first = doc if "parameters" in doc else doc["sequences"][0]
+        assert first["rank"] < 21 and first["unobservable"]
+        assert any(e["sigma"] is None and e["ratio"] is None for e in first["parameters"].values())
+
+
+def test_cli_show_marks_off_grid_axes(tmp_path):
+    seq = tmp_path / "odd.toml"
+    seq.write_text('name = "odd"\nstart = ["east", "up", "south"]\ninitial_dwell_s = 60\n'
+                   '[[step]]\naxis = "Z"\nangle_deg = 135\ndwell_s = 60\n')
+    doc = json.loads(CliRunner().invoke(main, ["show", str(seq), "--json"]).stdout)
+    p2 = doc["positions"][1]
+    assert not p2["on_grid"] and p2["z"] == "south"
+    # Body X after +135 deg about Z (south) from east: east*cos135 + up*sin135 (independent).
+    c, s = math.cos(math.radians(135)), math.sin(math.radians(135))
+    assert p2["x"] == f"[{c:+.3f} {0.0:+.3f} {s:+.3f}]"

@@ -136,6 +136,9 @@ def test_cli_design_small_end_to_end(tmp_path):
     seq = load_sequence(out)
     assert seq.duration_s <= 8 * 60 + 1e-6
     assert seq.provenance["objective"] == "worst" and "command" in seq.provenance
+    # --no-refine keeps the search's uniform dwells; the site it was designed for is recorded.
+    assert {s.dwell_s for s in seq.steps} == {seq.initial_dwell_s}
+    assert seq.latitude_deg == 40.0 and seq.height_m == 0.0
     # The file's recorded score is the analyser's figure for the file's own sequence.
     exact = analyze(seq, PROFILE, LAT).ratio.max()
     assert doc["designs"][0]["worst"]["ratio"] == pytest.approx(exact, rel=1e-9)

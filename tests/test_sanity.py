@@ -154,3 +154,18 @@ def test_profile_too_optimistic_inflates_sigmas_and_says_so(good_run, tmp_path):
     for name in ("bgx", "sax", "mgxy"):
         ratio = doc["parameters"][name]["sigma"] / nav["parameters"][name]["sigma"]
         assert 0.75 < ratio < 1.25, (name, ratio)
+
+
+def test_polar_site_is_refused_with_the_reason(good_run, tmp_path):
+    run = _variant(good_run)
+    run.meta["latitude_deg"] = "89.5"
+    r, out = _calibrate(run, tmp_path)
+    assert r.exit_code == 2 and "of a pole" in r.output and not out.exists()
+
+
+def test_sequence_with_flips_too_slow_to_detect_is_refused(tmp_path):
+    from calib.errors import CalibError
+    doc = {"name": "slow", "start": ["east", "up", "south"],
+           "step": [{"axis": "Z", "angle_deg": 90.0, "rate_dps": 0.5}]}
+    with pytest.raises(CalibError, match="cannot be told from rest"):
+        sequence_from_dict(doc, "slow.toml")
