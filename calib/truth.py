@@ -103,7 +103,27 @@ def read_truth(path: str | Path) -> Truth:
     if not isinstance(noise, bool):
         raise CalibError(f"must be true or false, got {noise!r}", f"{where}: [meta] noise")
     return Truth(errors=errors, setup_rotvec=rotvec, flip_errors_deg=flip_errors,
-                 profile=profile, seed=seed, noise=noise)
+                 profile=profile, seed=seed, noise=noise,
+                 unmodelled=_unmodelled(doc.get("unmodelled"), where))
+
+
+def _unmodelled(table, where: str):
+    """The optional ``[unmodelled]`` table (K2 in ug/g^2, time offset in ms), or None."""
+    from .sim import UnmodelledTerms
+
+    if table is None:
+        return None
+    here = f"{where}: [unmodelled]"
+    if not isinstance(table, dict):
+        raise CalibError("must be a table", here)
+    k2 = table.get("k2_ug_per_g2", [0.0, 0.0, 0.0])
+    if not isinstance(k2, list) or len(k2) != 3:
+        raise CalibError("k2_ug_per_g2 must be a list of three numbers", here)
+    k2 = [_finite(x, f"{here} k2_ug_per_g2") for x in k2]
+    offset = _finite(table.get("time_offset_ms", 0.0), f"{here} time_offset_ms")
+    if any(abs(x) > 1000.0 for x in k2) or abs(offset) > 100.0:
+        raise CalibError("beyond |k2| <= 1000 ug/g^2 and |time offset| <= 100 ms", here)
+    return UnmodelledTerms.from_units(k2, offset)
 
 
 def truth_to_dict(truth: Truth) -> dict:
@@ -112,13 +132,16 @@ def truth_to_dict(truth: Truth) -> dict:
     meta = {"profile": truth.profile, "noise": bool(truth.noise)}
     if truth.seed is not None:
         meta["seed"] = int(truth.seed)
-    return {
+    doc = {
         "errors": {n: float(v) for n, v in zip(P.NAMES, values)},
         "setup": {"east_deg": float(setup[0]), "north_deg": float(setup[1]),
                   "up_deg": float(setup[2])},
         "flips": {"angle_error_deg": [float(f) for f in truth.flip_errors_deg]},
         "meta": meta,
     }
+    if truth.unmodelled is not None:
+        doc["unmodelled"] = truth.unmodelled.to_units()
+    return doc
 
 
 def write_truth(path: str | Path, truth: Truth, provenance: dict | None = None) -> None:

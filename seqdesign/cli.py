@@ -112,10 +112,15 @@ def _run_suffix(path: str, option: str) -> None:
 @click.option("--flip-error-deg", type=float, default=0.0, show_default=True,
               help="Each flip misses its angle by up to this much (uniform).")
 @click.option("--noise-free", is_flag=True, help="No sensor noise.")
+@click.option("--k2-ug-per-g2", nargs=3, type=float, metavar="X Y Z",
+              help="Unmodelled accelerometer quadratic terms (the estimator ignores them).")
+@click.option("--time-offset-ms", type=float, default=0.0,
+              help="Unmodelled gyro-accelerometer time offset (accelerometers lag), ms.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 @guarded
 def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_setup, seed,
-             latitude, height, gravity_mps2, sample_rate_hz, flip_error_deg, noise_free, as_json):
+             latitude, height, gravity_mps2, sample_rate_hz, flip_error_deg, noise_free,
+             k2_ug_per_g2, time_offset_ms, as_json):
     """Simulate the IMU increments of SEQUENCE on a stationary base with exact
     kinematics, the 21 errors and white noise; write the run log (-o) and its
     truth file beside it (run.truth.toml)."""
@@ -123,7 +128,7 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
     from calib.profiles import load_profile
     from calib.runlog import write_run
     from calib.sequence import load_sequence
-    from calib.sim import SimConfig, simulate as run_simulation
+    from calib.sim import SimConfig, UnmodelledTerms, simulate as run_simulation
     from calib.truth import read_errors, truth_path_for, write_truth
 
     _run_suffix(output, "-o/--output")
@@ -141,6 +146,11 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
     if gravity_mps2 is not None and not (9.7 < gravity_mps2 < 9.9):
         raise CalibError(f"--gravity {gravity_mps2} m/s^2 is not an Earth gravity", "--gravity",
                          "give m/s^2, e.g. 9.80123")
+    k2 = k2_ug_per_g2 or (0.0, 0.0, 0.0)
+    if any(not math.isfinite(x) or abs(x) > 1000.0 for x in k2):
+        raise CalibError(f"--k2-ug-per-g2 {k2} beyond 1000 ug/g^2", "--k2-ug-per-g2")
+    if not (math.isfinite(time_offset_ms) and abs(time_offset_ms) <= 100.0):
+        raise CalibError(f"--time-offset-ms {time_offset_ms} beyond 100 ms", "--time-offset-ms")
     seq = load_sequence(sequence)
     prof = load_profile(profile)
     errors = (read_errors(errors_file) if errors_file
@@ -151,7 +161,8 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
     run, truth = run_simulation(
         seq, cfg, errors, prof, setup_rotvec=np.radians(setup_deg) if setup_deg else (0, 0, 0),
         flip_error_deg=flip_error_deg, noise=not noise_free, seed=seed,
-        random_setup_deg=3.0 if random_setup else None)
+        random_setup_deg=3.0 if random_setup else None,
+        unmodelled=UnmodelledTerms.from_units(k2, time_offset_ms))
     truth_path = truth_path_for(output)
     prov = provenance({"sequence": sequence, "errors": errors_file,
                        "profile": profile if Path(profile).exists() else None},
