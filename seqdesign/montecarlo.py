@@ -46,11 +46,12 @@ class Trials:
 
 
 def one_trial(args) -> tuple[np.ndarray, np.ndarray, bool]:
-    seq, profile, latitude_deg, errors, tolerance_deg, flip_error_deg, seed = args
+    seq, profile, latitude_deg, errors, tolerance_deg, flip_error_deg, seed, unmodelled = args
     lat = math.radians(latitude_deg)
     cfg = SimConfig(latitude_rad=lat)
     run, truth = simulate(seq, cfg, errors, profile, flip_error_deg=flip_error_deg, noise=True,
-                          seed=seed, random_setup_deg=tolerance_deg if tolerance_deg > 0 else None)
+                          seed=seed, random_setup_deg=tolerance_deg if tolerance_deg > 0 else None,
+                          unmodelled=unmodelled)
     fit = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, lat, cfg.gravity, profile)
     return fit.values - errors.values, fit.covariance[:P.N_PARAMS, :P.N_PARAMS], fit.converged
 
@@ -58,11 +59,15 @@ def one_trial(args) -> tuple[np.ndarray, np.ndarray, bool]:
 def run_trials(seq: Sequence, profile: NoiseProfile, n: int, seed: int = 0,
                latitude_deg: float = 40.0, errors: ErrorModel | None = None,
                tolerance_deg: float = 3.0, flip_error_deg: float = 0.5,
-               workers: int = 1) -> Trials:
-    """Simulate and calibrate ``n`` runs; trial ``i`` uses seed ``seed + i``."""
+               workers: int = 1, unmodelled=None) -> Trials:
+    """Simulate and calibrate ``n`` runs; trial ``i`` uses seed ``seed + i``.
+
+    ``unmodelled`` (:class:`calib.sim.UnmodelledTerms`) adds terms the
+    estimator does not model, to measure what ignoring them costs.
+    """
     errors = errors if errors is not None else ErrorModel.from_table2()
-    jobs = [(seq, profile, latitude_deg, errors, tolerance_deg, flip_error_deg, seed + i)
-            for i in range(n)]
+    jobs = [(seq, profile, latitude_deg, errors, tolerance_deg, flip_error_deg, seed + i,
+             unmodelled) for i in range(n)]
     if workers > 1:
         with ProcessPoolExecutor(max_workers=workers) as pool:
             out = list(pool.map(one_trial, jobs))
