@@ -21,7 +21,6 @@ demo: venv
 	$(BIN)/seqdesign analyze paper-9pos
 	$(BIN)/seqdesign calibrate $(DEMO)/run.npz -o $(DEMO)/run.result.toml
 	$(BIN)/seqdesign view $(DEMO)/run.npz -o $(DEMO)/run.rrd
-	@echo "open the recording with: $(BIN)/rerun $(DEMO)/run.rrd"
 
 test: venv
 	$(BIN)/python -m pytest -q
