@@ -100,13 +100,10 @@ def _scale() -> np.ndarray:
     return np.concatenate([P.REQUIREMENTS_SI, np.full(3, PHI0_SCALE)])
 
 
-def normal_equations(Hw: np.ndarray, zw: np.ndarray | None = None):
-    """Information (scaled by requirements) and right-hand side from whitened columns."""
+def scaled_design(Hw: np.ndarray):
+    """Whitened observation matrix with columns in units of the requirements, and the scale."""
     D = _scale()
-    Hs = Hw.reshape(-1, Hw.shape[-1]) * D
-    N = Hs.T @ Hs
-    b = None if zw is None else Hs.T @ zw.reshape(-1)
-    return N, b, D
+    return Hw.reshape(-1, Hw.shape[-1]) * D, D
 
 
 WEAK_INFORMATION = 1e-6  # scaled by the requirements: sigma > 1000 x requirement
@@ -195,17 +192,17 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
             # The Jacobian changes little once the big errors are compensated.
             H = observation_jacobian(nav.C_b_n, dth, dvv, nav.time_s, grid, latitude_rad,
                                      gravity_mps2, Phi_vv)
-            Hw = whiten(W, H)
-            N, _, D = normal_equations(Hw)
+            Hs, D = scaled_design(whiten(W, H))
+            N = Hs.T @ Hs
             cov_scaled = solve_information(N, where)
             cov = cov_scaled * np.outer(D, D)
-        zw = whiten(W, z[:, :, None])[:, :, 0]
-        b = (Hw.reshape(-1, N_UNKNOWN) * D).T @ zw.reshape(-1)
-        delta = D * (cov_scaled @ b)
+        zw = whiten(W, z[:, :, None]).reshape(-1)
+        delta_scaled = cov_scaled @ (Hs.T @ zw)
+        delta = D * delta_scaled
         values = values + delta[:P.N_PARAMS]
         C0 = rotvec_to_dcm(delta[PHI0]) @ C0
         step = np.max(np.abs(delta) / np.sqrt(np.diag(cov)))
-        resid = zw.reshape(-1) - (Hw.reshape(-1, N_UNKNOWN) @ delta)
+        resid = zw - Hs @ delta_scaled
         history.append({"iteration": it, "max_step_sigma": float(step),
                         "chi2_per_dof": float(resid @ resid / max(1, resid.size - N_UNKNOWN))})
         if step < tol_sigma:
