@@ -20,6 +20,8 @@ from . import sanity
 from .errormodel import ErrorModel
 from .errors import CalibError
 from .information import null_directions
+from . import extras as X
+from .extras import Extras
 from .jacobian import N_UNKNOWN, PHI0, default_grid, observation_jacobian, state_matrix
 from .noise import noise_model, whiten
 from .profiles import NoiseProfile
@@ -78,17 +80,23 @@ class Fit:
 
     values: np.ndarray  # (21,)
     C_b_n0: np.ndarray  # (3, 3) at the run's start instant
-    covariance: np.ndarray  # (24, 24) of [params, phi0]
+    covariance: np.ndarray  # (24 + e, 24 + e) of [params, phi0, extras]
     converged: bool
     iterations: int
     residual_rms_mps: float
     chi2_per_dof: float
     n_observations: int
     history: list = field(default_factory=list)
+    extras: Extras = X.NONE
+    extra_values: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (e,) SI
 
     @property
     def sigma(self) -> np.ndarray:
         return np.sqrt(np.diag(self.covariance)[:P.N_PARAMS])
+
+    @property
+    def extra_sigma(self) -> np.ndarray:
+        return np.sqrt(np.diag(self.covariance)[N_UNKNOWN:])
 
     @property
     def correlation(self) -> np.ndarray:
@@ -96,20 +104,23 @@ class Fit:
         return self.covariance / np.outer(d, d)
 
 
-def _scale() -> np.ndarray:
-    return np.concatenate([P.REQUIREMENTS_SI, np.full(3, PHI0_SCALE)])
+def _scale(extras: Extras = X.NONE) -> np.ndarray:
+    return np.concatenate([P.REQUIREMENTS_SI, np.full(3, PHI0_SCALE), extras.scale_si])
 
 
-def scaled_design(Hw: np.ndarray):
-    """Whitened observation matrix with columns in units of the requirements, and the scale."""
-    D = _scale()
+def scaled_design(Hw: np.ndarray, extras: Extras = X.NONE):
+    """Whitened observation matrix with columns in units of the requirements, and the scale.
+
+    The optional terms are scaled by their typical size (:mod:`calib.extras`).
+    """
+    D = _scale(extras)
     return Hw.reshape(-1, Hw.shape[-1]) * D, D
 
 
 WEAK_INFORMATION = 1e-6  # scaled by the requirements: sigma > 1000 x requirement
 
 
-def solve_information(N: np.ndarray, where: str = "run"):
+def solve_information(N: np.ndarray, where: str = "run", names=None):
     """Inverse of a requirement-scaled information matrix.
 
     Directions the run cannot observe (numerically singular, or so weak that
@@ -119,7 +130,8 @@ def solve_information(N: np.ndarray, where: str = "run"):
     evals, evecs = np.linalg.eigh(N)
     weak = evals < max(evals[-1] * 1e-14, WEAK_INFORMATION)
     if np.any(weak):
-        dirs = null_directions(evecs, weak)
+        dirs = null_directions(evecs, weak, names) if names is not None \
+            else null_directions(evecs, weak)
         raise CalibError(f"the run cannot observe {len(dirs)} direction(s) of the parameters "
                          "(in units of each requirement): " + "; ".join(dirs), where,
                          "use a sequence that excites them; `seqdesign analyze` shows which")
@@ -128,8 +140,9 @@ def solve_information(N: np.ndarray, where: str = "run"):
 
 def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitude_rad: float,
               gravity_mps2: float, profile: NoiseProfile, moving: np.ndarray | None = None,
-              max_iterations: int = 12, tol_sigma: float = 1e-3, where: str = "run") -> Fit:
-    """Identify the 21 parameters and the initial attitude from raw increments.
+              max_iterations: int = 12, tol_sigma: float = 1e-3, where: str = "run",
+              extras: Extras = X.NONE) -> Fit:
+    """Identify the 21 parameters, the initial attitude and any optional terms from raw increments.
 
     Parameters
     ----------
@@ -145,6 +158,8 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
     max_iterations : int
     tol_sigma : float
         Converged when every correction is below this fraction of its sigma.
+    extras : Extras
+        Optional terms (:mod:`calib.extras`) to estimate with the 21.
 
     Returns
     -------
@@ -173,6 +188,8 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
     W, Phi_vv = noise.whitener, noise.Phi_vv
 
     values = np.zeros(P.N_PARAMS)
+    extra_values = np.zeros(extras.n)
+    names = P.NAMES + ("phi0_E", "phi0_N", "phi0_U") + extras.names
     C0 = coarse_alignment(dtheta_m[:seg.first_rest_end], dv_m[:seg.first_rest_end],
                           dt[:seg.first_rest_end])
     history = []
@@ -181,6 +198,9 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
     for it in range(1, max_iterations + 1):
         model = ErrorModel(values)
         dth, dvv = model.compensate(dtheta_m, dv_m, dt)
+        if extras.n:
+            dvv = X.compensate(extras.unpack(extra_values), dth, dv_m, dt,
+                               lambda x: model.compensate(dtheta_m, x, dt)[1])
         nav = navigate(dth, dvv, time_s, C0, latitude_rad, gravity_mps2, t0=t_nav[0])
         y = nav.v_n[grid.bounds]
         z = y[1:] - np.einsum("kij,kj->ki", Phi_vv, y[:-1])
@@ -191,20 +211,21 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
         if N is None or it <= 3:
             # The Jacobian changes little once the big errors are compensated.
             H = observation_jacobian(nav.C_b_n, dth, dvv, nav.time_s, grid, latitude_rad,
-                                     gravity_mps2, Phi_vv)
-            Hs, D = scaled_design(whiten(W, H))
+                                     gravity_mps2, Phi_vv, extras)
+            Hs, D = scaled_design(whiten(W, H), extras)
             N = Hs.T @ Hs
-            cov_scaled = solve_information(N, where)
+            cov_scaled = solve_information(N, where, names)
             cov = cov_scaled * np.outer(D, D)
         zw = whiten(W, z[:, :, None]).reshape(-1)
         delta_scaled = cov_scaled @ (Hs.T @ zw)
         delta = D * delta_scaled
         values = values + delta[:P.N_PARAMS]
+        extra_values = extra_values + delta[N_UNKNOWN:]
         C0 = rotvec_to_dcm(delta[PHI0]) @ C0
         step = np.max(np.abs(delta) / np.sqrt(np.diag(cov)))
         resid = zw - Hs @ delta_scaled
         history.append({"iteration": it, "max_step_sigma": float(step),
-                        "chi2_per_dof": float(resid @ resid / max(1, resid.size - N_UNKNOWN))})
+                        "chi2_per_dof": float(resid @ resid / max(1, resid.size - delta.size))})
         if step < tol_sigma:
             converged = True
             break
@@ -213,7 +234,7 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
     return Fit(values=values, C_b_n0=C0, covariance=cov, converged=converged, iterations=it,
                residual_rms_mps=float(np.sqrt(np.mean(z_fit ** 2))),
                chi2_per_dof=history[-1]["chi2_per_dof"], n_observations=int(z.size),
-               history=history)
+               history=history, extras=extras, extra_values=extra_values)
 
 
 def sequence_motion(seq, time_s: np.ndarray, dt: np.ndarray) -> np.ndarray:

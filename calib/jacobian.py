@@ -34,6 +34,7 @@ import numpy as np
 
 from . import earth
 from . import params as P
+from .extras import NONE as NO_EXTRAS, Extras, dv_sensitivity
 from .transform import skew
 
 N_UNKNOWN = P.N_PARAMS + 3  # the 21 parameters and the initial attitude error phi0
@@ -152,10 +153,14 @@ class StepModel:
     ``x_next = Phi(T) x + u(moments, params)``; the step is affine, so its
     derivatives are exact: ``Phi(T) = d x_next / d x`` (a function of the
     interval length) and ``d x_next / d params = input_map . moments``.
+    An optional term (:mod:`calib.extras`) is one more accelerometer error
+    whose nav-frame moments ``[sum C D, sum tau C D]`` enter through the same
+    accelerometer channel: ``d x_next / d q = extra_map . moments``.
     """
 
     transition: ca.Function  # T -> Phi (6 x 6)
     input_map: np.ndarray  # (N_MOMENTS, 6 * N_UNKNOWN), column-major blocks of d x_next / d p
+    extra_map: np.ndarray  # (6, 6): [sum C D (3), sum tau C D (3)] -> d x_next / d q
 
 
 @functools.lru_cache(maxsize=16)
@@ -165,6 +170,11 @@ def step_model(latitude_rad: float, gravity_mps2: float) -> StepModel:
     W = skew(earth.omega_ie_n(latitude_rad))
     F = skew(earth.specific_force_n(gravity_mps2))
     A2_vphi = -F @ W - 2.0 * W @ F
+
+    def accel_input(a0, a1):
+        """Velocity input of an accelerometer error with moments (1, tau)."""
+        return a0 - 2.0 * ca.mtimes(ca.DM(W), a1)
+
     x = ca.SX.sym("x", 6)
     p = ca.SX.sym("p", N_UNKNOWN)
     m = ca.SX.sym("m", N_MOMENTS)
@@ -178,15 +188,19 @@ def step_model(latitude_rad: float, gravity_mps2: float) -> StepModel:
         term = ca.mtimes(term, AT) / k
         Phi = Phi + term
     u_phi = -(g0 - ca.mtimes(ca.DM(W), g1) + 0.5 * ca.mtimes(ca.DM(W @ W), g2))
-    u_v = (-(ca.mtimes(ca.DM(F), g1) + 0.5 * ca.mtimes(ca.DM(A2_vphi), g2))
-           + a0 - 2.0 * ca.mtimes(ca.DM(W), a1))
+    u_v = -(ca.mtimes(ca.DM(F), g1) + 0.5 * ca.mtimes(ca.DM(A2_vphi), g2)) + accel_input(a0, a1)
     x_next = ca.mtimes(Phi, x) + ca.vertcat(u_phi, u_v)
     transition = ca.Function("Phi", [T], [ca.jacobian(x_next, x)])
     # d x_next / d p is linear in the moments: its Jacobian w.r.t. them is constant.
     dx_dp = ca.vec(ca.jacobian(x_next, p))
     input_map = ca.Function("G", [m], [ca.jacobian(dx_dp, m)])(np.zeros(N_MOMENTS))
+    mx = ca.SX.sym("mx", 6)
+    q = ca.SX.sym("q")
+    x_extra = ca.vertcat(ca.SX.zeros(3), accel_input(mx[:3] * q, mx[3:] * q))
+    extra_map = ca.Function("Gx", [mx], [ca.jacobian(ca.jacobian(x_extra, q), mx)])(np.zeros(6))
     return StepModel(transition=transition,
-                     input_map=np.ascontiguousarray(np.asarray(ca.DM(input_map)).T))
+                     input_map=np.ascontiguousarray(np.asarray(ca.DM(input_map)).T),
+                     extra_map=np.asarray(ca.DM(extra_map)))
 
 
 def propagate(inputs: np.ndarray, T: np.ndarray, S0: np.ndarray, latitude_rad: float,
@@ -224,36 +238,68 @@ def moment_inputs(moments: np.ndarray, latitude_rad: float, gravity_mps2: float)
     return (moments @ G).reshape(lead + (N_UNKNOWN, 6)).swapaxes(-1, -2)
 
 
+def extra_inputs(C_b_n: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, time_s: np.ndarray,
+                 grid: ObservationGrid, extras: Extras, latitude_rad: float,
+                 gravity_mps2: float) -> np.ndarray:
+    """``d x_next / d(extra parameters)`` of every interval: shape ``(K, 6, extras.n)``.
+
+    The moments ``sum_j tau_j^w C_j D_j`` (w = 0, 1) of the per-sample
+    sensitivities ``D_j`` of :func:`calib.extras.dv_sensitivity`, mapped by
+    the step model's accelerometer channel.
+    """
+    b = grid.bounds
+    K = len(b) - 1
+    if extras.n == 0:
+        return np.zeros((K, 6, 0))
+    sl = slice(b[0], b[-1])
+    h = np.diff(time_s)[sl]
+    C_mid = 0.5 * (C_b_n[1:] + C_b_n[:-1])[sl]
+    interval = np.repeat(np.arange(K), np.diff(b))
+    tau = time_s[b[1:]][interval] - 0.5 * (time_s[1:] + time_s[:-1])[sl]
+    CD = np.einsum("nai,nic->nac", C_mid, dv_sensitivity(extras, dtheta[sl], dv[sl], h))
+    starts = b[:-1] - b[0]
+    moments = np.concatenate([np.add.reduceat(CD, starts, axis=0),
+                              np.add.reduceat(CD * tau[:, None, None], starts, axis=0)], axis=1)
+    G = step_model(float(latitude_rad), float(gravity_mps2)).extra_map
+    return np.einsum("sm,kmc->ksc", G, moments)
+
+
 def sensitivities(moments: np.ndarray, T: np.ndarray, latitude_rad: float,
-                  gravity_mps2: float) -> np.ndarray:
-    """``d(dv at each interval end) / d(params, phi0)``, shape ``(K + 1, 3, N_UNKNOWN)``.
+                  gravity_mps2: float, extra: np.ndarray | None = None) -> np.ndarray:
+    """``d(dv at each interval end) / d(params, phi0[, extras])``, shape ``(K + 1, 3, N_UNKNOWN [+ e])``.
 
     Carries ``S = dx / d(params, phi0)`` through the intervals:
     ``S_k = Phi(T_k) S_{k-1} + input_map . moments_k``, starting from
     ``dx/dphi0 = [I; 0]``. The inputs of all intervals are one matrix product;
     only the 6 x 24 recursion is a loop. (Measured: a casadi ``mapaccum`` of
     the same step took 33 ms for the paper's 1044 intervals against 15 ms
-    here, most of it in casadi's VM and DM-to-numpy conversion.)
+    here, most of it in casadi's VM and DM-to-numpy conversion.) ``extra``
+    (``(K, 6, e)`` from :func:`extra_inputs`) appends the optional terms' columns.
     """
-    S0 = np.zeros((6, N_UNKNOWN))
+    inputs = moment_inputs(moments, latitude_rad, gravity_mps2)
+    if extra is not None and extra.shape[-1]:
+        inputs = np.concatenate([inputs, extra], axis=2)
+    S0 = np.zeros((6, inputs.shape[-1]))
     S0[:3, PHI0] = np.eye(3)
-    return propagate(moment_inputs(moments, latitude_rad, gravity_mps2), T, S0,
-                     latitude_rad, gravity_mps2)
+    return propagate(inputs, T, S0, latitude_rad, gravity_mps2)
 
 
 def observation_matrix(S_v: np.ndarray, Phi_vv: np.ndarray) -> np.ndarray:
-    """``H_k = S_v[k] - Phi_vv[k] S_v[k-1]``, shape ``(K, 3, N_UNKNOWN)``."""
+    """``H_k = S_v[k] - Phi_vv[k] S_v[k-1]``, shape ``(K, 3, columns)``."""
     return S_v[1:] - np.einsum("kij,kjn->kin", Phi_vv, S_v[:-1])
 
 
 def observation_jacobian(C_b_n: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
                          time_nav: np.ndarray, grid: ObservationGrid, latitude_rad: float,
-                         gravity_mps2: float, Phi_vv: np.ndarray) -> np.ndarray:
-    """``H`` of every interval along a trajectory, shape ``(K, 3, N_UNKNOWN)``.
+                         gravity_mps2: float, Phi_vv: np.ndarray,
+                         extras: Extras = NO_EXTRAS) -> np.ndarray:
+    """``H`` of every interval along a trajectory, shape ``(K, 3, N_UNKNOWN + extras.n)``.
 
     The one linear model of the tool: the estimator evaluates it along the
-    navigated trajectory, the analyser along the nominal one.
+    navigated trajectory, the analyser along the nominal one. Columns: the
+    21 parameters, the initial attitude error, then the switched-on extras.
     """
     moments = trajectory_moments(C_b_n, dtheta, dv, time_nav, grid)
     T = np.diff(time_nav[grid.bounds])
-    return observation_matrix(sensitivities(moments, T, latitude_rad, gravity_mps2), Phi_vv)
+    extra = extra_inputs(C_b_n, dtheta, dv, time_nav, grid, extras, latitude_rad, gravity_mps2)
+    return observation_matrix(sensitivities(moments, T, latitude_rad, gravity_mps2, extra), Phi_vv)

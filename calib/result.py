@@ -13,6 +13,7 @@ import numpy as np
 from . import params as P
 from .errormodel import ErrorModel
 from .errors import CalibError
+from .extras import NONE as NO_EXTRAS, Extras, parse_groups
 from .fileio import load_toml
 
 
@@ -35,6 +36,11 @@ class CalibrationResult:
         profile describes the run.
     correlation : ndarray, shape (21, 21) or None
     provenance : dict
+    extras : Extras
+        Optional terms fitted with the 21 (:mod:`calib.extras`); saved after
+        the 21 in ``[parameters]`` and named in ``[fit] extras``.
+    extra_values, extra_sigma : ndarray, shape (extras.n,)
+        SI.
     """
 
     values: np.ndarray
@@ -47,6 +53,9 @@ class CalibrationResult:
     chi2_per_dof: float = float("nan")
     correlation: np.ndarray | None = None
     provenance: dict = field(default_factory=dict)
+    extras: Extras = NO_EXTRAS
+    extra_values: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    extra_sigma: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def error_model(self) -> ErrorModel:
@@ -55,11 +64,16 @@ class CalibrationResult:
     def to_dict(self) -> dict:
         vals, sig = P.from_si(self.values), P.from_si(self.sigma)
         doc = {"parameters": {p.name: {"value": float(vals[p.index]), "sigma": float(sig[p.index]),
-                                       "unit": p.unit} for p in P.PARAMETERS},
+                                       "unit": p.unit} for p in P.PARAMETERS}
+               | {p.name: {"value": float(v / p.si_per_unit), "sigma": float(e / p.si_per_unit),
+                           "unit": p.unit}
+                  for p, v, e in zip(self.extras.parameters, self.extra_values, self.extra_sigma)},
                "initial_attitude": {"C_b_n": [[float(x) for x in row] for row in self.C_b_n0]},
                "fit": {"converged": bool(self.converged), "iterations": int(self.iterations),
                        "residual_rms_mps": float(self.residual_rms_mps),
                        "chi2_per_dof": float(self.chi2_per_dof), "profile": self.profile}}
+        if self.extras.groups:
+            doc["fit"]["extras"] = list(self.extras.groups)
         if self.correlation is not None:
             doc["correlation"] = {"names": list(P.NAMES),
                                   "matrix": [[round(float(x), 6) for x in row]
@@ -152,6 +166,22 @@ class CalibrationResult:
         fit = doc.get("fit", {})
         if not isinstance(fit, dict):
             raise CalibError("[fit] must be a table", where)
+        groups = fit.get("extras", [])
+        if not isinstance(groups, list) or not all(isinstance(g, str) for g in groups):
+            raise CalibError("must be a list of names", f"{where}: [fit] extras")
+        extras = Extras(parse_groups(",".join(groups), f"{where}: [fit] extras"))
+        xv, xs = [], []
+        for p in extras.parameters:
+            entry = table.get(p.name)
+            here = f"{where}: [parameters.{p.name}]"
+            if not isinstance(entry, dict):
+                raise CalibError("missing", here, f"[fit] extras names {p.group}")
+            for key, out in (("value", xv), ("sigma", xs)):
+                v = _number(entry.get(key))
+                if v is None or not math.isfinite(v) or (key == "sigma" and v < 0):
+                    raise CalibError(f"'{key}' must be a finite number, got {entry.get(key)!r}",
+                                     here)
+                out.append(v * p.si_per_unit)
         converged = fit.get("converged", False)
         if not isinstance(converged, bool):
             raise CalibError(f"must be true or false, got {converged!r}",
@@ -181,4 +211,5 @@ class CalibrationResult:
                    converged=converged, iterations=iterations,
                    residual_rms_mps=figures["residual_rms_mps"], profile=profile,
                    chi2_per_dof=figures["chi2_per_dof"], correlation=corr,
-                   provenance=provenance)
+                   provenance=provenance, extras=extras, extra_values=np.array(xv),
+                   extra_sigma=np.array(xs))

@@ -5,18 +5,21 @@ mounted with a small rotation ``R_setup`` and fixed to the rotating Earth.
 Gyro increments integrate ``C_n_b omega_ie_n + rate * axis`` and velocity
 increments integrate ``C_n_b [0, 0, g]`` in closed form over every sample
 (splitting samples at segment boundaries), so they are exact to rounding.
-The 21 errors are applied to the increments, then white noise.
+The 21 errors and any optional terms (:mod:`calib.extras`) are applied to
+the increments, then the noise.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from . import earth
+from . import extras as X
 from .errormodel import ErrorModel
+from .extras import ExtraValues
 from .profiles import NoiseProfile
 
 from .sequence import Sequence, Timeline, nominal_attitude, timeline
@@ -43,40 +46,6 @@ class SimConfig:
 
 
 @dataclass(frozen=True)
-class UnmodelledTerms:
-    """Errors of a real unit beyond the 21 parameters, for simulation only (issue 8, partial).
-
-    The estimator does not model them yet: simulating with them on shows
-    what ignoring them costs (``benchmarks/mismatch.py``).
-
-    Attributes
-    ----------
-    k2 : ndarray, shape (3,)
-        Accelerometer quadratic terms, ``f_meas_i += k2_i f_i^2``, in 1/(m/s^2).
-    time_offset_s : float
-        The accelerometer samples lag the gyro samples by this much (s).
-    """
-
-    k2: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    time_offset_s: float = 0.0
-
-    K2_SI_PER_UG_PER_G2 = 1e-6 / 9.80665  # 1 ug/g^2 in 1/(m/s^2)
-
-    @classmethod
-    def from_units(cls, k2_ug_per_g2=(0.0, 0.0, 0.0), time_offset_ms: float = 0.0):
-        return cls(np.asarray(k2_ug_per_g2, dtype=float) * cls.K2_SI_PER_UG_PER_G2,
-                   time_offset_ms * 1e-3)
-
-    def to_units(self) -> dict:
-        return {"k2_ug_per_g2": [float(x) for x in self.k2 / self.K2_SI_PER_UG_PER_G2],
-                "time_offset_ms": float(self.time_offset_s * 1e3)}
-
-    @property
-    def active(self) -> bool:
-        return bool(np.any(self.k2 != 0.0) or self.time_offset_s != 0.0)
-
-
-@dataclass(frozen=True)
 class Truth:
     """What a simulated run really contains (the truth file of ``files.md``)."""
 
@@ -86,7 +55,7 @@ class Truth:
     profile: str
     seed: int | None
     noise: bool
-    unmodelled: UnmodelledTerms | None = None
+    extra: ExtraValues | None = None  # optional terms of calib.extras, None when all off
 
     @property
     def R_setup(self) -> np.ndarray:
@@ -204,7 +173,7 @@ def simulate(seq: Sequence, cfg: SimConfig, errors: ErrorModel, profile: NoisePr
              setup_rotvec=(0.0, 0.0, 0.0), flip_error_deg: float = 0.0,
              noise: bool = True, seed: int | None = None,
              random_setup_deg: float | None = None,
-             unmodelled: UnmodelledTerms | None = None) -> tuple[Run, Truth]:
+             extra: ExtraValues | None = None) -> tuple[Run, Truth]:
     """Simulate a calibration run.
 
     Parameters
@@ -223,8 +192,9 @@ def simulate(seq: Sequence, cfg: SimConfig, errors: ErrorModel, profile: NoisePr
     seed : int or None
     random_setup_deg : float or None
         If given, draw each setup component uniformly within +-this (deg).
-    unmodelled : UnmodelledTerms, optional
-        Quadratic accelerometer terms and a gyro-accelerometer time offset.
+    extra : ExtraValues, optional
+        The optional terms of :mod:`calib.extras` (lever arms, quadratic
+        accelerometer terms, gyro-accelerometer time offset).
 
     Returns
     -------
@@ -242,15 +212,16 @@ def simulate(seq: Sequence, cfg: SimConfig, errors: ErrorModel, profile: NoisePr
     R = rotvec_to_dcm(setup_rotvec)
     time_s, dtheta, dv = true_increments(tl, R, cfg)
     dt = np.diff(np.concatenate([[0.0], time_s]))
-    if unmodelled is not None and unmodelled.time_offset_s != 0.0:
+    extra = extra if extra is not None else ExtraValues()
+    if extra.time_offset_s != 0.0:
         # The accelerometers integrate over windows shifted by the offset: exact, as above.
-        _, E = body_integrals(tl, time_s - unmodelled.time_offset_s)
+        _, E = body_integrals(tl, time_s - extra.time_offset_s)
+        # body_integrals starts the first window at 0; the IMU rested there before the run.
+        E[0] += extra.time_offset_s * tl.C0[0].T
         dv = E @ (R.T @ earth.specific_force_n(cfg.gravity))
-    dv_true = dv
-    dtheta, dv = errors.apply(dtheta, dv, dt)
-    if unmodelled is not None and np.any(unmodelled.k2 != 0.0):
-        # int k2 f^2 dt ~ k2 dv^2 / dt: exact at rest, O((w dt)^2) relative in flips.
-        dv = dv + unmodelled.k2 * dv_true ** 2 / dt[:, None]
+    dtheta_m, _ = errors.apply(dtheta, dv, dt)
+    dv = X.apply(extra, dtheta, dv, dt, lambda x: errors.apply(dtheta, x, dt)[1])
+    dtheta = dtheta_m
     if noise:
         sq = np.sqrt(dt)[:, None]
         dtheta = dtheta + profile.arw * sq * rng.standard_normal(dtheta.shape)
@@ -269,5 +240,5 @@ def simulate(seq: Sequence, cfg: SimConfig, errors: ErrorModel, profile: NoisePr
               gimbal_deg=encoder_angles(tl, time_s, seq.C_start))
     truth = Truth(errors=errors, setup_rotvec=setup_rotvec, flip_errors_deg=flip_errors,
                   profile=profile.name, seed=seed, noise=noise,
-                  unmodelled=unmodelled if unmodelled is not None and unmodelled.active else None)
+                  extra=extra if extra.active else None)
     return run, truth

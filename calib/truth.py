@@ -104,26 +104,21 @@ def read_truth(path: str | Path) -> Truth:
         raise CalibError(f"must be true or false, got {noise!r}", f"{where}: [meta] noise")
     return Truth(errors=errors, setup_rotvec=rotvec, flip_errors_deg=flip_errors,
                  profile=profile, seed=seed, noise=noise,
-                 unmodelled=_unmodelled(doc.get("unmodelled"), where))
+                 extra=_extra(doc.get("extra"), where))
 
 
-def _unmodelled(table, where: str):
-    """The optional ``[unmodelled]`` table (K2 in ug/g^2, time offset in ms), or None."""
-    from .sim import UnmodelledTerms
+def _extra(table, where: str):
+    """The optional ``[extra]`` table (calib.extras names, report units), or None."""
+    from .extras import ExtraValues
 
     if table is None:
         return None
-    here = f"{where}: [unmodelled]"
+    here = f"{where}: [extra]"
     if not isinstance(table, dict):
-        raise CalibError("must be a table", here)
-    k2 = table.get("k2_ug_per_g2", [0.0, 0.0, 0.0])
-    if not isinstance(k2, list) or len(k2) != 3:
-        raise CalibError("k2_ug_per_g2 must be a list of three numbers", here)
-    k2 = [_finite(x, f"{here} k2_ug_per_g2") for x in k2]
-    offset = _finite(table.get("time_offset_ms", 0.0), f"{here} time_offset_ms")
-    if any(abs(x) > 1000.0 for x in k2) or abs(offset) > 100.0:
-        raise CalibError("beyond |k2| <= 1000 ug/g^2 and |time offset| <= 100 ms", here)
-    return UnmodelledTerms.from_units(k2, offset)
+        raise CalibError("must be a table of name = value", here)
+    values = {k: _finite(v, f"{here} {k}") for k, v in table.items()}
+    extra = ExtraValues.from_units(values, here)
+    return extra if extra.active else None
 
 
 def truth_to_dict(truth: Truth) -> dict:
@@ -139,8 +134,8 @@ def truth_to_dict(truth: Truth) -> dict:
         "flips": {"angle_error_deg": [float(f) for f in truth.flip_errors_deg]},
         "meta": meta,
     }
-    if truth.unmodelled is not None:
-        doc["unmodelled"] = truth.unmodelled.to_units()
+    if truth.extra is not None:
+        doc["extra"] = {k: v for k, v in truth.extra.in_units().items() if v != 0.0}
     return doc
 
 

@@ -112,15 +112,15 @@ def _run_suffix(path: str, option: str) -> None:
 @click.option("--flip-error-deg", type=float, default=0.0, show_default=True,
               help="Each flip misses its angle by up to this much (uniform).")
 @click.option("--noise-free", is_flag=True, help="No sensor noise.")
-@click.option("--k2-ug-per-g2", nargs=3, type=float, metavar="X Y Z",
-              help="Unmodelled accelerometer quadratic terms (the estimator ignores them).")
-@click.option("--time-offset-ms", type=float, default=0.0,
-              help="Unmodelled gyro-accelerometer time offset (accelerometers lag), ms.")
+@click.option("--extra", "extra_text", metavar="NAME=VALUE,...",
+              help="Terms of a real unit beyond the 21, in report units: lever arms "
+                   "rxx..rzz (cm), k2x k2y k2z (ug/g^2), dt_ga (ms, accelerometers lag), "
+                   "e.g. rxx=3,k2y=20,dt_ga=0.5.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 @guarded
 def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_setup, seed,
              latitude, height, gravity_mps2, sample_rate_hz, flip_error_deg, noise_free,
-             k2_ug_per_g2, time_offset_ms, as_json):
+             extra_text, as_json):
     """Simulate the IMU increments of SEQUENCE on a stationary base with exact
     kinematics, the 21 errors and white noise; write the run log (-o) and its
     truth file beside it (run.truth.toml)."""
@@ -128,7 +128,8 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
     from calib.profiles import load_profile
     from calib.runlog import write_run
     from calib.sequence import load_sequence
-    from calib.sim import SimConfig, UnmodelledTerms, simulate as run_simulation
+    from calib.extras import parse_values
+    from calib.sim import SimConfig, simulate as run_simulation
     from calib.truth import read_errors, truth_path_for, write_truth
 
     _run_suffix(output, "-o/--output")
@@ -146,11 +147,7 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
     if gravity_mps2 is not None and not (9.7 < gravity_mps2 < 9.9):
         raise CalibError(f"--gravity {gravity_mps2} m/s^2 is not an Earth gravity", "--gravity",
                          "give m/s^2, e.g. 9.80123")
-    k2 = k2_ug_per_g2 or (0.0, 0.0, 0.0)
-    if any(not math.isfinite(x) or abs(x) > 1000.0 for x in k2):
-        raise CalibError(f"--k2-ug-per-g2 {k2} beyond 1000 ug/g^2", "--k2-ug-per-g2")
-    if not (math.isfinite(time_offset_ms) and abs(time_offset_ms) <= 100.0):
-        raise CalibError(f"--time-offset-ms {time_offset_ms} beyond 100 ms", "--time-offset-ms")
+    extra = parse_values(extra_text)
     seq = load_sequence(sequence)
     prof = load_profile(profile)
     errors = (read_errors(errors_file) if errors_file
@@ -162,7 +159,7 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
         seq, cfg, errors, prof, setup_rotvec=np.radians(setup_deg) if setup_deg else (0, 0, 0),
         flip_error_deg=flip_error_deg, noise=not noise_free, seed=seed,
         random_setup_deg=3.0 if random_setup else None,
-        unmodelled=UnmodelledTerms.from_units(k2, time_offset_ms))
+        extra=extra)
     truth_path = truth_path_for(output)
     prov = provenance({"sequence": sequence, "errors": errors_file,
                        "profile": profile if Path(profile).exists() else None},
@@ -196,21 +193,26 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
 @click.option("--truth", "truth_path", type=click.Path(dir_okay=False),
               help="Truth file to compare with (default: RUN.truth.toml if it exists).")
 @click.option("--allow-gaps", is_flag=True, help="Accept time gaps in the log.")
+@click.option("--with", "with_terms", metavar="TERMS",
+              help="Also fit a real unit's terms beyond the 21: any of lever-arm, k2, "
+                   "time-offset (comma-separated), or all.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 @guarded
-def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, as_json):
+def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, with_terms, as_json):
     """Align, navigate on the stationary base and fit the 21 error parameters of
     RUN (CSV or NPZ) by iterated, noise-weighted least squares."""
     from calib import earth
     from calib.estimator import calibrate as fit_run, check_sequence_matches, detect_motion, \
         sequence_motion
+    from calib.extras import ExtraValues, Extras, parse_groups
     from calib.profiles import load_profile
     from calib.result import CalibrationResult
     from calib.runlog import read_run
     from calib.sequence import load_sequence
     from calib.truth import read_truth, truth_path_for
-    from seqdesign.report import format_table, parameter_entries, worst
+    from seqdesign.report import extra_entries, format_table, parameter_entries, worst
 
+    extras = Extras(parse_groups(with_terms))
     prof = load_profile(profile)
     run = read_run(run_path, allow_gaps=allow_gaps)
     out_path = Path(output) if output else Path(run_path).with_name(Path(run_path).stem + ".result.toml")
@@ -229,7 +231,8 @@ def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, as_js
                                moving, dt, run.source)
     info(f"calibrating {run_path}: {t.size} samples, {t[-1] - t[0] + run.dt_nominal:.1f} s, "
          f"profile {prof.name}")
-    fit = fit_run(t, run.dtheta_rad, run.dv_mps, lat, g, prof, moving=moving, where=run.source)
+    fit = fit_run(t, run.dtheta_rad, run.dv_mps, lat, g, prof, moving=moving, where=run.source,
+                  extras=extras)
     if not fit.converged:
         raise CalibError(f"the fit did not converge in {fit.iterations} iterations (last step "
                          f"{fit.history[-1]['max_step_sigma']:.3g} sigma)", run.source,
@@ -249,15 +252,22 @@ def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, as_js
         provenance=provenance({"run": run_path, "sequence": sequence, "truth": truth_path,
                                "profile": profile if Path(profile).exists() else None},
                               sequence=sequence, profile=prof.name,
-                              sigma_scale=scale if scale != 1.0 else None))
+                              sigma_scale=scale if scale != 1.0 else None),
+        extras=extras, extra_values=fit.extra_values, extra_sigma=fit.extra_sigma * scale)
     result.save(out_path)
     entries = parameter_entries(sigma, fit.values, truth.errors.values if truth else None)
+    if extras.n:
+        true_extra = None
+        if truth is not None:
+            true_extra = extras.pack(truth.extra if truth.extra is not None else ExtraValues())
+        entries |= extra_entries(extras, fit.extra_sigma * scale, fit.extra_values, true_extra)
     if as_json:
         doc = {"parameters": entries, "worst": worst(entries), "profile": prof.name,
                "result": str(out_path),
                "fit": {"converged": fit.converged, "iterations": fit.iterations,
                        "residual_rms_mps": fit.residual_rms_mps,
-                       "chi2_per_dof": fit.chi2_per_dof, "sigma_scale": scale}}
+                       "chi2_per_dof": fit.chi2_per_dof, "sigma_scale": scale,
+                       "extras": list(extras.groups)}}
         if truth is not None:
             e = (fit.values - truth.errors.values)
             doc["nees"] = float(e @ np.linalg.solve(fit.covariance[:21, :21] * scale ** 2, e))

@@ -15,6 +15,7 @@ import numpy as np
 from calib import params as P
 from calib.errormodel import ErrorModel
 from calib.estimator import calibrate
+from calib.extras import NONE as NO_EXTRAS, ExtraValues, Extras
 from calib.profiles import NoiseProfile
 from calib.sequence import Sequence
 from calib.sim import SimConfig, simulate
@@ -46,28 +47,31 @@ class Trials:
 
 
 def one_trial(args) -> tuple[np.ndarray, np.ndarray, bool]:
-    seq, profile, latitude_deg, errors, tolerance_deg, flip_error_deg, seed, unmodelled = args
+    seq, profile, latitude_deg, errors, tolerance_deg, flip_error_deg, seed, extra, extras = args
     lat = math.radians(latitude_deg)
     cfg = SimConfig(latitude_rad=lat)
     run, truth = simulate(seq, cfg, errors, profile, flip_error_deg=flip_error_deg, noise=True,
                           seed=seed, random_setup_deg=tolerance_deg if tolerance_deg > 0 else None,
-                          unmodelled=unmodelled)
-    fit = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, lat, cfg.gravity, profile)
+                          extra=extra)
+    fit = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, lat, cfg.gravity, profile,
+                    extras=extras)
     return fit.values - errors.values, fit.covariance[:P.N_PARAMS, :P.N_PARAMS], fit.converged
 
 
 def run_trials(seq: Sequence, profile: NoiseProfile, n: int, seed: int = 0,
                latitude_deg: float = 40.0, errors: ErrorModel | None = None,
                tolerance_deg: float = 3.0, flip_error_deg: float = 0.5,
-               workers: int = 1, unmodelled=None) -> Trials:
+               workers: int = 1, extra: ExtraValues | None = None,
+               extras: Extras = NO_EXTRAS) -> Trials:
     """Simulate and calibrate ``n`` runs; trial ``i`` uses seed ``seed + i``.
 
-    ``unmodelled`` (:class:`calib.sim.UnmodelledTerms`) adds terms the
-    estimator does not model, to measure what ignoring them costs.
+    ``extra`` adds a real unit's optional terms to the simulated runs;
+    ``extras`` names the groups the estimator fits with the 21 (the mismatch
+    report: simulate with them, calibrate without or with them).
     """
     errors = errors if errors is not None else ErrorModel.from_table2()
     jobs = [(seq, profile, latitude_deg, errors, tolerance_deg, flip_error_deg, seed + i,
-             unmodelled) for i in range(n)]
+             extra, extras) for i in range(n)]
     if workers > 1:
         with ProcessPoolExecutor(max_workers=workers) as pool:
             out = list(pool.map(one_trial, jobs))

@@ -26,14 +26,33 @@ def parameter_entries(sigma_si: np.ndarray, values_si: np.ndarray | None = None,
     return out
 
 
+def extra_entries(extras, sigma_si: np.ndarray, values_si: np.ndarray | None = None,
+                  truth_si: np.ndarray | None = None) -> dict[str, dict]:
+    """Entries of the optional terms (:mod:`calib.extras`), listed after the 21.
+
+    They have no requirement, so no ratio; ``meaning`` says what each is.
+    """
+    out = {}
+    for k, p in enumerate(extras.parameters):
+        e = {"sigma": float(sigma_si[k] / p.si_per_unit), "unit": p.unit, "meaning": p.meaning}
+        if values_si is not None:
+            e["value"] = float(values_si[k] / p.si_per_unit)
+        if truth_si is not None:
+            e["truth"] = float(truth_si[k] / p.si_per_unit)
+            e["error"] = e["value"] - e["truth"]
+            e["error_over_sigma"] = e["error"] / e["sigma"] if e["sigma"] > 0 else None
+        out[p.name] = e
+    return out
+
+
 def worst(entries: dict[str, dict]) -> dict:
-    name = max(entries, key=lambda n: entries[n]["ratio"])
+    name = max((n for n in entries if "ratio" in entries[n]), key=lambda n: entries[n]["ratio"])
     return {"name": name, "ratio": entries[name]["ratio"]}
 
 
 def format_table(entries: dict[str, dict]) -> str:
     """A readable table: estimate (if any), sigma, requirement, ratio, flag (and truth)."""
-    first = next(iter(entries.values()))
+    first = next(iter(entries.values()))  # the 21 (and any extras after them) share the columns
     has_value, has_truth = "value" in first, "truth" in first
     head = f"{'param':<6}{'unit':<8}"
     if has_value:
@@ -46,8 +65,11 @@ def format_table(entries: dict[str, dict]) -> str:
         row = f"{name:<6}{e['unit']:<8}"
         if has_value:
             row += f"{e['value']:12.5g}"
-        flag = "ok" if e["ratio"] <= 1.0 else "MISS"
-        row += f"{e['sigma']:11.4g}{e['requirement']:9.4g}{e['ratio']:8.2f}  {flag:<5}"
+        if "ratio" in e:
+            flag = "ok" if e["ratio"] <= 1.0 else "MISS"
+            row += f"{e['sigma']:11.4g}{e['requirement']:9.4g}{e['ratio']:8.2f}  {flag:<5}"
+        else:  # an optional term: no requirement
+            row += f"{e['sigma']:11.4g}{'-':>9}{'-':>8}  {'':<5}"
         if has_truth:
             eos = e["error_over_sigma"]
             row += f"{e['truth']:11.5g}{e['error']:11.3g}{(eos if eos is not None else float('nan')):8.2f}"
