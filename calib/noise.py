@@ -3,13 +3,27 @@
 White gyro noise (ARW) makes the attitude error a random walk and the
 velocity error an integrated random walk; white accelerometer noise (VRW)
 makes the velocity error a random walk. Velocity changes over intervals are
-therefore correlated across the whole run. The exact weighting is a
-three-state Kalman filter on the noise part of the attitude error, with the
+therefore correlated across the whole run. The exact weighting is a Kalman
+filter on the noise part of the unobserved error states, with the
 observation noise of an interval correlated with that interval's process
 noise (both come from the same white noise). Its innovations, normalised,
 are white: applied column by column to ``[H | z]`` they give the GLS normal
 equations, identical to a Kalman filter over all unknowns, but the gains are
 computed once and shared by every column.
+
+The filter state ``s`` is the noise part of the attitude error ``phi`` (3
+states) or, when the profile has Gauss-Markov bias instability (see
+:mod:`calib.gaussmarkov`), ``[phi, b_g, b_a]`` (9 states, biases in the body
+frame)::
+
+    phi' = -omega_ie x phi - C_b_n b_g - C_b_n w_g
+    dv'  =  f_n x phi - 2 omega_ie x dv + C_b_n b_a + C_b_n w_a
+    b'   = -b / tau + w_b,   PSD(w_b) = 2 sigma^2 / tau
+
+``C_b_n`` is held constant over an interval (its mid-point attitude). The
+velocity ``dv`` is observed exactly (``z_k = y_k - Phi_vv y_{k-1}``) and no
+state depends on it, so ``s_k = F_ss s_{k-1} + w_s`` and
+``z_k = F_vs s_{k-1} + w_v``.
 """
 from __future__ import annotations
 
@@ -24,71 +38,181 @@ from .profiles import NoiseProfile
 
 @dataclass(frozen=True)
 class IntervalModel:
-    """Discrete error-state model of one interval length."""
+    """Discrete error-state model of one interval.
 
-    Phi: np.ndarray  # (6, 6) transition of [phi, dv]
-    Q: np.ndarray  # (6, 6) noise covariance accumulated over the interval
+    ``Phi`` and ``Q`` are of ``[phi, dv]`` (6 x 6) without GM bias, of
+    ``[phi, dv, b_g, b_a]`` (12 x 12, biases in the body frame) with it;
+    ``P_bias`` is then the (6, 6) stationary covariance of ``[b_g, b_a]``.
+    """
+
+    Phi: np.ndarray  # transition
+    Q: np.ndarray  # noise covariance accumulated over the interval
+    P_bias: np.ndarray | None = None
+
+    @property
+    def state_size(self) -> int:
+        """Size of the filter state: every state but the observed velocity."""
+        return self.Phi.shape[0] - 3
+
+
+def _van_loan(A: np.ndarray, Qc: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact ``Phi = exp(A T)`` and ``Q = int_0^T Phi(s) Qc Phi(s)' ds``."""
+    n = len(A)
+    # Van Loan: expm([[-A, Qc], [0, A']] T) = [[., Phi^-1 Q], [0, Phi']].
+    M = np.zeros((2 * n, 2 * n))
+    M[:n, :n] = -A
+    M[:n, n:] = Qc
+    M[n:, n:] = A.T
+    E = expm(M * T)
+    Phi = E[n:, n:].T
+    Q = Phi @ E[:n, n:]
+    return Phi, 0.5 * (Q + Q.T)
 
 
 @functools.lru_cache(maxsize=4096)
 def _interval(A_bytes: bytes, T: float, arw: float, vrw: float) -> IntervalModel:
     A = np.frombuffer(A_bytes).reshape(6, 6)
-    Qc = np.diag([arw ** 2] * 3 + [vrw ** 2] * 3)
-    # Van Loan: expm([[-A, Qc], [0, A']] T) = [[., Phi^-1 Q], [0, Phi']].
-    M = np.zeros((12, 12))
-    M[:6, :6] = -A
-    M[:6, 6:] = Qc
-    M[6:, 6:] = A.T
-    E = expm(M * T)
-    Phi = E[6:, 6:].T
-    Q = Phi @ E[:6, 6:]
-    return IntervalModel(Phi=Phi, Q=0.5 * (Q + Q.T))
+    Phi, Q = _van_loan(A, np.diag([arw ** 2] * 3 + [vrw ** 2] * 3), T)
+    return IntervalModel(Phi=Phi, Q=Q)
 
 
-def interval_models(A: np.ndarray, T: np.ndarray, profile: NoiseProfile) -> list[IntervalModel]:
-    """One :class:`IntervalModel` per interval (cached by length to 1 us)."""
-    key = np.ascontiguousarray(A).tobytes()
-    return [_interval(key, round(float(t), 6), profile.arw, profile.vrw) for t in T]
+@functools.lru_cache(maxsize=4096)
+def _gm_interval_nav(A_bytes: bytes, T: float, profile: NoiseProfile) -> tuple[np.ndarray, np.ndarray]:
+    """The 12-state model with the biases in the *navigation* frame, ``C_b_n b``.
+
+    In that frame the model does not depend on the attitude: ``-b / tau`` and the
+    isotropic ``2 sigma^2 / tau I`` are invariant under a rotation. The body-frame
+    model of attitude ``C`` is then exactly ``R' Phi R``, ``R' Q R`` with
+    ``R = diag(I, I, C, C)``, so one Van Loan per interval length serves every
+    attitude (no cache over attitudes needed).
+    """
+    A6 = np.frombuffer(A_bytes).reshape(6, 6)
+    A = np.zeros((12, 12))
+    A[:6, :6] = A6
+    A[:3, 6:9] = -np.eye(3)
+    A[3:6, 9:] = np.eye(3)
+    qc = [profile.arw ** 2, profile.vrw ** 2]
+    for i, (sigma, tau) in enumerate([(profile.gyro_gm_sigma, profile.gyro_bias_correlation_s),
+                                      (profile.accel_gm_sigma, profile.accel_bias_correlation_s)]):
+        # A sensor without GM keeps its bias states at exactly zero (no noise, zero P0).
+        if sigma > 0:
+            A[6 + 3 * i:9 + 3 * i, 6 + 3 * i:9 + 3 * i] = -np.eye(3) / tau
+        qc.append(2.0 * sigma ** 2 / tau if sigma > 0 else 0.0)
+    Phi, Q = _van_loan(A, np.diag(np.repeat(qc, 3)), T)
+    # The [phi, dv] block is exp(A6 T) in exact arithmetic; take the 6-state model's own
+    # so that Phi_vv, hence the observations z, are bit-identical with and without GM.
+    Phi[:6, :6] = _interval(A_bytes, T, profile.arw, profile.vrw).Phi
+    return Phi, Q
+
+
+def _rotations(C: np.ndarray) -> np.ndarray:
+    """Nearest rotation matrices (polar factor): a mid-point average of two attitudes
+    is not exactly orthogonal, and the frame change above needs ``C^-1 = C'``."""
+    U, _, Vt = np.linalg.svd(C)
+    R = U @ Vt
+    flip = np.linalg.det(R) < 0
+    if np.any(flip):
+        U[flip, :, -1] *= -1.0
+        R = U @ Vt
+    return R
+
+
+def interval_models(A: np.ndarray, T: np.ndarray, profile: NoiseProfile,
+                    C_b_n: np.ndarray | None = None) -> list[IntervalModel]:
+    """One :class:`IntervalModel` per interval (cached by length to 1 us).
+
+    Parameters
+    ----------
+    A : ndarray, shape (6, 6)
+        Continuous ``[phi, dv]`` matrix (:func:`calib.jacobian.state_matrix`).
+    T : ndarray, shape (K,)
+        Interval lengths, s.
+    profile : NoiseProfile
+    C_b_n : ndarray, shape (K, 3, 3), optional
+        Attitude of each interval (at its mid-point). Required when
+        ``profile.has_gauss_markov``, ignored otherwise.
+    """
+    key = np.ascontiguousarray(A, dtype=float).tobytes()
+    if not profile.has_gauss_markov:
+        return [_interval(key, round(float(t), 6), profile.arw, profile.vrw) for t in T]
+    if C_b_n is None:
+        raise ValueError(f"profile {profile.name!r} has Gauss-Markov bias instability: "
+                         "the noise model needs the attitude of every interval (C_b_n)")
+    C_b_n = np.asarray(C_b_n, dtype=float)
+    if C_b_n.shape != (len(T), 3, 3):
+        raise ValueError(f"C_b_n must have shape ({len(T)}, 3, 3), got {C_b_n.shape}")
+    keys, index = np.unique(np.round(np.asarray(T, dtype=float), 6), return_inverse=True)
+    nav = [_gm_interval_nav(key, float(t), profile) for t in keys]
+    Phi_nav = np.array([p for p, _ in nav])[index]
+    Q_nav = np.array([q for _, q in nav])[index]
+    R = np.zeros((len(T), 12, 12))
+    R[:, :3, :3] = R[:, 3:6, 3:6] = np.eye(3)
+    R[:, 6:9, 6:9] = R[:, 9:, 9:] = _rotations(C_b_n)
+    Rt = R.transpose(0, 2, 1)
+    Phi, Q = Rt @ Phi_nav @ R, Rt @ Q_nav @ R
+    Q = 0.5 * (Q + Q.transpose(0, 2, 1))
+    P_bias = np.diag(np.repeat([profile.gyro_gm_sigma ** 2, profile.accel_gm_sigma ** 2], 3))
+    return [IntervalModel(Phi=p, Q=q, P_bias=P_bias) for p, q in zip(Phi, Q)]
 
 
 @dataclass(frozen=True)
 class Whitener:
-    """Gains of the noise filter for a sequence of intervals."""
+    """Gains of the noise filter for a sequence of intervals (state size ``s``)."""
 
-    Phi_pp: np.ndarray  # (K, 3, 3)
-    Phi_vp: np.ndarray  # (K, 3, 3)
-    gain: np.ndarray  # (K, 3, 3)
+    F_ss: np.ndarray  # (K, s, s) transition of the filter state
+    F_vs: np.ndarray  # (K, 3, s) its effect on the velocity change
+    gain: np.ndarray  # (K, s, 3)
     L_inv: np.ndarray  # (K, 3, 3) inverse Cholesky factor of the innovation covariance
     logdet_S: float  # sum of log det of the innovation covariances
-    P_end: np.ndarray  # (3, 3) covariance of the noise part of phi after the last interval
+    P_end: np.ndarray  # (s, s) covariance of the filter state after the last interval
+
+    @property
+    def state_size(self) -> int:
+        """3 (``phi``) without GM bias, 9 (``[phi, b_g, b_a]``) with it."""
+        return self.F_ss.shape[-1]
 
 
 def whitener(models: list[IntervalModel], P0: np.ndarray | None = None) -> Whitener:
-    """Riccati recursion of the three-state noise filter (data-independent).
+    """Riccati recursion of the noise filter (data-independent).
 
-    ``P0`` is the covariance of the noise part of phi before the first
-    interval: zero at the start of a run (the initial attitude error is an
-    unknown of the fit, not noise).
+    ``P0`` (s x s) is the covariance of the filter state before the first
+    interval. Default: zero for ``phi`` (at the start of a run the initial
+    attitude error is an unknown of the fit, not noise) and, with GM bias,
+    the stationary ``sigma^2 I`` for the biases, uncorrelated with ``phi``.
     """
     K = len(models)
-    Phi_pp = np.empty((K, 3, 3))
-    Phi_vp = np.empty((K, 3, 3))
-    gain = np.empty((K, 3, 3))
+    s = models[0].state_size if K else 3
+    # Filter state first, observed velocity last: [phi, (b_g, b_a,) dv].
+    order = np.r_[0:3, 6:s + 3, 3:6]
+    Phi = np.array([m.Phi for m in models]).reshape(K, s + 3, s + 3)
+    Q = np.array([m.Q for m in models]).reshape(K, s + 3, s + 3)
+    if s != 3:  # (no copy without GM: the arithmetic stays bit-identical to the 3-state filter)
+        Phi, Q = Phi[:, order][:, :, order], Q[:, order][:, :, order]
+    F_ss = np.ascontiguousarray(Phi[:, :s, :s])
+    F_vs = np.ascontiguousarray(Phi[:, s:, :s])
+    gain = np.empty((K, s, 3))
     L_inv = np.empty((K, 3, 3))
-    P = np.zeros((3, 3)) if P0 is None else np.array(P0, dtype=float)
+    if P0 is not None:
+        P = np.array(P0, dtype=float)
+    else:
+        P = np.zeros((s, s))
+        if s != 3:
+            P[3:, 3:] = models[0].P_bias
+    if P.shape != (s, s):
+        raise ValueError(f"P0 must have shape ({s}, {s}), got {P.shape}")
     logdet = 0.0
-    for k, m in enumerate(models):
-        Fpp, Fvp = m.Phi[:3, :3], m.Phi[3:, :3]
-        Qpp, Qpv, Qvv = m.Q[:3, :3], m.Q[:3, 3:], m.Q[3:, 3:]
-        S = Fvp @ P @ Fvp.T + Qvv
+    for k in range(K):
+        Fss, Fvs = F_ss[k], F_vs[k]
+        Qss, Qsv, Qvv = Q[k, :s, :s], Q[k, :s, s:], Q[k, s:, s:]
+        S = Fvs @ P @ Fvs.T + Qvv
         L = np.linalg.cholesky(S)
         Li = np.linalg.inv(L)
-        G = (Fpp @ P @ Fvp.T + Qpv) @ (Li.T @ Li)
-        P = Fpp @ P @ Fpp.T + Qpp - G @ S @ G.T
+        G = (Fss @ P @ Fvs.T + Qsv) @ (Li.T @ Li)
+        P = Fss @ P @ Fss.T + Qss - G @ S @ G.T
         P = 0.5 * (P + P.T)
-        Phi_pp[k], Phi_vp[k], gain[k], L_inv[k] = Fpp, Fvp, G, Li
+        gain[k], L_inv[k] = G, Li
         logdet += 2.0 * np.sum(np.log(np.diag(L)))
-    return Whitener(Phi_pp, Phi_vp, gain, L_inv, logdet, P)
+    return Whitener(F_ss, F_vs, gain, L_inv, logdet, P)
 
 
 def whiten(w: Whitener, X: np.ndarray, phi0: np.ndarray | None = None,
@@ -100,23 +224,23 @@ def whiten(w: Whitener, X: np.ndarray, phi0: np.ndarray | None = None,
     w : Whitener
     X : ndarray, shape (K, 3, c)
         Observation-shaped columns (``H`` and/or ``z[..., None]``).
-    phi0 : ndarray, shape (3, c), optional
+    phi0 : ndarray, shape (s, c), optional
         The filter's state before the first interval (zero at a run's start).
     return_final : bool
-        Also return the filter's state after the last interval.
+        Also return the filter's state after the last interval, shape (s, c).
 
     Returns
     -------
     ndarray, shape (K, 3, c)
-        ``L_k^-1 (X_k - Phi_vphi phi_hat_k)``, white with unit covariance
-        when X is the noise of the model.
+        ``L_k^-1 (X_k - F_vs s_hat_k)``, white with unit covariance when X is
+        the noise of the model.
     """
     K, _, c = X.shape
     out = np.empty_like(X)
-    phi = np.zeros((3, c)) if phi0 is None else np.array(phi0, dtype=float)
+    phi = np.zeros((w.state_size, c)) if phi0 is None else np.array(phi0, dtype=float)
     for k in range(K):
-        e = X[k] - w.Phi_vp[k] @ phi
-        phi = w.Phi_pp[k] @ phi + w.gain[k] @ e
+        e = X[k] - w.F_vs[k] @ phi
+        phi = w.F_ss[k] @ phi + w.gain[k] @ e
         out[k] = w.L_inv[k] @ e
     return (out, phi) if return_final else out
 
@@ -130,6 +254,21 @@ class NoiseModel:
 
 
 def noise_model(A: np.ndarray, T: np.ndarray, profile: NoiseProfile,
-                P0: np.ndarray | None = None) -> NoiseModel:
-    models = interval_models(A, T, profile)
-    return NoiseModel(whitener(models, P0), np.array([m.Phi[3:, 3:] for m in models]))
+                P0: np.ndarray | None = None, C_b_n: np.ndarray | None = None) -> NoiseModel:
+    """The noise filter of a run's intervals.
+
+    Parameters
+    ----------
+    A : ndarray, shape (6, 6)
+        Continuous ``[phi, dv]`` matrix (:func:`calib.jacobian.state_matrix`).
+    T : ndarray, shape (K,)
+        Interval lengths, s.
+    profile : NoiseProfile
+    P0 : ndarray, shape (s, s), optional
+        Filter-state covariance before the first interval (see :func:`whitener`).
+    C_b_n : ndarray, shape (K, 3, 3), optional
+        Mid-point attitude of each interval; required when
+        ``profile.has_gauss_markov`` (``ValueError`` otherwise), ignored without GM.
+    """
+    models = interval_models(A, T, profile, C_b_n)
+    return NoiseModel(whitener(models, P0), np.array([m.Phi[3:6, 3:6] for m in models]))

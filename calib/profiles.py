@@ -1,4 +1,5 @@
-"""Noise profiles: the IMU's white noise (ARW, VRW), per ``conventions.md``."""
+"""Noise profiles: the IMU's white noise (ARW, VRW), per ``conventions.md``, and
+optional first-order Gauss-Markov bias instability (see :mod:`calib.gaussmarkov`)."""
 from __future__ import annotations
 
 import math
@@ -9,7 +10,7 @@ from pathlib import Path
 
 from .errors import CalibError
 from .fileio import load_toml
-from .params import DEG, MICRO_G
+from .params import DEG, DEG_PER_HOUR, MICRO_G
 
 DEFAULT_PROFILE = "navigation"
 _RAD_PER_S_PER_DPH = DEG / 60.0  # 1 deg/sqrt(h) in rad/sqrt(s)
@@ -17,7 +18,9 @@ _RAD_PER_S_PER_DPH = DEG / 60.0  # 1 deg/sqrt(h) in rad/sqrt(s)
 
 @dataclass(frozen=True)
 class NoiseProfile:
-    """White noise of the gyros and accelerometers.
+    """White noise of the gyros and accelerometers, and optional GM bias instability.
+
+    Frozen and hashable: it is a cache key of the noise models.
 
     Attributes
     ----------
@@ -26,11 +29,24 @@ class NoiseProfile:
         Angle random walk, deg/sqrt(h).
     accel_vrw_ug : float
         Velocity random walk, ug/sqrt(Hz).
+    gyro_bias_instability_dph : float
+        Steady-state 1-sigma of the first-order Gauss-Markov gyro bias, deg/h
+        (0: no GM bias).
+    gyro_bias_correlation_s : float
+        Its correlation time, s.
+    accel_bias_instability_ug : float
+        Steady-state 1-sigma of the GM accelerometer bias, ug (0: none).
+    accel_bias_correlation_s : float
+        Its correlation time, s.
     """
 
     name: str
     gyro_arw_dph: float
     accel_vrw_ug: float
+    gyro_bias_instability_dph: float = 0.0
+    gyro_bias_correlation_s: float = 0.0
+    accel_bias_instability_ug: float = 0.0
+    accel_bias_correlation_s: float = 0.0
 
     @property
     def arw(self) -> float:
@@ -42,6 +58,21 @@ class NoiseProfile:
         """VRW in m/s/sqrt(s): ``sigma(dv) = vrw * sqrt(dt)``."""
         return self.accel_vrw_ug * MICRO_G
 
+    @property
+    def gyro_gm_sigma(self) -> float:
+        """Steady-state 1-sigma of the GM gyro bias, rad/s."""
+        return self.gyro_bias_instability_dph * DEG_PER_HOUR
+
+    @property
+    def accel_gm_sigma(self) -> float:
+        """Steady-state 1-sigma of the GM accelerometer bias, m/s^2."""
+        return self.accel_bias_instability_ug * MICRO_G
+
+    @property
+    def has_gauss_markov(self) -> bool:
+        """Whether either sensor has a GM bias (then the noise filter has 9 states)."""
+        return self.gyro_bias_instability_dph > 0 or self.accel_bias_instability_ug > 0
+
 
 def builtin_profiles() -> list[str]:
     folder = resources.files("calib") / "profiles"
@@ -52,6 +83,53 @@ def builtin_profiles() -> list[str]:
 # MEMS with a wide margin. Far outside, the analysis' noise weighting overflows
 # (or loses positive definiteness) and its figures would mean nothing.
 _RANGES = {"gyro_arw_dph": (1e-6, 100.0), "accel_vrw_ug": (1e-3, 1e5)}
+# Optional GM bias instability: sigma >= 0 (0 = off) up to cheap-MEMS levels; a
+# correlation time outside [1 s, ~12 days] is not a GM bias the runs (minutes to
+# hours, 1 s observation intervals) can tell from white noise or a constant bias.
+_GM_KEYS = {  # sigma key: (its correlation-time key, upper bound, unit)
+    "gyro_bias_instability_dph": ("gyro_bias_correlation_s", 100.0, "deg/h"),
+    "accel_bias_instability_ug": ("accel_bias_correlation_s", 1e5, "ug"),
+}
+_TAU_RANGE = (1.0, 1e6)
+
+
+def _number(doc: dict, key: str) -> float | None:
+    """``doc[key]`` as a finite float, ``None`` if it is not a number (bool excluded)."""
+    v = doc[key]
+    try:
+        number = float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None
+    except OverflowError:  # an integer beyond the float range
+        number = None
+    return number if number is not None and math.isfinite(number) else None
+
+
+def _gauss_markov(doc: dict, where: str) -> dict:
+    """The optional GM keys, validated; absent keys are 0 (off)."""
+    values = {}
+    for key in (*_GM_KEYS, *(tau for tau, _, _ in _GM_KEYS.values())):
+        if key not in doc:
+            values[key] = 0.0
+            continue
+        number = _number(doc, key)
+        if number is None or number < 0:
+            raise CalibError(f"'{key}' must be a finite number >= 0, got {doc[key]!r}", where,
+                             f"give '{key} = <number>', or leave it out for no Gauss-Markov bias")
+        values[key] = number
+    for key, (tau_key, high, unit) in _GM_KEYS.items():
+        sigma, tau = values[key], values[tau_key]
+        if sigma > high:
+            raise CalibError(f"'{key}' = {sigma:g} is outside the plausible range [0, {high:g}]",
+                             where, f"give the bias instability (steady-state 1-sigma) in {unit}")
+        if sigma > 0 and tau == 0:
+            raise CalibError(f"'{key}' = {sigma:g} needs a correlation time, but '{tau_key}' "
+                             f"is {'missing' if tau_key not in doc else 0}", where,
+                             f"add '{tau_key} = <seconds>' in [{_TAU_RANGE[0]:g}, "
+                             f"{_TAU_RANGE[1]:g}], or set '{key} = 0'")
+        if tau != 0 and not _TAU_RANGE[0] <= tau <= _TAU_RANGE[1]:
+            raise CalibError(f"'{tau_key}' = {tau:g} s is outside the plausible range "
+                             f"[{_TAU_RANGE[0]:g}, {_TAU_RANGE[1]:g}] s", where,
+                             "give the Gauss-Markov correlation time in seconds")
+    return values
 
 
 def _from_doc(doc: dict, where: str) -> NoiseProfile:
@@ -59,19 +137,16 @@ def _from_doc(doc: dict, where: str) -> NoiseProfile:
     for key in ("gyro_arw_dph", "accel_vrw_ug"):
         if key not in doc:
             raise CalibError(f"missing key '{key}'", where, f"add '{key} = <number>'")
-        v = doc[key]
-        try:
-            number = float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None
-        except OverflowError:  # an integer beyond the float range
-            number = None
-        if number is None or not math.isfinite(number) or number <= 0:
-            raise CalibError(f"'{key}' must be a positive finite number, got {v!r}", where)
+        number = _number(doc, key)
+        if number is None or number <= 0:
+            raise CalibError(f"'{key}' must be a positive finite number, got {doc[key]!r}", where)
         low, high = _RANGES[key]
         if not low <= number <= high:
             raise CalibError(f"'{key}' = {number:g} is outside the plausible range "
                              f"[{low:g}, {high:g}]", where,
                              "give ARW in deg/sqrt(h) and VRW in ug/sqrt(Hz)")
         values[key] = number
+    values.update(_gauss_markov(doc, where))
     name = doc.get("name", Path(where).stem)
     if not isinstance(name, str) or not name:
         raise CalibError("'name' must be a non-empty string", where)
@@ -79,7 +154,8 @@ def _from_doc(doc: dict, where: str) -> NoiseProfile:
 
 
 def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> NoiseProfile:
-    """A built-in profile by name (``navigation``, ``tactical``) or a profile TOML file."""
+    """A built-in profile by name (``navigation``, ``navigation-gm``, ``tactical``) or a
+    profile TOML file."""
     text = str(name_or_path)
     path = Path(text)
     if not path.exists():

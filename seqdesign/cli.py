@@ -332,16 +332,25 @@ def _analysis_doc(seq, prof, lat, rob, bound) -> dict:
               help="Base mounting tolerance; the figures are the worst over the box (0: nominal only).")
 @click.option("--view", "view_path", is_flag=False, flag_value="", default=None, metavar="[FILE.rrd]",
               help="Also write a rerun recording (default: <sequence>-analysis.rrd).")
+@click.option("--with", "with_terms", metavar="TERMS",
+              help="Also fit a real unit's terms beyond the 21 (lever-arm, k2, time-offset, "
+                   "comma-separated, or all): sigma of each of the 21 with and without them, "
+                   "and whether the sequence observes them.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 @guarded
-def analyze(sequence, profile, latitude, tolerance_deg, view_path, as_json):
+def analyze(sequence, profile, latitude, tolerance_deg, view_path, with_terms, as_json):
     """Fisher information of SEQUENCE under a noise profile: predicted sigma of
     each parameter against its requirement (3 sigma / requirement), correlated
     pairs, unobservable directions, worst case over the +-tolerance mounting box."""
+    from calib.extras import Extras, parse_groups
+
     if view_path and Path(view_path).suffix != ".rrd":
         raise CalibError(f"recording {view_path!r} must end in .rrd", "--view")
+    extras = Extras(parse_groups(with_terms))
     seq, prof, lat, rob, bound = _analysis(sequence, profile, latitude, tolerance_deg)
     doc = _analysis_doc(seq, prof, lat, rob, bound)
+    if extras.n:
+        doc["extras"] = _extras_doc(seq, prof, lat, extras, tolerance_deg)
     if view_path is not None:
         from viz.record import record_analysis
         path = view_path or f"{seq.name}-analysis.rrd"
@@ -357,6 +366,51 @@ def analyze(sequence, profile, latitude, tolerance_deg, view_path, as_json):
                f"({rob.points} mountings{' + IPOPT search' if rob.searched else ''})")
     click.echo(format_table(doc["parameters"]))
     _verdict(doc)
+    if extras.n:
+        _print_extras(doc["extras"])
+
+
+def _extras_doc(seq, prof, lat, extras, tolerance_deg) -> dict:
+    """``analyze --with``: the cost of the optional terms to each of the 21, and their sigma."""
+    from calib import params as P
+    from seqdesign.observability import analyze_extras
+
+    _, h = _site(seq, lat, None)
+    cost = analyze_extras(seq, prof, math.radians(lat), extras, h, tolerance_deg)
+    r0, r1 = P.ratio(cost.sigma_without), P.ratio(cost.sigma_with)
+    params = {p.name: {"unit": p.unit, "sigma_without": float(cost.sigma_without[p.index] / p.si_per_unit),
+                       "sigma_with": float(cost.sigma_with[p.index] / p.si_per_unit),
+                       "ratio_without": float(r0[p.index]), "ratio_with": float(r1[p.index]),
+                       "sigma_increase": float(cost.sigma_with[p.index] / cost.sigma_without[p.index])}
+              for p in P.PARAMETERS}
+    extra = {p.name: {"unit": p.unit, "sigma": float(s / p.si_per_unit), "typical_size": p.scale,
+                      "verdict": v, "meaning": p.meaning}
+             for p, s, v in zip(extras.parameters, cost.extra_sigma, cost.verdicts())}
+    w = int(np.argmax(r1))
+    return {"terms": list(extras.groups), "setups_evaluated": cost.points,
+            "tolerance_deg": tolerance_deg, "parameters": params, "extra_parameters": extra,
+            "worst_with": {"name": P.NAMES[w], "ratio": float(r1[w])},
+            "unobservable": cost.unobservable}
+
+
+def _print_extras(d) -> None:
+    click.echo("")
+    click.echo(f"with {', '.join(d['terms'])} also fitted (worst over {d['setups_evaluated']} "
+               f"mountings within +-{d['tolerance_deg']:g} deg, direct evaluation):")
+    click.echo(f"{'param':<6}{'unit':<8}{'sigma w/o':>11}{'sigma with':>11}{'x':>7}"
+               f"{'3s/req w/o':>11}{'3s/req with':>12}")
+    for name, e in d["parameters"].items():
+        click.echo(f"{name:<6}{e['unit']:<8}{e['sigma_without']:11.4g}{e['sigma_with']:11.4g}"
+                   f"{e['sigma_increase']:7.2f}{e['ratio_without']:11.2f}{e['ratio_with']:12.2f}")
+    click.echo(f"{'param':<6}{'unit':<8}{'sigma':>11}{'typical':>9}  verdict")
+    for name, e in d["extra_parameters"].items():
+        click.echo(f"{name:<6}{e['unit']:<8}{e['sigma']:11.4g}{e['typical_size']:9.4g}  {e['verdict']}")
+    if d["unobservable"]:
+        click.echo("UNOBSERVABLE with the extra terms: " + "; ".join(d["unobservable"]))
+    worst_p = max(d["parameters"].items(), key=lambda kv: kv[1]["sigma_increase"])
+    click.echo(f"Fitting them costs most on {worst_p[0]} (sigma x{worst_p[1]['sigma_increase']:.2f}); "
+               f"worst ratio with them {d['worst_with']['ratio']:.2f} ({d['worst_with']['name']}). "
+               "'weak': 3 sigma exceeds the typical size; 'unobservable': no information.")
 
 
 def _verdict(doc) -> None:

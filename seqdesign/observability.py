@@ -17,6 +17,7 @@ import numpy as np
 
 from calib import earth
 from calib import params as P
+from calib.extras import NONE as NO_EXTRAS, Extras
 from calib.information import marginal, null_directions
 from calib.jacobian import (MOVE_STEP_S, N_MOMENTS, N_UNKNOWN, ObservationGrid,
                             moment_inputs, observation_jacobian, observation_matrix, propagate,
@@ -180,13 +181,13 @@ def _noise(T_bytes: bytes, latitude_rad: float, gravity_mps2: float, profile: No
 
 
 def information_along(nom: NominalRun, profile: NoiseProfile, latitude_rad: float,
-                      gravity_mps2: float) -> np.ndarray:
-    """Fisher information (24 x 24, SI) of the shared model along one trajectory."""
+                      gravity_mps2: float, extras: Extras = NO_EXTRAS) -> np.ndarray:
+    """Fisher information (24 + e square, SI) of the shared model along one trajectory."""
     T = np.diff(nom.time_nav[nom.grid.bounds])
     noise = _noise(T.tobytes(), latitude_rad, gravity_mps2, profile)
     H = observation_jacobian(nom.C_b_n, nom.dtheta, nom.dv, nom.time_nav, nom.grid,
-                             latitude_rad, gravity_mps2, noise.Phi_vv)
-    Hw = whiten(noise.whitener, H).reshape(-1, N_UNKNOWN)
+                             latitude_rad, gravity_mps2, noise.Phi_vv, extras)
+    Hw = whiten(noise.whitener, H).reshape(-1, H.shape[-1])
     return Hw.T @ Hw
 
 
@@ -412,6 +413,85 @@ def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
         if found.worst[1] > worst.worst[1]:
             worst = found
     return Robustness(nominal, worst, per_param, len(grid), tolerance_deg, searched=True)
+
+
+@dataclass(frozen=True)
+class ExtrasCost:
+    """What fitting a real unit's optional terms costs the 21, worst over the mounting box.
+
+    Attributes
+    ----------
+    extras : Extras
+    sigma_without, sigma_with : ndarray (21,)
+        Each parameter's worst sigma over the box (SI) without and with the terms.
+    extra_sigma : ndarray (e,)
+        Each optional parameter's worst sigma (SI); inf where unobservable.
+    unobservable : list of str
+        Null directions of [21, extras] (scaled by requirements and typical sizes).
+    points : int
+    """
+
+    extras: Extras
+    sigma_without: np.ndarray
+    sigma_with: np.ndarray
+    extra_sigma: np.ndarray
+    unobservable: list[str]
+    points: int
+    tolerance_deg: float
+
+    def verdicts(self) -> list[str]:
+        """Per optional parameter: ``observable`` (3 sigma within its typical size),
+        ``weak`` (beyond it) or ``unobservable``."""
+        out = []
+        for p, s in zip(self.extras.parameters, self.extra_sigma):
+            out.append("unobservable" if not np.isfinite(s)
+                       else "observable" if 3.0 * s <= p.scale_si else "weak")
+        return out
+
+
+def _eliminate_phi0(info: np.ndarray) -> np.ndarray:
+    """Information of [21, extras] after eliminating the initial attitude (Schur complement)."""
+    keep = np.r_[0:P.N_PARAMS, N_UNKNOWN:info.shape[0]]
+    a, b, c = info[np.ix_(keep, keep)], info[keep, PHI0_IDX], info[PHI0_IDX, PHI0_IDX]
+    return a - b @ np.linalg.solve(c, b.T)
+
+
+PHI0_IDX = slice(P.N_PARAMS, N_UNKNOWN)
+
+
+def analyze_extras(seq: Sequence, profile: NoiseProfile, latitude_rad: float, extras: Extras,
+                   height_m: float = 0.0, tolerance_deg: float = 3.0) -> ExtrasCost:
+    """Sigma of the 21 with and without the optional terms, and theirs, worst over the box.
+
+    Both figures come from the same 27 mountings (corners, edges, faces and
+    centre of the box) evaluated directly along each nominal trajectory, so
+    their ratio is the cost of the terms alone. (The optional terms' moments
+    are not in the 63-term mounting basis, hence direct evaluation.)
+    """
+    g = earth.gravity(latitude_rad, height_m)
+    levels = (-tolerance_deg, 0.0, tolerance_deg) if tolerance_deg > 0 else (0.0,)
+    points = [np.radians(p) for p in itertools.product(levels, levels, levels)]
+    scale = np.concatenate([P.REQUIREMENTS_SI, extras.scale_si])
+    names = P.NAMES + extras.names
+    without, with_, extra = [], [], []
+    unobservable: list[str] = []
+    for rotvec in points:
+        nom = nominal_run(seq, latitude_rad, height_m, rotvec)
+        info = information_along(nom, profile, latitude_rad, g, extras)
+        without.append(from_information(info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s,
+                                        profile.name, rotvec).sigma)
+        M = _eliminate_phi0(info) * np.outer(scale, scale)
+        evals, evecs = np.linalg.eigh(M)
+        null = evals <= max(evals[-1], 1e-300) * 1e-12
+        if np.any(null):
+            unobservable = unobservable or null_directions(evecs, null, names)
+            s = np.full(len(scale), np.inf)
+        else:
+            s = np.sqrt(np.diag((evecs / evals) @ evecs.T)) * scale
+        with_.append(s[:P.N_PARAMS])
+        extra.append(s[P.N_PARAMS:])
+    return ExtrasCost(extras, np.max(without, axis=0), np.max(with_, axis=0),
+                      np.max(extra, axis=0), unobservable, len(points), tolerance_deg)
 
 
 def accel_scale_bound(duration_s: float, profile: NoiseProfile, gravity_mps2: float) -> float:
