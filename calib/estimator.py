@@ -183,15 +183,17 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
     fs = 1.0 / np.median(dt)
     grid = default_grid(seg.moving, fs)
     t_nav = np.concatenate([[time_s[0] - dt[0]], time_s])
-    noise = noise_model(state_matrix(latitude_rad, gravity_mps2),
-                        np.diff(t_nav[grid.bounds]), profile)
-    W, Phi_vv = noise.whitener, noise.Phi_vv
-
+    A, T = state_matrix(latitude_rad, gravity_mps2), np.diff(t_nav[grid.bounds])
+    mid = (grid.bounds[:-1] + grid.bounds[1:]) // 2
     values = np.zeros(P.N_PARAMS)
     extra_values = np.zeros(extras.n)
     names = P.NAMES + ("phi0_E", "phi0_N", "phi0_U") + extras.names
     C0 = coarse_alignment(dtheta_m[:seg.first_rest_end], dv_m[:seg.first_rest_end],
                           dt[:seg.first_rest_end])
+    # Gauss-Markov bias noise enters through the attitude (C_b_n b): its weights follow the
+    # navigated attitude, rebuilt with the Jacobian; Phi_vv does not depend on it.
+    noise = noise_model(A, T, profile, C_b_n=np.repeat(C0[None], len(T), axis=0))
+    W, Phi_vv = noise.whitener, noise.Phi_vv
     history = []
     converged = False
     N = cov = None
@@ -210,6 +212,8 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
                              "check units and that the run is a stationary-base calibration")
         if N is None or it <= 3:
             # The Jacobian changes little once the big errors are compensated.
+            if profile.has_gauss_markov:
+                W = noise_model(A, T, profile, C_b_n=nav.C_b_n[mid]).whitener
             H = observation_jacobian(nav.C_b_n, dth, dvv, nav.time_s, grid, latitude_rad,
                                      gravity_mps2, Phi_vv, extras)
             Hs, D = scaled_design(whiten(W, H), extras)

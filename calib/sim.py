@@ -20,6 +20,7 @@ from . import earth
 from . import extras as X
 from .errormodel import ErrorModel
 from .extras import ExtraValues
+from .gaussmarkov import gauss_markov
 from .profiles import NoiseProfile
 
 from .sequence import Sequence, Timeline, nominal_attitude, timeline
@@ -183,7 +184,8 @@ def simulate(seq: Sequence, cfg: SimConfig, errors: ErrorModel, profile: NoisePr
     errors : ErrorModel
         Injected deterministic errors.
     profile : NoiseProfile
-        White noise (ignored when ``noise`` is False).
+        White noise and any Gauss-Markov bias instability (ignored when
+        ``noise`` is False).
     setup_rotvec : array_like
         Base mounting rotation vector (E, N, U), rad.
     flip_error_deg : float
@@ -222,6 +224,12 @@ def simulate(seq: Sequence, cfg: SimConfig, errors: ErrorModel, profile: NoisePr
     dtheta_m, _ = errors.apply(dtheta, dv, dt)
     dv = X.apply(extra, dtheta, dv, dt, lambda x: errors.apply(dtheta, x, dt)[1])
     dtheta = dtheta_m
+    if noise and profile.has_gauss_markov:
+        # Bias instability: a stationary first-order Gauss-Markov bias, constant over a sample.
+        dtheta = dtheta + gauss_markov(len(dt), dt, profile.gyro_gm_sigma,
+                                       profile.gyro_bias_correlation_s, rng) * dt[:, None]
+        dv = dv + gauss_markov(len(dt), dt, profile.accel_gm_sigma,
+                               profile.accel_bias_correlation_s, rng) * dt[:, None]
     if noise:
         sq = np.sqrt(dt)[:, None]
         dtheta = dtheta + profile.arw * sq * rng.standard_normal(dtheta.shape)

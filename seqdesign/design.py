@@ -536,6 +536,12 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
     """
     import time as _time
     check_constraints(c)
+    if profile.has_gauss_markov:
+        # The search's segment algebra chains a 3-state noise filter across segments.
+        raise CalibError(f"profile {profile.name!r} has Gauss-Markov bias instability, which the "
+                         "sequence search does not model", "--profile",
+                         "design with its white-noise part, then check the result with "
+                         f"`seqdesign analyze <sequence> --profile {profile.name}`")
     if objective not in OBJECTIVES:
         raise CalibError(f"unknown objective {objective!r}", "--objective", "use worst, D, A or E")
     t0 = _time.perf_counter()
