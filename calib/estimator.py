@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import earth
 from . import params as P
 from . import sanity
 from .errormodel import ErrorModel
@@ -188,8 +189,11 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
     values = np.zeros(P.N_PARAMS)
     extra_values = np.zeros(extras.n)
     names = P.NAMES + ("phi0_E", "phi0_N", "phi0_U") + extras.names
+    omega_ie_n = earth.omega_ie_n(latitude_rad)
     C0 = coarse_alignment(dtheta_m[:seg.first_rest_end], dv_m[:seg.first_rest_end],
                           dt[:seg.first_rest_end])
+    # Until the first navigation, the Earth's turn as seen at the start attitude.
+    turn = X.earth_turn(np.broadcast_to(C0, (len(dt), 3, 3)), earth.omega_ie_n(latitude_rad), dt)
     # Gauss-Markov bias noise enters through the attitude (C_b_n b): its weights follow the
     # navigated attitude, rebuilt with the Jacobian; Phi_vv does not depend on it.
     noise = noise_model(A, T, profile, C_b_n=np.repeat(C0[None], len(T), axis=0))
@@ -202,8 +206,10 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
         dth, dvv = model.compensate(dtheta_m, dv_m, dt)
         if extras.n:
             dvv = X.compensate(extras.unpack(extra_values), dth, dv_m, dt,
-                               lambda x: model.compensate(dtheta_m, x, dt)[1])
+                               lambda x: model.compensate(dtheta_m, x, dt)[1], turn)
         nav = navigate(dth, dvv, time_s, C0, latitude_rad, gravity_mps2, t0=t_nav[0])
+        if extras.n:  # the Earth's turn in the body, for the next compensation
+            turn = X.earth_turn(0.5 * (nav.C_b_n[1:] + nav.C_b_n[:-1]), omega_ie_n, dt)
         y = nav.v_n[grid.bounds]
         z = y[1:] - np.einsum("kij,kj->ki", Phi_vv, y[:-1])
         if not np.all(np.isfinite(z)) or np.abs(y).max() > 1e5:

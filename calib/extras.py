@@ -29,7 +29,10 @@ length ``h``), on top of the 21-parameter model::
   turning). Parameters ``k2x k2y k2z`` in ug/g^2.
 - **time-offset**: the accelerometer samples lag the gyro samples by
   ``dt_ga`` (the accelerometers integrate over windows ending ``dt_ga``
-  earlier). To first order ``dv_shift = dv + dt_ga (dtheta x dv) / h``; the
+  earlier). The specific force turns in the body at ``omega_nb`` (gravity is
+  fixed in the Earth-fixed n frame, so at rest nothing changes), hence to
+  first order ``dv_shift = dv + dt_ga (dtheta_nb x dv) / h`` with
+  ``dtheta_nb = dtheta - C_b_n^T omega_ie_n h``; the
   simulator shifts the windows exactly, so the compensation leaves a
   second-order error ``~ dt_ga^2 omega^2 g T_flip / 2`` (3e-7 m/s per flip for
   0.5 ms at 10 deg/s). Parameter ``dt_ga`` in ms.
@@ -298,11 +301,13 @@ def apply(values: ExtraValues, dtheta_true: np.ndarray, dv_shift: np.ndarray, h:
 
 
 def compensate(values: ExtraValues, dtheta: np.ndarray, dv_m: np.ndarray, h: np.ndarray,
-               accel_compensate) -> np.ndarray:
+               accel_compensate, earth_dtheta: np.ndarray | float = 0.0) -> np.ndarray:
     """Inverse of :func:`apply` (exact but for the first-order time shift).
 
     ``dtheta`` are the already compensated gyro increments;
-    ``accel_compensate(dv)`` inverts the 21-parameter accelerometer model.
+    ``accel_compensate(dv)`` inverts the 21-parameter accelerometer model;
+    ``earth_dtheta`` (n, 3) is the Earth's turn in the body over each sample,
+    ``C_b_n^T omega_ie_n h`` (see :func:`earth_turn`).
     """
     dv_loc = accel_compensate(dv_m)
     if np.any(values.k2 != 0):
@@ -311,12 +316,17 @@ def compensate(values: ExtraValues, dtheta: np.ndarray, dv_m: np.ndarray, h: np.
             dv_loc = accel_compensate(dv_m - values.k2 * dv_loc ** 2 / h[:, None])
     dv = dv_loc - lever(values.lever_arm_m, dtheta, h)
     if values.time_offset_s != 0:
-        dv = dv - values.time_offset_s * np.cross(dtheta, dv) / h[:, None]
+        dv = dv - values.time_offset_s * np.cross(dtheta - earth_dtheta, dv) / h[:, None]
     return dv
 
 
-def dv_sensitivity(extras: Extras, dtheta: np.ndarray, dv: np.ndarray,
-                   h: np.ndarray) -> np.ndarray:
+def earth_turn(C_b_n_mid: np.ndarray, omega_ie_n: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """The Earth's turn seen in the body over each sample, ``C_b_n^T omega_ie_n h``: (n, 3)."""
+    return np.einsum("nab,a->nb", C_b_n_mid, omega_ie_n) * h[:, None]
+
+
+def dv_sensitivity(extras: Extras, dtheta: np.ndarray, dv: np.ndarray, h: np.ndarray,
+                   earth_dtheta: np.ndarray | float = 0.0) -> np.ndarray:
     """``d dv_meas / d(extra parameters, SI)`` per sample: shape (n, 3, extras.n)."""
     n = len(h)
     D = np.zeros((n, 3, extras.n))
@@ -330,5 +340,5 @@ def dv_sensitivity(extras: Extras, dtheta: np.ndarray, dv: np.ndarray,
         for i in range(3):
             D[:, i, s + i] = dv[:, i] ** 2 / h
     if "time-offset" in extras.groups:
-        D[:, :, extras.index("time-offset").start] = np.cross(dtheta, dv) / h[:, None]
+        D[:, :, extras.index("time-offset").start] = np.cross(dtheta - earth_dtheta, dv) / h[:, None]
     return D

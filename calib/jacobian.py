@@ -34,7 +34,7 @@ import numpy as np
 
 from . import earth
 from . import params as P
-from .extras import NONE as NO_EXTRAS, Extras, dv_sensitivity
+from .extras import NONE as NO_EXTRAS, Extras, dv_sensitivity, earth_turn
 from .transform import skew
 
 N_UNKNOWN = P.N_PARAMS + 3  # the 21 parameters and the initial attitude error phi0
@@ -256,7 +256,8 @@ def extra_inputs(C_b_n: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, time_s: 
     C_mid = 0.5 * (C_b_n[1:] + C_b_n[:-1])[sl]
     interval = np.repeat(np.arange(K), np.diff(b))
     tau = time_s[b[1:]][interval] - 0.5 * (time_s[1:] + time_s[:-1])[sl]
-    CD = np.einsum("nai,nic->nac", C_mid, dv_sensitivity(extras, dtheta[sl], dv[sl], h))
+    turn = earth_turn(C_mid, earth.omega_ie_n(latitude_rad), h)
+    CD = np.einsum("nai,nic->nac", C_mid, dv_sensitivity(extras, dtheta[sl], dv[sl], h, turn))
     starts = b[:-1] - b[0]
     moments = np.concatenate([np.add.reduceat(CD, starts, axis=0),
                               np.add.reduceat(CD * tau[:, None, None], starts, axis=0)], axis=1)

@@ -150,16 +150,23 @@ def nominal_samples(tl) -> tuple[np.ndarray, np.ndarray]:
     """Sample end times and observation bounds (indices into ``[0] + times``) of a timeline."""
     times, bounds = [np.zeros(1)], [0]
     n = 0
-    for t0, t1, rate in zip(tl.t0, tl.t1, tl.rate):
+    for k, (t0, t1, rate) in enumerate(zip(tl.t0, tl.t1, tl.rate)):
         step = ANALYSIS_REST_STEP_S if rate == 0.0 else MOVE_STEP_S
         m = max(1, int(round((t1 - t0) / step)))
         sub = REST_SUBSAMPLES if rate == 0.0 else max(
             1, int(math.ceil(abs(math.degrees(rate)) * (t1 - t0) / m / FLIP_SUBSAMPLE_DEG)))
         edges = np.linspace(t0, t1, m * sub + 1)[1:]
         edges[-1] = t1
+        ends = sub * np.arange(1, m + 1)
+        if rate == 0.0 and k > 0 and tl.rate[k - 1] != 0.0 and edges[0] > t0 + MOVE_STEP_S:
+            # The estimator's turning intervals run a few samples into the next rest, so a
+            # velocity step at a flip's stop (lever arms) is seen over ~MOVE_STEP_S, not a
+            # whole rest interval: split one such interval off here too.
+            edges = np.concatenate([[t0 + MOVE_STEP_S], edges])
+            ends = np.concatenate([[1], ends + 1])
         times.append(edges)
-        bounds.extend(n + sub * np.arange(1, m + 1))
-        n += m * sub
+        bounds.extend(n + ends)
+        n += len(edges)
     return np.concatenate(times), np.array(bounds)
 
 
