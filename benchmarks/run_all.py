@@ -60,6 +60,23 @@ def main() -> None:
                  wall([str(BIN), "calibrate", str(npz), "-o", str(tmp / "r.toml")]), "<= 5 s"))
     rows.append(("calibrate the same run from CSV, CLI wall",
                  wall([str(BIN), "calibrate", str(csv), "-o", str(tmp / "r2.toml")], 1), "-"))
+    # Issue 8: a real unit's terms simulated and fitted; bias instability weighted.
+    npz_x = tmp / "run-extra.npz"
+    subprocess.run(sim + ["--extra", "rxx=3,ryy=-2,k2y=20,dt_ga=0.3", "-o", str(npz_x)], check=True,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    rows.append(("calibrate --with all (21 + 13 extra parameters), same run size, CLI wall",
+                 wall([str(BIN), "calibrate", str(npz_x), "--with", "all", "-o", str(tmp / "rx.toml")]),
+                 "-"))
+    npz_gm = tmp / "run-gm.npz"
+    subprocess.run(sim + ["--profile", "navigation-gm", "-o", str(npz_gm)], check=True,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    rows.append(("calibrate --profile navigation-gm (9-state GM whitening), CLI wall",
+                 wall([str(BIN), "calibrate", str(npz_gm), "--profile", "navigation-gm",
+                       "-o", str(tmp / "rgm.toml")]), "-"))
+    rows.append(("analyze paper-9pos --with all (+-3 deg, 27 direct evaluations), CLI wall",
+                 wall([str(BIN), "analyze", "paper-9pos", "--with", "all"], 1), "-"))
+    rows.append(("analyze paper-9pos --profile navigation-gm (+-3 deg), CLI wall",
+                 wall([str(BIN), "analyze", "paper-9pos", "--profile", "navigation-gm"], 1), "-"))
     seq, prof = load_sequence("paper-9pos"), load_profile("navigation")
     lat = math.radians(40.0)
     analyze(seq, prof, lat)  # warm caches (casadi step model, whitening) as a search loop would

@@ -4,9 +4,11 @@ Each iteration compensates the raw increments with the current estimate,
 navigates on the stationary base, and fits the navigation velocity errors
 with the linearised model of :mod:`calib.jacobian` weighted by the exact
 noise structure of :mod:`calib.noise` (a Gauss-Newton step of the GLS
-problem). The unknowns are the 21 parameters and the initial attitude
-error; nothing about the heading is assumed: the first guess comes from
-levelling and gyrocompassing on the first rest.
+problem). The unknowns are the 21 parameters, the initial attitude error
+and any optional terms switched on (:mod:`calib.extras`); nothing about the
+heading is assumed: the first guess comes from levelling and gyrocompassing
+on the first rest. A profile with Gauss-Markov bias instability re-weights
+the observations along the navigated attitude.
 """
 from __future__ import annotations
 
@@ -20,9 +22,9 @@ from . import params as P
 from . import sanity
 from .errormodel import ErrorModel
 from .errors import CalibError
-from .information import null_directions
 from . import extras as X
 from .extras import Extras
+from .information import UNKNOWN_NAMES, null_directions
 from .jacobian import N_UNKNOWN, PHI0, default_grid, observation_jacobian, state_matrix
 from .noise import noise_model, whiten
 from .profiles import NoiseProfile
@@ -131,8 +133,7 @@ def solve_information(N: np.ndarray, where: str = "run", names=None):
     evals, evecs = np.linalg.eigh(N)
     weak = evals < max(evals[-1] * 1e-14, WEAK_INFORMATION)
     if np.any(weak):
-        dirs = null_directions(evecs, weak, names) if names is not None \
-            else null_directions(evecs, weak)
+        dirs = null_directions(evecs, weak, names or UNKNOWN_NAMES)
         raise CalibError(f"the run cannot observe {len(dirs)} direction(s) of the parameters "
                          "(in units of each requirement): " + "; ".join(dirs), where,
                          "use a sequence that excites them; `seqdesign analyze` shows which")
@@ -188,12 +189,12 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
     mid = (grid.bounds[:-1] + grid.bounds[1:]) // 2
     values = np.zeros(P.N_PARAMS)
     extra_values = np.zeros(extras.n)
-    names = P.NAMES + ("phi0_E", "phi0_N", "phi0_U") + extras.names
+    names = UNKNOWN_NAMES + extras.names
     omega_ie_n = earth.omega_ie_n(latitude_rad)
     C0 = coarse_alignment(dtheta_m[:seg.first_rest_end], dv_m[:seg.first_rest_end],
                           dt[:seg.first_rest_end])
     # Until the first navigation, the Earth's turn as seen at the start attitude.
-    turn = X.earth_turn(np.broadcast_to(C0, (len(dt), 3, 3)), earth.omega_ie_n(latitude_rad), dt)
+    turn = X.earth_turn(np.broadcast_to(C0, (len(dt), 3, 3)), omega_ie_n, dt)
     # Gauss-Markov bias noise enters through the attitude (C_b_n b): its weights follow the
     # navigated attitude, rebuilt with the Jacobian; Phi_vv does not depend on it.
     noise = noise_model(A, T, profile, C_b_n=np.repeat(C0[None], len(T), axis=0))

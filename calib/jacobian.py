@@ -20,6 +20,11 @@ Casadi differentiates the interval step (error model composed with the
 propagation) with respect to the state and the parameters; the sensitivity
 ``S = dx / d(params, phi0)`` is then carried through the intervals.
 
+The optional terms of :mod:`calib.extras` are accelerometer errors with
+known per-sample sensitivities ``D_j``; their moments ``sum tau^w C D`` go
+through the same accelerometer channel of the step and add columns after
+``phi0``.
+
 Observations: the navigation velocity at the interval ends ``y_k``, taken as
 ``z_k = y_k - Phi_vv(T_k) y_{k-1}``, so that ``z_k = H_k p + Phi_vphi phi_noise
 + w_k`` with ``H_k = E S_k - Phi_vv E S_{k-1}`` (see :mod:`calib.noise`).
