@@ -11,7 +11,6 @@ with ``w_k ~ N(0, 1)``, started from the stationary ``b_0 ~ N(0, sigma^2)``.
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import lfilter
 
 # Per block of the non-uniform recursion, the decay exp(-t / tau) spans at most
 # exp(-_BLOCK_DECAY): the rescaled sum then stays far from overflow and loses
@@ -63,6 +62,7 @@ def gauss_markov(n: int, dt: np.ndarray, sigma: float, tau: float,
     if n == 1:
         return out
     if np.all(a == a[0]):  # uniform sampling: a linear filter with constant coefficient
+        from scipy.signal import lfilter  # lazy: importing scipy.signal costs 0.5 s per CLI start
         out[1:] = lfilter([1.0], [1.0, -a[0]], u, axis=0, zi=(a[0] * b0)[None, :])[0]
     else:
         out[1:] = _varying_ar1(a, u, b0)
