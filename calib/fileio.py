@@ -7,6 +7,7 @@ that a later command would trust.
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import tempfile
 from pathlib import Path
@@ -156,3 +157,17 @@ def load_toml(path: str | os.PathLike) -> dict:
         raise CalibError("not valid TOML: arrays or tables nested too deeply", where) from None
     except OSError as exc:
         raise CalibError(f"cannot read: {exc.strerror}", where) from None
+
+
+def toml_number(value) -> float | None:
+    """A TOML value as a float, or None if it is not a number (booleans are not).
+
+    An integer beyond the float range becomes +-inf, so callers that demand a
+    finite number refuse it with their own message.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf if value > 0 else -math.inf

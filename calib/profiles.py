@@ -9,7 +9,7 @@ from importlib import resources
 from pathlib import Path
 
 from .errors import CalibError
-from .fileio import load_toml
+from .fileio import load_toml, toml_number
 from .params import DEG, DEG_PER_HOUR, MICRO_G
 
 DEFAULT_PROFILE = "navigation"
@@ -94,12 +94,8 @@ _TAU_RANGE = (1.0, 1e6)
 
 
 def _number(doc: dict, key: str) -> float | None:
-    """``doc[key]`` as a finite float, ``None`` if it is not a number (bool excluded)."""
-    v = doc[key]
-    try:
-        number = float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None
-    except OverflowError:  # an integer beyond the float range
-        number = None
+    """``doc[key]`` as a finite float, ``None`` if it is not a finite number (bool excluded)."""
+    number = toml_number(doc[key])
     return number if number is not None and math.isfinite(number) else None
 
 

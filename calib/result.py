@@ -14,7 +14,7 @@ from . import params as P
 from .errormodel import ErrorModel
 from .errors import CalibError
 from .extras import NONE as NO_EXTRAS, Extras, parse_groups
-from .fileio import load_toml
+from .fileio import load_toml, toml_number
 
 
 @dataclass(frozen=True)
@@ -97,15 +97,6 @@ class CalibrationResult:
         and ``[provenance]`` are optional, but when present must be well-formed.
         """
 
-        def _number(value) -> float | None:
-            """``value`` as a float if it is a TOML number (not a boolean), else None."""
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                return None
-            try:
-                return float(value)
-            except OverflowError:  # an integer beyond the float range
-                return math.inf if value > 0 else -math.inf
-
         def _matrix(rows, n: int) -> np.ndarray | None:
             """An ``n x n`` float array from a list of lists of TOML numbers, else None."""
             if not isinstance(rows, list) or len(rows) != n:
@@ -115,7 +106,7 @@ class CalibrationResult:
                 if not isinstance(row, list) or len(row) != n:
                     return None
                 for j, x in enumerate(row):
-                    v = _number(x)
+                    v = toml_number(x)
                     if v is None or not math.isfinite(v):
                         return None
                     out[i, j] = v
@@ -155,7 +146,7 @@ class CalibrationResult:
             if not isinstance(entry, dict):
                 raise CalibError("missing", here, "a result carries all 21 parameters")
             for key, out in (("value", vals), ("sigma", sig)):
-                v = _number(entry.get(key))
+                v = toml_number(entry.get(key))
                 if v is None or not math.isfinite(v):
                     raise CalibError(f"'{key}' must be a finite number, got {entry.get(key)!r}",
                                      here, "a result without uncertainties is not a result")
@@ -177,7 +168,7 @@ class CalibrationResult:
             if not isinstance(entry, dict):
                 raise CalibError("missing", here, f"[fit] extras names {p.group}")
             for key, out in (("value", xv), ("sigma", xs)):
-                v = _number(entry.get(key))
+                v = toml_number(entry.get(key))
                 if v is None or not math.isfinite(v) or (key == "sigma" and v < 0):
                     raise CalibError(f"'{key}' must be a finite number, got {entry.get(key)!r}",
                                      here)
@@ -193,7 +184,7 @@ class CalibrationResult:
         figures = {}
         for key in ("residual_rms_mps", "chi2_per_dof"):
             # NaN stands for "not computed"; anything else must be a finite number >= 0.
-            v = _number(fit.get(key, math.nan))
+            v = toml_number(fit.get(key, math.nan))
             if v is None or math.isinf(v) or v < 0:
                 raise CalibError(f"must be a finite number >= 0 (or nan), got {fit.get(key)!r}",
                                  f"{where}: [fit] {key}")

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import CalibError
-from .fileio import load_toml
+from .fileio import load_toml, toml_number
 from .transform import attitude_from_directions, axis_index, rot_axis
 
 DEFAULT_RATE_DPS = 10.0
@@ -91,13 +91,10 @@ def _number(table: dict, key: str, where: str, default=None, positive=False,
         if default is None:
             raise CalibError(f"missing key '{key}'", where, f"add '{key} = <number>'")
         return float(default)
-    value = table[key]
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise CalibError(f"'{key}' must be a number, got {value!r}", where)
-    try:
-        value = float(value)
-    except OverflowError:  # an integer beyond the float range
-        value = math.inf if value > 0 else -math.inf
+    raw = table[key]
+    value = toml_number(raw)
+    if value is None:
+        raise CalibError(f"'{key}' must be a number, got {raw!r}", where)
     if not math.isfinite(value):
         raise CalibError(f"'{key}' must be finite, got {value}", where)
     if positive and value <= 0:

@@ -9,7 +9,7 @@ import numpy as np
 from . import params as P
 from .errormodel import ErrorModel
 from .errors import CalibError
-from .fileio import load_toml
+from .fileio import load_toml, toml_number
 from .sim import Truth
 
 
@@ -20,11 +20,7 @@ def truth_path_for(run_path: str | Path) -> Path:
 
 
 def _finite(value, where: str) -> float:
-    try:
-        number = (float(value) if isinstance(value, (int, float)) and not isinstance(value, bool)
-                  else None)
-    except OverflowError:  # an integer beyond the float range
-        number = None
+    number = toml_number(value)
     if number is None or not math.isfinite(number):
         raise CalibError(f"must be a finite number, got {value!r}", where)
     return number

@@ -19,7 +19,7 @@ from calib.errors import CalibError
 from calib.gaussmarkov import gauss_markov
 from calib.jacobian import state_matrix
 from calib.noise import noise_model, whiten
-from calib.params import DEG_PER_HOUR, MICRO_G
+from calib.params import MICRO_G
 from calib.profiles import NoiseProfile, builtin_profiles, load_profile
 
 from conftest import rodrigues
