@@ -195,10 +195,7 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
                           dt[:seg.first_rest_end])
     # Until the first navigation, the Earth's turn as seen at the start attitude.
     turn = X.earth_turn(np.broadcast_to(C0, (len(dt), 3, 3)), omega_ie_n, dt)
-    # Gauss-Markov bias noise enters through the attitude (C_b_n b): its weights follow the
-    # navigated attitude, rebuilt with the Jacobian; Phi_vv does not depend on it.
-    noise = noise_model(A, T, profile, C_b_n=np.repeat(C0[None], len(T), axis=0))
-    W, Phi_vv = noise.whitener, noise.Phi_vv
+    noise = None
     history = []
     converged = False
     N = cov = None
@@ -211,6 +208,11 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
         nav = navigate(dth, dvv, time_s, C0, latitude_rad, gravity_mps2, t0=t_nav[0])
         if extras.n:  # the Earth's turn in the body, for the next compensation
             turn = X.earth_turn(0.5 * (nav.C_b_n[1:] + nav.C_b_n[:-1]), omega_ie_n, dt)
+        if noise is None or (profile.has_gauss_markov and it <= 3):
+            # Gauss-Markov bias noise enters through the attitude (C_b_n b): its weights follow
+            # the navigated attitude while the Jacobian does. Phi_vv does not depend on it.
+            noise = noise_model(A, T, profile, C_b_n=nav.C_b_n[mid])
+            W, Phi_vv = noise.whitener, noise.Phi_vv
         y = nav.v_n[grid.bounds]
         z = y[1:] - np.einsum("kij,kj->ki", Phi_vv, y[:-1])
         if not np.all(np.isfinite(z)) or np.abs(y).max() > 1e5:
@@ -219,8 +221,6 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
                              "check units and that the run is a stationary-base calibration")
         if N is None or it <= 3:
             # The Jacobian changes little once the big errors are compensated.
-            if profile.has_gauss_markov:
-                W = noise_model(A, T, profile, C_b_n=nav.C_b_n[mid]).whitener
             H = observation_jacobian(nav.C_b_n, dth, dvv, nav.time_s, grid, latitude_rad,
                                      gravity_mps2, Phi_vv, extras)
             Hs, D = scaled_design(whiten(W, H), extras)

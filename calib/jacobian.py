@@ -99,8 +99,30 @@ def state_matrix(latitude_rad: float, gravity_mps2: float) -> np.ndarray:
     return A
 
 
+@dataclass(frozen=True)
+class SampleLayout:
+    """Per-sample quantities of the samples ``grid`` covers, shared by every moment."""
+
+    C_mid: np.ndarray  # (m, 3, 3) mid-sample attitude
+    h: np.ndarray  # (m,) sample lengths
+    tau: np.ndarray  # (m,) time from the sample's middle to its interval's end
+    starts: np.ndarray  # (K,) first sample of each interval, for np.add.reduceat
+    samples: slice  # which samples of the trajectory these are
+
+
+def sample_layout(C_b_n: np.ndarray, time_s: np.ndarray, grid: ObservationGrid) -> SampleLayout:
+    """The :class:`SampleLayout` of a trajectory sampled at ``time_s`` (boundaries, 0 first)."""
+    b = grid.bounds
+    sl = slice(b[0], b[-1])
+    interval = np.repeat(np.arange(len(b) - 1), np.diff(b))
+    s_mid = 0.5 * (time_s[1:] + time_s[:-1])[sl]
+    return SampleLayout(C_mid=0.5 * (C_b_n[1:] + C_b_n[:-1])[sl], h=np.diff(time_s)[sl],
+                        tau=time_s[b[1:]][interval] - s_mid, starts=b[:-1] - b[0], samples=sl)
+
+
 def trajectory_moments(C_b_n: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
-                       time_s: np.ndarray, grid: ObservationGrid) -> np.ndarray:
+                       time_s: np.ndarray, grid: ObservationGrid,
+                       layout: SampleLayout | None = None) -> np.ndarray:
     """Kinematic moments of every interval, shape ``(K, N_MOMENTS)``.
 
     Parameters
@@ -111,27 +133,23 @@ def trajectory_moments(C_b_n: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
         Increments of the samples (compensated, as navigated).
     time_s : ndarray, shape (n + 1,)
         Sample boundary times.
+    layout : SampleLayout, optional
+        :func:`sample_layout` of the same trajectory, if already computed.
     """
-    C_mid = 0.5 * (C_b_n[1:] + C_b_n[:-1])
-    h = np.diff(time_s)
-    s_mid = 0.5 * (time_s[1:] + time_s[:-1])
-    b = grid.bounds
-    interval = np.repeat(np.arange(len(b) - 1), np.diff(b))
-    tau = time_s[b[1:]][interval] - s_mid[b[0]:b[-1]]
-    sl = slice(b[0], b[-1])
+    L = layout or sample_layout(C_b_n, time_s, grid)
+    sl, tau = L.samples, L.tau
 
     def block(inc):
-        K = np.einsum("nai,nm->naim", C_mid[sl], inc[sl]).reshape(-1, 27)
-        B = (C_mid[sl] * h[sl, None, None]).reshape(-1, 9)
+        K = np.einsum("nai,nm->naim", L.C_mid, inc[sl]).reshape(-1, 27)
+        B = (L.C_mid * L.h[:, None, None]).reshape(-1, 9)
         return np.hstack([K, B])
 
     gyro, accel = block(dtheta), block(dv)
-    starts = b[:-1] - b[0]
-    out = [np.add.reduceat(gyro, starts, axis=0),
-           np.add.reduceat(gyro * tau[:, None], starts, axis=0),
-           np.add.reduceat(gyro * (tau ** 2)[:, None], starts, axis=0),
-           np.add.reduceat(accel, starts, axis=0),
-           np.add.reduceat(accel * tau[:, None], starts, axis=0)]
+    out = [np.add.reduceat(gyro, L.starts, axis=0),
+           np.add.reduceat(gyro * tau[:, None], L.starts, axis=0),
+           np.add.reduceat(gyro * (tau ** 2)[:, None], L.starts, axis=0),
+           np.add.reduceat(accel, L.starts, axis=0),
+           np.add.reduceat(accel * tau[:, None], L.starts, axis=0)]
     return np.hstack(out)
 
 
@@ -243,29 +261,23 @@ def moment_inputs(moments: np.ndarray, latitude_rad: float, gravity_mps2: float)
     return (moments @ G).reshape(lead + (N_UNKNOWN, 6)).swapaxes(-1, -2)
 
 
-def extra_inputs(C_b_n: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, time_s: np.ndarray,
-                 grid: ObservationGrid, extras: Extras, latitude_rad: float,
-                 gravity_mps2: float) -> np.ndarray:
+def extra_inputs(dtheta: np.ndarray, dv: np.ndarray, layout: SampleLayout, extras: Extras,
+                 latitude_rad: float, gravity_mps2: float) -> np.ndarray:
     """``d x_next / d(extra parameters)`` of every interval: shape ``(K, 6, extras.n)``.
 
     The moments ``sum_j tau_j^w C_j D_j`` (w = 0, 1) of the per-sample
     sensitivities ``D_j`` of :func:`calib.extras.dv_sensitivity`, mapped by
     the step model's accelerometer channel.
     """
-    b = grid.bounds
-    K = len(b) - 1
+    L, sl = layout, layout.samples
     if extras.n == 0:
-        return np.zeros((K, 6, 0))
-    sl = slice(b[0], b[-1])
-    h = np.diff(time_s)[sl]
-    C_mid = 0.5 * (C_b_n[1:] + C_b_n[:-1])[sl]
-    interval = np.repeat(np.arange(K), np.diff(b))
-    tau = time_s[b[1:]][interval] - 0.5 * (time_s[1:] + time_s[:-1])[sl]
-    turn = earth_turn(C_mid, earth.omega_ie_n(latitude_rad), h)
-    CD = np.einsum("nai,nic->nac", C_mid, dv_sensitivity(extras, dtheta[sl], dv[sl], h, turn))
-    starts = b[:-1] - b[0]
-    moments = np.concatenate([np.add.reduceat(CD, starts, axis=0),
-                              np.add.reduceat(CD * tau[:, None, None], starts, axis=0)], axis=1)
+        return np.zeros((len(L.starts), 6, 0))
+    turn = earth_turn(L.C_mid, earth.omega_ie_n(latitude_rad), L.h)
+    CD = np.einsum("nai,nic->nac", L.C_mid,
+                   dv_sensitivity(extras, dtheta[sl], dv[sl], L.h, turn))
+    moments = np.concatenate([np.add.reduceat(CD, L.starts, axis=0),
+                              np.add.reduceat(CD * L.tau[:, None, None], L.starts, axis=0)],
+                             axis=1)
     G = step_model(float(latitude_rad), float(gravity_mps2)).extra_map
     return np.einsum("sm,kmc->ksc", G, moments)
 
@@ -305,7 +317,8 @@ def observation_jacobian(C_b_n: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
     navigated trajectory, the analyser along the nominal one. Columns: the
     21 parameters, the initial attitude error, then the switched-on extras.
     """
-    moments = trajectory_moments(C_b_n, dtheta, dv, time_nav, grid)
+    layout = sample_layout(C_b_n, time_nav, grid)
+    moments = trajectory_moments(C_b_n, dtheta, dv, time_nav, grid, layout)
     T = np.diff(time_nav[grid.bounds])
-    extra = extra_inputs(C_b_n, dtheta, dv, time_nav, grid, extras, latitude_rad, gravity_mps2)
+    extra = extra_inputs(dtheta, dv, layout, extras, latitude_rad, gravity_mps2)
     return observation_matrix(sensitivities(moments, T, latitude_rad, gravity_mps2, extra), Phi_vv)

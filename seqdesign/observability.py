@@ -21,7 +21,7 @@ from calib.extras import NONE as NO_EXTRAS, Extras
 from calib.information import marginal, null_directions
 from calib.jacobian import (MOVE_STEP_S, N_MOMENTS, N_UNKNOWN, ObservationGrid,
                             moment_inputs, observation_jacobian, observation_matrix, propagate,
-                            state_matrix)
+                            sample_layout, state_matrix)
 from calib.noise import noise_model, whiten
 from calib.profiles import NoiseProfile
 from calib.sequence import Sequence, nominal_attitude, timeline
@@ -184,28 +184,34 @@ def nominal_run(seq: Sequence, latitude_rad: float, height_m: float, setup_rotve
 @functools.lru_cache(maxsize=64)
 def _noise(T_bytes: bytes, latitude_rad: float, gravity_mps2: float, profile: NoiseProfile,
            C_bytes: bytes | None = None):
-    """Whitening of an interval pattern: shared by every mounting of one sequence.
+    """Whitening of an interval pattern (cached): see :func:`noise_along`."""
+    C = None if C_bytes is None else np.frombuffer(C_bytes).reshape(-1, 3, 3)
+    return noise_model(state_matrix(latitude_rad, gravity_mps2), np.frombuffer(T_bytes), profile,
+                       C_b_n=C)
 
-    With Gauss-Markov bias instability the weights depend on the attitude of
-    each interval (``C_bytes``): :func:`analyze_tolerance` then evaluates every
-    mounting along its own trajectory instead of through the mounting basis.
+
+def noise_along(time_nav: np.ndarray, C_b_n: np.ndarray, bounds: np.ndarray,
+                latitude_rad: float, gravity_mps2: float, profile: NoiseProfile):
+    """The noise model of a trajectory's intervals.
+
+    White noise depends only on the interval lengths, so every mounting of a
+    sequence shares one (cached) model. With Gauss-Markov bias instability the
+    weights also depend on the attitude of each interval (its middle sample
+    boundary): :func:`analyze_tolerance` then evaluates every mounting along
+    its own trajectory instead of through the mounting basis.
     """
-    T = np.frombuffer(T_bytes)
-    C = np.frombuffer(C_bytes).reshape(-1, 3, 3) if profile.has_gauss_markov else None
-    return noise_model(state_matrix(latitude_rad, gravity_mps2), T, profile, C_b_n=C)
-
-
-def _interval_attitudes(C_b_n: np.ndarray, bounds: np.ndarray) -> bytes:
-    """Attitude at the middle sample boundary of every interval, as a cache key."""
-    return np.ascontiguousarray(C_b_n[(bounds[:-1] + bounds[1:]) // 2]).tobytes()
+    T = np.diff(time_nav[bounds])
+    C = None
+    if profile.has_gauss_markov:
+        C = np.ascontiguousarray(C_b_n[(bounds[:-1] + bounds[1:]) // 2]).tobytes()
+    return _noise(T.tobytes(), latitude_rad, gravity_mps2, profile, C)
 
 
 def information_along(nom: NominalRun, profile: NoiseProfile, latitude_rad: float,
                       gravity_mps2: float, extras: Extras = NO_EXTRAS) -> np.ndarray:
     """Fisher information (24 + e square, SI) of the shared model along one trajectory."""
-    T = np.diff(nom.time_nav[nom.grid.bounds])
-    noise = _noise(T.tobytes(), latitude_rad, gravity_mps2, profile,
-                   _interval_attitudes(nom.C_b_n, nom.grid.bounds))
+    noise = noise_along(nom.time_nav, nom.C_b_n, nom.grid.bounds, latitude_rad, gravity_mps2,
+                        profile)
     H = observation_jacobian(nom.C_b_n, nom.dtheta, nom.dv, nom.time_nav, nom.grid,
                              latitude_rad, gravity_mps2, noise.Phi_vv, extras)
     Hw = whiten(noise.whitener, H).reshape(-1, H.shape[-1])
@@ -296,13 +302,10 @@ def sequence_model(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
     t_nav, bounds = nominal_samples(tl)
     flip, E = body_integrals(tl, t_nav[1:])
     C = nominal_attitude(tl, t_nav)
-    C_mid = 0.5 * (C[1:] + C[:-1])
-    h = np.diff(t_nav)
-    interval = np.repeat(np.arange(len(bounds) - 1), np.diff(bounds))
-    tau = t_nav[bounds[1:]][interval] - 0.5 * (t_nav[1:] + t_nav[:-1])
-    M = _basis_moments(C_mid, flip, E, h, tau, bounds[:-1])
+    L = sample_layout(C, t_nav, ObservationGrid(bounds))  # bounds cover every sample
+    M = _basis_moments(L.C_mid, flip, E, L.h, L.tau, L.starts)
     T = np.diff(t_nav[bounds])
-    noise = _noise(T.tobytes(), latitude_rad, g, profile, _interval_attitudes(C, bounds))
+    noise = noise_along(t_nav, C, bounds, latitude_rad, g, profile)
     K = len(T)
     inputs = moment_inputs(M, latitude_rad, g)[..., :P.N_PARAMS]  # (K, NB, 6, 21)
     inputs = inputs.transpose(0, 2, 1, 3).reshape(K, 6, N_BASIS * P.N_PARAMS)
