@@ -9,7 +9,7 @@ DEMO := demo-out
 $(BIN)/seqdesign: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[test,dask]'
+	$(BIN)/pip install --quiet -e '.[test,dask,plot]'
 	touch $@
 
 venv: $(BIN)/seqdesign
