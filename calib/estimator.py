@@ -24,11 +24,11 @@ from .errormodel import ErrorModel
 from .errors import CalibError
 from . import extras as X
 from .extras import Extras
-from .information import UNKNOWN_NAMES, null_directions
+from .information import UNKNOWN_NAMES, eliminate, scaled_inverse
 from .jacobian import N_UNKNOWN, PHI0, default_grid, observation_jacobian, state_matrix
 from .noise import noise_model, whiten
 from .profiles import NoiseProfile
-from .strapdown import navigate
+from .strapdown import navigate, sample_intervals
 from .transform import rotvec_to_dcm
 
 MOTION_THRESHOLD = 0.01  # rad/s: far above Earth rate + bias + noise, far below a flip
@@ -79,7 +79,14 @@ def coarse_alignment(dtheta: np.ndarray, dv: np.ndarray, dt: np.ndarray) -> np.n
 
 @dataclass
 class Fit:
-    """Everything an iteration leaves behind (SI)."""
+    """Everything an iteration leaves behind (SI).
+
+    ``covariance`` is over ``[21 parameters, phi0, extras]``. When the run
+    leaves some directions unobserved and the fit was asked to be partial,
+    the weak combinations are left at their minimum-norm values: the rows of
+    the parameters that take part in them are not estimable (``estimable``
+    false, sigma inf) and ``null_directions`` names the combinations.
+    """
 
     values: np.ndarray  # (21,)
     C_b_n0: np.ndarray  # (3, 3) at the run's start instant
@@ -92,19 +99,38 @@ class Fit:
     history: list = field(default_factory=list)
     extras: Extras = X.NONE
     extra_values: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (e,) SI
+    estimable: np.ndarray | None = None  # (21 + e,) bool, over [params, extras]
+    null_directions: list = field(default_factory=list)
+
+    def _std(self) -> np.ndarray:
+        d = np.sqrt(np.diag(self.covariance)).copy()
+        if self.estimable is not None:
+            d[_param_index(len(d))[~self.estimable]] = np.inf
+        return d
 
     @property
     def sigma(self) -> np.ndarray:
-        return np.sqrt(np.diag(self.covariance)[:P.N_PARAMS])
+        return self._std()[:P.N_PARAMS]
 
     @property
     def extra_sigma(self) -> np.ndarray:
-        return np.sqrt(np.diag(self.covariance)[N_UNKNOWN:])
+        return self._std()[N_UNKNOWN:]
 
     @property
     def correlation(self) -> np.ndarray:
         d = np.sqrt(np.diag(self.covariance))
-        return self.covariance / np.outer(d, d)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rho = self.covariance / np.outer(d, d)
+        if self.estimable is not None:
+            bad = _param_index(len(d))[~self.estimable]
+            rho[bad, :] = np.nan
+            rho[:, bad] = np.nan
+        return rho
+
+
+def _param_index(n_total: int) -> np.ndarray:
+    """Indices of [21 parameters, extras] in the full unknown vector (phi0 skipped)."""
+    return np.r_[0:P.N_PARAMS, N_UNKNOWN:n_total]
 
 
 def _scale(extras: Extras = X.NONE) -> np.ndarray:
@@ -120,54 +146,52 @@ def scaled_design(Hw: np.ndarray, extras: Extras = X.NONE):
     return Hw.reshape(-1, Hw.shape[-1]) * D, D
 
 
-WEAK_INFORMATION = 1e-6  # scaled by the requirements: sigma > 1000 x requirement
+@dataclass(frozen=True)
+class Solution:
+    """Scaled covariance of the unknowns and what the run leaves unobserved."""
+
+    covariance: np.ndarray  # scaled, (24 + e, 24 + e)
+    estimable: np.ndarray  # (21 + e,) over [params, extras]
+    null_directions: list
 
 
-def solve_information(N: np.ndarray, where: str = "run", names=None):
-    """Inverse of a requirement-scaled information matrix.
+def solve_information(N: np.ndarray, where: str = "run", names=None,
+                      partial: bool = False) -> Solution:
+    """Covariance of the unknowns from a requirement-scaled information matrix.
 
-    Directions the run cannot observe (numerically singular, or so weak that
-    their sigma exceeds 1000 times the requirement) are refused by name
-    instead of being returned as numbers.
+    Observability is judged by :mod:`calib.information`'s one rule on the
+    information of [21, extras] with the initial attitude eliminated (as the
+    analyser does). A run that leaves directions unobserved is refused by
+    naming the parameters it cannot estimate, unless ``partial``: then the
+    weak combinations are constrained to zero (a minimum-norm solution)
+    and the estimable parameters keep the variance any solution would give.
     """
-    evals, evecs = np.linalg.eigh(N)
-    weak = evals < max(evals[-1] * 1e-14, WEAK_INFORMATION)
-    if np.any(weak):
-        dirs = null_directions(evecs, weak, names or UNKNOWN_NAMES)
-        raise CalibError(f"the run cannot observe {len(dirs)} direction(s) of the parameters "
-                         "(in units of each requirement): " + "; ".join(dirs), where,
-                         "use a sequence that excites them; `seqdesign analyze` shows which")
-    return (evecs / evals) @ evecs.T
+    names = tuple(names or UNKNOWN_NAMES)
+    kept = [n for i, n in enumerate(names) if not P.N_PARAMS <= i < N_UNKNOWN]
+    inv = scaled_inverse(eliminate(N, PHI0), kept)
+    if inv.full_rank:
+        evals, evecs = np.linalg.eigh(N)
+        return Solution((evecs / evals) @ evecs.T, inv.estimable, [])
+    dirs = inv.null_directions()
+    if not partial:
+        raise CalibError(
+            f"the run cannot estimate {', '.join(inv.not_estimable()) or 'some combinations'}: "
+            f"{len(dirs)} direction(s) of the parameters are unobserved (in units of each "
+            "requirement): " + "; ".join(dirs), where,
+            "use a sequence that excites them (`seqdesign analyze` shows which), or fit the "
+            "estimable part with --partial")
+    null_full = np.zeros((N.shape[0], inv.null_basis.shape[1]))
+    null_full[_param_index(N.shape[0])] = inv.null_basis
+    u, _, _ = np.linalg.svd(null_full, full_matrices=True)
+    Q = u[:, null_full.shape[1]:]  # unknowns with no component along the weak subspace
+    cov = Q @ np.linalg.inv(Q.T @ N @ Q) @ Q.T
+    return Solution(cov, inv.estimable, dirs)
 
 
-def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitude_rad: float,
-              gravity_mps2: float, profile: NoiseProfile, moving: np.ndarray | None = None,
-              max_iterations: int = 12, tol_sigma: float = 1e-3, where: str = "run",
-              extras: Extras = X.NONE) -> Fit:
-    """Identify the 21 parameters, the initial attitude and any optional terms from raw increments.
-
-    Parameters
-    ----------
-    time_s : ndarray, shape (n,)
-        End time of each sample.
-    dtheta_m, dv_m : ndarray, shape (n, 3)
-        Raw (uncompensated) increments.
-    latitude_rad, gravity_mps2 : float
-    profile : NoiseProfile
-        Weights the observations and scales the covariance.
-    moving : ndarray of bool, optional
-        Which samples turn (from the sequence); detected from the gyros if None.
-    max_iterations : int
-    tol_sigma : float
-        Converged when every correction is below this fraction of its sigma.
-    extras : Extras
-        Optional terms (:mod:`calib.extras`) to estimate with the 21.
-
-    Returns
-    -------
-    Fit
-    """
-    dt = np.diff(np.concatenate([[time_s[0] - (time_s[1] - time_s[0])], time_s]))
+def check_run(dtheta_m: np.ndarray, dv_m: np.ndarray, dt: np.ndarray, latitude_rad: float,
+              gravity_mps2: float, profile: NoiseProfile, moving: np.ndarray | None,
+              where: str) -> Segmentation:
+    """Refuse a log the fit cannot use, naming why; return where it turns."""
     sanity.check_latitude(latitude_rad, where)
     sanity.check_rates(dtheta_m, dt, where)
     seg = detect_motion(dtheta_m, dt, where)
@@ -182,61 +206,126 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
     sanity.check_gravity(dv_m, dt, slice(0, seg.first_rest_end), gravity_mps2, where)
     sanity.check_saturation(dtheta_m, dv_m, where)
     sanity.check_rests(dv_m, dt, seg.moving, profile.vrw, where)
-    fs = 1.0 / np.median(dt)
-    grid = default_grid(seg.moving, fs)
-    t_nav = np.concatenate([[time_s[0] - dt[0]], time_s])
-    A, T = state_matrix(latitude_rad, gravity_mps2), np.diff(t_nav[grid.bounds])
+    return seg
+
+
+@dataclass
+class _Problem:
+    """The fixed data of one fit: the log, its site, the observation grid and the unknowns."""
+
+    time_s: np.ndarray
+    dtheta_m: np.ndarray
+    dv_m: np.ndarray
+    dt: np.ndarray
+    latitude_rad: float
+    gravity_mps2: float
+    profile: NoiseProfile
+    extras: Extras
+    grid: object
+    where: str
+
+    @property
+    def t_nav(self) -> np.ndarray:
+        return np.concatenate([[self.time_s[0] - self.dt[0]], self.time_s])
+
+    def compensate_and_navigate(self, values, extra_values, C0, turn):
+        """Compensate the raw increments with the current estimate and navigate."""
+        model = ErrorModel(values)
+        dth, dvv = model.compensate(self.dtheta_m, self.dv_m, self.dt)
+        if self.extras.n:
+            dvv = X.compensate(self.extras.unpack(extra_values), dth, self.dv_m, self.dt,
+                               lambda x: model.compensate(self.dtheta_m, x, self.dt)[1], turn)
+        nav = navigate(dth, dvv, self.time_s, C0, self.latitude_rad, self.gravity_mps2,
+                       t0=self.t_nav[0])
+        return dth, dvv, nav
+
+    def observations(self, nav, Phi_vv, it: int) -> np.ndarray:
+        """Velocity changes over the observation intervals, less the noise model's prediction."""
+        y = nav.v_n[self.grid.bounds]
+        z = y[1:] - np.einsum("kij,kj->ki", Phi_vv, y[:-1])
+        if not np.all(np.isfinite(z)) or np.abs(y).max() > 1e5:
+            raise CalibError(f"the fit diverged at iteration {it} (navigation velocity "
+                             f"{np.abs(y).max():.3g} m/s)", self.where,
+                             "check units and that the run is a stationary-base calibration")
+        return z
+
+
+def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitude_rad: float,
+              gravity_mps2: float, profile: NoiseProfile, moving: np.ndarray | None = None,
+              max_iterations: int = 12, tol_sigma: float = 1e-3, where: str = "run",
+              extras: Extras = X.NONE, partial: bool = False) -> Fit:
+    """Identify the 21 parameters, the initial attitude and any optional terms from raw increments.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,)
+        End time of each sample.
+    dtheta_m, dv_m : ndarray, shape (n, 3)
+        Raw (uncompensated) increments.
+    latitude_rad, gravity_mps2 : float
+        The site.
+    profile : NoiseProfile
+        Weights the observations and scales the covariance.
+    moving : ndarray of bool, optional
+        Which samples turn (from the sequence); detected from the gyros if None.
+    max_iterations : int
+        Gauss-Newton iterations at most.
+    tol_sigma : float
+        Converged when every correction is below this fraction of its sigma.
+    where : str
+        Names the log in refusals.
+    extras : Extras
+        Optional terms (:mod:`calib.extras`) to estimate with the 21.
+    partial : bool
+        Fit the estimable part of a run that leaves directions unobserved
+        instead of refusing it (:func:`solve_information`).
+
+    Returns
+    -------
+    Fit
+    """
+    dt = sample_intervals(time_s)
+    seg = check_run(dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, moving, where)
+    grid = default_grid(seg.moving, 1.0 / np.median(dt))
+    pb = _Problem(time_s, dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, extras, grid,
+                  where)
+    A, T = state_matrix(latitude_rad, gravity_mps2), np.diff(pb.t_nav[grid.bounds])
     mid = (grid.bounds[:-1] + grid.bounds[1:]) // 2
-    values = np.zeros(P.N_PARAMS)
-    extra_values = np.zeros(extras.n)
+    values, extra_values = np.zeros(P.N_PARAMS), np.zeros(extras.n)
     names = UNKNOWN_NAMES + extras.names
     omega_ie_n = earth.omega_ie_n(latitude_rad)
-    C0 = coarse_alignment(dtheta_m[:seg.first_rest_end], dv_m[:seg.first_rest_end],
-                          dt[:seg.first_rest_end])
+    first = slice(0, seg.first_rest_end)
+    C0 = coarse_alignment(dtheta_m[first], dv_m[first], dt[first])
     # Until the first navigation, the Earth's turn as seen at the start attitude.
     turn = X.earth_turn(np.broadcast_to(C0, (len(dt), 3, 3)), omega_ie_n, dt)
-    noise = None
-    history = []
-    converged = False
-    N = cov = None
+    noise, sol, history, converged = None, None, [], False
     for it in range(1, max_iterations + 1):
-        model = ErrorModel(values)
-        dth, dvv = model.compensate(dtheta_m, dv_m, dt)
-        if extras.n:
-            dvv = X.compensate(extras.unpack(extra_values), dth, dv_m, dt,
-                               lambda x: model.compensate(dtheta_m, x, dt)[1], turn)
-        nav = navigate(dth, dvv, time_s, C0, latitude_rad, gravity_mps2, t0=t_nav[0])
+        dth, dvv, nav = pb.compensate_and_navigate(values, extra_values, C0, turn)
         if extras.n:  # the Earth's turn in the body, for the next compensation
             turn = X.earth_turn(0.5 * (nav.C_b_n[1:] + nav.C_b_n[:-1]), omega_ie_n, dt)
         if noise is None or (profile.has_gauss_markov and it <= 3):
             # Gauss-Markov bias noise enters through the attitude (C_b_n b): its weights follow
             # the navigated attitude while the Jacobian does. Phi_vv does not depend on it.
             noise = noise_model(A, T, profile, C_b_n=nav.C_b_n[mid])
-            W, Phi_vv = noise.whitener, noise.Phi_vv
-        y = nav.v_n[grid.bounds]
-        z = y[1:] - np.einsum("kij,kj->ki", Phi_vv, y[:-1])
-        if not np.all(np.isfinite(z)) or np.abs(y).max() > 1e5:
-            raise CalibError(f"the fit diverged at iteration {it} (navigation velocity "
-                             f"{np.abs(y).max():.3g} m/s)", where,
-                             "check units and that the run is a stationary-base calibration")
-        if N is None or it <= 3:
+        z = pb.observations(nav, noise.Phi_vv, it)
+        if sol is None or it <= 3:
             # The Jacobian changes little once the big errors are compensated.
             H = observation_jacobian(nav.C_b_n, dth, dvv, nav.time_s, grid, latitude_rad,
-                                     gravity_mps2, Phi_vv, extras)
-            Hs, D = scaled_design(whiten(W, H), extras)
-            N = Hs.T @ Hs
-            cov_scaled = solve_information(N, where, names)
-            cov = cov_scaled * np.outer(D, D)
-        zw = whiten(W, z[:, :, None]).reshape(-1)
-        delta_scaled = cov_scaled @ (Hs.T @ zw)
+                                     gravity_mps2, noise.Phi_vv, extras)
+            Hs, D = scaled_design(whiten(noise.whitener, H), extras)
+            sol = solve_information(Hs.T @ Hs, where, names, partial)
+            cov = sol.covariance * np.outer(D, D)
+        zw = whiten(noise.whitener, z[:, :, None]).reshape(-1)
+        delta_scaled = sol.covariance @ (Hs.T @ zw)
         delta = D * delta_scaled
         values = values + delta[:P.N_PARAMS]
         extra_values = extra_values + delta[N_UNKNOWN:]
         C0 = rotvec_to_dcm(delta[PHI0]) @ C0
         step = np.max(np.abs(delta) / np.sqrt(np.diag(cov)))
         resid = zw - Hs @ delta_scaled
+        n_fitted = sol.covariance.shape[0] - len(sol.null_directions)
         history.append({"iteration": it, "max_step_sigma": float(step),
-                        "chi2_per_dof": float(resid @ resid / max(1, resid.size - delta.size))})
+                        "chi2_per_dof": float(resid @ resid / max(1, resid.size - n_fitted))})
         if step < tol_sigma:
             converged = True
             break
@@ -245,7 +334,8 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
     return Fit(values=values, C_b_n0=C0, covariance=cov, converged=converged, iterations=it,
                residual_rms_mps=float(np.sqrt(np.mean(z_fit ** 2))),
                chi2_per_dof=history[-1]["chi2_per_dof"], n_observations=int(z.size),
-               history=history, extras=extras, extra_values=extra_values)
+               history=history, extras=extras, extra_values=extra_values,
+               estimable=sol.estimable, null_directions=sol.null_directions)
 
 
 def sequence_motion(seq, time_s: np.ndarray, dt: np.ndarray) -> np.ndarray:

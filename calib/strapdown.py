@@ -105,6 +105,20 @@ def _earth_rotation(omega_ie_n: np.ndarray, times: np.ndarray, factor: float) ->
     return rotvec_to_dcm(factor * np.outer(times, omega_ie_n))
 
 
+def sample_intervals(time_s: np.ndarray) -> np.ndarray:
+    """Length of each sample's interval; the first is taken equal to the second.
+
+    The one rule for where a log starts: a sample is stamped at its end, so
+    the first one began one period before ``time_s[0]``.
+    """
+    return np.diff(np.concatenate([[start_time(time_s)], time_s]))
+
+
+def start_time(time_s: np.ndarray) -> float:
+    """When the first sample began: one period before its stamp."""
+    return float(time_s[0] - (time_s[1] - time_s[0]))
+
+
 def navigate(dtheta: np.ndarray, dv: np.ndarray, time_s: np.ndarray, C_b_n0: np.ndarray,
              latitude_rad: float, gravity_mps2: float, t0: float | None = None) -> Navigation:
     """Navigate on a stationary base from attitude ``C_b_n0`` at rest.
@@ -125,7 +139,7 @@ def navigate(dtheta: np.ndarray, dv: np.ndarray, time_s: np.ndarray, C_b_n0: np.
     Navigation
     """
     if t0 is None:
-        t0 = time_s[0] - (time_s[1] - time_s[0])
+        t0 = start_time(time_s)
     t = np.concatenate([[t0], time_s]) - t0
     dt = np.diff(t)
     w_ie = earth.omega_ie_n(latitude_rad)

@@ -18,8 +18,9 @@ import numpy as np
 from calib import earth
 from calib import params as P
 from calib.extras import NONE as NO_EXTRAS, Extras
-from calib.information import marginal, null_directions
-from calib.jacobian import (MOVE_STEP_S, N_MOMENTS, N_UNKNOWN, ObservationGrid,
+from calib.information import (ScaledInverse, eliminate, marginal, projected_covariance,
+                               scaled_inverse)
+from calib.jacobian import (MOVE_STEP_S, N_MOMENTS, N_UNKNOWN, PHI0 as PHI0_IDX, ObservationGrid,
                             moment_inputs, observation_jacobian, observation_matrix, propagate,
                             sample_layout, state_matrix)
 from calib.noise import noise_model, whiten
@@ -33,33 +34,40 @@ CORRELATION_LIMIT = 0.9
 
 @dataclass(frozen=True)
 class Observability:
-    """Predicted accuracy and separability of the 21 parameters.
+    """Predicted accuracy and separability of the 21 parameters at one mounting.
 
     Attributes
     ----------
     information : ndarray (24, 24)
         Fisher information of [21 parameters, phi0] in SI.
-    covariance : ndarray (21, 21) or None
-        Marginal covariance of the 21 (None when rank deficient).
+    covariance : ndarray (21, 21)
+        Marginal covariance of the 21 (SI) with the unobserved directions left
+        unfitted; rows of parameters that are not estimable mean nothing.
     rank : int
-        Numerical rank of the 21 parameters' marginal information.
+        Number of observed directions of the 21 (:mod:`calib.information`'s rule).
     unobservable : list of str
-        Unobservable directions as combinations of parameter names.
+        Unobserved directions as combinations of parameter names.
+    estimable : ndarray (21,) of bool
+        Whether each parameter can be estimated on its own.
+    null_basis : ndarray (21, k)
+        The unobserved directions (requirement-scaled, orthonormal).
     """
 
     information: np.ndarray
-    covariance: np.ndarray | None
+    covariance: np.ndarray
     rank: int
     unobservable: list[str]
     duration_s: float
     profile: str
     setup_rotvec: np.ndarray
+    estimable: np.ndarray
+    null_basis: np.ndarray
 
     @property
     def sigma(self) -> np.ndarray:
-        if self.covariance is None:
-            return np.full(P.N_PARAMS, np.inf)
-        return np.sqrt(np.diag(self.covariance))
+        """1-sigma (SI) of each parameter; inf where it is not estimable."""
+        s = np.sqrt(np.abs(np.diag(self.covariance)))
+        return np.where(self.estimable, s, np.inf)
 
     @property
     def ratio(self) -> np.ndarray:
@@ -67,21 +75,26 @@ class Observability:
 
     @property
     def worst(self) -> tuple[str, float]:
-        r = self.ratio
+        """The estimable parameter with the largest ratio (inf if none is estimable)."""
+        r = np.where(self.estimable, self.ratio, -np.inf)
         i = int(np.argmax(r))
-        return P.NAMES[i], float(r[i])
+        return P.NAMES[i], float(r[i]) if self.estimable.any() else math.inf
 
     @property
     def correlation(self) -> np.ndarray:
-        s = self.sigma
-        return self.covariance / np.outer(s, s)
+        s = np.sqrt(np.abs(np.diag(self.covariance)))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rho = self.covariance / np.outer(s, s)
+        rho[~self.estimable, :] = np.nan
+        rho[:, ~self.estimable] = np.nan
+        return rho
 
     def correlated_pairs(self, limit: float = CORRELATION_LIMIT) -> list[tuple[str, str, float]]:
-        if self.covariance is None:
-            return []
+        """Pairs of estimable parameters with |rho| above ``limit``, strongest first."""
         rho = self.correlation
         out = [(P.NAMES[i], P.NAMES[j], float(rho[i, j]))
-               for i, j in itertools.combinations(range(P.N_PARAMS), 2) if abs(rho[i, j]) > limit]
+               for i, j in itertools.combinations(range(P.N_PARAMS), 2)
+               if self.estimable[i] and self.estimable[j] and abs(rho[i, j]) > limit]
         return sorted(out, key=lambda t: -abs(t[2]))
 
     def scaled_information(self) -> np.ndarray:
@@ -97,29 +110,31 @@ class Observability:
         better).
         """
         ev = np.linalg.eigvalsh(self.scaled_information())
-        if ev[0] <= 0:
+        if self.rank < P.N_PARAMS or ev[0] <= 0:
             return {"D": -math.inf, "A": math.inf, "E": 0.0, "condition": math.inf}
         return {"D": float(np.sum(np.log(ev))), "A": float(np.sum(1.0 / ev)),
                 "E": float(ev[0]), "condition": float(ev[-1] / ev[0])}
 
 
-def from_information(info: np.ndarray, duration_s: float, profile: str,
-                     setup_rotvec) -> Observability:
-    M = marginal(info)
+def from_information(info: np.ndarray, duration_s: float, profile: str, setup_rotvec,
+                     nominal: "Observability | None" = None) -> Observability:
+    """Observability from the information of [21, phi0].
+
+    With ``nominal`` (the same sequence at the nominal mounting), what is
+    observed is judged there: its unobserved directions stay unfitted here
+    too, so a tilt cannot make a parameter count as observed.
+    """
     D = P.REQUIREMENTS_SI
-    Ms = M * np.outer(D, D)
-    evals, evecs = np.linalg.eigh(Ms)
-    tol = max(evals[-1], 1e-300) * 1e-12
-    rank = int(np.sum(evals > tol))
-    cov = None
-    unobs = []
-    if rank == P.N_PARAMS:
-        cov = ((evecs / evals) @ evecs.T) * np.outer(D, D)
-    else:
-        unobs = null_directions(evecs, evals <= tol, P.NAMES)
-    return Observability(information=info, covariance=cov, rank=rank, unobservable=unobs,
+    Ms = marginal(info) * np.outer(D, D)
+    inv = scaled_inverse(Ms, P.NAMES)
+    if nominal is not None and not nominal.estimable.all():
+        cov = projected_covariance(Ms, nominal.null_basis)
+        inv = ScaledInverse(cov, nominal.rank, nominal.null_basis, nominal.estimable, inv.names)
+    return Observability(information=info, covariance=inv.covariance * np.outer(D, D),
+                         rank=inv.rank, unobservable=inv.null_directions(),
                          duration_s=duration_s, profile=profile,
-                         setup_rotvec=np.asarray(setup_rotvec, dtype=float))
+                         setup_rotvec=np.asarray(setup_rotvec, dtype=float),
+                         estimable=inv.estimable, null_basis=inv.null_basis)
 
 
 @dataclass(frozen=True)
@@ -258,9 +273,10 @@ class SequenceModel:
         H = self.whitened(setup_rotvec)
         return H.T @ H
 
-    def analyze(self, setup_rotvec=(0.0, 0.0, 0.0)) -> "Observability":
+    def analyze(self, setup_rotvec=(0.0, 0.0, 0.0),
+                nominal: "Observability | None" = None) -> "Observability":
         return from_information(self.information(setup_rotvec), self.duration_s, self.profile,
-                                setup_rotvec)
+                                setup_rotvec, nominal)
 
 
 def _basis_moments(C_mid: np.ndarray, flip: np.ndarray, E: np.ndarray, h: np.ndarray,
@@ -378,8 +394,7 @@ class _SigmaCallback:
 
             def eval(self, arg):
                 theta = np.radians(np.asarray(arg[0], dtype=float).ravel())
-                cov = np.linalg.inv(marginal(model.information(theta)))
-                return [math.sqrt(cov[index, index]) / P.REQUIREMENTS_SI[index]]
+                return [float(model.analyze(theta).sigma[index]) / P.REQUIREMENTS_SI[index]]
 
         return _CB()
 
@@ -421,10 +436,10 @@ def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
         # for designed-30min if the nominal weights are reused), so evaluate each directly.
         g = earth.gravity(latitude_rad, height_m)
 
-        def evaluate(rotvec):
+        def evaluate(rotvec, nominal=None):
             nom = nominal_run(seq, latitude_rad, height_m, rotvec)
             return from_information(information_along(nom, profile, latitude_rad, g),
-                                    seq.duration_s, profile.name, rotvec)
+                                    seq.duration_s, profile.name, rotvec, nominal)
         search = False  # IPOPT would need hundreds of direct evaluations
     else:
         model = sequence_model(seq, profile, latitude_rad, height_m)
@@ -434,11 +449,11 @@ def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
         return Robustness(nominal, nominal, nominal.sigma, 1, 0.0)
     levels = (-tolerance_deg, 0.0, tolerance_deg)
     grid = [np.array(p) for p in itertools.product(levels, levels, levels)]
-    results = [evaluate(np.radians(p)) for p in grid]
+    results = [evaluate(np.radians(p), nominal) for p in grid]
     sigmas = np.array([r.sigma for r in results])
     per_param = sigmas.max(axis=0)
     worst = max(results, key=lambda r: r.worst[1])
-    if not search or worst.rank < P.N_PARAMS:
+    if not search or nominal.rank < P.N_PARAMS:
         return Robustness(nominal, worst, per_param, len(grid), tolerance_deg)
     index = int(np.argmax(P.ratio(per_param)))
     order = np.argsort(-sigmas[:, index])[:starts]
@@ -485,16 +500,6 @@ class ExtrasCost:
         return out
 
 
-def _eliminate_phi0(info: np.ndarray) -> np.ndarray:
-    """Information of [21, extras] after eliminating the initial attitude (Schur complement)."""
-    keep = np.r_[0:P.N_PARAMS, N_UNKNOWN:info.shape[0]]
-    a, b, c = info[np.ix_(keep, keep)], info[keep, PHI0_IDX], info[PHI0_IDX, PHI0_IDX]
-    return a - b @ np.linalg.solve(c, b.T)
-
-
-PHI0_IDX = slice(P.N_PARAMS, N_UNKNOWN)
-
-
 def analyze_extras(seq: Sequence, profile: NoiseProfile, latitude_rad: float, extras: Extras,
                    height_m: float = 0.0, tolerance_deg: float = 3.0) -> ExtrasCost:
     """Sigma of the 21 with and without the optional terms, and theirs, worst over the box.
@@ -510,24 +515,24 @@ def analyze_extras(seq: Sequence, profile: NoiseProfile, latitude_rad: float, ex
     scale = np.concatenate([P.REQUIREMENTS_SI, extras.scale_si])
     names = P.NAMES + extras.names
     without, with_, extra = [], [], []
-    unobservable: list[str] = []
-    for rotvec in points:
+    nominal = nominal_without = None
+    for rotvec in [np.zeros(3)] + points:
         nom = nominal_run(seq, latitude_rad, height_m, rotvec)
         info = information_along(nom, profile, latitude_rad, g, extras)
-        without.append(from_information(info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s,
-                                        profile.name, rotvec).sigma)
-        M = _eliminate_phi0(info) * np.outer(scale, scale)
-        evals, evecs = np.linalg.eigh(M)
-        null = evals <= max(evals[-1], 1e-300) * 1e-12
-        if np.any(null):
-            unobservable = unobservable or null_directions(evecs, null, names)
-            s = np.full(len(scale), np.inf)
-        else:
-            s = np.sqrt(np.diag((evecs / evals) @ evecs.T)) * scale
+        obs = from_information(info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s, profile.name,
+                               rotvec, nominal_without)
+        M = eliminate(info, PHI0_IDX) * np.outer(scale, scale)
+        inv = scaled_inverse(M, names)
+        if nominal is None:  # what is observed is judged at the nominal mounting
+            nominal, nominal_without = inv, obs
+            continue
+        variance = np.diag(projected_covariance(M, nominal.null_basis))
+        s = np.where(nominal.estimable, np.sqrt(np.abs(variance)), np.inf) * scale
+        without.append(obs.sigma)
         with_.append(s[:P.N_PARAMS])
         extra.append(s[P.N_PARAMS:])
     return ExtrasCost(extras, np.max(without, axis=0), np.max(with_, axis=0),
-                      np.max(extra, axis=0), unobservable, len(points), tolerance_deg)
+                      np.max(extra, axis=0), nominal.null_directions(), len(points), tolerance_deg)
 
 
 def accel_scale_bound(duration_s: float, profile: NoiseProfile, gravity_mps2: float) -> float:
