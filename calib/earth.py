@@ -41,3 +41,24 @@ def omega_ie_n(latitude_rad: float) -> np.ndarray:
 def specific_force_n(gravity_mps2: float) -> np.ndarray:
     """Specific force sensed at rest, ENU: ``[0, 0, +g]``."""
     return np.array([0.0, 0.0, gravity_mps2])
+
+
+# A stationary calibration needs a horizontal Earth rate to gyrocompass (not at a pole),
+# and a site on the Earth's surface (Dead Sea to Everest, with margin): far outside,
+# normal gravity is meaningless and its formula overflows.
+MAX_LATITUDE_DEG = 89.0
+HEIGHT_RANGE_M = (-1000.0, 10000.0)
+
+
+def check_site(latitude_deg: float, height_m: float) -> None:
+    """Refuse a site where a stationary calibration is meaningless, naming the limit."""
+    from .errors import CalibError
+
+    if not -MAX_LATITUDE_DEG <= latitude_deg <= MAX_LATITUDE_DEG:
+        raise CalibError(f"latitude {latitude_deg} deg is outside [-{MAX_LATITUDE_DEG:g}, "
+                         f"{MAX_LATITUDE_DEG:g}]", "latitude",
+                         "stationary calibration needs the Earth rate to have a horizontal part")
+    low, high = HEIGHT_RANGE_M
+    if not low <= height_m <= high:
+        raise CalibError(f"height {height_m} m is outside [{low:g}, {high:g}]", "height",
+                         "give the ellipsoidal height of the site in metres")

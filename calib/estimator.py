@@ -175,9 +175,9 @@ def solve_information(N: np.ndarray, where: str = "run", names=None,
     dirs = inv.null_directions()
     if not partial:
         raise CalibError(
-            f"the run cannot estimate {', '.join(inv.not_estimable()) or 'some combinations'}: "
-            f"{len(dirs)} direction(s) of the parameters are unobserved (in units of each "
-            "requirement): " + "; ".join(dirs), where,
+            f"the run cannot observe {len(dirs)} direction(s) of the parameters, so it cannot "
+            f"estimate {', '.join(inv.not_estimable()) or 'them'} on their own; unobserved "
+            "(in units of each requirement): " + "; ".join(dirs), where,
             "use a sequence that excites them (`seqdesign analyze` shows which), or fit the "
             "estimable part with --partial")
     null_full = np.zeros((N.shape[0], inv.null_basis.shape[1]))

@@ -171,3 +171,14 @@ def toml_number(value) -> float | None:
         return float(value)
     except OverflowError:
         return math.inf if value > 0 else -math.inf
+
+
+def check_writable_dir(path: str | os.PathLike, where: str) -> None:
+    """Refuse, before any long computation, an output whose folder is missing or read-only."""
+    directory = Path(path).parent if str(Path(path).parent) else Path(".")
+    if not directory.is_dir():
+        raise CalibError(f"folder {str(directory)!r} does not exist", where,
+                         "create it first or choose another path")
+    if not os.access(directory, os.W_OK | os.X_OK):
+        raise CalibError(f"folder {str(directory)!r} is not writable", where,
+                         "choose a folder you can write to")

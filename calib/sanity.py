@@ -20,7 +20,7 @@ SATURATION_RUN = 10  # consecutive samples stuck at the same extreme value
 REST_NOISE_FACTOR = 20.0  # a rest whose specific force varies 20x more than the noise moved
 
 
-MAX_LATITUDE_DEG = 89.0
+from .earth import MAX_LATITUDE_DEG  # noqa: F401  (one source: calib.earth)
 
 
 def check_latitude(latitude_rad: float, where: str) -> None:

@@ -71,20 +71,6 @@ def show(sequence, as_json):
 # simulate
 
 
-def _site(seq, latitude, height):
-    from calib.sequence import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
-    lat = latitude if latitude is not None else (
-        seq.latitude_deg if seq.latitude_deg is not None else DEFAULT_LATITUDE_DEG)
-    h = height if height is not None else (
-        seq.height_m if seq.height_m is not None else DEFAULT_HEIGHT_M)
-    if not -89.0 <= lat <= 89.0:
-        raise CalibError(f"latitude {lat} deg is outside [-89, 89]", "--latitude",
-                         "stationary calibration needs the Earth rate to have a horizontal part")
-    if not -1000.0 <= h <= 10000.0:
-        raise CalibError(f"height {h} m is outside [-1000, 10000]", "--height")
-    return lat, h
-
-
 def _run_suffix(path: str, option: str) -> None:
     if Path(path).suffix.lower() not in (".csv", ".npz"):
         raise CalibError(f"unknown run format {Path(path).suffix!r}", option,
@@ -131,6 +117,7 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
     from calib.extras import parse_values
     from calib.sim import SimConfig, simulate as run_simulation
     from calib.truth import read_errors, truth_path_for, write_truth
+    from seqdesign.analysis import resolve_site
 
     _run_suffix(output, "-o/--output")
     if errors_file and table2:
@@ -152,7 +139,7 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
     prof = load_profile(profile)
     errors = (read_errors(errors_file) if errors_file
               else ErrorModel.from_table2() if table2 else ErrorModel.zero())
-    lat, h = _site(seq, latitude, height)
+    lat, h = resolve_site(seq, latitude, height)
     cfg = SimConfig(latitude_rad=math.radians(lat), height_m=h, sample_rate_hz=sample_rate_hz,
                     gravity_mps2=gravity_mps2)
     run, truth = run_simulation(
@@ -196,139 +183,56 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
 @click.option("--with", "with_terms", metavar="TERMS",
               help="Also fit a real unit's terms beyond the 21: any of lever-arm, k2, "
                    "time-offset (comma-separated), or all.")
+@click.option("--partial", is_flag=True,
+              help="On a run that leaves directions unobserved, fit the estimable parameters and "
+                   "report the rest as not estimable instead of refusing the run.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 @guarded
-def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, with_terms, as_json):
+def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, with_terms, partial,
+              as_json):
     """Align, navigate on the stationary base and fit the 21 error parameters of
     RUN (CSV or NPZ) by iterated, noise-weighted least squares."""
-    from calib import earth
-    from calib.estimator import calibrate as fit_run, check_sequence_matches, detect_motion, \
-        sequence_motion
-    from calib.extras import ExtraValues, Extras, parse_groups
-    from calib.profiles import load_profile
-    from calib.result import CalibrationResult
+    from calib.calibration import as_extras, as_profile, calibrate_run
     from calib.runlog import read_run
     from calib.sequence import load_sequence
     from calib.truth import read_truth, truth_path_for
-    from seqdesign.report import extra_entries, format_table, parameter_entries, worst
 
-    extras = Extras(parse_groups(with_terms))
-    prof = load_profile(profile)
+    extras = as_extras(with_terms)
+    prof = as_profile(profile)
     run = read_run(run_path, allow_gaps=allow_gaps)
     out_path = Path(output) if output else Path(run_path).with_name(Path(run_path).stem + ".result.toml")
     if truth_path is None and truth_path_for(run_path).exists():
         truth_path = truth_path_for(run_path)
     truth = read_truth(truth_path) if truth_path else None
-    lat = math.radians(run.latitude_deg)
-    g = run.gravity_mps2 if run.gravity_mps2 is not None else earth.gravity(lat, run.height_m)
-    t = run.time_s
-    dt = np.diff(np.concatenate([[t[0] - run.dt_nominal], t]))
-    moving = None
-    if sequence:
-        seq = load_sequence(sequence)
-        moving = sequence_motion(seq, t, dt)
-        check_sequence_matches(seq, detect_motion(run.dtheta_rad, dt, run.source).moving,
-                               moving, dt, run.source)
-    info(f"calibrating {run_path}: {t.size} samples, {t[-1] - t[0] + run.dt_nominal:.1f} s, "
+    seq = load_sequence(sequence) if sequence else None
+    info(f"calibrating {run_path}: {run.n_samples} samples, {run.duration_s:.1f} s, "
          f"profile {prof.name}")
-    fit = fit_run(t, run.dtheta_rad, run.dv_mps, lat, g, prof, moving=moving, where=run.source,
-                  extras=extras)
-    if not fit.converged:
-        raise CalibError(f"the fit did not converge in {fit.iterations} iterations (last step "
-                         f"{fit.history[-1]['max_step_sigma']:.3g} sigma)", run.source,
-                         "no result written; check the run and the noise profile")
-    sigma = fit.sigma
-    scale = 1.0
-    if fit.chi2_per_dof > 1.2:
-        # The profile understates the noise: inflate by the Birge ratio, and say so.
-        scale = math.sqrt(fit.chi2_per_dof)
-        sigma = sigma * scale
-        info(f"warning: residuals are {fit.chi2_per_dof:.2f}x the profile's noise power; "
-             f"sigmas inflated by {scale:.2f}")
-    result = CalibrationResult(
-        values=fit.values, sigma=sigma, C_b_n0=fit.C_b_n0, converged=fit.converged,
-        iterations=fit.iterations, residual_rms_mps=fit.residual_rms_mps, profile=prof.name,
-        chi2_per_dof=fit.chi2_per_dof, correlation=fit.correlation[:21, :21],
-        provenance=provenance({"run": run_path, "sequence": sequence, "truth": truth_path,
-                               "profile": profile if Path(profile).exists() else None},
-                              sequence=sequence, profile=prof.name,
-                              sigma_scale=scale if scale != 1.0 else None),
-        extras=extras, extra_values=fit.extra_values, extra_sigma=fit.extra_sigma * scale)
+    result = calibrate_run(run, prof, sequence=seq, extras=extras, partial=partial,
+                           provenance=provenance(
+                               {"run": run_path, "sequence": sequence, "truth": truth_path,
+                                "profile": profile if Path(profile).exists() else None},
+                               sequence=sequence, profile=prof.name))
     result.save(out_path)
-    entries = parameter_entries(sigma, fit.values, truth.errors.values if truth else None)
-    if extras.n:
-        true_extra = None
-        if truth is not None:
-            true_extra = extras.pack(truth.extra if truth.extra is not None else ExtraValues())
-        entries |= extra_entries(extras, fit.extra_sigma * scale, fit.extra_values, true_extra)
+    for warning in result.warnings():
+        info(f"warning: {warning}")
     if as_json:
-        doc = {"parameters": entries, "worst": worst(entries), "profile": prof.name,
-               "result": str(out_path),
-               "fit": {"converged": fit.converged, "iterations": fit.iterations,
-                       "residual_rms_mps": fit.residual_rms_mps,
-                       "chi2_per_dof": fit.chi2_per_dof, "sigma_scale": scale,
-                       "extras": list(extras.groups)}}
-        if truth is not None:
-            e = (fit.values - truth.errors.values)
-            doc["nees"] = float(e @ np.linalg.solve(fit.covariance[:21, :21] * scale ** 2, e))
-        emit_json(doc)
+        emit_json(result.to_json(truth) | {"result": str(out_path)})
         return
-    click.echo(format_table(entries))
-    w = worst(entries)
-    click.echo(f"profile {prof.name}; converged in {fit.iterations} iterations; residual RMS "
-               f"{fit.residual_rms_mps:.3g} m/s; chi2/dof {fit.chi2_per_dof:.3f}; "
-               f"worst 3 sigma/requirement {w['ratio']:.2f} ({w['name']})")
+    click.echo(result.to_text(truth))
     click.echo(f"wrote {out_path}")
 
 
 # ---------------------------------------------------------------------------
 # analyze / compare
 
-
-def _analysis(sequence, profile, latitude, tolerance_deg):
-    from calib import earth
-    from calib.profiles import load_profile
-    from calib.sequence import load_sequence
-    from seqdesign.observability import accel_scale_bound, analyze_tolerance
-
-    if not (0.0 <= tolerance_deg <= 10.0):
-        raise CalibError(f"--tolerance-deg {tolerance_deg} outside [0, 10]", "--tolerance-deg")
-    seq = load_sequence(sequence)
-    prof = load_profile(profile)
-    lat, h = _site(seq, latitude, None)
-    rob = analyze_tolerance(seq, prof, math.radians(lat), h, tolerance_deg)
-    bound = accel_scale_bound(seq.duration_s, prof, earth.gravity(math.radians(lat), h))
-    return seq, prof, lat, rob, bound
-
-
-def _analysis_doc(seq, prof, lat, rob, bound) -> dict:
-    from calib import params as P
-    from seqdesign.report import parameter_entries, worst
-
-    w = rob.worst
-    # Each parameter's figure is its own worst over the box (conventions.md).
-    entries = parameter_entries(rob.per_parameter_worst_sigma)
-    for p in P.PARAMETERS:
-        entries[p.name]["ratio_nominal"] = float(rob.nominal.ratio[p.index])
-    doc = {"sequence": seq.name, "duration_s": seq.duration_s, "profile": prof.name,
-           "latitude_deg": lat, "tolerance_deg": rob.tolerance_deg, "setups_evaluated": rob.points,
-           "ipopt_search": rob.searched,
-           "parameters": entries, "worst": worst(entries),
-           "worst_setup_deg": [float(x) for x in np.degrees(w.setup_rotvec)],
-           "rank": w.rank, "unobservable": w.unobservable,
-           "correlated_pairs": [{"a": a, "b": b, "rho": r} for a, b, r in w.correlated_pairs()],
-           "criteria": w.criteria(),
-           "accel_scale_bound": {"best_possible_ratio": bound,
-                                 "achieved_ratio": float(max(entries[n]["ratio"]
-                                                             for n in ("sax", "say", "saz")))}}
-    return doc
+TOLERANCE = click.FloatRange(0.0, 10.0)
 
 
 @main.command(short_help="Predict sigma and separability of the 21 parameters for a sequence.")
 @click.argument("sequence")
 @click.option("--profile", default="navigation", show_default=True, help="Noise profile.")
 @click.option("--latitude", type=float, help="Site latitude, deg (default: sequence, else 40).")
-@click.option("--tolerance-deg", type=float, default=3.0, show_default=True,
+@click.option("--tolerance-deg", type=TOLERANCE, default=3.0, show_default=True,
               help="Base mounting tolerance; the figures are the worst over the box (0: nominal only).")
 @click.option("--view", "view_path", is_flag=False, flag_value="", default=None, metavar="[FILE.rrd]",
               help="Also write a rerun recording (default: <sequence>-analysis.rrd).")
@@ -340,149 +244,59 @@ def _analysis_doc(seq, prof, lat, rob, bound) -> dict:
 @guarded
 def analyze(sequence, profile, latitude, tolerance_deg, view_path, with_terms, as_json):
     """Fisher information of SEQUENCE under a noise profile: predicted sigma of
-    each parameter against its requirement (3 sigma / requirement), correlated
-    pairs, unobservable directions, worst case over the +-tolerance mounting box."""
-    from calib.extras import Extras, parse_groups
+    each parameter against its requirement (3 sigma / requirement), which
+    parameters are estimable, correlated pairs, unobservable directions,
+    worst case over the +-tolerance mounting box."""
+    from seqdesign.analysis import analyze as run_analysis
 
     if view_path and Path(view_path).suffix != ".rrd":
         raise CalibError(f"recording {view_path!r} must end in .rrd", "--view")
-    extras = Extras(parse_groups(with_terms))
-    seq, prof, lat, rob, bound = _analysis(sequence, profile, latitude, tolerance_deg)
-    doc = _analysis_doc(seq, prof, lat, rob, bound)
-    if extras.n:
-        doc["extras"] = _extras_doc(seq, prof, lat, extras, tolerance_deg)
+    result = run_analysis(sequence, profile, latitude_deg=latitude, tolerance_deg=tolerance_deg,
+                          extras=with_terms)
+    doc = result.to_json()
     if view_path is not None:
         from viz.record import record_analysis
-        path = view_path or f"{seq.name}-analysis.rrd"
-        record_analysis(rob.worst, seq, path)
+        path = view_path or f"{result.sequence.name}-analysis.rrd"
+        record_analysis(result.robustness.worst, result.sequence, path)
         doc["recording"] = str(path)
         info(f"wrote {path} (open it with: rerun {path})")
     if as_json:
         emit_json(doc)
         return
-    from seqdesign.report import format_table
-    click.echo(f"{seq.name}: {seq.duration_s:.0f} s ({seq.duration_s / 60:.1f} min), profile "
-               f"{prof.name}, latitude {lat:g} deg, worst case over +-{rob.tolerance_deg:g} deg "
-               f"({rob.points} mountings{' + IPOPT search' if rob.searched else ''})")
-    click.echo(format_table(doc["parameters"]))
-    _verdict(doc)
-    if extras.n:
-        _print_extras(doc["extras"])
-
-
-def _extras_doc(seq, prof, lat, extras, tolerance_deg) -> dict:
-    """``analyze --with``: the cost of the optional terms to each of the 21, and their sigma."""
-    from calib import params as P
-    from seqdesign.observability import analyze_extras
-
-    _, h = _site(seq, lat, None)
-    cost = analyze_extras(seq, prof, math.radians(lat), extras, h, tolerance_deg)
-    r0, r1 = P.ratio(cost.sigma_without), P.ratio(cost.sigma_with)
-    params = {p.name: {"unit": p.unit, "sigma_without": float(cost.sigma_without[p.index] / p.si_per_unit),
-                       "sigma_with": float(cost.sigma_with[p.index] / p.si_per_unit),
-                       "ratio_without": float(r0[p.index]), "ratio_with": float(r1[p.index]),
-                       "sigma_increase": float(cost.sigma_with[p.index] / cost.sigma_without[p.index])}
-              for p in P.PARAMETERS}
-    extra = {p.name: {"unit": p.unit, "sigma": float(s / p.si_per_unit), "typical_size": p.scale,
-                      "verdict": v, "meaning": p.meaning}
-             for p, s, v in zip(extras.parameters, cost.extra_sigma, cost.verdicts())}
-    w = int(np.argmax(r1))
-    return {"terms": list(extras.groups), "setups_evaluated": cost.points,
-            "tolerance_deg": tolerance_deg, "parameters": params, "extra_parameters": extra,
-            "worst_with": {"name": P.NAMES[w], "ratio": float(r1[w])},
-            "unobservable": cost.unobservable}
-
-
-def _print_extras(d) -> None:
-    click.echo("")
-    click.echo(f"with {', '.join(d['terms'])} also fitted (worst over {d['setups_evaluated']} "
-               f"mountings within +-{d['tolerance_deg']:g} deg, direct evaluation):")
-    click.echo(f"{'param':<6}{'unit':<8}{'sigma w/o':>11}{'sigma with':>11}{'x':>7}"
-               f"{'3s/req w/o':>11}{'3s/req with':>12}")
-    for name, e in d["parameters"].items():
-        click.echo(f"{name:<6}{e['unit']:<8}{e['sigma_without']:11.4g}{e['sigma_with']:11.4g}"
-                   f"{e['sigma_increase']:7.2f}{e['ratio_without']:11.2f}{e['ratio_with']:12.2f}")
-    click.echo(f"{'param':<6}{'unit':<8}{'sigma':>11}{'typical':>9}  verdict")
-    for name, e in d["extra_parameters"].items():
-        click.echo(f"{name:<6}{e['unit']:<8}{e['sigma']:11.4g}{e['typical_size']:9.4g}  {e['verdict']}")
-    if d["unobservable"]:
-        click.echo("UNOBSERVABLE with the extra terms: " + "; ".join(d["unobservable"]))
-    worst_p = max(d["parameters"].items(), key=lambda kv: kv[1]["sigma_increase"])
-    click.echo(f"Fitting them costs most on {worst_p[0]} (sigma x{worst_p[1]['sigma_increase']:.2f}); "
-               f"worst ratio with them {d['worst_with']['ratio']:.2f} ({d['worst_with']['name']}). "
-               "'weak': 3 sigma exceeds the typical size; 'unobservable': no information.")
-
-
-def _verdict(doc) -> None:
-    misses = [n for n, e in doc["parameters"].items() if e["ratio"] > 1.0]
-    if doc["unobservable"]:
-        click.echo("UNOBSERVABLE directions: " + "; ".join(doc["unobservable"]))
-    if doc["correlated_pairs"]:
-        click.echo("correlated pairs (|rho| > 0.9): " + ", ".join(
-            f"{p['a']}/{p['b']} {p['rho']:+.3f}" for p in doc["correlated_pairs"]))
-    b = doc["accel_scale_bound"]
-    click.echo(f"accel scale-factor bound for {doc['duration_s']:.0f} s: best possible ratio "
-               f"{b['best_possible_ratio']:.2f}, this sequence {b['achieved_ratio']:.2f}")
-    w = doc["worst"]
-    if doc["rank"] < 21:
-        verdict = (f"Verdict: only {doc['rank']} of 21 parameters are observable; calibration "
-                   "with this sequence cannot separate them.")
-    elif not misses:
-        verdict = (f"Verdict: all 21 parameters meet their requirements (worst ratio {w['ratio']:.2f}, "
-                   f"{w['name']}) under profile {doc['profile']}, worst case over the mounting box.")
-    else:
-        verdict = (f"Verdict: {len(misses)} of 21 parameters miss their requirement ("
-                   + ", ".join(misses) + f"); the worst is {w['name']} at {w['ratio']:.2f} x the "
-                   f"requirement (3 sigma), under profile {doc['profile']}, worst case over the "
-                   "mounting box.")
-    if doc["tolerance_deg"] == 0:
-        verdict = verdict.replace("worst case over the mounting box", "at the nominal mounting")
-    click.echo(verdict)
+    click.echo(result.to_text())
 
 
 @main.command(short_help="Compare sequences side by side: time, worst ratio, per-parameter ratios.")
 @click.argument("sequences", nargs=-1, required=True)
 @click.option("--profile", default="navigation", show_default=True, help="Noise profile.")
 @click.option("--latitude", type=float, help="Site latitude, deg (default: each sequence's, else 40).")
-@click.option("--tolerance-deg", type=float, default=3.0, show_default=True)
+@click.option("--tolerance-deg", type=TOLERANCE, default=3.0, show_default=True)
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 @guarded
 def compare(sequences, profile, latitude, tolerance_deg, as_json):
     """Analyse several sequences and print their 3 sigma / requirement ratios side by side."""
-    from calib import params as P
+    from calib.calibration import as_profile
+    from seqdesign.analysis import analyze as run_analysis, compare_text
 
-    docs = [_analysis_doc(*_analysis(s, profile, latitude, tolerance_deg)) for s in sequences]
+    prof = as_profile(profile)
+    analyses = [run_analysis(s, prof, latitude_deg=latitude, tolerance_deg=tolerance_deg)
+                for s in sequences]
     if as_json:
-        emit_json({"sequences": docs})
+        emit_json({"sequences": [a.to_json() for a in analyses]})
         return
-    names = [d["sequence"] for d in docs]
-    width = max(10, *(len(n) + 2 for n in names))
-    click.echo(f"{'':<12}" + "".join(f"{n:>{width}}" for n in names))
-    click.echo(f"{'time min':<12}" + "".join(f"{d['duration_s'] / 60:>{width}.1f}" for d in docs))
-    click.echo(f"{'worst':<12}" + "".join(
-        f"{d['worst']['name'] + ' ' + format(d['worst']['ratio'], '.2f'):>{width}}" for d in docs))
-    for p in P.PARAMETERS:
-        click.echo(f"{p.name:<12}" + "".join(f"{d['parameters'][p.name]['ratio']:>{width}.2f}"
-                                              for d in docs))
-    click.echo(f"ratios are 3 sigma / requirement, worst over +-{tolerance_deg:g} deg, profile {profile}")
+    click.echo(compare_text(analyses))
 
 
 # ---------------------------------------------------------------------------
 # design
 
 
-def _write_design(result, path, args_doc) -> None:
-    from calib.sequence import save_sequence
-    from dataclasses import replace as _replace
-
-    seq = _replace(result.sequence, provenance=provenance(**args_doc))
-    save_sequence(seq, path)
-
-
 @main.command(short_help="Search for a sequence that beats the paper's, robust to the mounting tolerance.")
-@click.option("--budget-min", type=float, default=15.0, show_default=True, help="Total time budget, minutes.")
-@click.option("--max-flips", type=int, default=10, show_default=True, help="Most moves (continuous turns).")
-@click.option("--max-quarters", type=int, default=5, show_default=True,
+@click.option("--budget-min", type=click.FloatRange(min=0.5), default=15.0, show_default=True,
+              help="Total time budget, minutes.")
+@click.option("--max-flips", type=click.IntRange(min=1), default=10, show_default=True,
+              help="Most moves (continuous turns).")
+@click.option("--max-quarters", type=click.IntRange(min=1), default=5, show_default=True,
               help="Longest move in quarter turns (5 = a turn and a quarter).")
 @click.option("--start", default="east,up,south", show_default=True, help="Where X, Y, Z point at the start.")
 @click.option("--end", default=None, help="Required final attitude (optional), e.g. \"east,up,south\".")
@@ -493,15 +307,17 @@ def _write_design(result, path, args_doc) -> None:
 @click.option("--objective", type=click.Choice(["worst", "D", "A", "E"]), default="worst",
               show_default=True, help="worst 3 sigma/requirement, or D-, A-, E-optimal.")
 @click.option("--profile", default="navigation", show_default=True, help="Noise profile.")
-@click.option("--latitude", type=float, default=40.0, show_default=True, help="Site latitude, deg.")
-@click.option("--tolerance-deg", type=float, default=3.0, show_default=True)
-@click.option("--beam-width", type=int, default=200, show_default=True)
+@click.option("--latitude", type=click.FloatRange(-89.0, 89.0), default=40.0, show_default=True,
+              help="Site latitude, deg.")
+@click.option("--tolerance-deg", type=TOLERANCE, default=3.0, show_default=True)
+@click.option("--beam-width", type=click.IntRange(min=1), default=200, show_default=True)
 @click.option("--no-refine", is_flag=True, help="Keep uniform dwells (skip the IPOPT refinement).")
 @click.option("-o", "--output", help="Sequence file to write (default: designed-<budget>min.toml).")
 @click.option("--pareto", is_flag=True, help="Sweep budgets and print/save the time vs worst-ratio front.")
 @click.option("--budgets", default="10,15,20,25,30", show_default=True,
               help="Budgets (min) of the --pareto sweep.")
-@click.option("--workers", type=int, default=1, show_default=True, help="Local processes.")
+@click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Local processes.")
 @click.option("--scheduler", default=None, help="dask.distributed scheduler address.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 @guarded
@@ -512,151 +328,66 @@ def design(budget_min, max_flips, max_quarters, start, end, axes, rate_dps, min_
     incremental information), re-score the finalists exactly at the worst
     case of the mounting tolerance, refine the best's dwells with IPOPT, and
     write it as a sequence file with its provenance."""
-    from calib import earth
-    from calib.profiles import load_profile
-    from seqdesign.design import Constraints, design as run_design
+    from calib.fileio import check_writable_dir
+    from seqdesign.design import design_steps
+    from seqdesign.designs import design_budgets
     from seqdesign.graph import parse_node
-    from seqdesign.observability import accel_scale_bound
 
-    prof = load_profile(profile)
-    lat = math.radians(latitude)
-    if not -89.0 <= latitude <= 89.0:
-        raise CalibError(f"latitude {latitude} outside [-89, 89]", "--latitude")
-    if not (0.0 <= tolerance_deg <= 10.0):
-        raise CalibError(f"--tolerance-deg {tolerance_deg} outside [0, 10]", "--tolerance-deg")
-    if workers < 1 or beam_width < 1:
-        raise CalibError("--workers and --beam-width must be >= 1", "--workers/--beam-width")
-    base = dict(start=parse_node(start, "--start"), end=parse_node(end, "--end") if end else None,
-                max_flips=max_flips, axes=axes.upper(), max_quarters=max_quarters,
-                rate_dps=rate_dps, min_dwell_s=min_dwell_s, max_dwell_s=max_dwell_s)
+    constraints = dict(start=parse_node(start, "--start"),
+                       end=parse_node(end, "--end") if end else None, max_flips=max_flips,
+                       axes=axes.upper(), max_quarters=max_quarters, rate_dps=rate_dps,
+                       min_dwell_s=min_dwell_s, max_dwell_s=max_dwell_s)
+    sweep = _budgets(budgets) if pareto else [budget_min]
+    paths = {b: _design_path(b, output, pareto) for b in sweep}
+    for path in set(paths.values()) | ({str(output or "pareto")} if pareto else set()):
+        check_writable_dir(path, "-o/--output")  # before minutes of search, not after
+    from seqdesign.design import Constraints
+    bars = {}
+
+    def progress(b, msg, n):
+        if b not in bars:
+            info(f"designing for {b:g} min (objective {objective}) ...")
+            c = Constraints(budget_s=b * 60.0, **constraints)
+            bars[b] = click.progressbar(length=design_steps(c, 4), label=f"{b:g} min",
+                                        file=sys.stderr, item_show_func=lambda m: m,
+                                        show_pos=True)
+            bars[b].__enter__()
+        bars[b].update(n, msg)
+
+    try:
+        report = design_budgets(sweep, constraints, profile, latitude_deg=latitude,
+                                objective=objective, tolerance_deg=tolerance_deg,
+                                beam_width=beam_width, refine=not no_refine, workers=workers,
+                                scheduler=scheduler, progress=progress)
+    finally:
+        for bar in bars.values():
+            bar.__exit__(None, None, None)
+    for row in report.rows:
+        report.save_design(row, paths[row.budget_min], provenance())
+        info(f"wrote {paths[row.budget_min]}")
     if pareto:
-        try:
-            sweep = [float(b) for b in budgets.split(",") if b.strip()]
-        except ValueError:
-            raise CalibError(f"--budgets {budgets!r} is not a list of minutes", "--budgets") from None
-    else:
-        sweep = [budget_min]
-    g = earth.gravity(lat)
-    rows = []
-    for b in sweep:
-        c = Constraints(budget_s=b * 60.0, **base)
-        info(f"designing for {b:g} min ({prof.name}, objective {objective}) ...")
-        from seqdesign.design import check_constraints, design_steps
-        check_constraints(c)
-        with click.progressbar(length=design_steps(c, 4), label=f"{b:g} min", file=sys.stderr,
-                               item_show_func=lambda m: m, show_pos=True) as bar:
-            res = run_design(c, prof, lat, 0.0, objective, tolerance_deg, beam_width, keep=4,
-                             refine=not no_refine,
-                             name=f"designed-{b:g}min", workers=workers, scheduler=scheduler,
-                             progress=lambda msg, n: bar.update(n, msg))
-        bound = accel_scale_bound(res.sequence.duration_s, prof, g)
-        rows.append((b, res, bound))
-        default = f"designed-{b:g}min.toml"
-        if pareto:  # every budget's design goes beside the front's files
-            path = str(Path(output).parent / default) if output else default
-        else:
-            path = output or default
-        _write_design(res, path, {
-            "objective": objective, "profile": prof.name, "score": res.worst_ratio,
-            "score_parameter": res.worst_name, "tolerance_deg": tolerance_deg,
-            "latitude_deg": latitude, "budget_min": b,
-            "uniform_dwell_score": res.uniform_worst_ratio,
-            "candidates_evaluated": res.evaluated})
-        info(f"wrote {path}")
-    paper_T, paper_worst = _paper_point(prof, lat, tolerance_deg)
-    doc = {"profile": prof.name, "objective": objective, "tolerance_deg": tolerance_deg,
-           "designs": [{"budget_min": b, "duration_s": r.sequence.duration_s,
-                        "worst": {"name": r.worst_name, "ratio": r.worst_ratio},
-                        "uniform_dwell_worst_ratio": r.uniform_worst_ratio,
-                        "accel_scale_bound_ratio": bound,
-                        "steps": [{"axis": s.axis, "angle_deg": s.angle_deg, "dwell_s": s.dwell_s}
-                                  for s in r.sequence.steps],
-                        "initial_dwell_s": r.sequence.initial_dwell_s,
-                        "candidates_evaluated": r.evaluated,
-                        "search_seconds": r.search_seconds} for b, r, bound in rows],
-           "paper_9pos": {"duration_s": paper_T, "worst_ratio": paper_worst}}
-    if pareto:
-        _write_pareto(doc, prof, g, output or "pareto")
+        info("wrote " + " and ".join(report.write_pareto(output or "pareto")))
     if as_json:
-        emit_json(doc)
+        emit_json(report.to_json())
         return
-    click.echo(f"{'budget':>7} {'time':>7} {'worst ratio':>16} {'uniform':>8} {'bound':>6}  moves")
-    for b, r, bound in rows:
-        moves_txt = " ".join(f"{s.angle_deg:+.0f}{s.axis}" for s in r.sequence.steps)
-        click.echo(f"{b:6g}m {r.sequence.duration_s / 60:6.1f}m {r.worst_name:>5} {r.worst_ratio:9.3f} "
-                   f"{r.uniform_worst_ratio:8.3f} {bound:6.3f}  {moves_txt}")
-    click.echo(f"paper-9pos: {paper_T / 60:.1f} min, worst ratio {paper_worst:.2f}. Ratios are "
-               f"3 sigma/requirement, worst over +-{tolerance_deg:g} deg, profile {prof.name}; "
-               "bound = best possible for the accelerometer scale factors at that time.")
+    click.echo(report.to_text())
 
 
-def _paper_point(prof, lat, tolerance_deg):
-    from calib.sequence import load_sequence
-    from seqdesign.observability import analyze_tolerance
-    seq = load_sequence("paper-9pos")
-    rob = analyze_tolerance(seq, prof, lat, 0.0, tolerance_deg, search=False)
-    return seq.duration_s, float(rob.per_parameter_worst_ratio.max())
+def _budgets(text: str) -> list[float]:
+    try:
+        return [float(b) for b in text.split(",") if b.strip()]
+    except ValueError:
+        raise CalibError(f"--budgets {text!r} is not a list of minutes", "--budgets") from None
 
 
-def _write_pareto(doc, prof, g, stem) -> None:
-    """The front as CSV and as an SVG drawn against the physical bound curve."""
-    from calib.fileio import atomic_write_text
-    from seqdesign.observability import accel_scale_bound
-
-    stem = str(stem).removesuffix(".toml")
-    lines = ["budget_min,duration_s,worst_ratio,worst_parameter,bound_ratio"]
-    for d in doc["designs"]:
-        lines.append(f"{d['budget_min']},{d['duration_s']:.1f},{d['worst']['ratio']:.4f},"
-                     f"{d['worst']['name']},{d['accel_scale_bound_ratio']:.4f}")
-    p = doc["paper_9pos"]
-    lines.append(f"paper-9pos,{p['duration_s']:.1f},{p['worst_ratio']:.4f},,"
-                 f"{accel_scale_bound(p['duration_s'], prof, g):.4f}")
-    atomic_write_text(stem + ".csv", "\n".join(lines) + "\n")
-    # SVG: x = minutes (0..max), y = log worst ratio.
-    W, H, m = 640, 400, 60
-    tmax = max([d["duration_s"] for d in doc["designs"]] + [p["duration_s"]]) / 60 * 1.1
-    ys = [d["worst"]["ratio"] for d in doc["designs"]] + [p["worst_ratio"], 1.0]
-    lo, hi = math.log10(min(ys) * 0.8), math.log10(max(ys) * 1.3)
-
-    def X(t):
-        return m + (W - 2 * m) * t / tmax
-
-    def Y(r):
-        return H - m - (H - 2 * m) * (math.log10(r) - lo) / (hi - lo)
-
-    curve = " ".join(f"{X(t):.1f},{Y(accel_scale_bound(t * 60, prof, g)):.1f}"
-                     for t in np.linspace(max(1.0, tmax / 40), tmax, 80)
-                     if lo <= math.log10(accel_scale_bound(t * 60, prof, g)) <= hi)
-    pts = "".join(f'<circle cx="{X(d["duration_s"] / 60):.1f}" cy="{Y(d["worst"]["ratio"]):.1f}" r="5" '
-                  f'fill="#1f77b4"><title>{d["budget_min"]} min: {d["worst"]["ratio"]:.2f}</title></circle>'
-                  for d in doc["designs"])
-    front = " ".join(f"{X(d['duration_s'] / 60):.1f},{Y(d['worst']['ratio']):.1f}"
-                     for d in sorted(doc["designs"], key=lambda d: d["duration_s"]))
-    ticks = "".join(f'<text x="{X(t):.0f}" y="{H - m + 18}" font-size="11" text-anchor="middle">{t:g}</text>'
-                    for t in range(0, int(tmax) + 1, 5))
-    yt = "".join(f'<text x="{m - 8}" y="{Y(r) + 4:.0f}" font-size="11" text-anchor="end">{r:g}</text>'
-                 f'<line x1="{m}" x2="{W - m}" y1="{Y(r):.1f}" y2="{Y(r):.1f}" stroke="#ddd"/>'
-                 for r in (0.5, 1, 1.5, 2, 3, 5, 10, 20) if lo <= math.log10(r) <= hi)
-    svg = (f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" font-family="sans-serif">'
-           f'<rect width="{W}" height="{H}" fill="white"/>{yt}{ticks}'
-           f'<line x1="{m}" y1="{H - m}" x2="{W - m}" y2="{H - m}" stroke="black"/>'
-           f'<line x1="{m}" y1="{m}" x2="{m}" y2="{H - m}" stroke="black"/>'
-           f'<polyline points="{curve}" fill="none" stroke="#d62728" stroke-dasharray="6,4"/>'
-           f'<polyline points="{front}" fill="none" stroke="#1f77b4"/>{pts}'
-           f'<rect x="{X(p["duration_s"] / 60) - 5:.1f}" y="{Y(p["worst_ratio"]) - 5:.1f}" width="10" '
-           f'height="10" fill="#ff7f0e"/>'
-           f'<text x="{X(p["duration_s"] / 60) + 8:.1f}" y="{Y(p["worst_ratio"]) + 4:.1f}" font-size="12">'
-           f'paper-9pos</text>'
-           f'<text x="{W / 2}" y="{H - 15}" font-size="13" text-anchor="middle">total time, min</text>'
-           f'<text x="15" y="{H / 2}" font-size="13" transform="rotate(-90 15 {H / 2})" '
-           f'text-anchor="middle">worst 3 sigma / requirement (+-{doc["tolerance_deg"]:g} deg)</text>'
-           f'<text x="{W - m}" y="{m - 10}" font-size="12" text-anchor="end" fill="#d62728">'
-           f'dashed: accelerometer scale-factor bound ({prof.name})</text></svg>')
-    atomic_write_text(stem + ".svg", svg)
-    info(f"wrote {stem}.csv and {stem}.svg")
+def _design_path(budget_min: float, output: str | None, pareto: bool) -> str:
+    default = f"designed-{budget_min:g}min.toml"
+    if pareto:  # every budget's design goes beside the front's files
+        return str(Path(output).parent / default) if output else default
+    return output or default
 
 
-from viz.cli import view  # noqa: E402  (its own module; registered here)
+from seqdesign.cli_view import view  # noqa: E402  (its own module; registered here)
 
 main.add_command(view)
 

@@ -1,7 +1,7 @@
 """Helpers every command shares: refusals without tracebacks, JSON on stdout, provenance.
 
 Kept apart from :mod:`seqdesign.cli` so that commands living elsewhere
-(``viz.cli``) use the same ones without importing the command group.
+(``seqdesign.cli_view``) use the same ones without importing the command group.
 """
 from __future__ import annotations
 

@@ -12,9 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib import params as P
 from calib.errormodel import ErrorModel
-from calib.estimator import calibrate
+from calib.calibration import calibrate_run
 from calib.extras import NONE as NO_EXTRAS, ExtraValues, Extras
 from calib.profiles import NoiseProfile
 from calib.sequence import Sequence
@@ -47,16 +46,15 @@ class Trials:
 
 
 def one_trial(args) -> tuple[np.ndarray, np.ndarray, bool]:
+    """Simulate one run and calibrate it with the library call the CLI uses (same sigmas)."""
     (seq, profile, latitude_deg, errors, tolerance_deg, flip_error_deg, seed, extra, extras,
      fit_profile) = args
-    lat = math.radians(latitude_deg)
-    cfg = SimConfig(latitude_rad=lat)
+    cfg = SimConfig(latitude_rad=math.radians(latitude_deg))
     run, truth = simulate(seq, cfg, errors, profile, flip_error_deg=flip_error_deg, noise=True,
                           seed=seed, random_setup_deg=tolerance_deg if tolerance_deg > 0 else None,
                           extra=extra)
-    fit = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, lat, cfg.gravity,
-                    fit_profile or profile, extras=extras)
-    return fit.values - errors.values, fit.covariance[:P.N_PARAMS, :P.N_PARAMS], fit.converged
+    result = calibrate_run(run, fit_profile or profile, extras=extras, require_convergence=False)
+    return result.values - errors.values, result.covariance, result.converged
 
 
 def run_trials(seq: Sequence, profile: NoiseProfile, n: int, seed: int = 0,

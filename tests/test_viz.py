@@ -17,6 +17,8 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from calib.review import review_run
+
 from conftest import (DWELL_S, FLIP_S, N_POS, SPEC_NAMES, attitude, normal_gravity, rest_window,
                       table1_positions)
 
@@ -147,7 +149,7 @@ def recorded(sim, result, tmp_path_factory):
 
     seq, run, truth = sim
     path = tmp_path_factory.mktemp("rec") / "run.rrd"
-    summary = record_run(run, path, sequence=seq, result=result, truth=truth)
+    summary = record_run(run, path, review_run(run, result), sequence=seq, result=result, truth=truth)
     return path, summary, read_back(path)
 
 
@@ -304,7 +306,7 @@ def test_recording_is_reproducible(sim, result, recorded, tmp_path):
 
     seq, run, truth = sim
     again = tmp_path / "again.rrd"
-    record_run(run, again, sequence=seq, result=result, truth=truth)
+    record_run(run, again, review_run(run, result), sequence=seq, result=result, truth=truth)
     a, b = recorded[2], read_back(again)
     assert a.keys() == b.keys()
     for entity in a:
@@ -327,7 +329,7 @@ def test_scene_from_sequence_without_encoders(sim, tmp_path):
 
     seq, run, truth = sim
     bare = replace(run, gimbal_deg=None)
-    summary = record_run(bare, tmp_path / "seq.rrd", sequence=seq)
+    summary = record_run(bare, tmp_path / "seq.rrd", review_run(bare), sequence=seq)
     assert summary.scene_source.startswith("sequence")
     rec = read_back(tmp_path / "seq.rrd")
     for row in table1_positions():
@@ -345,7 +347,7 @@ def test_scene_from_navigation(sim, result, tmp_path):
 
     seq, run, truth = sim
     bare = replace(run, gimbal_deg=None, meta={k: v for k, v in run.meta.items() if k != "sequence"})
-    summary = record_run(bare, tmp_path / "nav.rrd", result=result)
+    summary = record_run(bare, tmp_path / "nav.rrd", review_run(bare, result), result=result)
     assert summary.scene_source.startswith("navigation attitude after calibration")
     rec = read_back(tmp_path / "nav.rrd")
     for row in table1_positions():
@@ -410,7 +412,7 @@ def _write_run(sim, result, folder: Path, sha_of_run: bool = True) -> Path:
 
 
 def test_cli_defaults_beside_the_run(sim, result, tmp_path):
-    from viz.cli import view
+    from seqdesign.cli_view import view
 
     run_path = _write_run(sim, result, tmp_path)
     res = CliRunner().invoke(view, [str(run_path), "--json"])
@@ -428,7 +430,7 @@ def test_cli_defaults_beside_the_run(sim, result, tmp_path):
 
 
 def test_cli_skips_a_result_of_another_run(sim, result, tmp_path):
-    from viz.cli import view
+    from seqdesign.cli_view import view
 
     run_path = _write_run(sim, result, tmp_path, sha_of_run=False)
     res = CliRunner().invoke(view, [str(run_path), "-o", str(tmp_path / "x.rrd"), "--json"])
@@ -450,7 +452,7 @@ def test_cli_skips_a_result_of_another_run(sim, result, tmp_path):
     ["run.npz", "-o", "no/such/dir/run.rrd"],
 ])
 def test_cli_bad_input_one_line_nothing_written(sim, result, tmp_path, monkeypatch, args):
-    from viz.cli import view
+    from seqdesign.cli_view import view
 
     _write_run(sim, result, tmp_path)
     before = sorted(p.name for p in tmp_path.iterdir())
@@ -464,7 +466,7 @@ def test_cli_bad_input_one_line_nothing_written(sim, result, tmp_path, monkeypat
 
 
 def test_failure_midway_leaves_old_file_untouched(sim, tmp_path, monkeypatch):
-    import calib.strapdown
+    import viz.record
     from viz.record import record_run
 
     seq, run, truth = sim
@@ -474,9 +476,10 @@ def test_failure_midway_leaves_old_file_untouched(sim, tmp_path, monkeypatch):
     def boom(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(calib.strapdown, "navigate", boom)
+    # Interrupted half-way through logging (the estimation work is done before, in calib.review).
+    monkeypatch.setattr(viz.record, "block_means", boom)
     with pytest.raises(KeyboardInterrupt):
-        record_run(run, target, sequence=seq)
+        record_run(run, target, review_run(run), sequence=seq)
     assert target.read_bytes() == b"old"
     assert [p.name for p in tmp_path.iterdir()] == ["run.rrd"]
 

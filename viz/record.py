@@ -89,7 +89,6 @@ APPLICATION_ID = "seqdesign"
 SCENE_RATE_HZ = 20.0      # transforms at most this often at rest ...
 SCENE_STEP_DEG = 2.0      # ... and in addition every this many degrees of rotation
 SIGNAL_RATE_HZ = 20.0     # raw signals shown as block means at about this rate
-MIN_ALIGN_S = 1.0         # shortest first rest the "before" navigation aligns on
 
 # Entity paths.
 BASE = "world/base"
@@ -425,16 +424,6 @@ def _log_scene(w: _Writer, times: np.ndarray, angles_rad: np.ndarray, R_mount: n
 # Run recording
 
 
-def _start(run) -> float:
-    """The instant the first sample starts, as the estimator takes it (one step before time_s[0])."""
-    t = run.time_s
-    return float(t[0] - (t[1] - t[0]))
-
-
-def _dt(run) -> np.ndarray:
-    return np.diff(np.concatenate([[_start(run)], run.time_s]))
-
-
 def _results_table(result, truth) -> str:
     vals, sig = P.from_si(result.values), P.from_si(result.sigma)
     ratio = P.ratio(result.sigma)
@@ -543,25 +532,26 @@ def run_blueprint(duration_s: float, with_results: bool = True):
                          *_panels())
 
 
-def record_run(run, path: str | os.PathLike, sequence=None, result=None, truth=None, *,
-               latitude_deg: float | None = None, gravity_mps2: float | None = None,
+def record_run(run, path: str | os.PathLike, review, sequence=None, result=None, truth=None, *,
                name: str | None = None) -> Summary:
     """Write a rerun recording of one run log (see the module docstring for its entities).
 
     Parameters
     ----------
     run : calib.runlog.Run
+        The log.
     path : str or os.PathLike
         The ``.rrd`` to write (atomically: complete or untouched).
+    review : calib.review.RunReview
+        Its motion and navigations (:func:`calib.review.review_run`): viz
+        only logs what it is given.
     sequence : calib.sequence.Sequence, optional
         The sequence the run followed: names the positions and flips, and
         gives the gimbal angles when the run has no encoder columns.
     result : calib.result.CalibrationResult, optional
-        Adds the velocity errors after calibration and the results bars.
+        Adds the results bars (the review carries its navigation).
     truth : calib.sim.Truth, optional
         Adds the errors against the truth; its mounting rotation places the base.
-    latitude_deg, gravity_mps2 : float, optional
-        Override the run's site (default: its metadata; gravity then WGS-84).
     name : str, optional
         Recording name (default: the run's source).
 
@@ -570,48 +560,25 @@ def record_run(run, path: str | os.PathLike, sequence=None, result=None, truth=N
     Summary
         Entities and row counts, notes, where the scene came from.
     """
-    from calib.estimator import coarse_alignment, detect_motion
-    from calib.errormodel import ErrorModel
-    from calib.strapdown import navigate
     from calib.transform import dcm_to_rotvec
 
     n = run.n_samples
-    lat_deg = run.latitude_deg if latitude_deg is None else float(latitude_deg)
-    lat = math.radians(lat_deg)
-    g = gravity_mps2 if gravity_mps2 is not None else (
-        run.gravity_mps2 if run.gravity_mps2 is not None else earth.gravity(lat, run.height_m))
-    dt = _dt(run)
-    t0 = _start(run)
-    t_rel = run.time_s - t0
+    lat_deg, g, dt = review.latitude_deg, review.gravity_mps2, review.dt
+    t_rel = run.time_s - review.t0
     dtheta, dv = run.dtheta_rad, run.dv_mps
-
     rid = _recording_id(run.time_s[:: max(1, n // 1000)], dtheta, dv,
                         None if result is None else result.values,
                         None if sequence is None else sequence.name)
     w = _Writer(path, rid, name or Path(run.source).name,
                 run_blueprint(float(t_rel[-1]), result is not None))
     try:
-        # Motion and the "before" navigation (coarse alignment on the first rest).
-        try:
-            seg = detect_motion(dtheta, dt, run.source)
-            moving, first_rest_end = seg.moving, seg.first_rest_end
-        except CalibError:
-            moving, first_rest_end = np.zeros(n, dtype=bool), n
-            w.note("no rotation found in the run: everything is one rest")
-        nav_before = None
-        if dt[:first_rest_end].sum() >= MIN_ALIGN_S:
-            C_align = coarse_alignment(dtheta[:first_rest_end], dv[:first_rest_end],
-                                       dt[:first_rest_end])
-            nav_before = navigate(dtheta, dv, run.time_s, C_align, lat, g, t0=t0)
+        for note in review.notes:
+            w.note(note)
+        moving, nav_before, nav_after = review.moving, review.before, review.after
+        if nav_before is not None:
             w.series("residuals/before/velocity_mps", t_rel, nav_before.v_n[1:], "ENU",
                      AXIS_COLORS)
-        else:
-            w.note(f"the run does not start with {MIN_ALIGN_S:g} s of rest: no coarse alignment, "
-                   "no velocity errors before calibration")
-        nav_after = None
-        if result is not None:
-            dth_c, dv_c = ErrorModel(result.values).compensate(dtheta, dv, dt)
-            nav_after = navigate(dth_c, dv_c, run.time_s, result.C_b_n0, lat, g, t0=t0)
+        if nav_after is not None:
             w.series("residuals/after/velocity_mps", t_rel, nav_after.v_n[1:], "ENU", AXIS_COLORS)
 
         # Raw signals, block means.

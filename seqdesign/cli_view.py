@@ -1,10 +1,9 @@
 """``seqdesign view``: write a rerun recording (.rrd) of a run and optionally open the viewer.
 
 The command is a plain click command; ``seqdesign/cli.py`` registers it with
-``main.add_command(view)``. It shares the commands' helpers from
-:mod:`seqdesign.clitools` (the tool's own errors become one line on stderr
-and exit code 2, no traceback). rerun itself is imported only inside the
-command.
+``main.add_command(view)``. The estimation work (motion, alignment,
+navigations) is :func:`calib.review.review_run`; :mod:`viz` only logs what
+it is given. rerun itself is imported only inside the command.
 """
 from __future__ import annotations
 
@@ -18,11 +17,7 @@ import click
 
 from calib.errors import CalibError
 
-from seqdesign.clitools import guarded  # noqa: E402
-
-
-def _info(msg: str) -> None:
-    click.echo(msg, err=True)
+from seqdesign.clitools import guarded, info as _info
 
 
 def _beside(run_path: str, suffix: str) -> Path:
@@ -43,20 +38,18 @@ def _check_output(path: Path) -> None:
 def _load_sequence(run, explicit):
     """The sequence to show: ``--sequence`` (must match the log), else the run's ``sequence`` key
     if it names a shipped sequence that matches the log, else None."""
-    import numpy as np
-
     from calib.estimator import check_sequence_matches, detect_motion, sequence_motion
     from calib.sequence import load_sequence
+    from calib.strapdown import sample_intervals
 
     name = explicit or run.sequence_name
     if not name:
         return None, None
     try:
         seq = load_sequence(name)
-        t = run.time_s
-        dt = np.diff(np.concatenate([[t[0] - run.dt_nominal], t]))
+        dt = sample_intervals(run.time_s)
         check_sequence_matches(seq, detect_motion(run.dtheta_rad, dt, run.source).moving,
-                               sequence_motion(seq, t, dt), dt, run.source)
+                               sequence_motion(seq, run.time_s, dt), dt, run.source)
     except CalibError as exc:
         if explicit:
             raise
@@ -123,9 +116,11 @@ def view(run_path, sequence, result_path, truth_path, output, spawn, allow_gaps,
     except ImportError:
         raise CalibError("rerun-sdk is not installed", None,
                          "pip install 'rerun-sdk>=0.41'") from None
+    from calib.review import review_run
     from viz.record import record_run
 
-    summary = record_run(run, out, sequence=seq, result=result, truth=truth)
+    summary = record_run(run, out, review_run(run, result), sequence=seq, result=result,
+                         truth=truth)
     if spawn:
         _spawn_viewer(out)
     doc = summary.to_dict()

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib import params as P
+from . import params as P
 
 
 def parameter_entries(sigma_si: np.ndarray, values_si: np.ndarray | None = None,
@@ -46,7 +46,11 @@ def extra_entries(extras, sigma_si: np.ndarray, values_si: np.ndarray | None = N
 
 
 def worst(entries: dict[str, dict]) -> dict:
-    name = max((n for n in entries if "ratio" in entries[n]), key=lambda n: entries[n]["ratio"])
+    """The parameter with the largest finite ratio (those not estimable have none)."""
+    rated = [n for n, e in entries.items() if "ratio" in e and np.isfinite(e["ratio"])]
+    if not rated:
+        return {"name": None, "ratio": None}
+    name = max(rated, key=lambda n: entries[n]["ratio"])
     return {"name": name, "ratio": entries[name]["ratio"]}
 
 
@@ -65,7 +69,9 @@ def format_table(entries: dict[str, dict]) -> str:
         row = f"{name:<6}{e['unit']:<8}"
         if has_value:
             row += f"{e['value']:12.5g}"
-        if "ratio" in e:
+        if "ratio" in e and not np.isfinite(e["ratio"]):
+            row += f"{'-':>11}{e['requirement']:9.4g}{'-':>8}  {'n/e':<5}"
+        elif "ratio" in e:
             flag = "ok" if e["ratio"] <= 1.0 else "MISS"
             row += f"{e['sigma']:11.4g}{e['requirement']:9.4g}{e['ratio']:8.2f}  {flag:<5}"
         else:  # an optional term: no requirement

@@ -1,0 +1,164 @@
+"""Design sequences for one or several time budgets: the library call behind ``seqdesign design``.
+
+:func:`design_budgets` runs the search of :mod:`seqdesign.design` for each
+budget and returns a :class:`DesignReport` that knows its ``--json``
+document, its text table, how to save each design with its provenance and
+how to write the Pareto front (CSV, and a PNG drawn with matplotlib).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from calib import earth
+from calib.calibration import as_profile
+from calib.fileio import atomic_write_text
+from calib.profiles import NoiseProfile
+from calib.sequence import load_sequence, save_sequence
+
+from .design import Constraints, DesignResult, check_constraints, design
+from .observability import accel_scale_bound, analyze_tolerance
+
+
+@dataclass(frozen=True)
+class DesignRow:
+    """One budget's design and the bound it is judged against."""
+
+    budget_min: float
+    result: DesignResult
+    bound_ratio: float
+
+
+@dataclass(frozen=True)
+class DesignReport:
+    """Designs for a set of budgets, with the paper's point for scale."""
+
+    rows: list[DesignRow]
+    profile: NoiseProfile
+    objective: str
+    tolerance_deg: float
+    latitude_deg: float
+    paper_duration_s: float
+    paper_worst_ratio: float
+
+    def to_json(self) -> dict:
+        """The ``design --json`` document."""
+        return {"profile": self.profile.name, "objective": self.objective,
+                "tolerance_deg": self.tolerance_deg,
+                "designs": [_row_doc(r) for r in self.rows],
+                "paper_9pos": {"duration_s": self.paper_duration_s,
+                               "worst_ratio": self.paper_worst_ratio}}
+
+    def to_text(self) -> str:
+        lines = [f"{'budget':>7} {'time':>7} {'worst ratio':>16} {'uniform':>8} {'bound':>6}  moves"]
+        for row in self.rows:
+            r = row.result
+            moves = " ".join(f"{s.angle_deg:+.0f}{s.axis}" for s in r.sequence.steps)
+            lines.append(f"{row.budget_min:6g}m {r.sequence.duration_s / 60:6.1f}m "
+                         f"{r.worst_name:>5} {r.worst_ratio:9.3f} {r.uniform_worst_ratio:8.3f} "
+                         f"{row.bound_ratio:6.3f}  {moves}")
+        lines.append(f"paper-9pos: {self.paper_duration_s / 60:.1f} min, worst ratio "
+                     f"{self.paper_worst_ratio:.2f}. Ratios are 3 sigma/requirement, worst over "
+                     f"+-{self.tolerance_deg:g} deg, profile {self.profile.name}; bound = best "
+                     "possible for the accelerometer scale factors at that time.")
+        return "\n".join(lines)
+
+    def save_design(self, row: DesignRow, path: str | Path, provenance: dict) -> None:
+        """Write one design as a sequence file whose provenance says how it was found."""
+        r = row.result
+        prov = dict(provenance) | {
+            "objective": self.objective, "profile": self.profile.name, "score": r.worst_ratio,
+            "score_parameter": r.worst_name, "tolerance_deg": self.tolerance_deg,
+            "latitude_deg": self.latitude_deg, "budget_min": row.budget_min,
+            "uniform_dwell_score": r.uniform_worst_ratio, "candidates_evaluated": r.evaluated}
+        save_sequence(replace(r.sequence, provenance=prov), path)
+
+    def write_pareto(self, stem: str | Path) -> list[str]:
+        """The front as ``stem.csv`` and ``stem.png`` (matplotlib); returns the files written."""
+        stem = str(stem).removesuffix(".toml")
+        g = earth.gravity(math.radians(self.latitude_deg))
+        lines = ["budget_min,duration_s,worst_ratio,worst_parameter,bound_ratio"]
+        for row in self.rows:
+            r = row.result
+            lines.append(f"{row.budget_min},{r.sequence.duration_s:.1f},{r.worst_ratio:.4f},"
+                         f"{r.worst_name},{row.bound_ratio:.4f}")
+        lines.append(f"paper-9pos,{self.paper_duration_s:.1f},{self.paper_worst_ratio:.4f},,"
+                     f"{accel_scale_bound(self.paper_duration_s, self.profile, g):.4f}")
+        atomic_write_text(stem + ".csv", "\n".join(lines) + "\n")
+        from .plots import pareto_png
+        pareto_png(self, g, stem + ".png")
+        return [stem + ".csv", stem + ".png"]
+
+
+def _row_doc(row: DesignRow) -> dict:
+    r = row.result
+    return {"budget_min": row.budget_min, "duration_s": r.sequence.duration_s,
+            "worst": {"name": r.worst_name, "ratio": r.worst_ratio},
+            "uniform_dwell_worst_ratio": r.uniform_worst_ratio,
+            "accel_scale_bound_ratio": row.bound_ratio,
+            "steps": [{"axis": s.axis, "angle_deg": s.angle_deg, "dwell_s": s.dwell_s}
+                      for s in r.sequence.steps],
+            "initial_dwell_s": r.sequence.initial_dwell_s,
+            "candidates_evaluated": r.evaluated, "search_seconds": r.search_seconds}
+
+
+def paper_point(profile: NoiseProfile, latitude_rad: float, tolerance_deg: float):
+    """The paper's sequence: duration and worst ratio over the 27 box points."""
+    seq = load_sequence("paper-9pos")
+    rob = analyze_tolerance(seq, profile, latitude_rad, 0.0, tolerance_deg, search=False)
+    return seq.duration_s, float(rob.per_parameter_worst_ratio.max())
+
+
+def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str = "navigation",
+                   *, latitude_deg: float = 40.0, objective: str = "worst",
+                   tolerance_deg: float = 3.0, beam_width: int = 200, refine: bool = True,
+                   workers: int = 1, scheduler: str | None = None,
+                   progress=None) -> DesignReport:
+    """Design one sequence per budget.
+
+    Parameters
+    ----------
+    budgets_min : iterable of float
+        Total time budgets, minutes.
+    constraints : dict
+        The :class:`seqdesign.design.Constraints` fields other than the budget
+        (start, end, max_flips, axes, max_quarters, rate_dps, min/max dwell).
+    profile : NoiseProfile or str
+        The noise the design is optimised for.
+    latitude_deg : float
+        Site latitude.
+    objective : str
+        ``worst``, ``D``, ``A`` or ``E``.
+    tolerance_deg : float
+        Mounting box half-width; designs are re-scored at its worst case.
+    beam_width : int
+        Candidates kept per depth.
+    refine : bool
+        Refine the winner's dwells with IPOPT.
+    workers : int
+        Local processes.
+    scheduler : str, optional
+        dask.distributed scheduler address.
+    progress : callable, optional
+        ``progress(budget_min, message, steps)`` as the search advances.
+
+    Returns
+    -------
+    DesignReport
+    """
+    prof = as_profile(profile)
+    earth.check_site(latitude_deg, 0.0)
+    lat = math.radians(latitude_deg)
+    g = earth.gravity(lat)
+    rows = []
+    for b in budgets_min:
+        c = Constraints(budget_s=b * 60.0, **constraints)
+        check_constraints(c)
+        res = design(c, prof, lat, 0.0, objective, tolerance_deg, beam_width, keep=4,
+                     refine=refine, name=f"designed-{b:g}min", workers=workers,
+                     scheduler=scheduler,
+                     progress=None if progress is None else (lambda m, n, b=b: progress(b, m, n)))
+        rows.append(DesignRow(b, res, accel_scale_bound(res.sequence.duration_s, prof, g)))
+    paper_T, paper_worst = paper_point(prof, lat, tolerance_deg)
+    return DesignReport(rows, prof, objective, tolerance_deg, latitude_deg, paper_T, paper_worst)

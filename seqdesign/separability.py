@@ -1,0 +1,72 @@
+"""What a rank-deficient sequence cannot separate, what it can, and what motion would help.
+
+The analyser finds the unobserved directions of the requirement-scaled
+information (:mod:`calib.information`). Here they are turned into what an
+engineer acts on: for the parameters that cannot be estimated on their own,
+the combinations of them that the sequence does determine (in the
+parameters' own units), and, per parameter, the motion that excites it.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import null_space
+
+from calib import params as P
+
+AXES = "XYZ"
+INVOLVED = 0.01  # a parameter takes part in a null direction above this scaled component
+
+
+def involvement(null_basis: np.ndarray) -> list[list[int]]:
+    """For each parameter, the indices of the null directions (RREF basis) it takes part in."""
+    if null_basis.shape[1] == 0:
+        return [[] for _ in range(null_basis.shape[0])]
+    from scipy.linalg import qr
+
+    null = null_basis.T
+    k = null.shape[0]
+    _, _, piv = qr(null, pivoting=True)
+    rref = np.linalg.solve(null[:, piv[:k]], null)  # the same basis describe_null prints
+    return [[d for d in range(k) if abs(rref[d, i]) > INVOLVED] for i in range(null.shape[1])]
+
+
+def separable_combinations(null_basis: np.ndarray, estimable: np.ndarray,
+                           names=P.NAMES, scales=P.REQUIREMENTS) -> list[str]:
+    """Combinations of the non-estimable parameters that the sequence does determine.
+
+    They are the directions, among the non-estimable parameters, orthogonal
+    to every unobserved direction. Written in each parameter's own unit,
+    normalised on its largest term (e.g. ``baz + 1.00 saz`` means the sum of
+    the z accelerometer's bias in ug and its scale factor in ppm is known).
+    """
+    idx = np.flatnonzero(~np.asarray(estimable))
+    if idx.size == 0:
+        return []
+    sub = null_basis[idx]  # the null directions restricted to those parameters
+    comp = null_space(sub.T) if sub.size else np.eye(idx.size)
+    out = []
+    for c in comp.T:
+        own = c / np.asarray(scales)[idx]  # c . (x / s): coefficient of x_i in its own unit
+        own = own / own[np.argmax(np.abs(own))]
+        terms = [(own[k], names[i]) for k, i in enumerate(idx) if abs(own[k]) > 1e-3]
+        out.append(" ".join(f"{'+' if a > 0 else '-'} {abs(a):.3g} {n}" for a, n in terms)
+                   .lstrip("+ "))
+    return out
+
+
+def motion_hint(index: int) -> str:
+    """The motion that excites parameter ``index``, from what it multiplies in the sensor model."""
+    p = P.PARAMETERS[index]
+    i = AXES[p.row]
+    if p.sensor == "accel":
+        if p.kind == "bias":
+            return f"body {i} must see gravity with both signs (point {i} up and down)"
+        if p.kind == "scale":
+            return f"body {i} must see +g and -g (point {i} up, then down)"
+        return (f"body {AXES[p.col]} must see gravity while the {i} accelerometer is "
+                f"horizontal, with both signs")
+    if p.kind == "bias":
+        return f"body {i} must point in different directions relative to the Earth's rotation"
+    if p.kind == "scale":
+        return f"turn about body {i} (flips about {i}, both directions help)"
+    return f"turn about body {AXES[p.col]} (the {i} gyro senses a turn about {AXES[p.col]})"
