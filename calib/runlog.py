@@ -533,7 +533,8 @@ def _fill_meta(meta: dict[str, str], options: dict, time_s: np.ndarray, name: st
     if "sample_rate_hz" not in meta and time_s.size >= 2:
         step = float(np.median(np.diff(time_s)))
         if step > 0:
-            meta["sample_rate_hz"] = repr(1.0 / step)
+            # Printed time stamps carry rounding (0.01 is not exact): 9 digits of the rate.
+            meta["sample_rate_hz"] = repr(float(f"{1.0 / step:.9g}"))
     missing = [k for k in REQUIRED_META[1:] if k not in meta]
     if missing:
         options_hint = {"latitude_deg": "--latitude DEG", "height_m": "--height M",
