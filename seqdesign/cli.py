@@ -659,6 +659,7 @@ def _write_pareto(doc, prof, g, stem) -> None:
 from viz.cli import view  # noqa: E402  (its own module; registered here)
 
 main.add_command(view)
+main.add_command(__import__("seqdesign.cli_profile", fromlist=["profile"]).profile)
 
 
 if __name__ == "__main__":
