@@ -103,7 +103,7 @@ def _print_table(doc: dict) -> None:
                f"{doc['accel_bias_instability_ug']:.4g} ug / {doc['accel_bias_correlation_s']:.4g} s"
                " (worst axis)")
     click.echo(f"removed: gravity {site['gravity_removed_mps2']:.6g} m/s^2 along the measured up "
-               f"{[round(float(u), 4) for u in site["up_body"]]} (body), Earth rate "
+               f"{[round(float(u), 4) for u in site['up_body']]} (body), Earth rate "
                f"{site['earth_rate_removed_dph']:.3g} deg/h along it; the horizontal Earth rate "
                f"({site['earth_rate_left_in_bias_dph']:.3g} deg/h) is left in the gyro bias: "
                "a MEMS gyro cannot find north. The Allan deviations do not change; the biases do.")
