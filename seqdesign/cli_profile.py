@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from seqdesign.clitools import emit_json, guarded, info, provenance
+from seqdesign.clitools import command_line, emit_json, guarded, info, provenance
 
 
 @click.group(short_help="Noise profiles from your IMU's own data.")
@@ -44,7 +44,9 @@ def fit(log, latitude, height, output, name, plot, no_plot, as_json):
     start = time.perf_counter()
     run = _read(read_run, log, latitude, height)
     result = fit_profile(run, name or Path(output).stem)
-    doc = profile_doc(result, provenance({"log": log}, method=_METHOD))
+    # command_line() knows the subcommand, not its group: put "profile" back.
+    command = "seqdesign profile " + command_line().removeprefix("seqdesign ")
+    doc = profile_doc(result, provenance({"log": log}, method=_METHOD, command=command))
     png = None if no_plot else _plot_path(output, plot)
     save_profile(doc, output)
     if png is not None:
