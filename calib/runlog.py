@@ -11,6 +11,7 @@ or the metadata key.
 """
 from __future__ import annotations
 
+import gzip
 import io
 import json
 import lzma
@@ -24,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from calib.columns import ColumnPlan, plan_columns, to_increments
 from calib.errors import CalibError
 from calib.fileio import atomic_write_bytes, atomic_write_text
 
@@ -165,7 +167,8 @@ def make_meta(latitude_deg: float, height_m: float, sample_rate_hz: float,
 # Public entry points
 # --------------------------------------------------------------------------
 
-def read_run(path: str | os.PathLike, allow_gaps: bool = False) -> Run:
+def read_run(path: str | os.PathLike, allow_gaps: bool = False, *,
+             latitude_deg: float | None = None, height_m: float | None = None) -> Run:
     """Read and check a run log, ``.csv`` or ``.npz`` (suffix case-insensitive).
 
     Parameters
@@ -174,6 +177,13 @@ def read_run(path: str | os.PathLike, allow_gaps: bool = False) -> Run:
         Run log file.
     allow_gaps : bool
         Accept time steps longer than two nominal periods (``--allow-gaps``).
+    latitude_deg, height_m : float, optional
+        Site metadata for a CSV file that lacks it (``--latitude``, ``--height``);
+        a file that has the key and a different value is refused.
+
+    A CSV file may be gzip-compressed (``.csv.gz``). A CSV file without a
+    ``# format:`` line is a logger's file (``docs/logs-columns.md``): it is read as
+    ``imu-run/1``, its sample rate, when absent, comes from the time column.
 
     Returns
     -------
@@ -188,7 +198,7 @@ def read_run(path: str | os.PathLike, allow_gaps: bool = False) -> Run:
     """
     kind = _kind(path)
     if kind == ".csv":
-        return _read_csv(path, allow_gaps)
+        return _read_csv(path, allow_gaps, {"latitude_deg": latitude_deg, "height_m": height_m})
     return _read_npz(path, allow_gaps)
 
 
@@ -274,10 +284,12 @@ class _ArrayLocator:
 class _CsvLocator:
     """Names places in a CSV file: 1-based line numbers, column names, sample index."""
 
-    def __init__(self, name: str, key_lines: dict[str, int], sample_lines: np.ndarray):
+    def __init__(self, name: str, key_lines: dict[str, int], sample_lines: np.ndarray,
+                 columns: dict[str, tuple[str, ...]] | None = None):
         self.name = name
         self.key_lines = key_lines
         self.sample_lines = sample_lines
+        self.columns = {**_ARRAY_COLUMNS, **(columns or {})}  # the file's own column names
 
     def key(self, key: str) -> str:
         line = self.key_lines.get(key)
@@ -286,7 +298,7 @@ class _CsvLocator:
     def sample(self, array: str, index: int, component: int | None = None) -> str:
         text = f"{self.name}, line {int(self.sample_lines[index])}"
         if component is not None or array == "time_s":
-            text += f", column {_ARRAY_COLUMNS[array][component or 0]}"
+            text += f", column {self.columns[array][component or 0]}"
         return text + f" (sample {index})"
 
 
@@ -428,6 +440,8 @@ def _check_finite(run: Run, locate) -> None:
 def _kind(path: str | os.PathLike) -> str:
     """Lower-case suffix, refused unless .csv or .npz."""
     suffix = Path(path).suffix.lower()
+    if suffix == ".gz" and Path(path).name.lower().endswith(".csv.gz"):
+        return ".csv"  # read through gzip (_read_bytes)
     if suffix not in (".csv", ".npz"):
         raise CalibError(f"unknown run log type {suffix or '(no suffix)'!r}", str(path),
                          "name run logs *.csv (interchange) or *.npz (fast native)")
@@ -446,9 +460,11 @@ def _read_bytes(path: str | os.PathLike) -> bytes:
     """Read a whole file, turning OS errors into CalibError."""
     _require_file(path)
     try:
-        return Path(path).read_bytes()
-    except OSError as exc:
-        raise CalibError(f"cannot read the file: {exc.strerror or exc}", str(path),
+        data = Path(path).read_bytes()
+        return gzip.decompress(data) if data[:2] == b"\x1f\x8b" else data
+    except (OSError, EOFError, zlib.error) as exc:  # gzip.BadGzipFile is an OSError
+        raise CalibError(f"cannot read the file: {getattr(exc, 'strerror', None) or exc}",
+                         str(path),
                          "check the path and permissions") from None
 
 
@@ -456,12 +472,12 @@ def _read_bytes(path: str | os.PathLike) -> bytes:
 # CSV
 # --------------------------------------------------------------------------
 
-def _read_csv(path: str | os.PathLike, allow_gaps: bool) -> Run:
+def _read_csv(path: str | os.PathLike, allow_gaps: bool, options: dict | None = None) -> Run:
     """Read a CSV run log (see module docstring for how places are named)."""
     name = str(path)
     lines = _decode_lines(_read_bytes(path), name)
     meta, key_lines, header_index = _parse_preamble(lines, name)
-    columns = _parse_header(lines[header_index], header_index + 1, name)
+    plan, has_gimbal, positions = _parse_header(lines[header_index], header_index + 1, name)
     rows, row_lines = _data_rows(lines, header_index + 1)
     if not rows:
         raise CalibError("the header row is not followed by any data rows",
@@ -469,22 +485,64 @@ def _read_csv(path: str | os.PathLike, allow_gaps: bool) -> Run:
                          "a run log needs one row per sample")
     n_fields = len(lines[header_index].split(","))
     _check_field_counts(rows, row_lines, n_fields, name)
-    wanted = [columns[c] for c in REQUIRED_COLUMNS]
-    has_gimbal = all(c in columns for c in GIMBAL_COLUMNS)
+    wanted = [plan.time, *plan.gyro.positions, *plan.accel.positions]
     if has_gimbal:
-        wanted += [columns[c] for c in GIMBAL_COLUMNS]
+        wanted += [positions[c] for c in GIMBAL_COLUMNS]
     all_names = [c.strip() for c in lines[header_index].split(",")]
     data = _parse_numbers(rows, row_lines, wanted, all_names, name)
-    run = Run(time_s=np.ascontiguousarray(data[:, 0]),
-              dtheta_rad=np.ascontiguousarray(data[:, 1:4]),
-              dv_mps=np.ascontiguousarray(data[:, 4:7]),
+    time_s = np.ascontiguousarray(data[:, 0])
+    _fill_meta(meta, options or {}, time_s, name, header_index + 1)
+    locate = _CsvLocator(name, key_lines, row_lines,
+                         {"dtheta_rad": plan.gyro.names, "dv_mps": plan.accel.names})
+    _check_meta(meta, locate)
+    dt = 1.0 / _meta_float(meta, "sample_rate_hz", name)
+    run = Run(time_s=time_s,
+              dtheta_rad=np.ascontiguousarray(to_increments(data[:, 1:4], plan.gyro, time_s, dt)),
+              dv_mps=np.ascontiguousarray(to_increments(data[:, 4:7], plan.accel, time_s, dt)),
               meta=meta,
               gimbal_deg=np.ascontiguousarray(data[:, 7:10]) if has_gimbal else None,
               source=name)
-    locate = _CsvLocator(name, key_lines, row_lines)
-    _check_meta(meta, locate)
     _check_samples(run, locate, allow_gaps)
     return run
+
+
+def _fill_meta(meta: dict[str, str], options: dict, time_s: np.ndarray, name: str,
+               header_line: int) -> None:
+    """Site keys from options; for a logger's file (no format line) also format and rate.
+
+    A file declaring ``imu-run/1`` keeps the contract of files.md: its sample rate
+    must be written in it. A logger's file gets the rate from the median time step
+    and a message listing every key still missing, with an example preamble.
+    """
+    for key, value in options.items():
+        if value is None:
+            continue
+        if key in meta:
+            try:
+                same = float(meta[key]) == float(value)
+            except ValueError:
+                same = False
+            if not same:
+                raise CalibError(f"the file says {key} = {meta[key]} but the option gives "
+                                 f"{value:g}", name, "drop the option, or correct the file")
+            continue
+        meta[key] = repr(float(value))
+    if "format" in meta:
+        return
+    meta["format"] = FORMAT
+    if "sample_rate_hz" not in meta and time_s.size >= 2:
+        step = float(np.median(np.diff(time_s)))
+        if step > 0:
+            # Printed time stamps carry rounding (0.01 is not exact): 9 digits of the rate.
+            meta["sample_rate_hz"] = repr(float(f"{1.0 / step:.9g}"))
+    missing = [k for k in REQUIRED_META[1:] if k not in meta]
+    if missing:
+        options_hint = {"latitude_deg": "--latitude DEG", "height_m": "--height M",
+                        "sample_rate_hz": "a time_s column that increases"}
+        raise CalibError(
+            "the file lacks " + ", ".join(f"'{k}'" for k in missing), f"{name}, line {header_line}",
+            "give " + ", ".join(options_hint[k] for k in missing) + ", or write them above the "
+            "header, e.g. '# latitude_deg: 51.08', '# height_m: 1100', '# sample_rate_hz: 100'")
 
 
 def _decode_lines(data: bytes, name: str) -> list[str]:
@@ -544,32 +602,25 @@ def _parse_preamble(lines: list[str], name: str) -> tuple[dict[str, str], dict[s
                      "add the header row: " + ",".join(REQUIRED_COLUMNS))
 
 
-def _parse_header(line: str, line_number: int, name: str) -> dict[str, int]:
-    """Map each column name to its position; refuse missing or duplicated needed columns."""
+def _parse_header(line: str, line_number: int,
+                  name: str) -> tuple[ColumnPlan, bool, dict[str, int]]:
+    """The columns of the header row (grammar of :mod:`calib.columns`) and the gimbal's."""
     names = [c.strip() for c in line.split(",")]
     where = f"{name}, line {line_number}"
+    plan = plan_columns(names, where)
     positions: dict[str, int] = {}
     for position, column in enumerate(names):
-        if column in positions and column in (*REQUIRED_COLUMNS, *GIMBAL_COLUMNS):
+        if column in positions and column in GIMBAL_COLUMNS:
             raise CalibError(f"column '{column}' appears twice in the header", where,
                              "keep one of the two columns")
         positions.setdefault(column, position)
-    missing = [c for c in REQUIRED_COLUMNS if c not in positions]
-    if missing:
-        lower = {c.lower(): c for c in names}
-        hints = [f"'{lower[c.lower()]}' should be '{c}'" for c in missing if c.lower() in lower]
-        hint = f"; column names are case-sensitive: {', '.join(hints)}" if hints else ""
-        raise CalibError(f"header row lacks column{'s' if len(missing) > 1 else ''} "
-                         f"{', '.join(repr(c) for c in missing)}{hint}", where,
-                         "the header row (first line not starting with '#') must name "
-                         "at least " + ",".join(REQUIRED_COLUMNS))
     gimbal = [c for c in GIMBAL_COLUMNS if c in positions]
     if gimbal and len(gimbal) < 3:
         absent = [c for c in GIMBAL_COLUMNS if c not in positions]
         raise CalibError(f"header row has gimbal column{'s' if len(gimbal) > 1 else ''} "
                          f"{', '.join(gimbal)} but lacks {', '.join(absent)}", where,
                          "give all three of " + ",".join(GIMBAL_COLUMNS) + " or none")
-    return positions
+    return plan, bool(gimbal), positions
 
 
 def _data_rows(lines: list[str], first: int) -> tuple[list[str], np.ndarray]:

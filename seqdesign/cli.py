@@ -390,6 +390,7 @@ def _design_path(budget_min: float, output: str | None, pareto: bool) -> str:
 from seqdesign.cli_view import view  # noqa: E402  (its own module; registered here)
 
 main.add_command(view)
+main.add_command(__import__("seqdesign.cli_profile", fromlist=["profile"]).profile)
 
 
 if __name__ == "__main__":
