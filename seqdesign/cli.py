@@ -387,10 +387,12 @@ def _design_path(budget_min: float, output: str | None, pareto: bool) -> str:
     return output or default
 
 
-from seqdesign.cli_view import view  # noqa: E402  (its own module; registered here)
+# Commands living in their own modules, registered here (before ``__main__`` runs them).
+from seqdesign.cli_profile import profile  # noqa: E402
+from seqdesign.cli_view import view  # noqa: E402
 
 main.add_command(view)
-main.add_command(__import__("seqdesign.cli_profile", fromlist=["profile"]).profile)
+main.add_command(profile)
 
 
 if __name__ == "__main__":
