@@ -21,6 +21,7 @@ from .errors import CalibError
 from .estimator import Fit, calibrate, check_sequence_matches, detect_motion, sequence_motion
 from .extras import NONE as NO_EXTRAS, Extras, parse_groups
 from .profiles import NoiseProfile, load_profile
+from .requirements import PAPER, Requirements, load_requirements
 from .result import CalibrationResult
 from .strapdown import sample_intervals
 
@@ -74,7 +75,7 @@ def as_extras(extras: Extras | str | None) -> Extras:
 
 def calibrate_run(run, profile: NoiseProfile | str = "navigation", *, sequence=None,
                   extras: Extras | str | None = None, partial: bool = False,
-                  require_convergence: bool = True,
+                  require_convergence: bool = True, requirements=None,
                   provenance: dict | None = None) -> CalibrationResult:
     """Fit the 21 parameters (and any optional terms) of a run log.
 
@@ -94,6 +95,8 @@ def calibrate_run(run, profile: NoiseProfile | str = "navigation", *, sequence=N
         reporting the rest as not estimable, instead of refusing it.
     require_convergence : bool
         Refuse a fit that did not converge (the CLI writes no result then).
+    requirements : Requirements or str, optional
+        What the ratios are judged against (default: the paper's).
     provenance : dict, optional
         Stored in the result as it is.
 
@@ -104,6 +107,7 @@ def calibrate_run(run, profile: NoiseProfile | str = "navigation", *, sequence=N
         gravity and the fit's health.
     """
     prof, extras = as_profile(profile), as_extras(extras)
+    req = load_requirements(requirements)
     lat = math.radians(run.latitude_deg)
     gravity = site_gravity(run)
     moving = None
@@ -113,16 +117,17 @@ def calibrate_run(run, profile: NoiseProfile | str = "navigation", *, sequence=N
         check_sequence_matches(sequence, detect_motion(run.dtheta_rad, dt, run.source).moving,
                                moving, dt, run.source)
     fit = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, lat, gravity.value_mps2, prof,
-                    moving=moving, where=run.source, extras=extras, partial=partial)
+                    moving=moving, where=run.source, extras=extras, partial=partial,
+                    requirements=req)
     if require_convergence and not fit.converged:
         raise CalibError(f"the fit did not converge in {fit.iterations} iterations (last step "
                          f"{fit.history[-1]['max_step_sigma']:.3g} sigma)", run.source,
                          "no result written; check the run and the noise profile")
-    return result_from_fit(fit, prof, gravity, provenance or {})
+    return result_from_fit(fit, prof, gravity, provenance or {}, req)
 
 
 def result_from_fit(fit: Fit, profile: NoiseProfile, gravity: SiteGravity,
-                    provenance: dict) -> CalibrationResult:
+                    provenance: dict, requirements: Requirements = PAPER) -> CalibrationResult:
     """The result a user sees: sigmas Birge-checked, the 21's correlation, what is estimable."""
     scale = math.sqrt(fit.chi2_per_dof) if fit.chi2_per_dof > BIRGE_LIMIT else 1.0
     estimable = fit.estimable if fit.estimable is not None else np.ones(
@@ -136,4 +141,5 @@ def result_from_fit(fit: Fit, profile: NoiseProfile, gravity: SiteGravity,
         extra_sigma=fit.extra_sigma * scale, sigma_scale=scale,
         not_estimable=tuple(n for n, e in zip(names, estimable) if not e),
         null_directions=tuple(fit.null_directions), n_observations=fit.n_observations,
-        gravity_mps2=gravity.value_mps2, gravity_source=gravity.source)
+        gravity_mps2=gravity.value_mps2, gravity_source=gravity.source,
+        requirements=requirements)

@@ -28,6 +28,7 @@ from .information import UNKNOWN_NAMES, eliminate, scaled_inverse
 from .jacobian import N_UNKNOWN, PHI0, default_grid, observation_jacobian, state_matrix
 from .noise import noise_model, whiten
 from .profiles import NoiseProfile
+from .requirements import PAPER, Requirements
 from .strapdown import navigate, sample_intervals
 from .transform import rotvec_to_dcm
 
@@ -133,16 +134,16 @@ def _param_index(n_total: int) -> np.ndarray:
     return np.r_[0:P.N_PARAMS, N_UNKNOWN:n_total]
 
 
-def _scale(extras: Extras = X.NONE) -> np.ndarray:
-    return np.concatenate([P.REQUIREMENTS_SI, np.full(3, PHI0_SCALE), extras.scale_si])
+def _scale(extras: Extras = X.NONE, requirements: Requirements = PAPER) -> np.ndarray:
+    return np.concatenate([requirements.si, np.full(3, PHI0_SCALE), extras.scale_si])
 
 
-def scaled_design(Hw: np.ndarray, extras: Extras = X.NONE):
+def scaled_design(Hw: np.ndarray, extras: Extras = X.NONE, requirements: Requirements = PAPER):
     """Whitened observation matrix with columns in units of the requirements, and the scale.
 
     The optional terms are scaled by their typical size (:mod:`calib.extras`).
     """
-    D = _scale(extras)
+    D = _scale(extras, requirements)
     return Hw.reshape(-1, Hw.shape[-1]) * D, D
 
 
@@ -253,7 +254,8 @@ class _Problem:
 def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitude_rad: float,
               gravity_mps2: float, profile: NoiseProfile, moving: np.ndarray | None = None,
               max_iterations: int = 12, tol_sigma: float = 1e-3, where: str = "run",
-              extras: Extras = X.NONE, partial: bool = False) -> Fit:
+              extras: Extras = X.NONE, partial: bool = False,
+              requirements: Requirements = PAPER) -> Fit:
     """Identify the 21 parameters, the initial attitude and any optional terms from raw increments.
 
     Parameters
@@ -279,6 +281,9 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
     partial : bool
         Fit the estimable part of a run that leaves directions unobserved
         instead of refusing it (:func:`solve_information`).
+    requirements : Requirements
+        Scale the unknowns, and so decide what counts as observed
+        (:mod:`calib.information`).
 
     Returns
     -------
@@ -312,7 +317,7 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
             # The Jacobian changes little once the big errors are compensated.
             H = observation_jacobian(nav.C_b_n, dth, dvv, nav.time_s, grid, latitude_rad,
                                      gravity_mps2, noise.Phi_vv, extras)
-            Hs, D = scaled_design(whiten(noise.whitener, H), extras)
+            Hs, D = scaled_design(whiten(noise.whitener, H), extras, requirements)
             sol = solve_information(Hs.T @ Hs, where, names, partial)
             cov = sol.covariance * np.outer(D, D)
         zw = whiten(noise.whitener, z[:, :, None]).reshape(-1)

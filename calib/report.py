@@ -4,17 +4,19 @@ from __future__ import annotations
 import numpy as np
 
 from . import params as P
+from .requirements import PAPER, Requirements
 
 
 def parameter_entries(sigma_si: np.ndarray, values_si: np.ndarray | None = None,
-                      truth_si: np.ndarray | None = None) -> dict[str, dict]:
+                      truth_si: np.ndarray | None = None,
+                      requirements: Requirements = PAPER) -> dict[str, dict]:
     """``files.md`` JSON entries keyed by spec name, in spec units."""
     sig = P.from_si(sigma_si)
-    ratios = P.ratio(sigma_si)
+    ratios = requirements.ratio(sigma_si)
     out = {}
     for p in P.PARAMETERS:
         e = {"sigma": float(sig[p.index]), "ratio": float(ratios[p.index]),
-             "requirement": p.requirement, "unit": p.unit}
+             "requirement": requirements.values[p.index], "unit": p.unit}
         if values_si is not None:
             e["value"] = float(P.from_si(values_si)[p.index])
         if truth_si is not None:

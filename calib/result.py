@@ -19,6 +19,7 @@ from .extras import NONE as NO_EXTRAS, Extras, parse_groups
 from .fields import FORMAT_VERSION, Fields, check_format_version
 from .fileio import load_toml, toml_number
 from .report import extra_entries, format_table, parameter_entries, worst
+from .requirements import PAPER, Requirements, requirements_from_dict
 
 @dataclass(frozen=True)
 class CalibrationResult:
@@ -64,6 +65,8 @@ class CalibrationResult:
         The gravity the fit assumed (nan: not recorded).
     gravity_source : str
         ``measured`` (the log's) or ``normal`` (WGS-84 model); empty if unknown.
+    requirements : Requirements
+        What the ratios are judged against.
     """
 
     values: np.ndarray
@@ -85,6 +88,7 @@ class CalibrationResult:
     n_observations: int = 0
     gravity_mps2: float = float("nan")
     gravity_source: str = ""
+    requirements: Requirements = PAPER
 
     @property
     def error_model(self) -> ErrorModel:
@@ -121,7 +125,8 @@ class CalibrationResult:
     def entries(self, truth=None) -> dict[str, dict]:
         """Per-parameter report entries (spec names and units), extras after the 21."""
         out = parameter_entries(self.sigma, self.values,
-                                truth.errors.values if truth is not None else None)
+                                truth.errors.values if truth is not None else None,
+                                self.requirements)
         for name in self.not_estimable:
             if name in out:
                 out[name]["estimable"] = False
@@ -142,7 +147,7 @@ class CalibrationResult:
             out.append("not estimable (the run does not separate them): "
                        + ", ".join(self.not_estimable) + "; unobserved combinations: "
                        + "; ".join(self.null_directions))
-        req = min(p.requirement for p in P.PARAMETERS[P.ACCEL_SCALE])
+        req = min(self.requirements.values[P.ACCEL_SCALE])
         if self.gravity_source == "normal" and req <= 5 * self.ppm_per_mgal:
             out.append(f"accelerometer scale factors rest on modelled normal gravity: each mGal "
                        f"of local anomaly is {self.ppm_per_mgal:.2f} ppm on sax, say and saz "
@@ -153,6 +158,7 @@ class CalibrationResult:
         """The ``calibrate --json`` document (``files.md``), with truth comparisons if given."""
         entries = self.entries(truth)
         doc = {"parameters": entries, "worst": worst(entries), "profile": self.profile,
+               "requirements": self.requirements.name,
                "fit": {"converged": self.converged, "iterations": self.iterations,
                        "residual_rms_mps": self.residual_rms_mps,
                        "chi2_per_dof": self.chi2_per_dof, "sigma_scale": self.sigma_scale,
@@ -171,7 +177,7 @@ class CalibrationResult:
         entries = self.entries(truth)
         w = worst(entries)
         lines = [format_table(entries),
-                 f"profile {self.profile}; {'converged' if self.converged else 'NOT converged'} "
+                 f"profile {self.profile}; requirements {self.requirements.name}; {'converged' if self.converged else 'NOT converged'} "
                  f"in {self.iterations} iterations; residual RMS {self.residual_rms_mps:.3g} m/s; "
                  f"chi2/dof {self.chi2_per_dof:.3f}; worst 3 sigma/requirement "
                  f"{w['ratio']:.2f} ({w['name']})"]
@@ -208,6 +214,9 @@ class CalibrationResult:
         doc = {"format_version": FORMAT_VERSION, "parameters": params,
                "initial_attitude": {"C_b_n": [[float(x) for x in row] for row in self.C_b_n0]},
                "fit": fit}
+        if not self.requirements.is_paper:
+            fit["requirements"] = self.requirements.name
+            doc["requirements"] = {p.name: self.requirements.values[p.index] for p in P.PARAMETERS}
         if self.correlation is not None:
             corr = np.where(np.isfinite(self.correlation), self.correlation, 0.0)
             doc["correlation"] = {"names": list(P.NAMES),
@@ -260,7 +269,16 @@ class CalibrationResult:
                    not_estimable=tuple(not_est + x_not),
                    null_directions=tuple(_strings(fit, "unobserved_directions")),
                    gravity_mps2=fit.number("gravity_mps2", float("nan"), low=9.7, high=9.9),
-                   gravity_source=fit.string("gravity_source", ""))
+                   gravity_source=fit.string("gravity_source", ""),
+                   requirements=_read_requirements(doc, fit, where))
+
+
+def _read_requirements(doc: dict, fit: Fields, where: str) -> Requirements:
+    """The requirements a result was judged against (the paper's when it names none)."""
+    if "requirements" not in doc:
+        return PAPER
+    named = {"name": fit.string("requirements", "custom"), "requirements": doc["requirements"]}
+    return requirements_from_dict(named, where)
 
 
 def _kind_hint(doc: dict) -> str:

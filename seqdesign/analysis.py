@@ -21,6 +21,7 @@ from calib.errors import CalibError
 from calib.extras import Extras
 from calib.profiles import NoiseProfile
 from calib.report import format_table, parameter_entries, worst
+from calib.requirements import PAPER, Requirements, load_requirements
 from calib.sequence import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, Sequence, load_sequence
 
 from .observability import ExtrasCost, Robustness, accel_scale_bound, analyze_extras, \
@@ -50,6 +51,7 @@ class Analysis:
     robustness: Robustness
     bound: float
     extras_cost: ExtrasCost | None = None
+    requirements: Requirements = PAPER
 
     @property
     def estimable(self) -> np.ndarray:
@@ -58,7 +60,7 @@ class Analysis:
     def entries(self) -> dict[str, dict]:
         """Per-parameter entries: sigma and ratio worst over the box, estimability."""
         rob = self.robustness
-        entries = parameter_entries(rob.per_parameter_worst_sigma)
+        entries = parameter_entries(rob.per_parameter_worst_sigma, requirements=self.requirements)
         takes_part = involvement(rob.nominal.null_basis)
         for p in P.PARAMETERS:
             e = entries[p.name]
@@ -76,6 +78,7 @@ class Analysis:
         entries = self.entries()
         ratios = [entries[n]["ratio"] for n in ("sax", "say", "saz")]
         doc = {"sequence": seq.name, "duration_s": seq.duration_s, "profile": self.profile.name,
+               "requirements": self.requirements.name,
                "latitude_deg": self.latitude_deg, "tolerance_deg": rob.tolerance_deg,
                "setups_evaluated": rob.points, "ipopt_search": rob.searched,
                "parameters": entries, "worst": worst(entries),
@@ -85,13 +88,13 @@ class Analysis:
                "not_estimable": [n for n in P.NAMES if not entries[n]["estimable"]],
                "unobservable": rob.nominal.unobservable,
                "separable_combinations": separable_combinations(
-                   rob.nominal.null_basis, self.estimable),
+                   rob.nominal.null_basis, self.estimable, scales=self.requirements.values),
                "correlated_pairs": [{"a": a, "b": b, "rho": r} for a, b, r in w.correlated_pairs()],
                "criteria": w.criteria(),
                "accel_scale_bound": {"best_possible_ratio": self.bound,
                                      "achieved_ratio": float(max(ratios))}}
         if self.extras_cost is not None:
-            doc["extras"] = _extras_doc(self.extras_cost)
+            doc["extras"] = _extras_doc(self.extras_cost, self.requirements)
         return doc
 
     def to_text(self) -> str:
@@ -99,7 +102,7 @@ class Analysis:
         rob, seq = self.robustness, self.sequence
         doc = self.to_json()
         lines = [f"{seq.name}: {seq.duration_s:.0f} s ({seq.duration_s / 60:.1f} min), profile "
-                 f"{self.profile.name}, latitude {self.latitude_deg:g} deg, worst case over "
+                 f"{self.profile.name}, requirements {self.requirements.name}, latitude {self.latitude_deg:g} deg, worst case over "
                  f"+-{rob.tolerance_deg:g} deg ({rob.points} mountings"
                  f"{' + IPOPT search' if rob.searched else ''})",
                  format_table(doc["parameters"])] + _verdict(doc)
@@ -110,7 +113,8 @@ class Analysis:
 
 def analyze(sequence: Sequence | str, profile: NoiseProfile | str = "navigation", *,
             latitude_deg: float | None = None, height_m: float | None = None,
-            tolerance_deg: float = 3.0, extras: Extras | str | None = None) -> Analysis:
+            tolerance_deg: float = 3.0, extras: Extras | str | None = None,
+            requirements: Requirements | str | None = None) -> Analysis:
     """Predict how well a sequence calibrates the 21 parameters.
 
     Parameters
@@ -125,6 +129,8 @@ def analyze(sequence: Sequence | str, profile: NoiseProfile | str = "navigation"
         Half-width of the mounting box; figures are the worst over it.
     extras : Extras or str, optional
         Also report what fitting these optional terms costs.
+    requirements : Requirements or str, optional
+        What the ratios are judged against (default: the paper's).
 
     Returns
     -------
@@ -132,14 +138,16 @@ def analyze(sequence: Sequence | str, profile: NoiseProfile | str = "navigation"
     """
     seq = sequence if isinstance(sequence, Sequence) else load_sequence(sequence)
     prof, extras = as_profile(profile), as_extras(extras)
+    req = load_requirements(requirements)
     if not 0.0 <= tolerance_deg <= 10.0:
         raise CalibError(f"tolerance {tolerance_deg} deg outside [0, 10]", "tolerance_deg")
     lat, h = resolve_site(seq, latitude_deg, height_m)
     lat_rad = math.radians(lat)
-    rob = analyze_tolerance(seq, prof, lat_rad, h, tolerance_deg)
-    bound = accel_scale_bound(seq.duration_s, prof, earth.gravity(lat_rad, h))
-    cost = analyze_extras(seq, prof, lat_rad, extras, h, tolerance_deg) if extras.n else None
-    return Analysis(seq, prof, lat, h, rob, bound, cost)
+    rob = analyze_tolerance(seq, prof, lat_rad, h, tolerance_deg, requirements=req)
+    bound = accel_scale_bound(seq.duration_s, prof, earth.gravity(lat_rad, h), req)
+    cost = (analyze_extras(seq, prof, lat_rad, extras, h, tolerance_deg, req) if extras.n
+            else None)
+    return Analysis(seq, prof, lat, h, rob, bound, cost, req)
 
 
 def compare_text(analyses: list[Analysis]) -> str:
@@ -156,7 +164,8 @@ def compare_text(analyses: list[Analysis]) -> str:
             f"{e['ratio']:>{width}.2f}" if e["estimable"] else f"{'n/e':>{width}}" for e in cells))
     a = analyses[0]
     lines.append(f"ratios are 3 sigma / requirement, worst over +-{a.robustness.tolerance_deg:g} "
-                 f"deg, profile {a.profile.name}; n/e: not estimable on its own")
+                 f"deg, profile {a.profile.name}, requirements {a.requirements.name}; n/e: not "
+                 "estimable on its own")
     return "\n".join(lines)
 
 
@@ -206,9 +215,9 @@ def _verdict_line(doc: dict) -> str:
             f"requirement (3 sigma), under profile {doc['profile']}, {where}.")
 
 
-def _extras_doc(cost: ExtrasCost) -> dict:
+def _extras_doc(cost: ExtrasCost, requirements: Requirements) -> dict:
     """``analyze --with``: the cost of the optional terms to each of the 21, and their sigma."""
-    r0, r1 = P.ratio(cost.sigma_without), P.ratio(cost.sigma_with)
+    r0, r1 = requirements.ratio(cost.sigma_without), requirements.ratio(cost.sigma_with)
     params = {p.name: {"unit": p.unit,
                        "sigma_without": float(cost.sigma_without[p.index] / p.si_per_unit),
                        "sigma_with": float(cost.sigma_with[p.index] / p.si_per_unit),

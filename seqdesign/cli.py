@@ -183,13 +183,16 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
 @click.option("--with", "with_terms", metavar="TERMS",
               help="Also fit a real unit's terms beyond the 21: any of lever-arm, k2, "
                    "time-offset (comma-separated), or all.")
+@click.option("--requirements", "requirements", default=None, metavar="FILE|NAME",
+              help="Accuracy requirements: a TOML file with a [requirements] table (spec names and "
+                   "units; missing ones keep the paper's) or paper, tactical, mems.")
 @click.option("--partial", is_flag=True,
               help="On a run that leaves directions unobserved, fit the estimable parameters and "
                    "report the rest as not estimable instead of refusing the run.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 @guarded
-def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, with_terms, partial,
-              as_json):
+def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, with_terms, requirements,
+              partial, as_json):
     """Align, navigate on the stationary base and fit the 21 error parameters of
     RUN (CSV or NPZ) by iterated, noise-weighted least squares."""
     from calib.calibration import as_extras, as_profile, calibrate_run
@@ -208,9 +211,12 @@ def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, with_
     info(f"calibrating {run_path}: {run.n_samples} samples, {run.duration_s:.1f} s, "
          f"profile {prof.name}")
     result = calibrate_run(run, prof, sequence=seq, extras=extras, partial=partial,
+                           requirements=requirements,
                            provenance=provenance(
                                {"run": run_path, "sequence": sequence, "truth": truth_path,
-                                "profile": profile if Path(profile).exists() else None},
+                                "profile": profile if Path(profile).exists() else None,
+                                "requirements": requirements if requirements and
+                                Path(requirements).exists() else None},
                                sequence=sequence, profile=prof.name))
     result.save(out_path)
     for warning in result.warnings():
@@ -234,6 +240,9 @@ TOLERANCE = click.FloatRange(0.0, 10.0)
 @click.option("--latitude", type=float, help="Site latitude, deg (default: sequence, else 40).")
 @click.option("--tolerance-deg", type=TOLERANCE, default=3.0, show_default=True,
               help="Base mounting tolerance; the figures are the worst over the box (0: nominal only).")
+@click.option("--requirements", "requirements", default=None, metavar="FILE|NAME",
+              help="Accuracy requirements: a TOML file with a [requirements] table (spec names and "
+                   "units; missing ones keep the paper's) or paper, tactical, mems.")
 @click.option("--view", "view_path", is_flag=False, flag_value="", default=None, metavar="[FILE.rrd]",
               help="Also write a rerun recording (default: <sequence>-analysis.rrd).")
 @click.option("--with", "with_terms", metavar="TERMS",
@@ -242,7 +251,7 @@ TOLERANCE = click.FloatRange(0.0, 10.0)
                    "and whether the sequence observes them.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 @guarded
-def analyze(sequence, profile, latitude, tolerance_deg, view_path, with_terms, as_json):
+def analyze(sequence, profile, latitude, tolerance_deg, requirements, view_path, with_terms, as_json):
     """Fisher information of SEQUENCE under a noise profile: predicted sigma of
     each parameter against its requirement (3 sigma / requirement), which
     parameters are estimable, correlated pairs, unobservable directions,
@@ -252,7 +261,7 @@ def analyze(sequence, profile, latitude, tolerance_deg, view_path, with_terms, a
     if view_path and Path(view_path).suffix != ".rrd":
         raise CalibError(f"recording {view_path!r} must end in .rrd", "--view")
     result = run_analysis(sequence, profile, latitude_deg=latitude, tolerance_deg=tolerance_deg,
-                          extras=with_terms)
+                          extras=with_terms, requirements=requirements)
     doc = result.to_json()
     if view_path is not None:
         from viz.record import record_analysis
@@ -271,16 +280,21 @@ def analyze(sequence, profile, latitude, tolerance_deg, view_path, with_terms, a
 @click.option("--profile", default="navigation", show_default=True, help="Noise profile.")
 @click.option("--latitude", type=float, help="Site latitude, deg (default: each sequence's, else 40).")
 @click.option("--tolerance-deg", type=TOLERANCE, default=3.0, show_default=True)
+@click.option("--requirements", "requirements", default=None, metavar="FILE|NAME",
+              help="Accuracy requirements: a TOML file with a [requirements] table (spec names and "
+                   "units; missing ones keep the paper's) or paper, tactical, mems.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 @guarded
-def compare(sequences, profile, latitude, tolerance_deg, as_json):
+def compare(sequences, profile, latitude, tolerance_deg, requirements, as_json):
     """Analyse several sequences and print their 3 sigma / requirement ratios side by side."""
     from calib.calibration import as_profile
+    from calib.requirements import load_requirements
     from seqdesign.analysis import analyze as run_analysis, compare_text
 
     prof = as_profile(profile)
-    analyses = [run_analysis(s, prof, latitude_deg=latitude, tolerance_deg=tolerance_deg)
-                for s in sequences]
+    req = load_requirements(requirements)
+    analyses = [run_analysis(s, prof, latitude_deg=latitude, tolerance_deg=tolerance_deg,
+                             requirements=req) for s in sequences]
     if as_json:
         emit_json({"sequences": [a.to_json() for a in analyses]})
         return
@@ -310,6 +324,9 @@ def compare(sequences, profile, latitude, tolerance_deg, as_json):
 @click.option("--latitude", type=click.FloatRange(-89.0, 89.0), default=40.0, show_default=True,
               help="Site latitude, deg.")
 @click.option("--tolerance-deg", type=TOLERANCE, default=3.0, show_default=True)
+@click.option("--requirements", "requirements", default=None, metavar="FILE|NAME",
+              help="Accuracy requirements: a TOML file with a [requirements] table (spec names and "
+                   "units; missing ones keep the paper's) or paper, tactical, mems.")
 @click.option("--beam-width", type=click.IntRange(min=1), default=200, show_default=True)
 @click.option("--no-refine", is_flag=True, help="Keep uniform dwells (skip the IPOPT refinement).")
 @click.option("-o", "--output", help="Sequence file to write (default: designed-<budget>min.toml).")
@@ -322,8 +339,8 @@ def compare(sequences, profile, latitude, tolerance_deg, as_json):
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 @guarded
 def design(budget_min, max_flips, max_quarters, start, end, axes, rate_dps, min_dwell_s,
-           max_dwell_s, objective, profile, latitude, tolerance_deg, beam_width, no_refine, output,
-           pareto, budgets, workers, scheduler, as_json):
+           max_dwell_s, objective, profile, latitude, tolerance_deg, requirements, beam_width,
+           no_refine, output, pareto, budgets, workers, scheduler, as_json):
     """Search flip walks on the graph of the 24 grid attitudes (beam search with
     incremental information), re-score the finalists exactly at the worst
     case of the mounting tolerance, refine the best's dwells with IPOPT, and
@@ -358,7 +375,8 @@ def design(budget_min, max_flips, max_quarters, start, end, axes, rate_dps, min_
         report = design_budgets(sweep, constraints, profile, latitude_deg=latitude,
                                 objective=objective, tolerance_deg=tolerance_deg,
                                 beam_width=beam_width, refine=not no_refine, workers=workers,
-                                scheduler=scheduler, progress=progress)
+                                scheduler=scheduler, progress=progress,
+                                requirements=requirements)
     finally:
         for bar in bars.values():
             bar.__exit__(None, None, None)

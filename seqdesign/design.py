@@ -33,6 +33,7 @@ from calib.jacobian import (N_UNKNOWN, ObservationGrid, moment_inputs, observati
                             propagate, state_matrix, trajectory_moments)
 from calib.noise import interval_models, noise_model, whiten, whitener
 from calib.profiles import NoiseProfile
+from calib.requirements import PAPER, Requirements
 from calib.sequence import Sequence, Step, Timeline, nominal_attitude
 from calib.sim import body_integrals
 from calib.transform import AXES
@@ -117,23 +118,24 @@ def rest_steady_state(latitude_rad: float, gravity_mps2: float, profile: NoisePr
 # Objectives on information matrices (batched)
 
 
-def scaled_marginal(N: np.ndarray, prior: bool) -> np.ndarray:
+def scaled_marginal(N: np.ndarray, prior: bool, requirements: Requirements = PAPER) -> np.ndarray:
     """Requirement-scaled information of the 21 after eliminating phi0: ``(..., 21, 21)``."""
     M = marginal(N)
-    D = P.REQUIREMENTS_SI
+    D = requirements.si
     M = M * np.outer(D, D)
     if prior:
         M = M + np.eye(P.N_PARAMS) * (9.0 / PRIOR_RATIO ** 2)
     return M
 
 
-def score(N: np.ndarray, objective: str, prior: bool = True) -> np.ndarray:
+def score(N: np.ndarray, objective: str, prior: bool = True,
+          requirements: Requirements = PAPER) -> np.ndarray:
     """Figure of merit, smaller is better, for ``(..., 24, 24)`` information matrices.
 
     ``worst``: max 3 sigma / requirement; ``A``: sum of (sigma/requirement)^2;
     ``D``: -log det of the scaled information; ``E``: -smallest eigenvalue.
     """
-    M = scaled_marginal(N, prior)
+    M = scaled_marginal(N, prior, requirements)
     M = 0.5 * (M + np.swapaxes(M, -1, -2))
     if objective in ("worst", "A"):
         # With the prior, partial walks must stay rankable and the prior keeps M invertible:
@@ -192,10 +194,11 @@ class SearchModel:
     initial: SegmentEffect
     rest: dict
     turn: dict = field(default_factory=dict)
+    requirements: Requirements = PAPER
 
     @classmethod
     def build(cls, c: Constraints, dwell_s: float, latitude_rad: float, height_m: float,
-              profile: NoiseProfile) -> "SearchModel":
+              profile: NoiseProfile, requirements: Requirements = PAPER) -> "SearchModel":
         g = earth.gravity(latitude_rad, height_m)
         graph = flip_graph(c.start, c.axes)
         P_ss = rest_steady_state(latitude_rad, g, profile, dwell_s)
@@ -204,7 +207,7 @@ class SearchModel:
         initial = segment_effect(attitude_of(c.start), dwell_s, 0.0, -1, latitude_rad, g, profile,
                                  None, SEARCH_REST_INTERVALS, initial=True)
         model = cls(c, dwell_s, latitude_rad, g, profile, graph,
-                    all_moves(c.axes, c.max_quarters), initial, rest)
+                    all_moves(c.axes, c.max_quarters), initial, rest, requirements=requirements)
         rate = math.radians(c.rate_dps)
         for node in graph.nodes:
             C = attitude_of(node)
@@ -251,7 +254,7 @@ class SearchModel:
             XM2 = np.swapaxes(X, 1, 2) @ M2
             N = N + np.swapaxes(X, 1, 2) @ M1 @ X + XM2 + np.swapaxes(XM2, 1, 2) + M3
             X = A @ X + B
-        s = score(N, objective, prior)
+        s = score(N, objective, prior, self.requirements)
         for k, x, n, v in zip(kids, X, N, s):
             k.X, k.N, k.score = x, n, float(v)
         return kids
@@ -352,7 +355,8 @@ def _turn_effect(node, mv, rate_dps, latitude_rad, gravity_mps2, profile, P_byte
 
 
 def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, height_m: float,
-                  profile: NoiseProfile, objective: str = "worst") -> tuple[list[float], float, float]:
+                  profile: NoiseProfile, objective: str = "worst",
+                  requirements: Requirements = PAPER) -> tuple[list[float], float, float]:
     """Optimise the dwells of a walk under the time budget (IPOPT).
 
     Minimises ``t`` subject to ``ratio_i(dwells) <= t`` for all 21 (the
@@ -373,7 +377,7 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
 
     def ratios(dw):
         N = walk_information(walk, c, list(dw), latitude_rad, g, profile, P_ss)
-        return 3.0 * np.sqrt(inverse_diagonal(scaled_marginal(N, prior=False)))
+        return 3.0 * np.sqrt(inverse_diagonal(scaled_marginal(N, False, requirements)))
 
     class _Ratios(ca.Callback):
         def __init__(self):
@@ -472,10 +476,10 @@ class DesignResult:
 
 
 def _search_at_dwell(args):
-    c, dwell, latitude_rad, height_m, profile, objective, beam_width, keep = args
+    c, dwell, latitude_rad, height_m, profile, objective, beam_width, keep, requirements = args
     import time as _time
     t = _time.perf_counter()
-    model = SearchModel.build(c, dwell, latitude_rad, height_m, profile)
+    model = SearchModel.build(c, dwell, latitude_rad, height_m, profile, requirements)
     finals, n = beam_search(model, objective, beam_width, keep)
     return dwell, [(f.walk, f.score) for f in finals], n, _time.perf_counter() - t
 
@@ -513,9 +517,11 @@ def map_jobs(fn, jobs, workers: int = 1, scheduler: str | None = None):
     return [fn(j) for j in jobs]
 
 
-def _exact_worst(seq: Sequence, profile, latitude_rad, height_m, tolerance_deg, search):
+def _exact_worst(seq: Sequence, profile, latitude_rad, height_m, tolerance_deg, search,
+                 requirements: Requirements = PAPER):
     from .observability import analyze_tolerance
-    rob = analyze_tolerance(seq, profile, latitude_rad, height_m, tolerance_deg, search=search)
+    rob = analyze_tolerance(seq, profile, latitude_rad, height_m, tolerance_deg, search=search,
+                            requirements=requirements)
     r = rob.per_parameter_worst_ratio
     i = int(np.argmax(r))
     return float(r[i]), P.NAMES[i], rob
@@ -524,7 +530,7 @@ def _exact_worst(seq: Sequence, profile, latitude_rad, height_m, tolerance_deg, 
 def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m: float = 0.0,
            objective: str = "worst", tolerance_deg: float = 3.0, beam_width: int = 200,
            keep: int = 4, refine: bool = True, name: str = "designed", workers: int = 1,
-           scheduler=None, progress=None) -> DesignResult:
+           scheduler=None, progress=None, requirements: Requirements = PAPER) -> DesignResult:
     """Search walks, re-score finalists exactly over the tolerance box, refine the best's dwells.
 
     ``progress(message, steps)`` is told each stage as it ends; there are
@@ -542,7 +548,7 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
         raise CalibError(f"unknown objective {objective!r}", "--objective", "use worst, D, A or E")
     t0 = _time.perf_counter()
     site = (math.degrees(latitude_rad), height_m)  # written into the sequence: analyse it there
-    jobs = [(c, d, latitude_rad, height_m, profile, objective, beam_width, keep)
+    jobs = [(c, d, latitude_rad, height_m, profile, objective, beam_width, keep, requirements)
             for d in search_dwells(c)]
     results = map_jobs(_search_at_dwell, jobs, workers, scheduler)
     evaluated = sum(r[2] for r in results)
@@ -558,7 +564,7 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
             seen.add((walk, dwell))
             seq = to_sequence(walk, c, [dwell] * (len(walk) + 1), name, None, *site)
             worst, wname, rob = _exact_worst(seq, profile, latitude_rad, height_m, tolerance_deg,
-                                             search=False)
+                                             False, requirements)
             finalists.append((worst, " ".join(m.label() for m in walk), dwell, walk, wname, rob))
             if progress:
                 progress(f"finalist {len(finalists)}: worst ratio {worst:.3f}", 1)
@@ -573,18 +579,18 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
         if progress:
             progress(f"refining the dwells of {label} with IPOPT", 0)
         new_dwells, _, _ = refine_dwells(walk, c, dwell, latitude_rad, height_m, profile,
-                                         objective)
+                                         objective, requirements)
         if new_dwells != dwells:
             seq = to_sequence(walk, c, new_dwells, name, None, *site)
             w2, n2, rob2 = _exact_worst(seq, profile, latitude_rad, height_m, tolerance_deg,
-                                        search=False)
+                                        False, requirements)
             if w2 < worst:
                 worst, wname, rob, dwells = w2, n2, rob2, new_dwells
     seq = to_sequence(walk, c, dwells, name, None, *site)
     if progress:
         progress("refined" if refine else "kept uniform dwells", 1)
     worst, wname, rob = _exact_worst(seq, profile, latitude_rad, height_m, tolerance_deg,
-                                     search=True)
+                                     True, requirements)
     if progress:
         progress(f"worst case over +-{tolerance_deg:g} deg: {worst:.3f} ({wname})", 1)
     return DesignResult(sequence=seq, worst_ratio=worst, worst_name=wname,

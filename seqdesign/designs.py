@@ -15,6 +15,7 @@ from calib import earth
 from calib.calibration import as_profile
 from calib.fileio import atomic_write_text
 from calib.profiles import NoiseProfile
+from calib.requirements import PAPER, Requirements, load_requirements
 from calib.sequence import load_sequence, save_sequence
 
 from .design import Constraints, DesignResult, check_constraints, design
@@ -41,10 +42,12 @@ class DesignReport:
     latitude_deg: float
     paper_duration_s: float
     paper_worst_ratio: float
+    requirements: Requirements = PAPER
 
     def to_json(self) -> dict:
         """The ``design --json`` document."""
-        return {"profile": self.profile.name, "objective": self.objective,
+        return {"profile": self.profile.name, "requirements": self.requirements.name,
+                "objective": self.objective,
                 "tolerance_deg": self.tolerance_deg,
                 "designs": [_row_doc(r) for r in self.rows],
                 "paper_9pos": {"duration_s": self.paper_duration_s,
@@ -68,7 +71,8 @@ class DesignReport:
         """Write one design as a sequence file whose provenance says how it was found."""
         r = row.result
         prov = dict(provenance) | {
-            "objective": self.objective, "profile": self.profile.name, "score": r.worst_ratio,
+            "objective": self.objective, "profile": self.profile.name,
+            "requirements": self.requirements.name, "score": r.worst_ratio,
             "score_parameter": r.worst_name, "tolerance_deg": self.tolerance_deg,
             "latitude_deg": self.latitude_deg, "budget_min": row.budget_min,
             "uniform_dwell_score": r.uniform_worst_ratio, "candidates_evaluated": r.evaluated}
@@ -84,7 +88,7 @@ class DesignReport:
             lines.append(f"{row.budget_min},{r.sequence.duration_s:.1f},{r.worst_ratio:.4f},"
                          f"{r.worst_name},{row.bound_ratio:.4f}")
         lines.append(f"paper-9pos,{self.paper_duration_s:.1f},{self.paper_worst_ratio:.4f},,"
-                     f"{accel_scale_bound(self.paper_duration_s, self.profile, g):.4f}")
+                     f"{accel_scale_bound(self.paper_duration_s, self.profile, g, self.requirements):.4f}")
         atomic_write_text(stem + ".csv", "\n".join(lines) + "\n")
         from .plots import pareto_png
         pareto_png(self, g, stem + ".png")
@@ -103,10 +107,12 @@ def _row_doc(row: DesignRow) -> dict:
             "candidates_evaluated": r.evaluated, "search_seconds": r.search_seconds}
 
 
-def paper_point(profile: NoiseProfile, latitude_rad: float, tolerance_deg: float):
+def paper_point(profile: NoiseProfile, latitude_rad: float, tolerance_deg: float,
+                requirements: Requirements = PAPER):
     """The paper's sequence: duration and worst ratio over the 27 box points."""
     seq = load_sequence("paper-9pos")
-    rob = analyze_tolerance(seq, profile, latitude_rad, 0.0, tolerance_deg, search=False)
+    rob = analyze_tolerance(seq, profile, latitude_rad, 0.0, tolerance_deg, search=False,
+                            requirements=requirements)
     return seq.duration_s, float(rob.per_parameter_worst_ratio.max())
 
 
@@ -114,7 +120,7 @@ def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str =
                    *, latitude_deg: float = 40.0, objective: str = "worst",
                    tolerance_deg: float = 3.0, beam_width: int = 200, refine: bool = True,
                    workers: int = 1, scheduler: str | None = None,
-                   progress=None) -> DesignReport:
+                   progress=None, requirements=None) -> DesignReport:
     """Design one sequence per budget.
 
     Parameters
@@ -142,12 +148,15 @@ def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str =
         dask.distributed scheduler address.
     progress : callable, optional
         ``progress(budget_min, message, steps)`` as the search advances.
+    requirements : Requirements or str, optional
+        The objective's requirements (default: the paper's).
 
     Returns
     -------
     DesignReport
     """
     prof = as_profile(profile)
+    req = load_requirements(requirements)
     earth.check_site(latitude_deg, 0.0)
     lat = math.radians(latitude_deg)
     g = earth.gravity(lat)
@@ -158,7 +167,9 @@ def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str =
         res = design(c, prof, lat, 0.0, objective, tolerance_deg, beam_width, keep=4,
                      refine=refine, name=f"designed-{b:g}min", workers=workers,
                      scheduler=scheduler,
-                     progress=None if progress is None else (lambda m, n, b=b: progress(b, m, n)))
-        rows.append(DesignRow(b, res, accel_scale_bound(res.sequence.duration_s, prof, g)))
-    paper_T, paper_worst = paper_point(prof, lat, tolerance_deg)
-    return DesignReport(rows, prof, objective, tolerance_deg, latitude_deg, paper_T, paper_worst)
+                     progress=None if progress is None else (lambda m, n, b=b: progress(b, m, n)),
+                     requirements=req)
+        rows.append(DesignRow(b, res, accel_scale_bound(res.sequence.duration_s, prof, g, req)))
+    paper_T, paper_worst = paper_point(prof, lat, tolerance_deg, req)
+    return DesignReport(rows, prof, objective, tolerance_deg, latitude_deg, paper_T, paper_worst,
+                        req)

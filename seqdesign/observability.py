@@ -25,6 +25,7 @@ from calib.jacobian import (MOVE_STEP_S, N_MOMENTS, N_UNKNOWN, PHI0 as PHI0_IDX,
                             sample_layout, state_matrix)
 from calib.noise import noise_model, whiten
 from calib.profiles import NoiseProfile
+from calib.requirements import PAPER, Requirements
 from calib.sequence import Sequence, nominal_attitude, timeline
 from calib.sim import SimConfig, body_integrals, true_increments
 from calib.transform import rotvec_to_dcm
@@ -62,6 +63,7 @@ class Observability:
     setup_rotvec: np.ndarray
     estimable: np.ndarray
     null_basis: np.ndarray
+    requirements: Requirements = PAPER
 
     @property
     def sigma(self) -> np.ndarray:
@@ -71,7 +73,7 @@ class Observability:
 
     @property
     def ratio(self) -> np.ndarray:
-        return P.ratio(self.sigma)
+        return self.requirements.ratio(self.sigma)
 
     @property
     def worst(self) -> tuple[str, float]:
@@ -99,7 +101,8 @@ class Observability:
 
     def scaled_information(self) -> np.ndarray:
         """Marginal information of the 21, in units of the requirements (dimensionless)."""
-        return marginal(self.information) * np.outer(P.REQUIREMENTS_SI, P.REQUIREMENTS_SI)
+        D = self.requirements.si
+        return marginal(self.information) * np.outer(D, D)
 
     def criteria(self) -> dict[str, float]:
         """D-, A-, E-criteria and condition number of the requirement-scaled information.
@@ -117,14 +120,15 @@ class Observability:
 
 
 def from_information(info: np.ndarray, duration_s: float, profile: str, setup_rotvec,
-                     nominal: "Observability | None" = None) -> Observability:
+                     nominal: "Observability | None" = None,
+                     requirements: Requirements = PAPER) -> Observability:
     """Observability from the information of [21, phi0].
 
     With ``nominal`` (the same sequence at the nominal mounting), what is
     observed is judged there: its unobserved directions stay unfitted here
     too, so a tilt cannot make a parameter count as observed.
     """
-    D = P.REQUIREMENTS_SI
+    D = requirements.si
     Ms = marginal(info) * np.outer(D, D)
     inv = scaled_inverse(Ms, P.NAMES)
     if nominal is not None and not nominal.estimable.all():
@@ -134,7 +138,8 @@ def from_information(info: np.ndarray, duration_s: float, profile: str, setup_ro
                          rank=inv.rank, unobservable=inv.null_directions(),
                          duration_s=duration_s, profile=profile,
                          setup_rotvec=np.asarray(setup_rotvec, dtype=float),
-                         estimable=inv.estimable, null_basis=inv.null_basis)
+                         estimable=inv.estimable, null_basis=inv.null_basis,
+                         requirements=requirements)
 
 
 @dataclass(frozen=True)
@@ -273,10 +278,10 @@ class SequenceModel:
         H = self.whitened(setup_rotvec)
         return H.T @ H
 
-    def analyze(self, setup_rotvec=(0.0, 0.0, 0.0),
-                nominal: "Observability | None" = None) -> "Observability":
+    def analyze(self, setup_rotvec=(0.0, 0.0, 0.0), nominal: "Observability | None" = None,
+                requirements: Requirements = PAPER) -> "Observability":
         return from_information(self.information(setup_rotvec), self.duration_s, self.profile,
-                                setup_rotvec, nominal)
+                                setup_rotvec, nominal, requirements)
 
 
 def _basis_moments(C_mid: np.ndarray, flip: np.ndarray, E: np.ndarray, h: np.ndarray,
@@ -362,7 +367,7 @@ class Robustness:
 
     @property
     def per_parameter_worst_ratio(self) -> np.ndarray:
-        return P.ratio(self.per_parameter_worst_sigma)
+        return self.nominal.requirements.ratio(self.per_parameter_worst_sigma)
 
 
 class _SigmaCallback:
@@ -372,7 +377,7 @@ class _SigmaCallback:
     variables; each evaluation is one contraction of the sequence model).
     """
 
-    def __new__(cls, model: SequenceModel, index: int):
+    def __new__(cls, model: SequenceModel, index: int, requirements: Requirements = PAPER):
         import casadi as ca
 
         class _CB(ca.Callback):
@@ -394,20 +399,21 @@ class _SigmaCallback:
 
             def eval(self, arg):
                 theta = np.radians(np.asarray(arg[0], dtype=float).ravel())
-                return [float(model.analyze(theta).sigma[index]) / P.REQUIREMENTS_SI[index]]
+                return [float(model.analyze(theta).sigma[index]) / requirements.si[index]]
 
         return _CB()
 
 
 def search_worst_mounting(model: SequenceModel, index: int, starts_deg: list,
-                          tolerance_deg: float) -> tuple[np.ndarray, float]:
+                          tolerance_deg: float,
+                          requirements: Requirements = PAPER) -> tuple[np.ndarray, float]:
     """Maximise one parameter's sigma over the mounting box with IPOPT, from several starts.
 
     Returns the mounting (rotation vector, rad) and that parameter's sigma (SI).
     """
     import casadi as ca
 
-    cb = _SigmaCallback(model, index)
+    cb = _SigmaCallback(model, index, requirements)
     x = ca.MX.sym("theta_deg", 3)
     solver = ca.nlpsol("worst", "ipopt", {"x": x, "f": -cb(x)},
                        {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
@@ -419,12 +425,13 @@ def search_worst_mounting(model: SequenceModel, index: int, starts_deg: list,
         value = -float(sol["f"])
         if value > best:
             best, best_x = value, np.asarray(sol["x"]).ravel()
-    return np.radians(best_x), best * P.REQUIREMENTS_SI[index]
+    return np.radians(best_x), best * requirements.si[index]
 
 
 def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
                       height_m: float = 0.0, tolerance_deg: float = 3.0,
-                      search: bool = True, starts: int = 2) -> Robustness:
+                      search: bool = True, starts: int = 2,
+                      requirements: Requirements = PAPER) -> Robustness:
     """Worst case over the +-tolerance box of base mountings.
 
     The 27 corner/edge/face/centre points are evaluated; then, if ``search``,
@@ -439,11 +446,13 @@ def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
         def evaluate(rotvec, nominal=None):
             nom = nominal_run(seq, latitude_rad, height_m, rotvec)
             return from_information(information_along(nom, profile, latitude_rad, g),
-                                    seq.duration_s, profile.name, rotvec, nominal)
+                                    seq.duration_s, profile.name, rotvec, nominal, requirements)
         search = False  # IPOPT would need hundreds of direct evaluations
     else:
         model = sequence_model(seq, profile, latitude_rad, height_m)
-        evaluate = model.analyze
+
+        def evaluate(rotvec, nominal=None):
+            return model.analyze(rotvec, nominal, requirements)
     nominal = evaluate(np.zeros(3))
     if tolerance_deg == 0:
         return Robustness(nominal, nominal, nominal.sigma, 1, 0.0)
@@ -455,11 +464,12 @@ def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
     worst = max(results, key=lambda r: r.worst[1])
     if not search or nominal.rank < P.N_PARAMS:
         return Robustness(nominal, worst, per_param, len(grid), tolerance_deg)
-    index = int(np.argmax(P.ratio(per_param)))
+    index = int(np.argmax(requirements.ratio(per_param)))
     order = np.argsort(-sigmas[:, index])[:starts]
-    rotvec, sigma = search_worst_mounting(model, index, [grid[i] for i in order], tolerance_deg)
+    rotvec, sigma = search_worst_mounting(model, index, [grid[i] for i in order], tolerance_deg,
+                                          requirements)
     if sigma > per_param[index]:
-        found = model.analyze(rotvec)
+        found = evaluate(rotvec)
         per_param = np.maximum(per_param, found.sigma)
         if found.worst[1] > worst.worst[1]:
             worst = found
@@ -501,7 +511,8 @@ class ExtrasCost:
 
 
 def analyze_extras(seq: Sequence, profile: NoiseProfile, latitude_rad: float, extras: Extras,
-                   height_m: float = 0.0, tolerance_deg: float = 3.0) -> ExtrasCost:
+                   height_m: float = 0.0, tolerance_deg: float = 3.0,
+                   requirements: Requirements = PAPER) -> ExtrasCost:
     """Sigma of the 21 with and without the optional terms, and theirs, worst over the box.
 
     Both figures come from the same 27 mountings (corners, edges, faces and
@@ -512,7 +523,7 @@ def analyze_extras(seq: Sequence, profile: NoiseProfile, latitude_rad: float, ex
     g = earth.gravity(latitude_rad, height_m)
     levels = (-tolerance_deg, 0.0, tolerance_deg) if tolerance_deg > 0 else (0.0,)
     points = [np.radians(p) for p in itertools.product(levels, levels, levels)]
-    scale = np.concatenate([P.REQUIREMENTS_SI, extras.scale_si])
+    scale = np.concatenate([requirements.si, extras.scale_si])
     names = P.NAMES + extras.names
     without, with_, extra = [], [], []
     nominal = nominal_without = None
@@ -520,7 +531,7 @@ def analyze_extras(seq: Sequence, profile: NoiseProfile, latitude_rad: float, ex
         nom = nominal_run(seq, latitude_rad, height_m, rotvec)
         info = information_along(nom, profile, latitude_rad, g, extras)
         obs = from_information(info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s, profile.name,
-                               rotvec, nominal_without)
+                               rotvec, nominal_without, requirements)
         M = eliminate(info, PHI0_IDX) * np.outer(scale, scale)
         inv = scaled_inverse(M, names)
         if nominal is None:  # what is observed is judged at the nominal mounting
@@ -535,7 +546,8 @@ def analyze_extras(seq: Sequence, profile: NoiseProfile, latitude_rad: float, ex
                       np.max(extra, axis=0), nominal.null_directions(), len(points), tolerance_deg)
 
 
-def accel_scale_bound(duration_s: float, profile: NoiseProfile, gravity_mps2: float) -> float:
+def accel_scale_bound(duration_s: float, profile: NoiseProfile, gravity_mps2: float,
+                      requirements: Requirements = PAPER) -> float:
     """Best possible worst ratio of the accelerometer scale factors (conventions.md).
 
     Gravity is their only excitation and ``sum f_i^2 = g^2``: the three share
@@ -543,6 +555,6 @@ def accel_scale_bound(duration_s: float, profile: NoiseProfile, gravity_mps2: fl
     ``sigma >= VRW sqrt(3 / T) / g``.
     """
     sigma = profile.vrw * math.sqrt(3.0 / duration_s) / gravity_mps2
-    return 3.0 * sigma / P.REQUIREMENTS_SI[P.ACCEL_SCALE][0]
+    return 3.0 * sigma / min(requirements.si[P.ACCEL_SCALE])
 
 

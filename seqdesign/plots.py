@@ -44,7 +44,8 @@ def pareto_png(report, gravity_mps2: float, path) -> None:
                     textcoords="offset points", xytext=(4, 6), fontsize=8)
     tmax = max(t + [report.paper_duration_s / 60]) * 1.1
     grid = np.linspace(max(1.0, tmax / 40), tmax, 80)
-    ax.plot(grid, [accel_scale_bound(x * 60, report.profile, gravity_mps2) for x in grid], "--",
+    ax.plot(grid, [accel_scale_bound(x * 60, report.profile, gravity_mps2, report.requirements)
+                   for x in grid], "--",
             color="#d62728", label="accelerometer scale-factor bound")
     ax.plot([report.paper_duration_s / 60], [report.paper_worst_ratio], "s", color="#ff7f0e",
             label="paper-9pos")
