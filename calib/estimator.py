@@ -24,11 +24,12 @@ from .errormodel import ErrorModel
 from .errors import CalibError
 from . import extras as X
 from .extras import Extras
-from .information import UNKNOWN_NAMES, eliminate, scaled_inverse
+from .information import UNKNOWN_NAMES, ScaledInverse, eliminate, scaled_inverse
 from .jacobian import N_UNKNOWN, PHI0, default_grid, observation_jacobian, state_matrix
 from .noise import noise_model, whiten
 from .profiles import NoiseProfile
 from .requirements import PAPER, Requirements
+from .seqinfer import infer_sequence
 from .strapdown import navigate, sample_intervals
 from .transform import rotvec_to_dcm
 
@@ -154,10 +155,17 @@ class Solution:
     covariance: np.ndarray  # scaled, (24 + e, 24 + e)
     estimable: np.ndarray  # (21 + e,) over [params, extras]
     null_directions: list
+    null_basis: np.ndarray | None = None  # (21 + e, k) scaled, orthonormal
+
+    def project(self, x_scaled: np.ndarray) -> np.ndarray:
+        """Remove the unobserved combinations from scaled [params, extras] values."""
+        if self.null_basis is None or self.null_basis.shape[1] == 0:
+            return x_scaled
+        return x_scaled - self.null_basis @ (self.null_basis.T @ x_scaled)
 
 
 def solve_information(N: np.ndarray, where: str = "run", names=None,
-                      partial: bool = False) -> Solution:
+                      partial: bool = False, nominal=None) -> Solution:
     """Covariance of the unknowns from a requirement-scaled information matrix.
 
     Observability is judged by :mod:`calib.information`'s one rule on the
@@ -166,6 +174,11 @@ def solve_information(N: np.ndarray, where: str = "run", names=None,
     naming the parameters it cannot estimate, unless ``partial``: then the
     weak combinations are constrained to zero (a minimum-norm solution)
     and the estimable parameters keep the variance any solution would give.
+
+    ``nominal``, a callable returning the :class:`ScaledInverse` of the
+    run's nominal (error-free) trajectory or None, decides instead of the
+    run's own trajectory when that one leaves directions unobserved: as the
+    analyser judges, and unmoved by the errors not yet estimated.
     """
     names = tuple(names or UNKNOWN_NAMES)
     kept = [n for i, n in enumerate(names) if not P.N_PARAMS <= i < N_UNKNOWN]
@@ -173,6 +186,12 @@ def solve_information(N: np.ndarray, where: str = "run", names=None,
     if inv.full_rank:
         evals, evecs = np.linalg.eigh(N)
         return Solution((evecs / evals) @ evecs.T, inv.estimable, [])
+    judged = nominal() if nominal is not None else None
+    if judged is not None and not judged.full_rank:
+        # The nominal trajectory says which directions are unobserved and which parameters are
+        # estimable. Held fixed, those directions stay at zero in the estimate, so they cannot
+        # bend the navigated trajectory the next Jacobians are taken along.
+        inv = judged
     dirs = inv.null_directions()
     if not partial:
         raise CalibError(
@@ -186,7 +205,19 @@ def solve_information(N: np.ndarray, where: str = "run", names=None,
     u, _, _ = np.linalg.svd(null_full, full_matrices=True)
     Q = u[:, null_full.shape[1]:]  # unknowns with no component along the weak subspace
     cov = Q @ np.linalg.inv(Q.T @ N @ Q) @ Q.T
-    return Solution(cov, inv.estimable, dirs)
+    return Solution(cov, inv.estimable, dirs, inv.null_basis)
+
+
+def nominal_decision(seq, latitude_rad: float, profile: NoiseProfile, extras: Extras,
+                     requirements: Requirements, names) -> ScaledInverse:
+    """What the error-free trajectory of ``seq`` observes, by :mod:`calib.information`'s rule."""
+    from .nominal import information_along, nominal_run
+
+    nom = nominal_run(seq, latitude_rad, 0.0, np.zeros(3))
+    info = information_along(nom, profile, latitude_rad, earth.gravity(latitude_rad), extras)
+    D = _scale(extras, requirements)
+    kept = [n for i, n in enumerate(names) if not P.N_PARAMS <= i < N_UNKNOWN]
+    return scaled_inverse(eliminate(info * np.outer(D, D), PHI0), kept)
 
 
 def check_run(dtheta_m: np.ndarray, dv_m: np.ndarray, dt: np.ndarray, latitude_rad: float,
@@ -255,7 +286,7 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
               gravity_mps2: float, profile: NoiseProfile, moving: np.ndarray | None = None,
               max_iterations: int = 12, tol_sigma: float = 1e-3, where: str = "run",
               extras: Extras = X.NONE, partial: bool = False,
-              requirements: Requirements = PAPER) -> Fit:
+              requirements: Requirements = PAPER, sequence=None) -> Fit:
     """Identify the 21 parameters, the initial attitude and any optional terms from raw increments.
 
     Parameters
@@ -284,6 +315,10 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
     requirements : Requirements
         Scale the unknowns, and so decide what counts as observed
         (:mod:`calib.information`).
+    sequence : Sequence, optional
+        The nominal sequence: on a run that leaves directions unobserved it
+        decides which parameters are estimable, as the analyser does.
+        Default: inferred from the navigation (:mod:`calib.seqinfer`).
 
     Returns
     -------
@@ -304,8 +339,20 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
     # Until the first navigation, the Earth's turn as seen at the start attitude.
     turn = X.earth_turn(np.broadcast_to(C0, (len(dt), 3, 3)), omega_ie_n, dt)
     noise, sol, history, converged = None, None, [], False
+    decision = {}
+
+    def judge():
+        """The nominal trajectory's decision, computed once, when the run's own is deficient."""
+        if "inv" not in decision:
+            seq = sequence or infer_sequence(first_nav.C_b_n, dtheta_m, seg.moving, dt)
+            decision["inv"] = None if seq is None else nominal_decision(
+                seq, latitude_rad, profile, extras, requirements, names)
+        return decision["inv"]
+
     for it in range(1, max_iterations + 1):
         dth, dvv, nav = pb.compensate_and_navigate(values, extra_values, C0, turn)
+        if it == 1:
+            first_nav = nav
         if extras.n:  # the Earth's turn in the body, for the next compensation
             turn = X.earth_turn(0.5 * (nav.C_b_n[1:] + nav.C_b_n[:-1]), omega_ie_n, dt)
         if noise is None or (profile.has_gauss_markov and it <= 3):
@@ -313,18 +360,27 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
             # the navigated attitude while the Jacobian does. Phi_vv does not depend on it.
             noise = noise_model(A, T, profile, C_b_n=nav.C_b_n[mid])
         z = pb.observations(nav, noise.Phi_vv, it)
-        if sol is None or it <= 3:
-            # The Jacobian changes little once the big errors are compensated.
+        if sol is None or it <= 3 or sol.null_directions:
+            # The Jacobian changes little once the big errors are compensated; a partial fit's
+            # covariance is sensitive to where its nearly-null directions lie, so it follows
+            # the trajectory to the end.
             H = observation_jacobian(nav.C_b_n, dth, dvv, nav.time_s, grid, latitude_rad,
                                      gravity_mps2, noise.Phi_vv, extras)
             Hs, D = scaled_design(whiten(noise.whitener, H), extras, requirements)
-            sol = solve_information(Hs.T @ Hs, where, names, partial)
+            sol = solve_information(Hs.T @ Hs, where, names, partial, judge)
             cov = sol.covariance * np.outer(D, D)
         zw = whiten(noise.whitener, z[:, :, None]).reshape(-1)
         delta_scaled = sol.covariance @ (Hs.T @ zw)
         delta = D * delta_scaled
         values = values + delta[:P.N_PARAMS]
         extra_values = extra_values + delta[N_UNKNOWN:]
+        if sol.null_directions:
+            # A partial fit leaves the unobserved combinations at zero in the totals, not only
+            # in each step: otherwise they drift as the directions turn from one Jacobian to
+            # the next, and the drift bends the navigated trajectory.
+            Dp = D[_param_index(len(D))]
+            x = sol.project(np.concatenate([values, extra_values]) / Dp) * Dp
+            values, extra_values = x[:P.N_PARAMS], x[P.N_PARAMS:]
         C0 = rotvec_to_dcm(delta[PHI0]) @ C0
         step = np.max(np.abs(delta) / np.sqrt(np.diag(cov)))
         resid = zw - Hs @ delta_scaled

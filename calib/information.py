@@ -30,9 +30,10 @@ UNKNOWN_NAMES = tuple(P.NAMES) + ("phi0_E", "phi0_N", "phi0_U")
 WEAK_INFORMATION = 1e-6  # requirement-scaled: sigma > 1000 x requirement
 RELATIVE_RANK_TOL = 1e-12  # below this fraction of the largest eigenvalue: numerically null
 # A parameter's unit vector may lean this much into the weak subspace and still count as
-# estimable: eigenvectors of a well-scaled 24x24 matrix are accurate to ~1e-10, and a lean of
-# 1e-6 lets a weak combination of a few hundred requirements bias it by < 1e-3 requirement.
-ESTIMABLE_TOL = 1e-6
+# estimable. A weak direction is one known no better than 1000 requirements, so a lean of
+# 3e-5 lets even a combination that large bias the parameter by at most 3 % of its
+# requirement; eigenvectors of these well-scaled matrices are accurate to ~1e-10, far below.
+ESTIMABLE_TOL = 3e-5
 
 
 def marginal(info: np.ndarray, n_keep: int = P.N_PARAMS) -> np.ndarray:
@@ -105,11 +106,16 @@ class ScaledInverse:
         return [n for n, e in zip(self.names, self.estimable) if not e]
 
 
-def scaled_inverse(M: np.ndarray, names=UNKNOWN_NAMES) -> ScaledInverse:
-    """Inverse, rank and estimability of a scaled information matrix under the module's rule."""
+def scaled_inverse(M: np.ndarray, names=UNKNOWN_NAMES, n_weak: int | None = None) -> ScaledInverse:
+    """Inverse, rank and estimability of a scaled information matrix under the module's rule.
+
+    ``n_weak`` overrides the rule's count of weak directions (the ``n_weak``
+    smallest are taken): the estimator uses it to keep the rank the nominal
+    trajectory shows while its own trajectory is still bent by errors.
+    """
     M = 0.5 * (M + M.T)
     evals, evecs = np.linalg.eigh(M)
-    weak = weak_mask(evals)
+    weak = weak_mask(evals) if n_weak is None else np.arange(len(evals)) < n_weak
     good = ~weak
     cov = (evecs[:, good] / evals[good]) @ evecs[:, good].T
     null = evecs[:, weak]

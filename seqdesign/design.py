@@ -476,7 +476,8 @@ class DesignResult:
 
 
 def _search_at_dwell(args):
-    c, dwell, latitude_rad, height_m, profile, objective, beam_width, keep, requirements = args
+    c, dwell, latitude_rad, height_m, profile, objective, beam_width, keep, *rest = args
+    requirements = rest[0] if rest else PAPER
     import time as _time
     t = _time.perf_counter()
     model = SearchModel.build(c, dwell, latitude_rad, height_m, profile, requirements)

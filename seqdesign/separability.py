@@ -27,7 +27,13 @@ def involvement(null_basis: np.ndarray) -> list[list[int]]:
     k = null.shape[0]
     _, _, piv = qr(null, pivoting=True)
     rref = np.linalg.solve(null[:, piv[:k]], null)  # the same basis describe_null prints
-    return [[d for d in range(k) if abs(rref[d, i]) > INVOLVED] for i in range(null.shape[1])]
+    out = []
+    for i in range(null.shape[1]):
+        dirs = [d for d in range(k) if abs(rref[d, i]) > INVOLVED]
+        if not dirs and np.abs(rref[:, i]).max() > 1e-6:  # a small lean still counts
+            dirs = [int(np.argmax(np.abs(rref[:, i])))]
+        out.append(dirs)
+    return out
 
 
 def separable_combinations(null_basis: np.ndarray, estimable: np.ndarray,

@@ -1,0 +1,121 @@
+"""The error-free trajectory of a sequence and the Fisher information along it.
+
+The analyser (:mod:`seqdesign.observability`) and the estimator both need
+what a sequence observes when nothing disturbs it: the analyser to predict,
+the estimator to decide, as the analyser does, which parameters a
+rank-deficient run can estimate (a run's own trajectory is bent by the
+errors it has not yet estimated, which turns nearly-null directions).
+"""
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .extras import NONE as NO_EXTRAS, Extras
+from .jacobian import MOVE_STEP_S, ObservationGrid, observation_jacobian, state_matrix
+from .noise import noise_model, whiten
+from .profiles import NoiseProfile
+from .sequence import Sequence, nominal_attitude, timeline
+from .sim import SimConfig, true_increments
+from .transform import rotvec_to_dcm
+
+
+@dataclass(frozen=True)
+class NominalRun:
+    """The error-free trajectory of a sequence, sampled for the linear model.
+
+    Observation intervals are the estimator's while turning (``MOVE_STEP_S``)
+    and ``ANALYSIS_REST_STEP_S`` at rest. At rest the attitude is constant, so
+    a few sub-samples per interval give the moments exactly but for the
+    ``tau^2`` weighting of a term that is itself ``(omega_ie T)^2`` small;
+    while turning, sub-samples are at most ``FLIP_SUBSAMPLE_DEG`` apart, so
+    the mid-sample attitude is good to ``(0.5 deg)^2 / 8 ~ 1e-5``.
+    """
+
+    time_nav: np.ndarray  # (n + 1,) sample boundaries, 0 first
+    C_b_n: np.ndarray  # (n + 1, 3, 3)
+    dtheta: np.ndarray  # (n, 3)
+    dv: np.ndarray  # (n, 3)
+    grid: ObservationGrid
+
+
+ANALYSIS_REST_STEP_S = 5.0  # at rest; 1 s (the estimator's) changes no sigma by more than 0.2 %
+REST_SUBSAMPLES = 4
+FLIP_SUBSAMPLE_DEG = 0.5
+
+
+def nominal_samples(tl) -> tuple[np.ndarray, np.ndarray]:
+    """Sample end times and observation bounds (indices into ``[0] + times``) of a timeline."""
+    times, bounds = [np.zeros(1)], [0]
+    n = 0
+    for k, (t0, t1, rate) in enumerate(zip(tl.t0, tl.t1, tl.rate)):
+        step = ANALYSIS_REST_STEP_S if rate == 0.0 else MOVE_STEP_S
+        m = max(1, int(round((t1 - t0) / step)))
+        sub = REST_SUBSAMPLES if rate == 0.0 else max(
+            1, int(math.ceil(abs(math.degrees(rate)) * (t1 - t0) / m / FLIP_SUBSAMPLE_DEG)))
+        edges = np.linspace(t0, t1, m * sub + 1)[1:]
+        edges[-1] = t1
+        ends = sub * np.arange(1, m + 1)
+        if rate == 0.0 and k > 0 and tl.rate[k - 1] != 0.0 and edges[0] > t0 + MOVE_STEP_S:
+            # The estimator's turning intervals run a few samples into the next rest, so a
+            # velocity step at a flip's stop (lever arms) is seen over ~MOVE_STEP_S, not a
+            # whole rest interval: split one such interval off here too.
+            edges = np.concatenate([[t0 + MOVE_STEP_S], edges])
+            ends = np.concatenate([[1], ends + 1])
+        times.append(edges)
+        bounds.extend(n + ends)
+        n += len(edges)
+    return np.concatenate(times), np.array(bounds)
+
+
+def nominal_run(seq: Sequence, latitude_rad: float, height_m: float, setup_rotvec) -> NominalRun:
+    """The nominal trajectory of one mounting, sampled as the analyser samples it."""
+    tl = timeline(seq)
+    R = rotvec_to_dcm(np.asarray(setup_rotvec, dtype=float))
+    cfg = SimConfig(latitude_rad=latitude_rad, height_m=height_m)
+    t_nav, bounds = nominal_samples(tl)
+    _, dtheta, dv = true_increments(tl, R, cfg, time_s=t_nav[1:])
+    C = np.einsum("ij,njk->nik", R, nominal_attitude(tl, t_nav))
+    return NominalRun(t_nav, C, dtheta, dv, ObservationGrid(bounds))
+
+
+@functools.lru_cache(maxsize=64)
+def _noise(T_bytes: bytes, latitude_rad: float, gravity_mps2: float, profile: NoiseProfile,
+           C_bytes: bytes | None = None):
+    """Whitening of an interval pattern (cached): see :func:`noise_along`."""
+    C = None if C_bytes is None else np.frombuffer(C_bytes).reshape(-1, 3, 3)
+    return noise_model(state_matrix(latitude_rad, gravity_mps2), np.frombuffer(T_bytes), profile,
+                       C_b_n=C)
+
+
+def noise_along(time_nav: np.ndarray, C_b_n: np.ndarray, bounds: np.ndarray,
+                latitude_rad: float, gravity_mps2: float, profile: NoiseProfile):
+    """The noise model of a trajectory's intervals.
+
+    White noise depends only on the interval lengths, so every mounting of a
+    sequence shares one (cached) model. With Gauss-Markov bias instability the
+    weights also depend on the attitude of each interval (its middle sample
+    boundary): :func:`analyze_tolerance` then evaluates every mounting along
+    its own trajectory instead of through the mounting basis.
+    """
+    T = np.diff(time_nav[bounds])
+    C = None
+    if profile.has_gauss_markov:
+        C = np.ascontiguousarray(C_b_n[(bounds[:-1] + bounds[1:]) // 2]).tobytes()
+    return _noise(T.tobytes(), latitude_rad, gravity_mps2, profile, C)
+
+
+def information_along(nom: NominalRun, profile: NoiseProfile, latitude_rad: float,
+                      gravity_mps2: float, extras: Extras = NO_EXTRAS) -> np.ndarray:
+    """Fisher information (24 + e square, SI) of the shared model along one trajectory."""
+    noise = noise_along(nom.time_nav, nom.C_b_n, nom.grid.bounds, latitude_rad, gravity_mps2,
+                        profile)
+    H = observation_jacobian(nom.C_b_n, nom.dtheta, nom.dv, nom.time_nav, nom.grid,
+                             latitude_rad, gravity_mps2, noise.Phi_vv, extras)
+    Hw = whiten(noise.whitener, H).reshape(-1, H.shape[-1])
+    return Hw.T @ Hw
+
+
