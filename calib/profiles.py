@@ -3,12 +3,15 @@ optional first-order Gauss-Markov bias instability (see :mod:`calib.gaussmarkov`
 from __future__ import annotations
 
 import math
+import warnings
 import tomllib
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
 from .errors import CalibError
+from .fields import Fields
+from .filekind import expect
 from .fileio import load_toml, toml_number
 from .params import DEG, DEG_PER_HOUR, MICRO_G
 
@@ -128,7 +131,14 @@ def _gauss_markov(doc: dict, where: str) -> dict:
     return values
 
 
+PROFILE_KEYS = ("format_version", "name", "description", "source", "gyro_arw_dph", "accel_vrw_ug",
+                "gyro_bias_instability_dph", "gyro_bias_correlation_s",
+                "accel_bias_instability_ug", "accel_bias_correlation_s", "fit", "provenance")
+
+
 def _from_doc(doc: dict, where: str) -> NoiseProfile:
+    for message in Fields(doc, where).check_keys(PROFILE_KEYS, "profile"):
+        warnings.warn(message, stacklevel=3)
     values = {}
     for key in ("gyro_arw_dph", "accel_vrw_ug"):
         if key not in doc:
@@ -161,5 +171,6 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> NoiseProfile:
         raise CalibError(f"no noise profile {text!r}", None,
                          "give a built-in name (" + ", ".join(builtin_profiles())
                          + ") or a path to a profile TOML file")
+    expect(path, "profile")
     doc = load_toml(path)
     return _from_doc(doc, str(path))

@@ -27,6 +27,7 @@ import numpy as np
 
 from calib.columns import ColumnPlan, plan_columns, to_increments
 from calib.errors import CalibError
+from calib.filekind import expect
 from calib.fileio import atomic_write_bytes, atomic_write_text
 
 FORMAT = "imu-run/1"
@@ -196,6 +197,7 @@ def read_run(path: str | os.PathLike, allow_gaps: bool = False, *,
         On any unreadable or invalid content, naming the file and the line,
         key or sample.
     """
+    expect(path, "run")
     kind = _kind(path)
     if kind == ".csv":
         return _read_csv(path, allow_gaps, {"latitude_deg": latitude_deg, "height_m": height_m})

@@ -7,6 +7,7 @@ rotation) from which the nominal attitude at any time follows exactly.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
@@ -15,6 +16,8 @@ import numpy as np
 
 from .errors import CalibError
 from .fileio import load_toml, toml_number
+from .fields import FORMAT_VERSION, Fields, check_format_version
+from .filekind import expect
 from .transform import attitude_from_directions, axis_index, rot_axis
 
 DEFAULT_RATE_DPS = 10.0
@@ -68,7 +71,7 @@ class Sequence:
         return replace(self, steps=steps)
 
     def to_toml_dict(self) -> dict:
-        d = {"name": self.name, "description": self.description,
+        d = {"format_version": FORMAT_VERSION, "name": self.name, "description": self.description,
              "start": list(self.start), "initial_dwell_s": self.initial_dwell_s}
         if self.latitude_deg is not None:
             d["latitude_deg"] = self.latitude_deg
@@ -104,8 +107,21 @@ def _number(table: dict, key: str, where: str, default=None, positive=False,
     return value
 
 
+SEQUENCE_KEYS = ("format_version", "name", "description", "start", "initial_dwell_s",
+                 "latitude_deg", "height_m", "step", "provenance")
+STEP_KEYS = ("axis", "angle_deg", "rate_dps", "dwell_s")
+
+
+def _check_keys(table: dict, known, kind: str, where: str) -> None:
+    """Refuse a near miss of a known key; warn about any other key the tool ignores."""
+    for message in Fields(table, where).check_keys(known, kind):
+        warnings.warn(message, stacklevel=3)
+
+
 def sequence_from_dict(doc: dict, where: str) -> Sequence:
     """Validate a parsed sequence TOML document and build a :class:`Sequence`."""
+    check_format_version(doc, "sequence", where)
+    _check_keys(doc, SEQUENCE_KEYS, "sequence", where)
     start = doc.get("start")
     if (not isinstance(start, list) or len(start) != 3
             or not all(isinstance(s, str) for s in start)):
@@ -137,6 +153,7 @@ def sequence_from_dict(doc: dict, where: str) -> Sequence:
         here = f"{where}: step {i}"
         if not isinstance(raw, dict):
             raise CalibError("each [[step]] must be a table", here)
+        _check_keys(raw, STEP_KEYS, "step", here)
         axis = raw.get("axis")
         if not isinstance(axis, str) or axis.upper() not in ("X", "Y", "Z"):
             raise CalibError(f"axis must be \"X\", \"Y\" or \"Z\", got {axis!r}", here)
@@ -186,6 +203,7 @@ def resolve_sequence_path(name_or_path: str | Path) -> Path:
 def load_sequence(name_or_path: str | Path) -> Sequence:
     """Read a sequence file (or a shipped sequence by name)."""
     path = resolve_sequence_path(name_or_path)
+    expect(path, "sequence")
     doc = load_toml(path)
     return sequence_from_dict(doc, str(path))
 

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .fields import FORMAT_VERSION, check_format_version
 from . import params as P
 from .errormodel import ErrorModel
 from .errors import CalibError
@@ -70,6 +71,7 @@ def read_truth(path: str | Path) -> Truth:
     """Read a truth file written by :func:`write_truth` (or by hand)."""
     doc = load_toml(Path(path))
     where = str(path)
+    check_format_version(doc, "truth", where)
     errors = errors_from_table(doc.get("errors"), where)
     setup = doc.get("setup", {})
     if not isinstance(setup, dict):
@@ -124,6 +126,7 @@ def truth_to_dict(truth: Truth) -> dict:
     if truth.seed is not None:
         meta["seed"] = int(truth.seed)
     doc = {
+        "format_version": FORMAT_VERSION,
         "errors": {n: float(v) for n, v in zip(P.NAMES, values)},
         "setup": {"east_deg": float(setup[0]), "north_deg": float(setup[1]),
                   "up_deg": float(setup[2])},

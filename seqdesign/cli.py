@@ -18,7 +18,23 @@ from calib.errors import CalibError
 from seqdesign.clitools import emit_json, guarded, info, provenance, tool_version
 
 
-@click.group(name="seqdesign", context_settings={"help_option_names": ["-h", "--help"]})
+class _Group(click.Group):
+    """The command group; a usage error (a bad option value) also honours ``--json``."""
+
+    def invoke(self, ctx):
+        raw = list(ctx.args)  # the group empties it before parsing the command's options
+        try:
+            return super().invoke(ctx)
+        except click.UsageError as exc:
+            if "--json" in raw:
+                where = exc.ctx.command_path if exc.ctx else "seqdesign"
+                emit_json({"error": {"what": exc.format_message(), "where": where,
+                                     "fix": f"see '{where} --help'"}})
+            raise
+
+
+@click.group(name="seqdesign", cls=_Group,
+             context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(tool_version(), prog_name="seqdesign")
 def main():
     """Self-calibration of a three-axis hybrid INS: design, analyse, simulate,

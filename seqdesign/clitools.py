@@ -10,6 +10,7 @@ import json
 import math
 import shlex
 import sys
+import warnings
 
 import click
 
@@ -63,13 +64,24 @@ def provenance(inputs: dict | None = None, **extra) -> dict:
 
 
 def guarded(fn):
-    """Turn the tool's own errors (and Ctrl-C) into a message and an exit code."""
+    """Turn the tool's own errors (and Ctrl-C) into a message and an exit code.
+
+    With ``--json`` a refusal is also one JSON document on stdout,
+    ``{"error": {"what", "where", "fix"}}``, so a program reading stdout
+    gets a document either way. The library's warnings are printed as
+    ``warning: ...`` lines on stderr.
+    """
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
         try:
-            return fn(*args, **kwargs)
+            with warnings.catch_warnings():
+                warnings.simplefilter("always")
+                warnings.showwarning = _show_warning
+                return fn(*args, **kwargs)
         except CalibError as exc:
             click.echo(f"error: {exc.message}", err=True)
+            if kwargs.get("as_json"):
+                emit_json({"error": {"what": exc.what, "where": exc.where, "fix": exc.fix}})
             sys.exit(EXIT_BAD_INPUT)
         except KeyboardInterrupt:
             click.echo("interrupted; nothing was written", err=True)
@@ -94,3 +106,7 @@ def emit_json(doc) -> None:
 
 def info(msg: str) -> None:
     click.echo(msg, err=True)
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    click.echo(f"warning: {message}", err=True)
