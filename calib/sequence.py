@@ -369,33 +369,26 @@ class RestPosition:
     on_grid: bool = True  # False: some axis is off the E/N/U grid (non-90-degree flips)
 
 
-def rest_positions(seq: Sequence) -> list[RestPosition]:
-    """Rest positions with their attitudes and continuous gimbal angles.
+def rest_positions(seq: Sequence, gimbal=None) -> list[RestPosition]:
+    """Rest positions with their attitudes and continuous (encoder) gimbal angles.
 
-    Gimbal angles are tracked through every flip in steps of at most 1 deg,
-    as encoders count, so multi-turn flips and 180 deg turns unwrap correctly.
+    The encoder angles are those of :func:`calib.gimbal.plan_sequence` on
+    ``gimbal`` (default: slip rings, no limits) at the start of each rest,
+    before any lock counter-rotation played at the rest's end.
     """
-    from .transform import (describe_axis, gimbal_from_relative, is_gimbal_lock, on_grid,
-                            unwrap_gimbal)
+    from .gimbal import DEFAULT_GIMBAL, in_lock, plan_sequence
+    from .transform import describe_axis, on_grid
 
     tl = timeline(seq)
-    times, marks = [], []
-    for i in range(len(tl.t0)):
-        if tl.rate[i] == 0.0:
-            marks.append((i, len(times)))
-            times.append(0.5 * (tl.t0[i] + tl.t1[i]))
-        else:
-            n = max(2, int(math.ceil(abs(tl.rate[i]) * (tl.t1[i] - tl.t0[i]) / math.radians(1))))
-            times.extend(np.linspace(tl.t0[i], tl.t1[i], n + 1)[1:-1])
-    C = nominal_attitude(tl, np.array(times))
-    C_rel = np.einsum("ji,njk->nik", seq.C_start, C)
-    angles = np.degrees(unwrap_gimbal(gimbal_from_relative(C_rel)))
+    plan = plan_sequence(seq, gimbal or DEFAULT_GIMBAL)
     out = []
-    for seg, k in marks:
+    for seg in np.flatnonzero(tl.rate == 0.0):
+        k = int(tl.step[seg])
+        state = np.zeros(3) if k < 0 else plan.state_after(k)
+        C = tl.C0[seg]
         out.append(RestPosition(
-            number=int(tl.position[seg]), C_b_n=C[k],
-            directions=tuple(describe_axis(C[k][:, i]) for i in range(3)),
-            gimbal_deg=np.round(angles[k], 9) + 0.0, start_s=float(tl.t0[seg]),
-            end_s=float(tl.t1[seg]), gimbal_lock=bool(is_gimbal_lock(C_rel[k], 1e-6)),
-            on_grid=on_grid(C[k])))
+            number=int(tl.position[seg]), C_b_n=C,
+            directions=tuple(describe_axis(C[:, i]) for i in range(3)),
+            gimbal_deg=np.round(np.degrees(state), 9) + 0.0, start_s=float(tl.t0[seg]),
+            end_s=float(tl.t1[seg]), gimbal_lock=in_lock(state), on_grid=on_grid(C)))
     return out

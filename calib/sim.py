@@ -23,8 +23,8 @@ from .extras import ExtraValues
 from .gaussmarkov import gauss_markov
 from .profiles import NoiseProfile
 
-from .sequence import Sequence, Timeline, nominal_attitude, timeline
-from .transform import gimbal_from_relative, rotvec_to_dcm, unwrap_gimbal
+from .sequence import Sequence, Timeline, timeline
+from .transform import rotvec_to_dcm
 
 if TYPE_CHECKING:
     from .runlog import Run
@@ -184,21 +184,26 @@ def true_increments(tl: Timeline, R_setup: np.ndarray, cfg: SimConfig,
     return time_s, flip + E @ w_ie, E @ f
 
 
-def encoder_angles(tl: Timeline, time_s: np.ndarray, C_start: np.ndarray) -> np.ndarray:
+def encoder_angles(seq: Sequence, time_s: np.ndarray, gimbal=None, played: Sequence | None = None
+                   ) -> np.ndarray:
     """Gimbal encoder angles (deg, continuous) at each sample.
 
-    The gimbal sits on the base, so the angles describe the nominal attitude
-    relative to the start attitude; the mounting rotation does not enter.
+    The gimbal sits on the base, so the mounting rotation does not enter.
+    ``seq`` (the nominal sequence) decides which gimbal plays each flip and
+    any lock counter-rotation (:mod:`calib.gimbal`); ``played`` (default
+    ``seq``) is what was really played, e.g. with flip errors.
     """
-    C_rel = np.einsum("ji,njk->nik", C_start, nominal_attitude(tl, time_s))
-    return np.degrees(unwrap_gimbal(gimbal_from_relative(C_rel))) + 0.0  # no negative zeros
+    from .gimbal import DEFAULT_GIMBAL, encoder_track, plan_sequence
+    plan = plan_sequence(seq, gimbal or DEFAULT_GIMBAL)
+    angles, _ = encoder_track(plan, played if played is not None else seq, time_s)
+    return np.degrees(angles) + 0.0  # no negative zeros
 
 
 def simulate(seq: Sequence, cfg: SimConfig, errors: ErrorModel, profile: NoiseProfile,
              setup_rotvec=(0.0, 0.0, 0.0), flip_error_deg: float = 0.0,
              noise: bool = True, seed: int | None = None,
              random_setup_deg: float | None = None,
-             extra: ExtraValues | None = None) -> tuple[Run, Truth]:
+             extra: ExtraValues | None = None, gimbal=None) -> tuple[Run, Truth]:
     """Simulate a calibration run.
 
     Parameters
@@ -221,6 +226,9 @@ def simulate(seq: Sequence, cfg: SimConfig, errors: ErrorModel, profile: NoisePr
     extra : ExtraValues, optional
         The optional terms of :mod:`calib.extras` (lever arms, quadratic
         accelerometer terms, gyro-accelerometer time offset).
+    gimbal : calib.gimbal.Gimbal, optional
+        Plays the encoder channels (lock counter-rotations at its limits);
+        default: slip rings, no limits.
 
     Returns
     -------
@@ -269,7 +277,7 @@ def simulate(seq: Sequence, cfg: SimConfig, errors: ErrorModel, profile: NoisePr
     meta["sequence"] = seq.name
     from . import runlog
     run = runlog.Run(time_s=time_s, dtheta_rad=dtheta, dv_mps=dv, meta=meta,
-              gimbal_deg=encoder_angles(tl, time_s, seq.C_start))
+              gimbal_deg=encoder_angles(seq, time_s, gimbal, played=real))
     truth = Truth(errors=errors, setup_rotvec=setup_rotvec, flip_errors_deg=flip_errors,
                   profile=profile.name, seed=seed, noise=noise,
                   extra=extra if extra.active else None)
