@@ -297,9 +297,13 @@ def plan_move(gimbal: Gimbal, state: np.ndarray, axis: str | int, angle_rad: flo
 # Limits
 
 
-def _range_violations(gimbal: Gimbal, lo: np.ndarray, hi: np.ndarray, step) -> list[Violation]:
+def _range_violations(gimbal: Gimbal, lo: np.ndarray, hi: np.ndarray, step,
+                      moving=(0, 1, 2)) -> list[Violation]:
+    """Range limits of the gimbals that move (a gimbal left beyond its range was flagged when it got there)."""
     out = []
     for g, a in enumerate(gimbal.axes):
+        if g not in moving:
+            continue
         if lo[g] < a.min_angle - LIMIT_TOL or hi[g] > a.max_angle + LIMIT_TOL:
             bad = lo[g] if lo[g] < a.min_angle - LIMIT_TOL else hi[g]
             out.append(Violation(step, a.name, "range",
@@ -361,14 +365,16 @@ def _jerk_of(pieces: Pieces) -> float:
 
 def _single_violations(gimbal: Gimbal, start, end, g: int, pieces: Pieces, step) -> list:
     lo, hi = np.minimum(start, end), np.maximum(start, end)
-    out = _range_violations(gimbal, lo, hi, step) + _lock_violations(gimbal, lo[1], hi[1], step)
+    out = _range_violations(gimbal, lo, hi, step, (g,))
+    if g == 1:  # a rest in lock is reached by a middle move and flagged there
+        out += _lock_violations(gimbal, lo[1], hi[1], step)
     return out + _dynamic_violations(gimbal, g, 1.0, 0.0, pieces, _jerk_of(pieces), step)
 
 
 def _unlock_violations(gimbal: Gimbal, state, unlock, prof: RateProfile, step) -> list:
     """A counter-rotation happens at a locked rest: lock margin > 0 already flags that rest."""
     end = state + unlock
-    out = _range_violations(gimbal, np.minimum(state, end), np.maximum(state, end), step)
+    out = _range_violations(gimbal, np.minimum(state, end), np.maximum(state, end), step, (0, 2))
     pieces = prof.pieces(float(np.max(np.abs(unlock))))
     for g in (0, 2):
         out += _dynamic_violations(gimbal, g, 1.0, 0.0, pieces, _jerk_of(pieces), step)
