@@ -176,7 +176,7 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
         random_setup_deg=3.0 if random_setup else None,
         extra=extra, gimbal=gimbal)
     truth_path = truth_path_for(output)
-    prov = provenance({"sequence": sequence, "errors": errors_file, "gimbal": gimbal_file,
+    prov = provenance({"sequence": sequence, "errors": errors_file, "gimbal": gimbal.path,
                        "profile": profile if Path(profile).exists() else None},
                       sequence=seq.name, profile=prof.name)
     run.meta.update({"tool_version": prov["tool_version"], "command": prov["command"],

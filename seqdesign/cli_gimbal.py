@@ -107,11 +107,13 @@ def export(sequence, gimbal_file, output, rate_hz, as_json):
     gimbal = load_gimbal(gimbal_file)
     plan = plan_sequence(seq, gimbal)
     check_playable(plan, f"{resolve_sequence_path(sequence)} on gimbal {gimbal.name!r}")
-    prov = provenance({"sequence": sequence, "gimbal": gimbal_file}, sequence=seq.name)
+    prov = provenance({"sequence": sequence, "gimbal": gimbal.path}, sequence=seq.name,
+                      gimbal=gimbal.name)
     header = {"format": FORMAT, "sequence": seq.name,
               "sequence_file": str(resolve_sequence_path(sequence)),
               "sequence_sha256": prov["sequence_sha256"], "gimbal": gimbal.name,
-              "gimbal_file": gimbal_file or "none (default: slip rings, no limits)",
+              "gimbal_file": gimbal.path or "none (default: slip rings, no limits)",
+              "gimbal_sha256": prov.get("gimbal_sha256", ""),
               "rate_hz": f"{rate_hz:g}", "tool_version": prov["tool_version"],
               "command": prov["command"]}
     times = schedule_times(seq.duration_s, rate_hz)
