@@ -141,13 +141,16 @@ def test_real_angular_acceleration_reaches_the_lever_arm_term():
     assert abs(centripetal) < 1.4e-4 * abs(expected)
 
 
+SETUP = np.radians([1.0, -2.0, 3.0])
+
+
 @pytest.fixture(scope="module")
 def noise_free_accel_fit():
     seq = accelerating(load_sequence("paper-9pos"), 5.0, 10.0)
     cfg = SimConfig(latitude_rad=LAT)
     truth = ErrorModel.from_table2()
     run, _ = simulate(seq, cfg, truth, load_profile("navigation"),
-                      setup_rotvec=np.radians([1.0, -2.0, 3.0]), noise=False)
+                      setup_rotvec=SETUP, noise=False)
     fit = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity,
                     load_profile("navigation"))
     return fit, truth, run
@@ -173,3 +176,14 @@ def test_encoder_steps_within_the_moves_rate(noise_free_accel_fit):
     step = np.abs(np.diff(run.gimbal_deg, axis=0))
     dt = np.diff(run.time_s)
     assert np.all(step <= 10.0 * dt[:, None] * (1 + 1e-9) + 1e-9)
+
+
+@pytest.mark.slow
+def test_analyser_models_accelerating_moves_as_the_estimator_sees_them(noise_free_accel_fit):
+    # The analyser builds its model from the same timeline (with the profile's pieces); its
+    # sigmas must match the estimator's on the accelerating run as on constant-rate ones (1 %).
+    from seqdesign.observability import analyze
+    fit, _, _ = noise_free_accel_fit
+    seq = accelerating(load_sequence("paper-9pos"), 5.0, 10.0)
+    obs = analyze(seq, load_profile("navigation"), LAT, 0.0, SETUP)
+    assert np.allclose(obs.sigma, fit.sigma, rtol=0.01), np.round(obs.sigma / fit.sigma, 4)

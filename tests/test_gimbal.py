@@ -235,3 +235,36 @@ def test_shipped_gimbal_files_load():
                and a.max_accel == pytest.approx(D(10)) for a in cw.axes)
     sr = load_gimbal("slip-rings")
     assert all(math.isinf(a.max_angle) for a in sr.axes) and sr.lock_margin == 0.0
+
+
+def test_simulator_encoder_channels_contain_the_counter_rotation():
+    # simulate: during the counter-rotation the encoders turn (outer and inner opposite) while
+    # the gyros see only the Earth rate: the IMU stays still.
+    from calib.errormodel import ErrorModel
+    from calib.profiles import load_profile
+    from calib.sim import SimConfig, simulate
+    seq = lock_sequence()
+    run, _ = simulate(seq, SimConfig(latitude_rad=D(40)), ErrorModel.zero(),
+                      load_profile("navigation"), noise=False)
+    (_, t_a, t_b, _), = plan_sequence(seq).unlocks
+    inside = (run.time_s >= t_a - 1e-9) & (run.time_s <= t_b + 1e-9)  # 29..38 s: on samples
+    g = run.gimbal_deg[inside]
+    assert np.ptp(g[:, 0]) == pytest.approx(90.0, abs=1e-9)
+    assert np.ptp(g[:, 2]) == pytest.approx(90.0, abs=1e-9)
+    np.testing.assert_allclose(g[:, 0] + g[:, 2], g[0, 0] + g[0, 2], atol=1e-9)  # middle = +90
+    # 7.3e-5 rad/s Earth rate * 5 ms = 3.6e-7 rad per sample at most.
+    assert np.max(np.abs(run.dtheta_rad[inside])) < 4e-7
+
+
+@pytest.mark.slow  # a 15-min 200 Hz simulation
+def test_encoders_with_flip_errors_step_no_faster_than_the_moves():
+    # With flip errors the encoders follow the nominal plan's gimbals, each turned by the
+    # real angle: still no jump anywhere (the 90-degree jumps at 559.8 s).
+    from calib.errormodel import ErrorModel
+    from calib.profiles import load_profile
+    from calib.sim import SimConfig, simulate
+    run, _ = simulate(load_sequence("designed-15min"), SimConfig(latitude_rad=D(40)),
+                      ErrorModel.zero(), load_profile("navigation"), noise=False,
+                      flip_error_deg=0.5, seed=3)
+    step = np.abs(np.diff(run.gimbal_deg, axis=0))
+    assert np.max(step) <= 10.0 * 0.005 * (1 + 1e-9)
