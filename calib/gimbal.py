@@ -346,7 +346,8 @@ def _dynamic_violations(gimbal: Gimbal, g: int, gain: float, curve: float, piece
     if np.any(pieces.rate0[:1] != 0.0) and math.isfinite(a.max_accel):
         out.append(Violation(step, a.name, "acceleration",
                              "starts at full rate in zero time (no accel_dps2), but it accelerates "
-                             f"at most {math.degrees(a.max_accel):g} deg/s^2",))
+                             f"at most {math.degrees(a.max_accel):g} deg/s^2 (give the step "
+                             f"accel_dps2 <= {math.degrees(a.max_accel):g})"))
     elif accel > a.max_accel * (1 + LIMIT_TOL):
         out.append(Violation(step, a.name, "acceleration", f"accelerates at "
                              f"{math.degrees(accel):.3g} deg/s^2, above its "
