@@ -268,3 +268,15 @@ def test_encoders_with_flip_errors_step_no_faster_than_the_moves():
                       flip_error_deg=0.5, seed=3)
     step = np.abs(np.diff(run.gimbal_deg, axis=0))
     assert np.max(step) <= 10.0 * 0.005 * (1 + 1e-9)
+
+
+@pytest.mark.parametrize("keys,needles", [
+    ("accel_dps2 = -1\n", ["accel_dps2", "> 0"]),
+    ("jerk_dps3 = 20\n", ["jerk_dps3", "without 'accel_dps2'"]),
+    ("accel_dps2 = \"fast\"\n", ["accel_dps2", "number"]),
+])
+def test_bad_rate_profile_keys_are_refused(tmp_path, keys, needles):
+    p = tmp_path / "s.toml"
+    p.write_text('start = ["east", "up", "south"]\n[[step]]\naxis = "Z"\nangle_deg = 90\n' + keys)
+    refuse(tmp_path, ["export", str(p), "-o", str(tmp_path / "commands.csv")], "step 1", *needles)
+    refuse(tmp_path, ["show", str(p)], "step 1", *needles)
