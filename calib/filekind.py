@@ -44,7 +44,7 @@ def kind_of(path: str | Path) -> str:
     try:
         import tomllib
         doc = tomllib.loads(Path(path).read_text("utf-8"))
-    except (OSError, ValueError, UnicodeDecodeError):
+    except (OSError, ValueError, UnicodeDecodeError, RecursionError):
         return "unknown"  # the reader itself says what is wrong with it
     for kind, marks in _TOML_MARKS:
         if any(m in doc for m in marks):

@@ -18,6 +18,7 @@ from .errors import CalibError
 from .fileio import load_toml, toml_number
 from .fields import FORMAT_VERSION, Fields, check_format_version
 from .filekind import expect
+from .rateprofile import RateProfile
 from .transform import attitude_from_directions, axis_index, rot_axis
 
 DEFAULT_RATE_DPS = 10.0
@@ -30,16 +31,33 @@ DEFAULT_SAMPLE_RATE_HZ = 200.0
 
 @dataclass(frozen=True)
 class Step:
-    """One flip: rotate about body ``axis`` by ``angle_deg`` at ``rate_dps``, then rest."""
+    """One flip: rotate about body ``axis`` by ``angle_deg`` at ``rate_dps``, then rest.
+
+    ``accel_dps2`` (and ``jerk_dps3``) make the move a trapezoid (an S-curve)
+    with cruise rate ``rate_dps`` (:mod:`calib.rateprofile`); ``None`` is
+    the constant-rate move of files without them.
+    """
 
     axis: str
     angle_deg: float
     rate_dps: float = DEFAULT_RATE_DPS
     dwell_s: float = DEFAULT_DWELL_S
+    accel_dps2: float | None = None
+    jerk_dps3: float | None = None
+
+    @property
+    def profile(self) -> RateProfile:
+        """The move's rate profile in SI (rad/s, rad/s^2, rad/s^3)."""
+        return RateProfile(
+            rate=math.radians(self.rate_dps),
+            accel=math.inf if self.accel_dps2 is None else math.radians(self.accel_dps2),
+            jerk=math.inf if self.jerk_dps3 is None else math.radians(self.jerk_dps3))
 
     @property
     def duration_s(self) -> float:
-        return abs(self.angle_deg) / self.rate_dps
+        if self.accel_dps2 is None:
+            return abs(self.angle_deg) / self.rate_dps  # as before profiles, bit for bit
+        return self.profile.duration_s(math.radians(self.angle_deg))
 
 
 @dataclass(frozen=True)
@@ -77,11 +95,19 @@ class Sequence:
             d["latitude_deg"] = self.latitude_deg
         if self.height_m is not None:
             d["height_m"] = self.height_m
-        d["step"] = [{"axis": s.axis, "angle_deg": s.angle_deg, "rate_dps": s.rate_dps,
-                      "dwell_s": s.dwell_s} for s in self.steps]
+        d["step"] = [_step_dict(s) for s in self.steps]
         if self.provenance:
             d["provenance"] = dict(self.provenance)
         return d
+
+
+def _step_dict(s: Step) -> dict:
+    d = {"axis": s.axis, "angle_deg": s.angle_deg, "rate_dps": s.rate_dps, "dwell_s": s.dwell_s}
+    if s.accel_dps2 is not None:
+        d["accel_dps2"] = s.accel_dps2
+    if s.jerk_dps3 is not None:
+        d["jerk_dps3"] = s.jerk_dps3
+    return d
 
 
 # ---------------------------------------------------------------------------
@@ -108,14 +134,26 @@ def _number(table: dict, key: str, where: str, default=None, positive=False,
 
 
 SEQUENCE_KEYS = ("format_version", "name", "description", "start", "initial_dwell_s",
-                 "latitude_deg", "height_m", "step", "provenance")
-STEP_KEYS = ("axis", "angle_deg", "rate_dps", "dwell_s")
+                 "latitude_deg", "height_m", "step", "provenance", "accel_dps2", "jerk_dps3")
+STEP_KEYS = ("axis", "angle_deg", "rate_dps", "dwell_s", "accel_dps2", "jerk_dps3")
 
 
 def _check_keys(table: dict, known, kind: str, where: str) -> None:
     """Refuse a near miss of a known key; warn about any other key the tool ignores."""
     for message in Fields(table, where).check_keys(known, kind):
         warnings.warn(message, stacklevel=3)
+
+
+def _profile_keys(table: dict, where: str, default: tuple) -> tuple[float | None, float | None]:
+    """``accel_dps2`` and ``jerk_dps3`` of a step (or the file's defaults): None means unlimited."""
+    accel = _number(table, "accel_dps2", where, positive=True) if "accel_dps2" in table \
+        else default[0]
+    jerk = _number(table, "jerk_dps3", where, positive=True) if "jerk_dps3" in table \
+        else default[1]
+    if jerk is not None and accel is None:
+        raise CalibError("'jerk_dps3' without 'accel_dps2'", where,
+                         "give the acceleration limit too (an S-curve needs both)")
+    return accel, jerk
 
 
 def sequence_from_dict(doc: dict, where: str) -> Sequence:
@@ -145,6 +183,7 @@ def sequence_from_dict(doc: dict, where: str) -> Sequence:
     if height is not None and not -1000.0 <= height <= 10000.0:
         raise CalibError(f"height_m = {height} is outside [-1000, 10000] m",
                          f"{where}: key 'height_m'", "give the ellipsoidal height of the site")
+    default_profile = _profile_keys(doc, where, (None, None))
     raw_steps = doc.get("step", [])
     if not isinstance(raw_steps, list):
         raise CalibError("'step' must be an array of tables ([[step]])", where)
@@ -168,7 +207,8 @@ def sequence_from_dict(doc: dict, where: str) -> Sequence:
                              "cannot be told from rest in the log (flips are detected above "
                              "0.57 deg/s)", here, f"turn at {MIN_RATE_DPS:g} deg/s or faster")
         dwell = _number(raw, "dwell_s", here, DEFAULT_DWELL_S, nonnegative=True)
-        steps.append(Step(axis.upper(), angle, rate, dwell))
+        accel, jerk = _profile_keys(raw, here, default_profile)
+        steps.append(Step(axis.upper(), angle, rate, dwell, accel, jerk))
     if not steps:
         raise CalibError("a sequence needs at least one [[step]]", where)
     provenance = doc.get("provenance", {})
@@ -222,7 +262,14 @@ def save_sequence(seq: Sequence, path: str | Path) -> None:
 
 @dataclass(frozen=True)
 class Timeline:
-    """Segments of a sequence: ``t0[i]..t1[i]`` at rate ``rate[i]`` (rad/s) about body ``axis[i]``.
+    """Segments of a sequence: ``t0[i]..t1[i]`` turning about body ``axis[i]``.
+
+    ``rate[i]`` is the segment's mean rate (rad/s): 0 exactly at rest, so
+    ``rate != 0`` means moving. A move is one segment per constant-jerk piece
+    of its rate profile (one for a constant-rate move); within segment ``i``
+    the angle turned is ``rate0 tau + accel tau^2 / 2 + jerk tau^3 / 6``
+    (``tau = t - t0[i]``). ``rate0``/``accel``/``jerk`` may be None: the
+    segments then turn at constant rate ``rate``.
 
     ``C0[i]`` is the nominal attitude at the segment's start (without the base
     mounting rotation). Rest segments have ``rate == 0`` and ``axis == -1``;
@@ -238,6 +285,9 @@ class Timeline:
     position: np.ndarray
     step: np.ndarray
     C_end: np.ndarray
+    rate0: np.ndarray | None = None
+    accel: np.ndarray | None = None
+    jerk: np.ndarray | None = None
 
     @property
     def duration_s(self) -> float:
@@ -247,30 +297,64 @@ class Timeline:
     def rest(self) -> np.ndarray:
         return self.rate == 0.0
 
+    def angle(self, seg: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Angle turned (rad) ``tau`` seconds into segments ``seg``."""
+        if self.rate0 is None:
+            return self.rate[seg] * tau
+        return (self.rate0[seg] * tau + 0.5 * self.accel[seg] * tau ** 2
+                + self.jerk[seg] * tau ** 3 / 6.0)
+
+    def angular_rate(self, seg: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Rate (rad/s) ``tau`` seconds into segments ``seg``."""
+        if self.rate0 is None:
+            return self.rate[seg] + 0.0 * tau
+        return self.rate0[seg] + self.accel[seg] * tau + 0.5 * self.jerk[seg] * tau ** 2
+
+    @property
+    def polynomial(self) -> np.ndarray:
+        """Per segment, whether the rate varies within it (accelerating or jerking)."""
+        if self.accel is None:
+            return np.zeros(len(self.t0), dtype=bool)
+        return (self.accel != 0.0) | (self.jerk != 0.0)
+
+
+def _move_rows(t: float, C: np.ndarray, ax: int, step: Step, k: int) -> tuple[list, float]:
+    """Timeline rows (one per constant-jerk piece) of a step's move starting at ``t``."""
+    if step.accel_dps2 is None:  # constant rate: one segment, exactly as before profiles
+        sign = 1.0 if step.angle_deg > 0 else -1.0
+        rate = sign * math.radians(step.rate_dps)
+        return [(t, t + step.duration_s, rate, ax, C, 0, k, rate, 0.0, 0.0)], t + step.duration_s
+    pc = step.profile.pieces(math.radians(step.angle_deg))
+    rows = []
+    for d, th0, r0, a0, j in zip(pc.duration, pc.theta0, pc.rate0, pc.accel0, pc.jerk):
+        swept = r0 * d + 0.5 * a0 * d * d + j * d ** 3 / 6.0
+        rows.append((t, t + d, swept / d, ax, C @ rot_axis(ax, th0), 0, k, r0, a0, j))
+        t += d
+    return rows, t
+
 
 def timeline(seq: Sequence) -> Timeline:
     """Expand a sequence into rest and rotation segments (zero-length rests dropped)."""
     t, C = 0.0, seq.C_start
     rows = []
     position = 1
-    rows.append((t, t + seq.initial_dwell_s, 0.0, -1, C, position, -1))
+    rows.append((t, t + seq.initial_dwell_s, 0.0, -1, C, position, -1, 0.0, 0.0, 0.0))
     t += seq.initial_dwell_s
     for k, s in enumerate(seq.steps):
         ax = axis_index(s.axis)
-        sign = 1.0 if s.angle_deg > 0 else -1.0
-        rate = sign * math.radians(s.rate_dps)
-        rows.append((t, t + s.duration_s, rate, ax, C, 0, k))
-        t += s.duration_s
+        move, t = _move_rows(t, C, ax, s, k)
+        rows.extend(move)
         C = C @ rot_axis(ax, math.radians(s.angle_deg))
         if s.dwell_s > 0:
             position += 1
-            rows.append((t, t + s.dwell_s, 0.0, -1, C, position, k))
+            rows.append((t, t + s.dwell_s, 0.0, -1, C, position, k, 0.0, 0.0, 0.0))
             t += s.dwell_s
     cols = list(zip(*rows))
     return Timeline(t0=np.array(cols[0]), t1=np.array(cols[1]), rate=np.array(cols[2]),
                     axis=np.array(cols[3], dtype=int), C0=np.array(cols[4]),
                     position=np.array(cols[5], dtype=int), step=np.array(cols[6], dtype=int),
-                    C_end=C)
+                    C_end=C, rate0=np.array(cols[7]), accel=np.array(cols[8]),
+                    jerk=np.array(cols[9]))
 
 
 def nominal_attitude(tl: Timeline, t: np.ndarray) -> np.ndarray:
@@ -281,7 +365,7 @@ def nominal_attitude(tl: Timeline, t: np.ndarray) -> np.ndarray:
     moving = tl.rate[seg] != 0.0
     if np.any(moving):
         idx = np.nonzero(moving)[0]
-        angle = tl.rate[seg[idx]] * (np.minimum(t[idx], tl.t1[seg[idx]]) - tl.t0[seg[idx]])
+        angle = tl.angle(seg[idx], np.minimum(t[idx], tl.t1[seg[idx]]) - tl.t0[seg[idx]])
         for ax in range(3):
             sel = tl.axis[seg[idx]] == ax
             if np.any(sel):
@@ -303,33 +387,26 @@ class RestPosition:
     on_grid: bool = True  # False: some axis is off the E/N/U grid (non-90-degree flips)
 
 
-def rest_positions(seq: Sequence) -> list[RestPosition]:
-    """Rest positions with their attitudes and continuous gimbal angles.
+def rest_positions(seq: Sequence, gimbal=None) -> list[RestPosition]:
+    """Rest positions with their attitudes and continuous (encoder) gimbal angles.
 
-    Gimbal angles are tracked through every flip in steps of at most 1 deg,
-    as encoders count, so multi-turn flips and 180 deg turns unwrap correctly.
+    The encoder angles are those of :func:`calib.gimbal.plan_sequence` on
+    ``gimbal`` (default: slip rings, no limits) at the start of each rest,
+    before any lock counter-rotation played at the rest's end.
     """
-    from .transform import (describe_axis, gimbal_from_relative, is_gimbal_lock, on_grid,
-                            unwrap_gimbal)
+    from .gimbal import DEFAULT_GIMBAL, in_lock, plan_sequence
+    from .transform import describe_axis, on_grid
 
     tl = timeline(seq)
-    times, marks = [], []
-    for i in range(len(tl.t0)):
-        if tl.rate[i] == 0.0:
-            marks.append((i, len(times)))
-            times.append(0.5 * (tl.t0[i] + tl.t1[i]))
-        else:
-            n = max(2, int(math.ceil(abs(tl.rate[i]) * (tl.t1[i] - tl.t0[i]) / math.radians(1))))
-            times.extend(np.linspace(tl.t0[i], tl.t1[i], n + 1)[1:-1])
-    C = nominal_attitude(tl, np.array(times))
-    C_rel = np.einsum("ji,njk->nik", seq.C_start, C)
-    angles = np.degrees(unwrap_gimbal(gimbal_from_relative(C_rel)))
+    plan = plan_sequence(seq, gimbal or DEFAULT_GIMBAL)
     out = []
-    for seg, k in marks:
+    for seg in np.flatnonzero(tl.rate == 0.0):
+        k = int(tl.step[seg])
+        state = np.zeros(3) if k < 0 else plan.state_after(k)
+        C = tl.C0[seg]
         out.append(RestPosition(
-            number=int(tl.position[seg]), C_b_n=C[k],
-            directions=tuple(describe_axis(C[k][:, i]) for i in range(3)),
-            gimbal_deg=np.round(angles[k], 9) + 0.0, start_s=float(tl.t0[seg]),
-            end_s=float(tl.t1[seg]), gimbal_lock=bool(is_gimbal_lock(C_rel[k], 1e-6)),
-            on_grid=on_grid(C[k])))
+            number=int(tl.position[seg]), C_b_n=C,
+            directions=tuple(describe_axis(C[:, i]) for i in range(3)),
+            gimbal_deg=np.round(np.degrees(state), 9) + 0.0, start_s=float(tl.t0[seg]),
+            end_s=float(tl.t1[seg]), gimbal_lock=in_lock(state), on_grid=on_grid(C)))
     return out

@@ -47,18 +47,24 @@ def main():
 
 @main.command(short_help="Print a sequence's rest positions: axes, gimbal angles, times.")
 @click.argument("sequence")
+@click.option("--gimbal", "gimbal_file", type=click.Path(dir_okay=False),
+              help="Gimbal description (TOML): list its counter-rotations and flag violations.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 @guarded
-def show(sequence, as_json):
+def show(sequence, gimbal_file, as_json):
     """Print where body X, Y, Z point at every rest position of SEQUENCE (a
     file or a shipped name such as paper-9pos), its gimbal angles (outer,
     middle, inner; continuous along the run) and its start and end times."""
+    from calib.gimbal import load_gimbal, plan_sequence
     from calib.sequence import load_sequence, rest_positions
+    from seqdesign.cli_gimbal import LOCK_NOTE, gimbal_summary
 
     seq = load_sequence(sequence)
-    positions = rest_positions(seq)
+    gimbal = load_gimbal(gimbal_file)
+    positions = rest_positions(seq, gimbal)
+    gimbal_doc, gimbal_lines = gimbal_summary(seq, gimbal, plan_sequence(seq, gimbal))
     if as_json:
-        emit_json({
+        emit_json({**gimbal_doc,
             "sequence": seq.name, "duration_s": seq.duration_s,
             "positions": [{
                 "position": p.number, "x": p.directions[0], "y": p.directions[1],
@@ -79,6 +85,9 @@ def show(sequence, as_json):
                    f"  {p.start_s:8.1f}{p.end_s:8.1f}{lock}")
     if not all(p.on_grid for p in positions):
         click.echo("off-grid axes are shown as [east north up] components")
+    if any(p.gimbal_lock for p in positions):
+        click.echo(LOCK_NOTE)
+    click.echo("\n".join(gimbal_lines))
     click.echo(f"{len(positions)} rest positions, {len(seq.steps)} flips, "
                f"total {seq.duration_s:.1f} s ({seq.duration_s / 60:.1f} min)")
 
@@ -118,11 +127,14 @@ def _run_suffix(path: str, option: str) -> None:
               help="Terms of a real unit beyond the 21, in report units: lever arms "
                    "rxx..rzz (cm), k2x k2y k2z (ug/g^2), dt_ga (ms, accelerometers lag), "
                    "e.g. rxx=3,k2y=20,dt_ga=0.5.")
+@click.option("--gimbal", "gimbal_file", type=click.Path(dir_okay=False),
+              help="Gimbal description (TOML): refuse moves it cannot play; its limits pace "
+                   "the lock counter-rotations in the encoder channels.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 @guarded
 def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_setup, seed,
              latitude, height, gravity_mps2, sample_rate_hz, flip_error_deg, noise_free,
-             extra_text, as_json):
+             extra_text, as_json, gimbal_file=None):
     """Simulate the IMU increments of SEQUENCE on a stationary base with exact
     kinematics, the 21 errors and white noise; write the run log (-o) and its
     truth file beside it (run.truth.toml)."""
@@ -152,6 +164,9 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
                          "give m/s^2, e.g. 9.80123")
     extra = parse_values(extra_text)
     seq = load_sequence(sequence)
+    from calib.gimbal import check_playable, load_gimbal, plan_sequence
+    gimbal = load_gimbal(gimbal_file)
+    check_playable(plan_sequence(seq, gimbal), f"{sequence} on gimbal {gimbal.name!r}")
     prof = load_profile(profile)
     errors = (read_errors(errors_file) if errors_file
               else ErrorModel.from_table2() if table2 else ErrorModel.zero())
@@ -162,9 +177,9 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
         seq, cfg, errors, prof, setup_rotvec=np.radians(setup_deg) if setup_deg else (0, 0, 0),
         flip_error_deg=flip_error_deg, noise=not noise_free, seed=seed,
         random_setup_deg=3.0 if random_setup else None,
-        extra=extra)
+        extra=extra, gimbal=gimbal)
     truth_path = truth_path_for(output)
-    prov = provenance({"sequence": sequence, "errors": errors_file,
+    prov = provenance({"sequence": sequence, "errors": errors_file, "gimbal": gimbal.path,
                        "profile": profile if Path(profile).exists() else None},
                       sequence=seq.name, profile=prof.name)
     run.meta.update({"tool_version": prov["tool_version"], "command": prov["command"],
@@ -422,11 +437,13 @@ def _design_path(budget_min: float, output: str | None, pareto: bool) -> str:
 
 
 # Commands living in their own modules, registered here (before ``__main__`` runs them).
+from seqdesign.cli_gimbal import export  # noqa: E402
 from seqdesign.cli_profile import profile  # noqa: E402
 from seqdesign.cli_view import view  # noqa: E402
 
 main.add_command(view)
 main.add_command(profile)
+main.add_command(export)
 
 
 if __name__ == "__main__":
