@@ -306,7 +306,7 @@ def analyze(sequence, profile, latitude, tolerance_deg, requirements, view_path,
     click.echo(result.to_text())
 
 
-@main.command(short_help="Compare sequences side by side: time, worst ratio, per-parameter ratios.")
+@main.command(short_help="Compare sequences side by side, or two calibrations of one unit.")
 @click.argument("sequences", nargs=-1, required=True)
 @click.option("--profile", default="navigation", show_default=True, help="Noise profile.")
 @click.option("--latitude", type=float, help="Site latitude, deg (default: each sequence's, else 40).")
@@ -317,10 +317,28 @@ def analyze(sequence, profile, latitude, tolerance_deg, requirements, view_path,
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 @guarded
 def compare(sequences, profile, latitude, tolerance_deg, requirements, as_json):
-    """Analyse several sequences and print their 3 sigma / requirement ratios side by side."""
+    """Analyse several sequences and print their 3 sigma / requirement ratios side by side.
+
+    Given two calibration results (result TOML files) instead, put them side by
+    side: each difference against the combined sigma, and a chi-square
+    over all of them (the repeatability check of the paper's Table 3)."""
     from calib.calibration import as_profile
+    from calib.filekind import kind_of
     from calib.requirements import load_requirements
     from seqdesign.analysis import analyze as run_analysis, compare_text
+
+    kinds = {kind_of(s) for s in sequences}
+    if "result" in kinds:
+        if kinds != {"result"} or len(sequences) != 2:
+            raise CalibError("compare takes sequences, or exactly two result files", "compare",
+                             "give two results of calibrate (A B), or only sequences")
+        from seqdesign.repeatability import compare_results
+        rep = compare_results(sequences)
+        if as_json:
+            emit_json(rep.to_json())
+        else:
+            click.echo(rep.to_text())
+        return
 
     prof = as_profile(profile)
     req = load_requirements(requirements)
