@@ -117,10 +117,11 @@ def _run_suffix(path: str, option: str) -> None:
 @click.option("--seed", type=int, default=None, help="Random seed (noise, setup, flip errors).")
 @click.option("--latitude", type=float, help="Site latitude, deg (default: sequence, else 40).")
 @click.option("--height", type=float, help="Site height, m (default: sequence, else 0).")
-@click.option("--gravity", "gravity_mps2", type=float,
+@click.option("--gravity", "gravity_mps2", type=click.FloatRange(9.7, 9.9, min_open=True, max_open=True),
               help="Measured site gravity, m/s^2 (default: WGS-84 normal gravity).")
-@click.option("--sample-rate-hz", type=float, default=200.0, show_default=True)
-@click.option("--flip-error-deg", type=float, default=0.0, show_default=True,
+@click.option("--sample-rate-hz", type=click.FloatRange(1.0, 10000.0), default=200.0,
+              show_default=True)
+@click.option("--flip-error-deg", type=click.FloatRange(0.0, 10.0), default=0.0, show_default=True,
               help="Each flip misses its angle by up to this much (uniform).")
 @click.option("--noise-free", is_flag=True, help="No sensor noise.")
 @click.option("--extra", "extra_text", metavar="NAME=VALUE,...",
@@ -155,13 +156,6 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
     if setup_deg and any(abs(a) > 10 or not math.isfinite(a) for a in setup_deg):
         raise CalibError(f"--setup-deg {setup_deg} beyond 10 deg", "--setup-deg",
                          "the mounting tolerance of the conventions is +-3 deg")
-    if not (1.0 <= sample_rate_hz <= 10000.0):
-        raise CalibError(f"--sample-rate-hz {sample_rate_hz} outside [1, 10000]", "--sample-rate-hz")
-    if not (0.0 <= flip_error_deg <= 10.0):
-        raise CalibError(f"--flip-error-deg {flip_error_deg} outside [0, 10]", "--flip-error-deg")
-    if gravity_mps2 is not None and not (9.7 < gravity_mps2 < 9.9):
-        raise CalibError(f"--gravity {gravity_mps2} m/s^2 is not an Earth gravity", "--gravity",
-                         "give m/s^2, e.g. 9.80123")
     extra = parse_values(extra_text)
     seq = load_sequence(sequence)
     from calib.gimbal import check_playable, load_gimbal, plan_sequence

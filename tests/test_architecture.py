@@ -93,3 +93,14 @@ def test_json_refusal_is_one_json_document():
         doc = json.loads(res.stdout)
         assert set(doc["error"]) == {"what", "where", "fix"} and doc["error"]["what"]
         assert "Traceback" not in res.output
+
+
+def test_the_package_is_the_library():
+    """``import seqdesign as sd`` gives the calls a notebook needs, without importing the CLI."""
+    import seqdesign as sd
+
+    analysis = sd.analyze("paper-9pos", tolerance_deg=0.0)
+    assert set(analysis.to_json()["estimable"]) == set(analysis.to_json()["parameters"])
+    assert callable(sd.calibrate) and callable(sd.design) and callable(sd.record)
+    with pytest.raises(AttributeError):
+        sd.no_such_thing
