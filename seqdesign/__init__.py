@@ -8,13 +8,3 @@ import os as _os
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     _os.environ.setdefault(_var, "1")
 
-
-def __getattr__(name):
-    # The library API (seqdesign.api) on the package itself, imported on first use so that
-    # the CLI's start-up does not pay for it.
-    import importlib
-
-    api = importlib.import_module("seqdesign.api")
-    if name in api.__all__:
-        return getattr(api, name)
-    raise AttributeError(f"module 'seqdesign' has no attribute {name!r}")

@@ -1,6 +1,6 @@
 """The library a notebook calls: every command of the CLI is one call here.
 
->>> import seqdesign as sd
+>>> from seqdesign import api as sd
 >>> run = sd.read_run("demo-out/run.npz")
 >>> result = sd.calibrate(run, profile="navigation")       # a CalibrationResult
 >>> result.sigma_scale, result.converged, result.to_json()["worst"]
