@@ -40,7 +40,7 @@ class SiteGravity:
     """The gravity a fit assumes, and where it came from."""
 
     value_mps2: float
-    source: str  # "measured" (the log's gravity_mps2) or "normal" (WGS-84 model)
+    source: str  # "measured" (the log's gravity_mps2 or the user's) or "normal" (WGS-84 model)
 
     @property
     def ppm_per_mgal(self) -> float:
@@ -54,8 +54,10 @@ class SiteGravity:
                 "height; local anomalies of tens of mGal are not in it)")
 
 
-def site_gravity(run) -> SiteGravity:
-    """The log's measured gravity if it has one, else normal gravity at its latitude and height."""
+def site_gravity(run, gravity_mps2: float | None = None) -> SiteGravity:
+    """Gravity given by the user, else the log's measured one, else normal gravity at its site."""
+    if gravity_mps2 is not None:
+        return SiteGravity(float(gravity_mps2), "measured")
     if run.gravity_mps2 is not None:
         return SiteGravity(float(run.gravity_mps2), "measured")
     return SiteGravity(earth.gravity(math.radians(run.latitude_deg), run.height_m), "normal")
@@ -76,6 +78,7 @@ def as_extras(extras: Extras | str | None) -> Extras:
 def calibrate_run(run, profile: NoiseProfile | str = "navigation", *, sequence=None,
                   extras: Extras | str | None = None, partial: bool = False,
                   require_convergence: bool = True, requirements=None,
+                  gravity_mps2: float | None = None,
                   provenance: dict | None = None) -> CalibrationResult:
     """Fit the 21 parameters (and any optional terms) of a run log.
 
@@ -97,6 +100,10 @@ def calibrate_run(run, profile: NoiseProfile | str = "navigation", *, sequence=N
         Refuse a fit that did not converge (the CLI writes no result then).
     requirements : Requirements or str, optional
         What the ratios are judged against (default: the paper's).
+    gravity_mps2 : float, optional
+        Surveyed gravity at the site; wins over the log's and over the
+        normal-gravity model (a gravity error of dg/g is a common
+        accelerometer scale-factor error no sequence can separate).
     provenance : dict, optional
         Stored in the result as it is.
 
@@ -109,7 +116,7 @@ def calibrate_run(run, profile: NoiseProfile | str = "navigation", *, sequence=N
     prof, extras = as_profile(profile), as_extras(extras)
     req = load_requirements(requirements)
     lat = math.radians(run.latitude_deg)
-    gravity = site_gravity(run)
+    gravity = site_gravity(run, gravity_mps2)
     moving = None
     if sequence is not None:
         dt = sample_intervals(run.time_s)

@@ -211,13 +211,16 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
 @click.option("--requirements", "requirements", default=None, metavar="FILE|NAME",
               help="Accuracy requirements: a TOML file with a [requirements] table (spec names and "
                    "units; missing ones keep the paper's) or paper, tactical, mems.")
+@click.option("--gravity", "gravity_mps2", type=click.FloatRange(9.7, 9.9, min_open=True, max_open=True),
+              help="Surveyed site gravity, m/s^2 (default: the log's gravity_mps2, else WGS-84 normal "
+                   "gravity, which misses local anomalies of tens of mGal = tens of ppm of scale).")
 @click.option("--partial", is_flag=True,
               help="On a run that leaves directions unobserved, fit the estimable parameters and "
                    "report the rest as not estimable instead of refusing the run.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 @guarded
 def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, with_terms, requirements,
-              partial, as_json):
+              gravity_mps2, partial, as_json):
     """Align, navigate on the stationary base and fit the 21 error parameters of
     RUN (CSV or NPZ) by iterated, noise-weighted least squares."""
     from calib.calibration import as_extras, as_profile, calibrate_run
@@ -236,7 +239,7 @@ def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, with_
     info(f"calibrating {run_path}: {run.n_samples} samples, {run.duration_s:.1f} s, "
          f"profile {prof.name}")
     result = calibrate_run(run, prof, sequence=seq, extras=extras, partial=partial,
-                           requirements=requirements,
+                           requirements=requirements, gravity_mps2=gravity_mps2,
                            provenance=provenance(
                                {"run": run_path, "sequence": sequence, "truth": truth_path,
                                 "profile": profile if Path(profile).exists() else None,
