@@ -187,28 +187,8 @@ def sequence_from_dict(doc: dict, where: str) -> Sequence:
     raw_steps = doc.get("step", [])
     if not isinstance(raw_steps, list):
         raise CalibError("'step' must be an array of tables ([[step]])", where)
-    steps = []
-    for i, raw in enumerate(raw_steps, start=1):
-        here = f"{where}: step {i}"
-        if not isinstance(raw, dict):
-            raise CalibError("each [[step]] must be a table", here)
-        _check_keys(raw, STEP_KEYS, "step", here)
-        axis = raw.get("axis")
-        if not isinstance(axis, str) or axis.upper() not in ("X", "Y", "Z"):
-            raise CalibError(f"axis must be \"X\", \"Y\" or \"Z\", got {axis!r}", here)
-        angle = _number(raw, "angle_deg", here)
-        if angle == 0.0 or abs(angle) > 3600.0:
-            raise CalibError(f"angle_deg = {angle} must be non-zero and within +-3600", here)
-        rate = _number(raw, "rate_dps", here, DEFAULT_RATE_DPS, positive=True)
-        if rate > 1000.0:
-            raise CalibError(f"rate_dps = {rate} is beyond any gimbal (max 1000 deg/s)", here)
-        if rate < MIN_RATE_DPS:
-            raise CalibError(f"rate_dps = {rate} is below {MIN_RATE_DPS:g} deg/s: such a slow turn "
-                             "cannot be told from rest in the log (flips are detected above "
-                             "0.57 deg/s)", here, f"turn at {MIN_RATE_DPS:g} deg/s or faster")
-        dwell = _number(raw, "dwell_s", here, DEFAULT_DWELL_S, nonnegative=True)
-        accel, jerk = _profile_keys(raw, here, default_profile)
-        steps.append(Step(axis.upper(), angle, rate, dwell, accel, jerk))
+    steps = [_step_from_dict(raw, f"{where}: step {i}", default_profile)
+             for i, raw in enumerate(raw_steps, start=1)]
     if not steps:
         raise CalibError("a sequence needs at least one [[step]]", where)
     provenance = doc.get("provenance", {})
@@ -220,6 +200,29 @@ def sequence_from_dict(doc: dict, where: str) -> Sequence:
         raise CalibError(f"sequence lasts {seq.duration_s / 3600:.1f} h; more than 6 h is refused",
                          where, "shorten dwells")
     return seq
+
+
+def _step_from_dict(raw, here: str, default_profile: tuple) -> Step:
+    """One validated ``[[step]]``."""
+    if not isinstance(raw, dict):
+        raise CalibError("each [[step]] must be a table", here)
+    _check_keys(raw, STEP_KEYS, "step", here)
+    axis = raw.get("axis")
+    if not isinstance(axis, str) or axis.upper() not in ("X", "Y", "Z"):
+        raise CalibError(f"axis must be \"X\", \"Y\" or \"Z\", got {axis!r}", here)
+    angle = _number(raw, "angle_deg", here)
+    if angle == 0.0 or abs(angle) > 3600.0:
+        raise CalibError(f"angle_deg = {angle} must be non-zero and within +-3600", here)
+    rate = _number(raw, "rate_dps", here, DEFAULT_RATE_DPS, positive=True)
+    if rate > 1000.0:
+        raise CalibError(f"rate_dps = {rate} is beyond any gimbal (max 1000 deg/s)", here)
+    if rate < MIN_RATE_DPS:
+        raise CalibError(f"rate_dps = {rate} is below {MIN_RATE_DPS:g} deg/s: such a slow turn "
+                         "cannot be told from rest in the log (flips are detected above "
+                         "0.57 deg/s)", here, f"turn at {MIN_RATE_DPS:g} deg/s or faster")
+    dwell = _number(raw, "dwell_s", here, DEFAULT_DWELL_S, nonnegative=True)
+    accel, jerk = _profile_keys(raw, here, default_profile)
+    return Step(axis.upper(), angle, rate, dwell, accel, jerk)
 
 
 def builtin_sequence_dir() -> Path:
