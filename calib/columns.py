@@ -10,7 +10,7 @@ A header names each column by quantity, axis and unit, in any order::
 
 Each sensor (gyro, accelerometer) is given once, as increments or as rates, on all
 three axes. Other columns (temperature, gimbal encoders, ...) are ignored here.
-The classic header of ``files.md`` (``dtheta_x_rad``, ``dv_x_mps``) is one case
+The classic header of ``docs/formats.md`` (``dtheta_x_rad``, ``dv_x_mps``) is one case
 of the grammar, so every file that read before reads the same.
 
 Rates become increments by the rectangular rule: the increment of the sample
@@ -39,7 +39,7 @@ QUANTITIES = {
     "dv": ("accel", False, {"mps": 1.0}),
     "accel": ("accel", True, {"mps2": 1.0, "g": STANDARD_GRAVITY}),
 }
-_CLASSIC = {"gyro": "dtheta", "accel": "dv"}  # the quantity files.md names
+_CLASSIC = {"gyro": "dtheta", "accel": "dv"}  # the quantity docs/formats.md names
 _CLASSIC_UNIT = {"dtheta": "rad", "dv": "mps"}
 EXAMPLE_HEADER = "time_s,gyro_x_dps,gyro_y_dps,gyro_z_dps,accel_x_g,accel_y_g,accel_z_g"
 

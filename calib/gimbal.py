@@ -100,6 +100,7 @@ def _axis_from_dict(name: str, table, where: str) -> GimbalAxis:
     here = f"{where}: [{name}]"
     if not isinstance(table, dict):
         raise CalibError(f"'{name}' must be a table", here, f"write [{name}] with its limits")
+    _warn_unknown(table, AXIS_KEYS, "gimbal axis", here)
     lo, hi = -math.inf, math.inf
     if "range_deg" in table:
         raw = table["range_deg"]
@@ -117,8 +118,25 @@ def _axis_from_dict(name: str, table, where: str) -> GimbalAxis:
                       deg(_limit(table, "max_jerk_dps3", here)))
 
 
+GIMBAL_KEYS = ("format_version", "name", "description", "lock_margin_deg", "end_at_home",
+               "outer", "middle", "inner")
+AXIS_KEYS = ("range_deg", "max_rate_dps", "max_accel_dps2", "max_jerk_dps3")
+
+
+def _warn_unknown(table: dict, known, kind: str, where: str) -> None:
+    """A near miss of a known key is refused (a typo would drop a limit); others are warned."""
+    import warnings
+
+    from .fields import Fields
+    for message in Fields(table, where).check_keys(known, kind):
+        warnings.warn(message, stacklevel=3)
+
+
 def gimbal_from_dict(doc: dict, where: str) -> Gimbal:
     """Validate a parsed gimbal TOML document (see docs/gimbal.md)."""
+    from .fields import check_format_version
+    check_format_version(doc, "gimbal", where)
+    _warn_unknown(doc, GIMBAL_KEYS, "gimbal", where)
     name = doc.get("name", Path(where).stem)
     if not isinstance(name, str) or not name:
         raise CalibError("'name' must be a non-empty string", f"{where}: key 'name'")

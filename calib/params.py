@@ -1,7 +1,7 @@
 """The 21 IMU error parameters: order, names, units, requirements.
 
 This module is the single source of truth for the parameter table of
-``conventions.md``. Every other module takes names, units, SI factors and
+``docs/conventions.md``. Every other module takes names, units, SI factors and
 requirements from :data:`PARAMETERS`; none repeats them.
 
 Sensor model (body frame defined by the accelerometers)::

@@ -1,4 +1,4 @@
-"""Noise profiles: the IMU's white noise (ARW, VRW), per ``conventions.md``, and
+"""Noise profiles: the IMU's white noise (ARW, VRW), per ``docs/conventions.md``, and
 optional first-order Gauss-Markov bias instability (see :mod:`calib.gaussmarkov`)."""
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from importlib import resources
 from pathlib import Path
 
 from .errors import CalibError
-from .fields import Fields
+from .fields import Fields, check_format_version
 from .filekind import expect
 from .fileio import load_toml, toml_number
 from .params import DEG, DEG_PER_HOUR, MICRO_G
@@ -137,6 +137,7 @@ PROFILE_KEYS = ("format_version", "name", "description", "source", "gyro_arw_dph
 
 
 def _from_doc(doc: dict, where: str) -> NoiseProfile:
+    check_format_version(doc, "profile", where)
     for message in Fields(doc, where).check_keys(PROFILE_KEYS, "profile"):
         warnings.warn(message, stacklevel=3)
     values = {}

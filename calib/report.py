@@ -10,7 +10,7 @@ from .requirements import PAPER, Requirements
 def parameter_entries(sigma_si: np.ndarray, values_si: np.ndarray | None = None,
                       truth_si: np.ndarray | None = None,
                       requirements: Requirements = PAPER) -> dict[str, dict]:
-    """``files.md`` JSON entries keyed by spec name, in spec units."""
+    """``docs/formats.md`` JSON entries keyed by spec name, in spec units."""
     sig = P.from_si(sigma_si)
     ratios = requirements.ratio(sigma_si)
     out = {}

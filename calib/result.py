@@ -155,7 +155,7 @@ class CalibrationResult:
         return out
 
     def to_json(self, truth=None) -> dict:
-        """The ``calibrate --json`` document (``files.md``), with truth comparisons if given."""
+        """The ``calibrate --json`` document (``docs/formats.md``), with truth comparisons if given."""
         entries = self.entries(truth)
         doc = {"parameters": entries, "worst": worst(entries), "profile": self.profile,
                "requirements": self.requirements.name,

@@ -782,7 +782,7 @@ def _load_npz_arrays(path: str | os.PathLike, name: str) -> dict[str, np.ndarray
                 raise CalibError(f"archive lacks array{'s' if len(missing) > 1 else ''} "
                                  f"{', '.join(repr(m) for m in missing)}", name,
                                  "store time_s, dtheta_rad, dv_mps and meta "
-                                 "(see spec/files.md)")
+                                 "(see docs/formats.md)")
             arrays = {}
             for a in (*_NPZ_ARRAYS, "gimbal_deg", "meta"):
                 if a not in present:

@@ -1,6 +1,6 @@
 """Calibration sequences: an initial attitude, dwells, and flips about body axes.
 
-A sequence file is the TOML of ``files.md``. In memory a :class:`Sequence`
+A sequence file is the TOML of ``docs/formats.md``. In memory a :class:`Sequence`
 is expanded into a :class:`Timeline` of segments (rest or constant-rate
 rotation) from which the nominal attitude at any time follows exactly.
 """
@@ -62,7 +62,7 @@ class Step:
 
 @dataclass(frozen=True)
 class Sequence:
-    """A calibration sequence (see ``files.md``)."""
+    """A calibration sequence (see ``docs/formats.md``)."""
 
     name: str
     start: tuple[str, str, str]

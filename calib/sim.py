@@ -48,7 +48,7 @@ class SimConfig:
 
 @dataclass(frozen=True)
 class Truth:
-    """What a simulated run really contains (the truth file of ``files.md``)."""
+    """What a simulated run really contains (the truth file of ``docs/formats.md``)."""
 
     errors: ErrorModel
     setup_rotvec: np.ndarray  # rad, ENU rotation vector of R_setup

@@ -48,7 +48,7 @@ def errors_from_table(table, where: str) -> ErrorModel:
     missing = [n for n in P.NAMES if n not in table]
     if missing:
         raise CalibError("[errors] lacks " + ", ".join(missing), where,
-                         "give all 21 parameters in the units of conventions.md")
+                         "give all 21 parameters in the units of docs/conventions.md")
     values = [_finite(table[n], f"{where}: [errors] {n}") for n in P.NAMES]
     # Beyond these the small-error model of the conventions no longer holds (SI):
     # 5 % for scale factors and misalignments; a gyro bias of 1 deg/s (a tenth of

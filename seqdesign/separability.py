@@ -9,7 +9,7 @@ parameters' own units), and, per parameter, the motion that excites it.
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import null_space
+from scipy.linalg import null_space, qr
 
 from calib import params as P
 
@@ -49,14 +49,24 @@ def separable_combinations(null_basis: np.ndarray, estimable: np.ndarray,
     if idx.size == 0:
         return []
     sub = null_basis[idx]  # the null directions restricted to those parameters
-    comp = null_space(sub.T) if sub.size else np.eye(idx.size)
+    comp = null_space(sub.T) if sub.size else np.eye(idx.size)  # (m, r), scaled units
+    if comp.shape[1] == 0:
+        return []
+    # Reduced row-echelon form, as the null directions are printed: each combination gets a
+    # pivot parameter and as few others as the physics forces.
+    _, _, piv = qr(comp.T, pivoting=True)
+    r = comp.shape[1]
+    basis = np.linalg.solve(comp.T[:, piv[:r]], comp.T)  # (r, m), scaled
     out = []
-    for c in comp.T:
-        own = c / np.asarray(scales)[idx]  # c . (x / s): coefficient of x_i in its own unit
-        own = own / own[np.argmax(np.abs(own))]
-        terms = [(own[k], names[i]) for k, i in enumerate(idx) if abs(own[k]) > 1e-3]
-        out.append(" ".join(f"{'+' if a > 0 else '-'} {abs(a):.3g} {n}" for a, n in terms)
-                   .lstrip("+ "))
+    for row in basis:
+        keep = np.abs(row) > 0.01  # as describe_null: terms above 1 % in requirement units
+        own = row / np.asarray(scales)[idx]  # coefficient of each parameter in its own unit
+        own = own / own[np.argmax(np.abs(row))]
+        text = " ".join(f"{'+' if own[k] > 0 else '-'} {abs(own[k]):.3g} {names[idx[k]]}"
+                        for k in np.flatnonzero(keep)).lstrip("+ ")
+        small = np.abs(row[~keep]).max(initial=0.0)
+        out.append(text + (f" (+ terms below {small:.0e} of a requirement)" if small > 1e-6
+                           else ""))
     return out
 
 
