@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from calib import clock
 from calib.errors import CalibError
 from calib.fileio import atomic_write_bytes, atomic_write_text
 
@@ -44,13 +45,12 @@ _ARRAY_COLUMNS = {
     "gimbal_deg": GIMBAL_COLUMNS,
 }
 
-GAP_PERIODS = 2.0  # a time step longer than this many nominal periods is a gap
+GAP_PERIODS = 2.0  # the typical time step must lie within [0.5, 2] nominal periods
 
 # A calibration site is on the Earth's surface (Dead Sea to Everest, with margin);
 # far outside, normal gravity is meaningless and its formula overflows.
 HEIGHT_RANGE_M = (-1000.0, 10000.0)
 
-_GAP_FIX = "fill the gap, or pass --allow-gaps to accept a run with gaps"
 
 
 @dataclass
@@ -72,6 +72,8 @@ class Run:
         ``(n, 3)`` outer, middle, inner encoder angles in degrees, or None.
     source : str
         Path the run was read from, used to name it in messages.
+    clock : calib.clock.SampleClock or None
+        Jitter, dropped and duplicated samples found by `read_run`.
     """
 
     time_s: np.ndarray
@@ -80,6 +82,7 @@ class Run:
     meta: dict[str, str]
     gimbal_deg: np.ndarray | None = None
     source: str = "<memory>"
+    clock: clock.SampleClock | None = None  # what read_run found in the time column
 
     @property
     def latitude_deg(self) -> float:
@@ -166,19 +169,24 @@ def make_meta(latitude_deg: float, height_m: float, sample_rate_hz: float,
 # --------------------------------------------------------------------------
 
 def read_run(path: str | os.PathLike, allow_gaps: bool = False) -> Run:
-    """Read and check a run log, ``.csv`` or ``.npz`` (suffix case-insensitive).
+    """Read and check a run log, ``.csv``, ``.npz`` or PSINS ``.imu`` (suffix case-insensitive).
+
+    The time column is mapped to sample counts (:mod:`calib.clock`): a run
+    whose clock only jitters comes back on the uniform time base
+    ``offset + count / sample_rate_hz``, with the jitter in ``run.clock``.
 
     Parameters
     ----------
     path : str or os.PathLike
         Run log file.
     allow_gaps : bool
-        Accept time steps longer than two nominal periods (``--allow-gaps``).
+        Accept dropped and duplicated samples (``--allow-gaps``): duplicates
+        are removed and samples lost at rest filled (`calib.clock.settle`).
 
     Returns
     -------
     Run
-        Arrays in float64, ``source`` set to ``str(path)``.
+        Arrays in float64, ``source`` set to ``str(path)``, ``clock`` set.
 
     Raises
     ------
@@ -187,9 +195,12 @@ def read_run(path: str | os.PathLike, allow_gaps: bool = False) -> Run:
         key or sample.
     """
     kind = _kind(path)
-    if kind == ".csv":
-        return _read_csv(path, allow_gaps)
-    return _read_npz(path, allow_gaps)
+    if kind == ".imu":
+        from calib.psins import read_psins
+        run = read_psins(path, allow_gaps)
+    else:
+        run = (_read_csv if kind == ".csv" else _read_npz)(path, allow_gaps)
+    return clock.settle(run, allow_gaps)  # the IMU's own time base, gaps repaired if allowed
 
 
 def write_run(run: Run, path: str | os.PathLike) -> None:
@@ -214,6 +225,9 @@ def write_run(run: Run, path: str | os.PathLike) -> None:
         written.
     """
     kind = _kind(path)
+    if kind == ".imu":
+        raise CalibError("the PSINS .imu format is read, not written", str(path),
+                         "write the run as .csv or .npz")
     check_run(run, allow_gaps=True)
     if kind == ".csv":
         _check_meta_writable_as_csv(run.meta, run.source)
@@ -369,7 +383,11 @@ def _check_samples(run: Run, locate, allow_gaps: bool) -> None:
                          run.source, "record a longer run")
     _check_finite(run, locate)
     step = np.diff(time)
-    backwards = np.flatnonzero(step <= 0.0)
+    period = 1.0 / run.sample_rate_hz
+    # A row repeating the previous one is a duplicated sample, named below with the gaps.
+    duplicate = clock.duplicate_rows(time, np.asarray(run.dtheta_rad), np.asarray(run.dv_mps),
+                                     period)
+    backwards = np.flatnonzero((step <= 0.0) & ~duplicate[1:])
     if backwards.size:
         i = int(backwards[0]) + 1
         raise CalibError(
@@ -378,27 +396,22 @@ def _check_samples(run: Run, locate, allow_gaps: bool) -> None:
             + (f" ({backwards.size} such steps in all)" if backwards.size > 1 else ""),
             locate.sample("time_s", i),
             "samples must be in time order without repeats; sort the log or remove duplicates")
-    dt = 1.0 / run.sample_rate_hz
-    if not allow_gaps:
-        # Float time stamps carry rounding: do not call a step of exactly two periods a gap.
-        limit = GAP_PERIODS * dt * (1.0 + 1e-9) + 8.0 * float(np.spacing(np.max(np.abs(time))))
-        gaps = np.flatnonzero(step > limit)
-        if gaps.size:
-            i = int(gaps[0]) + 1
-            raise CalibError(
-                f"{gaps.size} gap{'s' if gaps.size > 1 else ''} in time (steps longer than "
-                f"{GAP_PERIODS:g} nominal periods = {GAP_PERIODS * dt:g} s); the first is "
-                f"{step[i - 1]:.6g} s between time_s = {float(time[i - 1])!r} and "
-                f"{float(time[i])!r}", locate.sample("time_s", i), _GAP_FIX)
     # The nominal period must describe the time stamps (gaps and jitter aside), or
     # gap detection, durations and the first sample's interval are all wrong.
     typical = float(np.median(step))
-    if not 0.5 * dt <= typical <= GAP_PERIODS * dt:
+    if not 0.5 * period <= typical <= GAP_PERIODS * period:
         raise CalibError(
-            f"sample_rate_hz = {run.sample_rate_hz:g} (a period of {dt:g} s) does not match "
+            f"sample_rate_hz = {run.sample_rate_hz:g} (a period of {period:g} s) does not match "
             f"the time stamps, which are typically {typical:.6g} s apart",
             locate.key("sample_rate_hz"),
             "give the IMU output rate in Hz, the inverse of the time between samples")
+    try:
+        found = clock.sample_clock(time, run.sample_rate_hz, duplicate)
+    except CalibError as exc:
+        raise CalibError(exc.what, locate.sample("time_s", int(exc.where)), exc.fix) from None
+    if not allow_gaps and (found.dropped or found.duplicates):
+        first = np.flatnonzero(np.diff(found.index) != 1)[0] + 1
+        raise clock.refusal(found, locate.sample("time_s", int(first)))
 
 
 def _check_finite(run: Run, locate) -> None:
@@ -428,9 +441,10 @@ def _check_finite(run: Run, locate) -> None:
 def _kind(path: str | os.PathLike) -> str:
     """Lower-case suffix, refused unless .csv or .npz."""
     suffix = Path(path).suffix.lower()
-    if suffix not in (".csv", ".npz"):
+    if suffix not in (".csv", ".npz", ".imu"):
         raise CalibError(f"unknown run log type {suffix or '(no suffix)'!r}", str(path),
-                         "name run logs *.csv (interchange) or *.npz (fast native)")
+                         "name run logs *.csv (interchange), *.npz (fast native) or "
+                         "*.imu (PSINS text, read only)")
     return suffix
 
 
