@@ -192,7 +192,8 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
 @click.option("-o", "--output", help="Result TOML (default: RUN with .result.toml).")
 @click.option("--truth", "truth_path", type=click.Path(dir_okay=False),
               help="Truth file to compare with (default: RUN.truth.toml if it exists).")
-@click.option("--allow-gaps", is_flag=True, help="Accept time gaps in the log.")
+@click.option("--allow-gaps", is_flag=True,
+              help="Remove duplicated samples and fill samples dropped at rest.")
 @click.option("--with", "with_terms", metavar="TERMS",
               help="Also fit a real unit's terms beyond the 21: any of lever-arm, k2, "
                    "time-offset (comma-separated), or all.")
@@ -215,6 +216,7 @@ def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, with_
     extras = Extras(parse_groups(with_terms))
     prof = load_profile(profile)
     run = read_run(run_path, allow_gaps=allow_gaps)
+    info(run.clock.summary())  # jitter, dropped and duplicated samples (calib.clock)
     out_path = Path(output) if output else Path(run_path).with_name(Path(run_path).stem + ".result.toml")
     if truth_path is None and truth_path_for(run_path).exists():
         truth_path = truth_path_for(run_path)
@@ -267,7 +269,7 @@ def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, with_
                "fit": {"converged": fit.converged, "iterations": fit.iterations,
                        "residual_rms_mps": fit.residual_rms_mps,
                        "chi2_per_dof": fit.chi2_per_dof, "sigma_scale": scale,
-                       "extras": list(extras.groups)}}
+                       "extras": list(extras.groups)}, "clock": run.clock.as_dict()}
         if truth is not None:
             e = (fit.values - truth.errors.values)
             doc["nees"] = float(e @ np.linalg.solve(fit.covariance[:21, :21] * scale ** 2, e))
