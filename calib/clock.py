@@ -49,8 +49,8 @@ class SampleClock:
         RMS and largest absolute deviation of the time column from
         ``offset + index * period_s`` (offset fitted), s.
     dropped : list of (float, int)
-        Each place where samples are missing: the time of the row after the
-        hole and how many samples are missing there.
+        Each place where samples are missing: the time of the first missing
+        sample (one period after the row before the hole) and how many are missing.
     duplicates : list of (float, int)
         Each repeated sample: its time and how many extra copies follow it.
     """
@@ -157,7 +157,7 @@ def sample_clock(time_s: np.ndarray, sample_rate_hz: float,
     residual = time_s - index * period
     offset = float(np.mean(residual))
     jitter = residual - offset
-    dropped = [(float(time_s[i + 1]), int(steps[i] - 1)) for i in np.flatnonzero(steps > 1)]
+    dropped = [(float(time_s[i] + period), int(steps[i] - 1)) for i in np.flatnonzero(steps > 1)]
     return SampleClock(index=index, period_s=period, offset_s=offset,
                        jitter_rms_s=float(np.sqrt(np.mean(jitter ** 2))),
                        jitter_max_s=float(np.max(np.abs(jitter))),
