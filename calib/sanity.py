@@ -85,19 +85,24 @@ def _saturated_stretch(data: np.ndarray, axis: int) -> tuple[int, int] | None:
     """The first stretch where channel ``axis`` is pinned at its extreme while the sensor moves.
 
     A clipped channel sits at its range limit while the true signal goes on:
-    the sensor's other channels keep changing. A noise-free or quantised
-    channel at rest also repeats one value (often its extreme, gravity being
-    the largest specific force a static run sees), but then either the whole
-    sensor is still or the value is the channel's ordinary reading (its median).
+    its noise vanishes while the sensor's other channels keep changing. A
+    noise-free or quantised channel at rest also repeats one value (often its
+    extreme, gravity being the largest specific force a static run sees), but
+    then either the whole sensor is still or the value is the channel's
+    ordinary reading (its median). In a noise-free log a constant-rate flip is
+    a flat top too: clipping cannot be told from it, so a sensor without noise
+    (its typical second difference at rounding level) is not judged.
     """
     x = data[:, axis]
     peak = np.max(np.abs(x))
     if peak == 0.0:
         return None
-    others = np.delete(data, axis, axis=1)
     # Changes below this are float rounding of an exact simulation, not motion or noise:
     # any real quantum is at least 1e-6 of the sensor's largest reading.
     still = STILL_RELATIVE * float(np.max(np.abs(data)))
+    if len(data) < 3 or np.median(np.max(np.abs(np.diff(data, 2, axis=0)), axis=1)) <= still:
+        return None
+    others = np.delete(data, axis, axis=1)
     typical = float(np.median(x))
     for a, b in zip(*_runs(np.abs(x) == peak)):
         if b - a < SATURATION_RUN or x[a] == typical:

@@ -201,7 +201,7 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
 @guarded
 def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, with_terms, as_json):
     """Align, navigate on the stationary base and fit the 21 error parameters of
-    RUN (CSV or NPZ) by iterated, noise-weighted least squares."""
+    RUN (CSV, NPZ or PSINS .imu) by iterated, noise-weighted least squares."""
     from calib import earth
     from calib.estimator import calibrate as fit_run, check_sequence_matches, detect_motion, \
         sequence_motion
