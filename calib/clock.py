@@ -45,9 +45,12 @@ class SampleClock:
         Nominal sample period, s.
     offset_s : float
         Time of sample index 0 on the uniform time base, s.
+    rate_error_ppm : float
+        How much longer the time column's period is than the nominal one
+        (a logger clock running fast or slow against the IMU's), ppm.
     jitter_rms_s, jitter_max_s : float
-        RMS and largest absolute deviation of the time column from
-        ``offset + index * period_s`` (offset fitted), s.
+        RMS and largest absolute deviation of the time column from the
+        straight line through it in sample count (offset and rate fitted), s.
     dropped : list of (float, int)
         Each place where samples are missing: the time of the first missing
         sample (one period after the row before the hole) and how many are missing.
@@ -58,6 +61,7 @@ class SampleClock:
     index: np.ndarray
     period_s: float
     offset_s: float
+    rate_error_ppm: float
     jitter_rms_s: float
     jitter_max_s: float
     dropped: list
@@ -65,14 +69,17 @@ class SampleClock:
 
     @property
     def uniform(self) -> bool:
-        """True when the time column is uniform up to float rounding."""
-        return self.jitter_max_s <= ROUNDING_JITTER * self.period_s
+        """True when the time column is uniform at the nominal period up to float rounding."""
+        drift = abs(self.rate_error_ppm) * 1e-6 * self.period_s * float(self.index[-1])
+        return self.jitter_max_s + drift <= ROUNDING_JITTER * self.period_s
 
     def summary(self) -> str:
         """One line for the user: jitter in ms, lost and repeated samples."""
         text = (f"clock: time column jitters by {1e3 * self.jitter_rms_s:.3g} ms RMS, "
                 f"{1e3 * self.jitter_max_s:.3g} ms max, against the nominal "
                 f"{1e3 * self.period_s:.6g} ms period")
+        if abs(self.rate_error_ppm) >= 1.0:
+            text += f"; its period is {self.rate_error_ppm:+.3g} ppm off the nominal"
         if self.uniform:
             text = "clock: time column uniform at the nominal period"
         if self.dropped:
@@ -84,7 +91,8 @@ class SampleClock:
 
     def as_dict(self) -> dict:
         """JSON-ready figures (SI)."""
-        return {"period_s": self.period_s, "jitter_rms_s": self.jitter_rms_s,
+        return {"period_s": self.period_s, "rate_error_ppm": self.rate_error_ppm,
+                "jitter_rms_s": self.jitter_rms_s,
                 "jitter_max_s": self.jitter_max_s,
                 "dropped": [{"time_s": t, "count": c} for t, c in self.dropped],
                 "duplicates": [{"time_s": t, "count": c} for t, c in self.duplicates]}
@@ -156,9 +164,13 @@ def sample_clock(time_s: np.ndarray, sample_rate_hz: float,
     index = np.concatenate([[0], np.cumsum(steps)])
     residual = time_s - index * period
     offset = float(np.mean(residual))
-    jitter = residual - offset
+    # A logger clock running at another rate than the IMU's is a trend, not jitter.
+    centred = index - index.mean()
+    slope = float(centred @ residual / (centred @ centred)) if index[-1] > 0 else 0.0
+    jitter = residual - offset - slope * centred
     dropped = [(float(time_s[i] + period), int(steps[i] - 1)) for i in np.flatnonzero(steps > 1)]
     return SampleClock(index=index, period_s=period, offset_s=offset,
+                       rate_error_ppm=1e6 * slope / period,
                        jitter_rms_s=float(np.sqrt(np.mean(jitter ** 2))),
                        jitter_max_s=float(np.max(np.abs(jitter))),
                        dropped=dropped, duplicates=_runs_of(dup, time_s))
