@@ -20,11 +20,15 @@ from .errors import CalibError
 # A step whose length in periods is this far from a whole number does not come
 # from one crystal: jitter of a quarter period would already be exceptional.
 MAX_STEP_FRACTION = 0.35
+# A step beyond this many periods (58 days at 200 Hz) is a clock jump, not lost samples.
+MAX_STEP_PERIODS = 1e9
 # Below this (relative to the period) the time column is uniform up to float rounding
 # and is kept exactly as written.
 ROUNDING_JITTER = 1e-9
 # Samples each side of a lost one whose mean increment fills it (at rest).
 FILL_NEIGHBOURS = 100
+# The longest hole filled: beyond this the fill would be mostly invented, not measured.
+MAX_FILL = 2 * FILL_NEIGHBOURS
 # A neighbourhood is at rest when its mean rate is below this: 14x the Earth rate,
 # far above any calibration-grade gyro bias, far below a flip (rad/s).
 REST_RATE = 1e-3
@@ -150,6 +154,13 @@ def sample_clock(time_s: np.ndarray, sample_rate_hz: float,
     period = 1.0 / sample_rate_hz
     dup = np.zeros(len(time_s), dtype=bool) if duplicate is None else duplicate
     periods = np.diff(time_s) / period
+    huge = np.flatnonzero(periods > MAX_STEP_PERIODS)
+    if huge.size:
+        i = int(huge[0]) + 1
+        raise CalibError(f"the time jumps by {time_s[i] - time_s[i - 1]:.6g} s before row {i}, "
+                         f"{periods[i - 1]:.3g} nominal periods", str(i),
+                         "the time column must locate samples taken at sample_rate_hz; "
+                         "split the log where its clock jumps")
     steps = np.rint(periods).astype(np.int64)
     steps[dup[1:]] = 0
     off = np.abs(periods - steps)
@@ -197,7 +208,8 @@ def fill_dropped(clock: SampleClock, dtheta: np.ndarray, dv: np.ndarray,
     IMU errors plus white noise; the mean of ``FILL_NEIGHBOURS`` samples each
     side is the lost increment up to one sample's noise, so the navigation
     error a filled sample adds is that of the noise the IMU would have added.
-    A sample lost while the IMU turns cannot be known and is refused.
+    A sample lost while the IMU turns cannot be known and is refused, as is
+    a hole longer than ``MAX_FILL`` samples.
 
     Parameters
     ----------
@@ -225,12 +237,19 @@ def fill_dropped(clock: SampleClock, dtheta: np.ndarray, dv: np.ndarray,
     out_dv = np.full((len(full), 3), np.nan)
     out_th[pos], out_dv[pos] = dtheta, dv
     for row in np.flatnonzero(np.diff(index) > 1):
+        lost = int(index[row + 1] - index[row] - 1)
+        if lost > MAX_FILL:
+            t = clock.offset_s + (index[row] + 1) * clock.period_s
+            raise CalibError(f"{lost} samples lost at t = {t:.6g} s, more than the "
+                             f"{MAX_FILL} that the {FILL_NEIGHBOURS} samples each side can "
+                             "stand for", f"t = {t:.6g} s",
+                             "split the log at the hole and calibrate each part")
         lo, hi = max(0, row + 1 - FILL_NEIGHBOURS), min(len(index), row + 1 + FILL_NEIGHBOURS)
         rate = np.linalg.norm(dtheta[lo:hi].mean(axis=0)) / clock.period_s
         t = clock.offset_s + index[row + 1] * clock.period_s
         peak = np.max(np.linalg.norm(dtheta[lo:hi], axis=1)) / clock.period_s
         if rate > REST_RATE or peak > TURN_RATE:
-            raise CalibError(f"{int(index[row + 1] - index[row] - 1)} sample(s) lost at "
+            raise CalibError(f"{lost} sample(s) lost at "
                              f"t = {t:.6g} s, while the IMU turns", f"t = {t:.6g} s",
                              "the increments of a flip cannot be recovered; repair the log "
                              "or record the run again")

@@ -311,6 +311,9 @@ def test_time_step_that_is_no_whole_number_of_periods_is_refused(tmp_path):
     times = [0.005, 0.01, 0.0175, 0.0225]
     path = write_text(tmp_path, csv_text(body=[ROW.format(t=t) for t in times]))
     refusal(path, "line 8", "sample 2", "1.500 nominal periods", allow_gaps=True)
+    times = [0.005, 0.01, 0.015, 0.02, 1e300]
+    path = write_text(tmp_path, csv_text(body=[ROW.format(t=t) for t in times]))
+    refusal(path, "line 10", "sample 4", "the time jumps by", allow_gaps=True)
 
 
 def test_missing_file_and_unknown_suffix(tmp_path):
@@ -437,11 +440,14 @@ def test_write_refuses_invalid_runs(tmp_path):
 
 def test_gaps_may_be_written(tmp_path):
     run = make_run()
-    run.time_s[10:] += 5.0
+    run.time_s[10:] += 0.5
     write_run(run, tmp_path / "run.csv")
     with pytest.raises(CalibError, match="dropped"):
         check_run(run)
-    assert read_run(tmp_path / "run.csv", allow_gaps=True).n_samples == 1040
+    assert read_run(tmp_path / "run.csv", allow_gaps=True).n_samples == 140
+    run.time_s[10:] += 0.505  # 201 samples lost: more than the neighbours can stand for
+    write_run(run, tmp_path / "run.csv")
+    refusal(tmp_path / "run.csv", "201 samples lost", "split the log", allow_gaps=True)
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".npz"])
