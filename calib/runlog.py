@@ -52,7 +52,6 @@ GAP_PERIODS = 2.0  # the typical time step must lie within [0.5, 2] nominal peri
 HEIGHT_RANGE_M = (-1000.0, 10000.0)
 
 
-
 @dataclass
 class Run:
     """One run log: IMU increments as the IMU output them, plus site metadata.
@@ -439,7 +438,7 @@ def _check_finite(run: Run, locate) -> None:
 
 
 def _kind(path: str | os.PathLike) -> str:
-    """Lower-case suffix, refused unless .csv or .npz."""
+    """Lower-case suffix, refused unless .csv, .npz or .imu."""
     suffix = Path(path).suffix.lower()
     if suffix not in (".csv", ".npz", ".imu"):
         raise CalibError(f"unknown run log type {suffix or '(no suffix)'!r}", str(path),
