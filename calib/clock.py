@@ -153,25 +153,7 @@ def sample_clock(time_s: np.ndarray, sample_rate_hz: float,
     """
     period = 1.0 / sample_rate_hz
     dup = np.zeros(len(time_s), dtype=bool) if duplicate is None else duplicate
-    periods = np.diff(time_s) / period
-    huge = np.flatnonzero(periods > MAX_STEP_PERIODS)
-    if huge.size:
-        i = int(huge[0]) + 1
-        raise CalibError(f"the time jumps by {time_s[i] - time_s[i - 1]:.6g} s before row {i}, "
-                         f"{periods[i - 1]:.3g} nominal periods", str(i),
-                         "the time column must locate samples taken at sample_rate_hz; "
-                         "split the log where its clock jumps")
-    steps = np.rint(periods).astype(np.int64)
-    steps[dup[1:]] = 0
-    off = np.abs(periods - steps)
-    off[dup[1:]] = 0.0
-    bad = np.flatnonzero((off > MAX_STEP_FRACTION) | ((steps == 0) & ~dup[1:]))
-    if bad.size:
-        i = int(bad[0]) + 1
-        raise CalibError(f"the time step {time_s[i] - time_s[i - 1]:.6g} s before row {i} is "
-                         f"{periods[i - 1]:.3f} nominal periods, not a whole number", str(i),
-                         "the time column must locate samples taken at sample_rate_hz; check "
-                         "the rate, or whether the log mixes clocks")
+    steps = _whole_steps(time_s, period, dup)
     index = np.concatenate([[0], np.cumsum(steps)])
     residual = time_s - index * period
     offset = float(np.mean(residual))
@@ -185,6 +167,29 @@ def sample_clock(time_s: np.ndarray, sample_rate_hz: float,
                        jitter_rms_s=float(np.sqrt(np.mean(jitter ** 2))),
                        jitter_max_s=float(np.max(np.abs(jitter))),
                        dropped=dropped, duplicates=_runs_of(dup, time_s))
+
+
+def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarray:
+    """Each time step in whole periods (0 for a duplicate); refuse jumps and fractions."""
+    periods = np.diff(time_s) / period
+    fix = "the time column must locate samples taken at sample_rate_hz; "
+    huge = np.flatnonzero(periods > MAX_STEP_PERIODS)
+    if huge.size:
+        i = int(huge[0]) + 1
+        raise CalibError(f"the time jumps by {time_s[i] - time_s[i - 1]:.6g} s before row {i}, "
+                         f"{periods[i - 1]:.3g} nominal periods", str(i),
+                         fix + "split the log where its clock jumps")
+    steps = np.rint(periods).astype(np.int64)
+    steps[dup[1:]] = 0
+    off = np.abs(periods - steps)
+    off[dup[1:]] = 0.0
+    bad = np.flatnonzero((off > MAX_STEP_FRACTION) | ((steps == 0) & ~dup[1:]))
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise CalibError(f"the time step {time_s[i] - time_s[i - 1]:.6g} s before row {i} is "
+                         f"{periods[i - 1]:.3f} nominal periods, not a whole number", str(i),
+                         fix + "check the rate, or whether the log mixes clocks")
+    return steps
 
 
 def _runs_of(dup: np.ndarray, time_s: np.ndarray) -> list:
@@ -237,22 +242,8 @@ def fill_dropped(clock: SampleClock, dtheta: np.ndarray, dv: np.ndarray,
     out_dv = np.full((len(full), 3), np.nan)
     out_th[pos], out_dv[pos] = dtheta, dv
     for row in np.flatnonzero(np.diff(index) > 1):
-        lost = int(index[row + 1] - index[row] - 1)
-        if lost > MAX_FILL:
-            t = clock.offset_s + (index[row] + 1) * clock.period_s
-            raise CalibError(f"{lost} samples lost at t = {t:.6g} s, more than the "
-                             f"{MAX_FILL} that the {FILL_NEIGHBOURS} samples each side can "
-                             "stand for", f"t = {t:.6g} s",
-                             "split the log at the hole and calibrate each part")
         lo, hi = max(0, row + 1 - FILL_NEIGHBOURS), min(len(index), row + 1 + FILL_NEIGHBOURS)
-        rate = np.linalg.norm(dtheta[lo:hi].mean(axis=0)) / clock.period_s
-        t = clock.offset_s + index[row + 1] * clock.period_s
-        peak = np.max(np.linalg.norm(dtheta[lo:hi], axis=1)) / clock.period_s
-        if rate > REST_RATE or peak > TURN_RATE:
-            raise CalibError(f"{lost} sample(s) lost at "
-                             f"t = {t:.6g} s, while the IMU turns", f"t = {t:.6g} s",
-                             "the increments of a flip cannot be recovered; repair the log "
-                             "or record the run again")
+        _check_fillable(clock, row, dtheta[lo:hi])
         hole = slice(pos[row] + 1, pos[row + 1])
         out_th[hole] = dtheta[lo:hi].mean(axis=0)
         out_dv[hole] = dv[lo:hi].mean(axis=0)
@@ -262,6 +253,24 @@ def fill_dropped(clock: SampleClock, dtheta: np.ndarray, dv: np.ndarray,
         filled[pos] = 1
         out_g = np.asarray(gimbal)[np.cumsum(filled) - 1]
     return out_th, out_dv, out_g, full
+
+
+def _check_fillable(clock: SampleClock, row: int, neighbours: np.ndarray) -> None:
+    """Refuse a hole after ``row`` that is too long, or whose neighbours are not at rest."""
+    index = clock.index
+    lost = int(index[row + 1] - index[row] - 1)
+    t = clock.offset_s + (index[row] + 1) * clock.period_s
+    if lost > MAX_FILL:
+        raise CalibError(f"{lost} samples lost at t = {t:.6g} s, more than the "
+                         f"{MAX_FILL} that the {FILL_NEIGHBOURS} samples each side can "
+                         "stand for", f"t = {t:.6g} s",
+                         "split the log at the hole and calibrate each part")
+    rate = np.linalg.norm(neighbours.mean(axis=0)) / clock.period_s
+    peak = np.max(np.linalg.norm(neighbours, axis=1)) / clock.period_s
+    if rate > REST_RATE or peak > TURN_RATE:
+        raise CalibError(f"{lost} sample(s) lost at t = {t:.6g} s, while the IMU turns",
+                         f"t = {t:.6g} s", "the increments of a flip cannot be recovered; "
+                         "repair the log or record the run again")
 
 
 def settle(run, allow_gaps: bool):
