@@ -12,7 +12,6 @@ the observations along the navigated attitude.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -59,10 +58,9 @@ def detect_motion(dtheta: np.ndarray, dt: np.ndarray, where: str = "run") -> Seg
     """Rest/rotation segments from the gyro increments alone."""
     rate = np.linalg.norm(dtheta, axis=1) / dt
     grown = _grow(rate > MOTION_THRESHOLD)
-    if not grown.any():
-        raise CalibError("no rotation found in the run (gyro rates never exceed "
-                         f"{math.degrees(MOTION_THRESHOLD):.2f} deg/s)", where,
-                         "a calibration run must flip the IMU")
+    motion = sanity.diagnose_motion(dtheta, dt, MOTION_THRESHOLD)
+    if not motion.has_flip:  # vibration or quantisation spikes alone are no flip
+        raise sanity.never_rotates(motion, MOTION_THRESHOLD, where)
     first = int(np.argmax(grown))
     return Segmentation(moving=grown, first_rest_end=first)
 

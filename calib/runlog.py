@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from calib.columns import ColumnPlan, plan_columns, to_increments
+from calib import clock
 from calib.errors import CalibError
 from calib.filekind import expect
 from calib.fileio import atomic_write_bytes, atomic_write_text
@@ -47,13 +48,11 @@ _ARRAY_COLUMNS = {
     "gimbal_deg": GIMBAL_COLUMNS,
 }
 
-GAP_PERIODS = 2.0  # a time step longer than this many nominal periods is a gap
+GAP_PERIODS = 2.0  # the typical time step must lie within [0.5, 2] nominal periods
 
 # A calibration site is on the Earth's surface (Dead Sea to Everest, with margin);
 # far outside, normal gravity is meaningless and its formula overflows.
 HEIGHT_RANGE_M = (-1000.0, 10000.0)
-
-_GAP_FIX = "fill the gap, or pass --allow-gaps to accept a run with gaps"
 
 
 @dataclass
@@ -75,6 +74,8 @@ class Run:
         ``(n, 3)`` outer, middle, inner encoder angles in degrees, or None.
     source : str
         Path the run was read from, used to name it in messages.
+    clock : calib.clock.SampleClock or None
+        Jitter, dropped and duplicated samples found by `read_run`.
     """
 
     time_s: np.ndarray
@@ -83,6 +84,7 @@ class Run:
     meta: dict[str, str]
     gimbal_deg: np.ndarray | None = None
     source: str = "<memory>"
+    clock: clock.SampleClock | None = None  # what read_run found in the time column
 
     @property
     def latitude_deg(self) -> float:
@@ -170,14 +172,19 @@ def make_meta(latitude_deg: float, height_m: float, sample_rate_hz: float,
 
 def read_run(path: str | os.PathLike, allow_gaps: bool = False, *,
              latitude_deg: float | None = None, height_m: float | None = None) -> Run:
-    """Read and check a run log, ``.csv`` or ``.npz`` (suffix case-insensitive).
+    """Read and check a run log, ``.csv`` (or ``.csv.gz``), ``.npz`` or PSINS ``.imu``.
+
+    The time column is mapped to sample counts (:mod:`calib.clock`): a run
+    whose clock only jitters comes back on the uniform time base
+    ``offset + count / sample_rate_hz``, with the jitter in ``run.clock``.
 
     Parameters
     ----------
     path : str or os.PathLike
         Run log file.
     allow_gaps : bool
-        Accept time steps longer than two nominal periods (``--allow-gaps``).
+        Accept dropped and duplicated samples (``--allow-gaps``): duplicates
+        are removed and samples lost at rest filled (`calib.clock.settle`).
     latitude_deg, height_m : float, optional
         Site metadata for a CSV file that lacks it (``--latitude``, ``--height``);
         a file that has the key and a different value is refused.
@@ -189,7 +196,7 @@ def read_run(path: str | os.PathLike, allow_gaps: bool = False, *,
     Returns
     -------
     Run
-        Arrays in float64, ``source`` set to ``str(path)``.
+        Arrays in float64, ``source`` set to ``str(path)``, ``clock`` set.
 
     Raises
     ------
@@ -199,9 +206,14 @@ def read_run(path: str | os.PathLike, allow_gaps: bool = False, *,
     """
     expect(path, "run")
     kind = _kind(path)
-    if kind == ".csv":
-        return _read_csv(path, allow_gaps, {"latitude_deg": latitude_deg, "height_m": height_m})
-    return _read_npz(path, allow_gaps)
+    if kind == ".imu":
+        from calib.psins import read_psins
+        run = read_psins(path, allow_gaps)
+    elif kind == ".csv":
+        run = _read_csv(path, allow_gaps, {"latitude_deg": latitude_deg, "height_m": height_m})
+    else:
+        run = _read_npz(path, allow_gaps)
+    return clock.settle(run, allow_gaps)  # the IMU's own time base, gaps repaired if allowed
 
 
 def write_run(run: Run, path: str | os.PathLike) -> None:
@@ -226,6 +238,9 @@ def write_run(run: Run, path: str | os.PathLike) -> None:
         written.
     """
     kind = _kind(path)
+    if kind == ".imu":
+        raise CalibError("the PSINS .imu format is read, not written", str(path),
+                         "write the run as .csv or .npz")
     check_run(run, allow_gaps=True)
     if kind == ".csv":
         _check_meta_writable_as_csv(run.meta, run.source)
@@ -383,7 +398,11 @@ def _check_samples(run: Run, locate, allow_gaps: bool) -> None:
                          run.source, "record a longer run")
     _check_finite(run, locate)
     step = np.diff(time)
-    backwards = np.flatnonzero(step <= 0.0)
+    period = 1.0 / run.sample_rate_hz
+    # A row repeating the previous one is a duplicated sample, named below with the gaps.
+    duplicate = clock.duplicate_rows(time, np.asarray(run.dtheta_rad), np.asarray(run.dv_mps),
+                                     period)
+    backwards = np.flatnonzero((step <= 0.0) & ~duplicate[1:])
     if backwards.size:
         i = int(backwards[0]) + 1
         raise CalibError(
@@ -392,27 +411,22 @@ def _check_samples(run: Run, locate, allow_gaps: bool) -> None:
             + (f" ({backwards.size} such steps in all)" if backwards.size > 1 else ""),
             locate.sample("time_s", i),
             "samples must be in time order without repeats; sort the log or remove duplicates")
-    dt = 1.0 / run.sample_rate_hz
-    if not allow_gaps:
-        # Float time stamps carry rounding: do not call a step of exactly two periods a gap.
-        limit = GAP_PERIODS * dt * (1.0 + 1e-9) + 8.0 * float(np.spacing(np.max(np.abs(time))))
-        gaps = np.flatnonzero(step > limit)
-        if gaps.size:
-            i = int(gaps[0]) + 1
-            raise CalibError(
-                f"{gaps.size} gap{'s' if gaps.size > 1 else ''} in time (steps longer than "
-                f"{GAP_PERIODS:g} nominal periods = {GAP_PERIODS * dt:g} s); the first is "
-                f"{step[i - 1]:.6g} s between time_s = {float(time[i - 1])!r} and "
-                f"{float(time[i])!r}", locate.sample("time_s", i), _GAP_FIX)
     # The nominal period must describe the time stamps (gaps and jitter aside), or
     # gap detection, durations and the first sample's interval are all wrong.
     typical = float(np.median(step))
-    if not 0.5 * dt <= typical <= GAP_PERIODS * dt:
+    if not 0.5 * period <= typical <= GAP_PERIODS * period:
         raise CalibError(
-            f"sample_rate_hz = {run.sample_rate_hz:g} (a period of {dt:g} s) does not match "
+            f"sample_rate_hz = {run.sample_rate_hz:g} (a period of {period:g} s) does not match "
             f"the time stamps, which are typically {typical:.6g} s apart",
             locate.key("sample_rate_hz"),
             "give the IMU output rate in Hz, the inverse of the time between samples")
+    try:
+        found = clock.sample_clock(time, run.sample_rate_hz, duplicate)
+    except CalibError as exc:
+        raise CalibError(exc.what, locate.sample("time_s", int(exc.where)), exc.fix) from None
+    if not allow_gaps and (found.dropped or found.duplicates):
+        first = np.flatnonzero(np.diff(found.index) != 1)[0] + 1
+        raise clock.refusal(found, locate.sample("time_s", int(first)))
 
 
 def _check_finite(run: Run, locate) -> None:
@@ -440,13 +454,14 @@ def _check_finite(run: Run, locate) -> None:
 
 
 def _kind(path: str | os.PathLike) -> str:
-    """Lower-case suffix, refused unless .csv or .npz."""
+    """Lower-case suffix, refused unless .csv, .npz or .imu."""
     suffix = Path(path).suffix.lower()
     if suffix == ".gz" and Path(path).name.lower().endswith(".csv.gz"):
         return ".csv"  # read through gzip (_read_bytes)
-    if suffix not in (".csv", ".npz"):
+    if suffix not in (".csv", ".npz", ".imu"):
         raise CalibError(f"unknown run log type {suffix or '(no suffix)'!r}", str(path),
-                         "name run logs *.csv (interchange) or *.npz (fast native)")
+                         "name run logs *.csv (interchange), *.npz (fast native) or "
+                         "*.imu (PSINS text, read only)")
     return suffix
 
 

@@ -8,6 +8,7 @@ seen, where, and the likely cause.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -17,6 +18,7 @@ MAX_PLAUSIBLE_RATE = 5.0  # rad/s: 286 deg/s, beyond any calibration gimbal (the
 MAX_REST_RATE = 1e-3  # rad/s: 14x the Earth rate, 200 deg/h of bias: beyond a navigation IMU
 GRAVITY_TOLERANCE = 0.02  # relative: biases and scale errors stay far below 2 % of g
 SATURATION_RUN = 10  # consecutive samples stuck at the same extreme value
+STILL_RELATIVE = 1e-9  # changes below this fraction of a sensor's peak reading are float rounding
 REST_NOISE_FACTOR = 20.0  # a rest whose specific force varies 20x more than the noise moved
 
 
@@ -73,23 +75,141 @@ def check_gravity(dv: np.ndarray, dt: np.ndarray, rest: slice, gravity_mps2: flo
                          cause)
 
 
+def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end (exclusive) of each stretch of consecutive True."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    return edges[::2], edges[1::2]
+
+
+def _saturated_stretch(data: np.ndarray, axis: int) -> tuple[int, int] | None:
+    """The first stretch where channel ``axis`` is pinned at its extreme while the sensor moves.
+
+    A clipped channel sits at its range limit while the true signal goes on:
+    its noise vanishes while the sensor's other channels keep changing. A
+    noise-free or quantised channel at rest also repeats one value (often its
+    extreme, gravity being the largest specific force a static run sees), but
+    then either the whole sensor is still or the value is the channel's
+    ordinary reading (its median). In a noise-free log a constant-rate flip is
+    a flat top too: clipping cannot be told from it, so a sensor without noise
+    (its typical second difference at rounding level) is not judged.
+    """
+    x = data[:, axis]
+    peak = np.max(np.abs(x))
+    if peak == 0.0:
+        return None
+    # Changes below this are float rounding of an exact simulation, not motion or noise:
+    # any real quantum is at least 1e-6 of the sensor's largest reading.
+    still = STILL_RELATIVE * float(np.max(np.abs(data)))
+    if len(data) < 3 or np.median(np.max(np.abs(np.diff(data, 2, axis=0)), axis=1)) <= still:
+        return None
+    others = np.delete(data, axis, axis=1)
+    typical = float(np.median(x))
+    for a, b in zip(*_runs(np.abs(x) == peak)):
+        if b - a < SATURATION_RUN or x[a] == typical:
+            continue
+        if np.max(np.ptp(others[a:b], axis=0)) > still:
+            return int(a), int(b)
+    return None
+
+
 def check_saturation(dtheta: np.ndarray, dv: np.ndarray, where: str) -> None:
-    """Refuse runs with channels stuck at their extreme value (clipping)."""
+    """Refuse runs with a channel clipped: pinned at its extreme while the sensor moves."""
     for name, data in (("dtheta", dtheta), ("dv", dv)):
         for axis in range(3):
-            x = data[:, axis]
-            peak = np.max(np.abs(x))
-            if peak == 0.0:
+            found = _saturated_stretch(data, axis)
+            if found is None:
                 continue
-            at_peak = np.abs(x) == peak
-            # Longest run of consecutive samples at the extreme value.
-            edges = np.flatnonzero(np.diff(np.concatenate([[0], at_peak.astype(np.int8), [0]])))
-            runs = edges[1::2] - edges[::2]
-            if runs.size and runs.max() >= SATURATION_RUN:
-                k = int(edges[::2][np.argmax(runs)])
-                raise CalibError(f"{name}_{'xyz'[axis]} is stuck at {x[k]:.6g} for {int(runs.max())} "
-                                 f"consecutive samples from sample {k}", where,
-                                 "the sensor saturated or the logger repeated samples")
+            a, b = found
+            raise CalibError(f"{name}_{'xyz'[axis]} is stuck at {data[a, axis]:.6g}, its extreme, "
+                             f"for {b - a} consecutive samples from sample {a} while the other "
+                             f"{name} channels change", where,
+                             "the sensor saturated (clipped at its range) or the logger "
+                             "repeated one channel")
+
+
+@dataclass(frozen=True)
+class MotionDiagnosis:
+    """How a log moves, from the gyro increments alone (SI unless named).
+
+    Attributes
+    ----------
+    has_flip : bool
+        Some ``window_s`` stretch turns faster on average than the flip threshold.
+    max_rate_rad_s : float
+        Largest single-sample rate (vibration and quantisation included).
+    max_mean_rate_rad_s : float
+        Largest rate averaged over ``window_s``: what a flip would show.
+    window_s : float
+        Averaging time of the mean rates.
+    mean_rate_rad_s : numpy.ndarray
+        ``(3,)`` mean rate over the whole log: the Earth rate plus bias at rest.
+    sway_arcsec : numpy.ndarray
+        ``(3,)`` half peak-to-peak of each axis's angle about its mean-rate line.
+    sway_rate_arcsec_s : numpy.ndarray
+        ``(3,)`` RMS of each axis's ``window_s`` mean rate about the whole-log mean.
+    """
+
+    has_flip: bool
+    max_rate_rad_s: float
+    max_mean_rate_rad_s: float
+    window_s: float
+    mean_rate_rad_s: np.ndarray
+    sway_arcsec: np.ndarray
+    sway_rate_arcsec_s: np.ndarray
+
+
+def diagnose_motion(dtheta: np.ndarray, dt: np.ndarray, flip_rate: float,
+                    window_s: float = 1.0) -> MotionDiagnosis:
+    """Whether a log flips, and how much its base sways.
+
+    A flip turns the IMU by tens of degrees at degrees per second; a swaying
+    or vibrating base turns it back and forth by arcseconds, and a single
+    sample of a coarse gyro can exceed a flip's rate. Averaging the rate over
+    ``window_s`` keeps the flip and removes the rest.
+
+    Parameters
+    ----------
+    dtheta : numpy.ndarray
+        ``(n, 3)`` gyro increments, rad.
+    dt : numpy.ndarray
+        ``(n,)`` sample intervals, s.
+    flip_rate : float
+        Mean rate over ``window_s`` above which the IMU turns, rad/s.
+    window_s : float
+        Averaging time, s.
+
+    Returns
+    -------
+    MotionDiagnosis
+    """
+    w = max(1, min(len(dt), int(round(window_s / float(np.median(dt))))))
+    angle = np.concatenate([np.zeros((1, 3)), np.cumsum(dtheta, axis=0)])
+    clock = np.concatenate([[0.0], np.cumsum(dt)])
+    mean_rates = (angle[w:] - angle[:-w]) / (clock[w:] - clock[:-w])[:, None]
+    mean = angle[-1] / clock[-1]
+    sway = angle - np.outer(clock, mean)
+    arcsec = math.degrees(1.0) * 3600.0
+    max_mean = float(np.max(np.linalg.norm(mean_rates, axis=1)))
+    return MotionDiagnosis(
+        has_flip=max_mean > flip_rate,
+        max_rate_rad_s=float(np.max(np.linalg.norm(dtheta, axis=1) / dt)),
+        max_mean_rate_rad_s=max_mean, window_s=float(clock[w] - clock[0]),
+        mean_rate_rad_s=mean, sway_arcsec=0.5 * np.ptp(sway, axis=0) * arcsec,
+        sway_rate_arcsec_s=np.sqrt(np.mean((mean_rates - mean) ** 2, axis=0)) * arcsec)
+
+
+def never_rotates(motion: MotionDiagnosis, flip_rate: float, where: str) -> CalibError:
+    """The refusal of a log without a flip, with its measured sway."""
+    k = int(np.argmax(motion.sway_rate_arcsec_s))
+    return CalibError(
+        f"the log never rotates (no rotation found: its rate averaged over "
+        f"{motion.window_s:.3g} s peaks at {math.degrees(motion.max_mean_rate_rad_s):.3g} deg/s, "
+        f"a flip turns faster than {math.degrees(flip_rate):.2f} deg/s); the base sways by "
+        f"+-{motion.sway_arcsec[k]:.3g} arcsec about {'xyz'[k]} ({motion.sway_rate_arcsec_s[k]:.3g} "
+        f"arcsec/s RMS over {motion.window_s:.3g} s; single samples reach "
+        f"{math.degrees(motion.max_rate_rad_s):.3g} deg/s)", where,
+        "a calibration run must flip the IMU; a static log like this one serves noise "
+        "analysis (Allan deviation), not calibration")
 
 
 def check_rests(dv: np.ndarray, dt: np.ndarray, moving: np.ndarray, vrw: float, where: str,

@@ -204,7 +204,8 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
 @click.option("-o", "--output", help="Result TOML (default: RUN with .result.toml).")
 @click.option("--truth", "truth_path", type=click.Path(dir_okay=False),
               help="Truth file to compare with (default: RUN.truth.toml if it exists).")
-@click.option("--allow-gaps", is_flag=True, help="Accept time gaps in the log.")
+@click.option("--allow-gaps", is_flag=True,
+              help="Remove duplicated samples and fill samples dropped at rest.")
 @click.option("--with", "with_terms", metavar="TERMS",
               help="Also fit a real unit's terms beyond the 21: any of lever-arm, k2, "
                    "time-offset (comma-separated), or all.")
@@ -222,7 +223,7 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
 def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, with_terms, requirements,
               gravity_mps2, partial, as_json):
     """Align, navigate on the stationary base and fit the 21 error parameters of
-    RUN (CSV or NPZ) by iterated, noise-weighted least squares."""
+    RUN (CSV, NPZ or PSINS .imu) by iterated, noise-weighted least squares."""
     from calib.calibration import as_extras, as_profile, calibrate_run
     from calib.runlog import read_run
     from calib.sequence import load_sequence
@@ -231,6 +232,7 @@ def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, with_
     extras = as_extras(with_terms)
     prof = as_profile(profile)
     run = read_run(run_path, allow_gaps=allow_gaps)
+    info(run.clock.summary())  # jitter, dropped and duplicated samples (calib.clock)
     out_path = Path(output) if output else Path(run_path).with_name(Path(run_path).stem + ".result.toml")
     if truth_path is None and truth_path_for(run_path).exists():
         truth_path = truth_path_for(run_path)
@@ -250,7 +252,7 @@ def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, with_
     for warning in result.warnings():
         info(f"warning: {warning}")
     if as_json:
-        emit_json(result.to_json(truth) | {"result": str(out_path)})
+        emit_json(result.to_json(truth) | {"result": str(out_path), "clock": run.clock.as_dict()})
         return
     click.echo(result.to_text(truth))
     click.echo(f"wrote {out_path}")

@@ -14,7 +14,7 @@ RATE = np.array([[0.5, -0.25, 2.0], [1.0, 0.0, -3.0], [0.0, 0.75, 0.25],
                  [0.1, 0.2, 0.3]])  # deg/s
 FORCE = np.array([[0.01, 0.0, -1.0], [0.0, -0.02, -1.01], [0.005, 0.0, -0.99],
                   [0.0, 0.0, -1.0]])  # g
-TIMES = np.array([0.01, 0.02, 0.03, 0.05])  # the last sample lasts two periods (0.02 s)
+TIMES = np.array([0.01, 0.02, 0.03, 0.04])  # uniform: a two-period step is a dropped sample
 
 
 def logger_text(header=("time_s", "accel_z_g", "gyro_x_dps", "gyro_y_dps", "gyro_z_dps",
@@ -32,7 +32,7 @@ def logger_text(header=("time_s", "accel_z_g", "gyro_x_dps", "gyro_y_dps", "gyro
 def expected_increments():
     # Rectangular rule: rate of the sample times (t_k - t_{k-1}); the first sample
     # lasts the nominal period 1 / (median step) = 0.01 s.
-    dt = np.array([0.01, 0.01, 0.01, 0.02])[:, None]
+    dt = np.array([0.01, 0.01, 0.01, 0.01])[:, None]
     return np.radians(RATE) * dt, FORCE * STANDARD_GRAVITY * dt
 
 

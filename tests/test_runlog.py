@@ -268,8 +268,11 @@ def test_non_utf8_refused(tmp_path):
 
 
 def test_time_must_strictly_increase(tmp_path):
+    # A repeated time with other increments is not a copy of a sample: refused as disorder.
     times = [0.005, 0.01, 0.015, 0.015, 0.02]
-    path = write_text(tmp_path, csv_text(body=[ROW.format(t=t) for t in times]))
+    body = [ROW.format(t=t) for t in times]
+    body[3] = body[3].replace("1e-07", "2e-07", 1)
+    path = write_text(tmp_path, csv_text(body=body))
     refusal(path, "line 9", "sample 3", "does not strictly increase",
             "time_s = 0.015 follows 0.015")
     times = [0.005, 0.01, 0.008, 0.02]
@@ -277,20 +280,40 @@ def test_time_must_strictly_increase(tmp_path):
     refusal(path, "line 8", "sample 2")
 
 
-def test_gaps_refused_unless_allowed(tmp_path):
-    times = [0.005, 0.01, 0.015, 0.05, 0.055, 0.2, 0.205]
+def test_exact_duplicate_rows_are_named_and_removed_when_allowed(tmp_path):
+    times = [0.005, 0.01, 0.015, 0.015, 0.02]
     path = write_text(tmp_path, csv_text(body=[ROW.format(t=t) for t in times]))
-    message = refusal(path, "2 gaps", "line 9", "sample 3", "time_s = 0.015 and 0.05",
-                      "--allow-gaps")
-    assert "0.01 s" in message  # the limit, two nominal periods
-    assert read_run(path, allow_gaps=True).n_samples == 7
+    refusal(path, "line 9", "sample 3", "1 sample(s) duplicated: 1 at t = 0.015 s",
+            "--allow-gaps")
+    run = read_run(path, allow_gaps=True)
+    assert run.n_samples == 4 and run.clock.duplicates == [(0.015, 1)]
 
 
-def test_short_steps_and_two_period_steps_are_not_gaps(tmp_path):
-    # 0.3 s is 60 periods at 200 Hz; steps of exactly 2 periods carry rounding.
-    times = [0.3 + k * 0.01 for k in range(5)] + [0.341, 0.3411]
-    run = read_run(write_text(tmp_path, csv_text(body=[ROW.format(t=t) for t in times])))
-    assert run.n_samples == 7
+def test_dropped_samples_are_each_named(tmp_path):
+    # Steps of 7 and 30 periods: 6 and 29 samples lost.
+    times = [0.005, 0.01, 0.015, 0.05, 0.055, 0.205, 0.21]
+    path = write_text(tmp_path, csv_text(body=[ROW.format(t=t) for t in times]))
+    refusal(path, "line 9", "sample 3", "35 sample(s) dropped", "6 at t = 0.02 s",
+            "29 at t = 0.06 s", "--allow-gaps")
+    run = read_run(path, allow_gaps=True)
+    assert run.n_samples == 42  # filled: the IMU's own count from 0.005 to 0.21 s
+
+
+def test_two_period_step_is_one_dropped_sample(tmp_path):
+    # 0.3 s is 60 periods at 200 Hz; a step of exactly 2 periods (with float rounding)
+    # is one sample lost, not jitter.
+    times = [0.3 + k * 0.005 for k in range(5)] + [0.33, 0.335]
+    path = write_text(tmp_path, csv_text(body=[ROW.format(t=t) for t in times]))
+    refusal(path, "1 sample(s) dropped: 1 at t = 0.325 s")
+
+
+def test_time_step_that_is_no_whole_number_of_periods_is_refused(tmp_path):
+    times = [0.005, 0.01, 0.0175, 0.0225]
+    path = write_text(tmp_path, csv_text(body=[ROW.format(t=t) for t in times]))
+    refusal(path, "line 8", "sample 2", "1.500 nominal periods", allow_gaps=True)
+    times = [0.005, 0.01, 0.015, 0.02, 1e300]
+    path = write_text(tmp_path, csv_text(body=[ROW.format(t=t) for t in times]))
+    refusal(path, "line 10", "sample 4", "the time jumps by", allow_gaps=True)
 
 
 def test_missing_file_and_unknown_suffix(tmp_path):
@@ -387,9 +410,10 @@ def test_npz_non_finite_names_element(tmp_path):
 def test_npz_gap_and_order(tmp_path):
     run = make_run()
     run.time_s[25:] += 1.0
-    message = refusal(save_npz(tmp_path, **npz_arrays(run)), "1 gap", "time_s[25]")
+    message = refusal(save_npz(tmp_path, **npz_arrays(run)), "200 sample(s) dropped",
+                      "time_s[25]")
     assert "--allow-gaps" in message
-    assert read_run(tmp_path / "run.npz", allow_gaps=True).n_samples == 40
+    assert read_run(tmp_path / "run.npz", allow_gaps=True).n_samples == 240
     run.time_s[30] = run.time_s[29]
     refusal(save_npz(tmp_path, **npz_arrays(run)), "time_s[30]", allow_gaps=True)
 
@@ -416,11 +440,14 @@ def test_write_refuses_invalid_runs(tmp_path):
 
 def test_gaps_may_be_written(tmp_path):
     run = make_run()
-    run.time_s[10:] += 5.0
+    run.time_s[10:] += 0.5
     write_run(run, tmp_path / "run.csv")
-    with pytest.raises(CalibError, match="gap"):
+    with pytest.raises(CalibError, match="dropped"):
         check_run(run)
-    assert read_run(tmp_path / "run.csv", allow_gaps=True).n_samples == 40
+    assert read_run(tmp_path / "run.csv", allow_gaps=True).n_samples == 140
+    run.time_s[10:] += 0.505  # 201 samples lost: more than the neighbours can stand for
+    write_run(run, tmp_path / "run.csv")
+    refusal(tmp_path / "run.csv", "201 samples lost", "split the log", allow_gaps=True)
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".npz"])

@@ -1,0 +1,329 @@
+"""The sample clock of a run log: which IMU sample each row is, and what the time column adds.
+
+An IMU samples on its own crystal: every increment covers one nominal period
+``1 / sample_rate_hz``. The time column is written by whatever logged the
+samples (often a host clock) and only locates them; it can jitter, and a
+logger can drop or repeat samples. Here the time column is turned into a
+sample count (rounding each step to whole periods), the jitter is measured
+against that count, and lost and repeated samples are named. Pure functions
+over arrays; :mod:`calib.runlog` applies them when it reads a run.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import CalibError
+
+# A step whose length in periods is this far from a whole number does not come
+# from one crystal: jitter of a quarter period would already be exceptional.
+MAX_STEP_FRACTION = 0.35
+# A step beyond this many periods (58 days at 200 Hz) is a clock jump, not lost samples.
+MAX_STEP_PERIODS = 1e9
+# Below this (relative to the period) the time column is uniform up to float rounding
+# and is kept exactly as written.
+ROUNDING_JITTER = 1e-9
+# Samples each side of a lost one whose mean increment fills it (at rest).
+FILL_NEIGHBOURS = 100
+# The longest hole filled: beyond this the fill would be mostly invented, not measured.
+MAX_FILL = 2 * FILL_NEIGHBOURS
+# A neighbourhood is at rest when its mean rate is below this: 14x the Earth rate,
+# far above any calibration-grade gyro bias, far below a flip (rad/s).
+REST_RATE = 1e-3
+# No single neighbour may turn faster than this: a flip (0.57 deg/s; the estimator's threshold).
+TURN_RATE = 1e-2
+
+
+@dataclass(frozen=True)
+class SampleClock:
+    """What the time column says about the samples.
+
+    Attributes
+    ----------
+    index : numpy.ndarray
+        ``(n,)`` int64 sample count of each row from the first (0); a
+        duplicated row has the index of the row it repeats.
+    period_s : float
+        Nominal sample period, s.
+    offset_s : float
+        Time of sample index 0 on the uniform time base, s.
+    rate_error_ppm : float
+        How much longer the time column's period is than the nominal one
+        (a logger clock running fast or slow against the IMU's), ppm.
+    jitter_rms_s, jitter_max_s : float
+        RMS and largest absolute deviation of the time column from the
+        straight line through it in sample count (offset and rate fitted), s.
+    dropped : list of (float, int)
+        Each place where samples are missing: the time of the first missing
+        sample (one period after the row before the hole) and how many are missing.
+    duplicates : list of (float, int)
+        Each repeated sample: its time and how many extra copies follow it.
+    """
+
+    index: np.ndarray
+    period_s: float
+    offset_s: float
+    rate_error_ppm: float
+    jitter_rms_s: float
+    jitter_max_s: float
+    dropped: list
+    duplicates: list
+
+    @property
+    def uniform(self) -> bool:
+        """True when the time column is uniform at the nominal period up to float rounding."""
+        drift = abs(self.rate_error_ppm) * 1e-6 * self.period_s * float(self.index[-1])
+        return self.jitter_max_s + drift <= ROUNDING_JITTER * self.period_s
+
+    def summary(self) -> str:
+        """One line for the user: jitter in ms, lost and repeated samples."""
+        text = (f"clock: time column jitters by {1e3 * self.jitter_rms_s:.3g} ms RMS, "
+                f"{1e3 * self.jitter_max_s:.3g} ms max, against the nominal "
+                f"{1e3 * self.period_s:.6g} ms period")
+        if abs(self.rate_error_ppm) >= 1.0:
+            text += f"; its period is {self.rate_error_ppm:+.3g} ppm off the nominal"
+        if self.uniform:
+            text = "clock: time column uniform at the nominal period"
+        if self.dropped:
+            text += f"; {sum(c for _, c in self.dropped)} dropped sample(s): " + describe(self.dropped)
+        if self.duplicates:
+            text += (f"; {sum(c for _, c in self.duplicates)} duplicated sample(s): "
+                     + describe(self.duplicates))
+        return text
+
+    def as_dict(self) -> dict:
+        """JSON-ready figures (SI)."""
+        return {"period_s": self.period_s, "rate_error_ppm": self.rate_error_ppm,
+                "jitter_rms_s": self.jitter_rms_s,
+                "jitter_max_s": self.jitter_max_s,
+                "dropped": [{"time_s": t, "count": c} for t, c in self.dropped],
+                "duplicates": [{"time_s": t, "count": c} for t, c in self.duplicates]}
+
+
+def describe(events: list) -> str:
+    """``'1 at t = 250.005 s, 2 at t = 750 s'`` for a list of (time, count)."""
+    return ", ".join(f"{c} at t = {t:.6g} s" for t, c in events)
+
+
+def duplicate_rows(time_s: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
+                   period_s: float) -> np.ndarray:
+    """Rows that repeat the previous row: same increments, at most half a period later.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n,)`` bool, True for each extra copy.
+    """
+    same = np.zeros(len(time_s), dtype=bool)
+    step = np.diff(time_s)
+    close = (step >= 0.0) & (step < 0.5 * period_s)
+    same[1:] = close & np.all(dtheta[1:] == dtheta[:-1], axis=1) & np.all(dv[1:] == dv[:-1], axis=1)
+    return same
+
+
+def sample_clock(time_s: np.ndarray, sample_rate_hz: float,
+                 duplicate: np.ndarray | None = None) -> SampleClock:
+    """Sample count, jitter, dropped and duplicated samples from a time column.
+
+    Each step between rows that are not duplicates is rounded to whole
+    nominal periods: 1 is the next sample, k > 1 means k - 1 samples are
+    missing. Rounding step by step (not the absolute time) follows a clock
+    that drifts slowly against the IMU's.
+
+    Parameters
+    ----------
+    time_s : numpy.ndarray
+        ``(n,)`` time column, s, increasing (duplicates aside).
+    sample_rate_hz : float
+        Nominal IMU output rate.
+    duplicate : numpy.ndarray of bool, optional
+        Rows that repeat the previous one (`duplicate_rows`).
+
+    Returns
+    -------
+    SampleClock
+
+    Raises
+    ------
+    CalibError
+        When a step is not close to a whole number of periods (``where`` is
+        the row index, to be located by the caller).
+    """
+    period = 1.0 / sample_rate_hz
+    dup = np.zeros(len(time_s), dtype=bool) if duplicate is None else duplicate
+    steps = _whole_steps(time_s, period, dup)
+    index = np.concatenate([[0], np.cumsum(steps)])
+    residual = time_s - index * period
+    offset = float(np.mean(residual))
+    # A logger clock running at another rate than the IMU's is a trend, not jitter.
+    centred = index - index.mean()
+    slope = float(centred @ residual / (centred @ centred)) if index[-1] > 0 else 0.0
+    jitter = residual - offset - slope * centred
+    dropped = [(float(time_s[i] + period), int(steps[i] - 1)) for i in np.flatnonzero(steps > 1)]
+    return SampleClock(index=index, period_s=period, offset_s=offset,
+                       rate_error_ppm=1e6 * slope / period,
+                       jitter_rms_s=float(np.sqrt(np.mean(jitter ** 2))),
+                       jitter_max_s=float(np.max(np.abs(jitter))),
+                       dropped=dropped, duplicates=_runs_of(dup, time_s))
+
+
+def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarray:
+    """Each time step in whole periods (0 for a duplicate); refuse jumps and fractions."""
+    periods = np.diff(time_s) / period
+    fix = "the time column must locate samples taken at sample_rate_hz; "
+    huge = np.flatnonzero(periods > MAX_STEP_PERIODS)
+    if huge.size:
+        i = int(huge[0]) + 1
+        raise CalibError(f"the time jumps by {time_s[i] - time_s[i - 1]:.6g} s before row {i}, "
+                         f"{periods[i - 1]:.3g} nominal periods", str(i),
+                         fix + "split the log where its clock jumps")
+    steps = np.rint(periods).astype(np.int64)
+    steps[dup[1:]] = 0
+    off = np.abs(periods - steps)
+    off[dup[1:]] = 0.0
+    bad = np.flatnonzero((off > MAX_STEP_FRACTION) | ((steps == 0) & ~dup[1:]))
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise CalibError(f"the time step {time_s[i] - time_s[i - 1]:.6g} s before row {i} is "
+                         f"{periods[i - 1]:.3f} nominal periods, not a whole number", str(i),
+                         fix + "check the rate, or whether the log mixes clocks")
+    return steps
+
+
+def _runs_of(dup: np.ndarray, time_s: np.ndarray) -> list:
+    """(time of the repeated sample, number of extra copies) for each run of duplicates."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], dup.astype(np.int8), [0]])))
+    return [(float(time_s[a - 1]), int(b - a)) for a, b in zip(edges[::2], edges[1::2])]
+
+
+def uniform_time(clock: SampleClock, time_s: np.ndarray) -> np.ndarray:
+    """The time base of the IMU: ``offset + index * period``; the column itself if already uniform."""
+    if clock.uniform and not clock.dropped and not clock.duplicates:
+        return time_s
+    return clock.offset_s + clock.index * clock.period_s
+
+
+def fill_dropped(clock: SampleClock, dtheta: np.ndarray, dv: np.ndarray,
+                 gimbal: np.ndarray | None = None):
+    """Put each lost sample back, at rest, as the mean increment of its neighbours.
+
+    At rest the increments are the Earth rate and gravity seen through the
+    IMU errors plus white noise; the mean of ``FILL_NEIGHBOURS`` samples each
+    side is the lost increment up to one sample's noise, so the navigation
+    error a filled sample adds is that of the noise the IMU would have added.
+    A sample lost while the IMU turns cannot be known and is refused, as is
+    a hole longer than ``MAX_FILL`` samples.
+
+    Parameters
+    ----------
+    clock : SampleClock
+        From `sample_clock`, duplicates already removed (indices increasing).
+    dtheta, dv : numpy.ndarray
+        ``(n, 3)`` increments of the rows that are present.
+    gimbal : numpy.ndarray, optional
+        ``(n, 3)`` encoder angles: the lost rows repeat the previous one.
+
+    Returns
+    -------
+    dtheta, dv, gimbal, index : numpy.ndarray
+        Full arrays over ``index[0] .. index[-1]`` and that index.
+
+    Raises
+    ------
+    CalibError
+        For a hole whose neighbourhood is not at rest (``where`` is the time).
+    """
+    index = clock.index
+    full = np.arange(index[0], index[-1] + 1)
+    pos = index - index[0]
+    out_th = np.full((len(full), 3), np.nan)
+    out_dv = np.full((len(full), 3), np.nan)
+    out_th[pos], out_dv[pos] = dtheta, dv
+    for row in np.flatnonzero(np.diff(index) > 1):
+        lo, hi = max(0, row + 1 - FILL_NEIGHBOURS), min(len(index), row + 1 + FILL_NEIGHBOURS)
+        _check_fillable(clock, row, dtheta[lo:hi])
+        hole = slice(pos[row] + 1, pos[row + 1])
+        out_th[hole] = dtheta[lo:hi].mean(axis=0)
+        out_dv[hole] = dv[lo:hi].mean(axis=0)
+    out_g = None
+    if gimbal is not None:
+        filled = np.zeros(len(full), dtype=np.int64)
+        filled[pos] = 1
+        out_g = np.asarray(gimbal)[np.cumsum(filled) - 1]
+    return out_th, out_dv, out_g, full
+
+
+def _check_fillable(clock: SampleClock, row: int, neighbours: np.ndarray) -> None:
+    """Refuse a hole after ``row`` that is too long, or whose neighbours are not at rest."""
+    index = clock.index
+    lost = int(index[row + 1] - index[row] - 1)
+    t = clock.offset_s + (index[row] + 1) * clock.period_s
+    if lost > MAX_FILL:
+        raise CalibError(f"{lost} samples lost at t = {t:.6g} s, more than the "
+                         f"{MAX_FILL} that the {FILL_NEIGHBOURS} samples each side can "
+                         "stand for", f"t = {t:.6g} s",
+                         "split the log at the hole and calibrate each part")
+    rate = np.linalg.norm(neighbours.mean(axis=0)) / clock.period_s
+    peak = np.max(np.linalg.norm(neighbours, axis=1)) / clock.period_s
+    if rate > REST_RATE or peak > TURN_RATE:
+        raise CalibError(f"{lost} sample(s) lost at t = {t:.6g} s, while the IMU turns",
+                         f"t = {t:.6g} s", "the increments of a flip cannot be recovered; "
+                         "repair the log or record the run again")
+
+
+def settle(run, allow_gaps: bool):
+    """The run on the IMU's own time base, with its clock report attached.
+
+    Jitter only: the time column is replaced by ``offset + index / rate``.
+    Duplicates and lost samples are refused unless ``allow_gaps``; then the
+    extra copies are removed and the lost samples filled (`fill_dropped`).
+
+    Parameters
+    ----------
+    run : calib.runlog.Run
+        A run that passed the reader's checks.
+    allow_gaps : bool
+
+    Returns
+    -------
+    calib.runlog.Run
+        A new run (``clock`` set); the input is not modified.
+    """
+    period = run.dt_nominal
+    dup = duplicate_rows(run.time_s, run.dtheta_rad, run.dv_mps, period)
+    try:
+        clock = sample_clock(run.time_s, run.sample_rate_hz, dup)
+    except CalibError as exc:
+        raise CalibError(exc.what, f"{run.source}, sample {exc.where}", exc.fix) from None
+    if clock.dropped or clock.duplicates:
+        if not allow_gaps:
+            raise refusal(clock, run.source)
+        keep = ~dup
+        clean = dataclasses.replace(clock, index=clock.index[keep])
+        gimbal = None if run.gimbal_deg is None else run.gimbal_deg[keep]
+        try:
+            dtheta, dv, gimbal, index = fill_dropped(clean, run.dtheta_rad[keep],
+                                                     run.dv_mps[keep], gimbal)
+        except CalibError as exc:
+            raise CalibError(exc.what, f"{run.source}, {exc.where}", exc.fix) from None
+        time = clock.offset_s + index * period
+        return dataclasses.replace(run, time_s=time, dtheta_rad=dtheta, dv_mps=dv,
+                                   gimbal_deg=gimbal, clock=clock)
+    return dataclasses.replace(run, time_s=uniform_time(clock, run.time_s), clock=clock)
+
+
+def refusal(clock: SampleClock, source: str) -> CalibError:
+    """The error naming every dropped and duplicated sample."""
+    parts = []
+    if clock.dropped:
+        parts.append(f"{sum(c for _, c in clock.dropped)} sample(s) dropped: "
+                     + describe(clock.dropped))
+    if clock.duplicates:
+        parts.append(f"{sum(c for _, c in clock.duplicates)} sample(s) duplicated: "
+                     + describe(clock.duplicates))
+    return CalibError("; ".join(parts) + " (a lost or repeated increment is a velocity "
+                      "step the fit would read as IMU error)", source,
+                      "repair the log, or pass --allow-gaps to fill samples lost at rest "
+                      "and remove exact duplicates")
