@@ -494,6 +494,7 @@ def _read_csv(path: str | os.PathLike, allow_gaps: bool, options: dict | None = 
     name = str(path)
     lines = _decode_lines(_read_bytes(path), name)
     meta, key_lines, header_index = _parse_preamble(lines, name)
+    lines = _to_commas(lines, header_index, name)
     plan, has_gimbal, positions = _parse_header(lines[header_index], header_index + 1, name)
     rows, row_lines = _data_rows(lines, header_index + 1)
     if not rows:
@@ -521,6 +522,29 @@ def _read_csv(path: str | os.PathLike, allow_gaps: bool, options: dict | None = 
               source=name)
     _check_samples(run, locate, allow_gaps)
     return run
+
+
+def _to_commas(lines: list[str], header_index: int, name: str) -> list[str]:
+    """Lines of a CSV written with ';' or tabs between fields, rewritten with commas.
+
+    A semicolon-separated file from a locale that writes decimal commas
+    (``0,25;1,5``) has its decimal commas read as points. Said on stderr, so a
+    user sees how the file was read.
+    """
+    header = lines[header_index]
+    if "," in header:
+        return lines
+    sep = next((c for c in (";", "\t") if c in header), None)
+    if sep is None:
+        return lines
+    body = lines[header_index + 1:]
+    decimal_commas = sep == ";" and any("," in row for row in body[:100])
+    if decimal_commas:
+        body = [row.replace(",", ".") for row in body]
+    import warnings
+    warnings.warn(f"{name}: fields separated by {'tabs' if sep == chr(9) else repr(sep)}"
+                  f"{' with decimal commas' if decimal_commas else ''}; read as such", stacklevel=3)
+    return lines[:header_index] + [row.replace(sep, ",") for row in [header] + body]
 
 
 def _fill_meta(meta: dict[str, str], options: dict, time_s: np.ndarray, name: str,

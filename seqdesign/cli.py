@@ -204,6 +204,10 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
 @click.option("-o", "--output", help="Result TOML (default: RUN with .result.toml).")
 @click.option("--truth", "truth_path", type=click.Path(dir_okay=False),
               help="Truth file to compare with (default: RUN.truth.toml if it exists).")
+@click.option("--latitude", type=click.FloatRange(-89.0, 89.0),
+              help="Site latitude, deg, for a logger's CSV that does not carry latitude_deg.")
+@click.option("--height", type=click.FloatRange(-1000.0, 10000.0),
+              help="Site height, m, for a logger's CSV that does not carry height_m.")
 @click.option("--allow-gaps", is_flag=True,
               help="Remove duplicated samples and fill samples dropped at rest.")
 @click.option("--with", "with_terms", metavar="TERMS",
@@ -220,8 +224,8 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
                    "report the rest as not estimable instead of refusing the run.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 @guarded
-def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, with_terms, requirements,
-              gravity_mps2, partial, as_json):
+def calibrate(run_path, sequence, profile, output, truth_path, latitude, height, allow_gaps,
+              with_terms, requirements, gravity_mps2, partial, as_json):
     """Align, navigate on the stationary base and fit the 21 error parameters of
     RUN (CSV, NPZ or PSINS .imu) by iterated, noise-weighted least squares."""
     from calib.calibration import as_extras, as_profile, calibrate_run
@@ -231,7 +235,7 @@ def calibrate(run_path, sequence, profile, output, truth_path, allow_gaps, with_
 
     extras = as_extras(with_terms)
     prof = as_profile(profile)
-    run = read_run(run_path, allow_gaps=allow_gaps)
+    run = read_run(run_path, allow_gaps=allow_gaps, latitude_deg=latitude, height_m=height)
     info(run.clock.summary())  # jitter, dropped and duplicated samples (calib.clock)
     out_path = Path(output) if output else Path(run_path).with_name(Path(run_path).stem + ".result.toml")
     if truth_path is None and truth_path_for(run_path).exists():
