@@ -12,6 +12,8 @@ the observations along the navigated attitude.
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -35,6 +37,9 @@ from .transform import rotvec_to_dcm
 MOTION_THRESHOLD = 0.01  # rad/s: far above Earth rate + bias + noise, far below a flip
 MIN_ALIGN_S = 10.0
 PHI0_SCALE = 1e-4  # rad, for scaling the normal equations only
+# Past the third iteration the Jacobian is rebuilt only while the last step exceeded this many
+# sigmas: below it the linearisation error is far below the convergence tolerance.
+RELINEARISE_STEP_SIGMA = 0.1
 
 
 @dataclass(frozen=True)
@@ -54,10 +59,29 @@ def _grow(moving: np.ndarray, samples: int = 2) -> np.ndarray:
     return grown
 
 
-def detect_motion(dtheta: np.ndarray, dt: np.ndarray, where: str = "run") -> Segmentation:
-    """Rest/rotation segments from the gyro increments alone."""
-    rate = np.linalg.norm(dtheta, axis=1) / dt
-    grown = _grow(rate > MOTION_THRESHOLD)
+def detect_motion(dtheta: np.ndarray, dt: np.ndarray, where: str = "run",
+                  arw: float = 0.0) -> Segmentation:
+    """Rest/rotation segments from the gyro increments alone.
+
+    A noisy gyro (``arw``, rad/sqrt(s)) is averaged over a window long enough
+    for its noise to stay five times below the motion threshold, and a large
+    constant rate (a MEMS bias) is removed first; a navigation-grade gyro is
+    judged sample by sample, as before.
+    """
+    rate_vec = dtheta / dt[:, None]
+    window = max(1, int(math.ceil((5.0 * arw / MOTION_THRESHOLD) ** 2 / float(np.median(dt)))))
+    steady = np.median(rate_vec, axis=0)  # rests dominate a calibration run
+    if window > 1 or np.linalg.norm(steady) > 0.1 * MOTION_THRESHOLD:
+        angle = np.cumsum(np.vstack([np.zeros((1, 3)), (rate_vec - steady) * dt[:, None]]), axis=0)
+        half = window // 2
+        lo = np.clip(np.arange(len(dt)) - half, 0, len(dt))
+        hi = np.clip(np.arange(len(dt)) + window - half, 0, len(dt))
+        clock = np.concatenate([[0.0], np.cumsum(dt)])
+        rate = np.linalg.norm(angle[hi] - angle[lo], axis=1) / (clock[hi] - clock[lo])
+        grown = _grow(rate > MOTION_THRESHOLD, 2 + window)
+    else:
+        rate = np.linalg.norm(dtheta, axis=1) / dt
+        grown = _grow(rate > MOTION_THRESHOLD)
     motion = sanity.diagnose_motion(dtheta, dt, MOTION_THRESHOLD)
     if not motion.has_flip:  # vibration or quantisation spikes alone are no flip
         raise sanity.never_rotates(motion, MOTION_THRESHOLD, where)
@@ -218,13 +242,36 @@ def nominal_decision(seq, latitude_rad: float, profile: NoiseProfile, extras: Ex
     return scaled_inverse(eliminate(info * np.outer(D, D), PHI0), kept)
 
 
+def start_values(dtheta_m: np.ndarray, dt: np.ndarray, moving: np.ndarray) -> np.ndarray:
+    """Where Gauss-Newton starts: zero, or the gyro biases when they dwarf the Earth rate.
+
+    A gyro bias of 1000 deg/h (a MEMS unit) tilts an uncompensated navigation
+    by hundreds of degrees in half an hour, far outside what a linearisation
+    can correct. The mean rate over all rests is the bias to within the
+    Earth rate (15 deg/h), which the rests' different attitudes average down:
+    from there the fit is in its linear range. A navigation-grade unit, whose
+    biases are far below the Earth rate, starts from zero as it always did.
+    """
+    values = np.zeros(P.N_PARAMS)
+    rest = ~moving
+    mean_rate = dtheta_m[rest].sum(axis=0) / dt[rest].sum()
+    if np.linalg.norm(mean_rate) > 2.0 * earth.RATE:
+        values[P.GYRO_BIAS] = mean_rate
+    return values
+
+
 def check_run(dtheta_m: np.ndarray, dv_m: np.ndarray, dt: np.ndarray, latitude_rad: float,
               gravity_mps2: float, profile: NoiseProfile, moving: np.ndarray | None,
-              where: str) -> Segmentation:
-    """Refuse a log the fit cannot use, naming why; return where it turns."""
+              where: str, requirements: Requirements = PAPER) -> Segmentation:
+    """Refuse a log the fit cannot use, naming why; return where it turns.
+
+    What is plausible follows the unit's class (its profile and requirements):
+    a MEMS unit's biases of 1000 deg/h and 20 mg are not a log in wrong units.
+    """
+    req = requirements.si
     sanity.check_latitude(latitude_rad, where)
     sanity.check_rates(dtheta_m, dt, where)
-    seg = detect_motion(dtheta_m, dt, where)
+    seg = detect_motion(dtheta_m, dt, where, arw=profile.arw)
     if moving is not None:
         seg = Segmentation(moving=moving, first_rest_end=int(np.argmax(moving)))
     t_align = float(dt[:seg.first_rest_end].sum())
@@ -232,8 +279,11 @@ def check_run(dtheta_m: np.ndarray, dv_m: np.ndarray, dt: np.ndarray, latitude_r
         raise CalibError(f"the first rest lasts {t_align:.1f} s, too short to align "
                          f"(needs >= {MIN_ALIGN_S:.0f} s)", where,
                          "start the run with the IMU at rest")
-    sanity.check_rest_rate(dtheta_m, dt, slice(0, seg.first_rest_end), where)
-    sanity.check_gravity(dv_m, dt, slice(0, seg.first_rest_end), gravity_mps2, where)
+    sanity.check_rest_rate(dtheta_m, dt, slice(0, seg.first_rest_end), where,
+                           float(req[P.GYRO_BIAS].max()))
+    accel_class = sanity.CLASS_FACTOR * float(req[P.ACCEL_BIAS].max() / gravity_mps2
+                                              + req[P.ACCEL_SCALE].max())
+    sanity.check_gravity(dv_m, dt, slice(0, seg.first_rest_end), gravity_mps2, where, accel_class)
     sanity.check_saturation(dtheta_m, dv_m, where)
     sanity.check_rests(dv_m, dt, seg.moving, profile.vrw, where)
     return seg
@@ -323,17 +373,19 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
     Fit
     """
     dt = sample_intervals(time_s)
-    seg = check_run(dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, moving, where)
+    seg = check_run(dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, moving, where,
+                    requirements)
     grid = default_grid(seg.moving, 1.0 / np.median(dt))
     pb = _Problem(time_s, dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, extras, grid,
                   where)
     A, T = state_matrix(latitude_rad, gravity_mps2), np.diff(pb.t_nav[grid.bounds])
     mid = (grid.bounds[:-1] + grid.bounds[1:]) // 2
-    values, extra_values = np.zeros(P.N_PARAMS), np.zeros(extras.n)
+    values, extra_values = start_values(dtheta_m, dt, seg.moving), np.zeros(extras.n)
     names = UNKNOWN_NAMES + extras.names
     omega_ie_n = earth.omega_ie_n(latitude_rad)
     first = slice(0, seg.first_rest_end)
-    C0 = coarse_alignment(dtheta_m[first], dv_m[first], dt[first])
+    C0 = coarse_alignment(dtheta_m[first] - values[P.GYRO_BIAS] * dt[first, None], dv_m[first],
+                          dt[first])
     # Until the first navigation, the Earth's turn as seen at the start attitude.
     turn = X.earth_turn(np.broadcast_to(C0, (len(dt), 3, 3)), omega_ie_n, dt)
     noise, sol, history, converged = None, None, [], False
@@ -358,8 +410,11 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
             # the navigated attitude while the Jacobian does. Phi_vv does not depend on it.
             noise = noise_model(A, T, profile, C_b_n=nav.C_b_n[mid])
         z = pb.observations(nav, noise.Phi_vv, it)
-        if sol is None or it <= 3 or sol.null_directions:
-            # The Jacobian changes little once the big errors are compensated; a partial fit's
+        relinearise = sol is None or it <= 3 or bool(sol.null_directions) or (
+            history and history[-1]["max_step_sigma"] > RELINEARISE_STEP_SIGMA)
+        if relinearise:
+            # The Jacobian changes little once the big errors are compensated; while steps are
+            # still large (a MEMS unit's percent-level errors) it follows them. A partial fit's
             # covariance is sensitive to where its nearly-null directions lie, so it follows
             # the trajectory to the end.
             H = observation_jacobian(nav.C_b_n, dth, dvv, nav.time_s, grid, latitude_rad,

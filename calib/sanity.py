@@ -46,10 +46,21 @@ def check_rates(dtheta: np.ndarray, dt: np.ndarray, where: str) -> None:
             f"instead of increments (x{1 / np.median(dt):.0f}) give this")
 
 
-def check_rest_rate(dtheta: np.ndarray, dt: np.ndarray, rest: slice, where: str) -> None:
-    """Refuse a first rest whose mean rate is far beyond Earth rate plus any plausible bias."""
+# A unit's biases before calibration are at most this many times what its calibration must
+# reach: 100 x the requirement (navigation grade: 3 deg/h against 0.03; MEMS: 3000 deg/h and
+# 100 mg against 30 deg/h and 1 mg). The checks below allow that much, and no more.
+CLASS_FACTOR = 100.0
+
+
+def check_rest_rate(dtheta: np.ndarray, dt: np.ndarray, rest: slice, where: str,
+                    gyro_bias_requirement: float = 0.0) -> None:
+    """Refuse a first rest whose mean rate is far beyond Earth rate plus any plausible bias.
+
+    The plausible bias follows the unit's class: ``CLASS_FACTOR`` times its
+    gyro bias requirement (rad/s), and at least ``MAX_REST_RATE``.
+    """
     w = float(np.linalg.norm(dtheta[rest].sum(axis=0)) / dt[rest].sum())
-    if w > MAX_REST_RATE:
+    if w > max(MAX_REST_RATE, CLASS_FACTOR * gyro_bias_requirement):
         raise CalibError(f"the gyros read {w:.3g} rad/s at the first rest, {w / 7.292115e-5:.0f}x "
                          "the Earth rate", where,
                          "dtheta must be in rad: degrees (x57) give this, as do rates logged "
@@ -57,11 +68,17 @@ def check_rest_rate(dtheta: np.ndarray, dt: np.ndarray, rest: slice, where: str)
 
 
 def check_gravity(dv: np.ndarray, dt: np.ndarray, rest: slice, gravity_mps2: float,
-                  where: str) -> None:
-    """Refuse dv in g, specific force for increments, or a site gravity far from the data."""
+                  where: str, accel_class: float = 0.0) -> None:
+    """Refuse dv in g, specific force for increments, or a site gravity far from the data.
+
+    ``accel_class`` is the unit's plausible relative error of a specific force
+    before calibration (bias over g plus scale factor, from its requirements
+    times ``CLASS_FACTOR``); the tolerance is at least ``GRAVITY_TOLERANCE``.
+    A log in g (a factor 9.8) is refused whatever the class.
+    """
     f = float(np.linalg.norm(dv[rest].sum(axis=0)) / dt[rest].sum())
     ratio = f / gravity_mps2
-    if abs(ratio - 1.0) > GRAVITY_TOLERANCE:
+    if abs(ratio - 1.0) > min(0.5, max(GRAVITY_TOLERANCE, accel_class)):
         fs = 1.0 / float(np.median(dt))
         if abs(f - 1.0) < 0.05:
             cause = "the dv columns look like g*s, not m/s (velocity increments must be in m/s)"
