@@ -36,8 +36,8 @@ FLICKER_FLOOR_RATIO = math.sqrt(2.0 * math.log(2.0) / math.pi)  # 0.6643
 GM_PEAK_TAU_RATIO = 1.8926
 GM_PEAK_ADEV_RATIO = 0.6174
 
-SLOPE_TOLERANCE = 0.15
-MIN_CORRELATION_S = 1.0  # calib.profiles' lower bound of a GM correlation time  # a log-log slope within this of -1/2 (or +1/2) is "on the line"
+SLOPE_TOLERANCE = 0.15  # a log-log slope within this of -1/2 (or +1/2) is "on the line"
+MIN_CORRELATION_S = 1.0  # calib.profiles' lower bound of a GM correlation time
 
 
 @dataclass(frozen=True)
@@ -107,14 +107,17 @@ def allan_deviation(rate: np.ndarray, dt: float, taus: np.ndarray | None = None)
 
 
 def avar_quantisation(tau, q: float):
+    """Allan variance of quantisation noise of coefficient ``q``: ``3 q^2 / tau^2``."""
     return 3.0 * q**2 / np.asarray(tau) ** 2
 
 
 def avar_white(tau, n: float):
+    """Allan variance of white rate noise (angle/velocity random walk ``n``): ``n^2 / tau``."""
     return n**2 / np.asarray(tau)
 
 
 def avar_rate_random_walk(tau, k: float):
+    """Allan variance of a rate random walk of coefficient ``k``: ``k^2 tau / 3``."""
     return k**2 * np.asarray(tau) / 3.0
 
 

@@ -19,7 +19,8 @@ from . import earth
 from . import params as P
 from .errors import CalibError
 from .estimator import Fit, calibrate, check_sequence_matches, detect_motion, sequence_motion
-from .extras import NONE as NO_EXTRAS, Extras, parse_groups
+from .extras import NONE as NO_EXTRAS
+from .extras import Extras, parse_groups
 from .profiles import NoiseProfile, load_profile
 from .requirements import PAPER, Requirements, load_requirements
 from .result import CalibrationResult

@@ -64,7 +64,7 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
 
 
 def atomic_write_text(path: str | os.PathLike, text: str) -> None:
-    """Write ``text`` as UTF-8 to ``path`` atomically (see `atomic_write_bytes`).
+    r"""Write ``text`` as UTF-8 to ``path`` atomically (see `atomic_write_bytes`).
 
     Parameters
     ----------

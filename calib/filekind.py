@@ -33,7 +33,8 @@ _FIX = {"sequence": "give a sequence file (.toml with start and [[step]]) or a s
 
 def kind_of(path: str | Path) -> str:
     """``run``, ``psins``, ``result``, ``truth``, ``sequence``, ``requirements``, ``profile``,
-    ``gimbal`` or ``unknown``, from the suffix and, for TOML, the top-level keys."""
+    ``gimbal`` or ``unknown``, from the suffix and, for TOML, the top-level keys.
+    """
     name = str(path).lower()
     if name.endswith((".csv", ".csv.gz", ".npz")):
         return "run"

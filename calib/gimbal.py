@@ -159,6 +159,7 @@ def gimbal_from_dict(doc: dict, where: str) -> Gimbal:
 
 
 def builtin_gimbal_dir() -> Path:
+    """Folder of the gimbal descriptions shipped with the tool."""
     from .sequence import builtin_sequence_dir
     return builtin_sequence_dir() / "gimbals"
 
@@ -237,6 +238,7 @@ def gimbal_axes_in_body(state: np.ndarray) -> np.ndarray:
 
 
 def in_lock(state: np.ndarray) -> bool:
+    """Whether encoder angles ``state`` (rad) put the outer and inner axes in line."""
     return abs(math.cos(state[1])) < PARALLEL_TOL
 
 
@@ -317,7 +319,10 @@ def plan_move(gimbal: Gimbal, state: np.ndarray, axis: str | int, angle_rad: flo
 
 def _range_violations(gimbal: Gimbal, lo: np.ndarray, hi: np.ndarray, step,
                       moving=(0, 1, 2)) -> list[Violation]:
-    """Range limits of the gimbals that move (a gimbal left beyond its range was flagged when it got there)."""
+    """Range limits of the gimbals that move.
+
+    A gimbal left beyond its range was flagged when it got there.
+    """
     out = []
     for g, a in enumerate(gimbal.axes):
         if g not in moving:

@@ -14,7 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .extras import NONE as NO_EXTRAS, Extras
+from .extras import NONE as NO_EXTRAS
+from .extras import Extras
 from .jacobian import MOVE_STEP_S, ObservationGrid, observation_jacobian, state_matrix
 from .noise import noise_model, whiten
 from .profiles import NoiseProfile

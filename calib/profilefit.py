@@ -126,7 +126,7 @@ def profile_doc(fit: ProfileFit, provenance: dict) -> dict:
 
 
 def plain(x):
-    """numpy scalars and arrays as Python floats and lists (for TOML and JSON)."""
+    """Numpy scalars and arrays as Python floats and lists (for TOML and JSON)."""
     if isinstance(x, dict):
         return {k: plain(v) for k, v in x.items()}
     if isinstance(x, (list, tuple, np.ndarray)):

@@ -1,18 +1,19 @@
 """Noise profiles: the IMU's white noise (ARW, VRW), per ``docs/conventions.md``, and
-optional first-order Gauss-Markov bias instability (see :mod:`calib.gaussmarkov`)."""
+optional first-order Gauss-Markov bias instability (see :mod:`calib.gaussmarkov`).
+"""
 from __future__ import annotations
 
 import math
-import warnings
 import tomllib
+import warnings
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
 from .errors import CalibError
 from .fields import Fields, check_format_version
-from .filekind import expect
 from .fileio import load_toml, toml_number
+from .filekind import expect
 from .params import DEG, DEG_PER_HOUR, MICRO_G
 
 DEFAULT_PROFILE = "navigation"
@@ -78,6 +79,7 @@ class NoiseProfile:
 
 
 def builtin_profiles() -> list[str]:
+    """Names of the profiles shipped with the tool."""
     folder = resources.files("calib") / "profiles"
     return sorted(Path(p.name).stem for p in folder.iterdir() if p.name.endswith(".toml"))
 
@@ -162,7 +164,8 @@ def _from_doc(doc: dict, where: str) -> NoiseProfile:
 
 def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> NoiseProfile:
     """A built-in profile by name (``navigation``, ``navigation-gm``, ``tactical``) or a
-    profile TOML file."""
+    profile TOML file.
+    """
     text = str(name_or_path)
     path = Path(text)
     if not path.exists():

@@ -59,6 +59,7 @@ PAPER = Requirements("paper", tuple(float(x) for x in P.REQUIREMENTS),
 
 
 def builtin_dir() -> Path:
+    """Folder of the requirement sets shipped with the tool."""
     return Path(str(resources.files("calib") / "requirements_files"))
 
 

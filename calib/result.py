@@ -15,11 +15,13 @@ import numpy as np
 from . import params as P
 from .errormodel import ErrorModel
 from .errors import CalibError
-from .extras import NONE as NO_EXTRAS, Extras, parse_groups
+from .extras import NONE as NO_EXTRAS
+from .extras import Extras, parse_groups
 from .fields import FORMAT_VERSION, Fields, check_format_version
 from .fileio import load_toml, toml_number
 from .report import extra_entries, format_table, parameter_entries, worst
 from .requirements import PAPER, Requirements, requirements_from_dict
+
 
 @dataclass(frozen=True)
 class CalibrationResult:
@@ -177,7 +179,8 @@ class CalibrationResult:
         entries = self.entries(truth)
         w = worst(entries)
         lines = [format_table(entries),
-                 f"profile {self.profile}; requirements {self.requirements.name}; {'converged' if self.converged else 'NOT converged'} "
+                 f"profile {self.profile}; requirements {self.requirements.name}; "
+                 f"{'converged' if self.converged else 'NOT converged'} "
                  f"in {self.iterations} iterations; residual RMS {self.residual_rms_mps:.3g} m/s; "
                  f"chi2/dof {self.chi2_per_dof:.3f}; worst 3 sigma/requirement "
                  f"{w['ratio']:.2f} ({w['name']})"]

@@ -25,11 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.columns import ColumnPlan, plan_columns, to_increments
 from calib import clock
+from calib.columns import ColumnPlan, plan_columns, to_increments
 from calib.errors import CalibError
-from calib.filekind import expect
 from calib.fileio import atomic_write_bytes, atomic_write_text
+from calib.filekind import expect
 
 FORMAT = "imu-run/1"
 REQUIRED_META = ("format", "latitude_deg", "height_m", "sample_rate_hz")

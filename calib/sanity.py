@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .earth import MAX_LATITUDE_DEG  # one source: calib.earth
 from .errors import CalibError
 
 MAX_PLAUSIBLE_RATE = 5.0  # rad/s: 286 deg/s, beyond any calibration gimbal (the paper turns at 10)
@@ -22,7 +23,6 @@ STILL_RELATIVE = 1e-9  # changes below this fraction of a sensor's peak reading 
 REST_NOISE_FACTOR = 20.0  # a rest whose specific force varies 20x more than the noise moved
 
 
-from .earth import MAX_LATITUDE_DEG  # noqa: F401  (one source: calib.earth)
 
 
 def check_latitude(latitude_rad: float, where: str) -> None:

@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import CalibError
-from .fileio import load_toml, toml_number
 from .fields import FORMAT_VERSION, Fields, check_format_version
+from .fileio import load_toml, toml_number
 from .filekind import expect
 from .rateprofile import RateProfile
 from .transform import attitude_from_directions, axis_index, rot_axis

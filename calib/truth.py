@@ -6,10 +6,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .fields import FORMAT_VERSION, check_format_version
 from . import params as P
 from .errormodel import ErrorModel
 from .errors import CalibError
+from .fields import FORMAT_VERSION, check_format_version
 from .fileio import load_toml, toml_number
 from .sim import Truth
 
@@ -120,6 +120,7 @@ def _extra(table, where: str):
 
 
 def truth_to_dict(truth: Truth) -> dict:
+    """The truth TOML document of a simulated run (spec units)."""
     values = truth.errors.in_units()
     setup = np.degrees(truth.setup_rotvec)
     meta = {"profile": truth.profile, "noise": bool(truth.noise)}
@@ -139,6 +140,7 @@ def truth_to_dict(truth: Truth) -> dict:
 
 
 def write_truth(path: str | Path, truth: Truth, provenance: dict | None = None) -> None:
+    """Write a truth file atomically, with the provenance of the simulation."""
     import tomli_w
 
     from .fileio import atomic_write_text

@@ -24,8 +24,7 @@ from calib.report import format_table, parameter_entries, worst
 from calib.requirements import PAPER, Requirements, load_requirements
 from calib.sequence import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, Sequence, load_sequence
 
-from .observability import ExtrasCost, Robustness, accel_scale_bound, analyze_extras, \
-    analyze_tolerance
+from .observability import ExtrasCost, Robustness, accel_scale_bound, analyze_extras, analyze_tolerance
 from .separability import involvement, motion_hint, separable_combinations
 
 
@@ -102,7 +101,8 @@ class Analysis:
         rob, seq = self.robustness, self.sequence
         doc = self.to_json()
         lines = [f"{seq.name}: {seq.duration_s:.0f} s ({seq.duration_s / 60:.1f} min), profile "
-                 f"{self.profile.name}, requirements {self.requirements.name}, latitude {self.latitude_deg:g} deg, worst case over "
+                 f"{self.profile.name}, requirements {self.requirements.name}, latitude "
+                 f"{self.latitude_deg:g} deg, worst case over "
                  f"+-{rob.tolerance_deg:g} deg ({rob.points} mountings"
                  f"{' + IPOPT search' if rob.searched else ''})",
                  format_table(doc["parameters"])] + _verdict(doc)

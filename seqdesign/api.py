@@ -23,7 +23,8 @@ from calib.sequence import load_sequence
 from calib.sim import simulate
 
 from .analysis import Analysis, analyze, compare_text
-from .designs import DesignReport, design_budgets as design
+from .designs import DesignReport
+from .designs import design_budgets as design
 from .repeatability import compare_results
 
 __all__ = ["Analysis", "CalibrationResult", "DesignReport", "analyze", "calibrate",

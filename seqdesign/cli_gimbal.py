@@ -15,7 +15,6 @@ import click
 import numpy as np
 
 from calib.errors import CalibError
-
 from seqdesign.clitools import emit_json, guarded, info, provenance
 
 FORMAT = "gimbal-commands/1"
@@ -93,7 +92,8 @@ def export(sequence, gimbal_file, output, rate_hz, as_json):
     """Write SEQUENCE as a schedule of continuous encoder angles and rates
     (time_s, outer/middle/inner in deg and deg/s) for the gimbal of --gimbal.
     A sequence the gimbal cannot play is refused, naming the step, the gimbal
-    and the limit."""
+    and the limit.
+    """
     from calib.fileio import atomic_write_text
     from calib.gimbal import check_playable, load_gimbal, plan_sequence
     from calib.sequence import load_sequence, resolve_sequence_path

@@ -33,10 +33,10 @@ def _plot_path(output: str, plot: str | None) -> Path:
 @guarded
 def fit(log, latitude, height, output, name, plot, no_plot, as_json):
     """Fit the noise of a static LOG (CSV, CSV.GZ or NPZ; docs/logs-columns.md) and
-    write a profile the other commands accept (--profile OUTPUT)."""
+    write a profile the other commands accept (--profile OUTPUT).
+    """
     from calib.errors import CalibError
-    from calib.profilefit import fit_profile, per_axis_tables, plain, plot_allan, profile_doc, \
-        save_profile
+    from calib.profilefit import fit_profile, per_axis_tables, plain, plot_allan, profile_doc, save_profile
     from calib.runlog import read_run
 
     if not output.lower().endswith(".toml"):

@@ -20,6 +20,7 @@ EXIT_BAD_INPUT = 2
 
 
 def tool_version() -> str:
+    """The installed package's version."""
     from importlib.metadata import PackageNotFoundError, version
     try:
         return version("seqdesign")
@@ -101,10 +102,12 @@ def _json_safe(x):
 
 
 def emit_json(doc) -> None:
+    """One JSON document on stdout (non-finite numbers become null)."""
     click.echo(json.dumps(_json_safe(doc), indent=2, allow_nan=False))
 
 
 def info(msg: str) -> None:
+    """A line on stderr (stdout is for results)."""
     click.echo(msg, err=True)
 
 

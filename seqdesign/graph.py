@@ -37,10 +37,12 @@ class Move:
 
 
 def node_of(C: np.ndarray) -> Node:
+    """The grid node (where X, Y, Z point) of a grid attitude."""
     return directions_of(np.round(C))
 
 
 def attitude_of(node: Node) -> np.ndarray:
+    """``C_b_n`` of a grid node."""
     return attitude_from_directions(*node)
 
 
@@ -75,6 +77,7 @@ def apply_move(graph: nx.MultiDiGraph, node: Node, move: Move) -> Node:
 
 
 def parse_node(text: str, where: str = "--start") -> Node:
+    """A node from ``"east,up,south"``, refused with ``where`` if it is not a frame."""
     parts = [p.strip().lower() for p in str(text).replace(" ", ",").split(",") if p.strip()]
     if len(parts) != 3:
         raise CalibError(f"{text!r} is not three directions", where,
@@ -84,4 +87,5 @@ def parse_node(text: str, where: str = "--start") -> Node:
 
 
 def moves(axes: str = AXES, max_quarters: int = 1) -> list[Move]:
+    """Every move about ``axes`` of up to ``max_quarters`` quarter turns, both signs."""
     return [Move(a, s, q) for a in axes for s in (1, -1) for q in range(1, max_quarters + 1)]

@@ -12,9 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.errormodel import ErrorModel
 from calib.calibration import calibrate_run
-from calib.extras import NONE as NO_EXTRAS, ExtraValues, Extras
+from calib.errormodel import ErrorModel
+from calib.extras import NONE as NO_EXTRAS
+from calib.extras import Extras, ExtraValues
 from calib.profiles import NoiseProfile
 from calib.sequence import Sequence
 from calib.sim import SimConfig, simulate

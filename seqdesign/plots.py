@@ -10,7 +10,7 @@ from .observability import accel_scale_bound
 
 
 def pyplot():
-    """matplotlib's pyplot on the file-only Agg backend, or a clear refusal if it is missing."""
+    """Matplotlib's pyplot on the file-only Agg backend, or a clear refusal if it is missing."""
     try:
         import matplotlib
     except ImportError:
