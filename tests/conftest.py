@@ -10,9 +10,10 @@ import csv
 import math
 from pathlib import Path
 
-import calib  # noqa: F401  first: pins BLAS threads (calib/__init__.py) before numpy loads
 import numpy as np
 import pytest
+
+import calib  # noqa: F401  first: pins BLAS threads (calib/__init__.py) before numpy loads
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO / "calib" / "data"          # copies of the paper's tables shipped in the repo

@@ -161,6 +161,7 @@ def test_cli_analyze_view_writes_a_recording_of_the_analysis(tmp_path, monkeypat
     for var in ("HOME", "XDG_CONFIG_HOME", "XDG_DATA_HOME", "XDG_CACHE_HOME"):
         monkeypatch.setenv(var, str(tmp_path / "home"))
     from test_viz import bars  # rerun's BarChart values read back from the recording
+
     from viz.record import read_recording
     out = tmp_path / "a.rrd"
     r = CliRunner().invoke(main, ["analyze", "paper-9pos", "--tolerance-deg", "0", "--view",

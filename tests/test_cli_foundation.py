@@ -7,12 +7,23 @@ import math
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from conftest import (
+    DWELL_S,
+    FLIP_S,
+    N_POS,
+    SPEC_NAMES,
+    normal_gravity,
+    pre_attitudes,
+    rest_window,
+    sensor_model,
+    table1_gimbal,
+    table1_positions,
+    table_column_si,
+    table_column_units,
+)
 
 from calib.runlog import read_run
 from calib.truth import read_truth
-from conftest import (DWELL_S, FLIP_S, N_POS, SPEC_NAMES, normal_gravity, pre_attitudes,
-                      rest_window, sensor_model, table1_gimbal, table1_positions,
-                      table_column_si, table_column_units)
 from seqdesign.cli import main
 
 

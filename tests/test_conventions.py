@@ -5,12 +5,23 @@ import math
 
 import numpy as np
 import pytest
+from conftest import (
+    ARCSEC,
+    DATA,
+    DEG,
+    SHARED_PAPER,
+    SPEC_NAMES,
+    UG,
+    W_EARTH,
+    read_table,
+    sensor_model,
+    table_column_si,
+    table_column_units,
+)
 
 from calib import earth
 from calib import params as P
 from calib.errormodel import ErrorModel
-from conftest import (ARCSEC, DATA, DEG, SHARED_PAPER, SPEC_NAMES, UG, W_EARTH, read_table,
-                      sensor_model, table_column_si, table_column_units)
 
 # ---------------------------------------------------------------------------
 # Gravity and Earth rate

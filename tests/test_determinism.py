@@ -36,6 +36,7 @@ def test_simulate_and_calibrate_are_byte_identical(tmp_path):
 
 def test_outputs_record_version_command_and_input_hashes(tmp_path):
     import tomllib
+
     from calib.runlog import read_run
     from calib.sequence import resolve_sequence_path
     _run_in(tmp_path, ["simulate", "paper-9pos", "--seed", "1", "--sample-rate-hz", "20",

@@ -12,10 +12,10 @@ import pytest
 
 from calib import earth
 from calib import params as P
-from calib.errors import CalibError
 from calib.errormodel import ErrorModel
+from calib.errors import CalibError
 from calib.estimator import calibrate
-from calib.extras import GROUP_NAMES, ExtraValues, Extras, parse_groups
+from calib.extras import GROUP_NAMES, Extras, ExtraValues, parse_groups
 from calib.profiles import load_profile
 from calib.sequence import load_sequence, timeline
 from calib.sim import SimConfig, simulate

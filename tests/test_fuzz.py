@@ -45,8 +45,8 @@ from hypothesis import strategies as st
 from hypothesis.control import currently_in_test_context
 
 from calib import params as P
-from calib.errors import CalibError
 from calib.errormodel import ErrorModel
+from calib.errors import CalibError
 from calib.profiles import NoiseProfile, load_profile
 from calib.result import CalibrationResult
 from calib.runlog import Run, make_meta, read_run, write_run

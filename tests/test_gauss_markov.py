@@ -13,6 +13,7 @@ import time
 
 import numpy as np
 import pytest
+from conftest import rodrigues
 from scipy.linalg import block_diag, expm
 
 from calib.errors import CalibError
@@ -21,8 +22,6 @@ from calib.jacobian import state_matrix
 from calib.noise import noise_model, whiten
 from calib.params import MICRO_G
 from calib.profiles import NoiseProfile, builtin_profiles, load_profile
-
-from conftest import rodrigues
 
 LAT = math.radians(40.0)
 G = 9.80

@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from conftest import attitude, rodrigues
 
-from calib.gimbal import (DEFAULT_GIMBAL, encoder_track, load_gimbal, plan_move, plan_sequence)
+from calib.gimbal import DEFAULT_GIMBAL, encoder_track, load_gimbal, plan_move, plan_sequence
 from calib.rateprofile import RateProfile
 from calib.sequence import Sequence, Step, load_sequence, nominal_attitude, timeline
-from conftest import attitude, rodrigues
 from seqdesign.cli import main
 from seqdesign.cli_gimbal import read_schedule
 

@@ -6,8 +6,8 @@ import json
 import numpy as np
 import pytest
 from click.testing import CliRunner
-
 from conftest import SPEC_NAMES
+
 from seqdesign.cli import main
 
 # A MEMS unit before calibration (the sizes): 1000 deg/h and 20 mg biases, scale

@@ -6,8 +6,8 @@ import math
 
 import pytest
 from click.testing import CliRunner
-
 from conftest import normal_gravity
+
 from seqdesign.cli import main
 
 

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from conftest import ARCSEC, W_EARTH
 
 from calib import params as P
 from calib.clock import sample_clock
@@ -26,8 +27,6 @@ from calib.sequence import sequence_from_dict
 from calib.sim import SimConfig, simulate
 from calib.truth import write_truth
 from seqdesign.cli import main
-
-from conftest import ARCSEC, W_EARTH
 
 REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
 PSINS = REALDATA / "psins-lasergyro-static.imu"

@@ -5,12 +5,18 @@ import math
 
 import numpy as np
 import pytest
+from conftest import DWELL_S, FLIP_S, N_POS, attitude, rest_window, rot_about, table1_gimbal, table1_positions
 
 from calib.errors import CalibError
-from calib.sequence import (Sequence, Step, load_sequence, nominal_attitude, rest_positions,
-                            save_sequence, timeline)
-from conftest import (DWELL_S, FLIP_S, N_POS, attitude, rest_window, rot_about,
-                      table1_gimbal, table1_positions)
+from calib.sequence import (
+    Sequence,
+    Step,
+    load_sequence,
+    nominal_attitude,
+    rest_positions,
+    save_sequence,
+    timeline,
+)
 
 # Grid attitudes are products of 0/+-1 matrices and cos/sin of multiples of 90 deg
 # (cos(pi/2) = 6e-17): entries are exact to ~1e-15 -> 1e-12 tolerance.

@@ -5,16 +5,34 @@ import math
 
 import numpy as np
 import pytest
+from conftest import (
+    ARW_NAV,
+    DWELL_S,
+    FLIP_S,
+    LAT_DEG,
+    N_POS,
+    SETUP_DEG,
+    SPEC_NAMES,
+    VRW_NAV,
+    W_EARTH,
+    attitude,
+    earth_rate_enu,
+    log_so3,
+    normal_gravity,
+    pre_attitudes,
+    rest_window,
+    rodrigues,
+    rot_about,
+    sensor_model,
+    table1_gimbal,
+    table_column_si,
+)
 
 from calib.errormodel import ErrorModel
 from calib.profiles import load_profile
 from calib.sequence import Sequence, Step
 from calib.sim import SimConfig, Truth, simulate
 from calib.truth import read_truth, write_truth
-from conftest import (ARW_NAV, DWELL_S, FLIP_S, LAT_DEG, N_POS, SETUP_DEG, SPEC_NAMES, VRW_NAV,
-                      W_EARTH, attitude, earth_rate_enu, log_so3, normal_gravity,
-                      pre_attitudes, rest_window, rodrigues, rot_about, sensor_model,
-                      table1_gimbal, table_column_si)
 
 FS = 200.0
 DT = 1.0 / FS

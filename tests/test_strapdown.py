@@ -5,10 +5,21 @@ import math
 
 import numpy as np
 import pytest
+from conftest import (
+    DEG_PER_H,
+    LAT_DEG,
+    N_POS,
+    SETUP_DEG,
+    W_EARTH,
+    log_so3,
+    normal_gravity,
+    pre_attitudes,
+    rest_window,
+    rodrigues,
+    skew,
+)
 
 from calib.strapdown import navigate, prefix_product, quat_mult, quat_to_dcm, rotvec_to_quat
-from conftest import (DEG_PER_H, LAT_DEG, N_POS, SETUP_DEG, W_EARTH, log_so3, normal_gravity,
-                      pre_attitudes, rest_window, rodrigues, skew)
 
 LAT = math.radians(LAT_DEG)
 G = normal_gravity(LAT, 0.0)
