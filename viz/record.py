@@ -24,7 +24,7 @@ Entity paths (run recording)::
 
     about                                   TextDocument: sources, units, decimation
     events                                  TextLog: "position k ..." at every rest start,
-                                            "flip k ..." at every flip start
+                                            "flip k ..." at every flip start (wrapped rows)
     world                                   ViewCoordinates RIGHT_HAND_Z_UP (x east, y north, z up)
     world/enu                               Arrows3D E, N, U (static)
     world/gravity                           Arrows3D: gravity (down), labelled with g in m/s^2
@@ -43,14 +43,26 @@ Entity paths (run recording)::
                                             increments from the coarse alignment, every sample
     residuals/after/velocity_mps            Scalars E, N, U: the same after compensating with the
                                             result, from its initial attitude, every sample
+    residuals/after/noise_3sigma_mps        Scalars +3σ E, N, U, -3σ E, N, U: what the line above
+                                            should stay inside if the calibration is right: the
+                                            predicted noise envelope (calib.review.velocity_noise_sigma,
+                                            the result's profile), on the fit's grid (1 s at rest,
+                                            0.1 s turning)
     attitude/gimbal_deg                     Scalars outer, middle, inner (the scene's angles)
     attitude/nav_minus_gimbal_arcsec        Scalars E, N, U: rotation vector of C_nav C_scene^T
                                             (calibrated navigation vs the scene; needs a result)
     sequence/position                       Scalars: rest position number, 0 while turning
-    results/ratio                           BarChart: 3 sigma / requirement, parameters in spec order
-    results/error_over_requirement          BarChart: |estimate - truth| / requirement (with truth)
-    results/error_over_sigma                BarChart: (estimate - truth) / sigma (with truth)
-    results/correlation                     Tensor 21 x 21 (when the result carries it)
+    results/ratio                           BarChart: 3 sigma / requirement, parameters in spec order;
+                                            and LineStrips2D: the same as labelled horizontal bars
+                                            (row i = parameter i, labels = names), with
+      .../names, .../values                 Points2D whose labels are the names / the values,
+      .../guide                             LineStrips2D at 0 and at the value 1, Points2D naming it
+    results/error_over_requirement          the same for |estimate - truth| / requirement (with truth)
+    results/error_over_sigma                the same for (estimate - truth) / sigma (with truth)
+    results/correlation                     Tensor 21 x 21 (when the result carries it), with
+      .../image                             Image 21 x 21 RGB, pixel (row i, column j); blue -1, red +1
+      .../rows, .../columns                 Points2D labelled with the names, left of / above the image
+      .../cells                             Points2D at every pixel, hidden labels "a / b: rho"
     results/table                           TextDocument: every parameter, value, sigma, ratio, truth
 
 The IMU's attitude in the scene is ``R_mount C_start R_Z(outer) R_X(middle)
@@ -63,8 +75,15 @@ Entity paths (analysis recording): ``about``, ``events``, the same ``world/...``
 scene over the sequence's nominal time line, ``positions/p<k>`` (Transform3D
 placing the IMU of rest position k in a 3 x 3 gallery with its attitude;
 Boxes3D, ``positions/p<k>/axes`` Arrows3D), ``analysis/ratio``,
-``analysis/sigma_over_requirement`` (BarCharts), ``analysis/correlation``
-(Tensor, 21 x 21) and ``analysis/table`` (TextDocument).
+``analysis/sigma_over_requirement`` (BarCharts with labelled 2D bars, as
+``results/ratio``), ``analysis/correlation`` (Tensor, 21 x 21, with the
+labelled image of ``results/correlation``) and ``analysis/table`` (TextDocument).
+
+Readable as it opens: BarChart and Tensor views show no category names, so
+the views of the bars and of the matrix are 2D views of the labelled
+drawings (the BarChart and Tensor stay, for programs). TextLog rows are
+wrapped at ``EVENT_WIDTH`` characters (continuation rows indented) and the
+events view shows only time and message, so nothing is cut at 1920 px.
 """
 from __future__ import annotations
 
@@ -731,15 +750,7 @@ def record_run(run, path: str | os.PathLike, review, sequence=None, result=None,
         for note in review.notes:
             w.note(note)
         moving, nav_before, nav_after = review.moving, review.before, review.after
-        if nav_before is not None:
-            w.series("residuals/before/velocity_mps", t_rel, nav_before.v_n[1:], "ENU",
-                     AXIS_COLORS)
-        if nav_after is not None:
-            w.series("residuals/after/velocity_mps", t_rel, nav_after.v_n[1:], "ENU", AXIS_COLORS)
-        if review.noise_sigma_v is not None:
-            s3 = 3.0 * review.noise_sigma_v
-            w.series("residuals/after/noise_3sigma_mps", review.noise_time, np.c_[s3, -s3],
-                     [f"{sign}3σ {a}" for sign in "+-" for a in "ENU"], ENVELOPE_COLORS * 2)
+        _log_residuals(w, t_rel, review)
 
         # Raw signals, block means.
         block = max(1, int(round(run.sample_rate_hz / SIGNAL_RATE_HZ)))
@@ -770,11 +781,23 @@ def record_run(run, path: str | os.PathLike, review, sequence=None, result=None,
         w.summary.scene_source, w.summary.mount_source = scene_source, mount_source
         w.static("about", w.rr.TextDocument(_about_run(
             run, n, t_rel, block, len(keep), sequence, result, truth, scene_source,
-            mount_source, lat_deg, g, w.summary.notes), media_type="text/markdown"))
+            mount_source, lat_deg, g, w.summary.notes, review), media_type="text/markdown"))
     except BaseException:
         w.abort()
         raise
     return w.commit()
+
+
+def _log_residuals(w: _Writer, t_rel: np.ndarray, review) -> None:
+    """Velocity errors before and after calibration (every sample) and the predicted envelope."""
+    if review.before is not None:
+        w.series("residuals/before/velocity_mps", t_rel, review.before.v_n[1:], "ENU", AXIS_COLORS)
+    if review.after is not None:
+        w.series("residuals/after/velocity_mps", t_rel, review.after.v_n[1:], "ENU", AXIS_COLORS)
+    if review.noise_sigma_v is not None:
+        s3 = 3.0 * review.noise_sigma_v
+        w.series("residuals/after/noise_3sigma_mps", review.noise_time, np.c_[s3, -s3],
+                 [f"{sign}3σ {a}" for sign in "+-" for a in "ENU"], ENVELOPE_COLORS * 2)
 
 
 def _scene_frames(run, keep, t_scene, sequence, result, truth, nav, calibrated, w):
@@ -816,8 +839,23 @@ def _scene_frames(run, keep, t_scene, sequence, result, truth, nav, calibrated, 
     return angles, np.eye(3), np.eye(3), source, "unknown (identity)"
 
 
+def _about_envelope(review) -> list[str]:
+    if review.noise_sigma_v is None:
+        return []
+    return [
+        "", "## Noise envelope", "",
+        f"- residuals/after/noise_3sigma_mps: ±3σ of the velocity error that the noise of profile "
+        f"{review.noise_profile!r} (ARW, VRW, Gauss-Markov drift) builds up at rest, propagated "
+        f"with the fit's own error-state model; {len(review.noise_time)} rows (1 s at rest, "
+        "0.1 s turning).",
+        "- It starts at zero: the navigation starts at zero velocity from the fit's initial "
+        "attitude. Left out: the uncertainty of that attitude (a g·phi0·t ramp) and of the 21 "
+        "parameters; the fit absorbs part of the noise, so a good run stays well inside.",
+    ]
+
+
 def _about_run(run, n, t_rel, block, n_scene, sequence, result, truth, scene_source,
-               mount_source, lat_deg, g, notes) -> str:
+               mount_source, lat_deg, g, notes, review) -> str:
     fs = run.sample_rate_hz
     lines = [
         f"# Run {run.source}", "",
@@ -835,6 +873,7 @@ def _about_run(run, n, t_rel, block, n_scene, sequence, result, truth, scene_sou
         f"({fs / block:g} Hz), i.e. sum(increments) / sum(dt), stamped at the block middle.",
         f"- world/... transforms, attitude/*, sequence/position: DECIMATED: {n_scene} rows, one per "
         f"1/{SCENE_RATE_HZ:g} s and one per {SCENE_STEP_DEG:g} deg turned (gyros).",
+    ] + _about_envelope(review) + [
         "", "## Scene", "",
         "- IMU attitude = R_mount C_start R_Z(outer) R_X(middle) R_Y(inner).",
         f"- gimbal angles from: {scene_source}",
