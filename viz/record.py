@@ -124,6 +124,7 @@ RING_RADIUS = {"outer": 1.75, "middle": 1.5, "inner": 1.25}
 IMU_HALF_SIZE = (0.55, 0.42, 0.3)
 AXIS_LENGTH = 1.0
 PLATE_Z = -2.1
+GALLERY_STEP = 7.0  # between rest positions in the analysis gallery: room for their labels
 
 AXIS_COLORS = [(230, 60, 60), (60, 200, 60), (70, 110, 255)]       # X/E red, Y/N green, Z/U blue
 ENVELOPE_COLORS = [(240, 170, 170), (160, 215, 160), (170, 185, 250)]  # AXIS_COLORS, pale
@@ -476,9 +477,9 @@ BAR_LENGTH = 12.0   # 2D units of the longest bar (or of the value 1, if all are
 BAR_HALF_HEIGHT = 0.35  # of a row of 1 unit: bars are lines this thick (Boxes2D are not filled)
 NAME_X = -1.6       # centre of the names, left of the zero line (labels are drawn centred)
 # rerun draws a point's label centred horizontally and just BELOW the point: a label
-# point at the top of its row (centre - LABEL_LIFT) puts the text on the row at the zoom
-# the views open with (rows of ~14 px, text ~13 px high).
-LABEL_LIFT = 0.5
+# point LABEL_LIFT above its row's centre puts the text on the row at the zooms
+# the views open with (rows of 13-20 px; the text's centre is ~12 px below the point).
+LABEL_LIFT = 0.7
 VALUE_GAP = 1.4     # centre of a value label, beyond the end of its bar
 LABEL_COLOR = (40, 40, 40)
 GUIDE_COLOR = (150, 150, 150)
@@ -924,7 +925,8 @@ def analysis_blueprint(duration_s: float):
                      _events_view(),
                      row_shares=[3, 1]),
         rrb.Spatial3DView(origin="positions", name="rest positions", eye_controls=rrb.EyeControls3D(
-            position=(5.0, -19.0, 25.0), look_target=(5.0, -5.0, 0.0), eye_up=(0.0, 0.0, 1.0))),
+            position=(GALLERY_STEP, -GALLERY_STEP - 23.0, 34.0),
+            look_target=(GALLERY_STEP, -GALLERY_STEP, 0.0), eye_up=(0.0, 0.0, 1.0))),
         rrb.Vertical(_bars_view("analysis/ratio", "3 sigma / requirement"),
                      _matrix_view("analysis/correlation", "correlation (blue -1, red +1)")),
         rrb.Tabs(rrb.TextDocumentView(origin="analysis/table", name="analysis"),
@@ -977,7 +979,7 @@ def record_analysis(obs, seq, path: str | os.PathLike, *, gravity_mps2: float | 
         # Gallery of the rest positions, three to a row.
         for p in rest_positions(seq):
             k = p.number - 1
-            where = [5.0 * (k % 3), -5.0 * (k // 3), 0.0]
+            where = [GALLERY_STEP * (k % 3), -GALLERY_STEP * (k // 3), 0.0]
             base = f"positions/p{p.number}"
             w.static(base, rr.Transform3D(translation=where, mat3x3=R_mount @ p.C_b_n),
                      rr.Boxes3D(half_sizes=[IMU_HALF_SIZE], colors=[(235, 200, 80)],
