@@ -703,3 +703,27 @@ def test_display_available():
     assert display_available({"DISPLAY": ":0"}, "linux")
     assert display_available({"WAYLAND_DISPLAY": "wayland-0"}, "linux")
     assert display_available({}, "darwin") and display_available({}, "win32")
+
+
+def test_rank_deficient_analysis_names_the_unobservable_bars(tmp_path):
+    """One Z flip cannot observe all 21: their bars are empty and say so."""
+    from calib.profiles import load_profile
+    from calib.sequence import load_sequence
+    from seqdesign.observability import analyze
+    from viz.record import record_analysis
+
+    path = tmp_path / "onez.toml"
+    path.write_text('name = "onez"\nstart = ["east", "up", "south"]\ninitial_dwell_s = 60\n'
+                    '[[step]]\naxis = "Z"\nangle_deg = 90\ndwell_s = 60\n')
+    seq = load_sequence(str(path))
+    obs = analyze(seq, load_profile("navigation"), math.radians(40.0))
+    assert obs.rank < 21
+    record_analysis(obs, seq, tmp_path / "onez.rrd")
+    rec = read_back(tmp_path / "onez.rrd")
+    assert labels_of(rec, "analysis/ratio/names", "Points2D") == SPEC_NAMES
+    shown = labels_of(rec, "analysis/ratio/values", "Points2D")
+    missing = ~np.isfinite(obs.ratio)
+    assert missing.any()
+    assert [x == "unobservable" for x in shown] == list(missing)
+    strips = np.array(positions_of(rec, "analysis/ratio", "LineStrips2D", "strips"), dtype=float)
+    np.testing.assert_allclose(strips[missing, 1, 0], 0.0)
