@@ -586,7 +586,7 @@ def _results_table(result, truth) -> str:
     lines = [f"# Calibration result (profile {result.profile or '?'})", "",
              f"converged: {result.converged}, iterations {result.iterations}, residual RMS "
              f"{result.residual_rms_mps:.3g} m/s, chi2/dof {result.chi2_per_dof:.3f}", "",
-             "Bars in results/* follow the # column (spec order).", "", head, rule]
+             "Bars in results/* are named and follow the # column (spec order).", "", head, rule]
     for p in P.PARAMETERS:
         i = p.index
         row = (f"| {i} | {p.name} | {p.unit} | {vals[i]:.5g} | {sig[i]:.3g} | "
@@ -1008,8 +1008,9 @@ def record_analysis(obs, seq, path: str | os.PathLike, *, gravity_mps2: float | 
             f"- world/... transforms: {len(t_scene)} rows, {SCENE_RATE_HZ:g} Hz and every "
             f"{SCENE_STEP_DEG:g} deg during flips.",
             "- positions/p<k>: the IMU at rest position k (gallery, static).",
-            "- analysis/ratio: 3 sigma / requirement; bars in spec order (see the table's #).",
-            "- analysis/correlation: 21 x 21, rows and columns in spec order.",
+            "- analysis/ratio: 3 sigma / requirement; bars named, in spec order (the table's #).",
+            "- analysis/correlation: 21 x 21, rows and columns named, in spec order; blue -1, "
+            "red +1.",
         ] + [f"- note: {x}" for x in w.summary.notes]), media_type="text/markdown"))
     except BaseException:
         w.abort()
