@@ -19,6 +19,20 @@ from calib.errors import CalibError
 
 from seqdesign.clitools import guarded, info as _info
 
+# Exit code of `view --spawn` when there is no display: the recording is written, the viewer
+# is not opened (2 is kept for bad input, where nothing is written).
+EXIT_NO_DISPLAY = 3
+
+
+def display_available(environ=None, platform: str | None = None) -> bool:
+    """Whether a desktop viewer can open a window: on Linux and other X11/Wayland systems
+    that needs DISPLAY or WAYLAND_DISPLAY; macOS and Windows always have a display."""
+    environ = os.environ if environ is None else environ
+    platform = sys.platform if platform is None else platform
+    if platform == "darwin" or platform.startswith(("win", "cygwin")):
+        return True
+    return bool(environ.get("DISPLAY") or environ.get("WAYLAND_DISPLAY"))
+
 
 def _beside(run_path: str, suffix: str) -> Path:
     p = Path(run_path)
@@ -88,7 +102,10 @@ def _load_result(run_path, explicit):
 @click.option("--truth", "truth_path", type=click.Path(dir_okay=False),
               help="Truth file of a simulated run (default: RUN.truth.toml, if it exists).")
 @click.option("-o", "--output", help="Recording to write (default: RUN with .rrd).")
-@click.option("--spawn", is_flag=True, help="Open the recording in the rerun viewer.")
+@click.option("--spawn", is_flag=True, help="Open the recording in the rerun viewer. Without a "
+              "display (Linux: neither DISPLAY nor WAYLAND_DISPLAY set) it says so in one line, "
+              f"still writes the recording and exits with code {EXIT_NO_DISPLAY}: not 0, since the "
+              "viewer asked for did not open; not 2, since the input was fine.")
 @click.option("--allow-gaps", is_flag=True, help="Accept time gaps in the log.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 @guarded
@@ -121,7 +138,12 @@ def view(run_path, sequence, result_path, truth_path, output, spawn, allow_gaps,
 
     summary = record_run(run, out, review_run(run, result), sequence=seq, result=result,
                          truth=truth)
-    if spawn:
+    no_display = spawn and not display_available()
+    if no_display:
+        _info(f"error: --spawn: no display to open the viewer on (DISPLAY and WAYLAND_DISPLAY "
+              f"are unset); {out} is written: open it with 'rerun {out}' where there is a "
+              f"display, or 'rerun --serve-web {out}' and a browser")
+    elif spawn:
         _spawn_viewer(out)
     doc = summary.to_dict()
     doc.update({"run": str(run_path), "samples": run.n_samples,
@@ -129,15 +151,18 @@ def view(run_path, sequence, result_path, truth_path, output, spawn, allow_gaps,
                 "result": str(used_result) if used_result else None,
                 "truth": str(truth_path) if truth_path else None,
                 "notes": doc["notes"] + [n for n in (seq_note, result_note) if n]})
+    doc["viewer"] = "no display" if no_display else ("spawned" if spawn else None)
     if as_json:
         click.echo(json.dumps(doc, indent=2, allow_nan=False))
-        return
-    rows = sum(doc["entities"].values())
-    size = out.stat().st_size / 1e6
-    click.echo(f"wrote {out} ({len(doc['entities'])} entities, {rows} rows, {size:.1f} MB; "
-               f"scene from {doc['scene_source']})")
-    if not spawn:
-        click.echo(f"open it with: rerun {out}")
+    else:
+        rows = sum(doc["entities"].values())
+        size = out.stat().st_size / 1e6
+        click.echo(f"wrote {out} ({len(doc['entities'])} entities, {rows} rows, {size:.1f} MB; "
+                   f"scene from {doc['scene_source']})")
+        if not spawn:
+            click.echo(f"open it with: rerun {out}")
+    if no_display:
+        sys.exit(EXIT_NO_DISPLAY)
 
 
 def _spawn_viewer(path: Path) -> None:

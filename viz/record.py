@@ -24,7 +24,7 @@ Entity paths (run recording)::
 
     about                                   TextDocument: sources, units, decimation
     events                                  TextLog: "position k ..." at every rest start,
-                                            "flip k ..." at every flip start
+                                            "flip k ..." at every flip start (wrapped rows)
     world                                   ViewCoordinates RIGHT_HAND_Z_UP (x east, y north, z up)
     world/enu                               Arrows3D E, N, U (static)
     world/gravity                           Arrows3D: gravity (down), labelled with g in m/s^2
@@ -43,14 +43,26 @@ Entity paths (run recording)::
                                             increments from the coarse alignment, every sample
     residuals/after/velocity_mps            Scalars E, N, U: the same after compensating with the
                                             result, from its initial attitude, every sample
+    residuals/after/noise_3sigma_mps        Scalars +3σ E, N, U, -3σ E, N, U: what the line above
+                                            should stay inside if the calibration is right: the
+                                            predicted noise envelope (calib.review.velocity_noise_sigma,
+                                            the result's profile), on the fit's grid (1 s at rest,
+                                            0.1 s turning)
     attitude/gimbal_deg                     Scalars outer, middle, inner (the scene's angles)
     attitude/nav_minus_gimbal_arcsec        Scalars E, N, U: rotation vector of C_nav C_scene^T
                                             (calibrated navigation vs the scene; needs a result)
     sequence/position                       Scalars: rest position number, 0 while turning
-    results/ratio                           BarChart: 3 sigma / requirement, parameters in spec order
-    results/error_over_requirement          BarChart: |estimate - truth| / requirement (with truth)
-    results/error_over_sigma                BarChart: (estimate - truth) / sigma (with truth)
-    results/correlation                     Tensor 21 x 21 (when the result carries it)
+    results/ratio                           BarChart: 3 sigma / requirement, parameters in spec order;
+                                            and LineStrips2D: the same as labelled horizontal bars
+                                            (row i = parameter i, labels = names), with
+      .../names, .../values                 Points2D whose labels are the names / the values,
+      .../guide                             LineStrips2D at 0 and at the value 1, Points2D naming it
+    results/error_over_requirement          the same for |estimate - truth| / requirement (with truth)
+    results/error_over_sigma                the same for (estimate - truth) / sigma (with truth)
+    results/correlation                     Tensor 21 x 21 (when the result carries it), with
+      .../image                             Image 21 x 21 RGB, pixel (row i, column j); blue -1, red +1
+      .../rows, .../columns                 Points2D labelled with the names, left of / above the image
+      .../cells                             Points2D at every pixel, hidden labels "a / b: rho"
     results/table                           TextDocument: every parameter, value, sigma, ratio, truth
 
 The IMU's attitude in the scene is ``R_mount C_start R_Z(outer) R_X(middle)
@@ -63,8 +75,15 @@ Entity paths (analysis recording): ``about``, ``events``, the same ``world/...``
 scene over the sequence's nominal time line, ``positions/p<k>`` (Transform3D
 placing the IMU of rest position k in a 3 x 3 gallery with its attitude;
 Boxes3D, ``positions/p<k>/axes`` Arrows3D), ``analysis/ratio``,
-``analysis/sigma_over_requirement`` (BarCharts), ``analysis/correlation``
-(Tensor, 21 x 21) and ``analysis/table`` (TextDocument).
+``analysis/sigma_over_requirement`` (BarCharts with labelled 2D bars, as
+``results/ratio``), ``analysis/correlation`` (Tensor, 21 x 21, with the
+labelled image of ``results/correlation``) and ``analysis/table`` (TextDocument).
+
+Readable as it opens: BarChart and Tensor views show no category names, so
+the views of the bars and of the matrix are 2D views of the labelled
+drawings (the BarChart and Tensor stay, for programs). TextLog rows are
+wrapped at ``EVENT_WIDTH`` characters (continuation rows indented) and the
+events view shows only time and message, so nothing is cut at 1920 px.
 """
 from __future__ import annotations
 
@@ -105,8 +124,10 @@ RING_RADIUS = {"outer": 1.75, "middle": 1.5, "inner": 1.25}
 IMU_HALF_SIZE = (0.55, 0.42, 0.3)
 AXIS_LENGTH = 1.0
 PLATE_Z = -2.1
+GALLERY_STEP = 7.0  # between rest positions in the analysis gallery: room for their labels
 
 AXIS_COLORS = [(230, 60, 60), (60, 200, 60), (70, 110, 255)]       # X/E red, Y/N green, Z/U blue
+ENVELOPE_COLORS = [(240, 170, 170), (160, 215, 160), (170, 185, 250)]  # AXIS_COLORS, pale
 RING_COLORS = {"outer": (200, 140, 40), "middle": (150, 150, 160), "inner": (90, 170, 200)}
 
 _REST, _FLIP = "rest", "flip"
@@ -306,6 +327,34 @@ def position_series(events: list[Event], times: np.ndarray) -> np.ndarray:
 # Events
 
 
+EVENT_WIDTH = 60  # characters of a TextLog row: fits the events view as laid out at 1920 px
+
+
+def wrap_event(text: str, width: int = EVENT_WIDTH) -> list[str]:
+    """An event's text as TextLog rows of at most ``width`` characters (a view cuts long rows).
+
+    Breaks after ``"; "`` (then at spaces); continuation rows are indented by
+    two spaces, so the first row of every event starts with its name.
+    """
+    rows, line = [], ""
+    for part in text.split("; "):
+        piece = part if not line else f"{line}; {part}"
+        if len(piece) <= width or not line:
+            line = piece
+        else:
+            rows.append(line + ";")
+            line = "  " + part
+    rows.append(line)
+    out = []
+    for row in rows:  # a single part longer than the width: break at spaces
+        while len(row) > width and " " in row[2:width]:
+            cut = row.rindex(" ", 2, width)
+            out.append(row[:cut])
+            row = "  " + row[cut + 1:]
+        out.append(row)
+    return out
+
+
 def sequence_events(seq, t_shift: float = 0.0) -> list[Event]:
     """Rest and flip starts of a sequence's nominal time line (+ ``t_shift``)."""
     from calib.sequence import rest_positions, timeline
@@ -411,13 +460,114 @@ def _log_scene(w: _Writer, times: np.ndarray, angles_rad: np.ndarray, R_mount: n
     w.series("sequence/position", times, position_series(events, times), ["position"])
     if events:
         ev_t = np.array([e.time for e in events])
-        text = [e.text for e in events]
-        w.columns("events", ev_t, rr.TextLog.columns(
-            text=text, level=["INFO" if e.kind == _REST else "DEBUG" for e in events]))
+        rows = [(e.time, line, "INFO" if e.kind == _REST else "DEBUG")
+                for e in events for line in wrap_event(e.text)]
+        w.columns("events", np.array([r[0] for r in rows]), rr.TextLog.columns(
+            text=[r[1] for r in rows], level=[r[2] for r in rows]))
         label = [e.text.split(":")[0] + (" (turning)" if e.kind == _FLIP else "") for e in events]
         w.columns("world/label", ev_t, rr.Points3D.columns(
             positions=np.tile([0.0, 0.0, 2.4], (len(events), 1)), labels=label,
             colors=np.tile([60, 60, 60, 255], (len(events), 1)).astype(np.uint8)))
+
+
+# ---------------------------------------------------------------------------
+# Labelled charts (rr.BarChart and rr.Tensor carry no category names)
+
+BAR_LENGTH = 12.0   # 2D units of the longest bar (or of the value 1, if all are shorter)
+BAR_HALF_HEIGHT = 0.35  # of a row of 1 unit: bars are lines this thick (Boxes2D are not filled)
+NAME_X = -1.6       # centre of the names, left of the zero line (labels are drawn centred)
+# rerun draws a point's label centred horizontally and just BELOW the point: a label
+# point LABEL_LIFT above its row's centre puts the text on the row at the zooms
+# the views open with (rows of 13-20 px; the text's centre is ~12 px below the point).
+LABEL_LIFT = 0.7
+VALUE_GAP = 1.4     # centre of a value label, beyond the end of its bar
+LABEL_COLOR = (40, 40, 40)
+GUIDE_COLOR = (150, 150, 150)
+COLUMN_LABEL_LEVELS = 3   # column names of a matrix on this many lines, every third on one
+COLUMN_LABEL_STEP = 1.1   # 2D units between those lines (a cell is 1)
+
+
+def bar_lines(values: np.ndarray) -> tuple[np.ndarray, float]:
+    """Horizontal bars, one row per value (row i centred on y = i + 0.5, y down).
+
+    Returns the bars as line segments ``(n, 2, 2)`` from the zero line to
+    ``value * scale``, and the scale (2D units per unit of value). A value
+    that is not finite gets a bar of length zero.
+    """
+    v = np.asarray(values, dtype=float)
+    finite = np.isfinite(v)
+    top = max(1.0, float(np.max(np.abs(v[finite]))) if finite.any() else 1.0)
+    scale = BAR_LENGTH / top
+    y = np.arange(len(v), dtype=float) + 0.5
+    end = np.where(finite, v * scale, 0.0)
+    return np.stack([np.c_[np.zeros(len(v)), y], np.c_[end, y]], axis=1), scale
+
+
+def _labelled_bars(w: _Writer, entity: str, values: np.ndarray, color, guide: str) -> None:
+    """``values`` (spec order) as a BarChart (for programs) and as labelled 2D bars (for eyes).
+
+    The 2D bars are LineStrips2D on the same entity, one per parameter,
+    labelled with its name; ``entity/names`` writes the names left of the
+    bars and ``entity/values`` the values beyond their ends; ``entity/guide``
+    marks 0 and the value 1 (``guide`` names it).
+    """
+    rr = w.rr
+    v = np.asarray(values, dtype=float)
+    n = len(v)
+    names = list(P.NAMES[:n])
+    w.static(entity, rr.BarChart(v, abscissa=np.arange(n, dtype=np.float64), color=color))
+    lines, scale = bar_lines(v)
+    w.static(entity, rr.LineStrips2D(lines, radii=BAR_HALF_HEIGHT, colors=[color] * n,
+                                     labels=names, show_labels=False))
+    y = lines[:, 0, 1] - LABEL_LIFT
+    w.static(f"{entity}/names", rr.Points2D(np.c_[np.full(n, NAME_X), y], radii=0.01, labels=names,
+                                            colors=[LABEL_COLOR] * n, show_labels=True))
+    end = lines[:, 1, 0]
+    w.static(f"{entity}/values", rr.Points2D(
+        np.c_[end + np.where(end < 0, -VALUE_GAP, VALUE_GAP), y], radii=0.01,
+        labels=[f"{x:.2f}" if np.isfinite(x) else "unobservable" for x in v],
+        colors=[LABEL_COLOR] * n, show_labels=True))
+    marks = [0.0, scale] + ([-scale] if np.nanmin(np.where(np.isfinite(v), v, 0.0)) < 0 else [])
+    w.static(f"{entity}/guide", rr.LineStrips2D([[[x, 0.0], [x, float(n)]] for x in marks],
+                                                colors=[GUIDE_COLOR] * len(marks), radii=0.04),
+             rr.Points2D([[scale, -0.8 - LABEL_LIFT]], radii=0.01, labels=[guide], colors=[GUIDE_COLOR],
+                         show_labels=True))
+
+
+def correlation_colors(corr: np.ndarray) -> np.ndarray:
+    """RGB (n, n, 3) uint8 of a correlation matrix: blue -1, white 0, red +1."""
+    c = np.clip(np.nan_to_num(np.asarray(corr, dtype=float)), -1.0, 1.0)[..., None]
+    white, red, blue = np.array([255.0] * 3), np.array([200.0, 30, 40]), np.array([40.0, 70, 200])
+    rgb = np.where(c >= 0, white + c * (red - white), white - c * (blue - white))
+    return np.round(rgb).astype(np.uint8)
+
+
+def _labelled_matrix(w: _Writer, entity: str, corr: np.ndarray) -> None:
+    """A correlation matrix as a Tensor (for programs) and as a labelled image (for eyes).
+
+    The image has one pixel per pair (row i, column j at x in [j, j + 1], y
+    in [i, i + 1]); ``entity/rows`` names the rows on the left and
+    ``entity/columns`` the columns above it, on three staggered lines so
+    that neighbouring names do not overlap; ``entity/cells`` carries every
+    pair's value as a hover label.
+    """
+    rr = w.rr
+    n = len(corr)
+    w.static(entity, rr.Tensor(corr, dim_names=["row", "col"], value_range=(-1.0, 1.0)))
+    w.static(f"{entity}/image", rr.Image(correlation_colors(corr), color_model="RGB"))
+    centres = np.arange(n, dtype=float) + 0.5
+    names = list(P.NAMES[:n])
+    w.static(f"{entity}/rows", rr.Points2D(np.c_[np.full(n, -1.2), centres - LABEL_LIFT],
+                                           labels=names,
+                                           radii=0.01, colors=[LABEL_COLOR] * n,
+                                           show_labels=True))
+    w.static(f"{entity}/columns", rr.Points2D(
+        np.c_[centres, -0.7 - LABEL_LIFT - COLUMN_LABEL_STEP * (np.arange(n) % COLUMN_LABEL_LEVELS)],
+        labels=names, radii=0.01, colors=[LABEL_COLOR] * n, show_labels=True))
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    w.static(f"{entity}/cells", rr.Points2D(
+        np.c_[j.ravel() + 0.5, i.ravel() + 0.5], radii=0.01, show_labels=False,
+        labels=[f"{names[a]} / {names[b]}: {corr[a, b]:+.3f}" for a, b in zip(i.ravel(), j.ravel())]))
 
 
 # ---------------------------------------------------------------------------
@@ -436,7 +586,7 @@ def _results_table(result, truth) -> str:
     lines = [f"# Calibration result (profile {result.profile or '?'})", "",
              f"converged: {result.converged}, iterations {result.iterations}, residual RMS "
              f"{result.residual_rms_mps:.3g} m/s, chi2/dof {result.chi2_per_dof:.3f}", "",
-             "Bars in results/* follow the # column (spec order).", "", head, rule]
+             "Bars in results/* are named and follow the # column (spec order).", "", head, rule]
     for p in P.PARAMETERS:
         i = p.index
         row = (f"| {i} | {p.name} | {p.unit} | {vals[i]:.5g} | {sig[i]:.3g} | "
@@ -453,19 +603,16 @@ def _results_table(result, truth) -> str:
 
 def _log_results(w: _Writer, result, truth) -> None:
     rr = w.rr
-    idx = np.arange(P.N_PARAMS, dtype=np.float64)
-    w.static("results/ratio", rr.BarChart(P.ratio(result.sigma), abscissa=idx,
-                                          color=(90, 170, 230)))
+    _labelled_bars(w, "results/ratio", P.ratio(result.sigma), (90, 170, 230), "1 = requirement")
     if truth is not None:
         err = result.values - truth.errors.values
-        w.static("results/error_over_requirement", rr.BarChart(
-            np.abs(err) / P.REQUIREMENTS_SI, abscissa=idx, color=(230, 150, 60)))
+        _labelled_bars(w, "results/error_over_requirement", np.abs(err) / P.REQUIREMENTS_SI,
+                       (230, 150, 60), "1 = requirement")
         with np.errstate(divide="ignore", invalid="ignore"):
-            w.static("results/error_over_sigma", rr.BarChart(
-                err / result.sigma, abscissa=idx, color=(160, 110, 220)))
+            _labelled_bars(w, "results/error_over_sigma", err / result.sigma, (160, 110, 220),
+                           "1 sigma")
     if result.correlation is not None:
-        w.static("results/correlation", rr.Tensor(result.correlation, dim_names=["row", "col"],
-                                                  value_range=(-1.0, 1.0)))
+        _labelled_matrix(w, "results/correlation", result.correlation)
     w.static("results/table", rr.TextDocument(_results_table(result, truth),
                                               media_type="text/markdown"))
 
@@ -476,6 +623,37 @@ def _panels():
 
     return [rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
             rrb.TimePanel(timeline=TIMELINE, play_state="paused", state="collapsed")]
+
+
+def _events_view():
+    """The positions and flips as text: time and message only (no entity or level columns,
+    so that the message gets the view's width)."""
+    import rerun.blueprint as rrb
+    from rerun.blueprint.encodings import TextLogColumn, TextLogColumnKind, TimelineColumn
+
+    return rrb.TextLogView(origin="events", name="positions and flips", columns=rrb.archetypes.
+                           TextLogColumns(timeline_columns=[TimelineColumn(TIMELINE)],
+                                          text_log_columns=[
+                                              TextLogColumn(TextLogColumnKind.EntityPath, visible=False),
+                                              TextLogColumn(TextLogColumnKind.LogLevel, visible=False),
+                                              TextLogColumn(TextLogColumnKind.Body)]))
+
+
+def _bars_view(origin: str, name: str):
+    """A 2D view of :func:`_labelled_bars`: names on the left, bars to the right."""
+    import rerun.blueprint as rrb
+
+    return rrb.Spatial2DView(origin=origin, name=name, visual_bounds=rrb.VisualBounds2D(
+        x_range=(NAME_X - 1.5, BAR_LENGTH + 2.0 * VALUE_GAP), y_range=(-1.5, P.N_PARAMS + 1.5)))
+
+
+def _matrix_view(origin: str, name: str):
+    """A 2D view of :func:`_labelled_matrix`, the names around it in view."""
+    import rerun.blueprint as rrb
+
+    return rrb.Spatial2DView(origin=origin, name=name, visual_bounds=rrb.VisualBounds2D(
+        x_range=(-3.0, P.N_PARAMS + 0.5),
+        y_range=(-1.5 - LABEL_LIFT - COLUMN_LABEL_STEP * COLUMN_LABEL_LEVELS, P.N_PARAMS + 1.0)))
 
 
 def _scene_view(origin: str, name: str):
@@ -503,7 +681,7 @@ def run_blueprint(duration_s: float, with_results: bool = True):
         return rrb.TimeSeriesView(origin=origin, name=name, axis_x=_whole_run(duration_s))
 
     scene = rrb.Vertical(_scene_view("world", "gimbal and IMU"),
-                         rrb.TextLogView(origin="events", name="positions and flips"),
+                         _events_view(),
                          row_shares=[3, 1])
     signals = rrb.Vertical(
         plot("signals/gyro_dps", "gyro rate, deg/s"),
@@ -513,22 +691,20 @@ def run_blueprint(duration_s: float, with_results: bool = True):
         row_shares=[3, 3, 2, 1])
     residuals = rrb.Vertical(
         plot("residuals/before", "velocity error before calibration, m/s"),
-        plot("residuals/after", "velocity error after calibration, m/s"),
+        plot("residuals/after", "velocity error after calibration, m/s (pale: ±3σ of the noise)"),
         plot("attitude/nav_minus_gimbal_arcsec", "navigation - gimbal attitude, arcsec"))
     columns = [scene, signals, residuals]
     if with_results:
         columns.append(rrb.Vertical(
-            rrb.BarChartView(origin="results/ratio", name="3 sigma / requirement"),
-            rrb.BarChartView(origin="results/error_over_requirement",
-                             name="|error| / requirement (truth)"),
-            rrb.Tabs(rrb.TextDocumentView(origin="results/table", name="result"),
-                     rrb.TensorView(origin="results/correlation", name="correlation",
-                                    scalar_mapping=rrb.TensorScalarMapping(colormap="CyanToYellow")),
+            _bars_view("results/ratio", "3 sigma / requirement"),
+            _bars_view("results/error_over_requirement", "|error| / requirement (truth)"),
+            rrb.Tabs(_matrix_view("results/correlation", "correlation (blue -1, red +1)"),
+                     rrb.TextDocumentView(origin="results/table", name="result"),
                      rrb.TextDocumentView(origin="about", name="about")),
-            row_shares=[2, 2, 3]))
+            row_shares=[3, 3, 3]))
     else:
         columns.append(rrb.TextDocumentView(origin="about", name="about"))
-    return rrb.Blueprint(rrb.Horizontal(*columns, column_shares=[3, 3, 3, 2][:len(columns)]),
+    return rrb.Blueprint(rrb.Horizontal(*columns, column_shares=[3, 3, 3, 3][:len(columns)]),
                          *_panels())
 
 
@@ -575,11 +751,7 @@ def record_run(run, path: str | os.PathLike, review, sequence=None, result=None,
         for note in review.notes:
             w.note(note)
         moving, nav_before, nav_after = review.moving, review.before, review.after
-        if nav_before is not None:
-            w.series("residuals/before/velocity_mps", t_rel, nav_before.v_n[1:], "ENU",
-                     AXIS_COLORS)
-        if nav_after is not None:
-            w.series("residuals/after/velocity_mps", t_rel, nav_after.v_n[1:], "ENU", AXIS_COLORS)
+        _log_residuals(w, t_rel, review)
 
         # Raw signals, block means.
         block = max(1, int(round(run.sample_rate_hz / SIGNAL_RATE_HZ)))
@@ -610,11 +782,23 @@ def record_run(run, path: str | os.PathLike, review, sequence=None, result=None,
         w.summary.scene_source, w.summary.mount_source = scene_source, mount_source
         w.static("about", w.rr.TextDocument(_about_run(
             run, n, t_rel, block, len(keep), sequence, result, truth, scene_source,
-            mount_source, lat_deg, g, w.summary.notes), media_type="text/markdown"))
+            mount_source, lat_deg, g, w.summary.notes, review), media_type="text/markdown"))
     except BaseException:
         w.abort()
         raise
     return w.commit()
+
+
+def _log_residuals(w: _Writer, t_rel: np.ndarray, review) -> None:
+    """Velocity errors before and after calibration (every sample) and the predicted envelope."""
+    if review.before is not None:
+        w.series("residuals/before/velocity_mps", t_rel, review.before.v_n[1:], "ENU", AXIS_COLORS)
+    if review.after is not None:
+        w.series("residuals/after/velocity_mps", t_rel, review.after.v_n[1:], "ENU", AXIS_COLORS)
+    if review.noise_sigma_v is not None:
+        s3 = 3.0 * review.noise_sigma_v
+        w.series("residuals/after/noise_3sigma_mps", review.noise_time, np.c_[s3, -s3],
+                 [f"{sign}3σ {a}" for sign in "+-" for a in "ENU"], ENVELOPE_COLORS * 2)
 
 
 def _scene_frames(run, keep, t_scene, sequence, result, truth, nav, calibrated, w):
@@ -656,8 +840,23 @@ def _scene_frames(run, keep, t_scene, sequence, result, truth, nav, calibrated, 
     return angles, np.eye(3), np.eye(3), source, "unknown (identity)"
 
 
+def _about_envelope(review) -> list[str]:
+    if review.noise_sigma_v is None:
+        return []
+    return [
+        "", "## Noise envelope", "",
+        f"- residuals/after/noise_3sigma_mps: ±3σ of the velocity error that the noise of profile "
+        f"{review.noise_profile!r} (ARW, VRW, Gauss-Markov drift) builds up at rest, propagated "
+        f"with the fit's own error-state model; {len(review.noise_time)} rows (1 s at rest, "
+        "0.1 s turning).",
+        "- It starts at zero: the navigation starts at zero velocity from the fit's initial "
+        "attitude. Left out: the uncertainty of that attitude (a g·phi0·t ramp) and of the 21 "
+        "parameters; the fit absorbs part of the noise, so a good run stays well inside.",
+    ]
+
+
 def _about_run(run, n, t_rel, block, n_scene, sequence, result, truth, scene_source,
-               mount_source, lat_deg, g, notes) -> str:
+               mount_source, lat_deg, g, notes, review) -> str:
     fs = run.sample_rate_hz
     lines = [
         f"# Run {run.source}", "",
@@ -675,6 +874,7 @@ def _about_run(run, n, t_rel, block, n_scene, sequence, result, truth, scene_sou
         f"({fs / block:g} Hz), i.e. sum(increments) / sum(dt), stamped at the block middle.",
         f"- world/... transforms, attitude/*, sequence/position: DECIMATED: {n_scene} rows, one per "
         f"1/{SCENE_RATE_HZ:g} s and one per {SCENE_STEP_DEG:g} deg turned (gyros).",
+    ] + _about_envelope(review) + [
         "", "## Scene", "",
         "- IMU attitude = R_mount C_start R_Z(outer) R_X(middle) R_Y(inner).",
         f"- gimbal angles from: {scene_source}",
@@ -722,16 +922,16 @@ def analysis_blueprint(duration_s: float):
 
     return rrb.Blueprint(rrb.Horizontal(
         rrb.Vertical(_scene_view("world", "sequence (nominal)"),
-                     rrb.TextLogView(origin="events", name="positions and flips"),
+                     _events_view(),
                      row_shares=[3, 1]),
         rrb.Spatial3DView(origin="positions", name="rest positions", eye_controls=rrb.EyeControls3D(
-            position=(5.0, -15.0, 20.0), look_target=(5.0, -5.0, 0.0), eye_up=(0.0, 0.0, 1.0))),
-        rrb.Vertical(rrb.BarChartView(origin="analysis/ratio", name="3 sigma / requirement"),
-                     rrb.TensorView(origin="analysis/correlation", name="correlation",
-                                    scalar_mapping=rrb.TensorScalarMapping(colormap="CyanToYellow"))),
+            position=(GALLERY_STEP, -GALLERY_STEP - 23.0, 34.0),
+            look_target=(GALLERY_STEP, -GALLERY_STEP, 0.0), eye_up=(0.0, 0.0, 1.0))),
+        rrb.Vertical(_bars_view("analysis/ratio", "3 sigma / requirement"),
+                     _matrix_view("analysis/correlation", "correlation (blue -1, red +1)")),
         rrb.Tabs(rrb.TextDocumentView(origin="analysis/table", name="analysis"),
                  rrb.TextDocumentView(origin="about", name="about")),
-        column_shares=[3, 3, 3, 2]), *_panels())
+        column_shares=[3, 3, 3, 3]), *_panels())
 
 
 def record_analysis(obs, seq, path: str | os.PathLike, *, gravity_mps2: float | None = None,
@@ -779,7 +979,7 @@ def record_analysis(obs, seq, path: str | os.PathLike, *, gravity_mps2: float | 
         # Gallery of the rest positions, three to a row.
         for p in rest_positions(seq):
             k = p.number - 1
-            where = [5.0 * (k % 3), -5.0 * (k // 3), 0.0]
+            where = [GALLERY_STEP * (k % 3), -GALLERY_STEP * (k // 3), 0.0]
             base = f"positions/p{p.number}"
             w.static(base, rr.Transform3D(translation=where, mat3x3=R_mount @ p.C_b_n),
                      rr.Boxes3D(half_sizes=[IMU_HALF_SIZE], colors=[(235, 200, 80)],
@@ -789,15 +989,13 @@ def record_analysis(obs, seq, path: str | os.PathLike, *, gravity_mps2: float | 
             w.static(f"{base}/axes", rr.Arrows3D(vectors=np.eye(3) * 1.3, labels=["X", "Y", "Z"],
                                                  colors=AXIS_COLORS, radii=0.04))
 
-        idx = np.arange(P.N_PARAMS, dtype=np.float64)
         ratio = np.where(np.isfinite(obs.ratio), obs.ratio, np.nan)
-        w.static("analysis/ratio", rr.BarChart(ratio, abscissa=idx, color=(90, 170, 230)))
-        w.static("analysis/sigma_over_requirement", rr.BarChart(
-            np.where(np.isfinite(obs.sigma), obs.sigma, np.nan) / P.REQUIREMENTS_SI,
-            abscissa=idx, color=(120, 200, 120)))
+        _labelled_bars(w, "analysis/ratio", ratio, (90, 170, 230), "1 = requirement")
+        _labelled_bars(w, "analysis/sigma_over_requirement", np.where(
+            np.isfinite(obs.sigma), obs.sigma, np.nan) / P.REQUIREMENTS_SI, (120, 200, 120),
+            "1 = requirement")
         if obs.covariance is not None:
-            w.static("analysis/correlation", rr.Tensor(obs.correlation, dim_names=["row", "col"],
-                                                       value_range=(-1.0, 1.0)))
+            _labelled_matrix(w, "analysis/correlation", obs.correlation)
         else:
             w.note("rank deficient: no covariance, no correlation matrix")
         w.static("analysis/table", rr.TextDocument(_analysis_table(obs, seq),
@@ -810,8 +1008,9 @@ def record_analysis(obs, seq, path: str | os.PathLike, *, gravity_mps2: float | 
             f"- world/... transforms: {len(t_scene)} rows, {SCENE_RATE_HZ:g} Hz and every "
             f"{SCENE_STEP_DEG:g} deg during flips.",
             "- positions/p<k>: the IMU at rest position k (gallery, static).",
-            "- analysis/ratio: 3 sigma / requirement; bars in spec order (see the table's #).",
-            "- analysis/correlation: 21 x 21, rows and columns in spec order.",
+            "- analysis/ratio: 3 sigma / requirement; bars named, in spec order (the table's #).",
+            "- analysis/correlation: 21 x 21, rows and columns named, in spec order; blue -1, "
+            "red +1.",
         ] + [f"- note: {x}" for x in w.summary.notes]), media_type="text/markdown"))
     except BaseException:
         w.abort()
