@@ -16,8 +16,8 @@ from pathlib import Path
 import click
 
 from calib.errors import CalibError
-
-from seqdesign.clitools import guarded, info as _info
+from seqdesign.clitools import guarded
+from seqdesign.clitools import info as _info
 
 # Exit code of `view --spawn` when there is no display: the recording is written, the viewer
 # is not opened (2 is kept for bad input, where nothing is written).
@@ -26,7 +26,8 @@ EXIT_NO_DISPLAY = 3
 
 def display_available(environ=None, platform: str | None = None) -> bool:
     """Whether a desktop viewer can open a window: on Linux and other X11/Wayland systems
-    that needs DISPLAY or WAYLAND_DISPLAY; macOS and Windows always have a display."""
+    that needs DISPLAY or WAYLAND_DISPLAY; macOS and Windows always have a display.
+    """
     environ = os.environ if environ is None else environ
     platform = sys.platform if platform is None else platform
     if platform == "darwin" or platform.startswith(("win", "cygwin")):
@@ -51,7 +52,8 @@ def _check_output(path: Path) -> None:
 
 def _load_sequence(run, explicit):
     """The sequence to show: ``--sequence`` (must match the log), else the run's ``sequence`` key
-    if it names a shipped sequence that matches the log, else None."""
+    if it names a shipped sequence that matches the log, else None.
+    """
     from calib.estimator import check_sequence_matches, detect_motion, sequence_motion
     from calib.sequence import load_sequence
     from calib.strapdown import sample_intervals
@@ -113,7 +115,8 @@ def view(run_path, sequence, result_path, truth_path, output, spawn, allow_gaps,
     """Record RUN (CSV or NPZ) for the rerun viewer: the gimbal and IMU in 3D,
     raw gyro and accelerometer signals, navigation velocity errors before and
     after calibration, the positions and flips, and the result against its
-    requirements (and against the truth of a simulated run)."""
+    requirements (and against the truth of a simulated run).
+    """
     from calib.runlog import read_run
     from calib.truth import read_truth, truth_path_for
 

@@ -16,11 +16,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from conftest import (
+    DWELL_S,
+    FLIP_S,
+    N_POS,
+    SPEC_NAMES,
+    attitude,
+    normal_gravity,
+    rest_window,
+    table1_positions,
+)
 
 from calib.review import review_run
-
-from conftest import (DWELL_S, FLIP_S, N_POS, SPEC_NAMES, attitude, normal_gravity, rest_window,
-                      table1_positions)
 
 RATE_HZ = 40.0          # a short, fast run: 67680 samples for the 28-min sequence
 N_SAMPLES = int(round((N_POS * DWELL_S + (N_POS - 1) * FLIP_S) * RATE_HZ))

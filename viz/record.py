@@ -627,7 +627,8 @@ def _panels():
 
 def _events_view():
     """The positions and flips as text: time and message only (no entity or level columns,
-    so that the message gets the view's width)."""
+    so that the message gets the view's width).
+    """
     import rerun.blueprint as rrb
     from rerun.blueprint.encodings import TextLogColumn, TextLogColumnKind, TimelineColumn
 
