@@ -737,8 +737,6 @@ def record_run(run, path: str | os.PathLike, review, sequence=None, result=None,
     Summary
         Entities and row counts, notes, where the scene came from.
     """
-    from calib.transform import dcm_to_rotvec
-
     n = run.n_samples
     lat_deg, g, dt = review.latitude_deg, review.gravity_mps2, review.dt
     t_rel = run.time_s - review.t0
@@ -754,12 +752,7 @@ def record_run(run, path: str | os.PathLike, review, sequence=None, result=None,
         moving, nav_before, nav_after = review.moving, review.before, review.after
         _log_residuals(w, t_rel, review)
 
-        # Raw signals, block means.
-        block = max(1, int(round(run.sample_rate_hz / SIGNAL_RATE_HZ)))
-        t_sig, rate = block_means(t_rel, dt, dtheta, block)
-        _, force = block_means(t_rel, dt, dv, block)
-        w.series("signals/gyro_dps", t_sig, np.degrees(rate), "xyz", AXIS_COLORS)
-        w.series("signals/accel_mps2", t_sig, force, "xyz", AXIS_COLORS)
+        block = _log_signals(w, run, t_rel, dt)
 
         # Events: the sequence's nominal time line, else the gyros.
         events = sequence_events(sequence) if sequence is not None else motion_events(
@@ -774,10 +767,7 @@ def record_run(run, path: str | os.PathLike, review, sequence=None, result=None,
         _log_scene(w, t_scene, angles, R_mount, C_start, g, events)
         if nav_after is not None and scene_source.startswith(("encoders", "sequence")):
             C_scene = R_mount @ C_start @ _gimbal_matrix(angles)
-            C_nav = nav_after.C_b_n[keep + 1]
-            err = dcm_to_rotvec(np.einsum("nij,nkj->nik", C_nav, C_scene))
-            w.series("attitude/nav_minus_gimbal_arcsec", t_scene, err / P.ARCSEC, "ENU",
-                     AXIS_COLORS)
+            _log_attitude_error(w, t_scene, nav_after.C_b_n[keep + 1], C_scene)
         if result is not None:
             _log_results(w, result, truth)
         w.summary.scene_source, w.summary.mount_source = scene_source, mount_source
@@ -788,6 +778,25 @@ def record_run(run, path: str | os.PathLike, review, sequence=None, result=None,
         w.abort()
         raise
     return w.commit()
+
+
+def _log_signals(w: _Writer, run, t_rel: np.ndarray, dt: np.ndarray) -> int:
+    """Raw gyro rates and specific force as block means; returns the block length."""
+    block = max(1, int(round(run.sample_rate_hz / SIGNAL_RATE_HZ)))
+    t_sig, rate = block_means(t_rel, dt, run.dtheta_rad, block)
+    _, force = block_means(t_rel, dt, run.dv_mps, block)
+    w.series("signals/gyro_dps", t_sig, np.degrees(rate), "xyz", AXIS_COLORS)
+    w.series("signals/accel_mps2", t_sig, force, "xyz", AXIS_COLORS)
+    return block
+
+
+def _log_attitude_error(w: _Writer, t_scene: np.ndarray, C_nav: np.ndarray,
+                        C_scene: np.ndarray) -> None:
+    """The calibrated navigation's attitude against the scene's (rotation vector, arcsec)."""
+    from calib.transform import dcm_to_rotvec
+
+    err = dcm_to_rotvec(np.einsum("nij,nkj->nik", C_nav, C_scene))
+    w.series("attitude/nav_minus_gimbal_arcsec", t_scene, err / P.ARCSEC, "ENU", AXIS_COLORS)
 
 
 def _log_residuals(w: _Writer, t_rel: np.ndarray, review) -> None:
@@ -964,36 +973,19 @@ def record_analysis(obs, seq, path: str | os.PathLike, *, gravity_mps2: float | 
         lat = math.radians(seq.latitude_deg if seq.latitude_deg is not None else 40.0)
         g = gravity_mps2 if gravity_mps2 is not None else earth.gravity(
             lat, seq.height_m if seq.height_m is not None else 0.0)
-        # Nominal time line: SCENE_RATE_HZ, plus every SCENE_STEP_DEG during flips.
         tl = timeline(seq)
-        times = [np.arange(0.0, tl.duration_s, 1.0 / SCENE_RATE_HZ), [tl.duration_s]]
-        for a, b, rate in zip(tl.t0, tl.t1, tl.rate):
-            if rate != 0.0:
-                m = int(math.ceil(abs(math.degrees(rate)) * (b - a) / SCENE_STEP_DEG))
-                times.append(np.linspace(a, b, m + 1))
-        t_scene = np.unique(np.concatenate(times))
+        t_scene = _nominal_scene_times(tl)
         angles = _gimbal_from_attitudes(seq.C_start, nominal_attitude(tl, t_scene))
         R_mount = rotvec_to_dcm(np.asarray(obs.setup_rotvec, dtype=float))
         events = sequence_events(seq)
         _log_scene(w, t_scene, angles, R_mount, seq.C_start, g, events)
 
-        # Gallery of the rest positions, three to a row.
-        for p in rest_positions(seq):
-            k = p.number - 1
-            where = [GALLERY_STEP * (k % 3), -GALLERY_STEP * (k // 3), 0.0]
-            base = f"positions/p{p.number}"
-            w.static(base, rr.Transform3D(translation=where, mat3x3=R_mount @ p.C_b_n),
-                     rr.Boxes3D(half_sizes=[IMU_HALF_SIZE], colors=[(235, 200, 80)],
-                                fill_mode="solid",
-                                labels=[f"{p.number}: X {p.directions[0]}, Y {p.directions[1]}, "
-                                        f"Z {p.directions[2]}"]))
-            w.static(f"{base}/axes", rr.Arrows3D(vectors=np.eye(3) * 1.3, labels=["X", "Y", "Z"],
-                                                 colors=AXIS_COLORS, radii=0.04))
+        _log_gallery(w, rest_positions(seq), R_mount)
 
         ratio = np.where(np.isfinite(obs.ratio), obs.ratio, np.nan)
         _labelled_bars(w, "analysis/ratio", ratio, (90, 170, 230), "1 = requirement")
         _labelled_bars(w, "analysis/sigma_over_requirement", np.where(
-            np.isfinite(obs.sigma), obs.sigma, np.nan) / P.REQUIREMENTS_SI, (120, 200, 120),
+            np.isfinite(obs.sigma), obs.sigma, np.nan) / obs.requirements.si, (120, 200, 120),
             "1 = requirement")
         if obs.covariance is not None:
             _labelled_matrix(w, "analysis/correlation", obs.correlation)
@@ -1003,20 +995,51 @@ def record_analysis(obs, seq, path: str | os.PathLike, *, gravity_mps2: float | 
                                                    media_type="text/markdown"))
         w.summary.scene_source = f"sequence {seq.name!r} (nominal attitude, decomposed)"
         w.summary.mount_source = "the analysis's mounting rotation"
-        w.static("about", rr.TextDocument("\n".join([
-            f"# Analysis of {seq.name}", "",
-            "`time` = seconds along the sequence's nominal time line.",
-            f"- world/... transforms: {len(t_scene)} rows, {SCENE_RATE_HZ:g} Hz and every "
-            f"{SCENE_STEP_DEG:g} deg during flips.",
-            "- positions/p<k>: the IMU at rest position k (gallery, static).",
-            "- analysis/ratio: 3 sigma / requirement; bars named, in spec order (the table's #).",
-            "- analysis/correlation: 21 x 21, rows and columns named, in spec order; blue -1, "
-            "red +1.",
-        ] + [f"- note: {x}" for x in w.summary.notes]), media_type="text/markdown"))
+        w.static("about", rr.TextDocument(_about_analysis(seq, len(t_scene), w.summary.notes),
+                                          media_type="text/markdown"))
     except BaseException:
         w.abort()
         raise
     return w.commit()
+
+
+def _nominal_scene_times(tl) -> np.ndarray:
+    """Nominal time line: SCENE_RATE_HZ, plus every SCENE_STEP_DEG during flips."""
+    times = [np.arange(0.0, tl.duration_s, 1.0 / SCENE_RATE_HZ), [tl.duration_s]]
+    for a, b, rate in zip(tl.t0, tl.t1, tl.rate):
+        if rate != 0.0:
+            m = int(math.ceil(abs(math.degrees(rate)) * (b - a) / SCENE_STEP_DEG))
+            times.append(np.linspace(a, b, m + 1))
+    return np.unique(np.concatenate(times))
+
+
+def _log_gallery(w: _Writer, positions, R_mount: np.ndarray) -> None:
+    """The rest positions side by side, three to a row, each labelled with where X, Y, Z point."""
+    rr = w.rr
+    for p in positions:
+        k = p.number - 1
+        where = [GALLERY_STEP * (k % 3), -GALLERY_STEP * (k // 3), 0.0]
+        base = f"positions/p{p.number}"
+        w.static(base, rr.Transform3D(translation=where, mat3x3=R_mount @ p.C_b_n),
+                 rr.Boxes3D(half_sizes=[IMU_HALF_SIZE], colors=[(235, 200, 80)],
+                            fill_mode="solid",
+                            labels=[f"{p.number}: X {p.directions[0]}, Y {p.directions[1]}, "
+                                    f"Z {p.directions[2]}"]))
+        w.static(f"{base}/axes", rr.Arrows3D(vectors=np.eye(3) * 1.3, labels=["X", "Y", "Z"],
+                                             colors=AXIS_COLORS, radii=0.04))
+
+
+def _about_analysis(seq, n_scene: int, notes) -> str:
+    return "\n".join([
+        f"# Analysis of {seq.name}", "",
+        "`time` = seconds along the sequence's nominal time line.",
+        f"- world/... transforms: {n_scene} rows, {SCENE_RATE_HZ:g} Hz and every "
+        f"{SCENE_STEP_DEG:g} deg during flips.",
+        "- positions/p<k>: the IMU at rest position k (gallery, static).",
+        "- analysis/ratio: 3 sigma / requirement; bars named, in spec order (the table's #).",
+        "- analysis/correlation: 21 x 21, rows and columns named, in spec order; blue -1, "
+        "red +1.",
+    ] + [f"- note: {x}" for x in notes])
 
 
 # ---------------------------------------------------------------------------
