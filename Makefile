@@ -23,6 +23,7 @@ demo: venv
 	$(BIN)/seqdesign view $(DEMO)/run.npz -o $(DEMO)/run.rrd
 
 test: venv
+	$(BIN)/ruff check .
 	$(BIN)/python -m pytest -q
 
 bench: venv
