@@ -25,11 +25,13 @@ from .errors import CalibError
 from . import extras as X
 from .extras import Extras
 from .information import UNKNOWN_NAMES, eliminate, scaled_inverse
-from .jacobian import N_UNKNOWN, PHI0, default_grid, observation_jacobian, state_matrix
+from .jacobian import (N_UNKNOWN, PHI0, default_grid, observation_jacobian, observation_matrix,
+                       sensitivities, state_matrix)
 from .noise import noise_model, whiten
 from .profiles import NoiseProfile
 from .requirements import PAPER, Requirements
 from .strapdown import navigate, sample_intervals
+from .stream import Site, array_chunks, chunk_cuts, navigate_pass
 from .transform import rotvec_to_dcm
 
 MOTION_THRESHOLD = 0.01  # rad/s: far above Earth rate + bias + noise, far below a flip
@@ -255,7 +257,7 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
               gravity_mps2: float, profile: NoiseProfile, moving: np.ndarray | None = None,
               max_iterations: int = 12, tol_sigma: float = 1e-3, where: str = "run",
               extras: Extras = X.NONE, partial: bool = False,
-              requirements: Requirements = PAPER) -> Fit:
+              requirements: Requirements = PAPER, renavigate: str = "when-needed") -> Fit:
     """Identify the 21 parameters, the initial attitude and any optional terms from raw increments.
 
     Parameters
@@ -284,6 +286,11 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
     requirements : Requirements
         Scale the unknowns, and so decide what counts as observed
         (:mod:`calib.information`).
+    renavigate : {"when-needed", "always"}
+        "when-needed" (default): stream the run through :func:`fit_intervals`,
+        which navigates only while a step could still move the estimate by
+        ``tol_sigma``; "always": the reference loop that re-navigates the
+        whole run in memory at every iteration (for tests and benchmarks).
 
     Returns
     -------
@@ -292,15 +299,32 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
     dt = sample_intervals(time_s)
     seg = check_run(dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, moving, where)
     grid = default_grid(seg.moving, 1.0 / np.median(dt))
-    pb = _Problem(time_s, dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, extras, grid,
-                  where)
+    first = slice(0, seg.first_rest_end)
+    C0 = coarse_alignment(dtheta_m[first], dv_m[first], dt[first])
+    options = dict(extras=extras, partial=partial, requirements=requirements,
+                   max_iterations=max_iterations, tol_sigma=tol_sigma, where=where)
+    if renavigate == "always":
+        pb = _Problem(time_s, dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, extras,
+                      grid, where)
+        return _fit_renavigating(pb, C0, **options)
+    site = Site(latitude_rad, gravity_mps2, float(time_s[0] - dt[0]))
+    cuts = chunk_cuts(grid)
+    del dt, seg  # whole-run temporaries: the passes need one chunk at a time
+    return fit_intervals(lambda: array_chunks(time_s, dtheta_m, dv_m, site.t0, cuts), grid, site,
+                         C0, profile, **options)
+
+
+def _fit_renavigating(pb: "_Problem", C0: np.ndarray, extras: Extras, partial: bool,
+                      requirements: Requirements, max_iterations: int, tol_sigma: float,
+                      where: str) -> Fit:
+    """The reference loop: re-navigate the whole run in memory at every iteration."""
+    latitude_rad, gravity_mps2, profile, grid, dt = (pb.latitude_rad, pb.gravity_mps2, pb.profile,
+                                                     pb.grid, pb.dt)
     A, T = state_matrix(latitude_rad, gravity_mps2), np.diff(pb.t_nav[grid.bounds])
     mid = (grid.bounds[:-1] + grid.bounds[1:]) // 2
     values, extra_values = np.zeros(P.N_PARAMS), np.zeros(extras.n)
     names = UNKNOWN_NAMES + extras.names
     omega_ie_n = earth.omega_ie_n(latitude_rad)
-    first = slice(0, seg.first_rest_end)
-    C0 = coarse_alignment(dtheta_m[first], dv_m[first], dt[first])
     # Until the first navigation, the Earth's turn as seen at the start attitude.
     turn = X.earth_turn(np.broadcast_to(C0, (len(dt), 3, 3)), omega_ie_n, dt)
     noise, sol, history, converged = None, None, [], False
@@ -341,6 +365,81 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
                chi2_per_dof=history[-1]["chi2_per_dof"], n_observations=int(z.size),
                history=history, extras=extras, extra_values=extra_values,
                estimable=sol.estimable, null_directions=sol.null_directions)
+
+
+def _solve_step(H, z, noise, sol, extras, requirements, names, where, partial):
+    """One Gauss-Newton step: (delta, scaled delta, whitened residual, Hs, D, solution)."""
+    Hs, D = scaled_design(whiten(noise.whitener, H), extras, requirements)
+    if sol is None:
+        sol = solve_information(Hs.T @ Hs, where, names, partial)
+    zw = whiten(noise.whitener, z[:, :, None]).reshape(-1)
+    delta_scaled = sol.covariance @ (Hs.T @ zw)
+    return D * delta_scaled, zw - Hs @ delta_scaled, D, sol
+
+
+def fit_intervals(chunks, grid, site: Site, C0: np.ndarray, profile: NoiseProfile,
+                  extras: Extras = X.NONE, partial: bool = False,
+                  requirements: Requirements = PAPER, max_iterations: int = 12,
+                  tol_sigma: float = 1e-3, where: str = "run") -> Fit:
+    """The Gauss-Newton loop on per-interval quantities, navigating only when it must.
+
+    ``chunks()`` gives the run again, chunk by chunk (:mod:`calib.stream`);
+    each navigation is one pass over it (:func:`calib.stream.navigate_pass`)
+    that leaves only per-interval quantities. As in the reference loop the
+    Jacobian is re-evaluated along the navigations of the first three
+    iterations and kept after. The loop stops re-navigating when the next
+    step cannot reach ``tol_sigma``: Gauss-Newton converges at least
+    geometrically here, so after steps ``s_prev``, ``s`` the next one is at
+    most ``s * (s / s_prev)``; when that is below ``tol_sigma`` the estimate
+    is converged without another pass (the test suite checks it against the
+    reference loop, noise-free and noisy).
+    """
+    lat, g = site.latitude_rad, site.gravity_mps2
+    A, names = state_matrix(lat, g), UNKNOWN_NAMES + extras.names
+    values, extra_values = np.zeros(P.N_PARAMS), np.zeros(extras.n)
+    noise, sol, history, converged, turn = None, None, [], False, None
+    for it in range(1, max_iterations + 1):
+        want_H = sol is None or it <= 3
+        data = navigate_pass(chunks(), grid, site, values, extra_values, C0, turn, extras,
+                             with_moments=want_H)
+        turn, T = data.turn, np.diff(data.t_bounds)
+        if noise is None or (profile.has_gauss_markov and it <= 3):
+            noise = noise_model(A, T, profile, C_b_n=data.C_mid)
+        z = _observations(data.y, noise.Phi_vv, it, where)
+        if want_H:
+            H = observation_matrix(sensitivities(data.moments, T, lat, g, data.extra),
+                                   noise.Phi_vv)
+            sol = None
+        delta, resid, D, sol = _solve_step(H, z, noise, sol, extras, requirements, names,
+                                           where, partial)
+        cov = sol.covariance * np.outer(D, D)
+        values, extra_values = values + delta[:P.N_PARAMS], extra_values + delta[N_UNKNOWN:]
+        C0 = rotvec_to_dcm(delta[PHI0]) @ C0
+        step = float(np.max(np.abs(delta) / np.sqrt(np.diag(cov))))
+        n_fitted = sol.covariance.shape[0] - len(sol.null_directions)
+        bound = step * step / history[-1]["max_step_sigma"] if history else math.inf
+        history.append({"iteration": it, "max_step_sigma": step,
+                        "chi2_per_dof": float(resid @ resid / max(1, resid.size - n_fitted)),
+                        "next_step_bound_sigma": float(bound)})
+        if step < tol_sigma or bound < tol_sigma:
+            converged = True
+            break
+    z_fit = z - np.einsum("kin,n->ki", H, delta)
+    return Fit(values=values, C_b_n0=C0, covariance=cov, converged=converged, iterations=it,
+               residual_rms_mps=float(np.sqrt(np.mean(z_fit ** 2))),
+               chi2_per_dof=history[-1]["chi2_per_dof"], n_observations=int(z.size),
+               history=history, extras=extras, extra_values=extra_values,
+               estimable=sol.estimable, null_directions=sol.null_directions)
+
+
+def _observations(y: np.ndarray, Phi_vv: np.ndarray, it: int, where: str) -> np.ndarray:
+    """Velocity changes over the observation intervals, less the noise model's prediction."""
+    z = y[1:] - np.einsum("kij,kj->ki", Phi_vv, y[:-1])
+    if not np.all(np.isfinite(z)) or np.abs(y).max() > 1e5:
+        raise CalibError(f"the fit diverged at iteration {it} (navigation velocity "
+                         f"{np.abs(y).max():.3g} m/s)", where,
+                         "check units and that the run is a stationary-base calibration")
+    return z
 
 
 def sequence_motion(seq, time_s: np.ndarray, dt: np.ndarray) -> np.ndarray:
