@@ -164,6 +164,12 @@ class _Carry:
         self.w = np.zeros(3)  # Coriolis-free velocity, R(2 W t) v
         self.dtheta = None  # compensated increment of the previous sample (coning)
         self.raw = None  # (dtheta_m, dv_m, dt, turn) of the previous sample (extras' rate steps)
+        self._inverses = None
+
+    def inverses(self, model: ErrorModel):
+        if self._inverses is None:
+            self._inverses = (np.linalg.inv(model.gyro_matrix), np.linalg.inv(model.accel_matrix))
+        return self._inverses
 
 
 def dcm_rotvec(C: np.ndarray) -> np.ndarray:
@@ -172,8 +178,10 @@ def dcm_rotvec(C: np.ndarray) -> np.ndarray:
 
 def _compensate(ch: Chunk, dt, model: ErrorModel, extras: Extras, extra_values, turn, carry):
     """Compensated increments of a chunk; with optional terms, the sample before is context."""
-    if not extras.n:
-        return model.compensate(ch.dtheta_m, ch.dv_m, dt)
+    if not extras.n:  # the inverse error matrices once per pass, not a solve per chunk
+        Eg_inv, Ea_inv = carry.inverses(model)
+        return ((ch.dtheta_m - model.gyro_bias * dt[:, None]) @ Eg_inv.T,
+                (ch.dv_m - model.accel_bias * dt[:, None]) @ Ea_inv.T)
     if turn is None:  # before the first navigation: the Earth's turn seen at the start attitude
         turn = np.outer(dt, carry.C_b_n0.T @ carry.omega_ie_n)
     ctx = carry.raw is not None
@@ -220,18 +228,28 @@ def _interval_sums(lb: np.ndarray, t: np.ndarray, orders: int):
     return sp.csr_matrix((data, (rows, cols)), shape=(orders * Kc, m))
 
 
-def _moments(C_mid, dth, dvv, h, S3):
-    """The N_MOMENTS moments of a chunk's intervals (layout of :func:`calib.jacobian.trajectory_moments`)."""
-    m, Kc = len(h), S3.shape[0] // 3
-    Cf = C_mid.reshape(m, 9)
-    out = np.empty((Kc, N_MOMENTS))
-    for inc, weights, col in ((dth, 3, 0), (dvv, 2, 108)):
-        Xs = np.empty((m, 36))
-        Xs[:, :27] = (Cf[:, :, None] * inc[:, None, :]).reshape(m, 27)
-        Xs[:, 27:] = Cf * h[:, None]
-        R = S3[:weights * Kc] @ Xs
-        for w in range(weights):
-            out[:, col + 36 * w:col + 36 * (w + 1)] = R[w * Kc:(w + 1) * Kc]
+def _moments(C_mid, dth, dvv, h, lb, t):
+    """The N_MOMENTS moments of a chunk's intervals (layout of :func:`calib.jacobian.trajectory_moments`).
+
+    Intervals of equal length are reduced together as one batched product
+    ``C^T [inc tau^w, h tau^w]`` (BLAS), since the moments are sums of outer products.
+    """
+    m, lengths = len(h), np.diff(lb)
+    Cf, t_end, t_mid = C_mid.reshape(m, 9), t[lb[1:]], 0.5 * (t[1:] + t[:-1])
+    out = np.empty((len(lengths), N_MOMENTS))
+    for L in np.unique(lengths):
+        ks = np.flatnonzero(lengths == L)
+        idx = lb[ks][:, None] + np.arange(L)
+        tau = (t_end[ks][:, None] - t_mid[idx])[..., None]
+        th, dv, hh = dth[idx], dvv[idx], h[idx][..., None]
+        right = np.concatenate([th, th * tau, th * tau ** 2, dv, dv * tau,
+                                hh, hh * tau, hh * tau ** 2], axis=2)
+        R = np.matmul(Cf[idx].transpose(0, 2, 1), right)  # (nk, 9, 18)
+        n = len(ks)
+        # gyro w = 0, 1, 2 then accel w = 0, 1: [27 K (a, i, m), 9 B (a, i)] each
+        for col, inc, bias in ((0, 0, 15), (36, 3, 16), (72, 6, 17), (108, 9, 15), (144, 12, 16)):
+            out[ks, col:col + 27] = R[:, :, inc:inc + 3].reshape(n, 27)
+            out[ks, col + 27:col + 36] = R[:, :, bias]
     return out
 
 
@@ -295,9 +313,9 @@ def navigate_pass(chunks, grid: ObservationGrid, site: Site, values: np.ndarray,
             turn_out[ch.start:ch.start + m] = X.earth_turn(Cm, site.omega_ie_n, dt)
         if not with_moments:
             continue
-        S3 = _interval_sums(lb, t, 3)
-        moments[k0:k1] = _moments(Cm, dth, dvv, dt, S3)
+        moments[k0:k1] = _moments(Cm, dth, dvv, dt, lb, t)
         if extras.n:
+            S3 = _interval_sums(lb, t, 3)
             ctx = prev_dth is not None
             extra[k0:k1] = _extra_moments(
                 Cm, np.vstack([prev_dth, dth]) if ctx else dth,
