@@ -367,14 +367,11 @@ def _fit_renavigating(pb: "_Problem", C0: np.ndarray, extras: Extras, partial: b
                estimable=sol.estimable, null_directions=sol.null_directions)
 
 
-def _solve_step(H, z, noise, sol, extras, requirements, names, where, partial):
-    """One Gauss-Newton step: (delta, scaled delta, whitened residual, Hs, D, solution)."""
-    Hs, D = scaled_design(whiten(noise.whitener, H), extras, requirements)
-    if sol is None:
-        sol = solve_information(Hs.T @ Hs, where, names, partial)
+def _solve_step(Hs, D, z, noise, sol):
+    """One Gauss-Newton step: the correction (SI) and the whitened residual after it."""
     zw = whiten(noise.whitener, z[:, :, None]).reshape(-1)
     delta_scaled = sol.covariance @ (Hs.T @ zw)
-    return D * delta_scaled, zw - Hs @ delta_scaled, D, sol
+    return D * delta_scaled, zw - Hs @ delta_scaled
 
 
 def fit_intervals(chunks, grid, site: Site, C0: np.ndarray, profile: NoiseProfile,
@@ -409,10 +406,10 @@ def fit_intervals(chunks, grid, site: Site, C0: np.ndarray, profile: NoiseProfil
         if want_H:
             H = observation_matrix(sensitivities(data.moments, T, lat, g, data.extra),
                                    noise.Phi_vv)
-            sol = None
-        delta, resid, D, sol = _solve_step(H, z, noise, sol, extras, requirements, names,
-                                           where, partial)
-        cov = sol.covariance * np.outer(D, D)
+            Hs, D = scaled_design(whiten(noise.whitener, H), extras, requirements)
+            sol = solve_information(Hs.T @ Hs, where, names, partial)
+            cov = sol.covariance * np.outer(D, D)
+        delta, resid = _solve_step(Hs, D, z, noise, sol)
         values, extra_values = values + delta[:P.N_PARAMS], extra_values + delta[N_UNKNOWN:]
         C0 = rotvec_to_dcm(delta[PHI0]) @ C0
         step = float(np.max(np.abs(delta) / np.sqrt(np.diag(cov))))

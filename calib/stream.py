@@ -30,7 +30,7 @@ from . import extras as X
 from .errormodel import ErrorModel
 from .extras import Extras
 from .jacobian import N_MOMENTS, ObservationGrid, step_model
-from .strapdown import quat_to_dcm, rotvec_to_quat, sculling_dv
+from .strapdown import rotvec_to_quat, sculling_dv
 from .transform import dcm_to_rotvec
 
 CHUNK_SAMPLES = 1 << 16  # ~30 MB of per-sample temporaries: large enough that numpy's per-call cost vanishes
@@ -195,26 +195,48 @@ def _compensate(ch: Chunk, dt, model: ErrorModel, extras: Extras, extra_values, 
     return (dth[1:], dvv[1:]) if ctx else (dth, dvv)
 
 
-def _navigate_chunk(dth, dvv, t, site: Site, carry: _Carry):
-    """Attitude at every boundary and Coriolis-free velocity at every boundary of one chunk."""
+def dcm(q: np.ndarray) -> np.ndarray:
+    """Direction cosines of ``(n, 4)`` quaternions, normalising them (as :func:`calib.strapdown.quat_to_dcm`)."""
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    s = 2.0 / np.einsum("ni,ni->n", q, q)
+    out = np.empty((len(q), 3, 3))
+    xs, ys, zs = x * s, y * s, z * s
+    wx, wy, wz, xx, xy, xz = w * xs, w * ys, w * zs, x * xs, x * ys, x * zs
+    yy, yz, zz = y * ys, y * zs, z * zs
+    out[:, 0, 0], out[:, 0, 1], out[:, 0, 2] = 1.0 - (yy + zz), xy - wz, xz + wy
+    out[:, 1, 0], out[:, 1, 1], out[:, 1, 2] = xy + wz, 1.0 - (xx + zz), yz - wx
+    out[:, 2, 0], out[:, 2, 1], out[:, 2, 2] = xz - wy, yz + wx, 1.0 - (xx + yy)
+    return out
+
+
+def _navigate_chunk(dth, dvv, t, lb, site: Site, carry: _Carry):
+    """Inertial attitude quaternions at every boundary and velocity at the interval ends of a chunk.
+
+    Only the interval-end sums of the Coriolis-free velocity increments are kept:
+    ``w_k = sum_j [R(W t_j) C_b_i,j dv_j + R(2 W t_j) g_n h_j]`` (mid-sample times);
+    the gravity part needs per sample only ``cos`` and ``sin`` of ``2 W t_j``.
+    """
     w_ie = site.omega_ie_n
     rate, axis = float(np.linalg.norm(w_ie)), w_ie / np.linalg.norm(w_ie)
     prev = np.vstack([dth[:1] if carry.dtheta is None else carry.dtheta[None], dth[:-1]])
     rv = dth + np.cross(prev, dth) / 12.0  # coning, as calib.strapdown.coning_rotvec
     q = quat_scan(np.vstack([carry.q[None], rotvec_to_quat(rv)]))
     carry.q, carry.dtheta = q[-1], dth[-1]
-    C_b_i = quat_to_dcm(q)
-    C_b_n = quat_to_dcm(earth_fixed_quat(q, axis, -rate * t))
-    dv_i = np.einsum("nij,nj->ni", C_b_i[:-1], sculling_dv(dth, dvv))
     t_mid, dt = 0.5 * (t[1:] + t[:-1]), np.diff(t)
+    # R(W t_mid) C_b_i at each sample start, as one quaternion product.
+    C_a = dcm(earth_fixed_quat(q[:-1], axis, rate * t_mid))
+    dw = np.einsum("nij,nj->ni", C_a, sculling_dv(dth, dvv))
+    dw = np.add.reduceat(dw, lb[:-1], axis=0)
     g_n = np.array([0.0, 0.0, -site.gravity_mps2])
-    dw = rotate_about(axis, rate * t_mid, dv_i) + rotate_about(axis, 2 * rate * t_mid, g_n) * dt[:, None]
-    w = np.empty((len(t), 3))
-    w[0] = carry.w
-    np.cumsum(dw, axis=0, out=w[1:])
-    w[1:] += carry.w
+    trig = np.stack([np.cos(2 * rate * t_mid) * dt, np.sin(2 * rate * t_mid) * dt], axis=1)
+    cs = np.add.reduceat(trig, lb[:-1], axis=0)
+    # R(a) g = g cos a + (u x g) sin a + (1 - cos a)(u . g) u, summed with weights h.
+    dw += (np.outer(cs[:, 0], g_n - (axis @ g_n) * axis) + np.outer(cs[:, 1], np.cross(axis, g_n))
+           + np.outer(np.add.reduceat(dt, lb[:-1]), (axis @ g_n) * axis))
+    w = carry.w + np.cumsum(dw, axis=0)
     carry.w = w[-1]
-    return C_b_n, w, axis, rate
+    y = rotate_about(axis, -2.0 * rate * t[lb[1:]], w)
+    return q, y, axis, rate
 
 
 def _interval_sums(lb: np.ndarray, t: np.ndarray, orders: int):
@@ -302,12 +324,15 @@ def navigate_pass(chunks, grid: ObservationGrid, site: Site, values: np.ndarray,
         tn = turn[ch.start:ch.start + m] if extras.n and turn is not None else None
         prev_dth = carry.dtheta
         dth, dvv = _compensate(ch, dt, model, extras, extra_values, tn, carry)
-        C_b_n, w, axis, rate = _navigate_chunk(dth, dvv, t, site, carry)
         k0, k1 = np.searchsorted(b, [ch.start, ch.start + m])
         lb = b[k0:k1 + 1] - ch.start
-        y[k0 + 1:k1 + 1] = rotate_about(axis, -2.0 * rate * t[lb[1:]], w[lb[1:]])
+        q, y[k0 + 1:k1 + 1], axis, rate = _navigate_chunk(dth, dvv, t, lb, site, carry)
         t_bounds[k0 + 1:k1 + 1] = t[lb[1:]] + site.t0
-        C_mid[k0:k1] = C_b_n[(lb[:-1] + lb[1:]) // 2]
+        mid = (lb[:-1] + lb[1:]) // 2
+        C_mid[k0:k1] = dcm(earth_fixed_quat(q[mid], axis, -rate * t[mid]))
+        if not (with_moments or extras.n):
+            continue
+        C_b_n = dcm(earth_fixed_quat(q, axis, -rate * t))
         Cm = 0.5 * (C_b_n[1:] + C_b_n[:-1])
         if extras.n:
             turn_out[ch.start:ch.start + m] = X.earth_turn(Cm, site.omega_ie_n, dt)
