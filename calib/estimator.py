@@ -367,9 +367,8 @@ def _fit_renavigating(pb: "_Problem", C0: np.ndarray, extras: Extras, partial: b
                estimable=sol.estimable, null_directions=sol.null_directions)
 
 
-def _solve_step(Hs, D, z, noise, sol):
+def _solve_step(Hs, D, zw, sol):
     """One Gauss-Newton step: the correction (SI) and the whitened residual after it."""
-    zw = whiten(noise.whitener, z[:, :, None]).reshape(-1)
     delta_scaled = sol.covariance @ (Hs.T @ zw)
     return D * delta_scaled, zw - Hs @ delta_scaled
 
@@ -406,10 +405,13 @@ def fit_intervals(chunks, grid, site: Site, C0: np.ndarray, profile: NoiseProfil
         if want_H:
             H = observation_matrix(sensitivities(data.moments, T, lat, g, data.extra),
                                    noise.Phi_vv)
-            Hs, D = scaled_design(whiten(noise.whitener, H), extras, requirements)
+            # H and z share the whitening filter: one recursion for both.
+            Hz = whiten(noise.whitener, np.concatenate([H, z[:, :, None]], axis=2))
+            Hs, D = scaled_design(Hz[:, :, :-1], extras, requirements)
             sol = solve_information(Hs.T @ Hs, where, names, partial)
             cov = sol.covariance * np.outer(D, D)
-        delta, resid = _solve_step(Hs, D, z, noise, sol)
+        zw = Hz[:, :, -1].reshape(-1) if want_H else whiten(noise.whitener, z[:, :, None]).reshape(-1)
+        delta, resid = _solve_step(Hs, D, zw, sol)
         values, extra_values = values + delta[:P.N_PARAMS], extra_values + delta[N_UNKNOWN:]
         C0 = rotvec_to_dcm(delta[PHI0]) @ C0
         step = float(np.max(np.abs(delta) / np.sqrt(np.diag(cov))))
