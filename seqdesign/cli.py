@@ -412,6 +412,7 @@ from seqdesign.cli_view import view  # noqa: E402
 main.add_command(view)
 main.add_command(profile)
 main.add_command(__import__("seqdesign.cli_stream").cli_stream.simulate_stream)
+main.add_command(__import__("seqdesign.cli_stream").cli_stream.calibrate_stream)
 
 
 if __name__ == "__main__":

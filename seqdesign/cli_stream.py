@@ -81,3 +81,50 @@ def simulate_stream(sequence, output, profile, errors_file, table2, setup_deg, s
         return
     info(f"wrote {output} ({n} samples, {n / sample_rate_hz:.1f} s, profile {prof.name}) "
          f"and {truth_path}")
+
+
+@click.command("calibrate-stream",
+               short_help="Calibrate a long run read from disk chunk by chunk (bounded memory).")
+@click.argument("run_path", metavar="RUN")
+@click.option("--profile", default="navigation", show_default=True,
+              help="Noise profile that weights the fit and scales the sigmas.")
+@click.option("-o", "--output", help="Result TOML (default: RUN with .result.toml).")
+@click.option("--with", "with_terms", metavar="TERMS",
+              help="Also fit lever-arm, k2, time-offset (comma-separated), or all.")
+@click.option("--requirements", "requirements", default=None, metavar="FILE|NAME",
+              help="Accuracy requirements: paper, tactical, mems or a TOML file.")
+@click.option("--partial", is_flag=True, help="Fit the estimable part of a run that leaves "
+                                              "directions unobserved.")
+@click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
+@guarded
+def calibrate_stream(run_path, profile, output, with_terms, requirements, partial, as_json):
+    """Fit RUN (CSV or NPZ) as `seqdesign calibrate` does, reading it a chunk at a time:
+    memory stays at one chunk plus one byte per sample, whatever the length of the log."""
+    from calib.calibration import (as_extras, as_profile, load_requirements, result_from_fit,
+                                   site_gravity)
+    from calib.chunks import calibrate_file, read_meta
+    from calib.runlog import Run
+    from calib.truth import read_truth, truth_path_for
+
+    extras, prof, req = as_extras(with_terms), as_profile(profile), load_requirements(requirements)
+    if not Path(run_path).is_file():
+        raise CalibError("no such file", run_path, "check the path")
+    meta = Run(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)), read_meta(run_path),
+               source=run_path)
+    gravity = site_gravity(meta)
+    out_path = Path(output) if output else Path(run_path).with_name(Path(run_path).stem + ".result.toml")
+    info(f"calibrating {run_path} chunk by chunk, profile {prof.name}")
+    fit = calibrate_file(run_path, math.radians(meta.latitude_deg), gravity.value_mps2, prof,
+                         extras=extras, partial=partial, requirements=req)
+    if not fit.converged:
+        raise CalibError(f"the fit did not converge in {fit.iterations} iterations", run_path,
+                         "no result written; check the run and the noise profile")
+    result = result_from_fit(fit, prof, gravity, provenance(
+        {"run": run_path}, profile=prof.name, reader="chunks"), req)
+    result.save(out_path)
+    truth = read_truth(truth_path_for(run_path)) if truth_path_for(run_path).exists() else None
+    if as_json:
+        emit_json(result.to_json(truth) | {"result": str(out_path)})
+        return
+    click.echo(result.to_text(truth))
+    click.echo(f"wrote {out_path}")
