@@ -177,3 +177,58 @@ def test_cli_simulate_stream_writes_run_and_truth(tmp_path):
     run = read_run(out)
     # 1692 s at 10 Hz.
     assert run.n_samples == 16920 and (tmp_path / "run.truth.toml").exists()
+
+
+@pytest.fixture(scope="module")
+def short_files(paper, tmp_path_factory):
+    """A 50 Hz noisy run as NPZ and CSV, and its in-memory fit."""
+    folder = tmp_path_factory.mktemp("chunks")
+    run, cfg = _run(paper, 50.0, noise=True)
+    from calib.runlog import write_run
+    paths = [folder / "run.npz", folder / "run.csv"]
+    for p in paths:
+        write_run(run, p)
+    fit = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity,
+                    load_profile("navigation"))
+    return paths, fit, cfg
+
+
+@pytest.mark.slow
+def test_calibrating_from_disk_in_chunks_equals_calibrating_in_memory(short_files):
+    # Same samples, same chunk cuts at interval ends, same passes: the same numbers,
+    # whatever the reading block (here 7777 rows, which never falls on a cut).
+    from calib.chunks import calibrate_file
+    paths, fit, cfg = short_files
+    for p in paths:
+        streamed = calibrate_file(p, LAT, cfg.gravity, load_profile("navigation"), rows=7777)
+        assert np.array_equal(streamed.values, fit.values)
+        assert np.array_equal(streamed.sigma, fit.sigma)
+
+
+def test_chunks_read_back_the_samples(short_files):
+    from calib.chunks import read_chunks
+    paths, _, _ = short_files
+    whole = read_run(paths[0])
+    for p in paths:
+        blocks = list(read_chunks(p, rows=1000))
+        assert all(len(b[0]) <= 1000 for b in blocks)
+        for i, arr in enumerate((whole.time_s, whole.dtheta_rad, whole.dv_mps)):
+            assert np.array_equal(np.concatenate([b[i] for b in blocks]), arr)
+
+
+def test_cli_calibrate_stream_refuses_a_gap_and_a_log_without_rotation(paper, tmp_path):
+    from calib.runlog import write_run
+    run, cfg = _run(paper, 10.0, noise=False)
+    keep = np.ones(run.n_samples, dtype=bool)
+    keep[500:510] = False  # 1 s missing at 10 Hz
+    gappy = type(run)(run.time_s[keep], run.dtheta_rad[keep], run.dv_mps[keep], run.meta)
+    write_run(gappy, tmp_path / "gap.npz")
+    r = CliRunner().invoke(main, ["calibrate-stream", str(tmp_path / "gap.npz")])
+    assert r.exit_code == 2 and "time steps by 1.1 s at sample 500" in r.output
+    assert "Traceback" not in r.output and not (tmp_path / "gap.result.toml").exists()
+    still = type(run)(run.time_s[:3000], run.dtheta_rad[:3000] * 0.0, run.dv_mps[:3000], run.meta)
+    write_run(still, tmp_path / "still.csv")
+    r = CliRunner().invoke(main, ["calibrate-stream", str(tmp_path / "still.csv")])
+    assert r.exit_code == 2 and "no rotation found" in r.output
+    r = CliRunner().invoke(main, ["calibrate-stream", str(tmp_path / "missing.npz")])
+    assert r.exit_code == 2 and "no such file" in r.output
