@@ -312,10 +312,8 @@ def navigate_pass(chunks, grid: ObservationGrid, site: Site, values: np.ndarray,
     """
     b, K = grid.bounds, grid.n_intervals
     model, carry = ErrorModel(values), _Carry(C_b_n0, site.omega_ie_n)
-    y, t_bounds = np.zeros((K + 1, 3)), np.full(K + 1, site.t0)
-    moments = np.empty((K, N_MOMENTS)) if with_moments else None
-    extra = np.zeros((K, 6, extras.n))
-    C_mid = np.empty((K, 3, 3))
+    y, t_bounds, C_mid = np.zeros((K + 1, 3)), np.full(K + 1, site.t0), np.empty((K, 3, 3))
+    moments, extra = np.empty((K, N_MOMENTS)) if with_moments else None, np.zeros((K, 6, extras.n))
     turn_out = np.empty((b[-1], 3)) if extras.n else None
     for ch in chunks:
         m = len(ch.time_s)
