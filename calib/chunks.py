@@ -42,19 +42,40 @@ NPZ_FIX = "write the file with numpy.savez (time_s, dtheta_rad, dv_mps, meta), o
 
 def read_meta(path) -> dict[str, str]:
     """The metadata of a run log, without reading its samples."""
-    p = Path(path)
+    p, where = Path(path), str(path)
     if p.suffix.lower() == ".npz":
-        with zipfile.ZipFile(p) as archive, archive.open("meta.npy") as member:
-            text = np.lib.format.read_array(member, allow_pickle=False).reshape(()).item()
-        return {k: v if isinstance(v, str) else repr(v) for k, v in json.loads(text).items()}
+        try:
+            with zipfile.ZipFile(p) as archive, archive.open("meta.npy") as member:
+                text = np.lib.format.read_array(member, allow_pickle=False).reshape(()).item()
+            raw = json.loads(text)
+        except (OSError, zipfile.BadZipFile, KeyError, ValueError) as exc:
+            raise CalibError(f"not a readable NPZ run log ({exc})", where, NPZ_FIX) from None
+        if not isinstance(raw, dict):
+            raise CalibError("meta is not a JSON object", where, NPZ_FIX)
+        return {k: v if isinstance(v, str) else repr(v) for k, v in raw.items()}
     meta = {}
-    with open(p, encoding="utf-8") as handle:
-        for line in handle:
-            if not line.startswith("#"):
-                break
-            key, _, value = line[1:].partition(":")
-            meta[key.strip()] = value.strip()
+    try:
+        with open(p, encoding="utf-8") as handle:
+            for line in handle:
+                if not line.startswith("#"):
+                    break
+                key, _, value = line[1:].partition(":")
+                meta[key.strip()] = value.strip()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CalibError(f"cannot read the file ({exc})", where, "give a UTF-8 imu-run/1 CSV") from None
     return meta
+
+
+def nominal_period(meta: dict[str, str], where: str) -> float:
+    """``1 / sample_rate_hz`` of the metadata, refusing a missing or impossible rate."""
+    try:
+        rate = float(meta["sample_rate_hz"])
+    except (KeyError, ValueError):
+        rate = math.nan
+    if not (math.isfinite(rate) and rate > 0):
+        raise CalibError(f"sample_rate_hz is {meta.get('sample_rate_hz')!r}", where,
+                         "the log's metadata must give the IMU's output rate in Hz")
+    return 1.0 / rate
 
 
 def _npy_stream(archive: zipfile.ZipFile, name: str, where: str):
@@ -75,7 +96,11 @@ def _npy_stream(archive: zipfile.ZipFile, name: str, where: str):
 
 def _npz_chunks(path, rows: int):
     where = str(path)
-    with zipfile.ZipFile(path) as archive:
+    try:
+        archive = zipfile.ZipFile(path)
+    except (OSError, zipfile.BadZipFile) as exc:
+        raise CalibError(f"not a readable NPZ run log ({exc})", where, NPZ_FIX) from None
+    with archive:
         streams = [_npy_stream(archive, name, where) for name in ("time_s", "dtheta_rad", "dv_mps")]
         n = streams[0][1][0]
         if any(s[1] != (n,) + ((3,) if i else ()) for i, s in enumerate(streams)):
@@ -106,13 +131,14 @@ def _csv_chunks(path, rows: int):
             raise CalibError(f"header lacks column(s) {', '.join(missing)}", where,
                              "name the columns as spec/files.md (imu-run/1) does")
         use = [header.index(c) for c in COLUMNS]
+        done = 0
         while block := list(itertools.islice(handle, rows)):
             try:
                 table = np.loadtxt(block, delimiter=",", usecols=use, ndmin=2)
             except ValueError as exc:
-                raise CalibError(f"unreadable row in the block of rows ending near row "
-                                 f"{rows}: {exc}", where, "check the file with `seqdesign "
-                                 "calibrate`, which names the line") from None
+                raise CalibError(f"unreadable data row among rows {done + 1}-{done + len(block)} "
+                                 f"({exc})", where, "`seqdesign calibrate` names the line") from None
+            done += len(block)
             yield table[:, 0], table[:, 1:4], table[:, 4:7]
 
 
@@ -165,8 +191,7 @@ def survey(path, profile: NoiseProfile, rows: int = READ_ROWS, where: str | None
     :func:`calib.estimator.detect_motion` grows it.
     """
     where = where or str(path)
-    meta = read_meta(path)
-    nominal = 1.0 / float(meta["sample_rate_hz"])
+    nominal = nominal_period(read_meta(path), where)
     masks, medians, t_start = [], [], None
     for a, t, th, dv, dt in _blocks_with_dt(path, rows, where, nominal):
         here = f"{where}, samples {a}-{a + len(t) - 1}"
@@ -217,7 +242,7 @@ def calibrate_file(path, latitude_rad: float, gravity_mps2: float, profile: Nois
     """
     where = str(path)
     moving, t_start, period = survey(path, profile, rows, where)
-    C0 = _first_rest(path, moving, rows, where, 1.0 / float(read_meta(path)["sample_rate_hz"]),
+    C0 = _first_rest(path, moving, rows, where, nominal_period(read_meta(path), where),
                      latitude_rad, gravity_mps2, profile)
     grid = default_grid(moving, 1.0 / period)
     del moving

@@ -232,3 +232,19 @@ def test_cli_calibrate_stream_refuses_a_gap_and_a_log_without_rotation(paper, tm
     assert r.exit_code == 2 and "no rotation found" in r.output
     r = CliRunner().invoke(main, ["calibrate-stream", str(tmp_path / "missing.npz")])
     assert r.exit_code == 2 and "no such file" in r.output
+
+
+def test_cli_calibrate_stream_refuses_a_damaged_archive_and_a_missing_rate(paper, tmp_path):
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"PK\x03\x04 not really a zip")
+    r = CliRunner().invoke(main, ["calibrate-stream", str(bad)])
+    assert r.exit_code == 2 and "not a readable NPZ run log" in r.output
+    assert "Traceback" not in r.output
+    from calib.runlog import write_run
+    run, _ = _run(paper, 10.0, noise=False)
+    write_run(run, tmp_path / "run.csv")
+    text = (tmp_path / "run.csv").read_text().replace("# sample_rate_hz: 10.0\n", "")
+    (tmp_path / "norate.csv").write_text(text)
+    r = CliRunner().invoke(main, ["calibrate-stream", str(tmp_path / "norate.csv")])
+    assert r.exit_code == 2 and "sample_rate_hz" in r.output
+    assert not (tmp_path / "norate.result.toml").exists()
