@@ -79,19 +79,27 @@ def quat_mult(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     return out
 
 
+def _hillis_steele(q: np.ndarray) -> np.ndarray:
+    """Inclusive prefix products by doubling (log2 n passes): for the short block totals."""
+    out = q.copy()
+    d = 1
+    while d < len(out):
+        out[d:] = quat_mult(out[:-d], out[d:])
+        d *= 2
+    return out
+
+
 def quat_scan(q: np.ndarray) -> np.ndarray:
     """Inclusive prefix products ``q[0] q[1] ... q[k]`` of ``(n, 4)`` quaternions.
 
-    Sequential inside blocks of :data:`SCAN_BLOCK` (vectorised across blocks, recursively),
-    then each block is multiplied by the product of all before it: about two
-    passes over the data, against ``log2 n`` for a Hillis-Steele scan.
+    Sequential inside blocks of :data:`SCAN_BLOCK` (vectorised across blocks),
+    the block totals by doubling, then each block is multiplied by the product
+    of all before it: about two passes over the data, against ``log2 n`` for a
+    doubling scan of the whole array.
     """
     n = len(q)
-    if n <= SCAN_BLOCK:
-        out = q.copy()
-        for k in range(1, n):
-            out[k] = quat_mult(out[k - 1], out[k])
-        return out
+    if n <= 4 * SCAN_BLOCK:
+        return _hillis_steele(q)
     nb = -(-n // SCAN_BLOCK)
     blocks = np.zeros((nb * SCAN_BLOCK, 4))
     blocks[:, 0] = 1.0  # identity padding
@@ -99,7 +107,7 @@ def quat_scan(q: np.ndarray) -> np.ndarray:
     blocks = blocks.reshape(nb, SCAN_BLOCK, 4)
     for k in range(1, SCAN_BLOCK):
         blocks[:, k] = quat_mult(blocks[:, k - 1], blocks[:, k])
-    before = quat_scan(blocks[:, -1])  # product of blocks 0..b
+    before = _hillis_steele(blocks[:, -1])  # product of blocks 0..b
     blocks[1:] = quat_mult(before[:-1, None, :], blocks[1:])
     return blocks.reshape(-1, 4)[:n]
 
