@@ -9,6 +9,10 @@ and any optional terms switched on (:mod:`calib.extras`); nothing about the
 heading is assumed: the first guess comes from levelling and gyrocompassing
 on the first rest. A profile with Gauss-Markov bias instability re-weights
 the observations along the navigated attitude.
+
+The run is streamed (:mod:`calib.stream`): each navigation is one pass over
+the samples, a chunk at a time, that leaves only per-interval quantities,
+and :func:`fit_intervals` navigates only while a step can still matter.
 """
 from __future__ import annotations
 
@@ -296,6 +300,8 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
     -------
     Fit
     """
+    if renavigate not in ("when-needed", "always"):
+        raise ValueError(f"renavigate must be 'when-needed' or 'always', not {renavigate!r}")
     dt = sample_intervals(time_s)
     seg = check_run(dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, moving, where)
     grid = default_grid(seg.moving, 1.0 / np.median(dt))
