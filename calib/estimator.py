@@ -9,6 +9,10 @@ and any optional terms switched on (:mod:`calib.extras`); nothing about the
 heading is assumed: the first guess comes from levelling and gyrocompassing
 on the first rest. A profile with Gauss-Markov bias instability re-weights
 the observations along the navigated attitude.
+
+The run is streamed (:mod:`calib.stream`): each navigation is one pass over
+the samples, a chunk at a time, that leaves only per-interval quantities,
+and :func:`fit_intervals` navigates only while a step can still matter.
 """
 from __future__ import annotations
 
@@ -26,12 +30,14 @@ from .errors import CalibError
 from . import extras as X
 from .extras import Extras
 from .information import UNKNOWN_NAMES, ScaledInverse, eliminate, scaled_inverse
-from .jacobian import N_UNKNOWN, PHI0, default_grid, observation_jacobian, state_matrix
+from .jacobian import (N_UNKNOWN, PHI0, default_grid, observation_jacobian, observation_matrix,
+                       sensitivities, state_matrix)
 from .noise import noise_model, whiten
 from .profiles import NoiseProfile
 from .requirements import PAPER, Requirements
 from .seqinfer import infer_sequence
 from .strapdown import navigate, sample_intervals
+from .stream import Site, array_chunks, chunk_cuts, navigate_pass
 from .transform import rotvec_to_dcm
 
 MOTION_THRESHOLD = 0.01  # rad/s: far above Earth rate + bias + noise, far below a flip
@@ -334,7 +340,8 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
               gravity_mps2: float, profile: NoiseProfile, moving: np.ndarray | None = None,
               max_iterations: int = 12, tol_sigma: float = 1e-3, where: str = "run",
               extras: Extras = X.NONE, partial: bool = False,
-              requirements: Requirements = PAPER, sequence=None) -> Fit:
+              requirements: Requirements = PAPER, sequence=None,
+              renavigate: str = "when-needed") -> Fit:
     """Identify the 21 parameters, the initial attitude and any optional terms from raw increments.
 
     Parameters
@@ -367,42 +374,59 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
         The nominal sequence: on a run that leaves directions unobserved it
         decides which parameters are estimable, as the analyser does.
         Default: inferred from the navigation (:mod:`calib.seqinfer`).
+    renavigate : {"when-needed", "always"}
+        "when-needed" (default): stream the run through :func:`fit_intervals`,
+        which navigates only while a step could still move the estimate by
+        ``tol_sigma``; "always": the reference loop that re-navigates the
+        whole run in memory at every iteration (for tests and benchmarks).
 
     Returns
     -------
     Fit
     """
+    if renavigate not in ("when-needed", "always"):
+        raise ValueError(f"renavigate must be 'when-needed' or 'always', not {renavigate!r}")
     dt = sample_intervals(time_s)
     seg = check_run(dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, moving, where,
                     requirements)
     grid = default_grid(seg.moving, 1.0 / np.median(dt))
-    pb = _Problem(time_s, dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, extras, grid,
-                  where)
+    first = slice(0, seg.first_rest_end)
+    start = start_values(dtheta_m, dt, seg.moving)
+    C0 = coarse_alignment(dtheta_m[first] - start[P.GYRO_BIAS] * dt[first, None], dv_m[first],
+                          dt[first])
+    judge = _nominal_judge(sequence, time_s, dtheta_m, dv_m, dt, seg.moving, C0, start,
+                           (latitude_rad, gravity_mps2, profile, extras, requirements))
+    options = dict(extras=extras, partial=partial, requirements=requirements,
+                   max_iterations=max_iterations, tol_sigma=tol_sigma, where=where,
+                   start=start, judge=judge)
+    if renavigate == "always":
+        pb = _Problem(time_s, dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, extras,
+                      grid, where)
+        return _fit_renavigating(pb, C0, **options)
+    site = Site(latitude_rad, gravity_mps2, float(time_s[0] - dt[0]))
+    cuts = chunk_cuts(grid)
+    del dt, seg  # whole-run temporaries: the passes need one chunk at a time
+    return fit_intervals(lambda: array_chunks(time_s, dtheta_m, dv_m, site.t0, cuts), grid, site,
+                         C0, profile, **options)
+
+
+def _fit_renavigating(pb: "_Problem", C0: np.ndarray, extras: Extras, partial: bool,
+                      requirements: Requirements, max_iterations: int, tol_sigma: float,
+                      where: str, start: np.ndarray | None = None, judge=None) -> Fit:
+    """The reference loop: re-navigate the whole run in memory at every iteration."""
+    latitude_rad, gravity_mps2, profile, grid, dt = (pb.latitude_rad, pb.gravity_mps2, pb.profile,
+                                                     pb.grid, pb.dt)
     A, T = state_matrix(latitude_rad, gravity_mps2), np.diff(pb.t_nav[grid.bounds])
     mid = (grid.bounds[:-1] + grid.bounds[1:]) // 2
-    values, extra_values = start_values(dtheta_m, dt, seg.moving), np.zeros(extras.n)
+    values = np.zeros(P.N_PARAMS) if start is None else start.copy()
+    extra_values = np.zeros(extras.n)
     names = UNKNOWN_NAMES + extras.names
     omega_ie_n = earth.omega_ie_n(latitude_rad)
-    first = slice(0, seg.first_rest_end)
-    C0 = coarse_alignment(dtheta_m[first] - values[P.GYRO_BIAS] * dt[first, None], dv_m[first],
-                          dt[first])
     # Until the first navigation, the Earth's turn as seen at the start attitude.
     turn = X.earth_turn(np.broadcast_to(C0, (len(dt), 3, 3)), omega_ie_n, dt)
     noise, sol, history, converged = None, None, [], False
-    decision = {}
-
-    def judge():
-        """The nominal trajectory's decision, computed once, when the run's own is deficient."""
-        if "inv" not in decision:
-            seq = sequence or infer_sequence(first_nav.C_b_n, dtheta_m, seg.moving, dt)
-            decision["inv"] = None if seq is None else nominal_decision(
-                seq, latitude_rad, profile, extras, requirements, names)
-        return decision["inv"]
-
     for it in range(1, max_iterations + 1):
         dth, dvv, nav = pb.compensate_and_navigate(values, extra_values, C0, turn)
-        if it == 1:
-            first_nav = nav
         if extras.n:  # the Earth's turn in the body, for the next compensation
             turn = X.earth_turn(0.5 * (nav.C_b_n[1:] + nav.C_b_n[:-1]), omega_ie_n, dt)
         if noise is None or (profile.has_gauss_markov and it <= 3):
@@ -410,9 +434,7 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
             # the navigated attitude while the Jacobian does. Phi_vv does not depend on it.
             noise = noise_model(A, T, profile, C_b_n=nav.C_b_n[mid])
         z = pb.observations(nav, noise.Phi_vv, it)
-        relinearise = sol is None or it <= 3 or bool(sol.null_directions) or (
-            history and history[-1]["max_step_sigma"] > RELINEARISE_STEP_SIGMA)
-        if relinearise:
+        if _relinearise(it, sol, history):
             # The Jacobian changes little once the big errors are compensated; while steps are
             # still large (a MEMS unit's percent-level errors) it follows them. A partial fit's
             # covariance is sensitive to where its nearly-null directions lie, so it follows
@@ -425,15 +447,7 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
         zw = whiten(noise.whitener, z[:, :, None]).reshape(-1)
         delta_scaled = sol.covariance @ (Hs.T @ zw)
         delta = D * delta_scaled
-        values = values + delta[:P.N_PARAMS]
-        extra_values = extra_values + delta[N_UNKNOWN:]
-        if sol.null_directions:
-            # A partial fit leaves the unobserved combinations at zero in the totals, not only
-            # in each step: otherwise they drift as the directions turn from one Jacobian to
-            # the next, and the drift bends the navigated trajectory.
-            Dp = D[_param_index(len(D))]
-            x = sol.project(np.concatenate([values, extra_values]) / Dp) * Dp
-            values, extra_values = x[:P.N_PARAMS], x[P.N_PARAMS:]
+        values, extra_values = _apply(values, extra_values, delta, sol, D)
         C0 = rotvec_to_dcm(delta[PHI0]) @ C0
         step = np.max(np.abs(delta) / np.sqrt(np.diag(cov)))
         resid = zw - Hs @ delta_scaled
@@ -450,6 +464,131 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
                chi2_per_dof=history[-1]["chi2_per_dof"], n_observations=int(z.size),
                history=history, extras=extras, extra_values=extra_values,
                estimable=sol.estimable, null_directions=sol.null_directions)
+
+
+def _solve_step(Hs, D, zw, sol):
+    """One Gauss-Newton step: the correction (SI) and the whitened residual after it."""
+    delta_scaled = sol.covariance @ (Hs.T @ zw)
+    return D * delta_scaled, zw - Hs @ delta_scaled
+
+
+def _relinearise(it: int, sol, history: list) -> bool:
+    """Whether this iteration re-evaluates the Jacobian.
+
+    It changes little once the big errors are compensated, so after the third
+    iteration only while steps are still large (a MEMS unit's percent-level
+    errors); a partial fit's covariance is sensitive to where its nearly-null
+    directions lie, so it follows the trajectory to the end.
+    """
+    return (sol is None or it <= 3 or bool(sol.null_directions)
+            or bool(history) and history[-1]["max_step_sigma"] > RELINEARISE_STEP_SIGMA)
+
+
+def _apply(values, extra_values, delta, sol, D):
+    """Add a step; a partial fit keeps the unobserved combinations of the totals at zero.
+
+    Zeroing them only in each step would let them drift as the directions
+    turn from one Jacobian to the next, and the drift bends the trajectory.
+    """
+    values, extra_values = values + delta[:P.N_PARAMS], extra_values + delta[N_UNKNOWN:]
+    if sol.null_directions:
+        Dp = D[_param_index(len(D))]
+        x = sol.project(np.concatenate([values, extra_values]) / Dp) * Dp
+        values, extra_values = x[:P.N_PARAMS], x[P.N_PARAMS:]
+    return values, extra_values
+
+
+def _nominal_judge(sequence, time_s, dtheta_m, dv_m, dt, moving, C0, start, model):
+    """A callable giving the nominal trajectory's observability decision, computed once.
+
+    Called only when a run's own information leaves directions unobserved:
+    the sequence given, else the one read off a navigation of the log
+    (:mod:`calib.seqinfer`), decides what is estimable, as the analyser does.
+    """
+    latitude_rad, gravity_mps2, profile, extras, requirements = model
+    memo = {}
+
+    def judge():
+        if "inv" not in memo:
+            seq = sequence
+            if seq is None:
+                dth = dtheta_m - start[P.GYRO_BIAS] * dt[:, None]
+                nav = navigate(dth, dv_m, time_s, C0, latitude_rad, gravity_mps2)
+                seq = infer_sequence(nav.C_b_n, dtheta_m, moving, dt)
+            memo["inv"] = None if seq is None else nominal_decision(
+                seq, latitude_rad, profile, extras, requirements, UNKNOWN_NAMES + extras.names)
+        return memo["inv"]
+    return judge
+
+
+def fit_intervals(chunks, grid, site: Site, C0: np.ndarray, profile: NoiseProfile,
+                  extras: Extras = X.NONE, partial: bool = False,
+                  requirements: Requirements = PAPER, max_iterations: int = 12,
+                  tol_sigma: float = 1e-3, where: str = "run", start: np.ndarray | None = None,
+                  judge=None) -> Fit:
+    """The Gauss-Newton loop on per-interval quantities, navigating only when it must.
+
+    ``chunks()`` gives the run again, chunk by chunk (:mod:`calib.stream`);
+    each navigation is one pass over it (:func:`calib.stream.navigate_pass`)
+    that leaves only per-interval quantities. As in the reference loop the
+    Jacobian is re-evaluated along the navigations of the first three
+    iterations and kept after. The loop stops re-navigating when the next
+    step cannot reach ``tol_sigma``: Gauss-Newton converges at least
+    geometrically here, so after steps ``s_prev``, ``s`` the next one is at
+    most ``s * (s / s_prev)``; when that is below ``tol_sigma`` the estimate
+    is converged without another pass (the test suite checks it against the
+    reference loop, noise-free and noisy).
+    """
+    lat, g = site.latitude_rad, site.gravity_mps2
+    A, names = state_matrix(lat, g), UNKNOWN_NAMES + extras.names
+    values = np.zeros(P.N_PARAMS) if start is None else start.copy()
+    extra_values = np.zeros(extras.n)
+    noise, sol, history, converged, turn = None, None, [], False, None
+    for it in range(1, max_iterations + 1):
+        want_H = _relinearise(it, sol, history)
+        data = navigate_pass(chunks(), grid, site, values, extra_values, C0, turn, extras,
+                             with_moments=want_H)
+        turn, T = data.turn, np.diff(data.t_bounds)
+        if noise is None or (profile.has_gauss_markov and it <= 3):
+            noise = noise_model(A, T, profile, C_b_n=data.C_mid)
+        z = _observations(data.y, noise.Phi_vv, it, where)
+        if want_H:
+            H = observation_matrix(sensitivities(data.moments, T, lat, g, data.extra),
+                                   noise.Phi_vv)
+            # H and z share the whitening filter: one recursion for both.
+            Hz = whiten(noise.whitener, np.concatenate([H, z[:, :, None]], axis=2))
+            Hs, D = scaled_design(Hz[:, :, :-1], extras, requirements)
+            sol = solve_information(Hs.T @ Hs, where, names, partial, judge)
+            cov = sol.covariance * np.outer(D, D)
+        zw = Hz[:, :, -1].reshape(-1) if want_H else whiten(noise.whitener, z[:, :, None]).reshape(-1)
+        delta, resid = _solve_step(Hs, D, zw, sol)
+        values, extra_values = _apply(values, extra_values, delta, sol, D)
+        C0 = rotvec_to_dcm(delta[PHI0]) @ C0
+        step = float(np.max(np.abs(delta) / np.sqrt(np.diag(cov))))
+        n_fitted = sol.covariance.shape[0] - len(sol.null_directions)
+        bound = step * step / history[-1]["max_step_sigma"] if history else math.inf
+        history.append({"iteration": it, "max_step_sigma": step,
+                        "chi2_per_dof": float(resid @ resid / max(1, resid.size - n_fitted)),
+                        "next_step_bound_sigma": float(bound)})
+        if step < tol_sigma or bound < tol_sigma:
+            converged = True
+            break
+    z_fit = z - np.einsum("kin,n->ki", H, delta)
+    return Fit(values=values, C_b_n0=C0, covariance=cov, converged=converged, iterations=it,
+               residual_rms_mps=float(np.sqrt(np.mean(z_fit ** 2))),
+               chi2_per_dof=history[-1]["chi2_per_dof"], n_observations=int(z.size),
+               history=history, extras=extras, extra_values=extra_values,
+               estimable=sol.estimable, null_directions=sol.null_directions)
+
+
+def _observations(y: np.ndarray, Phi_vv: np.ndarray, it: int, where: str) -> np.ndarray:
+    """Velocity changes over the observation intervals, less the noise model's prediction."""
+    z = y[1:] - np.einsum("kij,kj->ki", Phi_vv, y[:-1])
+    if not np.all(np.isfinite(z)) or np.abs(y).max() > 1e5:
+        raise CalibError(f"the fit diverged at iteration {it} (navigation velocity "
+                         f"{np.abs(y).max():.3g} m/s)", where,
+                         "check units and that the run is a stationary-base calibration")
+    return z
 
 
 def sequence_motion(seq, time_s: np.ndarray, dt: np.ndarray) -> np.ndarray:

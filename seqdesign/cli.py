@@ -460,11 +460,14 @@ def _design_path(budget_min: float, output: str | None, pareto: bool) -> str:
 # Commands living in their own modules, registered here (before ``__main__`` runs them).
 from seqdesign.cli_gimbal import export  # noqa: E402
 from seqdesign.cli_profile import profile  # noqa: E402
+from seqdesign.cli_stream import calibrate_stream, simulate_stream  # noqa: E402
 from seqdesign.cli_view import view  # noqa: E402
 
 main.add_command(view)
 main.add_command(profile)
 main.add_command(export)
+main.add_command(simulate_stream)
+main.add_command(calibrate_stream)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,252 @@
+"""Read a run log in chunks, and calibrate it without ever holding it whole.
+
+:func:`read_chunks` yields ``(time_s, dtheta, dv)`` blocks of an NPZ
+(members read as streams: stored or deflated, never loaded whole) or an
+``imu-run/1`` CSV (rows parsed a block at a time). :func:`calibrate_file`
+runs the estimator on such a source: one reading pass finds where the IMU
+turns and checks the samples, the first rest is read for the alignment, and
+every navigation of :func:`calib.estimator.fit_intervals` reads the file
+again. Memory: one chunk, plus one byte per sample for the motion mask.
+
+What the in-memory path (:func:`calib.runlog.read_run` then
+:func:`calib.calibration.calibrate_run`) checks that this one checks per
+chunk only: a saturated channel (runs of 10 equal extreme samples) across a
+chunk end is not seen; the grid's nominal period is the median of the
+chunks' median periods. Gaps are refused (no ``--allow-gaps`` here), and
+``--sequence`` is not supported: flips are detected from the gyros.
+"""
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from . import sanity
+from .errors import CalibError
+from .estimator import (MIN_ALIGN_S, MOTION_THRESHOLD, _grow, coarse_alignment, fit_intervals)
+from .extras import NONE as NO_EXTRAS, Extras
+from .jacobian import default_grid
+from .profiles import NoiseProfile
+from .requirements import PAPER, Requirements
+from .stream import Chunk, Site, chunk_cuts
+
+READ_ROWS = 1 << 16
+COLUMNS = ("time_s", "dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad", "dv_x_mps", "dv_y_mps",
+           "dv_z_mps")
+NPZ_FIX = "write the file with numpy.savez (time_s, dtheta_rad, dv_mps, meta), or use CSV"
+
+
+def read_meta(path) -> dict[str, str]:
+    """The metadata of a run log, without reading its samples."""
+    p, where = Path(path), str(path)
+    if p.suffix.lower() == ".npz":
+        try:
+            with zipfile.ZipFile(p) as archive, archive.open("meta.npy") as member:
+                text = np.lib.format.read_array(member, allow_pickle=False).reshape(()).item()
+            raw = json.loads(text)
+        except (OSError, zipfile.BadZipFile, KeyError, ValueError) as exc:
+            raise CalibError(f"not a readable NPZ run log ({exc})", where, NPZ_FIX) from None
+        if not isinstance(raw, dict):
+            raise CalibError("meta is not a JSON object", where, NPZ_FIX)
+        return {k: v if isinstance(v, str) else repr(v) for k, v in raw.items()}
+    meta = {}
+    try:
+        with open(p, encoding="utf-8") as handle:
+            for line in handle:
+                if not line.startswith("#"):
+                    break
+                key, _, value = line[1:].partition(":")
+                meta[key.strip()] = value.strip()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CalibError(f"cannot read the file ({exc})", where, "give a UTF-8 imu-run/1 CSV") from None
+    return meta
+
+
+def nominal_period(meta: dict[str, str], where: str) -> float:
+    """``1 / sample_rate_hz`` of the metadata, refusing a missing or impossible rate."""
+    try:
+        rate = float(meta["sample_rate_hz"])
+    except (KeyError, ValueError):
+        rate = math.nan
+    if not (math.isfinite(rate) and rate > 0):
+        raise CalibError(f"sample_rate_hz is {meta.get('sample_rate_hz')!r}", where,
+                         "the log's metadata must give the IMU's output rate in Hz")
+    return 1.0 / rate
+
+
+def _npy_stream(archive: zipfile.ZipFile, name: str, where: str):
+    """An open member positioned at its data, with its shape and dtype."""
+    try:
+        member = archive.open(f"{name}.npy")
+    except KeyError:
+        raise CalibError(f"archive lacks array '{name}'", where, NPZ_FIX) from None
+    version = np.lib.format.read_magic(member)
+    read_header = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                   else np.lib.format.read_array_header_2_0)
+    shape, fortran, dtype = read_header(member)
+    if fortran or dtype.kind not in "fiu" or len(shape) not in (1, 2):
+        raise CalibError(f"array '{name}' is {dtype} of shape {shape}"
+                         f"{' in Fortran order' if fortran else ''}", where, NPZ_FIX)
+    return member, shape, dtype
+
+
+def _npz_chunks(path, rows: int):
+    where = str(path)
+    try:
+        archive = zipfile.ZipFile(path)
+    except (OSError, zipfile.BadZipFile) as exc:
+        raise CalibError(f"not a readable NPZ run log ({exc})", where, NPZ_FIX) from None
+    with archive:
+        streams = [_npy_stream(archive, name, where) for name in ("time_s", "dtheta_rad", "dv_mps")]
+        n = streams[0][1][0]
+        if any(s[1] != (n,) + ((3,) if i else ()) for i, s in enumerate(streams)):
+            raise CalibError("time_s, dtheta_rad and dv_mps do not have shapes (n,), (n, 3), (n, 3)",
+                             where, NPZ_FIX)
+        for a in range(0, n, rows):
+            m = min(rows, n - a)
+            out = []
+            for member, shape, dtype in streams:
+                width = 1 if len(shape) == 1 else 3
+                data = member.read(m * width * dtype.itemsize)
+                out.append(np.frombuffer(data, dtype).astype(np.float64).reshape(
+                    (m,) if width == 1 else (m, 3)))
+            yield tuple(out)
+        for member, _, _ in streams:
+            member.close()
+
+
+def _csv_chunks(path, rows: int):
+    where = str(path)
+    with open(path, encoding="utf-8") as handle:
+        line = next(handle, "")
+        while line.startswith("#"):
+            line = next(handle, "")
+        header = [c.strip() for c in line.strip().split(",")]
+        missing = [c for c in COLUMNS if c not in header]
+        if missing:
+            raise CalibError(f"header lacks column(s) {', '.join(missing)}", where,
+                             "name the columns as spec/files.md (imu-run/1) does")
+        use = [header.index(c) for c in COLUMNS]
+        done = 0
+        while block := list(itertools.islice(handle, rows)):
+            try:
+                table = np.loadtxt(block, delimiter=",", usecols=use, ndmin=2)
+            except ValueError as exc:
+                raise CalibError(f"unreadable data row among rows {done + 1}-{done + len(block)} "
+                                 f"({exc})", where, "`seqdesign calibrate` names the line") from None
+            done += len(block)
+            yield table[:, 0], table[:, 1:4], table[:, 4:7]
+
+
+def read_chunks(path, rows: int = READ_ROWS):
+    """Yield ``(time_s, dtheta_rad, dv_mps)`` blocks of ``rows`` samples of an NPZ or CSV run log."""
+    kind = Path(path).suffix.lower()
+    if kind not in (".npz", ".csv"):
+        raise CalibError(f"unknown run format {Path(path).suffix!r}", str(path),
+                         "give a .csv or .npz run log")
+    return (_npz_chunks if kind == ".npz" else _csv_chunks)(path, rows)
+
+
+def aligned(blocks, cuts: np.ndarray, t_start: float):
+    """Re-cut blocks of samples into :class:`calib.stream.Chunk` s that end exactly at ``cuts``."""
+    buf, start, k, t_before = [], 0, 1, t_start
+    for block in blocks:
+        buf.append(block)
+        have = sum(len(b[0]) for b in buf)
+        while k < len(cuts) and cuts[k] <= start + have:
+            t, th, dv = (np.concatenate([b[i] for b in buf]) for i in range(3))
+            m = int(cuts[k] - start)
+            yield Chunk(start, t[:m], th[:m], dv[:m], t_before)
+            t_before, start, k = float(t[m - 1]), int(cuts[k]), k + 1
+            buf, have = [(t[m:], th[m:], dv[m:])], have - m
+
+
+def _blocks_with_dt(path, rows: int, where: str, period: float):
+    """Blocks with each sample's interval, refusing time that stalls, runs back or jumps."""
+    prev, start = None, 0
+    for t, th, dv in read_chunks(path, rows):
+        if not len(t):
+            continue
+        first = prev if prev is not None else (t[0] - (t[1] - t[0]) if len(t) > 1 else t[0] - period)
+        dt = np.diff(np.concatenate([[first], t]))
+        bad = np.flatnonzero((dt <= 0) | (dt > 2.0 * period) | ~np.isfinite(dt))
+        if bad.size:
+            k = int(bad[0])
+            raise CalibError(f"time steps by {dt[k]:.6g} s at sample {start + k} (nominal period "
+                             f"{period:.6g} s)", where,
+                             "time must strictly increase without gaps; `seqdesign calibrate "
+                             "--allow-gaps` reads logs with gaps")
+        yield start, t, th, dv, dt
+        prev, start = t[-1], start + len(t)
+
+
+def survey(path, profile: NoiseProfile, rows: int = READ_ROWS, where: str | None = None):
+    """One reading pass: the motion mask, the run's start, its period; per-chunk sanity checks.
+
+    Returns ``(moving, t_start, period_s)``; ``moving`` is grown as
+    :func:`calib.estimator.detect_motion` grows it.
+    """
+    where = where or str(path)
+    nominal = nominal_period(read_meta(path), where)
+    masks, medians, t_start = [], [], None
+    for a, t, th, dv, dt in _blocks_with_dt(path, rows, where, nominal):
+        here = f"{where}, samples {a}-{a + len(t) - 1}"
+        t_start = t[0] - dt[0] if t_start is None else t_start
+        sanity.check_rates(th, dt, here)
+        sanity.check_saturation(th, dv, here)
+        masks.append(np.sqrt(np.einsum("ni,ni->n", th, th)) / dt > MOTION_THRESHOLD)
+        medians.append(float(np.median(dt)))
+    if t_start is None:
+        raise CalibError("the log has no samples", where, "give a recorded run")
+    moving = _grow(np.concatenate(masks))
+    if not moving.any():
+        raise CalibError("no rotation found in the run (gyro rates never exceed "
+                         f"{math.degrees(MOTION_THRESHOLD):.2f} deg/s)", where,
+                         "a calibration run must flip the IMU")
+    return moving, float(t_start), float(np.median(medians))
+
+
+def _first_rest(path, moving, rows, where, period, latitude_rad, gravity_mps2, profile):
+    """Check the rests (chunk by chunk) and align on the first one: ``C_b_n`` at the start."""
+    end = int(np.argmax(moving))
+    rest = ([], [], [])
+    for a, t, th, dv, dt in _blocks_with_dt(path, rows, where, period):
+        sanity.check_rests(dv, dt, moving[a:a + len(t)], profile.vrw,
+                           f"{where}, samples {a}-{a + len(t) - 1}")
+        if a < end:
+            for part, x in zip(rest, (th, dv, dt)):
+                part.append(x[:end - a])
+    th, dv, dt = (np.concatenate(p) for p in rest)
+    if dt.sum() < MIN_ALIGN_S:
+        raise CalibError(f"the first rest lasts {dt.sum():.1f} s, too short to align "
+                         f"(needs >= {MIN_ALIGN_S:.0f} s)", where,
+                         "start the run with the IMU at rest")
+    sanity.check_latitude(latitude_rad, where)
+    sanity.check_rest_rate(th, dt, slice(None), where)
+    sanity.check_gravity(dv, dt, slice(None), gravity_mps2, where)
+    return coarse_alignment(th, dv, dt)
+
+
+def calibrate_file(path, latitude_rad: float, gravity_mps2: float, profile: NoiseProfile,
+                   extras: Extras = NO_EXTRAS, partial: bool = False,
+                   requirements: Requirements = PAPER, rows: int = READ_ROWS,
+                   max_iterations: int = 12, tol_sigma: float = 1e-3):
+    """:func:`calib.estimator.calibrate` of a run log read from disk chunk by chunk.
+
+    Returns the same :class:`calib.estimator.Fit`; the estimates equal those
+    of the in-memory path (the same passes over the same samples).
+    """
+    where = str(path)
+    moving, t_start, period = survey(path, profile, rows, where)
+    C0 = _first_rest(path, moving, rows, where, nominal_period(read_meta(path), where),
+                     latitude_rad, gravity_mps2, profile)
+    grid = default_grid(moving, 1.0 / period)
+    del moving
+    site, cuts = Site(latitude_rad, gravity_mps2, t_start), chunk_cuts(grid)
+    return fit_intervals(lambda: aligned(read_chunks(path, rows), cuts, t_start), grid, site, C0,
+                         profile, extras=extras, partial=partial, requirements=requirements,
+                         max_iterations=max_iterations, tol_sigma=tol_sigma, where=where)
