@@ -20,7 +20,7 @@ import numpy as np
 
 import calib  # noqa: F401  (BLAS threads)
 from calib import params as P
-from calib.extras import GROUP_NAMES, ExtraValues, Extras
+from calib.extras import GROUP_NAMES, Extras, ExtraValues
 from calib.profiles import load_profile
 from calib.sequence import load_sequence
 from seqdesign.montecarlo import run_trials

@@ -40,7 +40,8 @@ def main() -> None:
           f"seed {args.seed}: converged {fit.converged} in {fit.iterations} iterations, "
           f"chi2/dof {fit.chi2_per_dof:.3f}")
     print()
-    print("| param | unit | paper's error (Table 2) | our error | our sigma | requirement | 3 sigma meets it |")
+    print("| param | unit | paper's error (Table 2) | our error | our sigma | requirement "
+          "| 3 sigma meets it |")
     print("|---|---|---|---|---|---|---|")
     for p in P.PARAMETERS:
         i = p.index

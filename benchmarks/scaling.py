@@ -53,7 +53,8 @@ def timed(cmd: list[str], cwd: Path) -> dict:
     def field(name):
         return re.search(rf"{name}: (.*)", out.stderr).group(1).strip()
 
-    h, m, s = ([0] + [float(x) for x in field(r"Elapsed \(wall clock\) time \(h:mm:ss or m:ss\)").split(":")])[-3:]
+    elapsed = field(r"Elapsed \(wall clock\) time \(h:mm:ss or m:ss\)")
+    h, m, s = ([0] + [float(x) for x in elapsed.split(":")])[-3:]
     return {"wall_s": 3600 * h + 60 * m + s,
             "cpu_s": float(field("User time \\(seconds\\)")) + float(field("System time \\(seconds\\)")),
             "rss_mb": int(field("Maximum resident set size \\(kbytes\\)")) / 1024.0}

@@ -27,8 +27,9 @@ import numpy as np
 
 from . import sanity
 from .errors import CalibError
-from .estimator import (MIN_ALIGN_S, MOTION_THRESHOLD, _grow, coarse_alignment, fit_intervals)
-from .extras import NONE as NO_EXTRAS, Extras
+from .estimator import MIN_ALIGN_S, MOTION_THRESHOLD, _grow, coarse_alignment, fit_intervals
+from .extras import NONE as NO_EXTRAS
+from .extras import Extras
 from .jacobian import default_grid
 from .profiles import NoiseProfile
 from .requirements import PAPER, Requirements

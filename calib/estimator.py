@@ -17,21 +17,26 @@ and :func:`fit_intervals` navigates only while a step can still matter.
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import earth
+from . import earth, sanity
+from . import extras as X
 from . import params as P
-from . import sanity
 from .errormodel import ErrorModel
 from .errors import CalibError
-from . import extras as X
 from .extras import Extras
 from .information import UNKNOWN_NAMES, ScaledInverse, eliminate, scaled_inverse
-from .jacobian import (N_UNKNOWN, PHI0, default_grid, observation_jacobian, observation_matrix,
-                       sensitivities, state_matrix)
+from .jacobian import (
+    N_UNKNOWN,
+    PHI0,
+    default_grid,
+    observation_jacobian,
+    observation_matrix,
+    sensitivities,
+    state_matrix,
+)
 from .noise import noise_model, whiten
 from .profiles import NoiseProfile
 from .requirements import PAPER, Requirements

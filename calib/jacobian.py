@@ -39,7 +39,8 @@ import numpy as np
 
 from . import earth
 from . import params as P
-from .extras import NONE as NO_EXTRAS, Extras, dv_sensitivity, earth_turn
+from .extras import NONE as NO_EXTRAS
+from .extras import Extras, dv_sensitivity, earth_turn
 from .transform import skew
 
 N_UNKNOWN = P.N_PARAMS + 3  # the 21 parameters and the initial attitude error phi0

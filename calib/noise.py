@@ -107,7 +107,8 @@ def _gm_interval_nav(A_bytes: bytes, T: float, profile: NoiseProfile) -> tuple[n
 
 def _rotations(C: np.ndarray) -> np.ndarray:
     """Nearest rotation matrices (polar factor): a mid-point average of two attitudes
-    is not exactly orthogonal, and the frame change above needs ``C^-1 = C'``."""
+    is not exactly orthogonal, and the frame change above needs ``C^-1 = C'``.
+    """
     U, _, Vt = np.linalg.svd(C)
     R = U @ Vt
     flip = np.linalg.det(R) < 0

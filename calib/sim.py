@@ -22,7 +22,6 @@ from .errormodel import ErrorModel
 from .extras import ExtraValues
 from .gaussmarkov import gauss_markov
 from .profiles import NoiseProfile
-
 from .sequence import Sequence, Timeline, timeline
 from .transform import rotvec_to_dcm
 

@@ -61,6 +61,7 @@ def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def rotvec_to_quat(phi: np.ndarray) -> np.ndarray:
+    """Unit quaternions ``(..., 4)``, scalar first, of rotation vectors ``(..., 3)``."""
     angle = np.sqrt(np.einsum("...i,...i->...", phi, phi))
     # sin(a/2)/a written with numpy's sinc to stay exact at a = 0.
     k = 0.5 * np.sinc(angle / (2.0 * np.pi))
@@ -68,6 +69,7 @@ def rotvec_to_quat(phi: np.ndarray) -> np.ndarray:
 
 
 def quat_to_dcm(q: np.ndarray) -> np.ndarray:
+    """Direction cosines of quaternions ``(..., 4)`` (normalised first)."""
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     w, x, y, z = np.moveaxis(q, -1, 0)
     return np.stack([

@@ -181,6 +181,7 @@ class _Carry:
 
 
 def dcm_rotvec(C: np.ndarray) -> np.ndarray:
+    """Rotation vectors of direction-cosine matrices."""
     return dcm_to_rotvec(C)
 
 
@@ -204,7 +205,10 @@ def _compensate(ch: Chunk, dt, model: ErrorModel, extras: Extras, extra_values, 
 
 
 def dcm(q: np.ndarray) -> np.ndarray:
-    """Direction cosines of ``(n, 4)`` quaternions, normalising them (as :func:`calib.strapdown.quat_to_dcm`)."""
+    """Direction cosines of ``(n, 4)`` quaternions, normalised first.
+
+    As :func:`calib.strapdown.quat_to_dcm`, for one array without broadcasting.
+    """
     w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
     s = 2.0 / np.einsum("ni,ni->n", q, q)
     out = np.empty((len(q), 3, 3))

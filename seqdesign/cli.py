@@ -14,7 +14,6 @@ import click
 import numpy as np
 
 from calib.errors import CalibError
-
 from seqdesign.clitools import emit_json, guarded, info, provenance, tool_version
 
 
@@ -38,7 +37,8 @@ class _Group(click.Group):
 @click.version_option(tool_version(), prog_name="seqdesign")
 def main():
     """Self-calibration of a three-axis hybrid INS: design, analyse, simulate,
-    calibrate and view multi-position sequences (21 IMU error parameters)."""
+    calibrate and view multi-position sequences (21 IMU error parameters).
+    """
 
 
 # ---------------------------------------------------------------------------
@@ -54,7 +54,8 @@ def main():
 def show(sequence, gimbal_file, as_json):
     """Print where body X, Y, Z point at every rest position of SEQUENCE (a
     file or a shipped name such as paper-9pos), its gimbal angles (outer,
-    middle, inner; continuous along the run) and its start and end times."""
+    middle, inner; continuous along the run) and its start and end times.
+    """
     from calib.gimbal import load_gimbal, plan_sequence
     from calib.sequence import load_sequence, rest_positions
     from seqdesign.cli_gimbal import LOCK_NOTE, gimbal_summary
@@ -138,13 +139,15 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
              extra_text, as_json, gimbal_file=None):
     """Simulate the IMU increments of SEQUENCE on a stationary base with exact
     kinematics, the 21 errors and white noise; write the run log (-o) and its
-    truth file beside it (run.truth.toml)."""
+    truth file beside it (run.truth.toml).
+    """
     from calib.errormodel import ErrorModel
+    from calib.extras import parse_values
     from calib.profiles import load_profile
     from calib.runlog import write_run
     from calib.sequence import load_sequence
-    from calib.extras import parse_values
-    from calib.sim import SimConfig, simulate as run_simulation
+    from calib.sim import SimConfig
+    from calib.sim import simulate as run_simulation
     from calib.truth import read_errors, truth_path_for, write_truth
     from seqdesign.analysis import resolve_site
 
@@ -227,7 +230,8 @@ def simulate(sequence, output, profile, errors_file, table2, setup_deg, random_s
 def calibrate(run_path, sequence, profile, output, truth_path, latitude, height, allow_gaps,
               with_terms, requirements, gravity_mps2, partial, as_json):
     """Align, navigate on the stationary base and fit the 21 error parameters of
-    RUN (CSV, NPZ or PSINS .imu) by iterated, noise-weighted least squares."""
+    RUN (CSV, NPZ or PSINS .imu) by iterated, noise-weighted least squares.
+    """
     from calib.calibration import as_extras, as_profile, calibrate_run
     from calib.runlog import read_run
     from calib.sequence import load_sequence
@@ -289,7 +293,8 @@ def analyze(sequence, profile, latitude, tolerance_deg, requirements, view_path,
     """Fisher information of SEQUENCE under a noise profile: predicted sigma of
     each parameter against its requirement (3 sigma / requirement), which
     parameters are estimable, correlated pairs, unobservable directions,
-    worst case over the +-tolerance mounting box."""
+    worst case over the +-tolerance mounting box.
+    """
     from seqdesign.analysis import analyze as run_analysis
 
     if view_path and Path(view_path).suffix != ".rrd":
@@ -324,11 +329,13 @@ def compare(sequences, profile, latitude, tolerance_deg, requirements, as_json):
 
     Given two calibration results (result TOML files) instead, put them side by
     side: each difference against the combined sigma, and a chi-square
-    over all of them (the repeatability check of the paper's Table 3)."""
+    over all of them (the repeatability check of the paper's Table 3).
+    """
     from calib.calibration import as_profile
     from calib.filekind import kind_of
     from calib.requirements import load_requirements
-    from seqdesign.analysis import analyze as run_analysis, compare_text
+    from seqdesign.analysis import analyze as run_analysis
+    from seqdesign.analysis import compare_text
 
     kinds = {kind_of(s) for s in sequences}
     if "result" in kinds:
@@ -396,7 +403,8 @@ def design(budget_min, max_flips, max_quarters, start, end, axes, rate_dps, min_
     """Search flip walks on the graph of the 24 grid attitudes (beam search with
     incremental information), re-score the finalists exactly at the worst
     case of the mounting tolerance, refine the best's dwells with IPOPT, and
-    write it as a sequence file with its provenance."""
+    write it as a sequence file with its provenance.
+    """
     from calib.fileio import check_writable_dir
     from seqdesign.design import design_steps
     from seqdesign.designs import design_budgets

@@ -35,7 +35,8 @@ from .clitools import emit_json, guarded, info, provenance
 def simulate_stream(sequence, output, profile, errors_file, table2, setup_deg, seed, latitude,
                     height, gravity_mps2, sample_rate_hz, noise_free, as_json):
     """Simulate SEQUENCE like `seqdesign simulate`, writing the run log (-o) a time window
-    at a time so that hours at kHz rates fit in memory; the truth file goes beside it."""
+    at a time so that hours at kHz rates fit in memory; the truth file goes beside it.
+    """
     from calib.errormodel import ErrorModel
     from calib.profiles import load_profile
     from calib.sequence import load_sequence
@@ -99,9 +100,9 @@ def simulate_stream(sequence, output, profile, errors_file, table2, setup_deg, s
 @guarded
 def calibrate_stream(run_path, profile, output, with_terms, requirements, partial, as_json):
     """Fit RUN (CSV or NPZ) as `seqdesign calibrate` does, reading it a chunk at a time:
-    memory stays at one chunk plus one byte per sample, whatever the length of the log."""
-    from calib.calibration import (as_extras, as_profile, load_requirements, result_from_fit,
-                                   site_gravity)
+    memory stays at one chunk plus one byte per sample, whatever the length of the log.
+    """
+    from calib.calibration import as_extras, as_profile, load_requirements, result_from_fit, site_gravity
     from calib.chunks import calibrate_file, read_meta
     from calib.runlog import Run
     from calib.truth import read_truth, truth_path_for

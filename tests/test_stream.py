@@ -8,9 +8,8 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from calib import earth
+from calib import earth, stream
 from calib import extras as X
-from calib import stream
 from calib.errormodel import ErrorModel
 from calib.estimator import calibrate, coarse_alignment, detect_motion
 from calib.jacobian import default_grid, extra_inputs, sample_layout, trajectory_moments
