@@ -198,6 +198,31 @@ def encoder_angles(seq: Sequence, time_s: np.ndarray, gimbal=None, played: Seque
     return np.degrees(angles) + 0.0  # no negative zeros
 
 
+def add_noise(dtheta: np.ndarray, dv: np.ndarray, dt: np.ndarray, profile: NoiseProfile,
+              rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """The profile's white noise and any Gauss-Markov bias instability, added to increments."""
+    if profile.has_gauss_markov:
+        # Bias instability: a stationary first-order Gauss-Markov bias, constant over a sample.
+        dtheta = dtheta + gauss_markov(len(dt), dt, profile.gyro_gm_sigma,
+                                       profile.gyro_bias_correlation_s, rng) * dt[:, None]
+        dv = dv + gauss_markov(len(dt), dt, profile.accel_gm_sigma,
+                               profile.accel_bias_correlation_s, rng) * dt[:, None]
+    sq = np.sqrt(dt)[:, None]
+    dtheta = dtheta + profile.arw * sq * rng.standard_normal(dtheta.shape)
+    dv = dv + profile.vrw * sq * rng.standard_normal(dv.shape)
+    return dtheta, dv
+
+
+def _run_meta(cfg: SimConfig, sequence_name: str) -> dict:
+    """The run log's metadata for a simulated site."""
+    meta = {"format": "imu-run/1", "latitude_deg": repr(math.degrees(cfg.latitude_rad)),
+            "height_m": repr(cfg.height_m), "sample_rate_hz": repr(cfg.sample_rate_hz)}
+    if cfg.gravity_mps2 is not None:
+        meta["gravity_mps2"] = repr(cfg.gravity_mps2)
+    meta["sequence"] = sequence_name
+    return meta
+
+
 def simulate(seq: Sequence, cfg: SimConfig, errors: ErrorModel, profile: NoiseProfile,
              setup_rotvec=(0.0, 0.0, 0.0), flip_error_deg: float = 0.0,
              noise: bool = True, seed: int | None = None,
@@ -255,28 +280,11 @@ def simulate(seq: Sequence, cfg: SimConfig, errors: ErrorModel, profile: NoisePr
     dtheta_m, _ = errors.apply(dtheta, dv, dt)
     dv = X.apply(extra, dtheta, dv, dt, lambda x: errors.apply(dtheta, x, dt)[1])
     dtheta = dtheta_m
-    if noise and profile.has_gauss_markov:
-        # Bias instability: a stationary first-order Gauss-Markov bias, constant over a sample.
-        dtheta = dtheta + gauss_markov(len(dt), dt, profile.gyro_gm_sigma,
-                                       profile.gyro_bias_correlation_s, rng) * dt[:, None]
-        dv = dv + gauss_markov(len(dt), dt, profile.accel_gm_sigma,
-                               profile.accel_bias_correlation_s, rng) * dt[:, None]
     if noise:
-        sq = np.sqrt(dt)[:, None]
-        dtheta = dtheta + profile.arw * sq * rng.standard_normal(dtheta.shape)
-        dv = dv + profile.vrw * sq * rng.standard_normal(dv.shape)
-    meta = {
-        "format": "imu-run/1",
-        "latitude_deg": repr(math.degrees(cfg.latitude_rad)),
-        "height_m": repr(cfg.height_m),
-        "sample_rate_hz": repr(cfg.sample_rate_hz),
-    }
-    if cfg.gravity_mps2 is not None:
-        meta["gravity_mps2"] = repr(cfg.gravity_mps2)
-    meta["sequence"] = seq.name
+        dtheta, dv = add_noise(dtheta, dv, dt, profile, rng)
     from . import runlog
-    run = runlog.Run(time_s=time_s, dtheta_rad=dtheta, dv_mps=dv, meta=meta,
-              gimbal_deg=encoder_angles(seq, time_s, gimbal, played=real))
+    run = runlog.Run(time_s=time_s, dtheta_rad=dtheta, dv_mps=dv, meta=_run_meta(cfg, seq.name),
+                     gimbal_deg=encoder_angles(seq, time_s, gimbal, played=real))
     truth = Truth(errors=errors, setup_rotvec=setup_rotvec, flip_errors_deg=flip_errors,
                   profile=profile.name, seed=seed, noise=noise,
                   extra=extra if extra.active else None)
