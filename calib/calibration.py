@@ -126,7 +126,7 @@ def calibrate_run(run, profile: NoiseProfile | str = "navigation", *, sequence=N
                                moving, dt, run.source)
     fit = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, lat, gravity.value_mps2, prof,
                     moving=moving, where=run.source, extras=extras, partial=partial,
-                    requirements=req)
+                    requirements=req, sequence=sequence)
     if require_convergence and not fit.converged:
         raise CalibError(f"the fit did not converge in {fit.iterations} iterations (last step "
                          f"{fit.history[-1]['max_step_sigma']:.3g} sigma)", run.source,
