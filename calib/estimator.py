@@ -462,10 +462,15 @@ def _fit_renavigating(pb: "_Problem", C0: np.ndarray, extras: Extras, partial: b
         if step < tol_sigma:
             converged = True
             break
-    # Residual in m/s of the velocity changes after the last correction.
+    return _fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, converged, extras)
+
+
+def _fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, converged,
+                extras) -> Fit:
+    """The :class:`Fit` both loops end with; the residual is after the last correction (m/s)."""
     z_fit = z - np.einsum("kin,n->ki", H, delta)
-    return Fit(values=values, C_b_n0=C0, covariance=cov, converged=converged, iterations=it,
-               residual_rms_mps=float(np.sqrt(np.mean(z_fit ** 2))),
+    return Fit(values=values, C_b_n0=C0, covariance=cov, converged=converged,
+               iterations=len(history), residual_rms_mps=float(np.sqrt(np.mean(z_fit ** 2))),
                chi2_per_dof=history[-1]["chi2_per_dof"], n_observations=int(z.size),
                history=history, extras=extras, extra_values=extra_values,
                estimable=sol.estimable, null_directions=sol.null_directions)
@@ -578,12 +583,7 @@ def fit_intervals(chunks, grid, site: Site, C0: np.ndarray, profile: NoiseProfil
         if step < tol_sigma or bound < tol_sigma:
             converged = True
             break
-    z_fit = z - np.einsum("kin,n->ki", H, delta)
-    return Fit(values=values, C_b_n0=C0, covariance=cov, converged=converged, iterations=it,
-               residual_rms_mps=float(np.sqrt(np.mean(z_fit ** 2))),
-               chi2_per_dof=history[-1]["chi2_per_dof"], n_observations=int(z.size),
-               history=history, extras=extras, extra_values=extra_values,
-               estimable=sol.estimable, null_directions=sol.null_directions)
+    return _fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, converged, extras)
 
 
 def _observations(y: np.ndarray, Phi_vv: np.ndarray, it: int, where: str) -> np.ndarray:

@@ -37,19 +37,38 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
         If the file cannot be written (missing directory, no permission,
         disk full, ...).
     """
+    def write(tmp_name: str) -> None:
+        with open(tmp_name, "wb") as handle:
+            handle.write(data)
+            handle.flush()
+            os.fsync(handle.fileno())
+
+    atomic_write_with(path, write)
+
+
+def atomic_write_with(path: str | os.PathLike, write):
+    """Let ``write(tmp_path)`` produce the file, then put it at ``path`` in one step.
+
+    The temporary file lies in the same directory (the rename stays on one
+    file system); on any exception, including ``KeyboardInterrupt``, it is
+    removed and an existing ``path`` keeps its old content. For writers that
+    stream (a long simulated run) as well as for :func:`atomic_write_bytes`.
+
+    Returns
+    -------
+    object
+        What ``write`` returned.
+    """
     target = Path(path)
     directory = target.parent
     try:
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp",
-                                        dir=directory)
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
+        os.close(fd)
     except OSError as exc:
         raise CalibError(f"cannot write the file: {exc.strerror or exc}", str(target),
                          "check that the directory exists and is writable") from exc
     try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-            handle.flush()
-            os.fsync(handle.fileno())
+        out = write(tmp_name)
         # mkstemp creates the file private (0600); give it the permissions an
         # ordinary open() would, so results can be shared like any other file.
         os.chmod(tmp_name, default_mode(target))
@@ -61,6 +80,7 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
                              "check free disk space and permissions") from exc
         raise
     _fsync_directory(directory)
+    return out
 
 
 def atomic_write_text(path: str | os.PathLike, text: str) -> None:

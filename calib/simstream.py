@@ -19,7 +19,6 @@ terms of :mod:`calib.extras`, flip errors and the gimbal encoder columns.
 from __future__ import annotations
 
 import math
-import os
 import tempfile
 import zipfile
 from pathlib import Path
@@ -28,7 +27,7 @@ import numpy as np
 
 from .errormodel import ErrorModel
 from .errors import CalibError
-from .fileio import default_mode, remove_quietly
+from .fileio import atomic_write_with
 from .profiles import NoiseProfile
 from .sequence import Sequence, timeline
 from .sim import SimConfig, Truth, true_increments
@@ -145,18 +144,8 @@ def simulate_to_file(path, seq: Sequence, cfg: SimConfig, errors: ErrorModel,
         raise CalibError(f"unknown run format {target.suffix!r}", str(path), "name the file .csv or .npz")
     meta = run_meta(seq, cfg) | (meta_extra or {})
     windows = sample_windows(seq, cfg, errors, profile, setup_rotvec, noise, seed, window)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    os.close(fd)
-    try:
-        n = (_write_npz if kind == ".npz" else _write_csv)(windows, meta, Path(tmp))
-        os.chmod(tmp, default_mode(target))
-        os.replace(tmp, target)
-    except BaseException as exc:
-        remove_quietly(tmp)
-        if isinstance(exc, OSError):
-            raise CalibError(f"cannot write the file: {exc.strerror or exc}", str(target),
-                             "check free disk space and permissions") from exc
-        raise
+    writer = _write_npz if kind == ".npz" else _write_csv
+    n = atomic_write_with(target, lambda tmp: writer(windows, meta, Path(tmp)))
     truth = Truth(errors=errors, setup_rotvec=np.asarray(setup_rotvec, dtype=float),
                   flip_errors_deg=np.zeros(len(seq.steps)), profile=profile.name, seed=seed,
                   noise=noise)
