@@ -39,6 +39,7 @@ from calib.sequence import Sequence, Step, Timeline, nominal_attitude
 from calib.sim import body_integrals
 from calib.transform import AXES
 
+from .gmsearch import SegmentColumns, fold, noise_blocks, stack, start_state, take
 from .graph import Move, Node, apply_move, attitude_of, flip_graph, moves as all_moves
 
 SEARCH_REST_INTERVALS = 12  # per rest, whatever its length: smooth in the dwell for IPOPT
@@ -65,10 +66,9 @@ def _segment_timeline(C: np.ndarray, duration: float, rate: float = 0.0, axis: i
                     step=np.array([-1]), C_end=C)
 
 
-def segment_effect(C: np.ndarray, duration: float, rate: float, axis: int, latitude_rad: float,
-                   gravity_mps2: float, profile: NoiseProfile, P0: np.ndarray | None,
-                   n_intervals: int | None = None, initial: bool = False) -> SegmentEffect:
-    """The segment matrices of one rest (``rate == 0``) or turn, by running the model on basis columns."""
+def _segment_inputs(C: np.ndarray, duration: float, rate: float, axis: int, latitude_rad: float,
+                    gravity_mps2: float, profile: NoiseProfile, n_intervals: int | None):
+    """Model inputs (K, 6, 24), interval lengths and (with GM) mid-interval attitudes."""
     tl = _segment_timeline(C, duration, rate, axis)
     if n_intervals is None:
         n_intervals = max(1, int(round(duration / SEARCH_MOVE_STEP_S)))
@@ -86,6 +86,32 @@ def segment_effect(C: np.ndarray, duration: float, rate: float, axis: int, latit
     if profile.has_gauss_markov:  # bias-instability weights follow each interval's attitude
         b = grid.bounds
         C_mid = nominal_attitude(tl, t_nav)[(b[:-1] + b[1:]) // 2]
+    return inputs, T, C_mid
+
+
+def segment_columns(C: np.ndarray, duration: float, rate: float, axis: int, latitude_rad: float,
+                    gravity_mps2: float, profile: NoiseProfile,
+                    n_intervals: int | None = None) -> SegmentColumns:
+    """A segment's unwhitened observation columns and noise blocks (exact GM search)."""
+    inputs, T, C_mid = _segment_inputs(C, duration, rate, axis, latitude_rad, gravity_mps2,
+                                       profile, n_intervals)
+    A6 = state_matrix(latitude_rad, gravity_mps2)
+    Phi_vv = np.array([m.Phi[3:6, 3:6] for m in interval_models(A6, T, profile, C_mid)])
+    S0 = np.zeros((6, 6 + N_UNKNOWN))
+    S0[:, :6] = np.eye(6)
+    all_inputs = np.zeros((len(T), 6, 6 + N_UNKNOWN))
+    all_inputs[:, :, 6:] = inputs
+    S_v, S_end = propagate(all_inputs, T, S0, latitude_rad, gravity_mps2, return_final=True)
+    H = observation_matrix(S_v, Phi_vv)
+    return SegmentColumns(H, S_end[:, :6], S_end[:, 6:], *noise_blocks(A6, T, profile, C_mid))
+
+
+def segment_effect(C: np.ndarray, duration: float, rate: float, axis: int, latitude_rad: float,
+                   gravity_mps2: float, profile: NoiseProfile, P0: np.ndarray | None,
+                   n_intervals: int | None = None, initial: bool = False) -> SegmentEffect:
+    """The segment matrices of one rest (``rate == 0``) or turn, by running the model on basis columns."""
+    inputs, T, C_mid = _segment_inputs(C, duration, rate, axis, latitude_rad, gravity_mps2,
+                                       profile, n_intervals)
     noise = noise_model(state_matrix(latitude_rad, gravity_mps2), T, profile, P0, C_mid)
     # Columns: 6 + s homogeneous (unit S, unit filter state, no input; s = 3, or 9 with
     # Gauss-Markov biases), then the 24 unknowns' particular responses (zero start, this
@@ -128,6 +154,12 @@ def rest_steady_state(latitude_rad: float, gravity_mps2: float, profile: NoisePr
     C = np.broadcast_to(np.eye(3), (len(T), 3, 3)) if profile.has_gauss_markov else None
     return whitener(interval_models(state_matrix(latitude_rad, gravity_mps2), T, profile,
                                     C)).P_end
+
+
+def gm_start_covariance(profile: NoiseProfile) -> np.ndarray:
+    """Filter covariance at a run's start with GM biases: phi zero (an unknown of the fit),
+    the biases at their stationary ``sigma^2 I`` (as :func:`calib.noise.whitener`)."""
+    return np.diag(np.repeat([0.0, profile.gyro_gm_sigma ** 2, profile.accel_gm_sigma ** 2], 3))
 
 
 def start_covariance(P_nav: np.ndarray, C_b_n: np.ndarray) -> np.ndarray:
@@ -207,6 +239,7 @@ class Candidate:
     N: np.ndarray
     time_s: float
     score: float = math.inf
+    P: np.ndarray | None = None  # filter covariance (exact-noise search only)
 
 
 @dataclass
@@ -224,12 +257,15 @@ class SearchModel:
     rest: dict
     turn: dict = field(default_factory=dict)
     requirements: Requirements = PAPER
+    exact_noise: bool = False  # GM: each candidate carries its filter covariance (gmsearch)
 
     @classmethod
     def build(cls, c: Constraints, dwell_s: float, latitude_rad: float, height_m: float,
               profile: NoiseProfile, requirements: Requirements = PAPER) -> "SearchModel":
         g = earth.gravity(latitude_rad, height_m)
         graph = flip_graph(c.start, c.axes)
+        if profile.has_gauss_markov:
+            return cls._build_exact(c, dwell_s, latitude_rad, g, profile, requirements, graph)
         P_ss = rest_steady_state(latitude_rad, g, profile, dwell_s)
         rest = {node: segment_effect(attitude_of(node), dwell_s, 0.0, -1, latitude_rad, g, profile,
                                      start_covariance(P_ss, attitude_of(node)),
@@ -247,11 +283,31 @@ class SearchModel:
                     latitude_rad, g, profile, start_covariance(P_ss, C))
         return model
 
+    @classmethod
+    def _build_exact(cls, c, dwell_s, latitude_rad, g, profile, requirements, graph):
+        rest = {node: segment_columns(attitude_of(node), dwell_s, 0.0, -1, latitude_rad, g,
+                                      profile, SEARCH_REST_INTERVALS) for node in graph.nodes}
+        model = cls(c, dwell_s, latitude_rad, g, profile, graph,
+                    all_moves(c.axes, c.max_quarters), rest[tuple(c.start)], rest,
+                    requirements=requirements, exact_noise=True)
+        rate = math.radians(c.rate_dps)
+        for node in graph.nodes:
+            for mv in model.moves:
+                model.turn[(node, mv)] = segment_columns(
+                    attitude_of(node), abs(mv.angle_deg) / c.rate_dps, mv.sign * rate,
+                    AXES.index(mv.axis), latitude_rad, g, profile)
+        return model
+
     def turn_time(self, mv: Move) -> float:
         return abs(mv.angle_deg) / self.constraints.rate_dps
 
     def start_candidate(self) -> Candidate:
         """After the initial rest (its effect already holds the run's start state)."""
+        if self.exact_noise:
+            X, N, P0 = start_state(gm_start_covariance(self.profile), N_UNKNOWN)
+            X, N, P0 = fold(self.initial, X[None], N[None], P0[None])
+            return Candidate(walk=(), node=tuple(self.constraints.start), X=X[0], N=N[0],
+                             time_s=self.dwell_s, P=P0[0])
         e = self.initial
         return Candidate(walk=(), node=tuple(self.constraints.start), X=e.B.copy(), N=e.M3.copy(),
                          time_s=self.dwell_s)
@@ -260,7 +316,7 @@ class SearchModel:
                prior: bool = True) -> list[Candidate]:
         """All feasible children of ``parents``, scored (batched)."""
         c = self.constraints
-        kids, effs = [], []
+        kids, effs, keys = [], [], []
         for par in parents:
             if len(par.walk) >= c.max_flips:
                 continue
@@ -269,10 +325,15 @@ class SearchModel:
                 if t > c.budget_s + 1e-9:
                     continue
                 end = apply_move(self.graph, par.node, mv)
-                kids.append(Candidate(par.walk + (mv,), end, par.X, par.N, t))
-                effs.append((self.turn[(par.node, mv)], self.rest[end]))
+                kids.append(Candidate(par.walk + (mv,), end, par.X, par.N, t, P=par.P))
+                keys.append((par.node, mv))
+                if not self.exact_noise:
+                    effs.append((self.turn[(par.node, mv)], self.rest[end]))
         if not kids:
             return []
+        if self.exact_noise:
+            return self._fold_exact(kids, [(par_node, mv) for par_node, mv in keys], objective,
+                                    prior)
         X = np.stack([k.X for k in kids])
         N = np.stack([k.N for k in kids])
         for part in (0, 1):
@@ -288,6 +349,40 @@ class SearchModel:
         for k, x, n, v in zip(kids, X, N, s):
             k.X, k.N, k.score = x, n, float(v)
         return kids
+
+    def _fold_exact(self, kids, keys, objective, prior):
+        """Fold each kid's turn and rest with its own filter covariance.
+
+        Kids are batched by move (equal interval counts), each with its own
+        start node's columns; all rests have the same count and fold at once.
+        """
+        X = np.stack([k.X for k in kids])
+        N = np.stack([k.N for k in kids])
+        P = np.stack([k.P for k in kids])
+        stacks = self._stacks()
+        by_move: dict = {}
+        for i, (node, mv) in enumerate(keys):
+            by_move.setdefault(mv, []).append(i)
+        for mv, idx in by_move.items():
+            nodes = [stacks["index"][keys[i][0]] for i in idx]
+            X[idx], N[idx], P[idx] = fold(take(stacks[mv], nodes), X[idx], N[idx], P[idx])
+        nodes = [stacks["index"][k.node] for k in kids]
+        X, N, P = fold(take(stacks["rest"], nodes), X, N, P)
+        s = score(N, objective, prior, self.requirements)
+        for k, x, n, p, v in zip(kids, X, N, P, s):
+            k.X, k.N, k.P, k.score = x, n, p, float(v)
+        return kids
+
+    def _stacks(self) -> dict:
+        """Per move, and for the rests, every node's columns stacked (built once)."""
+        if "_stacked" not in self.__dict__:
+            nodes = list(self.rest)
+            st = {"index": {n: i for i, n in enumerate(nodes)},
+                  "rest": stack([self.rest[n] for n in nodes])}
+            for mv in self.moves:
+                st[mv] = stack([self.turn[(n, mv)] for n in nodes])
+            self.__dict__["_stacked"] = st
+        return self.__dict__["_stacked"]
 
     def complete(self, cand: Candidate) -> bool:
         return len(cand.walk) > 0 and (self.constraints.end is None
@@ -360,6 +455,8 @@ def walk_information(walk, c: Constraints, dwells, latitude_rad: float, gravity_
     """Search-model information of a walk with individual dwells (smooth in the dwells)."""
     graph = flip_graph(c.start, c.axes)
     node = tuple(c.start)
+    if profile.has_gauss_markov:
+        return _walk_information_exact(walk, c, dwells, latitude_rad, gravity_mps2, profile)
     e = segment_effect(attitude_of(node), dwells[0], 0.0, -1, latitude_rad, gravity_mps2, profile,
                        None, SEARCH_REST_INTERVALS, initial=True)
     X, N = e.B, e.M3
@@ -375,6 +472,32 @@ def walk_information(walk, c: Constraints, dwells, latitude_rad: float, gravity_
             N = N + X.T @ eff.M1 @ X + XM2 + XM2.T + eff.M3
             X = eff.A @ X + eff.B
     return N
+
+
+def _walk_information_exact(walk, c: Constraints, dwells, latitude_rad: float,
+                            gravity_mps2: float, profile: NoiseProfile) -> np.ndarray:
+    """:func:`walk_information` with the filter covariance carried along (GM profiles)."""
+    graph = flip_graph(c.start, c.axes)
+    node = tuple(c.start)
+    X, N, Pc = (a[None] for a in start_state(gm_start_covariance(profile), N_UNKNOWN))
+    rate = math.radians(c.rate_dps)
+    segs = [segment_columns(attitude_of(node), dwells[0], 0.0, -1, latitude_rad, gravity_mps2,
+                            profile, SEARCH_REST_INTERVALS)]
+    for mv, d in zip(walk, dwells[1:]):
+        segs.append(_turn_columns(node, mv, c.rate_dps, rate, latitude_rad, gravity_mps2,
+                                  profile))
+        node = apply_move(graph, node, mv)
+        segs.append(segment_columns(attitude_of(node), d, 0.0, -1, latitude_rad, gravity_mps2,
+                                    profile, SEARCH_REST_INTERVALS))
+    for cols in segs:
+        X, N, Pc = fold(cols, X, N, Pc)
+    return N[0]
+
+
+@functools.lru_cache(maxsize=4096)
+def _turn_columns(node, mv, rate_dps, rate, latitude_rad, gravity_mps2, profile):
+    return segment_columns(attitude_of(node), abs(mv.angle_deg) / rate_dps, mv.sign * rate,
+                           AXES.index(mv.axis), latitude_rad, gravity_mps2, profile)
 
 
 @functools.lru_cache(maxsize=4096)
