@@ -303,10 +303,18 @@ class SequenceModel:
     duration_s: float
     profile: str
 
+    @functools.cached_property
+    def _basis_columns(self) -> np.ndarray:
+        """``Hw_basis`` as a (3K * 21, N_BASIS) matrix: each mounting is then one BLAS
+        matrix-vector product (an einsum over the middle axis was 5x slower)."""
+        n = self.Hw_basis.shape[0]
+        return np.ascontiguousarray(self.Hw_basis.transpose(0, 2, 1)).reshape(n * P.N_PARAMS, -1)
+
     def whitened(self, setup_rotvec) -> np.ndarray:
         """Whitened ``H`` (3K x 24) for one mounting."""
         R = rotvec_to_dcm(np.asarray(setup_rotvec, dtype=float))
-        Hp = np.einsum("nbj,b->nj", self.Hw_basis, basis_weights(R, self.omega_ie_n, self.f_n))
+        w = basis_weights(R, self.omega_ie_n, self.f_n)
+        Hp = (self._basis_columns @ w).reshape(-1, P.N_PARAMS)
         return np.hstack([Hp, self.Hw_phi0])
 
     def information(self, setup_rotvec=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -328,7 +336,7 @@ class SequenceModel:
         e[index] = 1.0
         v = np.linalg.solve(N, e)
         sigma = math.sqrt(max(v[index], 0.0))
-        dvar_dw = -2.0 * np.einsum("n,nbj,j->b", H @ v, self.Hw_basis, v[:P.N_PARAMS])
+        dvar_dw = -2.0 * (np.outer(H @ v, v[:P.N_PARAMS]).ravel() @ self._basis_columns)
         J = basis_weights_jacobian(rotvec, self.omega_ie_n, self.f_n)
         return sigma, (dvar_dw @ J) / (2.0 * sigma)
 

@@ -184,7 +184,8 @@ def test_gm_exhaustive_search_returns_the_brute_force_optimum():
 def test_sigma_gradient_matches_finite_differences():
     # The worst-mounting search's exact gradient (SO(3) left Jacobian through the 63-term
     # basis) against central differences of the analyser's own sigma. Step 1e-5 rad:
-    # truncation ~ h^2 sigma''' ~ 1e-10 relative, rounding ~ 1e-16 / h ~ 1e-11: 1e-5 is ample.
+    # truncation h^2 sigma'''/6 ~ 1e-10 of sigma, ~1e-6 of the largest gradient component;
+    # tolerance 1e-5 of that component.
     from seqdesign.observability import sequence_model
     model = sequence_model(load_sequence("paper-9pos"), PROFILE, LAT)
     theta = np.radians([1.0, -2.0, 2.5])
@@ -194,12 +195,12 @@ def test_sigma_gradient_matches_finite_differences():
         h = 1e-5
         fd = [(model.analyze(theta + h * e).sigma[index]
                - model.analyze(theta - h * e).sigma[index]) / (2 * h) for e in np.eye(3)]
-        assert np.allclose(grad, fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
+        assert np.allclose(grad, fd, rtol=1e-5, atol=1e-5 * np.abs(fd).max())
     # and at the nominal mounting, where the closed form switches to its series
     sigma, grad = model.sigma_gradient(np.zeros(3), 5)
     fd = [(model.analyze(h * e).sigma[5] - model.analyze(-h * e).sigma[5]) / (2 * h)
           for e in np.eye(3)]
-    assert np.allclose(grad, fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
+    assert np.allclose(grad, fd, rtol=1e-5, atol=1e-5 * np.abs(fd).max())
 
 
 @pytest.mark.slow
