@@ -249,3 +249,19 @@ def test_cli_design_refuses_unknown_terms(tmp_path):
                                   str(tmp_path / "x.toml")])
     assert r.exit_code == 2 and "--with" in r.output and "Traceback" not in r.output
     assert not (tmp_path / "x.toml").exists()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name,budget_s,limit", [("designed-15min-gm", 900.0, 1.95),
+                                                 ("designed-30min-gm", 1800.0, 2.26)])
+def test_shipped_gm_designs_beat_the_white_noise_designs_on_the_real_unit(name, budget_s, limit):
+    """Issue 12: under navigation-gm with every extra term fitted (latitude 40 deg, worst over
+    +-3 deg), <= 1.95 within 15 min (target met) and better than designed-30min's 2.26 within
+    30 min (the 1.40 target is missed: see BENCHMARKS.md)."""
+    from calib.extras import GROUP_NAMES, Extras
+    from seqdesign.observability import analyze_extras
+    seq = load_sequence(name)
+    assert seq.duration_s <= budget_s + 1e-6
+    cost = analyze_extras(seq, GM, LAT, Extras(GROUP_NAMES), 0.0, 3.0)
+    assert PAPER.ratio(cost.sigma_with).max() <= limit
+    assert all(v == "observable" for v in cost.verdicts())
