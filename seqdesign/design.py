@@ -548,27 +548,7 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
                              P_ss)
         return 3.0 * np.sqrt(inverse_diagonal(scaled_marginal(N, False, requirements)))
 
-    class _Ratios(ca.Callback):
-        def __init__(self):
-            ca.Callback.__init__(self)
-            self.construct("ratios", {"enable_fd": True, "fd_method": "central"})
-
-        def get_n_in(self):
-            return 1
-
-        def get_n_out(self):
-            return 1
-
-        def get_sparsity_in(self, i):
-            return ca.Sparsity.dense(n, 1)
-
-        def get_sparsity_out(self, i):
-            return ca.Sparsity.dense(P.N_PARAMS, 1)
-
-        def eval(self, arg):
-            return [ratios(np.asarray(arg[0], dtype=float).ravel() * scale)]
-
-    cb = _Ratios()
+    cb = _ratios_callback(ratios, n, scale)
     x = ca.MX.sym("d", n)
     t = ca.MX.sym("t")
     r = cb(x)
@@ -599,6 +579,33 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
     if r1.max() >= r0.max():  # never return worse than the uniform start
         return list(expand(uniform)), float(r0.max()), float(r0.max())
     return [float(round(d, 3)) for d in expand(dw)], float(r0.max()), float(r1.max())
+
+
+def _ratios_callback(ratios, n: int, scale: float):
+    """The 21 ratios as a casadi function of ``n`` scaled dwells (finite differences)."""
+    import casadi as ca
+
+    class _Ratios(ca.Callback):
+        def __init__(self):
+            ca.Callback.__init__(self)
+            self.construct("ratios", {"enable_fd": True, "fd_method": "central"})
+
+        def get_n_in(self):
+            return 1
+
+        def get_n_out(self):
+            return 1
+
+        def get_sparsity_in(self, i):
+            return ca.Sparsity.dense(n, 1)
+
+        def get_sparsity_out(self, i):
+            return ca.Sparsity.dense(P.N_PARAMS, 1)
+
+        def eval(self, arg):
+            return [ratios(np.asarray(arg[0], dtype=float).ravel() * scale)]
+
+    return _Ratios()
 
 
 def uniform_dwell(c: Constraints, n_moves_guess: int, quarters_guess: float = 2.0) -> float:
@@ -810,18 +817,7 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
         return (*_exact_worst(seq, profile, latitude_rad, height_m, tol, search,
                               requirements, extras), seq)
 
-    screened = []  # (worst at the nominal mounting, label, dwells, walk, repeats)
-    for walk, dwell, reps in _candidates(results, c):
-        worst, wname, _, _, _ = exact(walk, [dwell] * (len(walk) + 1), tol=0.0)
-        screened.append((worst, " ".join(m.label() for m in walk), [dwell] * (len(walk) + 1),
-                         walk, reps))
-        if progress:
-            progress(f"screened {len(screened)} ({len(walk)} moves, {dwell:g} s dwells): "
-                     f"{worst:.3f} ({wname}) at the nominal mounting", 1)
-    if not screened:
-        raise CalibError("no walk fits the constraints", "design",
-                         "raise --budget-min or --max-flips, or lower --min-dwell-s")
-    screened.sort(key=lambda f: (f[0], f[1]))
+    screened = _screen(_candidates(results, c), exact, progress)
     pool = []  # the same, worst over the box
     for f in screened[:SCREEN_KEEP]:
         worst, wname, _, _, _ = exact(f[3], f[2])
@@ -845,6 +841,23 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
                         search_seconds=search_seconds,
                         finalists=[(f[1], f[2][-1], f[0]) for f in pool], robustness=rob,
                         extras_cost=cost, repeats=reps)
+
+
+def _screen(candidates, exact, progress) -> list:
+    """Every candidate scored exactly at the nominal mounting, best first:
+    ``(worst, label, dwells, walk, repeats)``."""
+    screened = []
+    for walk, dwell, reps in candidates:
+        worst, wname, _, _, _ = exact(walk, [dwell] * (len(walk) + 1), tol=0.0)
+        screened.append((worst, " ".join(m.label() for m in walk), [dwell] * (len(walk) + 1),
+                         walk, reps))
+        if progress:
+            progress(f"screened {len(screened)} ({len(walk)} moves, {dwell:g} s dwells): "
+                     f"{worst:.3f} ({wname}) at the nominal mounting", 1)
+    if not screened:
+        raise CalibError("no walk fits the constraints", "design",
+                         "raise --budget-min or --max-flips, or lower --min-dwell-s")
+    return sorted(screened, key=lambda f: (f[0], f[1]))
 
 
 def _refined(best, c, latitude_rad, height_m, profile, objective, requirements, exact, progress):

@@ -171,10 +171,8 @@ def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str =
         Candidates kept per depth.
     refine : bool
         Refine the winner's dwells with IPOPT.
-    workers : int
-        Local processes.
-    scheduler : str, optional
-        dask.distributed scheduler address.
+    workers, scheduler : int, str (optional)
+        Local processes; or a dask.distributed scheduler address.
     progress : callable, optional
         ``progress(budget_min, message, steps)`` as the search advances.
     requirements : Requirements or str, optional
