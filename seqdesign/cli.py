@@ -375,8 +375,10 @@ def compare(sequences, profile, latitude, tolerance_deg, requirements, as_json):
 @click.option("--end", default=None, help="Required final attitude (optional), e.g. \"east,up,south\".")
 @click.option("--axes", default="XYZ", show_default=True, help="Body axes the gimbal may turn about.")
 @click.option("--rate-dps", type=float, default=10.0, show_default=True, help="Rotation rate, deg/s.")
-@click.option("--min-dwell-s", type=float, default=30.0, show_default=True)
+@click.option("--min-dwell-s", type=float, default=10.0, show_default=True)
 @click.option("--max-dwell-s", type=float, default=300.0, show_default=True)
+@click.option("--with", "with_terms", default=None, metavar="TERMS",
+              help="Fit these beside the 21 in the objective: lever-arm,k2,time-offset or all.")
 @click.option("--objective", type=click.Choice(["worst", "D", "A", "E"]), default="worst",
               show_default=True, help="worst 3 sigma/requirement, or D-, A-, E-optimal.")
 @click.option("--profile", default="navigation", show_default=True, help="Noise profile.")
@@ -399,7 +401,7 @@ def compare(sequences, profile, latitude, tolerance_deg, requirements, as_json):
 @guarded
 def design(budget_min, max_flips, max_quarters, start, end, axes, rate_dps, min_dwell_s,
            max_dwell_s, objective, profile, latitude, tolerance_deg, requirements, beam_width,
-           no_refine, output, pareto, budgets, workers, scheduler, as_json):
+           no_refine, output, pareto, budgets, workers, scheduler, as_json, with_terms=None):
     """Search flip walks on the graph of the 24 grid attitudes (beam search with
     incremental information), re-score the finalists exactly at the worst
     case of the mounting tolerance, refine the best's dwells with IPOPT, and
@@ -436,7 +438,7 @@ def design(budget_min, max_flips, max_quarters, start, end, axes, rate_dps, min_
                                 objective=objective, tolerance_deg=tolerance_deg,
                                 beam_width=beam_width, refine=not no_refine, workers=workers,
                                 scheduler=scheduler, progress=progress,
-                                requirements=requirements)
+                                requirements=requirements, extras=with_terms)
     finally:
         for bar in bars.values():
             bar.__exit__(None, None, None)

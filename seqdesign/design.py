@@ -28,6 +28,7 @@ import numpy as np
 from calib import earth
 from calib import params as P
 from calib.errors import CalibError
+from calib.extras import NONE as NO_EXTRAS, Extras
 from calib.information import inverse_diagonal, marginal
 from calib.jacobian import (N_UNKNOWN, ObservationGrid, moment_inputs, observation_matrix,
                             propagate, state_matrix, trajectory_moments)
@@ -38,11 +39,15 @@ from calib.sequence import Sequence, Step, Timeline, nominal_attitude
 from calib.sim import body_integrals
 from calib.transform import AXES
 
+from .gmsearch import SegmentColumns, fold, noise_blocks, stack, start_state, take
 from .graph import Move, Node, apply_move, attitude_of, flip_graph, moves as all_moves
 
 SEARCH_REST_INTERVALS = 12  # per rest, whatever its length: smooth in the dwell for IPOPT
 SEARCH_MOVE_STEP_S = 0.5  # observation interval while turning (0.1 s changes sigmas < 0.2 %)
 SEARCH_SUB_DEG = 2.0  # sub-samples while turning
+# With GM each interval costs a Riccati step per candidate; 2 s intervals in turns move the
+# search score of designed-30min by 0.2 % against 0.5 s (measured under navigation-gm).
+SEARCH_GM_MOVE_STEP_S = 1.0
 PRIOR_RATIO = 1e4  # partial walks: a prior of 1e4 x each requirement keeps them rankable
 OBJECTIVES = ("worst", "D", "A", "E")
 
@@ -51,10 +56,10 @@ OBJECTIVES = ("worst", "D", "A", "E")
 class SegmentEffect:
     """Linear action of one segment on the lifted state and the information."""
 
-    A: np.ndarray  # (9, 9)
-    B: np.ndarray  # (9, 24)
-    M1: np.ndarray  # (9, 9)
-    M2: np.ndarray  # (9, 24)
+    A: np.ndarray  # (h, h); h = 6 + filter states (9, or 15 with GM)
+    B: np.ndarray  # (h, 24)
+    M1: np.ndarray  # (h, h)
+    M2: np.ndarray  # (h, 24)
     M3: np.ndarray  # (24, 24)
 
 
@@ -64,10 +69,9 @@ def _segment_timeline(C: np.ndarray, duration: float, rate: float = 0.0, axis: i
                     step=np.array([-1]), C_end=C)
 
 
-def segment_effect(C: np.ndarray, duration: float, rate: float, axis: int, latitude_rad: float,
-                   gravity_mps2: float, profile: NoiseProfile, P0: np.ndarray | None,
-                   n_intervals: int | None = None, initial: bool = False) -> SegmentEffect:
-    """The segment matrices of one rest (``rate == 0``) or turn, by running the model on basis columns."""
+def _segment_inputs(C: np.ndarray, duration: float, rate: float, axis: int, latitude_rad: float,
+                    gravity_mps2: float, profile: NoiseProfile, n_intervals: int | None):
+    """Model inputs (K, 6, 24), interval lengths and (with GM) mid-interval attitudes."""
     tl = _segment_timeline(C, duration, rate, axis)
     if n_intervals is None:
         n_intervals = max(1, int(round(duration / SEARCH_MOVE_STEP_S)))
@@ -81,19 +85,51 @@ def segment_effect(C: np.ndarray, duration: float, rate: float, axis: int, latit
     moments = trajectory_moments(nominal_attitude(tl, t_nav), dtheta, dv, t_nav, grid)
     inputs = moment_inputs(moments, latitude_rad, gravity_mps2)  # (K, 6, 24)
     T = np.diff(t_nav[grid.bounds])
-    noise = noise_model(state_matrix(latitude_rad, gravity_mps2), T, profile, P0)
-    # Columns: 6 + 3 homogeneous (unit S, unit filter state, no input), then the 24 unknowns'
-    # particular responses (zero start, this segment's inputs). The same recursions as the
-    # analyser (propagate, whiten) run on all of them at once.
-    n_hom = 9
+    C_mid = None
+    if profile.has_gauss_markov:  # bias-instability weights follow each interval's attitude
+        b = grid.bounds
+        C_mid = nominal_attitude(tl, t_nav)[(b[:-1] + b[1:]) // 2]
+    return inputs, T, C_mid
+
+
+def segment_columns(C: np.ndarray, duration: float, rate: float, axis: int, latitude_rad: float,
+                    gravity_mps2: float, profile: NoiseProfile,
+                    n_intervals: int | None = None) -> SegmentColumns:
+    """A segment's unwhitened observation columns and noise blocks (exact GM search)."""
+    inputs, T, C_mid = _segment_inputs(C, duration, rate, axis, latitude_rad, gravity_mps2,
+                                       profile, n_intervals)
+    A6 = state_matrix(latitude_rad, gravity_mps2)
+    Phi_vv = np.array([m.Phi[3:6, 3:6] for m in interval_models(A6, T, profile, C_mid)])
+    S0 = np.zeros((6, 6 + N_UNKNOWN))
+    S0[:, :6] = np.eye(6)
+    all_inputs = np.zeros((len(T), 6, 6 + N_UNKNOWN))
+    all_inputs[:, :, 6:] = inputs
+    S_v, S_end = propagate(all_inputs, T, S0, latitude_rad, gravity_mps2, return_final=True)
+    H = observation_matrix(S_v, Phi_vv)
+    return SegmentColumns(H, S_end[:, :6], S_end[:, 6:], *noise_blocks(A6, T, profile, C_mid))
+
+
+def segment_effect(C: np.ndarray, duration: float, rate: float, axis: int, latitude_rad: float,
+                   gravity_mps2: float, profile: NoiseProfile, P0: np.ndarray | None,
+                   n_intervals: int | None = None, initial: bool = False) -> SegmentEffect:
+    """The segment matrices of one rest (``rate == 0``) or turn, by running the model on basis columns."""
+    inputs, T, C_mid = _segment_inputs(C, duration, rate, axis, latitude_rad, gravity_mps2,
+                                       profile, n_intervals)
+    noise = noise_model(state_matrix(latitude_rad, gravity_mps2), T, profile, P0, C_mid)
+    # Columns: 6 + s homogeneous (unit S, unit filter state, no input; s = 3, or 9 with
+    # Gauss-Markov biases), then the 24 unknowns' particular responses (zero start, this
+    # segment's inputs). The same recursions as the analyser (propagate, whiten) run on
+    # all of them at once.
+    n_s = noise.whitener.state_size
+    n_hom = 6 + n_s
     c = n_hom + N_UNKNOWN
     S0 = np.zeros((6, c))
-    phi0 = np.zeros((3, c))
+    phi0 = np.zeros((n_s, c))
     if initial:  # the run's start: S = [I; 0] on phi0, filter state zero, nothing else
         S0[:3, n_hom + P.N_PARAMS:] = np.eye(3)
     else:
         S0[:, :6] = np.eye(6)
-        phi0[:, 6:9] = np.eye(3)
+        phi0[:, 6:n_hom] = np.eye(n_s)
     all_inputs = np.zeros((len(T), 6, c))
     all_inputs[:, :, n_hom:] = inputs
     S_v, S_end = propagate(all_inputs, T, S0, latitude_rad, gravity_mps2, return_final=True)
@@ -109,9 +145,37 @@ def segment_effect(C: np.ndarray, duration: float, rate: float, axis: int, latit
 
 def rest_steady_state(latitude_rad: float, gravity_mps2: float, profile: NoiseProfile,
                       dwell_s: float) -> np.ndarray:
-    """Noise-filter covariance after a long rest observed with the search's rest intervals."""
+    """Noise-filter covariance after a long rest observed with the search's rest intervals.
+
+    With Gauss-Markov biases the filter state is ``[phi, b_g, b_a]`` (body frame); the
+    rest is then taken at the identity attitude, which makes the result the covariance
+    with the biases in the navigation frame: :func:`start_covariance` rotates it into
+    any attitude's body frame (the model is rotation-invariant in that frame, see
+    :func:`calib.noise._gm_interval_nav`).
+    """
     T = np.full(40 * SEARCH_REST_INTERVALS, dwell_s / SEARCH_REST_INTERVALS)
-    return whitener(interval_models(state_matrix(latitude_rad, gravity_mps2), T, profile)).P_end
+    C = np.broadcast_to(np.eye(3), (len(T), 3, 3)) if profile.has_gauss_markov else None
+    return whitener(interval_models(state_matrix(latitude_rad, gravity_mps2), T, profile,
+                                    C)).P_end
+
+
+def gm_start_covariance(profile: NoiseProfile) -> np.ndarray:
+    """Filter covariance at a run's start with GM biases: phi zero (an unknown of the fit),
+    the biases at their stationary ``sigma^2 I`` (as :func:`calib.noise.whitener`)."""
+    return np.diag(np.repeat([0.0, profile.gyro_gm_sigma ** 2, profile.accel_gm_sigma ** 2], 3))
+
+
+def start_covariance(P_nav: np.ndarray, C_b_n: np.ndarray) -> np.ndarray:
+    """The filter covariance a segment starts from at attitude ``C_b_n`` (body-frame biases).
+
+    ``P_nav`` is :func:`rest_steady_state`'s; the attitude error ``phi`` is in the
+    navigation frame already, the biases rotate with ``C_b_n' (.) C_b_n``.
+    """
+    if len(P_nav) == 3:
+        return P_nav
+    R = np.eye(9)
+    R[3:6, 3:6] = R[6:9, 6:9] = C_b_n
+    return R.T @ P_nav @ R
 
 
 # ---------------------------------------------------------------------------
@@ -178,6 +242,7 @@ class Candidate:
     N: np.ndarray
     time_s: float
     score: float = math.inf
+    P: np.ndarray | None = None  # filter covariance (exact-noise search only)
 
 
 @dataclass
@@ -195,15 +260,19 @@ class SearchModel:
     rest: dict
     turn: dict = field(default_factory=dict)
     requirements: Requirements = PAPER
+    exact_noise: bool = False  # GM: each candidate carries its filter covariance (gmsearch)
 
     @classmethod
     def build(cls, c: Constraints, dwell_s: float, latitude_rad: float, height_m: float,
               profile: NoiseProfile, requirements: Requirements = PAPER) -> "SearchModel":
         g = earth.gravity(latitude_rad, height_m)
         graph = flip_graph(c.start, c.axes)
+        if profile.has_gauss_markov:
+            return cls._build_exact(c, dwell_s, latitude_rad, g, profile, requirements, graph)
         P_ss = rest_steady_state(latitude_rad, g, profile, dwell_s)
         rest = {node: segment_effect(attitude_of(node), dwell_s, 0.0, -1, latitude_rad, g, profile,
-                                     P_ss, SEARCH_REST_INTERVALS) for node in graph.nodes}
+                                     start_covariance(P_ss, attitude_of(node)),
+                                     SEARCH_REST_INTERVALS) for node in graph.nodes}
         initial = segment_effect(attitude_of(c.start), dwell_s, 0.0, -1, latitude_rad, g, profile,
                                  None, SEARCH_REST_INTERVALS, initial=True)
         model = cls(c, dwell_s, latitude_rad, g, profile, graph,
@@ -214,7 +283,21 @@ class SearchModel:
             for mv in model.moves:
                 model.turn[(node, mv)] = segment_effect(
                     C, abs(mv.angle_deg) / c.rate_dps, mv.sign * rate, AXES.index(mv.axis),
-                    latitude_rad, g, profile, P_ss)
+                    latitude_rad, g, profile, start_covariance(P_ss, C))
+        return model
+
+    @classmethod
+    def _build_exact(cls, c, dwell_s, latitude_rad, g, profile, requirements, graph):
+        rest = {node: segment_columns(attitude_of(node), dwell_s, 0.0, -1, latitude_rad, g,
+                                      profile, SEARCH_REST_INTERVALS) for node in graph.nodes}
+        model = cls(c, dwell_s, latitude_rad, g, profile, graph,
+                    all_moves(c.axes, c.max_quarters), rest[tuple(c.start)], rest,
+                    requirements=requirements, exact_noise=True)
+        rate = math.radians(c.rate_dps)
+        for node in graph.nodes:
+            for mv in model.moves:
+                model.turn[(node, mv)] = _turn_columns(node, mv, c.rate_dps, rate, latitude_rad,
+                                                       g, profile)
         return model
 
     def turn_time(self, mv: Move) -> float:
@@ -222,6 +305,11 @@ class SearchModel:
 
     def start_candidate(self) -> Candidate:
         """After the initial rest (its effect already holds the run's start state)."""
+        if self.exact_noise:
+            X, N, P0 = start_state(gm_start_covariance(self.profile), N_UNKNOWN)
+            X, N, P0 = fold(self.initial, X[None], N[None], P0[None])
+            return Candidate(walk=(), node=tuple(self.constraints.start), X=X[0], N=N[0],
+                             time_s=self.dwell_s, P=P0[0])
         e = self.initial
         return Candidate(walk=(), node=tuple(self.constraints.start), X=e.B.copy(), N=e.M3.copy(),
                          time_s=self.dwell_s)
@@ -230,7 +318,7 @@ class SearchModel:
                prior: bool = True) -> list[Candidate]:
         """All feasible children of ``parents``, scored (batched)."""
         c = self.constraints
-        kids, effs = [], []
+        kids, effs, keys = [], [], []
         for par in parents:
             if len(par.walk) >= c.max_flips:
                 continue
@@ -239,10 +327,15 @@ class SearchModel:
                 if t > c.budget_s + 1e-9:
                     continue
                 end = apply_move(self.graph, par.node, mv)
-                kids.append(Candidate(par.walk + (mv,), end, par.X, par.N, t))
-                effs.append((self.turn[(par.node, mv)], self.rest[end]))
+                kids.append(Candidate(par.walk + (mv,), end, par.X, par.N, t, P=par.P))
+                keys.append((par.node, mv))
+                if not self.exact_noise:
+                    effs.append((self.turn[(par.node, mv)], self.rest[end]))
         if not kids:
             return []
+        if self.exact_noise:
+            return self._fold_exact(kids, [(par_node, mv) for par_node, mv in keys], objective,
+                                    prior)
         X = np.stack([k.X for k in kids])
         N = np.stack([k.N for k in kids])
         for part in (0, 1):
@@ -258,6 +351,40 @@ class SearchModel:
         for k, x, n, v in zip(kids, X, N, s):
             k.X, k.N, k.score = x, n, float(v)
         return kids
+
+    def _fold_exact(self, kids, keys, objective, prior):
+        """Fold each kid's turn and rest with its own filter covariance.
+
+        Kids are batched by move (equal interval counts), each with its own
+        start node's columns; all rests have the same count and fold at once.
+        """
+        X = np.stack([k.X for k in kids])
+        N = np.stack([k.N for k in kids])
+        P = np.stack([k.P for k in kids])
+        stacks = self._stacks()
+        by_move: dict = {}
+        for i, (node, mv) in enumerate(keys):
+            by_move.setdefault(mv, []).append(i)
+        for mv, idx in by_move.items():
+            nodes = [stacks["index"][keys[i][0]] for i in idx]
+            X[idx], N[idx], P[idx] = fold(take(stacks[mv], nodes), X[idx], N[idx], P[idx])
+        nodes = [stacks["index"][k.node] for k in kids]
+        X, N, P = fold(take(stacks["rest"], nodes), X, N, P)
+        s = score(N, objective, prior, self.requirements)
+        for k, x, n, p, v in zip(kids, X, N, P, s):
+            k.X, k.N, k.P, k.score = x, n, p, float(v)
+        return kids
+
+    def _stacks(self) -> dict:
+        """Per move, and for the rests, every node's columns stacked (built once)."""
+        if "_stacked" not in self.__dict__:
+            nodes = list(self.rest)
+            st = {"index": {n: i for i, n in enumerate(nodes)},
+                  "rest": stack([self.rest[n] for n in nodes])}
+            for mv in self.moves:
+                st[mv] = stack([self.turn[(n, mv)] for n in nodes])
+            self.__dict__["_stacked"] = st
+        return self.__dict__["_stacked"]
 
     def complete(self, cand: Candidate) -> bool:
         return len(cand.walk) > 0 and (self.constraints.end is None
@@ -330,6 +457,8 @@ def walk_information(walk, c: Constraints, dwells, latitude_rad: float, gravity_
     """Search-model information of a walk with individual dwells (smooth in the dwells)."""
     graph = flip_graph(c.start, c.axes)
     node = tuple(c.start)
+    if profile.has_gauss_markov:
+        return _walk_information_exact(walk, c, dwells, latitude_rad, gravity_mps2, profile)
     e = segment_effect(attitude_of(node), dwells[0], 0.0, -1, latitude_rad, gravity_mps2, profile,
                        None, SEARCH_REST_INTERVALS, initial=True)
     X, N = e.B, e.M3
@@ -338,7 +467,8 @@ def walk_information(walk, c: Constraints, dwells, latitude_rad: float, gravity_
                               P_ss.tobytes())]
         node = apply_move(graph, node, mv)
         parts.append(segment_effect(attitude_of(node), d, 0.0, -1, latitude_rad, gravity_mps2,
-                                    profile, P_ss, SEARCH_REST_INTERVALS))
+                                    profile, start_covariance(P_ss, attitude_of(node)),
+                                    SEARCH_REST_INTERVALS))
         for eff in parts:
             XM2 = X.T @ eff.M2
             N = N + X.T @ eff.M1 @ X + XM2 + XM2.T + eff.M3
@@ -346,18 +476,52 @@ def walk_information(walk, c: Constraints, dwells, latitude_rad: float, gravity_
     return N
 
 
+def _walk_information_exact(walk, c: Constraints, dwells, latitude_rad: float,
+                            gravity_mps2: float, profile: NoiseProfile) -> np.ndarray:
+    """:func:`walk_information` with the filter covariance carried along (GM profiles)."""
+    graph = flip_graph(c.start, c.axes)
+    node = tuple(c.start)
+    X, N, Pc = (a[None] for a in start_state(gm_start_covariance(profile), N_UNKNOWN))
+    rate = math.radians(c.rate_dps)
+    segs = [segment_columns(attitude_of(node), dwells[0], 0.0, -1, latitude_rad, gravity_mps2,
+                            profile, SEARCH_REST_INTERVALS)]
+    for mv, d in zip(walk, dwells[1:]):
+        segs.append(_turn_columns(node, mv, c.rate_dps, rate, latitude_rad, gravity_mps2,
+                                  profile))
+        node = apply_move(graph, node, mv)
+        segs.append(segment_columns(attitude_of(node), d, 0.0, -1, latitude_rad, gravity_mps2,
+                                    profile, SEARCH_REST_INTERVALS))
+    for cols in segs:
+        X, N, Pc = fold(cols, X, N, Pc)
+    return N[0]
+
+
+@functools.lru_cache(maxsize=4096)
+def _turn_columns(node, mv, rate_dps, rate, latitude_rad, gravity_mps2, profile):
+    duration = abs(mv.angle_deg) / rate_dps
+    return segment_columns(attitude_of(node), duration, mv.sign * rate, AXES.index(mv.axis),
+                           latitude_rad, gravity_mps2, profile,
+                           max(1, int(round(duration / SEARCH_GM_MOVE_STEP_S))))
+
+
 @functools.lru_cache(maxsize=4096)
 def _turn_effect(node, mv, rate_dps, latitude_rad, gravity_mps2, profile, P_bytes):
-    P_ss = np.frombuffer(P_bytes).reshape(3, 3)
-    return segment_effect(attitude_of(node), abs(mv.angle_deg) / rate_dps,
+    n = int(round(math.sqrt(len(P_bytes) // 8)))
+    P_ss = np.frombuffer(P_bytes).reshape(n, n)
+    C = attitude_of(node)
+    return segment_effect(C, abs(mv.angle_deg) / rate_dps,
                           mv.sign * math.radians(rate_dps), AXES.index(mv.axis), latitude_rad,
-                          gravity_mps2, profile, P_ss)
+                          gravity_mps2, profile, start_covariance(P_ss, C))
 
 
 def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, height_m: float,
                   profile: NoiseProfile, objective: str = "worst",
-                  requirements: Requirements = PAPER) -> tuple[list[float], float, float]:
+                  requirements: Requirements = PAPER,
+                  repeats: int = 1) -> tuple[list[float], float, float]:
     """Optimise the dwells of a walk under the time budget (IPOPT).
+
+    A walk that plays a motif ``repeats`` times keeps one dwell per motif move
+    (tied across the plays), so IPOPT sees ``len(walk) / repeats + 1`` variables.
 
     Minimises ``t`` subject to ``ratio_i(dwells) <= t`` for all 21 (the
     worst ratio, made smooth by the epigraph form) and ``sum(dwells) +
@@ -371,13 +535,55 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
 
     g = earth.gravity(latitude_rad, height_m)
     P_ss = rest_steady_state(latitude_rad, g, profile, dwell0)
-    n = len(walk) + 1
+    n = len(walk) // repeats + 1
+
+    def expand(x):
+        return np.concatenate([x[:1], np.tile(x[1:], repeats)])
+
     turn_time = sum(abs(m.angle_deg) / c.rate_dps for m in walk)
     scale = 100.0  # dwells in units of 100 s for IPOPT
 
     def ratios(dw):
-        N = walk_information(walk, c, list(dw), latitude_rad, g, profile, P_ss)
+        N = walk_information(walk, c, list(expand(np.asarray(dw))), latitude_rad, g, profile,
+                             P_ss)
         return 3.0 * np.sqrt(inverse_diagonal(scaled_marginal(N, False, requirements)))
+
+    cb = _ratios_callback(ratios, n, scale)
+    x = ca.MX.sym("d", n)
+    t = ca.MX.sym("t")
+    r = cb(x)
+    total = (x[0] + repeats * ca.sum1(x[1:])) * scale + turn_time
+    if objective == "worst":
+        f, gcon = t, ca.vertcat(r - t, total - c.budget_s)
+        ubg = np.zeros(P.N_PARAMS + 1)
+    else:  # A-optimal in the refinement for the other objectives
+        f, gcon = ca.sum1(r ** 2) / 9.0, ca.vertcat(total - c.budget_s)
+        ubg = np.zeros(1)
+    uniform = np.full(n, dwell0)
+    r0 = ratios(uniform)
+    solver = ca.nlpsol("dwells", "ipopt", {"x": ca.vertcat(x, t), "f": f, "g": gcon},
+                       {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
+                        "ipopt.hessian_approximation": "limited-memory", "ipopt.max_iter": 40,
+                        "ipopt.tol": 1e-4})
+    sol = solver(x0=np.concatenate([uniform / scale, [r0.max()]]),
+                 lbx=np.concatenate([np.full(n, c.min_dwell_s / scale), [0.0]]),
+                 ubx=np.concatenate([np.full(n, c.max_dwell_s / scale), [np.inf]]),
+                 lbg=np.full(len(ubg), -np.inf), ubg=ubg)
+    dw = np.asarray(sol["x"]).ravel()[:n] * scale
+    dw = np.clip(dw, c.min_dwell_s, c.max_dwell_s)
+    over = expand(dw).sum() + turn_time - c.budget_s
+    if over > 0:  # IPOPT's tolerance: shave the excess off the longest dwell
+        i = int(np.argmax(dw))
+        dw[i] -= over / (1 if i == 0 else repeats)
+    r1 = ratios(dw)
+    if r1.max() >= r0.max():  # never return worse than the uniform start
+        return list(expand(uniform)), float(r0.max()), float(r0.max())
+    return [float(round(d, 3)) for d in expand(dw)], float(r0.max()), float(r1.max())
+
+
+def _ratios_callback(ratios, n: int, scale: float):
+    """The 21 ratios as a casadi function of ``n`` scaled dwells (finite differences)."""
+    import casadi as ca
 
     class _Ratios(ca.Callback):
         def __init__(self):
@@ -399,35 +605,7 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
         def eval(self, arg):
             return [ratios(np.asarray(arg[0], dtype=float).ravel() * scale)]
 
-    cb = _Ratios()
-    x = ca.MX.sym("d", n)
-    t = ca.MX.sym("t")
-    r = cb(x)
-    if objective == "worst":
-        f, gcon = t, ca.vertcat(r - t, ca.sum1(x) * scale + turn_time - c.budget_s)
-        ubg = np.zeros(P.N_PARAMS + 1)
-    else:  # A-optimal in the refinement for the other objectives
-        f, gcon = ca.sum1(r ** 2) / 9.0, ca.vertcat(ca.sum1(x) * scale + turn_time - c.budget_s)
-        ubg = np.zeros(1)
-    uniform = np.full(n, dwell0)
-    r0 = ratios(uniform)
-    solver = ca.nlpsol("dwells", "ipopt", {"x": ca.vertcat(x, t), "f": f, "g": gcon},
-                       {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
-                        "ipopt.hessian_approximation": "limited-memory", "ipopt.max_iter": 40,
-                        "ipopt.tol": 1e-4})
-    sol = solver(x0=np.concatenate([uniform / scale, [r0.max()]]),
-                 lbx=np.concatenate([np.full(n, c.min_dwell_s / scale), [0.0]]),
-                 ubx=np.concatenate([np.full(n, c.max_dwell_s / scale), [np.inf]]),
-                 lbg=np.full(len(ubg), -np.inf), ubg=ubg)
-    dw = np.asarray(sol["x"]).ravel()[:n] * scale
-    dw = np.clip(dw, c.min_dwell_s, c.max_dwell_s)
-    over = dw.sum() + turn_time - c.budget_s
-    if over > 0:  # IPOPT's tolerance: shave the excess off the longest dwell
-        dw[np.argmax(dw)] -= over
-    r1 = ratios(dw)
-    if r1.max() >= r0.max():  # never return worse than the uniform start
-        return list(uniform), float(r0.max()), float(r0.max())
-    return [float(round(d, 3)) for d in dw], float(r0.max()), float(r1.max())
+    return _Ratios()
 
 
 def uniform_dwell(c: Constraints, n_moves_guess: int, quarters_guess: float = 2.0) -> float:
@@ -471,8 +649,10 @@ class DesignResult:
     uniform_worst_ratio: float  # exact, same walk with uniform dwells
     evaluated: int  # candidates scored by the search
     search_seconds: float
-    finalists: list  # (walk label, dwell, exact worst ratio)
+    finalists: list  # (walk label, dwell, exact worst ratio), every candidate re-scored
     robustness: object
+    extras_cost: object = None  # observability.ExtrasCost of the winner when --with was given
+    repeats: int = 1  # how many times the winner plays its motif
 
 
 def _search_at_dwell(args):
@@ -488,7 +668,7 @@ def _search_at_dwell(args):
 def design_steps(c: Constraints, keep: int) -> int:
     """Progress steps of :func:`design`: searches, finalists, refinement, final check."""
     n = len(search_dwells(c))
-    return n + n * keep + 2
+    return 2 * n + 2 * n * keep * (1 + len(MOTIF_REPEATS)) + SCREEN_KEEP + 2
 
 
 def search_dwells(c: Constraints) -> list[float]:
@@ -519,82 +699,178 @@ def map_jobs(fn, jobs, workers: int = 1, scheduler: str | None = None):
 
 
 def _exact_worst(seq: Sequence, profile, latitude_rad, height_m, tolerance_deg, search,
-                 requirements: Requirements = PAPER):
-    from .observability import analyze_tolerance
+                 requirements: Requirements = PAPER, extras: Extras = NO_EXTRAS):
+    """Worst 3 sigma/requirement of the 21 over the box, with ``extras`` fitted beside them.
+
+    Returns ``(ratio, parameter, Robustness, ExtrasCost or None)``.
+    """
+    from .observability import analyze_extras, analyze_tolerance
+    if extras.n:
+        cost = analyze_extras(seq, profile, latitude_rad, extras, height_m, tolerance_deg,
+                              requirements)
+        r = requirements.ratio(cost.sigma_with)
+        i = int(np.argmax(r))
+        if not search:
+            return float(r[i]), P.NAMES[i], None, cost
     rob = analyze_tolerance(seq, profile, latitude_rad, height_m, tolerance_deg, search=search,
                             requirements=requirements)
+    if extras.n:  # the terms cost the 21 the same factor at the searched mounting
+        return float(r[i]), P.NAMES[i], rob, cost
     r = rob.per_parameter_worst_ratio
     i = int(np.argmax(r))
-    return float(r[i]), P.NAMES[i], rob
+    return float(r[i]), P.NAMES[i], rob, None
+
+
+MOTIF_REPEATS = (2, 3, 4)  # a finalist's walk also played 2-4 times, with shorter dwells
+MAX_MOTIF_MOVES = 45  # the space holds many short moves (issue 12: at least 30)
+
+
+def motif_dwell(walk, c: Constraints, repeats: int) -> float | None:
+    """Uniform dwell that fits ``repeats`` plays of ``walk`` in the budget (None if none does).
+
+    Why repeat: a Gauss-Markov accelerometer bias looks like a scale factor unless
+    gravity changes sign on each axis much faster than its correlation time, and
+    playing a good motif several times with short dwells does exactly that.
+    """
+    n = len(walk) * repeats
+    if n > MAX_MOTIF_MOVES:
+        return None
+    turn = repeats * sum(abs(m.angle_deg) for m in walk) / c.rate_dps
+    d = math.floor(10.0 * (c.budget_s - turn) / (n + 1)) / 10.0
+    if d < c.min_dwell_s:
+        return None
+    return float(min(d, c.max_dwell_s))
+
+
+def _candidates(results, c: Constraints):
+    """Distinct (walk, dwell) pairs from the beams, and each walk's motif repetitions."""
+    out, seen = [], set()
+    for dwell, finals, _, _ in results:
+        for walk, _score in finals:
+            if (walk, dwell) not in seen:
+                seen.add((walk, dwell))
+                out.append((walk, dwell, 1))
+    for walk, _, _ in list(out):
+        for r in MOTIF_REPEATS:
+            d = motif_dwell(walk, c, r)
+            if d is not None and (walk * r, d) not in seen:
+                seen.add((walk * r, d))
+                out.append((walk * r, d, r))
+    return out
+
+
+def _beam_widths(beam_width: int | None) -> list:
+    """Beams to run: the one asked for and, when wider, a beam of 20 too.
+
+    The search score is not the exact worst case over the box, so a narrow beam can
+    hand a different (sometimes better) walk to the exact re-scoring; running both
+    makes more effort never give a worse answer.
+    """
+    if beam_width is None or beam_width <= NARROW_BEAM:
+        return [beam_width]
+    return [NARROW_BEAM, beam_width]
+
+
+NARROW_BEAM = 20
+SCREEN_KEEP = 6  # candidates re-scored over the whole box after the nominal-mounting screen
+
+
+def _search(c, profile, latitude_rad, height_m, objective, beam_width, keep, requirements,
+            workers, scheduler, progress):
+    jobs = [(c, d, latitude_rad, height_m, profile, objective, bw, keep, requirements)
+            for d in search_dwells(c) for bw in _beam_widths(beam_width)]
+    if progress:
+        progress(f"searching {len(jobs)} beams (widths {_beam_widths(beam_width)}, dwells "
+                 f"{search_dwells(c)} s, up to {c.max_flips} moves of up to "
+                 f"{c.max_quarters} quarter turns)", 0)
+    results = map_jobs(_search_at_dwell, jobs, workers, scheduler)
+    evaluated = sum(r[2] for r in results)
+    if progress:
+        progress(f"searched {evaluated} candidates", len(jobs))
+    return results, evaluated
 
 
 def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m: float = 0.0,
            objective: str = "worst", tolerance_deg: float = 3.0, beam_width: int = 200,
            keep: int = 4, refine: bool = True, name: str = "designed", workers: int = 1,
-           scheduler=None, progress=None, requirements: Requirements = PAPER) -> DesignResult:
-    """Search walks, re-score finalists exactly over the tolerance box, refine the best's dwells.
+           scheduler=None, progress=None, requirements: Requirements = PAPER,
+           extras: Extras = NO_EXTRAS) -> DesignResult:
+    """Search walks, re-score every candidate exactly over the tolerance box, refine the best.
 
-    ``progress(message, steps)`` is told each stage as it ends; there are
-    ``design_steps(c, keep)`` steps in all.
+    The candidates are the beams' finalists and their motif repetitions; each is
+    re-scored exactly (27 box points, with ``extras`` fitted beside the 21), the
+    best one's dwells are refined with IPOPT, and the answer is the best exactly
+    re-scored candidate seen, refined or not. ``progress(message, steps)`` is told
+    each stage as it ends; there are ``design_steps(c, keep)`` steps in all.
     """
     import time as _time
     check_constraints(c)
-    if profile.has_gauss_markov:
-        # The search's segment algebra chains a 3-state noise filter across segments.
-        raise CalibError(f"profile {profile.name!r} has Gauss-Markov bias instability, which the "
-                         "sequence search does not model", "--profile",
-                         "design with its white-noise part, then check the result with "
-                         f"`seqdesign analyze <sequence> --profile {profile.name}`")
     if objective not in OBJECTIVES:
         raise CalibError(f"unknown objective {objective!r}", "--objective", "use worst, D, A or E")
     t0 = _time.perf_counter()
     site = (math.degrees(latitude_rad), height_m)  # written into the sequence: analyse it there
-    jobs = [(c, d, latitude_rad, height_m, profile, objective, beam_width, keep, requirements)
-            for d in search_dwells(c)]
-    results = map_jobs(_search_at_dwell, jobs, workers, scheduler)
-    evaluated = sum(r[2] for r in results)
+    results, evaluated = _search(c, profile, latitude_rad, height_m, objective, beam_width, keep,
+                                 requirements, workers, scheduler, progress)
     search_seconds = _time.perf_counter() - t0
-    if progress:
-        progress(f"searched {evaluated} candidates in {search_seconds:.1f} s", len(jobs))
-    finalists = []
-    seen = set()
-    for dwell, finals, _, _ in results:
-        for walk, _score in finals:
-            if (walk, dwell) in seen:
-                continue
-            seen.add((walk, dwell))
-            seq = to_sequence(walk, c, [dwell] * (len(walk) + 1), name, None, *site)
-            worst, wname, rob = _exact_worst(seq, profile, latitude_rad, height_m, tolerance_deg,
-                                             False, requirements)
-            finalists.append((worst, " ".join(m.label() for m in walk), dwell, walk, wname, rob))
-            if progress:
-                progress(f"finalist {len(finalists)}: worst ratio {worst:.3f}", 1)
-    if not finalists:
-        raise CalibError("no walk fits the constraints", "design",
-                         "raise --budget-min or --max-flips, or lower --min-dwell-s")
-    finalists.sort(key=lambda f: (f[0], f[1]))
-    worst, label, dwell, walk, wname, rob = finalists[0]
-    uniform = worst
-    dwells = [dwell] * (len(walk) + 1)
-    if refine:
+
+    def exact(walk, dwells, search=False, tol=tolerance_deg):
+        seq = to_sequence(walk, c, dwells, name, None, *site)
+        return (*_exact_worst(seq, profile, latitude_rad, height_m, tol, search,
+                              requirements, extras), seq)
+
+    screened = _screen(_candidates(results, c), exact, progress)
+    pool = []  # the same, worst over the box
+    for f in screened[:SCREEN_KEEP]:
+        worst, wname, _, _, _ = exact(f[3], f[2])
+        pool.append((worst,) + f[1:])
         if progress:
-            progress(f"refining the dwells of {label} with IPOPT", 0)
-        new_dwells, _, _ = refine_dwells(walk, c, dwell, latitude_rad, height_m, profile,
-                                         objective, requirements)
-        if new_dwells != dwells:
-            seq = to_sequence(walk, c, new_dwells, name, None, *site)
-            w2, n2, rob2 = _exact_worst(seq, profile, latitude_rad, height_m, tolerance_deg,
-                                        False, requirements)
-            if w2 < worst:
-                worst, wname, rob, dwells = w2, n2, rob2, new_dwells
-    seq = to_sequence(walk, c, dwells, name, None, *site)
+            progress(f"box worst of {f[1][:40]}...: {worst:.3f} ({wname}); "
+                     f"best so far {min(p[0] for p in pool):.3f}", 1)
+    pool.sort(key=lambda f: (f[0], f[1]))
+    uniform = pool[0][0]
+    if refine:
+        pool.extend(_refined(pool[0], c, latitude_rad, height_m, profile, objective,
+                             requirements, exact, progress))
+        pool.sort(key=lambda f: (f[0], f[1]))
+    worst, label, dwells, walk, reps = pool[0]
+    worst, wname, rob, cost, seq = exact(walk, dwells, search=True)
     if progress:
-        progress("refined" if refine else "kept uniform dwells", 1)
-    worst, wname, rob = _exact_worst(seq, profile, latitude_rad, height_m, tolerance_deg,
-                                     True, requirements)
-    if progress:
-        progress(f"worst case over +-{tolerance_deg:g} deg: {worst:.3f} ({wname})", 1)
+        progress(f"best of {len(pool)}: {label}; worst case over +-{tolerance_deg:g} deg: "
+                 f"{worst:.3f} ({wname})", 1)
     return DesignResult(sequence=seq, worst_ratio=worst, worst_name=wname,
                         uniform_worst_ratio=uniform, evaluated=evaluated,
                         search_seconds=search_seconds,
-                        finalists=[(f[1], f[2], f[0]) for f in finalists], robustness=rob)
+                        finalists=[(f[1], f[2][-1], f[0]) for f in pool], robustness=rob,
+                        extras_cost=cost, repeats=reps)
+
+
+def _screen(candidates, exact, progress) -> list:
+    """Every candidate scored exactly at the nominal mounting, best first:
+    ``(worst, label, dwells, walk, repeats)``."""
+    screened = []
+    for walk, dwell, reps in candidates:
+        worst, wname, _, _, _ = exact(walk, [dwell] * (len(walk) + 1), tol=0.0)
+        screened.append((worst, " ".join(m.label() for m in walk), [dwell] * (len(walk) + 1),
+                         walk, reps))
+        if progress:
+            progress(f"screened {len(screened)} ({len(walk)} moves, {dwell:g} s dwells): "
+                     f"{worst:.3f} ({wname}) at the nominal mounting", 1)
+    if not screened:
+        raise CalibError("no walk fits the constraints", "design",
+                         "raise --budget-min or --max-flips, or lower --min-dwell-s")
+    return sorted(screened, key=lambda f: (f[0], f[1]))
+
+
+def _refined(best, c, latitude_rad, height_m, profile, objective, requirements, exact, progress):
+    """The best candidate with IPOPT-refined dwells, exactly re-scored ([] if unchanged)."""
+    worst, label, dwells, walk, reps = best
+    if progress:
+        progress(f"refining the dwells of {label} with IPOPT", 0)
+    new_dwells, _, _ = refine_dwells(walk, c, dwells[0], latitude_rad, height_m, profile,
+                                     objective, requirements, reps)
+    if new_dwells == dwells:
+        return []
+    w2, n2, _, _, _ = exact(walk, new_dwells)
+    if progress:
+        progress(f"refined: {w2:.3f} ({n2}) against {worst:.3f} uniform", 1)
+    return [(w2, label + " (refined)", new_dwells, walk, reps)]

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from calib import earth
 from calib.calibration import as_profile
+from calib.extras import NONE as NO_EXTRAS, Extras, parse_groups
 from calib.fileio import atomic_write_text
 from calib.profiles import NoiseProfile
 from calib.requirements import PAPER, Requirements, load_requirements
@@ -43,12 +44,14 @@ class DesignReport:
     paper_duration_s: float
     paper_worst_ratio: float
     requirements: Requirements = PAPER
+    extras: Extras = NO_EXTRAS
 
     def to_json(self) -> dict:
         """The ``design --json`` document."""
         return {"profile": self.profile.name, "requirements": self.requirements.name,
                 "objective": self.objective,
                 "tolerance_deg": self.tolerance_deg,
+                "with": list(self.extras.groups),
                 "designs": [_row_doc(r) for r in self.rows],
                 "paper_9pos": {"duration_s": self.paper_duration_s,
                                "worst_ratio": self.paper_worst_ratio}}
@@ -61,6 +64,7 @@ class DesignReport:
             lines.append(f"{row.budget_min:6g}m {r.sequence.duration_s / 60:6.1f}m "
                          f"{r.worst_name:>5} {r.worst_ratio:9.3f} {r.uniform_worst_ratio:8.3f} "
                          f"{row.bound_ratio:6.3f}  {moves}")
+            lines.extend(extras_lines(r))
         lines.append(f"paper-9pos: {self.paper_duration_s / 60:.1f} min, worst ratio "
                      f"{self.paper_worst_ratio:.2f}. Ratios are 3 sigma/requirement, worst over "
                      f"+-{self.tolerance_deg:g} deg, profile {self.profile.name}; bound = best "
@@ -75,7 +79,8 @@ class DesignReport:
             "requirements": self.requirements.name, "score": r.worst_ratio,
             "score_parameter": r.worst_name, "tolerance_deg": self.tolerance_deg,
             "latitude_deg": self.latitude_deg, "budget_min": row.budget_min,
-            "uniform_dwell_score": r.uniform_worst_ratio, "candidates_evaluated": r.evaluated}
+            "uniform_dwell_score": r.uniform_worst_ratio, "candidates_evaluated": r.evaluated,
+            "with": ",".join(self.extras.groups) or "none", "motif_repeats": r.repeats}
         save_sequence(replace(r.sequence, provenance=prov), path)
 
     def write_pareto(self, stem: str | Path) -> list[str]:
@@ -104,7 +109,31 @@ def _row_doc(row: DesignRow) -> dict:
             "steps": [{"axis": s.axis, "angle_deg": s.angle_deg, "dwell_s": s.dwell_s}
                       for s in r.sequence.steps],
             "initial_dwell_s": r.sequence.initial_dwell_s,
-            "candidates_evaluated": r.evaluated, "search_seconds": r.search_seconds}
+            "candidates_evaluated": r.evaluated, "search_seconds": r.search_seconds,
+            "motif_repeats": r.repeats, "extras": extras_doc(r)}
+
+
+def extras_doc(r: DesignResult) -> list[dict]:
+    """Each fitted extra term's worst sigma against its typical size, in its own unit."""
+    cost = r.extras_cost
+    if cost is None:
+        return []
+    return [{"name": p.name, "unit": p.unit, "sigma": float(s / p.si_per_unit),
+             "typical": p.scale, "verdict": v}
+            for p, s, v in zip(cost.extras.parameters, cost.extra_sigma, cost.verdicts())]
+
+
+def extras_lines(r: DesignResult) -> list[str]:
+    """Text lines for :func:`extras_doc`; flags a term left weak or unobservable."""
+    docs = extras_doc(r)
+    if not docs:
+        return []
+    out = ["        " + "  ".join(f"{d['name']} {d['sigma']:.3g}/{d['typical']:g} {d['unit']}"
+                                  for d in docs)]
+    bad = [f"{d['name']} ({d['verdict']})" for d in docs if d["verdict"] != "observable"]
+    out.append("        extra terms: " + ("all observable (3 sigma within the typical size)"
+                                          if not bad else "WARNING " + ", ".join(bad)))
+    return out
 
 
 def paper_point(profile: NoiseProfile, latitude_rad: float, tolerance_deg: float,
@@ -120,7 +149,7 @@ def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str =
                    *, latitude_deg: float = 40.0, objective: str = "worst",
                    tolerance_deg: float = 3.0, beam_width: int = 200, refine: bool = True,
                    workers: int = 1, scheduler: str | None = None,
-                   progress=None, requirements=None) -> DesignReport:
+                   progress=None, requirements=None, extras=None) -> DesignReport:
     """Design one sequence per budget.
 
     Parameters
@@ -142,14 +171,15 @@ def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str =
         Candidates kept per depth.
     refine : bool
         Refine the winner's dwells with IPOPT.
-    workers : int
-        Local processes.
-    scheduler : str, optional
-        dask.distributed scheduler address.
+    workers, scheduler : int, str (optional)
+        Local processes; or a dask.distributed scheduler address.
     progress : callable, optional
         ``progress(budget_min, message, steps)`` as the search advances.
     requirements : Requirements or str, optional
         The objective's requirements (default: the paper's).
+    extras : Extras or str, optional
+        Terms fitted beside the 21 (``--with``: ``lever-arm,k2,time-offset`` or
+        ``all``); the objective is then the worst ratio of the 21 with them fitted.
 
     Returns
     -------
@@ -157,6 +187,7 @@ def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str =
     """
     prof = as_profile(profile)
     req = load_requirements(requirements)
+    ext = extras if isinstance(extras, Extras) else Extras(parse_groups(extras))
     earth.check_site(latitude_deg, 0.0)
     lat = math.radians(latitude_deg)
     g = earth.gravity(lat)
@@ -168,8 +199,8 @@ def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str =
                      refine=refine, name=f"designed-{b:g}min", workers=workers,
                      scheduler=scheduler,
                      progress=None if progress is None else (lambda m, n, b=b: progress(b, m, n)),
-                     requirements=req)
+                     requirements=req, extras=ext)
         rows.append(DesignRow(b, res, accel_scale_bound(res.sequence.duration_s, prof, g, req)))
     paper_T, paper_worst = paper_point(prof, lat, tolerance_deg, req)
     return DesignReport(rows, prof, objective, tolerance_deg, latitude_deg, paper_T, paper_worst,
-                        req)
+                        req, ext)

@@ -9,6 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from calib.profiles import load_profile
+from calib.requirements import PAPER
 from calib.sequence import load_sequence
 from calib.transform import attitude_from_directions, rot_axis
 from seqdesign.cli import main
@@ -67,7 +68,7 @@ def test_dask_local_cluster_gives_the_serial_result():
     distributed = pytest.importorskip("dask.distributed")
     from seqdesign.design import _search_at_dwell, map_jobs
     c = Constraints(budget_s=400.0, max_flips=2, max_quarters=1)
-    jobs = [(c, d, LAT, 0.0, PROFILE, "worst", 20, 2) for d in (60.0, 90.0)]
+    jobs = [(c, d, LAT, 0.0, PROFILE, "worst", 20, 2, PAPER) for d in (60.0, 90.0)]
     serial = map_jobs(_search_at_dwell, jobs)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster, \
@@ -82,7 +83,7 @@ def test_dask_local_cluster_gives_the_serial_result():
 def test_local_workers_give_the_serial_result():
     from seqdesign.design import _search_at_dwell, map_jobs
     c = Constraints(budget_s=400.0, max_flips=2, max_quarters=1)
-    jobs = [(c, d, LAT, 0.0, PROFILE, "worst", 20, 2) for d in (60.0, 90.0)]
+    jobs = [(c, d, LAT, 0.0, PROFILE, "worst", 20, 2, PAPER) for d in (60.0, 90.0)]
     serial = map_jobs(_search_at_dwell, jobs)
     parallel = map_jobs(_search_at_dwell, jobs, workers=2)
     assert [(r[0], r[1], r[2]) for r in serial] == [(r[0], r[1], r[2]) for r in parallel]
@@ -142,3 +143,125 @@ def test_cli_design_small_end_to_end(tmp_path):
     # The file's recorded score is the analyser's figure for the file's own sequence.
     exact = analyze(seq, PROFILE, LAT).ratio.max()
     assert doc["designs"][0]["worst"]["ratio"] == pytest.approx(exact, rel=1e-9)
+
+
+# ---------------------------------------------------------------------------
+# Issue 12: any profile, --with terms, a bigger space, never a worse answer
+
+GM = load_profile("navigation-gm")
+
+
+def _fold_walk(model, seq):
+    """The search model's score of a shipped sequence's walk (uniform dwells)."""
+    cand = model.start_candidate()
+    for s in seq.steps:
+        mv = Move(s.axis, 1 if s.angle_deg > 0 else -1, int(round(abs(s.angle_deg) / 90)))
+        cand = next(k for k in model.extend([cand], "worst") if k.walk[-1] == mv)
+    return cand.score
+
+
+@pytest.mark.slow
+def test_gm_search_score_equals_the_analyser():
+    # Under Gauss-Markov bias instability each candidate carries its own noise-filter
+    # covariance, so the search whitens as analyze does; what remains is the interval
+    # pattern (12 per rest against 5 s; 1 s in turns against 0.5 s), worth < 1 % (issue 12).
+    seq = load_sequence("paper-9pos")  # uniform 180 s dwells: the search's own model
+    c = Constraints(budget_s=1800.0, max_flips=9, max_quarters=1)
+    model = SearchModel.build(c, seq.steps[0].dwell_s, LAT, 0.0, GM)
+    exact = analyze_tolerance(seq, GM, LAT, 0.0, 0.0).per_parameter_worst_ratio.max()
+    assert _fold_walk(model, seq) == pytest.approx(exact, rel=0.01)
+
+
+def test_gm_exhaustive_search_returns_the_brute_force_optimum():
+    c = Constraints(budget_s=400.0, max_flips=2, max_quarters=1, axes="XY")
+    model = SearchModel.build(c, 90.0, LAT, 0.0, GM)
+    finals, n = beam_search(model, "worst", beam_width=None, keep=1)
+    best = brute_force(model, 2, "worst")
+    assert finals[0].walk == best.walk
+    assert finals[0].score == pytest.approx(best.score, rel=1e-12)
+
+
+def test_sigma_gradient_matches_finite_differences():
+    # The worst-mounting search's exact gradient (SO(3) left Jacobian through the 63-term
+    # basis) against central differences of the analyser's own sigma. Step 1e-5 rad:
+    # truncation h^2 sigma'''/6 ~ 1e-10 of sigma, ~1e-6 of the largest gradient component;
+    # tolerance 1e-5 of that component.
+    from seqdesign.observability import sequence_model
+    model = sequence_model(load_sequence("paper-9pos"), PROFILE, LAT)
+    theta = np.radians([1.0, -2.0, 2.5])
+    for index in (5, 17):  # sgz, saz
+        sigma, grad = model.sigma_gradient(theta, index)
+        assert sigma == pytest.approx(model.analyze(theta).sigma[index], rel=1e-9)
+        h = 1e-5
+        fd = [(model.analyze(theta + h * e).sigma[index]
+               - model.analyze(theta - h * e).sigma[index]) / (2 * h) for e in np.eye(3)]
+        assert np.allclose(grad, fd, rtol=1e-5, atol=1e-5 * np.abs(fd).max())
+    # and at the nominal mounting, where the closed form switches to its series
+    sigma, grad = model.sigma_gradient(np.zeros(3), 5)
+    fd = [(model.analyze(h * e).sigma[5] - model.analyze(-h * e).sigma[5]) / (2 * h)
+          for e in np.eye(3)]
+    assert np.allclose(grad, fd, rtol=1e-5, atol=1e-5 * np.abs(fd).max())
+
+
+@pytest.mark.slow
+def test_design_with_terms_scores_the_21_with_them_fitted():
+    from calib.extras import Extras
+    from seqdesign.design import design
+    from seqdesign.observability import analyze_extras
+    c = Constraints(budget_s=360.0, max_flips=3, max_quarters=2, min_dwell_s=10.0)
+    ext = Extras(("lever-arm",))
+    res = design(c, PROFILE, LAT, 0.0, tolerance_deg=1.0, beam_width=10, keep=1, refine=False,
+                 extras=ext)
+    cost = analyze_extras(res.sequence, PROFILE, LAT, ext, 0.0, 1.0)
+    # the objective is the worst 3 sigma/requirement of the 21 with the lever arms fitted
+    # (same 27 box points, same arithmetic: equal to rounding)
+    assert res.worst_ratio == pytest.approx(PAPER.ratio(cost.sigma_with).max(), rel=1e-9)
+    assert res.extras_cost is not None and len(res.extras_cost.extra_sigma) == 9
+    assert len(res.extras_cost.verdicts()) == 9
+
+
+@pytest.mark.slow
+def test_more_effort_never_gives_a_worse_answer():
+    # Issue 12 point 6: the answer is the best exactly re-scored candidate seen, and the
+    # default beam runs a narrow beam too, so it cannot lose to --beam-width 20 or to
+    # --no-refine. A 5-min budget with 3 single quarter turns keeps this short.
+    from seqdesign.design import design
+    c = Constraints(budget_s=300.0, max_flips=3, max_quarters=1, min_dwell_s=10.0)
+    kw = dict(tolerance_deg=3.0, keep=1)
+    default = design(c, PROFILE, LAT, 0.0, beam_width=60, refine=True, **kw)
+    narrow = design(c, PROFILE, LAT, 0.0, beam_width=20, refine=True, **kw)
+    unrefined = design(c, PROFILE, LAT, 0.0, beam_width=60, refine=False, **kw)
+    assert default.worst_ratio <= narrow.worst_ratio + 1e-12
+    assert default.worst_ratio <= unrefined.worst_ratio + 1e-12
+
+
+def test_motif_repetitions_fill_the_budget_with_short_dwells():
+    from seqdesign.design import motif_dwell
+    c = Constraints(budget_s=1800.0, min_dwell_s=10.0)
+    walk = (Move("X", 1, 4), Move("Y", -1, 5))  # 81 s of turning per play
+    d = motif_dwell(walk, c, 3)
+    assert 3 * 81.0 + 7 * d <= 1800.0 + 1e-9 and d > 1800.0 / 7 - 81.0 * 3 / 7 - 0.1
+    assert motif_dwell(walk, Constraints(budget_s=300.0, min_dwell_s=30.0), 3) is None
+
+
+def test_cli_design_refuses_unknown_terms(tmp_path):
+    r = CliRunner().invoke(main, ["design", "--with", "magnetometer", "-o",
+                                  str(tmp_path / "x.toml")])
+    assert r.exit_code == 2 and "--with" in r.output and "Traceback" not in r.output
+    assert not (tmp_path / "x.toml").exists()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name,budget_s,limit", [("designed-15min-gm", 900.0, 1.95),
+                                                 ("designed-30min-gm", 1800.0, 2.26)])
+def test_shipped_gm_designs_beat_the_white_noise_designs_on_the_real_unit(name, budget_s, limit):
+    """Issue 12: under navigation-gm with every extra term fitted (latitude 40 deg, worst over
+    +-3 deg), <= 1.95 within 15 min (target met) and better than designed-30min's 2.26 within
+    30 min (the 1.40 target is missed: see BENCHMARKS.md)."""
+    from calib.extras import GROUP_NAMES, Extras
+    from seqdesign.observability import analyze_extras
+    seq = load_sequence(name)
+    assert seq.duration_s <= budget_s + 1e-6
+    cost = analyze_extras(seq, GM, LAT, Extras(GROUP_NAMES), 0.0, 3.0)
+    assert PAPER.ratio(cost.sigma_with).max() <= limit
+    assert all(v == "observable" for v in cost.verdicts())
