@@ -16,7 +16,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from calib import params as P
-from calib.extras import GROUP_NAMES, ExtraValues, Extras
+from calib.extras import GROUP_NAMES, Extras, ExtraValues
 from calib.profiles import load_profile
 from calib.sequence import load_sequence
 from seqdesign.montecarlo import run_trials

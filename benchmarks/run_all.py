@@ -16,7 +16,6 @@ import tempfile
 import time
 from pathlib import Path
 
-
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent / "seqdesign"
 
@@ -54,7 +53,8 @@ def main() -> None:
     tmp = Path(tempfile.mkdtemp(prefix="seqdesign-bench-"))
     npz, csv = tmp / "run.npz", tmp / "run.csv"
     sim = [str(BIN), "simulate", "paper-9pos", "--table2", "--setup-deg", "1", "-2", "3", "--seed", "7"]
-    rows.append(("simulate paper-9pos (28.2 min, 200 Hz) -> NPZ, CLI wall", wall(sim + ["-o", str(npz)]), "<= 3 s"))
+    rows.append(("simulate paper-9pos (28.2 min, 200 Hz) -> NPZ, CLI wall",
+                 wall(sim + ["-o", str(npz)]), "<= 3 s"))
     rows.append(("simulate paper-9pos -> CSV, CLI wall", wall(sim + ["-o", str(csv)], 1), "-"))
     rows.append(("calibrate 28.2 min 200 Hz run from NPZ, CLI wall",
                  wall([str(BIN), "calibrate", str(npz), "-o", str(tmp / "r.toml")]), "<= 5 s"))

@@ -28,10 +28,18 @@ import numpy as np
 from calib import earth
 from calib import params as P
 from calib.errors import CalibError
-from calib.extras import NONE as NO_EXTRAS, Extras
+from calib.extras import NONE as NO_EXTRAS
+from calib.extras import Extras
 from calib.information import inverse_diagonal, marginal
-from calib.jacobian import (N_UNKNOWN, ObservationGrid, moment_inputs, observation_matrix,
-                            propagate, state_matrix, trajectory_moments)
+from calib.jacobian import (
+    N_UNKNOWN,
+    ObservationGrid,
+    moment_inputs,
+    observation_matrix,
+    propagate,
+    state_matrix,
+    trajectory_moments,
+)
 from calib.noise import interval_models, noise_model, whiten, whitener
 from calib.profiles import NoiseProfile
 from calib.requirements import PAPER, Requirements
@@ -40,7 +48,8 @@ from calib.sim import body_integrals
 from calib.transform import AXES
 
 from .gmsearch import SegmentColumns, fold, noise_blocks, stack, start_state, take
-from .graph import Move, Node, apply_move, attitude_of, flip_graph, moves as all_moves
+from .graph import Move, Node, apply_move, attitude_of, flip_graph
+from .graph import moves as all_moves
 
 SEARCH_REST_INTERVALS = 12  # per rest, whatever its length: smooth in the dwell for IPOPT
 SEARCH_MOVE_STEP_S = 0.5  # observation interval while turning (0.1 s changes sigmas < 0.2 %)
@@ -161,7 +170,8 @@ def rest_steady_state(latitude_rad: float, gravity_mps2: float, profile: NoisePr
 
 def gm_start_covariance(profile: NoiseProfile) -> np.ndarray:
     """Filter covariance at a run's start with GM biases: phi zero (an unknown of the fit),
-    the biases at their stationary ``sigma^2 I`` (as :func:`calib.noise.whitener`)."""
+    the biases at their stationary ``sigma^2 I`` (as :func:`calib.noise.whitener`).
+    """
     return np.diag(np.repeat([0.0, profile.gyro_gm_sigma ** 2, profile.accel_gm_sigma ** 2], 3))
 
 
@@ -236,6 +246,8 @@ class Constraints:
 
 @dataclass
 class Candidate:
+    """A walk being searched: its moves, where it ends, its segment state and information."""
+
     walk: tuple[Move, ...]
     node: Node
     X: np.ndarray
@@ -616,6 +628,7 @@ def uniform_dwell(c: Constraints, n_moves_guess: int, quarters_guess: float = 2.
 
 
 def check_constraints(c: Constraints) -> None:
+    """Refuse constraints no walk can meet, naming the option."""
     if c.budget_s <= 0 or not math.isfinite(c.budget_s):
         raise CalibError(f"budget {c.budget_s} s must be positive", "--budget-min")
     if not 1 <= c.max_flips <= 30:
@@ -846,7 +859,8 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
 
 def _screen(candidates, exact, progress) -> list:
     """Every candidate scored exactly at the nominal mounting, best first:
-    ``(worst, label, dwells, walk, repeats)``."""
+    ``(worst, label, dwells, walk, repeats)``.
+    """
     screened = []
     for walk, dwell, reps in candidates:
         worst, wname, _, _, _ = exact(walk, [dwell] * (len(walk) + 1), tol=0.0)

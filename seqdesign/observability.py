@@ -18,19 +18,32 @@ import numpy as np
 from calib import earth
 from calib import params as P
 from calib.extras import Extras
-from calib.information import (ScaledInverse, eliminate, marginal, projected_covariance,
-                               scaled_inverse)
-from calib.jacobian import (N_MOMENTS, N_UNKNOWN, PHI0 as PHI0_IDX, ObservationGrid,
-                            moment_inputs, observation_matrix, propagate,
-                            sample_layout)
+from calib.information import ScaledInverse, eliminate, marginal, projected_covariance, scaled_inverse
+from calib.jacobian import (
+    N_MOMENTS,
+    N_UNKNOWN,
+    ObservationGrid,
+    moment_inputs,
+    observation_matrix,
+    propagate,
+    sample_layout,
+)
+from calib.jacobian import PHI0 as PHI0_IDX
 from calib.noise import whiten
+from calib.nominal import (  # noqa: F401
+    ANALYSIS_REST_STEP_S,
+    FLIP_SUBSAMPLE_DEG,
+    REST_SUBSAMPLES,
+    NominalRun,
+    information_along,
+    noise_along,
+    nominal_run,
+    nominal_samples,
+)
 from calib.profiles import NoiseProfile
 from calib.requirements import PAPER, Requirements
 from calib.sequence import Sequence, nominal_attitude, timeline
 from calib.sim import body_integrals
-from calib.nominal import (ANALYSIS_REST_STEP_S, FLIP_SUBSAMPLE_DEG, REST_SUBSAMPLES,  # noqa: F401
-                           NominalRun, information_along, noise_along, nominal_run,
-                           nominal_samples)
 from calib.transform import rotvec_to_dcm, skew
 
 CORRELATION_LIMIT = 0.9
@@ -213,7 +226,8 @@ class SequenceModel:
     @functools.cached_property
     def _basis_columns(self) -> np.ndarray:
         """``Hw_basis`` as a (3K * 21, N_BASIS) matrix: each mounting is then one BLAS
-        matrix-vector product (an einsum over the middle axis was 5x slower)."""
+        matrix-vector product (an einsum over the middle axis was 5x slower).
+        """
         n = self.Hw_basis.shape[0]
         return np.ascontiguousarray(self.Hw_basis.transpose(0, 2, 1)).reshape(n * P.N_PARAMS, -1)
 
@@ -502,7 +516,8 @@ class ExtrasCost:
 
     def verdicts(self) -> list[str]:
         """Per optional parameter: ``observable`` (3 sigma within its typical size),
-        ``weak`` (beyond it) or ``unobservable``."""
+        ``weak`` (beyond it) or ``unobservable``.
+        """
         out = []
         for p, s in zip(self.extras.parameters, self.extra_sigma):
             out.append("unobservable" if not np.isfinite(s)
