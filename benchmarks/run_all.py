@@ -39,18 +39,9 @@ def best_of(fn, repeat: int = 5) -> float:
     return best
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--mc", type=int, default=0, help="also run N Monte Carlo trials per sequence")
-    ap.add_argument("--workers", type=int, default=2)
-    args = ap.parse_args()
-
-    from calib.profiles import load_profile
-    from calib.sequence import load_sequence
-    from seqdesign.observability import analyze, analyze_tolerance
-
+def cli_rows(tmp: Path) -> list:
+    """Simulate, calibrate (plain, extra terms, GM) and analyse through the CLI."""
     rows = []
-    tmp = Path(tempfile.mkdtemp(prefix="seqdesign-bench-"))
     npz, csv = tmp / "run.npz", tmp / "run.csv"
     sim = [str(BIN), "simulate", "paper-9pos", "--table2", "--setup-deg", "1", "-2", "3", "--seed", "7"]
     rows.append(("simulate paper-9pos (28.2 min, 200 Hz) -> NPZ, CLI wall",
@@ -77,21 +68,29 @@ def main() -> None:
                  wall([str(BIN), "analyze", "paper-9pos", "--with", "all"], 1), "-"))
     rows.append(("analyze paper-9pos --profile navigation-gm (+-3 deg), CLI wall",
                  wall([str(BIN), "analyze", "paper-9pos", "--profile", "navigation-gm"], 1), "-"))
-    seq, prof = load_sequence("paper-9pos"), load_profile("navigation")
-    lat = math.radians(40.0)
-    analyze(seq, prof, lat)  # warm caches (casadi step model, whitening) as a search loop would
-    rows.append(("one analysis, nominal mounting, in-process (paper-9pos)",
-                 best_of(lambda: analyze(seq, prof, lat)), "<= 10 ms"))
-    rows.append(("worst case over +-3 deg (27 mountings), in-process",
-                 best_of(lambda: analyze_tolerance(seq, prof, lat, 0.0, 3.0), 2), "<= 2 s"))
-    rows.append(("analyze paper-9pos (+-3 deg), CLI wall incl. start-up",
-                 wall([str(BIN), "analyze", "paper-9pos"]), "<= 3 s"))
-    rows.append(("analyze paper-9pos --tolerance-deg 0, CLI wall",
-                 wall([str(BIN), "analyze", "paper-9pos", "--tolerance-deg", "0"]), "-"))
+    return rows
 
-    # The search loop: one candidate = a 9-position walk scored by the segment model.
+
+def analysis_rows(seq, prof, lat) -> list:
+    """The analyser in-process and through the CLI."""
+    from seqdesign.observability import analyze, analyze_tolerance
+
+    analyze(seq, prof, lat)  # warm caches (casadi step model, whitening) as a search loop would
+    return [("one analysis, nominal mounting, in-process (paper-9pos)",
+             best_of(lambda: analyze(seq, prof, lat)), "<= 10 ms"),
+            ("worst case over +-3 deg (27 mountings), in-process",
+             best_of(lambda: analyze_tolerance(seq, prof, lat, 0.0, 3.0), 2), "<= 2 s"),
+            ("analyze paper-9pos (+-3 deg), CLI wall incl. start-up",
+             wall([str(BIN), "analyze", "paper-9pos"]), "<= 3 s"),
+            ("analyze paper-9pos --tolerance-deg 0, CLI wall",
+             wall([str(BIN), "analyze", "paper-9pos", "--tolerance-deg", "0"]), "-")]
+
+
+def search_rows(seq, prof, lat, tmp: Path) -> list:
+    """The search loop: one candidate = a walk scored by the segment model; a whole design."""
     from seqdesign.design import Constraints, SearchModel, beam_search
     from seqdesign.graph import Move
+
     c9 = Constraints(budget_s=1800.0, max_flips=8, max_quarters=1)
     m9 = SearchModel.build(c9, 180.0, lat, 0.0, prof)
     walk = [Move(s.axis, 1 if s.angle_deg > 0 else -1, 1) for s in seq.steps]
@@ -101,8 +100,8 @@ def main() -> None:
         for mv in walk:
             cand = next(k for k in m9.extend([cand], "worst") if k.walk[-1] == mv)
         return cand
-    rows.append(("one analysis inside the search (paper's 9-position walk, segment model)",
-                 best_of(score_walk) / 1.0, "<= 10 ms"))
+    rows = [("one analysis inside the search (paper's 9-position walk, segment model)",
+             best_of(score_walk), "<= 10 ms")]
     c15 = Constraints(budget_s=900.0, max_flips=10, max_quarters=5)
     t = time.perf_counter()
     m15 = SearchModel.build(c15, 57.3, lat, 0.0, prof)
@@ -115,14 +114,65 @@ def main() -> None:
     rows.append(("seqdesign design --budget-min 15 (search, exact +-3 deg re-scoring, IPOPT), CLI wall",
                  wall([str(BIN), "design", "--budget-min", "15", "-o", str(tmp / "d15.toml")], 1),
                  "<= 5 min"))
-    sim200 = sim + ["-o", str(tmp / "v.npz")]
-    subprocess.run(sim200, check=True, stdout=subprocess.DEVNULL)
+    return rows
+
+
+def view_rows(tmp: Path) -> list:
+    """Record a calibrated run for the viewer."""
+    sim = [str(BIN), "simulate", "paper-9pos", "--table2", "--setup-deg", "1", "-2", "3", "--seed", "7",
+           "-o", str(tmp / "v.npz")]
+    subprocess.run(sim, check=True, stdout=subprocess.DEVNULL)
     subprocess.run([str(BIN), "calibrate", str(tmp / "v.npz")], check=True,
                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    rows.append(("view: record the 28.2 min 200 Hz run with result and truth, CLI wall",
-                 wall([str(BIN), "view", str(tmp / "v.npz"), "-o", str(tmp / "v.rrd")]), "<= 5 s"))
-    rows.append((f"  .rrd size: {(tmp / 'v.rrd').stat().st_size / 1e6:.1f} MB", 0.0, "<= 100 MB"))
+    return [("view: record the 28.2 min 200 Hz run with result and truth, CLI wall",
+             wall([str(BIN), "view", str(tmp / "v.npz"), "-o", str(tmp / "v.rrd")]), "<= 5 s"),
+            (f"  .rrd size: {(tmp / 'v.rrd').stat().st_size / 1e6:.1f} MB", 0.0, "<= 100 MB")]
 
+
+def monte_carlo(n: int, workers: int, prof, lat) -> None:
+    """N simulate -> calibrate trials per shipped sequence against the predicted sigmas."""
+    from calib import params as P
+    from calib.sequence import load_sequence
+    from seqdesign.montecarlo import run_trials
+    from seqdesign.observability import analyze
+
+    for name in ("paper-9pos", "paper-9pos-turns", "designed-15min", "designed-30min"):
+        s = load_sequence(name)
+        t = time.perf_counter()
+        trials = run_trials(s, prof, n, seed=1000, workers=workers)
+        el = time.perf_counter() - t
+        pred = analyze(s, prof, lat)
+        print()
+        print(f"Monte Carlo {name}: N = {n} (navigation profile, Table 2 errors, random "
+              f"mounting within +-3 deg, flip errors within +-0.5 deg), {el:.0f} s with "
+              f"{workers} workers; all converged: {bool(trials.converged.all())}")
+        print(f"mean NEES (reported covariance) {trials.nees.mean():.2f}, (predicted) "
+              f"{trials.nees_against(pred.covariance).mean():.2f}; 99 % interval [18.1, 24.2]")
+        print()
+        print("| param | RMS error | mean reported sigma | RMS/sigma | predicted sigma | RMS/predicted |")
+        print("|---|---|---|---|---|---|")
+        rms, ms = P.from_si(trials.rms_error), P.from_si(trials.mean_sigma)
+        ps = P.from_si(pred.sigma)
+        for p in P.PARAMETERS:
+            i = p.index
+            print(f"| {p.name} | {rms[i]:.4g} {p.unit} | {ms[i]:.4g} | {rms[i] / ms[i]:.2f} | "
+                  f"{ps[i]:.4g} | {rms[i] / ps[i]:.2f} |")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--mc", type=int, default=0, help="also run N Monte Carlo trials per sequence")
+    ap.add_argument("--workers", type=int, default=2)
+    args = ap.parse_args()
+
+    from calib.profiles import load_profile
+    from calib.sequence import load_sequence
+
+    tmp = Path(tempfile.mkdtemp(prefix="seqdesign-bench-"))
+    seq, prof = load_sequence("paper-9pos"), load_profile("navigation")
+    lat = math.radians(40.0)
+    rows = cli_rows(tmp) + analysis_rows(seq, prof, lat) + search_rows(seq, prof, lat, tmp) \
+        + view_rows(tmp)
     print(f"Measured {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC on "
           f"{platform.node()} ({platform.machine()}, {os.cpu_count()} cores, Python "
           f"{platform.python_version()}); command: python benchmarks/run_all.py"
@@ -133,31 +183,8 @@ def main() -> None:
     for what, sec, target in rows:
         shown = "" if sec == 0.0 else f"{sec * 1000:.2f} ms" if sec < 1 else f"{sec:.2f} s"
         print(f"| {what} | {shown} | {target} |")
-
     if args.mc:
-        from calib import params as P
-        from seqdesign.montecarlo import run_trials
-        for name in ("paper-9pos", "paper-9pos-turns", "designed-15min", "designed-30min"):
-            s = load_sequence(name)
-            t = time.perf_counter()
-            trials = run_trials(s, prof, args.mc, seed=1000, workers=args.workers)
-            el = time.perf_counter() - t
-            pred = analyze(s, prof, lat)
-            print()
-            print(f"Monte Carlo {name}: N = {args.mc} (navigation profile, Table 2 errors, random "
-                  f"mounting within +-3 deg, flip errors within +-0.5 deg), {el:.0f} s with "
-                  f"{args.workers} workers; all converged: {bool(trials.converged.all())}")
-            print(f"mean NEES (reported covariance) {trials.nees.mean():.2f}, (predicted) "
-                  f"{trials.nees_against(pred.covariance).mean():.2f}; 99 % interval [18.1, 24.2]")
-            print()
-            print("| param | RMS error | mean reported sigma | RMS/sigma | predicted sigma | RMS/predicted |")
-            print("|---|---|---|---|---|---|")
-            rms, ms = P.from_si(trials.rms_error), P.from_si(trials.mean_sigma)
-            ps = P.from_si(pred.sigma)
-            for p in P.PARAMETERS:
-                i = p.index
-                print(f"| {p.name} | {rms[i]:.4g} {p.unit} | {ms[i]:.4g} | {rms[i] / ms[i]:.2f} | "
-                      f"{ps[i]:.4g} | {rms[i] / ps[i]:.2f} |")
+        monte_carlo(args.mc, args.workers, prof, lat)
 
 
 if __name__ == "__main__":
