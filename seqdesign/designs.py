@@ -45,6 +45,7 @@ class DesignReport:
     paper_worst_ratio: float
     requirements: Requirements = PAPER
     extras: Extras = NO_EXTRAS
+    gimbal: object = None  # calib.gimbal.Gimbal the moves were planned on (design --gimbal)
 
     def to_json(self) -> dict:
         """The ``design --json`` document."""
@@ -52,6 +53,7 @@ class DesignReport:
                 "objective": self.objective,
                 "tolerance_deg": self.tolerance_deg,
                 "with": list(self.extras.groups),
+                "gimbal": None if self.gimbal is None else self.gimbal.name,
                 "designs": [_row_doc(r) for r in self.rows],
                 "paper_9pos": {"duration_s": self.paper_duration_s,
                                "worst_ratio": self.paper_worst_ratio}}
@@ -81,6 +83,7 @@ class DesignReport:
             "latitude_deg": self.latitude_deg, "budget_min": row.budget_min,
             "uniform_dwell_score": r.uniform_worst_ratio, "candidates_evaluated": r.evaluated,
             "with": ",".join(self.extras.groups) or "none", "motif_repeats": r.repeats}
+        prov |= gimbal_provenance(self.gimbal)
         save_sequence(replace(r.sequence, provenance=prov), path)
 
     def write_pareto(self, stem: str | Path) -> list[str]:
@@ -98,6 +101,17 @@ class DesignReport:
         from .plots import pareto_png
         pareto_png(self, g, stem + ".png")
         return [stem + ".csv", stem + ".png"]
+
+
+def gimbal_provenance(gimbal) -> dict:
+    """What a designed file records of the gimbal its moves were planned on."""
+    if gimbal is None:
+        return {"gimbal": "none (default: slip rings, no limits)"}
+    from calib.fileio import sha256_file
+    out = {"gimbal": gimbal.name}
+    if gimbal.path:
+        out |= {"gimbal_file": str(gimbal.path), "gimbal_sha256": sha256_file(gimbal.path)}
+    return out
 
 
 def _row_doc(row: DesignRow) -> dict:
@@ -149,7 +163,7 @@ def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str =
                    *, latitude_deg: float = 40.0, objective: str = "worst",
                    tolerance_deg: float = 3.0, beam_width: int = 200, refine: bool = True,
                    workers: int = 1, scheduler: str | None = None,
-                   progress=None, requirements=None, extras=None) -> DesignReport:
+                   progress=None, requirements=None, extras=None, gimbal=None) -> DesignReport:
     """Design one sequence per budget.
 
     Parameters
@@ -180,11 +194,16 @@ def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str =
     extras : Extras or str, optional
         Terms fitted beside the 21 (``--with``: ``lever-arm,k2,time-offset`` or
         ``all``); the objective is then the worst ratio of the 21 with them fitted.
+    gimbal : str, Path or calib.gimbal.Gimbal, optional
+        Only walk moves this gimbal plays (:mod:`seqdesign.gimbalsearch`);
+        ``constraints['rate_dps'] = None`` then takes the gimbal's rate.
 
     Returns
     -------
     DesignReport
     """
+    from .gimbalsearch import resolve_gimbal
+    gimbal, constraints = resolve_gimbal(gimbal, constraints)  # refused before any search
     prof = as_profile(profile)
     req = load_requirements(requirements)
     ext = extras if isinstance(extras, Extras) else Extras(parse_groups(extras))
@@ -203,4 +222,4 @@ def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str =
         rows.append(DesignRow(b, res, accel_scale_bound(res.sequence.duration_s, prof, g, req)))
     paper_T, paper_worst = paper_point(prof, lat, tolerance_deg, req)
     return DesignReport(rows, prof, objective, tolerance_deg, latitude_deg, paper_T, paper_worst,
-                        req, ext)
+                        req, ext, gimbal)
