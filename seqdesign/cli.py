@@ -423,7 +423,7 @@ def design(budget_min, max_flips, max_quarters, start, end, axes, rate_dps, min_
             "rate_dps") is click.core.ParameterSource.DEFAULT:
         constraints["rate_dps"] = None  # the gimbal's own rate
     from seqdesign.gimbalsearch import resolve_gimbal
-    gimbal, constraints = resolve_gimbal(gimbal_file, constraints)  # refused before the search
+    _, constraints = resolve_gimbal(gimbal_file, constraints)  # refused before the search
     sweep = _budgets(budgets) if pareto else [budget_min]
     paths = {b: _design_path(b, output, pareto) for b in sweep}
     for path in set(paths.values()) | ({str(output or "pareto")} if pareto else set()):
@@ -446,7 +446,7 @@ def design(budget_min, max_flips, max_quarters, start, end, axes, rate_dps, min_
                                 objective=objective, tolerance_deg=tolerance_deg,
                                 beam_width=beam_width, refine=not no_refine, workers=workers,
                                 scheduler=scheduler, progress=progress,
-                                requirements=requirements, extras=with_terms, gimbal=gimbal)
+                                requirements=requirements, extras=with_terms)
     finally:
         for bar in bars.values():
             bar.__exit__(None, None, None)

@@ -163,7 +163,7 @@ def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str =
                    *, latitude_deg: float = 40.0, objective: str = "worst",
                    tolerance_deg: float = 3.0, beam_width: int = 200, refine: bool = True,
                    workers: int = 1, scheduler: str | None = None,
-                   progress=None, requirements=None, extras=None, gimbal=None) -> DesignReport:
+                   progress=None, requirements=None, extras=None) -> DesignReport:
     """Design one sequence per budget.
 
     Parameters
@@ -172,7 +172,8 @@ def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str =
         Total time budgets, minutes.
     constraints : dict
         The :class:`seqdesign.design.Constraints` fields other than the budget
-        (start, end, max_flips, axes, max_quarters, rate_dps, min/max dwell).
+        (start, end, max_flips, axes, max_quarters, rate_dps, min/max dwell; a gimbal
+        and its move limits from :func:`seqdesign.gimbalsearch.resolve_gimbal`).
     profile : NoiseProfile or str
         The noise the design is optimised for.
     latitude_deg : float
@@ -194,16 +195,11 @@ def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str =
     extras : Extras or str, optional
         Terms fitted beside the 21 (``--with``: ``lever-arm,k2,time-offset`` or
         ``all``); the objective is then the worst ratio of the 21 with them fitted.
-    gimbal : str, Path or calib.gimbal.Gimbal, optional
-        Only walk moves this gimbal plays (:mod:`seqdesign.gimbalsearch`);
-        ``constraints['rate_dps'] = None`` then takes the gimbal's rate.
 
     Returns
     -------
     DesignReport
     """
-    from .gimbalsearch import resolve_gimbal
-    gimbal, constraints = resolve_gimbal(gimbal, constraints)  # refused before any search
     prof = as_profile(profile)
     req = load_requirements(requirements)
     ext = extras if isinstance(extras, Extras) else Extras(parse_groups(extras))
@@ -222,4 +218,4 @@ def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str =
         rows.append(DesignRow(b, res, accel_scale_bound(res.sequence.duration_s, prof, g, req)))
     paper_T, paper_worst = paper_point(prof, lat, tolerance_deg, req)
     return DesignReport(rows, prof, objective, tolerance_deg, latitude_deg, paper_T, paper_worst,
-                        req, ext, gimbal)
+                        req, ext, constraints.get("gimbal"))
