@@ -81,11 +81,13 @@ def _write(tmp_path, text) -> str:
 
 @pytest.mark.slow
 def test_design_cli_writes_a_playable_file_naming_the_gimbal(tmp_path):
-    # ~15 s: a 6-minute design on the shipped cable-wrap gimbal, no refinement.
+    # ~10 s: a 5-minute design on the shipped cable-wrap gimbal, small beam, nominal mounting
+    # only, no refinement (the figure does not matter here, only what is written).
     out = tmp_path / "d.toml"
     gimbal = Path(__file__).parents[1] / "sequences" / "gimbals" / "cable-wrap.toml"
-    res = CliRunner().invoke(main, ["design", "--budget-min", "6", "--max-flips", "4",
-                                    "--beam-width", "10", "--no-refine", "--gimbal", str(gimbal),
+    res = CliRunner().invoke(main, ["design", "--budget-min", "5", "--max-flips", "4",
+                                    "--max-quarters", "2", "--beam-width", "5", "--no-refine",
+                                    "--tolerance-deg", "0", "--gimbal", str(gimbal),
                                     "-o", str(out)])
     assert res.exit_code == 0, res.output
     prov = tomllib.loads(out.read_text())["provenance"]
@@ -94,7 +96,7 @@ def test_design_cli_writes_a_playable_file_naming_the_gimbal(tmp_path):
     seq = load_sequence(out)
     check_playable(plan_sequence(seq, load_gimbal(gimbal)), "test")
     assert all(s.rate_dps == 20.0 and s.accel_dps2 == 10.0 for s in seq.steps)
-    assert seq.duration_s <= 360.0 + 1e-6
+    assert seq.duration_s <= 300.0 + 1e-6
     res = CliRunner().invoke(main, ["export", str(out), "--gimbal", str(gimbal),
                                     "-o", str(tmp_path / "c.csv")])
     assert res.exit_code == 0, res.output
