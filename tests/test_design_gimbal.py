@@ -134,3 +134,20 @@ def test_sequence_outside_the_gimbal_is_refused_with_one_line(tmp_path):
     assert res.exit_code == 2 and not out.exists()
     assert res.output.count("\n") == 1 and "gimbal" in res.output
 
+
+
+@pytest.mark.parametrize("name", ["designed-30min-cable-wrap", "designed-30min-slip-rings"])
+def test_shipped_gimbal_designs_play_on_their_gimbal(name):
+    # The file names the gimbal it was designed for (with the file's hash); every move
+    # replays through plan_sequence on that gimbal, with an acceleration limit per step
+    # (no instantaneous rate step), and the run lasts at most its 30-min budget.
+    from calib.fileio import sha256_file
+    path = Path(__file__).parents[1] / "sequences" / f"{name}.toml"
+    prov = tomllib.loads(path.read_text())["provenance"]
+    gimbal_file = Path(__file__).parents[1] / prov["gimbal_file"]
+    assert sha256_file(gimbal_file) == prov["gimbal_sha256"]
+    seq = load_sequence(path)
+    g = load_gimbal(gimbal_file)
+    check_playable(plan_sequence(seq, g), name)
+    assert all(s.accel_dps2 is not None for s in seq.steps)
+    assert seq.duration_s <= prov["budget_min"] * 60.0 + 1e-6
