@@ -398,10 +398,13 @@ def compare(sequences, profile, latitude, tolerance_deg, requirements, as_json):
               help="Local processes.")
 @click.option("--scheduler", default=None, help="dask.distributed scheduler address.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
+@click.option("--gimbal", "gimbal_file", default=None, metavar="FILE|NAME",
+              help="Only moves this gimbal plays (docs/gimbal.md); --rate-dps defaults to its rate.")
 @guarded
 def design(budget_min, max_flips, max_quarters, start, end, axes, rate_dps, min_dwell_s,
            max_dwell_s, objective, profile, latitude, tolerance_deg, requirements, beam_width,
-           no_refine, output, pareto, budgets, workers, scheduler, as_json, with_terms=None):
+           no_refine, output, pareto, budgets, workers, scheduler, as_json, with_terms=None,
+           gimbal_file=None):
     """Search flip walks on the graph of the 24 grid attitudes (beam search with
     incremental information), re-score the finalists exactly at the worst
     case of the mounting tolerance, refine the best's dwells with IPOPT, and
@@ -416,6 +419,11 @@ def design(budget_min, max_flips, max_quarters, start, end, axes, rate_dps, min_
                        end=parse_node(end, "--end") if end else None, max_flips=max_flips,
                        axes=axes.upper(), max_quarters=max_quarters, rate_dps=rate_dps,
                        min_dwell_s=min_dwell_s, max_dwell_s=max_dwell_s)
+    if gimbal_file and click.get_current_context().get_parameter_source(
+            "rate_dps") is click.core.ParameterSource.DEFAULT:
+        constraints["rate_dps"] = None  # the gimbal's own rate
+    from seqdesign.gimbalsearch import resolve_gimbal
+    _, constraints = resolve_gimbal(gimbal_file, constraints)  # refused before the search
     sweep = _budgets(budgets) if pareto else [budget_min]
     paths = {b: _design_path(b, output, pareto) for b in sweep}
     for path in set(paths.values()) | ({str(output or "pareto")} if pareto else set()):

@@ -242,6 +242,25 @@ class Constraints:
     min_dwell_s: float = 30.0
     max_dwell_s: float = 300.0
     budget_s: float = 900.0
+    accel_dps2: float | None = None  # every move a trapezoid (None: constant rate)
+    jerk_dps3: float | None = None  # and an S-curve
+    gimbal: object = None  # calib.gimbal.Gimbal: only moves it plays (seqdesign.gimbalsearch)
+
+
+def turn_seconds(mv: Move, c: Constraints) -> float:
+    """How long a move lasts with the design's rate profile (longer with an acceleration limit)."""
+    if c.accel_dps2 is None:
+        return abs(mv.angle_deg) / c.rate_dps
+    from .gimbalsearch import move_profile
+    return move_profile(c.rate_dps, c.accel_dps2, c.jerk_dps3).duration_s(
+        math.radians(abs(mv.angle_deg)))
+
+
+def turn_rate(mv: Move, c: Constraints) -> float:
+    """Signed rate (rad/s) of the search's constant-rate segment: the mean over the real move."""
+    if c.accel_dps2 is None:
+        return mv.sign * math.radians(c.rate_dps)
+    return mv.sign * math.radians(abs(mv.angle_deg)) / turn_seconds(mv, c)
 
 
 @dataclass
@@ -255,6 +274,7 @@ class Candidate:
     time_s: float
     score: float = math.inf
     P: np.ndarray | None = None  # filter covariance (exact-noise search only)
+    enc: tuple | None = None  # encoder angles (rad, continuous) with a gimbal
 
 
 @dataclass
@@ -289,12 +309,11 @@ class SearchModel:
                                  None, SEARCH_REST_INTERVALS, initial=True)
         model = cls(c, dwell_s, latitude_rad, g, profile, graph,
                     all_moves(c.axes, c.max_quarters), initial, rest, requirements=requirements)
-        rate = math.radians(c.rate_dps)
         for node in graph.nodes:
             C = attitude_of(node)
             for mv in model.moves:
                 model.turn[(node, mv)] = segment_effect(
-                    C, abs(mv.angle_deg) / c.rate_dps, mv.sign * rate, AXES.index(mv.axis),
+                    C, turn_seconds(mv, c), turn_rate(mv, c), AXES.index(mv.axis),
                     latitude_rad, g, profile, start_covariance(P_ss, C))
         return model
 
@@ -305,15 +324,14 @@ class SearchModel:
         model = cls(c, dwell_s, latitude_rad, g, profile, graph,
                     all_moves(c.axes, c.max_quarters), rest[tuple(c.start)], rest,
                     requirements=requirements, exact_noise=True)
-        rate = math.radians(c.rate_dps)
         for node in graph.nodes:
             for mv in model.moves:
-                model.turn[(node, mv)] = _turn_columns(node, mv, c.rate_dps, rate, latitude_rad,
-                                                       g, profile)
+                model.turn[(node, mv)] = _turn_columns(node, mv, turn_seconds(mv, c),
+                                                       turn_rate(mv, c), latitude_rad, g, profile)
         return model
 
     def turn_time(self, mv: Move) -> float:
-        return abs(mv.angle_deg) / self.constraints.rate_dps
+        return turn_seconds(mv, self.constraints)
 
     def start_candidate(self) -> Candidate:
         """After the initial rest (its effect already holds the run's start state)."""
@@ -321,10 +339,26 @@ class SearchModel:
             X, N, P0 = start_state(gm_start_covariance(self.profile), N_UNKNOWN)
             X, N, P0 = fold(self.initial, X[None], N[None], P0[None])
             return Candidate(walk=(), node=tuple(self.constraints.start), X=X[0], N=N[0],
-                             time_s=self.dwell_s, P=P0[0])
+                             time_s=self.dwell_s, P=P0[0], enc=self._enc0())
         e = self.initial
         return Candidate(walk=(), node=tuple(self.constraints.start), X=e.B.copy(), N=e.M3.copy(),
-                         time_s=self.dwell_s)
+                         time_s=self.dwell_s, enc=self._enc0())
+
+    def _enc0(self):
+        return None if self.constraints.gimbal is None else (0.0, 0.0, 0.0)
+
+    def _gimbal_child(self, par: Candidate, mv: Move, t: float):
+        """``(True, encoders)`` after ``mv`` when the gimbal plays it and can still get home."""
+        c = self.constraints
+        if c.gimbal is None:
+            return True, None
+        from .gimbalsearch import home_reachable, next_encoders
+        enc = next_encoders(c, par.enc, mv)
+        if "_min_turn" not in self.__dict__:
+            self.__dict__["_min_turn"] = min(self.turn_time(m) for m in self.moves)
+        quarter = self.__dict__["_min_turn"]
+        ok = enc is not None and home_reachable(c, enc, len(par.walk) + 1, t, quarter)
+        return ok, enc
 
     def extend(self, parents: list[Candidate], objective: str,
                prior: bool = True) -> list[Candidate]:
@@ -338,8 +372,11 @@ class SearchModel:
                 t = par.time_s + self.turn_time(mv) + self.dwell_s
                 if t > c.budget_s + 1e-9:
                     continue
+                ok, enc = self._gimbal_child(par, mv, t)
+                if not ok:
+                    continue
                 end = apply_move(self.graph, par.node, mv)
-                kids.append(Candidate(par.walk + (mv,), end, par.X, par.N, t, P=par.P))
+                kids.append(Candidate(par.walk + (mv,), end, par.X, par.N, t, P=par.P, enc=enc))
                 keys.append((par.node, mv))
                 if not self.exact_noise:
                     effs.append((self.turn[(par.node, mv)], self.rest[end]))
@@ -399,6 +436,11 @@ class SearchModel:
         return self.__dict__["_stacked"]
 
     def complete(self, cand: Candidate) -> bool:
+        g = self.constraints.gimbal
+        if g is not None and g.end_at_home:
+            from .gimbalsearch import at_home
+            if not at_home(cand.enc):
+                return False
         return len(cand.walk) > 0 and (self.constraints.end is None
                                         or cand.node == tuple(self.constraints.end))
 
@@ -453,7 +495,7 @@ def to_sequence(walk, c: Constraints, dwells: list[float], name: str,
                 provenance: dict | None = None, latitude_deg: float | None = None,
                 height_m: float | None = None) -> Sequence:
     """A sequence file's content for a walk and its dwells (initial first), with its site."""
-    steps = tuple(Step(mv.axis, mv.angle_deg, c.rate_dps, float(d))
+    steps = tuple(Step(mv.axis, mv.angle_deg, c.rate_dps, float(d), c.accel_dps2, c.jerk_dps3)
                   for mv, d in zip(walk, dwells[1:]))
     return Sequence(name=name, start=tuple(c.start), steps=steps, initial_dwell_s=float(dwells[0]),
                     description=f"designed: {' '.join(m.label() for m in walk)}",
@@ -475,8 +517,8 @@ def walk_information(walk, c: Constraints, dwells, latitude_rad: float, gravity_
                        None, SEARCH_REST_INTERVALS, initial=True)
     X, N = e.B, e.M3
     for mv, d in zip(walk, dwells[1:]):
-        parts = [_turn_effect(node, mv, c.rate_dps, latitude_rad, gravity_mps2, profile,
-                              P_ss.tobytes())]
+        parts = [_turn_effect(node, mv, turn_seconds(mv, c), turn_rate(mv, c), latitude_rad,
+                              gravity_mps2, profile, P_ss.tobytes())]
         node = apply_move(graph, node, mv)
         parts.append(segment_effect(attitude_of(node), d, 0.0, -1, latitude_rad, gravity_mps2,
                                     profile, start_covariance(P_ss, attitude_of(node)),
@@ -494,12 +536,11 @@ def _walk_information_exact(walk, c: Constraints, dwells, latitude_rad: float,
     graph = flip_graph(c.start, c.axes)
     node = tuple(c.start)
     X, N, Pc = (a[None] for a in start_state(gm_start_covariance(profile), N_UNKNOWN))
-    rate = math.radians(c.rate_dps)
     segs = [segment_columns(attitude_of(node), dwells[0], 0.0, -1, latitude_rad, gravity_mps2,
                             profile, SEARCH_REST_INTERVALS)]
     for mv, d in zip(walk, dwells[1:]):
-        segs.append(_turn_columns(node, mv, c.rate_dps, rate, latitude_rad, gravity_mps2,
-                                  profile))
+        segs.append(_turn_columns(node, mv, turn_seconds(mv, c), turn_rate(mv, c), latitude_rad,
+                                  gravity_mps2, profile))
         node = apply_move(graph, node, mv)
         segs.append(segment_columns(attitude_of(node), d, 0.0, -1, latitude_rad, gravity_mps2,
                                     profile, SEARCH_REST_INTERVALS))
@@ -509,20 +550,18 @@ def _walk_information_exact(walk, c: Constraints, dwells, latitude_rad: float,
 
 
 @functools.lru_cache(maxsize=4096)
-def _turn_columns(node, mv, rate_dps, rate, latitude_rad, gravity_mps2, profile):
-    duration = abs(mv.angle_deg) / rate_dps
-    return segment_columns(attitude_of(node), duration, mv.sign * rate, AXES.index(mv.axis),
+def _turn_columns(node, mv, duration, rate, latitude_rad, gravity_mps2, profile):
+    return segment_columns(attitude_of(node), duration, rate, AXES.index(mv.axis),
                            latitude_rad, gravity_mps2, profile,
                            max(1, int(round(duration / SEARCH_GM_MOVE_STEP_S))))
 
 
 @functools.lru_cache(maxsize=4096)
-def _turn_effect(node, mv, rate_dps, latitude_rad, gravity_mps2, profile, P_bytes):
+def _turn_effect(node, mv, duration, rate, latitude_rad, gravity_mps2, profile, P_bytes):
     n = int(round(math.sqrt(len(P_bytes) // 8)))
     P_ss = np.frombuffer(P_bytes).reshape(n, n)
     C = attitude_of(node)
-    return segment_effect(C, abs(mv.angle_deg) / rate_dps,
-                          mv.sign * math.radians(rate_dps), AXES.index(mv.axis), latitude_rad,
+    return segment_effect(C, duration, rate, AXES.index(mv.axis), latitude_rad,
                           gravity_mps2, profile, start_covariance(P_ss, C))
 
 
@@ -552,7 +591,7 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
     def expand(x):
         return np.concatenate([x[:1], np.tile(x[1:], repeats)])
 
-    turn_time = sum(abs(m.angle_deg) / c.rate_dps for m in walk)
+    turn_time = sum(turn_seconds(m, c) for m in walk)
     scale = 100.0  # dwells in units of 100 s for IPOPT
 
     def ratios(dw):
@@ -748,7 +787,7 @@ def motif_dwell(walk, c: Constraints, repeats: int) -> float | None:
     n = len(walk) * repeats
     if n > MAX_MOTIF_MOVES:
         return None
-    turn = repeats * sum(abs(m.angle_deg) for m in walk) / c.rate_dps
+    turn = repeats * sum(turn_seconds(m, c) for m in walk)
     d = math.floor(10.0 * (c.budget_s - turn) / (n + 1)) / 10.0
     if d < c.min_dwell_s:
         return None
@@ -769,6 +808,11 @@ def _candidates(results, c: Constraints):
             if d is not None and (walk * r, d) not in seen:
                 seen.add((walk * r, d))
                 out.append((walk * r, d, r))
+    if c.gimbal is not None:  # a motif's later plays start where the first ended: replay all
+        from calib.gimbal import plan_sequence
+        out = [x for x in out
+               if plan_sequence(to_sequence(x[0], c, [x[1]] * (len(x[0]) + 1), "x"),
+                                c.gimbal).playable]
     return out
 
 
@@ -847,6 +891,8 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
         pool.sort(key=lambda f: (f[0], f[1]))
     worst, label, dwells, walk, reps = pool[0]
     worst, wname, rob, cost, seq = exact(walk, dwells, search=True)
+    from .gimbalsearch import check_sequence_plays
+    check_sequence_plays(seq, c.gimbal)
     if progress:
         progress(f"best of {len(pool)}: {label}; worst case over +-{tolerance_deg:g} deg: "
                  f"{worst:.3f} ({wname})", 1)

@@ -46,6 +46,7 @@ class DesignReport:
     paper_worst_ratio: float
     requirements: Requirements = PAPER
     extras: Extras = NO_EXTRAS
+    gimbal: object = None  # calib.gimbal.Gimbal the moves were planned on (design --gimbal)
 
     def to_json(self) -> dict:
         """The ``design --json`` document."""
@@ -53,6 +54,7 @@ class DesignReport:
                 "objective": self.objective,
                 "tolerance_deg": self.tolerance_deg,
                 "with": list(self.extras.groups),
+                "gimbal": None if self.gimbal is None else self.gimbal.name,
                 "designs": [_row_doc(r) for r in self.rows],
                 "paper_9pos": {"duration_s": self.paper_duration_s,
                                "worst_ratio": self.paper_worst_ratio}}
@@ -82,6 +84,7 @@ class DesignReport:
             "latitude_deg": self.latitude_deg, "budget_min": row.budget_min,
             "uniform_dwell_score": r.uniform_worst_ratio, "candidates_evaluated": r.evaluated,
             "with": ",".join(self.extras.groups) or "none", "motif_repeats": r.repeats}
+        prov |= gimbal_provenance(self.gimbal)
         save_sequence(replace(r.sequence, provenance=prov), path)
 
     def write_pareto(self, stem: str | Path) -> list[str]:
@@ -99,6 +102,17 @@ class DesignReport:
         from .plots import pareto_png
         pareto_png(self, g, stem + ".png")
         return [stem + ".csv", stem + ".png"]
+
+
+def gimbal_provenance(gimbal) -> dict:
+    """What a designed file records of the gimbal its moves were planned on."""
+    if gimbal is None:
+        return {"gimbal": "none (default: slip rings, no limits)"}
+    from calib.fileio import sha256_file
+    out = {"gimbal": gimbal.name}
+    if gimbal.path:
+        out |= {"gimbal_file": str(gimbal.path), "gimbal_sha256": sha256_file(gimbal.path)}
+    return out
 
 
 def _row_doc(row: DesignRow) -> dict:
@@ -159,7 +173,8 @@ def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str =
         Total time budgets, minutes.
     constraints : dict
         The :class:`seqdesign.design.Constraints` fields other than the budget
-        (start, end, max_flips, axes, max_quarters, rate_dps, min/max dwell).
+        (start, end, max_flips, axes, max_quarters, rate_dps, min/max dwell; a gimbal
+        and its move limits from :func:`seqdesign.gimbalsearch.resolve_gimbal`).
     profile : NoiseProfile or str
         The noise the design is optimised for.
     latitude_deg : float
@@ -204,4 +219,4 @@ def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str =
         rows.append(DesignRow(b, res, accel_scale_bound(res.sequence.duration_s, prof, g, req)))
     paper_T, paper_worst = paper_point(prof, lat, tolerance_deg, req)
     return DesignReport(rows, prof, objective, tolerance_deg, latitude_deg, paper_T, paper_worst,
-                        req, ext)
+                        req, ext, constraints.get("gimbal"))
