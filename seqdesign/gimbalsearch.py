@@ -97,6 +97,7 @@ def next_encoders(c, enc: tuple, mv) -> tuple | None:
 
 
 def at_home(enc) -> bool:
+    """Whether every encoder is back at 0 (no gimbal: always)."""
     return enc is None or all(abs(a) <= HOME_TOL_RAD for a in enc)
 
 
