@@ -19,9 +19,8 @@ from . import earth
 from . import params as P
 from .errors import CalibError
 from .estimator import Fit, calibrate, check_sequence_matches, detect_motion, sequence_motion
-from .extras import NONE as NO_EXTRAS
-from .extras import Extras, parse_groups
-from .profiles import NoiseProfile, load_profile
+from .extras import Extras, as_extras
+from .profiles import NoiseProfile, as_profile
 from .requirements import PAPER, Requirements, load_requirements
 from .result import CalibrationResult
 from .strapdown import sample_intervals
@@ -62,18 +61,6 @@ def site_gravity(run, gravity_mps2: float | None = None) -> SiteGravity:
     if run.gravity_mps2 is not None:
         return SiteGravity(float(run.gravity_mps2), "measured")
     return SiteGravity(earth.gravity(math.radians(run.latitude_deg), run.height_m), "normal")
-
-
-def as_profile(profile: NoiseProfile | str) -> NoiseProfile:
-    """A profile object from itself, a built-in name or a TOML path."""
-    return profile if isinstance(profile, NoiseProfile) else load_profile(profile)
-
-
-def as_extras(extras: Extras | str | None) -> Extras:
-    """Optional terms from an :class:`Extras`, a ``--with`` string or None."""
-    if isinstance(extras, Extras):
-        return extras
-    return Extras(parse_groups(extras)) if extras else NO_EXTRAS
 
 
 def calibrate_run(run, profile: NoiseProfile | str = "navigation", *, sequence=None,

@@ -342,3 +342,10 @@ def dv_sensitivity(extras: Extras, dtheta: np.ndarray, dv: np.ndarray, h: np.nda
     if "time-offset" in extras.groups:
         D[:, :, extras.index("time-offset").start] = np.cross(dtheta - earth_dtheta, dv) / h[:, None]
     return D
+
+
+def as_extras(extras: "Extras | str | None") -> Extras:
+    """Optional terms from an :class:`Extras`, a ``--with`` string or None."""
+    if isinstance(extras, Extras):
+        return extras
+    return Extras(parse_groups(extras)) if extras else NONE

@@ -178,3 +178,8 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> NoiseProfile:
     expect(path, "profile")
     doc = load_toml(path)
     return _from_doc(doc, str(path))
+
+
+def as_profile(profile: "NoiseProfile | str") -> NoiseProfile:
+    """A profile object from itself, a built-in name or a TOML path."""
+    return profile if isinstance(profile, NoiseProfile) else load_profile(profile)

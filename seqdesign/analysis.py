@@ -16,10 +16,9 @@ import numpy as np
 
 from calib import earth
 from calib import params as P
-from calib.calibration import as_extras, as_profile
 from calib.errors import CalibError
-from calib.extras import Extras
-from calib.profiles import NoiseProfile
+from calib.extras import Extras, as_extras
+from calib.profiles import NoiseProfile, as_profile
 from calib.report import format_table, parameter_entries, worst
 from calib.requirements import PAPER, Requirements, load_requirements
 from calib.sequence import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, Sequence, load_sequence

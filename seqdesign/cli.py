@@ -232,7 +232,9 @@ def calibrate(run_path, sequence, profile, output, truth_path, latitude, height,
     """Align, navigate on the stationary base and fit the 21 error parameters of
     RUN (CSV, NPZ or PSINS .imu) by iterated, noise-weighted least squares.
     """
-    from calib.calibration import as_extras, as_profile, calibrate_run
+    from calib.calibration import calibrate_run
+    from calib.extras import as_extras
+    from calib.profiles import as_profile
     from calib.runlog import read_run
     from calib.sequence import load_sequence
     from calib.truth import read_truth, truth_path_for
@@ -331,8 +333,8 @@ def compare(sequences, profile, latitude, tolerance_deg, requirements, as_json):
     side: each difference against the combined sigma, and a chi-square
     over all of them (the repeatability check of the paper's Table 3).
     """
-    from calib.calibration import as_profile
     from calib.filekind import kind_of
+    from calib.profiles import as_profile
     from calib.requirements import load_requirements
     from seqdesign.analysis import analyze as run_analysis
     from seqdesign.analysis import compare_text

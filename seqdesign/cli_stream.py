@@ -102,8 +102,10 @@ def calibrate_stream(run_path, profile, output, with_terms, requirements, partia
     """Fit RUN (CSV or NPZ) as `seqdesign calibrate` does, reading it a chunk at a time:
     memory stays at one chunk plus one byte per sample, whatever the length of the log.
     """
-    from calib.calibration import as_extras, as_profile, load_requirements, result_from_fit, site_gravity
+    from calib.calibration import load_requirements, result_from_fit, site_gravity
     from calib.chunks import calibrate_file, read_meta
+    from calib.extras import as_extras
+    from calib.profiles import as_profile
     from calib.runlog import Run
     from calib.truth import read_truth, truth_path_for
 

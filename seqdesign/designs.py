@@ -12,11 +12,10 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from calib import earth
-from calib.calibration import as_profile
 from calib.extras import NONE as NO_EXTRAS
 from calib.extras import Extras, parse_groups
 from calib.fileio import atomic_write_text
-from calib.profiles import NoiseProfile
+from calib.profiles import NoiseProfile, as_profile
 from calib.requirements import PAPER, Requirements, load_requirements
 from calib.sequence import load_sequence, save_sequence
 
