@@ -17,6 +17,7 @@ from .errors import CalibError
 from .fileio import toml_number
 
 _MISSING = object()
+REQUIRED = _MISSING  # "no default": a missing key is refused
 
 # The first format version of each file kind; files written before versions existed
 # carry no ``format_version`` and mean what version 1 means.

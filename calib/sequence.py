@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import CalibError
-from .fields import FORMAT_VERSION, Fields, check_format_version
-from .fileio import load_toml, toml_number
+from .fields import FORMAT_VERSION, REQUIRED, Fields, check_format_version
+from .fileio import load_toml
 from .filekind import expect
 from .rateprofile import RateProfile
 from .transform import attitude_from_directions, axis_index, rot_axis
@@ -116,21 +116,10 @@ def _step_dict(s: Step) -> dict:
 
 def _number(table: dict, key: str, where: str, default=None, positive=False,
             nonnegative=False) -> float:
-    if key not in table:
-        if default is None:
-            raise CalibError(f"missing key '{key}'", where, f"add '{key} = <number>'")
-        return float(default)
-    raw = table[key]
-    value = toml_number(raw)
-    if value is None:
-        raise CalibError(f"'{key}' must be a number, got {raw!r}", where)
-    if not math.isfinite(value):
-        raise CalibError(f"'{key}' must be finite, got {value}", where)
-    if positive and value <= 0:
-        raise CalibError(f"'{key}' must be > 0, got {value}", where)
-    if nonnegative and value < 0:
-        raise CalibError(f"'{key}' must be >= 0, got {value}", where)
-    return value
+    """A finite number from a sequence table (the shared validator, :mod:`calib.fields`)."""
+    value = Fields(table, where).number(key, REQUIRED if default is None else float(default),
+                                        positive=positive, low=0.0 if nonnegative else None)
+    return float(value)
 
 
 SEQUENCE_KEYS = ("format_version", "name", "description", "start", "initial_dwell_s",
