@@ -11,7 +11,7 @@ The rule: an eigen-direction of the scaled information is **weak** when its
 eigenvalue is below ``max(WEAK_INFORMATION, RELATIVE_RANK_TOL * largest)``,
 i.e. its sigma would exceed 1000 requirements, or it is numerically null.
 A parameter is **estimable** when its unit vector lies in the span of the
-other directions: its component along the weak subspace is below
+observed directions: its component along the weak subspace is below
 ``ESTIMABLE_TOL``. An estimable parameter's variance is then the
 pseudo-inverse's (the variance of the best linear unbiased estimate of that
 parameter when the weak combinations are left unfitted).
