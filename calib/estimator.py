@@ -332,13 +332,7 @@ class _Problem:
 
     def observations(self, nav, Phi_vv, it: int) -> np.ndarray:
         """Velocity changes over the observation intervals, less the noise model's prediction."""
-        y = nav.v_n[self.grid.bounds]
-        z = y[1:] - np.einsum("kij,kj->ki", Phi_vv, y[:-1])
-        if not np.all(np.isfinite(z)) or np.abs(y).max() > 1e5:
-            raise CalibError(f"the fit diverged at iteration {it} (navigation velocity "
-                             f"{np.abs(y).max():.3g} m/s)", self.where,
-                             "check units and that the run is a stationary-base calibration")
-        return z
+        return _observations(nav.v_n[self.grid.bounds], Phi_vv, it, self.where)
 
 
 def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitude_rad: float,

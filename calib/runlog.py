@@ -27,6 +27,7 @@ import numpy as np
 
 from calib import clock
 from calib.columns import ColumnPlan, plan_columns, to_increments
+from calib.earth import HEIGHT_RANGE_M  # one source: the site limits of calib.earth
 from calib.errors import CalibError
 from calib.fileio import atomic_write_bytes, atomic_write_text
 from calib.filekind import expect
@@ -50,9 +51,6 @@ _ARRAY_COLUMNS = {
 
 GAP_PERIODS = 2.0  # the typical time step must lie within [0.5, 2] nominal periods
 
-# A calibration site is on the Earth's surface (Dead Sea to Everest, with margin);
-# far outside, normal gravity is meaningless and its formula overflows.
-HEIGHT_RANGE_M = (-1000.0, 10000.0)
 
 
 @dataclass
