@@ -92,7 +92,7 @@ def check_gravity(dv: np.ndarray, dt: np.ndarray, rest: slice, gravity_mps2: flo
                          cause)
 
 
-def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def runs_of(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Start and end (exclusive) of each stretch of consecutive True."""
     edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
     return edges[::2], edges[1::2]
@@ -121,7 +121,7 @@ def _saturated_stretch(data: np.ndarray, axis: int) -> tuple[int, int] | None:
         return None
     others = np.delete(data, axis, axis=1)
     typical = float(np.median(x))
-    for a, b in zip(*_runs(np.abs(x) == peak)):
+    for a, b in zip(*runs_of(np.abs(x) == peak)):
         if b - a < SATURATION_RUN or x[a] == typical:
             continue
         if np.max(np.ptp(others[a:b], axis=0)) > still:

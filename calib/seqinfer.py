@@ -14,15 +14,11 @@ import math
 
 import numpy as np
 
+from .sanity import runs_of
 from .sequence import MIN_RATE_DPS, Sequence, Step
 from .transform import AXES, directions_of, rot_axis
 
 SNAP_DEG = 10.0  # a rest counts as a grid attitude within this (mounting 3 deg + alignment)
-
-
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
-    return list(zip(edges[::2], edges[1::2]))
 
 
 def _snap(C: np.ndarray, max_deg: float = SNAP_DEG) -> np.ndarray | None:
@@ -54,7 +50,7 @@ def infer_sequence(C_b_n: np.ndarray, dtheta: np.ndarray, moving: np.ndarray,
     name : str
         Name of the inferred sequence.
     """
-    turns = _runs(moving)
+    turns = list(zip(*runs_of(moving)))
     if not turns:
         return None
     rests = [(0, turns[0][0])] + [(a[1], b[0]) for a, b in zip(turns[:-1], turns[1:])] \
