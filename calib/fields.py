@@ -46,23 +46,28 @@ class Fields:
 
     def number(self, key: str, default=_MISSING, *, low: float | None = None,
                high: float | None = None, positive: bool = False, finite: bool = True,
-               unit: str = "") -> float:
-        """A number, refused with the key's name unless it is finite and within the bounds."""
+               unit: str = "", fix: str | None = None) -> float:
+        """A number, refused with the key's name unless it is finite and within the bounds.
+
+        ``fix`` is the advice every refusal of this key carries (e.g. the unit expected).
+        """
         if key not in self.table:
             if default is _MISSING:
-                raise CalibError(f"missing key '{key}'", self.where, f"add '{key} = <number>'")
+                raise CalibError(f"missing key '{key}'", self.where,
+                                 fix or f"add '{key} = <number>'")
             return default
         raw = self.table[key]
         value = toml_number(raw)
         if value is None:
-            raise CalibError(f"'{key}' must be a number, got {raw!r}", self.here(key))
+            raise CalibError(f"'{key}' must be a number, got {raw!r}", self.here(key), fix)
         if finite and not math.isfinite(value):
-            raise CalibError(f"'{key}' must be finite, got {value}", self.here(key))
+            raise CalibError(f"'{key}' must be finite, got {value}", self.here(key), fix)
         if positive and not value > 0:
-            raise CalibError(f"'{key}' must be > 0, got {value}", self.here(key))
+            raise CalibError(f"'{key}' must be > 0, got {value}", self.here(key), fix)
         if (low is not None and value < low) or (high is not None and value > high):
             span = f"[{'-inf' if low is None else f'{low:g}'}, {'inf' if high is None else f'{high:g}'}]"
-            raise CalibError(f"'{key}' = {value:g}{unit} is outside {span}{unit}", self.here(key))
+            raise CalibError(f"'{key}' = {value:g}{unit} is outside {span}{unit}",
+                             self.here(key), fix)
         return value
 
     def integer(self, key: str, default=_MISSING, *, low: int | None = None) -> int:

@@ -3,7 +3,6 @@ optional first-order Gauss-Markov bias instability (see :mod:`calib.gaussmarkov`
 """
 from __future__ import annotations
 
-import math
 import tomllib
 import warnings
 from dataclasses import dataclass
@@ -12,7 +11,7 @@ from pathlib import Path
 
 from .errors import CalibError
 from .fields import Fields, check_format_version
-from .fileio import load_toml, toml_number
+from .fileio import load_toml
 from .filekind import expect
 from .params import DEG, DEG_PER_HOUR, MICRO_G
 
@@ -98,38 +97,24 @@ _GM_KEYS = {  # sigma key: (its correlation-time key, upper bound, unit)
 _TAU_RANGE = (1.0, 1e6)
 
 
-def _number(doc: dict, key: str) -> float | None:
-    """``doc[key]`` as a finite float, ``None`` if it is not a finite number (bool excluded)."""
-    number = toml_number(doc[key])
-    return number if number is not None and math.isfinite(number) else None
-
-
-def _gauss_markov(doc: dict, where: str) -> dict:
+def _gauss_markov(fields: Fields) -> dict:
     """The optional GM keys, validated; absent keys are 0 (off)."""
     values = {}
-    for key in (*_GM_KEYS, *(tau for tau, _, _ in _GM_KEYS.values())):
-        if key not in doc:
-            values[key] = 0.0
-            continue
-        number = _number(doc, key)
-        if number is None or number < 0:
-            raise CalibError(f"'{key}' must be a finite number >= 0, got {doc[key]!r}", where,
-                             f"give '{key} = <number>', or leave it out for no Gauss-Markov bias")
-        values[key] = number
     for key, (tau_key, high, unit) in _GM_KEYS.items():
-        sigma, tau = values[key], values[tau_key]
-        if sigma > high:
-            raise CalibError(f"'{key}' = {sigma:g} is outside the plausible range [0, {high:g}]",
-                             where, f"give the bias instability (steady-state 1-sigma) in {unit}")
+        sigma = fields.number(key, 0.0, low=0.0, high=high, unit=f" {unit}",
+                              fix=f"give the bias instability (steady-state 1-sigma) in {unit}, "
+                                  "or leave it out for no Gauss-Markov bias")
+        tau_fix = (f"give the Gauss-Markov correlation time in seconds, in [{_TAU_RANGE[0]:g}, "
+                   f"{_TAU_RANGE[1]:g}]")
+        tau = fields.number(tau_key, 0.0, low=0.0, unit=" s", fix=tau_fix)
         if sigma > 0 and tau == 0:
             raise CalibError(f"'{key}' = {sigma:g} needs a correlation time, but '{tau_key}' "
-                             f"is {'missing' if tau_key not in doc else 0}", where,
+                             f"is {'missing' if tau_key not in fields.table else 0}", fields.where,
                              f"add '{tau_key} = <seconds>' in [{_TAU_RANGE[0]:g}, "
                              f"{_TAU_RANGE[1]:g}], or set '{key} = 0'")
-        if tau != 0 and not _TAU_RANGE[0] <= tau <= _TAU_RANGE[1]:
-            raise CalibError(f"'{tau_key}' = {tau:g} s is outside the plausible range "
-                             f"[{_TAU_RANGE[0]:g}, {_TAU_RANGE[1]:g}] s", where,
-                             "give the Gauss-Markov correlation time in seconds")
+        if tau != 0:  # 0 means off; any other value must be a plausible correlation time
+            fields.number(tau_key, low=_TAU_RANGE[0], high=_TAU_RANGE[1], unit=" s", fix=tau_fix)
+        values[key], values[tau_key] = sigma, tau
     return values
 
 
@@ -140,25 +125,16 @@ PROFILE_KEYS = ("format_version", "name", "description", "source", "gyro_arw_dph
 
 def _from_doc(doc: dict, where: str) -> NoiseProfile:
     check_format_version(doc, "profile", where)
-    for message in Fields(doc, where).check_keys(PROFILE_KEYS, "profile"):
+    fields = Fields(doc, where)
+    for message in fields.check_keys(PROFILE_KEYS, "profile"):
         warnings.warn(message, stacklevel=3)
-    values = {}
-    for key in ("gyro_arw_dph", "accel_vrw_ug"):
-        if key not in doc:
-            raise CalibError(f"missing key '{key}'", where, f"add '{key} = <number>'")
-        number = _number(doc, key)
-        if number is None or number <= 0:
-            raise CalibError(f"'{key}' must be a positive finite number, got {doc[key]!r}", where)
-        low, high = _RANGES[key]
-        if not low <= number <= high:
-            raise CalibError(f"'{key}' = {number:g} is outside the plausible range "
-                             f"[{low:g}, {high:g}]", where,
-                             "give ARW in deg/sqrt(h) and VRW in ug/sqrt(Hz)")
-        values[key] = number
-    values.update(_gauss_markov(doc, where))
-    name = doc.get("name", Path(where).stem)
-    if not isinstance(name, str) or not name:
-        raise CalibError("'name' must be a non-empty string", where)
+    values = {key: fields.number(key, low=low, high=high, positive=True,
+                                 fix="give ARW in deg/sqrt(h) and VRW in ug/sqrt(Hz)")
+              for key, (low, high) in _RANGES.items()}
+    values.update(_gauss_markov(fields))
+    name = fields.string("name", Path(where).stem)
+    if not name:
+        raise CalibError("'name' must be a non-empty string", fields.here("name"))
     return NoiseProfile(name=name, **values)
 
 

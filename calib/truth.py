@@ -9,7 +9,7 @@ import numpy as np
 from . import params as P
 from .errormodel import ErrorModel
 from .errors import CalibError
-from .fields import FORMAT_VERSION, check_format_version
+from .fields import FORMAT_VERSION, Fields, check_format_version
 from .fileio import load_toml, toml_number
 from .sim import Truth
 
@@ -73,33 +73,23 @@ def read_truth(path: str | Path) -> Truth:
     where = str(path)
     check_format_version(doc, "truth", where)
     errors = errors_from_table(doc.get("errors"), where)
-    setup = doc.get("setup", {})
-    if not isinstance(setup, dict):
-        raise CalibError("[setup] must be a table", where)
-    rotvec = np.radians([_within(setup.get(k, 0.0), SETUP_LIMIT_DEG, f"{where}: [setup] {k}")
+    fields = Fields(doc, where)
+    small = "a simulated run's mounting rotation and flip errors are small angles"
+    setup = fields.sub("setup") or Fields({}, f"{where}: [setup]")
+    rotvec = np.radians([setup.number(k, 0.0, low=-SETUP_LIMIT_DEG, high=SETUP_LIMIT_DEG,
+                                      unit=" deg", fix=small)
                          for k in ("east_deg", "north_deg", "up_deg")])
-    meta = doc.get("meta", {})
-    if not isinstance(meta, dict):
-        raise CalibError("[meta] must be a table", where)
-    flips_table = doc.get("flips", {})
-    if not isinstance(flips_table, dict):
-        raise CalibError("[flips] must be a table", where)
-    flips = flips_table.get("angle_error_deg", [])
+    flips = (fields.sub("flips") or Fields({}, where)).table.get("angle_error_deg", [])
     if not isinstance(flips, list):
         raise CalibError(f"must be an array of numbers (degrees), got {flips!r}",
                          f"{where}: [flips] angle_error_deg")
     flip_errors = np.array([_within(f, FLIP_ERROR_LIMIT_DEG,
                                     f"{where}: [flips] angle_error_deg[{i}]")
                             for i, f in enumerate(flips)], dtype=float)
-    profile = meta.get("profile", "")
-    if not isinstance(profile, str):
-        raise CalibError(f"must be a string, got {profile!r}", f"{where}: [meta] profile")
-    seed = meta.get("seed")
-    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
-        raise CalibError(f"must be an integer, got {seed!r}", f"{where}: [meta] seed")
-    noise = meta.get("noise", True)
-    if not isinstance(noise, bool):
-        raise CalibError(f"must be true or false, got {noise!r}", f"{where}: [meta] noise")
+    meta = fields.sub("meta") or Fields({}, f"{where}: [meta]")
+    profile = meta.string("profile", "")
+    seed = meta.integer("seed", None)
+    noise = meta.boolean("noise", True)
     return Truth(errors=errors, setup_rotvec=rotvec, flip_errors_deg=flip_errors,
                  profile=profile, seed=seed, noise=noise,
                  extra=_extra(doc.get("extra"), where))
