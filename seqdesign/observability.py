@@ -20,16 +20,15 @@ from calib import params as P
 from calib.extras import Extras
 from calib.information import ScaledInverse, eliminate, marginal, projected_covariance, scaled_inverse
 from calib.jacobian import (
-    N_MOMENTS,
     N_UNKNOWN,
     ObservationGrid,
-    moment_inputs,
     observation_matrix,
     propagate,
     sample_layout,
+    step_model,
 )
 from calib.jacobian import PHI0 as PHI0_IDX
-from calib.noise import whiten
+from calib.noise import Whitener, whiten
 from calib.nominal import (  # noqa: F401
     ANALYSIS_REST_STEP_S,
     FLIP_SUBSAMPLE_DEG,
@@ -212,52 +211,82 @@ class SequenceModel:
     :func:`calib.sim.body_integrals`). So the moments, and with them the
     linear, whitened ``H``, are a fixed combination of 63 basis terms weighted
     by :func:`basis_weights`; the initial-attitude columns do not depend on
-    ``R`` at all. Building costs one pass over the basis; each mounting then
-    costs one contraction.
+    ``R`` at all. Of the 63 x 21 (basis term, parameter) columns only those the
+    step's input map feeds are not identically zero; column ``j`` kept is basis
+    term ``column_basis[j]`` of parameter ``column_param[j]``. With ``X`` the
+    kept whitened columns and the three of phi0, ``H = X A(R)`` and the
+    information of any mounting is ``A' (X' X) A``: building keeps only the
+    Gram matrix ``X' X`` (a few hundred square, whatever the sequence's length),
+    and each mounting costs a product of that size.
     """
 
-    Hw_basis: np.ndarray  # (3K, N_BASIS, 21)
-    Hw_phi0: np.ndarray  # (3K, 3)
+    gram: np.ndarray  # (n + 3, n + 3): X' X, phi0 columns last
+    column_basis: np.ndarray  # (n,) int
+    column_param: np.ndarray  # (n,) int
     omega_ie_n: np.ndarray
     f_n: np.ndarray
     duration_s: float
     profile: str
+    source: tuple = ()  # (sequence, profile, latitude_rad, height_m) to rebuild X from
 
-    @functools.cached_property
-    def _basis_columns(self) -> np.ndarray:
-        """``Hw_basis`` as a (3K * 21, N_BASIS) matrix: each mounting is then one BLAS
-        matrix-vector product (an einsum over the middle axis was 5x slower).
-        """
-        n = self.Hw_basis.shape[0]
-        return np.ascontiguousarray(self.Hw_basis.transpose(0, 2, 1)).reshape(n * P.N_PARAMS, -1)
+    @property
+    def _X(self) -> np.ndarray:
+        """The kept whitened columns and phi0's, (3K, n + 3), rebuilt (not kept in memory)."""
+        return np.concatenate([Hw for Hw, _ in _whitened_chunks(*self.source)], axis=0)
 
-    def whitened(self, setup_rotvec) -> np.ndarray:
-        """Whitened ``H`` (3K x 24) for one mounting."""
+    @property
+    def Hw_basis(self) -> np.ndarray:
+        """The whitened basis as (3K, N_BASIS, 21), zero columns included (rebuilt)."""
+        X = self._X
+        out = np.zeros((X.shape[0], N_BASIS, P.N_PARAMS))
+        out[:, self.column_basis, self.column_param] = X[:, :-3]
+        return out
+
+    @property
+    def Hw_phi0(self) -> np.ndarray:
+        """The whitened initial-attitude columns (3K, 3) (rebuilt)."""
+        return self._X[:, -3:]
+
+    def _combination(self, setup_rotvec) -> np.ndarray:
+        """(n + 3, 24) map from the kept columns and phi0 to the 24 columns of ``H``."""
         R = rotvec_to_dcm(np.asarray(setup_rotvec, dtype=float))
         w = basis_weights(R, self.omega_ie_n, self.f_n)
-        Hp = (self._basis_columns @ w).reshape(-1, P.N_PARAMS)
-        return np.hstack([Hp, self.Hw_phi0])
+        n = len(self.column_basis)
+        A = np.zeros((n + 3, N_UNKNOWN))
+        A[np.arange(n), self.column_param] = w[self.column_basis]
+        A[n:, P.N_PARAMS:] = np.eye(3)
+        return A
+
+    def whitened(self, setup_rotvec) -> np.ndarray:
+        """Whitened ``H`` (3K x 24) for one mounting (rebuilds ``X``: slow, for checks)."""
+        return self._X @ self._combination(setup_rotvec)
 
     def information(self, setup_rotvec=(0.0, 0.0, 0.0)) -> np.ndarray:
-        H = self.whitened(setup_rotvec)
-        return H.T @ H
+        A = self._combination(setup_rotvec)
+        N = A.T @ (self.gram @ A)
+        return 0.5 * (N + N.T)
 
     def sigma_gradient(self, setup_rotvec, index: int) -> tuple[float, np.ndarray]:
         """One parameter's sigma (SI) and its exact gradient in the mounting (per rad).
 
         With full rank, ``sigma_i^2 = e_i' N^-1 e_i`` (the marginal covariance of the
-        21 is the block of the full inverse), so with ``v = N^-1 e_i``:
-        ``d sigma_i^2 = -2 (H v)' dH v``, and ``dH`` is the mounting basis times
+        21 is the block of the full inverse), so with ``v = N^-1 e_i`` and ``H = X A``
+        (``X`` the kept columns and phi0): ``d sigma_i^2 = -2 (H v)' dH v``, where
+        ``(H v)' X = (gram A v)'`` and ``dH`` is the mounting basis times
         :func:`basis_weights_jacobian`.
         """
         rotvec = np.asarray(setup_rotvec, dtype=float)
-        H = self.whitened(rotvec)
-        N = H.T @ H
+        A = self._combination(rotvec)
+        gram_A = self.gram @ A
+        N = A.T @ gram_A
         e = np.zeros(len(N))
         e[index] = 1.0
-        v = np.linalg.solve(N, e)
+        v = np.linalg.solve(0.5 * (N + N.T), e)
         sigma = math.sqrt(max(v[index], 0.0))
-        dvar_dw = -2.0 * (np.outer(H @ v, v[:P.N_PARAMS]).ravel() @ self._basis_columns)
+        n = len(self.column_basis)
+        y = (gram_A @ v)[:n]
+        dvar_dw = -2.0 * np.bincount(self.column_basis, weights=y * v[self.column_param],
+                                     minlength=N_BASIS)
         J = basis_weights_jacobian(rotvec, self.omega_ie_n, self.f_n)
         return sigma, (dvar_dw @ J) / (2.0 * sigma)
 
@@ -267,62 +296,140 @@ class SequenceModel:
                                 setup_rotvec, nominal, requirements)
 
 
-def _basis_moments(C_mid: np.ndarray, flip: np.ndarray, E: np.ndarray, h: np.ndarray,
-                   tau: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """Moment vectors (K, N_BASIS, N_MOMENTS) of the 63 mounting basis terms."""
-    def interval_sum(x, w):
-        return np.add.reduceat(x * (tau ** w).reshape((-1,) + (1,) * (x.ndim - 1)), starts, axis=0)
+def _contract_into(out: np.ndarray, first_column: int, prim: np.ndarray, G: np.ndarray,
+                   params: np.ndarray) -> int:
+    """Write ``sum_{w,i,m} prim[k,w,b,i,m,c] G[w,a,i,m,p,s]`` into ``out[k, s, columns]``.
 
-    K = len(starts)
-    M = np.zeros((K, N_BASIS, N_MOMENTS))
-    kflip_all = np.einsum("nbi,nm->nbim", C_mid, flip)
-    t4_all = np.einsum("nbi,nmc->nbimc", C_mid, E)
-    bias_all = C_mid * h[:, None, None]
-    for w in range(3):  # gyro blocks at 36 w; accel blocks (w < 2) at 36 (3 + w)
-        kflip, t4, bias = (interval_sum(x, w) for x in (kflip_all, t4_all, bias_all))
-        for a in range(3):
-            for b in range(3):
-                q = a * 3 + b
-                g0 = 36 * w
-                M[:, q, g0 + a * 9:g0 + a * 9 + 9] = kflip[:, b].reshape(K, 9)
-                M[:, q, g0 + 27 + a * 3:g0 + 27 + a * 3 + 3] = bias[:, b]
-                if w < 2:
-                    a0 = 36 * (3 + w)
-                    M[:, q, a0 + 27 + a * 3:a0 + 27 + a * 3 + 3] = bias[:, b]
-                for c in range(3):
-                    qe = 9 + (a * 3 + b) * 3 + c
-                    M[:, qe, g0 + a * 9:g0 + a * 9 + 9] = t4[:, b, :, :, c].reshape(K, 9)
-                    if w < 2:
-                        M[:, qe + 27, a0 + a * 9:a0 + a * 9 + 9] = t4[:, b, :, :, c].reshape(K, 9)
-    return M
+    ``prim`` (K, w, b, i, m, c) and ``G`` (w, a, i, m, p, s); only the parameters
+    ``params`` (those ``G`` feeds at all) are formed. The columns, from
+    ``first_column`` on, run over ``(b, c, a, p)``, so that each state's matrix
+    product lands in ``out`` in one strided copy. Returns the next free column.
+    """
+    K, nw, nb, ni, nm, nc = prim.shape
+    X = prim.transpose(0, 2, 5, 1, 3, 4).reshape(K * nb * nc, nw * ni * nm)
+    Y = G[:nw][..., params, :].transpose(5, 0, 2, 3, 1, 4).reshape(6, nw * ni * nm, -1)
+    n = nb * nc * 3 * len(params)
+    for s in range(6):
+        out[:, s, first_column:first_column + n] = (X @ Y[s]).reshape(K, n)
+    return first_column + n
 
 
-@functools.lru_cache(maxsize=32)
-def sequence_model(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
-                   height_m: float = 0.0) -> SequenceModel:
-    """Build (and cache) the mounting-independent model of a sequence."""
+def _block_columns(first_term: int, nb: int, nc: int, params: np.ndarray) -> np.ndarray:
+    """``basis_term * 21 + parameter`` of the columns :func:`_contract_into` writes."""
+    b, c, a, p = np.meshgrid(np.arange(nb), np.arange(nc), np.arange(3), params, indexing="ij")
+    return ((first_term + (a * nb + b) * nc + c) * P.N_PARAMS + p).ravel()
+
+
+def _fed(G: np.ndarray) -> np.ndarray:
+    """The parameters a block of the input map feeds (non-zero anywhere)."""
+    return np.flatnonzero(np.any(G != 0.0, axis=tuple(i for i in range(G.ndim) if i != G.ndim - 2)))
+
+
+def _basis_blocks(C_mid: np.ndarray, flip: np.ndarray, E: np.ndarray, h: np.ndarray,
+                  tau: np.ndarray, starts: np.ndarray, latitude_rad: float,
+                  gravity_mps2: float) -> tuple[list, np.ndarray]:
+    """How the 63 mounting basis terms feed ``d x_next / d params`` of every interval.
+
+    The moments of basis term ``(a, b)`` are those of the nominal attitude's row ``b``
+    placed on navigation axis ``a`` (and likewise ``(a, b, c)`` with component ``c``
+    of the body-frame Earth rate or gravity), so instead of writing 63 sparse moment
+    vectors per interval and multiplying them by the step's input map, each
+    interval's nominal moments are contracted with the map's rows of axis ``a``,
+    and only for the parameters the map feeds from them.
+
+    Returns
+    -------
+    blocks : list of (moments (K, w, b, i, m, c), map (w, a, i, m, p, s), params, term)
+        For :func:`_chunk_inputs`: the per-interval nominal moments of a family of
+        basis terms (from ``term`` on), the input map's rows for them, and the
+        parameters it feeds.
+    keep : ndarray (n,) of int
+        The columns formed, as ``basis_term * 21 + parameter``.
+    """
+    G = step_model(float(latitude_rad), float(gravity_mps2)).input_map
+    G = G.reshape(5, 36, N_UNKNOWN, 6)[:, :, :P.N_PARAMS]  # moment block, row, unknown, state
+    GK = G[:, :27].reshape(5, 3, 3, 3, P.N_PARAMS, 6)  # block, a, i, m, p, s
+    # A bias moment (sum tau^w C h) feeds the gyro bias channel of block w and, for w < 2,
+    # the accelerometer's of block 3 + w: a "body axis" m of 2 for the contraction.
+    GB = np.zeros((3, 3, 3, 2, P.N_PARAMS, 6))  # w, a, i, m, p, s
+    GB[:, :, :, 0] = G[:3, 27:].reshape(3, 3, 3, P.N_PARAMS, 6)
+    GB[:2, :, :, 1] = G[3:, 27:].reshape(2, 3, 3, P.N_PARAMS, 6)
+    weights = np.stack([np.ones_like(tau), tau, tau ** 2], axis=1)  # (n, w)
+
+    def interval_sum(x):  # per sample (n, ...) -> per interval and weight (K, w, ...)
+        xw = weights.reshape(weights.shape + (1,) * (x.ndim - 1)) * x[:, None]
+        return np.add.reduceat(xw, starts, axis=0)
+
+    kflip = interval_sum(np.einsum("nbi,nm->nbim", C_mid, flip))  # (K, w, b, i, m)
+    bias = interval_sum(C_mid * h[:, None, None])[..., None]  # (K, w, b, i, 1)
+    # The rotation terms: flip moments (m = body axis) and bias moments side by side.
+    rot = np.concatenate([kflip, bias, bias], axis=4)[..., None]  # (K, w, b, i, 5, 1)
+    G_rot = np.concatenate([GK[:3], GB], axis=3)
+    t4 = interval_sum(np.einsum("nbi,nmc->nbimc", C_mid, E))  # (K, w, b, i, m, c)
+    blocks = [(rot, G_rot, 0), (t4, GK[:3], 9), (t4[:, :2], GK[3:], 36)]
+    blocks = [(prim, Gb, _fed(Gb), term) for prim, Gb, term in blocks]
+    keep = np.concatenate([_block_columns(term, prim.shape[2], prim.shape[5], params)
+                           for prim, _, params, term in blocks])
+    return blocks, keep
+
+
+def _chunk_inputs(blocks: list, intervals: slice, extra_columns: int) -> np.ndarray:
+    """The kept columns' inputs ``d x_next / d params`` of some intervals, (k, 6, n + extra)."""
+    k = len(range(*intervals.indices(len(blocks[0][0]))))
+    n = sum(prim.shape[2] * prim.shape[5] * 3 * len(params) for prim, _, params, _ in blocks)
+    inputs = np.zeros((k, 6, n + extra_columns))
+    column = 0
+    for prim, Gb, params, _ in blocks:
+        column = _contract_into(inputs, column, prim[intervals], Gb, params)
+    return inputs
+
+
+CHUNK_INTERVALS = 512  # ~13 MB of inputs: buffers reused, not paged in afresh
+
+
+def _whitened_chunks(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
+                     height_m: float):
+    """The kept whitened columns and phi0's, ``CHUNK_INTERVALS`` intervals at a time.
+
+    Yields ``(X_chunk (3k, n + 3), keep)``. Propagation and whitening are recursions
+    over the intervals: their states are carried from chunk to chunk, so the chunks
+    stacked are the whole-run ``X`` exactly, without holding it.
+    """
     g = earth.gravity(latitude_rad, height_m)
     tl = timeline(seq)
     t_nav, bounds = nominal_samples(tl)
     flip, E = body_integrals(tl, t_nav[1:])
     C = nominal_attitude(tl, t_nav)
     L = sample_layout(C, t_nav, ObservationGrid(bounds))  # bounds cover every sample
-    M = _basis_moments(L.C_mid, flip, E, L.h, L.tau, L.starts)
     T = np.diff(t_nav[bounds])
+    blocks, keep = _basis_blocks(L.C_mid, flip, E, L.h, L.tau, L.starts, latitude_rad, g)
     noise = noise_along(t_nav, C, bounds, latitude_rad, g, profile)
-    K = len(T)
-    inputs = moment_inputs(M, latitude_rad, g)[..., :P.N_PARAMS]  # (K, NB, 6, 21)
-    inputs = inputs.transpose(0, 2, 1, 3).reshape(K, 6, N_BASIS * P.N_PARAMS)
-    S0 = np.zeros((6, N_BASIS * P.N_PARAMS + 3))
-    S0[:3, -3:] = np.eye(3)
-    inputs = np.concatenate([inputs, np.zeros((K, 6, 3))], axis=2)
-    S_v = propagate(inputs, T, S0, latitude_rad, g)
-    H = observation_matrix(S_v, noise.Phi_vv)
-    Hw = whiten(noise.whitener, H).reshape(3 * K, -1)
-    return SequenceModel(Hw_basis=Hw[:, :-3].reshape(3 * K, N_BASIS, P.N_PARAMS),
-                         Hw_phi0=Hw[:, -3:], omega_ie_n=earth.omega_ie_n(latitude_rad),
+    w = noise.whitener
+    S = np.zeros((6, len(keep) + 3))
+    S[:3, -3:] = np.eye(3)
+    state = None
+    for k0 in range(0, len(T), CHUNK_INTERVALS):
+        part = slice(k0, k0 + CHUNK_INTERVALS)
+        S_v, S = propagate(_chunk_inputs(blocks, part, 3), T[part], S, latitude_rad, g,
+                           return_final=True)
+        H = observation_matrix(S_v, noise.Phi_vv[part])
+        w_part = Whitener(w.F_ss[part], w.F_vs[part], w.gain[part], w.L_inv[part], 0.0, w.P_end)
+        Hw, state = whiten(w_part, H, state, return_final=True)
+        yield Hw.reshape(-1, H.shape[-1]), keep
+
+
+@functools.lru_cache(maxsize=32)
+def sequence_model(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
+                   height_m: float = 0.0) -> SequenceModel:
+    """Build (and cache) the mounting-independent model of a sequence."""
+    gram = 0.0
+    for Hw, keep in _whitened_chunks(seq, profile, latitude_rad, height_m):
+        gram = gram + Hw.T @ Hw
+    g = earth.gravity(latitude_rad, height_m)
+    return SequenceModel(gram=0.5 * (gram + gram.T), column_basis=keep // P.N_PARAMS,
+                         column_param=keep % P.N_PARAMS, omega_ie_n=earth.omega_ie_n(latitude_rad),
                          f_n=earth.specific_force_n(g), duration_s=seq.duration_s,
-                         profile=profile.name)
+                         profile=profile.name, source=(seq, profile, latitude_rad, height_m))
 
 
 def information(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float = 0.0,
