@@ -460,69 +460,84 @@ class Robustness:
         return self.nominal.requirements.ratio(self.per_parameter_worst_sigma)
 
 
-class _SigmaCallback:
-    """sigma of one parameter as a function of the mounting (deg), for IPOPT.
+def _point(arg) -> np.ndarray:
+    return np.asarray(arg[0], dtype=float).ravel()
 
-    A casadi Callback with its exact gradient (:meth:`SequenceModel.sigma_gradient`:
-    the mounting basis differentiated) instead of finite differences.
+
+def _scalar_callback(name: str, value, gradient):
+    """A casadi Callback of ``value(theta_deg) -> float`` with Jacobian ``gradient(theta_deg)``.
+
+    IPOPT then needs no finite differences of its own.
     """
+    import casadi as ca
 
-    def __new__(cls, model: SequenceModel, index: int, requirements: Requirements = PAPER):
-        import casadi as ca
+    class _Grad(ca.Callback):
+        def __init__(self, name, opts):
+            ca.Callback.__init__(self)
+            self.construct(name, opts)
 
-        req = requirements.si[index]
+        def get_n_in(self):
+            return 2  # the point and the nominal output
 
-        class _Grad(ca.Callback):
-            def __init__(self, name, opts):
-                ca.Callback.__init__(self)
-                self.construct(name, opts)
+        def get_n_out(self):
+            return 1
 
-            def get_n_in(self):
-                return 2  # the point and the nominal output
+        def get_sparsity_in(self, i):
+            return ca.Sparsity.dense(3, 1) if i == 0 else ca.Sparsity.dense(1, 1)
 
-            def get_n_out(self):
-                return 1
+        def get_sparsity_out(self, i):
+            return ca.Sparsity.dense(1, 3)
 
-            def get_sparsity_in(self, i):
-                return ca.Sparsity.dense(3, 1) if i == 0 else ca.Sparsity.dense(1, 1)
+        def eval(self, arg):
+            return [ca.DM(np.asarray(gradient(_point(arg)), dtype=float)[None, :])]
 
-            def get_sparsity_out(self, i):
-                return ca.Sparsity.dense(1, 3)
+    class _CB(ca.Callback):
+        def __init__(self):
+            ca.Callback.__init__(self)
+            self.construct(name, {})
 
-            def eval(self, arg):
-                theta = np.radians(np.asarray(arg[0], dtype=float).ravel())
-                _, grad = model.sigma_gradient(theta, index)
-                return [ca.DM(grad[None, :] * (math.pi / 180.0) / req)]
+        def has_jacobian(self):
+            return True
 
-        class _CB(ca.Callback):
-            def __init__(self):
-                ca.Callback.__init__(self)
-                self.construct(f"sigma_{P.NAMES[index]}", {})
+        def get_jacobian(self, name, inames, onames, opts):
+            self._jac = _Grad(name, opts)  # casadi keeps no reference of its own
+            return self._jac
 
-            def has_jacobian(self):
-                return True
+        def get_n_in(self):
+            return 1
 
-            def get_jacobian(self, name, inames, onames, opts):
-                self._jac = _Grad(name, opts)  # casadi keeps no reference of its own
-                return self._jac
+        def get_n_out(self):
+            return 1
 
-            def get_n_in(self):
-                return 1
+        def get_sparsity_in(self, i):
+            return ca.Sparsity.dense(3, 1)
 
-            def get_n_out(self):
-                return 1
+        def get_sparsity_out(self, i):
+            return ca.Sparsity.dense(1, 1)
 
-            def get_sparsity_in(self, i):
-                return ca.Sparsity.dense(3, 1)
+        def eval(self, arg):
+            return [float(value(_point(arg)))]
 
-            def get_sparsity_out(self, i):
-                return ca.Sparsity.dense(1, 1)
+    return _CB()
 
-            def eval(self, arg):
-                theta = np.radians(np.asarray(arg[0], dtype=float).ravel())
-                return [float(model.analyze(theta).sigma[index]) / requirements.si[index]]
 
-        return _CB()
+def _ipopt_max(cb, starts_deg: list, tolerance_deg: float, max_iter: int = 25,
+               tol: float = 1e-6) -> tuple[np.ndarray, float]:
+    """Maximise a scalar callback of the mounting (deg) over the box from each start."""
+    import casadi as ca
+
+    x = ca.MX.sym("theta_deg", 3)
+    solver = ca.nlpsol("worst", "ipopt", {"x": x, "f": -cb(x)},
+                       {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
+                        "ipopt.hessian_approximation": "limited-memory",
+                        "ipopt.max_iter": max_iter, "ipopt.tol": tol})
+    best_x, best = None, -np.inf
+    for x0 in starts_deg:
+        sol = solver(x0=x0, lbx=-tolerance_deg, ubx=tolerance_deg)
+        value = -float(sol["f"])
+        if value > best:
+            best, best_x = value, np.asarray(sol["x"]).ravel()
+    return best_x, best
 
 
 def search_worst_mounting(model: SequenceModel, index: int, starts_deg: list,
@@ -530,35 +545,69 @@ def search_worst_mounting(model: SequenceModel, index: int, starts_deg: list,
                           requirements: Requirements = PAPER) -> tuple[np.ndarray, float]:
     """Maximise one parameter's sigma over the mounting box with IPOPT, from several starts.
 
-    Returns the mounting (rotation vector, rad) and that parameter's sigma (SI).
+    The gradient is exact (:meth:`SequenceModel.sigma_gradient`: the mounting basis
+    differentiated). Returns the mounting (rotation vector, rad) and that
+    parameter's sigma (SI).
     """
-    import casadi as ca
+    req = requirements.si[index]
 
-    cb = _SigmaCallback(model, index, requirements)
-    x = ca.MX.sym("theta_deg", 3)
-    solver = ca.nlpsol("worst", "ipopt", {"x": x, "f": -cb(x)},
-                       {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
-                        "ipopt.hessian_approximation": "limited-memory",
-                        "ipopt.max_iter": 25, "ipopt.tol": 1e-6})
-    best_x, best = None, -np.inf
-    for x0 in starts_deg:
-        sol = solver(x0=x0, lbx=-tolerance_deg, ubx=tolerance_deg)
-        value = -float(sol["f"])
-        if value > best:
-            best, best_x = value, np.asarray(sol["x"]).ravel()
-    return np.radians(best_x), best * requirements.si[index]
+    def value(theta_deg):
+        return model.analyze(np.radians(theta_deg)).sigma[index] / req
+
+    def gradient(theta_deg):
+        _, grad = model.sigma_gradient(np.radians(theta_deg), index)
+        return grad * (math.pi / 180.0) / req
+
+    cb = _scalar_callback(f"sigma_{P.NAMES[index]}", value, gradient)
+    best_x, best = _ipopt_max(cb, starts_deg, tolerance_deg)
+    return np.radians(best_x), best * req
 
 
-def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
-                      height_m: float = 0.0, tolerance_deg: float = 3.0,
-                      search: bool = True, starts: int = 2,
-                      requirements: Requirements = PAPER) -> Robustness:
-    """Worst case over the +-tolerance box of base mountings.
+FD_STEP_DEG = 1e-3  # forward step of the direct search's gradient (see search_worst_direct)
+DIRECT_MAX_ITER = 8
 
-    The 27 corner/edge/face/centre points are evaluated; then, if ``search``,
-    IPOPT maximises the sigma of the worst parameter from its ``starts`` worst
-    grid points, since the worst mounting need not be a grid point.
+
+def search_worst_direct(sigma_of, start_deg, tolerance_deg: float,
+                        max_iter: int = DIRECT_MAX_ITER) -> tuple[np.ndarray, float]:
+    """Maximise ``sigma_of(rotvec)`` over the box with IPOPT where no closed form exists.
+
+    For Gauss-Markov bias instability the noise filter's gains depend on the
+    attitude of every interval (a Riccati recursion), and the optional terms'
+    sensitivities are polynomials of up to third degree in the mounting: neither
+    enters the 63-term basis. Each value is then an exact evaluation along the
+    mounting's own trajectory (as the 27 box points), and the gradient IPOPT is
+    steered by is a forward difference of those values, ``FD_STEP_DEG`` apart
+    (truncation ~ step / 2 x curvature: ~1e-4 of the gradient over a 3 deg box;
+    rounding ~1e-12 / 2e-5 rad). What is returned is the best exact evaluation
+    seen, so the search can only raise the worst case, never invent one.
+
+    Returns the mounting (rotation vector, rad) and its ``sigma_of``.
     """
+    seen: dict[tuple, float] = {}
+
+    def value(theta_deg):
+        key = tuple(np.round(theta_deg, 12))
+        if key not in seen:
+            seen[key] = float(sigma_of(np.radians(theta_deg)))
+        return seen[key]
+
+    def gradient(theta_deg):
+        f0 = value(theta_deg)
+        return np.array([(value(theta_deg + FD_STEP_DEG * e) - f0) / FD_STEP_DEG
+                         for e in np.eye(3)])
+
+    scale = value(np.asarray(start_deg, dtype=float))
+    cb = _scalar_callback("sigma", lambda t: value(t) / scale, lambda t: gradient(t) / scale)
+    _ipopt_max(cb, [start_deg], tolerance_deg, max_iter=max_iter, tol=1e-5)
+    # Only the box's evaluations count, not the forward-difference points outside it.
+    inside = {k: v for k, v in seen.items() if max(abs(x) for x in k) <= tolerance_deg}
+    key = max(inside, key=inside.get)
+    return np.radians(np.array(key)), inside[key]
+
+
+def _evaluator(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float,
+               requirements: Requirements):
+    """``evaluate(rotvec, nominal=None) -> Observability`` and the basis model (None with GM)."""
     if profile.has_gauss_markov:
         # Bias-instability weights depend on the mounting (measured: up to 4.7 % on a sigma
         # for designed-30min if the nominal weights are reused), so evaluate each directly.
@@ -568,12 +617,29 @@ def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
             nom = nominal_run(seq, latitude_rad, height_m, rotvec)
             return from_information(information_along(nom, profile, latitude_rad, g),
                                     seq.duration_s, profile.name, rotvec, nominal, requirements)
-        search = False  # IPOPT would need hundreds of direct evaluations
-    else:
-        model = sequence_model(seq, profile, latitude_rad, height_m)
+        return evaluate, None
+    model = sequence_model(seq, profile, latitude_rad, height_m)
 
-        def evaluate(rotvec, nominal=None):
-            return model.analyze(rotvec, nominal, requirements)
+    def evaluate(rotvec, nominal=None):
+        return model.analyze(rotvec, nominal, requirements)
+    return evaluate, model
+
+
+def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
+                      height_m: float = 0.0, tolerance_deg: float = 3.0,
+                      search: bool = True, starts: int = 2,
+                      requirements: Requirements = PAPER) -> Robustness:
+    """Worst case over the +-tolerance box of base mountings.
+
+    The 27 corner/edge/face/centre points are evaluated; then, if ``search``,
+    IPOPT maximises the sigma of the worst parameter, since the worst mounting
+    need not be a grid point: under white noise from its ``starts`` worst grid
+    points with the exact gradient of the mounting basis
+    (:func:`search_worst_mounting`); under Gauss-Markov bias instability, whose
+    whitening the basis does not hold, from its worst grid point over direct
+    evaluations (:func:`search_worst_direct`).
+    """
+    evaluate, model = _evaluator(seq, profile, latitude_rad, height_m, requirements)
     nominal = evaluate(np.zeros(3))
     if tolerance_deg == 0:
         return Robustness(nominal, nominal, nominal.sigma, 1, 0.0)
@@ -586,11 +652,15 @@ def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
     if not search or nominal.rank < P.N_PARAMS:
         return Robustness(nominal, worst, per_param, len(grid), tolerance_deg)
     index = int(np.argmax(requirements.ratio(per_param)))
-    order = np.argsort(-sigmas[:, index])[:starts]
-    rotvec, sigma = search_worst_mounting(model, index, [grid[i] for i in order], tolerance_deg,
-                                          requirements)
+    order = np.argsort(-sigmas[:, index])
+    if model is not None:
+        rotvec, sigma = search_worst_mounting(model, index, [grid[i] for i in order[:starts]],
+                                              tolerance_deg, requirements)
+    else:
+        rotvec, sigma = search_worst_direct(lambda rv: evaluate(rv, nominal).sigma[index],
+                                            grid[order[0]], tolerance_deg)
     if sigma > per_param[index]:
-        found = evaluate(rotvec)
+        found = evaluate(rotvec, nominal)
         per_param = np.maximum(per_param, found.sigma)
         if found.worst[1] > worst.worst[1]:
             worst = found
@@ -620,6 +690,7 @@ class ExtrasCost:
     unobservable: list[str]
     points: int
     tolerance_deg: float
+    searched: bool = False  # whether IPOPT searched beyond the points (analyze_extras)
 
     def verdicts(self) -> list[str]:
         """Per optional parameter: ``observable`` (3 sigma within its typical size),
@@ -632,40 +703,63 @@ class ExtrasCost:
         return out
 
 
-def analyze_extras(seq: Sequence, profile: NoiseProfile, latitude_rad: float, extras: Extras,
-                   height_m: float = 0.0, tolerance_deg: float = 3.0,
-                   requirements: Requirements = PAPER) -> ExtrasCost:
-    """Sigma of the 21 with and without the optional terms, and theirs, worst over the box.
+def _extras_evaluator(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
+                      extras: Extras, height_m: float, requirements: Requirements):
+    """``evaluate(rotvec) -> (sigma of the 21 without, with, sigma of the extras)`` (SI).
 
-    Both figures come from the same 27 mountings (corners, edges, faces and
-    centre of the box) evaluated directly along each nominal trajectory, so
-    their ratio is the cost of the terms alone. (The optional terms' moments
-    are not in the 63-term mounting basis, hence direct evaluation.)
+    Each mounting is evaluated directly along its own nominal trajectory; what is
+    observed is judged at the nominal mounting (the first evaluation), returned
+    as the second value.
     """
     g = earth.gravity(latitude_rad, height_m)
-    levels = (-tolerance_deg, 0.0, tolerance_deg) if tolerance_deg > 0 else (0.0,)
-    points = [np.radians(p) for p in itertools.product(levels, levels, levels)]
     scale = np.concatenate([requirements.si, extras.scale_si])
     names = P.NAMES + extras.names
-    without, with_, extra = [], [], []
-    nominal = nominal_without = None
-    for rotvec in [np.zeros(3)] + points:
+    nom_info = information_along(nominal_run(seq, latitude_rad, height_m, np.zeros(3)), profile,
+                                 latitude_rad, g, extras)
+    nominal = scaled_inverse(eliminate(nom_info, PHI0_IDX) * np.outer(scale, scale), names)
+    nominal_without = from_information(nom_info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s,
+                                       profile.name, np.zeros(3), None, requirements)
+
+    def evaluate(rotvec):
         nom = nominal_run(seq, latitude_rad, height_m, rotvec)
         info = information_along(nom, profile, latitude_rad, g, extras)
         obs = from_information(info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s, profile.name,
                                rotvec, nominal_without, requirements)
         M = eliminate(info, PHI0_IDX) * np.outer(scale, scale)
-        inv = scaled_inverse(M, names)
-        if nominal is None:  # what is observed is judged at the nominal mounting
-            nominal, nominal_without = inv, obs
-            continue
         variance = np.diag(projected_covariance(M, nominal.null_basis))
         s = np.where(nominal.estimable, np.sqrt(np.abs(variance)), np.inf) * scale
-        without.append(obs.sigma)
-        with_.append(s[:P.N_PARAMS])
-        extra.append(s[P.N_PARAMS:])
-    return ExtrasCost(extras, np.max(without, axis=0), np.max(with_, axis=0),
-                      np.max(extra, axis=0), nominal.null_directions(), len(points), tolerance_deg)
+        return obs.sigma, s[:P.N_PARAMS], s[P.N_PARAMS:]
+    return evaluate, nominal
+
+
+def analyze_extras(seq: Sequence, profile: NoiseProfile, latitude_rad: float, extras: Extras,
+                   height_m: float = 0.0, tolerance_deg: float = 3.0,
+                   requirements: Requirements = PAPER, search: bool = False) -> ExtrasCost:
+    """Sigma of the 21 with and without the optional terms, and theirs, worst over the box.
+
+    Both figures come from the same 27 mountings (corners, edges, faces and
+    centre of the box) evaluated directly along each nominal trajectory, so
+    their ratio is the cost of the terms alone. (The optional terms' moments
+    are not in the 63-term mounting basis, hence direct evaluation.) With
+    ``search``, IPOPT then maximises the sigma (with the terms) of the worst of
+    the 21 from its worst grid point (:func:`search_worst_direct`), and that
+    mounting counts as a 28th.
+    """
+    levels = (-tolerance_deg, 0.0, tolerance_deg) if tolerance_deg > 0 else (0.0,)
+    points = [np.radians(p) for p in itertools.product(levels, levels, levels)]
+    evaluate, nominal = _extras_evaluator(seq, profile, latitude_rad, extras, height_m,
+                                          requirements)
+    results = [evaluate(rotvec) for rotvec in points]
+    searched = search and tolerance_deg > 0 and bool(nominal.estimable[:P.N_PARAMS].all())
+    if searched:
+        with_ = np.array([r[1] for r in results])
+        index = int(np.argmax(requirements.ratio(with_.max(axis=0))))
+        start = np.degrees(points[int(np.argmax(with_[:, index]))])
+        rotvec, _ = search_worst_direct(lambda rv: evaluate(rv)[1][index], start, tolerance_deg)
+        results.append(evaluate(rotvec))
+    without, with_, extra = (np.max([r[i] for r in results], axis=0) for i in range(3))
+    return ExtrasCost(extras, without, with_, extra, nominal.null_directions(), len(points),
+                      tolerance_deg, searched)
 
 
 def accel_scale_bound(duration_s: float, profile: NoiseProfile, gravity_mps2: float,
