@@ -144,8 +144,8 @@ def analyze(sequence: Sequence | str, profile: NoiseProfile | str = "navigation"
     lat_rad = math.radians(lat)
     rob = analyze_tolerance(seq, prof, lat_rad, h, tolerance_deg, requirements=req)
     bound = accel_scale_bound(seq.duration_s, prof, earth.gravity(lat_rad, h), req)
-    cost = (analyze_extras(seq, prof, lat_rad, extras, h, tolerance_deg, req) if extras.n
-            else None)
+    cost = (analyze_extras(seq, prof, lat_rad, extras, h, tolerance_deg, req, search=True)
+            if extras.n else None)
     return Analysis(seq, prof, lat, h, rob, bound, cost, req)
 
 
@@ -230,14 +230,16 @@ def _extras_doc(cost: ExtrasCost, requirements: Requirements) -> dict:
     finite = np.where(np.isfinite(r1), r1, -np.inf)
     w = int(np.argmax(finite))
     return {"terms": list(cost.extras.groups), "setups_evaluated": cost.points,
+            "ipopt_search": cost.searched,
             "tolerance_deg": cost.tolerance_deg, "parameters": params, "extra_parameters": extra,
             "worst_with": {"name": P.NAMES[w], "ratio": float(r1[w])},
             "unobservable": cost.unobservable}
 
 
 def _extras_text(d: dict) -> list[str]:
+    search = " + IPOPT search" if d["ipopt_search"] else ""
     lines = ["", f"with {', '.join(d['terms'])} also fitted (worst over {d['setups_evaluated']} "
-             f"mountings within +-{d['tolerance_deg']:g} deg, direct evaluation):",
+             f"mountings{search} within +-{d['tolerance_deg']:g} deg, direct evaluation):",
              f"{'param':<6}{'unit':<8}{'sigma w/o':>11}{'sigma with':>11}{'x':>7}"
              f"{'3s/req w/o':>11}{'3s/req with':>12}"]
     for name, e in d["parameters"].items():

@@ -20,16 +20,15 @@ from calib import params as P
 from calib.extras import Extras
 from calib.information import ScaledInverse, eliminate, marginal, projected_covariance, scaled_inverse
 from calib.jacobian import (
-    N_MOMENTS,
     N_UNKNOWN,
     ObservationGrid,
-    moment_inputs,
     observation_matrix,
     propagate,
     sample_layout,
+    step_model,
 )
 from calib.jacobian import PHI0 as PHI0_IDX
-from calib.noise import whiten
+from calib.noise import Whitener, whiten
 from calib.nominal import (  # noqa: F401
     ANALYSIS_REST_STEP_S,
     FLIP_SUBSAMPLE_DEG,
@@ -212,52 +211,82 @@ class SequenceModel:
     :func:`calib.sim.body_integrals`). So the moments, and with them the
     linear, whitened ``H``, are a fixed combination of 63 basis terms weighted
     by :func:`basis_weights`; the initial-attitude columns do not depend on
-    ``R`` at all. Building costs one pass over the basis; each mounting then
-    costs one contraction.
+    ``R`` at all. Of the 63 x 21 (basis term, parameter) columns only those the
+    step's input map feeds are not identically zero; column ``j`` kept is basis
+    term ``column_basis[j]`` of parameter ``column_param[j]``. With ``X`` the
+    kept whitened columns and the three of phi0, ``H = X A(R)`` and the
+    information of any mounting is ``A' (X' X) A``: building keeps only the
+    Gram matrix ``X' X`` (a few hundred square, whatever the sequence's length),
+    and each mounting costs a product of that size.
     """
 
-    Hw_basis: np.ndarray  # (3K, N_BASIS, 21)
-    Hw_phi0: np.ndarray  # (3K, 3)
+    gram: np.ndarray  # (n + 3, n + 3): X' X, phi0 columns last
+    column_basis: np.ndarray  # (n,) int
+    column_param: np.ndarray  # (n,) int
     omega_ie_n: np.ndarray
     f_n: np.ndarray
     duration_s: float
     profile: str
+    source: tuple = ()  # (sequence, profile, latitude_rad, height_m) to rebuild X from
 
-    @functools.cached_property
-    def _basis_columns(self) -> np.ndarray:
-        """``Hw_basis`` as a (3K * 21, N_BASIS) matrix: each mounting is then one BLAS
-        matrix-vector product (an einsum over the middle axis was 5x slower).
-        """
-        n = self.Hw_basis.shape[0]
-        return np.ascontiguousarray(self.Hw_basis.transpose(0, 2, 1)).reshape(n * P.N_PARAMS, -1)
+    @property
+    def _X(self) -> np.ndarray:
+        """The kept whitened columns and phi0's, (3K, n + 3), rebuilt (not kept in memory)."""
+        return np.concatenate([Hw for Hw, _ in _whitened_chunks(*self.source)], axis=0)
 
-    def whitened(self, setup_rotvec) -> np.ndarray:
-        """Whitened ``H`` (3K x 24) for one mounting."""
+    @property
+    def Hw_basis(self) -> np.ndarray:
+        """The whitened basis as (3K, N_BASIS, 21), zero columns included (rebuilt)."""
+        X = self._X
+        out = np.zeros((X.shape[0], N_BASIS, P.N_PARAMS))
+        out[:, self.column_basis, self.column_param] = X[:, :-3]
+        return out
+
+    @property
+    def Hw_phi0(self) -> np.ndarray:
+        """The whitened initial-attitude columns (3K, 3) (rebuilt)."""
+        return self._X[:, -3:]
+
+    def _combination(self, setup_rotvec) -> np.ndarray:
+        """(n + 3, 24) map from the kept columns and phi0 to the 24 columns of ``H``."""
         R = rotvec_to_dcm(np.asarray(setup_rotvec, dtype=float))
         w = basis_weights(R, self.omega_ie_n, self.f_n)
-        Hp = (self._basis_columns @ w).reshape(-1, P.N_PARAMS)
-        return np.hstack([Hp, self.Hw_phi0])
+        n = len(self.column_basis)
+        A = np.zeros((n + 3, N_UNKNOWN))
+        A[np.arange(n), self.column_param] = w[self.column_basis]
+        A[n:, P.N_PARAMS:] = np.eye(3)
+        return A
+
+    def whitened(self, setup_rotvec) -> np.ndarray:
+        """Whitened ``H`` (3K x 24) for one mounting (rebuilds ``X``: slow, for checks)."""
+        return self._X @ self._combination(setup_rotvec)
 
     def information(self, setup_rotvec=(0.0, 0.0, 0.0)) -> np.ndarray:
-        H = self.whitened(setup_rotvec)
-        return H.T @ H
+        A = self._combination(setup_rotvec)
+        N = A.T @ (self.gram @ A)
+        return 0.5 * (N + N.T)
 
     def sigma_gradient(self, setup_rotvec, index: int) -> tuple[float, np.ndarray]:
         """One parameter's sigma (SI) and its exact gradient in the mounting (per rad).
 
         With full rank, ``sigma_i^2 = e_i' N^-1 e_i`` (the marginal covariance of the
-        21 is the block of the full inverse), so with ``v = N^-1 e_i``:
-        ``d sigma_i^2 = -2 (H v)' dH v``, and ``dH`` is the mounting basis times
+        21 is the block of the full inverse), so with ``v = N^-1 e_i`` and ``H = X A``
+        (``X`` the kept columns and phi0): ``d sigma_i^2 = -2 (H v)' dH v``, where
+        ``(H v)' X = (gram A v)'`` and ``dH`` is the mounting basis times
         :func:`basis_weights_jacobian`.
         """
         rotvec = np.asarray(setup_rotvec, dtype=float)
-        H = self.whitened(rotvec)
-        N = H.T @ H
+        A = self._combination(rotvec)
+        gram_A = self.gram @ A
+        N = A.T @ gram_A
         e = np.zeros(len(N))
         e[index] = 1.0
-        v = np.linalg.solve(N, e)
+        v = np.linalg.solve(0.5 * (N + N.T), e)
         sigma = math.sqrt(max(v[index], 0.0))
-        dvar_dw = -2.0 * (np.outer(H @ v, v[:P.N_PARAMS]).ravel() @ self._basis_columns)
+        n = len(self.column_basis)
+        y = (gram_A @ v)[:n]
+        dvar_dw = -2.0 * np.bincount(self.column_basis, weights=y * v[self.column_param],
+                                     minlength=N_BASIS)
         J = basis_weights_jacobian(rotvec, self.omega_ie_n, self.f_n)
         return sigma, (dvar_dw @ J) / (2.0 * sigma)
 
@@ -267,62 +296,147 @@ class SequenceModel:
                                 setup_rotvec, nominal, requirements)
 
 
-def _basis_moments(C_mid: np.ndarray, flip: np.ndarray, E: np.ndarray, h: np.ndarray,
-                   tau: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """Moment vectors (K, N_BASIS, N_MOMENTS) of the 63 mounting basis terms."""
-    def interval_sum(x, w):
-        return np.add.reduceat(x * (tau ** w).reshape((-1,) + (1,) * (x.ndim - 1)), starts, axis=0)
+def _contract_into(out: np.ndarray, first_column: int, prim: np.ndarray, G: np.ndarray,
+                   params: np.ndarray) -> int:
+    """Write ``sum_{w,i,m} prim[k,w,b,i,m,c] G[w,a,i,m,p,s]`` into ``out[k, s, columns]``.
 
-    K = len(starts)
-    M = np.zeros((K, N_BASIS, N_MOMENTS))
-    kflip_all = np.einsum("nbi,nm->nbim", C_mid, flip)
-    t4_all = np.einsum("nbi,nmc->nbimc", C_mid, E)
-    bias_all = C_mid * h[:, None, None]
-    for w in range(3):  # gyro blocks at 36 w; accel blocks (w < 2) at 36 (3 + w)
-        kflip, t4, bias = (interval_sum(x, w) for x in (kflip_all, t4_all, bias_all))
-        for a in range(3):
-            for b in range(3):
-                q = a * 3 + b
-                g0 = 36 * w
-                M[:, q, g0 + a * 9:g0 + a * 9 + 9] = kflip[:, b].reshape(K, 9)
-                M[:, q, g0 + 27 + a * 3:g0 + 27 + a * 3 + 3] = bias[:, b]
-                if w < 2:
-                    a0 = 36 * (3 + w)
-                    M[:, q, a0 + 27 + a * 3:a0 + 27 + a * 3 + 3] = bias[:, b]
-                for c in range(3):
-                    qe = 9 + (a * 3 + b) * 3 + c
-                    M[:, qe, g0 + a * 9:g0 + a * 9 + 9] = t4[:, b, :, :, c].reshape(K, 9)
-                    if w < 2:
-                        M[:, qe + 27, a0 + a * 9:a0 + a * 9 + 9] = t4[:, b, :, :, c].reshape(K, 9)
-    return M
+    ``prim`` (K, w, b, i, m, c) and ``G`` (w, a, i, m, p, s); only the parameters
+    ``params`` (those ``G`` feeds at all) are formed. The columns, from
+    ``first_column`` on, run over ``(b, c, a, p)``, so that each state's matrix
+    product lands in ``out`` in one strided copy. Returns the next free column.
+    """
+    K, nw, nb, ni, nm, nc = prim.shape
+    X = prim.transpose(0, 2, 5, 1, 3, 4).reshape(K * nb * nc, nw * ni * nm)
+    Y = G[:nw][..., params, :].transpose(5, 0, 2, 3, 1, 4).reshape(6, nw * ni * nm, -1)
+    n = nb * nc * 3 * len(params)
+    for s in range(6):
+        out[:, s, first_column:first_column + n] = (X @ Y[s]).reshape(K, n)
+    return first_column + n
 
 
-@functools.lru_cache(maxsize=32)
-def sequence_model(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
-                   height_m: float = 0.0) -> SequenceModel:
-    """Build (and cache) the mounting-independent model of a sequence."""
+def _block_columns(first_term: int, nb: int, nc: int, params: np.ndarray) -> np.ndarray:
+    """``basis_term * 21 + parameter`` of the columns :func:`_contract_into` writes."""
+    b, c, a, p = np.meshgrid(np.arange(nb), np.arange(nc), np.arange(3), params, indexing="ij")
+    return ((first_term + (a * nb + b) * nc + c) * P.N_PARAMS + p).ravel()
+
+
+def _fed(G: np.ndarray) -> np.ndarray:
+    """The parameters a block of the input map feeds (non-zero anywhere)."""
+    return np.flatnonzero(np.any(G != 0.0, axis=tuple(i for i in range(G.ndim) if i != G.ndim - 2)))
+
+
+def _basis_blocks(C_mid: np.ndarray, flip: np.ndarray, E: np.ndarray, h: np.ndarray,
+                  tau: np.ndarray, starts: np.ndarray, latitude_rad: float,
+                  gravity_mps2: float) -> tuple[list, np.ndarray]:
+    """How the 63 mounting basis terms feed ``d x_next / d params`` of every interval.
+
+    The moments of basis term ``(a, b)`` are those of the nominal attitude's row ``b``
+    placed on navigation axis ``a`` (and likewise ``(a, b, c)`` with component ``c``
+    of the body-frame Earth rate or gravity), so instead of writing 63 sparse moment
+    vectors per interval and multiplying them by the step's input map, each
+    interval's nominal moments are contracted with the map's rows of axis ``a``,
+    and only for the parameters the map feeds from them.
+
+    Returns
+    -------
+    blocks : list of (moments (K, w, b, i, m, c), map (w, a, i, m, p, s), params, term)
+        For :func:`_chunk_inputs`: the per-interval nominal moments of a family of
+        basis terms (from ``term`` on), the input map's rows for them, and the
+        parameters it feeds.
+    keep : ndarray (n,) of int
+        The columns formed, as ``basis_term * 21 + parameter``.
+    """
+    G = step_model(float(latitude_rad), float(gravity_mps2)).input_map
+    G = G.reshape(5, 36, N_UNKNOWN, 6)[:, :, :P.N_PARAMS]  # moment block, row, unknown, state
+    GK = G[:, :27].reshape(5, 3, 3, 3, P.N_PARAMS, 6)  # block, a, i, m, p, s
+    # A bias moment (sum tau^w C h) feeds the gyro bias channel of block w and, for w < 2,
+    # the accelerometer's of block 3 + w: a "body axis" m of 2 for the contraction.
+    GB = np.zeros((3, 3, 3, 2, P.N_PARAMS, 6))  # w, a, i, m, p, s
+    GB[:, :, :, 0] = G[:3, 27:].reshape(3, 3, 3, P.N_PARAMS, 6)
+    GB[:2, :, :, 1] = G[3:, 27:].reshape(2, 3, 3, P.N_PARAMS, 6)
+    weights = np.stack([np.ones_like(tau), tau, tau ** 2], axis=1)  # (n, w)
+    lengths = np.diff(np.append(starts, len(tau)))
+
+    def interval_sum(x):  # per sample (n, ...) -> per interval and weight (K, w, ...)
+        # An interval holds a few samples: add the o-th sample of every interval that has
+        # one, o = 0, 1, ... (the order np.add.reduceat adds in, at a fraction of its cost).
+        out = np.zeros((len(starts), 3) + x.shape[1:])
+        for o in range(int(lengths.max())):
+            k = np.flatnonzero(lengths > o)
+            j = starts[k] + o
+            out[k] += weights[j].reshape((len(j), 3) + (1,) * (x.ndim - 1)) * x[j, None]
+        return out
+
+    kflip = interval_sum(np.einsum("nbi,nm->nbim", C_mid, flip))  # (K, w, b, i, m)
+    bias = interval_sum(C_mid * h[:, None, None])[..., None]  # (K, w, b, i, 1)
+    # The rotation terms: flip moments (m = body axis) and bias moments side by side.
+    rot = np.concatenate([kflip, bias, bias], axis=4)[..., None]  # (K, w, b, i, 5, 1)
+    G_rot = np.concatenate([GK[:3], GB], axis=3)
+    t4 = interval_sum(np.einsum("nbi,nmc->nbimc", C_mid, E))  # (K, w, b, i, m, c)
+    blocks = [(rot, G_rot, 0), (t4, GK[:3], 9), (t4[:, :2], GK[3:], 36)]
+    blocks = [(prim, Gb, _fed(Gb), term) for prim, Gb, term in blocks]
+    keep = np.concatenate([_block_columns(term, prim.shape[2], prim.shape[5], params)
+                           for prim, _, params, term in blocks])
+    return blocks, keep
+
+
+def _chunk_inputs(blocks: list, intervals: slice, extra_columns: int) -> np.ndarray:
+    """The kept columns' inputs ``d x_next / d params`` of some intervals, (k, 6, n + extra)."""
+    k = len(range(*intervals.indices(len(blocks[0][0]))))
+    n = sum(prim.shape[2] * prim.shape[5] * 3 * len(params) for prim, _, params, _ in blocks)
+    inputs = np.zeros((k, 6, n + extra_columns))
+    column = 0
+    for prim, Gb, params, _ in blocks:
+        column = _contract_into(inputs, column, prim[intervals], Gb, params)
+    return inputs
+
+
+CHUNK_INTERVALS = 512  # ~13 MB of inputs: buffers reused, not paged in afresh
+
+
+def _whitened_chunks(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
+                     height_m: float):
+    """The kept whitened columns and phi0's, ``CHUNK_INTERVALS`` intervals at a time.
+
+    Yields ``(X_chunk (3k, n + 3), keep)``. Propagation and whitening are recursions
+    over the intervals: their states are carried from chunk to chunk, so the chunks
+    stacked are the whole-run ``X`` exactly, without holding it.
+    """
     g = earth.gravity(latitude_rad, height_m)
     tl = timeline(seq)
     t_nav, bounds = nominal_samples(tl)
     flip, E = body_integrals(tl, t_nav[1:])
     C = nominal_attitude(tl, t_nav)
     L = sample_layout(C, t_nav, ObservationGrid(bounds))  # bounds cover every sample
-    M = _basis_moments(L.C_mid, flip, E, L.h, L.tau, L.starts)
     T = np.diff(t_nav[bounds])
+    blocks, keep = _basis_blocks(L.C_mid, flip, E, L.h, L.tau, L.starts, latitude_rad, g)
     noise = noise_along(t_nav, C, bounds, latitude_rad, g, profile)
-    K = len(T)
-    inputs = moment_inputs(M, latitude_rad, g)[..., :P.N_PARAMS]  # (K, NB, 6, 21)
-    inputs = inputs.transpose(0, 2, 1, 3).reshape(K, 6, N_BASIS * P.N_PARAMS)
-    S0 = np.zeros((6, N_BASIS * P.N_PARAMS + 3))
-    S0[:3, -3:] = np.eye(3)
-    inputs = np.concatenate([inputs, np.zeros((K, 6, 3))], axis=2)
-    S_v = propagate(inputs, T, S0, latitude_rad, g)
-    H = observation_matrix(S_v, noise.Phi_vv)
-    Hw = whiten(noise.whitener, H).reshape(3 * K, -1)
-    return SequenceModel(Hw_basis=Hw[:, :-3].reshape(3 * K, N_BASIS, P.N_PARAMS),
-                         Hw_phi0=Hw[:, -3:], omega_ie_n=earth.omega_ie_n(latitude_rad),
+    w = noise.whitener
+    S = np.zeros((6, len(keep) + 3))
+    S[:3, -3:] = np.eye(3)
+    state = None
+    for k0 in range(0, len(T), CHUNK_INTERVALS):
+        part = slice(k0, k0 + CHUNK_INTERVALS)
+        S_v, S = propagate(_chunk_inputs(blocks, part, 3), T[part], S, latitude_rad, g,
+                           return_final=True)
+        H = observation_matrix(S_v, noise.Phi_vv[part])
+        w_part = Whitener(w.F_ss[part], w.F_vs[part], w.gain[part], w.L_inv[part], 0.0, w.P_end)
+        Hw, state = whiten(w_part, H, state, return_final=True)
+        yield Hw.reshape(-1, H.shape[-1]), keep
+
+
+@functools.lru_cache(maxsize=32)
+def sequence_model(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
+                   height_m: float = 0.0) -> SequenceModel:
+    """Build (and cache) the mounting-independent model of a sequence."""
+    gram = 0.0
+    for Hw, keep in _whitened_chunks(seq, profile, latitude_rad, height_m):
+        gram = gram + Hw.T @ Hw
+    g = earth.gravity(latitude_rad, height_m)
+    return SequenceModel(gram=0.5 * (gram + gram.T), column_basis=keep // P.N_PARAMS,
+                         column_param=keep % P.N_PARAMS, omega_ie_n=earth.omega_ie_n(latitude_rad),
                          f_n=earth.specific_force_n(g), duration_s=seq.duration_s,
-                         profile=profile.name)
+                         profile=profile.name, source=(seq, profile, latitude_rad, height_m))
 
 
 def information(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float = 0.0,
@@ -353,69 +467,84 @@ class Robustness:
         return self.nominal.requirements.ratio(self.per_parameter_worst_sigma)
 
 
-class _SigmaCallback:
-    """sigma of one parameter as a function of the mounting (deg), for IPOPT.
+def _point(arg) -> np.ndarray:
+    return np.asarray(arg[0], dtype=float).ravel()
 
-    A casadi Callback with its exact gradient (:meth:`SequenceModel.sigma_gradient`:
-    the mounting basis differentiated) instead of finite differences.
+
+def _scalar_callback(name: str, value, gradient):
+    """A casadi Callback of ``value(theta_deg) -> float`` with Jacobian ``gradient(theta_deg)``.
+
+    IPOPT then needs no finite differences of its own.
     """
+    import casadi as ca
 
-    def __new__(cls, model: SequenceModel, index: int, requirements: Requirements = PAPER):
-        import casadi as ca
+    class _Grad(ca.Callback):
+        def __init__(self, name, opts):
+            ca.Callback.__init__(self)
+            self.construct(name, opts)
 
-        req = requirements.si[index]
+        def get_n_in(self):
+            return 2  # the point and the nominal output
 
-        class _Grad(ca.Callback):
-            def __init__(self, name, opts):
-                ca.Callback.__init__(self)
-                self.construct(name, opts)
+        def get_n_out(self):
+            return 1
 
-            def get_n_in(self):
-                return 2  # the point and the nominal output
+        def get_sparsity_in(self, i):
+            return ca.Sparsity.dense(3, 1) if i == 0 else ca.Sparsity.dense(1, 1)
 
-            def get_n_out(self):
-                return 1
+        def get_sparsity_out(self, i):
+            return ca.Sparsity.dense(1, 3)
 
-            def get_sparsity_in(self, i):
-                return ca.Sparsity.dense(3, 1) if i == 0 else ca.Sparsity.dense(1, 1)
+        def eval(self, arg):
+            return [ca.DM(np.asarray(gradient(_point(arg)), dtype=float)[None, :])]
 
-            def get_sparsity_out(self, i):
-                return ca.Sparsity.dense(1, 3)
+    class _CB(ca.Callback):
+        def __init__(self):
+            ca.Callback.__init__(self)
+            self.construct(name, {})
 
-            def eval(self, arg):
-                theta = np.radians(np.asarray(arg[0], dtype=float).ravel())
-                _, grad = model.sigma_gradient(theta, index)
-                return [ca.DM(grad[None, :] * (math.pi / 180.0) / req)]
+        def has_jacobian(self):
+            return True
 
-        class _CB(ca.Callback):
-            def __init__(self):
-                ca.Callback.__init__(self)
-                self.construct(f"sigma_{P.NAMES[index]}", {})
+        def get_jacobian(self, name, inames, onames, opts):
+            self._jac = _Grad(name, opts)  # casadi keeps no reference of its own
+            return self._jac
 
-            def has_jacobian(self):
-                return True
+        def get_n_in(self):
+            return 1
 
-            def get_jacobian(self, name, inames, onames, opts):
-                self._jac = _Grad(name, opts)  # casadi keeps no reference of its own
-                return self._jac
+        def get_n_out(self):
+            return 1
 
-            def get_n_in(self):
-                return 1
+        def get_sparsity_in(self, i):
+            return ca.Sparsity.dense(3, 1)
 
-            def get_n_out(self):
-                return 1
+        def get_sparsity_out(self, i):
+            return ca.Sparsity.dense(1, 1)
 
-            def get_sparsity_in(self, i):
-                return ca.Sparsity.dense(3, 1)
+        def eval(self, arg):
+            return [float(value(_point(arg)))]
 
-            def get_sparsity_out(self, i):
-                return ca.Sparsity.dense(1, 1)
+    return _CB()
 
-            def eval(self, arg):
-                theta = np.radians(np.asarray(arg[0], dtype=float).ravel())
-                return [float(model.analyze(theta).sigma[index]) / requirements.si[index]]
 
-        return _CB()
+def _ipopt_max(cb, starts_deg: list, tolerance_deg: float, max_iter: int = 25,
+               tol: float = 1e-6) -> tuple[np.ndarray, float]:
+    """Maximise a scalar callback of the mounting (deg) over the box from each start."""
+    import casadi as ca
+
+    x = ca.MX.sym("theta_deg", 3)
+    solver = ca.nlpsol("worst", "ipopt", {"x": x, "f": -cb(x)},
+                       {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
+                        "ipopt.hessian_approximation": "limited-memory",
+                        "ipopt.max_iter": max_iter, "ipopt.tol": tol})
+    best_x, best = None, -np.inf
+    for x0 in starts_deg:
+        sol = solver(x0=x0, lbx=-tolerance_deg, ubx=tolerance_deg)
+        value = -float(sol["f"])
+        if value > best:
+            best, best_x = value, np.asarray(sol["x"]).ravel()
+    return best_x, best
 
 
 def search_worst_mounting(model: SequenceModel, index: int, starts_deg: list,
@@ -423,35 +552,69 @@ def search_worst_mounting(model: SequenceModel, index: int, starts_deg: list,
                           requirements: Requirements = PAPER) -> tuple[np.ndarray, float]:
     """Maximise one parameter's sigma over the mounting box with IPOPT, from several starts.
 
-    Returns the mounting (rotation vector, rad) and that parameter's sigma (SI).
+    The gradient is exact (:meth:`SequenceModel.sigma_gradient`: the mounting basis
+    differentiated). Returns the mounting (rotation vector, rad) and that
+    parameter's sigma (SI).
     """
-    import casadi as ca
+    req = requirements.si[index]
 
-    cb = _SigmaCallback(model, index, requirements)
-    x = ca.MX.sym("theta_deg", 3)
-    solver = ca.nlpsol("worst", "ipopt", {"x": x, "f": -cb(x)},
-                       {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
-                        "ipopt.hessian_approximation": "limited-memory",
-                        "ipopt.max_iter": 25, "ipopt.tol": 1e-6})
-    best_x, best = None, -np.inf
-    for x0 in starts_deg:
-        sol = solver(x0=x0, lbx=-tolerance_deg, ubx=tolerance_deg)
-        value = -float(sol["f"])
-        if value > best:
-            best, best_x = value, np.asarray(sol["x"]).ravel()
-    return np.radians(best_x), best * requirements.si[index]
+    def value(theta_deg):
+        return model.analyze(np.radians(theta_deg)).sigma[index] / req
+
+    def gradient(theta_deg):
+        _, grad = model.sigma_gradient(np.radians(theta_deg), index)
+        return grad * (math.pi / 180.0) / req
+
+    cb = _scalar_callback(f"sigma_{P.NAMES[index]}", value, gradient)
+    best_x, best = _ipopt_max(cb, starts_deg, tolerance_deg)
+    return np.radians(best_x), best * req
 
 
-def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
-                      height_m: float = 0.0, tolerance_deg: float = 3.0,
-                      search: bool = True, starts: int = 2,
-                      requirements: Requirements = PAPER) -> Robustness:
-    """Worst case over the +-tolerance box of base mountings.
+FD_STEP_DEG = 1e-3  # forward step of the direct search's gradient (see search_worst_direct)
+DIRECT_MAX_ITER = 8
 
-    The 27 corner/edge/face/centre points are evaluated; then, if ``search``,
-    IPOPT maximises the sigma of the worst parameter from its ``starts`` worst
-    grid points, since the worst mounting need not be a grid point.
+
+def search_worst_direct(sigma_of, start_deg, tolerance_deg: float,
+                        max_iter: int = DIRECT_MAX_ITER) -> tuple[np.ndarray, float]:
+    """Maximise ``sigma_of(rotvec)`` over the box with IPOPT where no closed form exists.
+
+    For Gauss-Markov bias instability the noise filter's gains depend on the
+    attitude of every interval (a Riccati recursion), and the optional terms'
+    sensitivities are polynomials of up to third degree in the mounting: neither
+    enters the 63-term basis. Each value is then an exact evaluation along the
+    mounting's own trajectory (as the 27 box points), and the gradient IPOPT is
+    steered by is a forward difference of those values, ``FD_STEP_DEG`` apart
+    (truncation ~ step / 2 x curvature: ~1e-4 of the gradient over a 3 deg box;
+    rounding ~1e-12 / 2e-5 rad). What is returned is the best exact evaluation
+    seen, so the search can only raise the worst case, never invent one.
+
+    Returns the mounting (rotation vector, rad) and its ``sigma_of``.
     """
+    seen: dict[tuple, float] = {}
+
+    def value(theta_deg):
+        key = tuple(np.round(theta_deg, 12))
+        if key not in seen:
+            seen[key] = float(sigma_of(np.radians(theta_deg)))
+        return seen[key]
+
+    def gradient(theta_deg):
+        f0 = value(theta_deg)
+        return np.array([(value(theta_deg + FD_STEP_DEG * e) - f0) / FD_STEP_DEG
+                         for e in np.eye(3)])
+
+    scale = value(np.asarray(start_deg, dtype=float))
+    cb = _scalar_callback("sigma", lambda t: value(t) / scale, lambda t: gradient(t) / scale)
+    _ipopt_max(cb, [start_deg], tolerance_deg, max_iter=max_iter, tol=1e-5)
+    # Only the box's evaluations count, not the forward-difference points outside it.
+    inside = {k: v for k, v in seen.items() if max(abs(x) for x in k) <= tolerance_deg}
+    key = max(inside, key=inside.get)
+    return np.radians(np.array(key)), inside[key]
+
+
+def _evaluator(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float,
+               requirements: Requirements):
+    """``evaluate(rotvec, nominal=None) -> Observability`` and the basis model (None with GM)."""
     if profile.has_gauss_markov:
         # Bias-instability weights depend on the mounting (measured: up to 4.7 % on a sigma
         # for designed-30min if the nominal weights are reused), so evaluate each directly.
@@ -461,12 +624,29 @@ def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
             nom = nominal_run(seq, latitude_rad, height_m, rotvec)
             return from_information(information_along(nom, profile, latitude_rad, g),
                                     seq.duration_s, profile.name, rotvec, nominal, requirements)
-        search = False  # IPOPT would need hundreds of direct evaluations
-    else:
-        model = sequence_model(seq, profile, latitude_rad, height_m)
+        return evaluate, None
+    model = sequence_model(seq, profile, latitude_rad, height_m)
 
-        def evaluate(rotvec, nominal=None):
-            return model.analyze(rotvec, nominal, requirements)
+    def evaluate(rotvec, nominal=None):
+        return model.analyze(rotvec, nominal, requirements)
+    return evaluate, model
+
+
+def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
+                      height_m: float = 0.0, tolerance_deg: float = 3.0,
+                      search: bool = True, starts: int = 2,
+                      requirements: Requirements = PAPER) -> Robustness:
+    """Worst case over the +-tolerance box of base mountings.
+
+    The 27 corner/edge/face/centre points are evaluated; then, if ``search``,
+    IPOPT maximises the sigma of the worst parameter, since the worst mounting
+    need not be a grid point: under white noise from its ``starts`` worst grid
+    points with the exact gradient of the mounting basis
+    (:func:`search_worst_mounting`); under Gauss-Markov bias instability, whose
+    whitening the basis does not hold, from its worst grid point over direct
+    evaluations (:func:`search_worst_direct`).
+    """
+    evaluate, model = _evaluator(seq, profile, latitude_rad, height_m, requirements)
     nominal = evaluate(np.zeros(3))
     if tolerance_deg == 0:
         return Robustness(nominal, nominal, nominal.sigma, 1, 0.0)
@@ -479,11 +659,15 @@ def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
     if not search or nominal.rank < P.N_PARAMS:
         return Robustness(nominal, worst, per_param, len(grid), tolerance_deg)
     index = int(np.argmax(requirements.ratio(per_param)))
-    order = np.argsort(-sigmas[:, index])[:starts]
-    rotvec, sigma = search_worst_mounting(model, index, [grid[i] for i in order], tolerance_deg,
-                                          requirements)
+    order = np.argsort(-sigmas[:, index])
+    if model is not None:
+        rotvec, sigma = search_worst_mounting(model, index, [grid[i] for i in order[:starts]],
+                                              tolerance_deg, requirements)
+    else:
+        rotvec, sigma = search_worst_direct(lambda rv: evaluate(rv, nominal).sigma[index],
+                                            grid[order[0]], tolerance_deg)
     if sigma > per_param[index]:
-        found = evaluate(rotvec)
+        found = evaluate(rotvec, nominal)
         per_param = np.maximum(per_param, found.sigma)
         if found.worst[1] > worst.worst[1]:
             worst = found
@@ -513,6 +697,7 @@ class ExtrasCost:
     unobservable: list[str]
     points: int
     tolerance_deg: float
+    searched: bool = False  # whether IPOPT searched beyond the points (analyze_extras)
 
     def verdicts(self) -> list[str]:
         """Per optional parameter: ``observable`` (3 sigma within its typical size),
@@ -525,40 +710,63 @@ class ExtrasCost:
         return out
 
 
-def analyze_extras(seq: Sequence, profile: NoiseProfile, latitude_rad: float, extras: Extras,
-                   height_m: float = 0.0, tolerance_deg: float = 3.0,
-                   requirements: Requirements = PAPER) -> ExtrasCost:
-    """Sigma of the 21 with and without the optional terms, and theirs, worst over the box.
+def _extras_evaluator(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
+                      extras: Extras, height_m: float, requirements: Requirements):
+    """``evaluate(rotvec) -> (sigma of the 21 without, with, sigma of the extras)`` (SI).
 
-    Both figures come from the same 27 mountings (corners, edges, faces and
-    centre of the box) evaluated directly along each nominal trajectory, so
-    their ratio is the cost of the terms alone. (The optional terms' moments
-    are not in the 63-term mounting basis, hence direct evaluation.)
+    Each mounting is evaluated directly along its own nominal trajectory; what is
+    observed is judged at the nominal mounting (the first evaluation), returned
+    as the second value.
     """
     g = earth.gravity(latitude_rad, height_m)
-    levels = (-tolerance_deg, 0.0, tolerance_deg) if tolerance_deg > 0 else (0.0,)
-    points = [np.radians(p) for p in itertools.product(levels, levels, levels)]
     scale = np.concatenate([requirements.si, extras.scale_si])
     names = P.NAMES + extras.names
-    without, with_, extra = [], [], []
-    nominal = nominal_without = None
-    for rotvec in [np.zeros(3)] + points:
+    nom_info = information_along(nominal_run(seq, latitude_rad, height_m, np.zeros(3)), profile,
+                                 latitude_rad, g, extras)
+    nominal = scaled_inverse(eliminate(nom_info, PHI0_IDX) * np.outer(scale, scale), names)
+    nominal_without = from_information(nom_info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s,
+                                       profile.name, np.zeros(3), None, requirements)
+
+    def evaluate(rotvec):
         nom = nominal_run(seq, latitude_rad, height_m, rotvec)
         info = information_along(nom, profile, latitude_rad, g, extras)
         obs = from_information(info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s, profile.name,
                                rotvec, nominal_without, requirements)
         M = eliminate(info, PHI0_IDX) * np.outer(scale, scale)
-        inv = scaled_inverse(M, names)
-        if nominal is None:  # what is observed is judged at the nominal mounting
-            nominal, nominal_without = inv, obs
-            continue
         variance = np.diag(projected_covariance(M, nominal.null_basis))
         s = np.where(nominal.estimable, np.sqrt(np.abs(variance)), np.inf) * scale
-        without.append(obs.sigma)
-        with_.append(s[:P.N_PARAMS])
-        extra.append(s[P.N_PARAMS:])
-    return ExtrasCost(extras, np.max(without, axis=0), np.max(with_, axis=0),
-                      np.max(extra, axis=0), nominal.null_directions(), len(points), tolerance_deg)
+        return obs.sigma, s[:P.N_PARAMS], s[P.N_PARAMS:]
+    return evaluate, nominal
+
+
+def analyze_extras(seq: Sequence, profile: NoiseProfile, latitude_rad: float, extras: Extras,
+                   height_m: float = 0.0, tolerance_deg: float = 3.0,
+                   requirements: Requirements = PAPER, search: bool = False) -> ExtrasCost:
+    """Sigma of the 21 with and without the optional terms, and theirs, worst over the box.
+
+    Both figures come from the same 27 mountings (corners, edges, faces and
+    centre of the box) evaluated directly along each nominal trajectory, so
+    their ratio is the cost of the terms alone. (The optional terms' moments
+    are not in the 63-term mounting basis, hence direct evaluation.) With
+    ``search``, IPOPT then maximises the sigma (with the terms) of the worst of
+    the 21 from its worst grid point (:func:`search_worst_direct`), and that
+    mounting counts as a 28th.
+    """
+    levels = (-tolerance_deg, 0.0, tolerance_deg) if tolerance_deg > 0 else (0.0,)
+    points = [np.radians(p) for p in itertools.product(levels, levels, levels)]
+    evaluate, nominal = _extras_evaluator(seq, profile, latitude_rad, extras, height_m,
+                                          requirements)
+    results = [evaluate(rotvec) for rotvec in points]
+    searched = search and tolerance_deg > 0 and bool(nominal.estimable[:P.N_PARAMS].all())
+    if searched:
+        with_ = np.array([r[1] for r in results])
+        index = int(np.argmax(requirements.ratio(with_.max(axis=0))))
+        start = np.degrees(points[int(np.argmax(with_[:, index]))])
+        rotvec, _ = search_worst_direct(lambda rv: evaluate(rv)[1][index], start, tolerance_deg)
+        results.append(evaluate(rotvec))
+    without, with_, extra = (np.max([r[i] for r in results], axis=0) for i in range(3))
+    return ExtrasCost(extras, without, with_, extra, nominal.null_directions(), len(points),
+                      tolerance_deg, searched)
 
 
 def accel_scale_bound(duration_s: float, profile: NoiseProfile, gravity_mps2: float,
