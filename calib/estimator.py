@@ -16,6 +16,7 @@ and :func:`fit_intervals` navigates only while a step can still matter.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -37,7 +38,7 @@ from .jacobian import (
     sensitivities,
     state_matrix,
 )
-from .noise import noise_model, whiten
+from .noise import noise_model, smooth, whiten
 from .profiles import NoiseProfile
 from .requirements import PAPER, Requirements
 from .seqinfer import infer_sequence
@@ -51,6 +52,17 @@ PHI0_SCALE = 1e-4  # rad, for scaling the normal equations only
 # Past the third iteration the Jacobian is rebuilt only while the last step exceeded this many
 # sigmas: below it the linearisation error is far below the convergence tolerance.
 RELINEARISE_STEP_SIGMA = 0.1
+# The observations are linear in the attitude noise; gravity leaks through a tilt phi at second
+# order, g phi^2 / 2. When that term, for the attitude wander the gyro noise builds over the run,
+# exceeds this fraction of the accelerometer-bias resolution vrw / sqrt(T), the fit re-linearises
+# about the smoothed attitude noise at every iteration (:func:`attitude_feedback`). A MEMS unit's
+# 30-min run is at about 40, a tactical unit's at 0.15, a navigation-grade one's at 1e-8.
+ATTITUDE_FEEDBACK_RATIO = 0.5
+MAX_ITERATIONS = 12
+# With the feedback, Gauss-Newton converges linearly (measured: each step about 0.7 of the last on
+# a MEMS paper-9pos run, the barely observable heading and the gyro biases it couples to), so
+# the default limit of such a run is higher.
+WANDER_MAX_ITERATIONS = 40
 
 
 @dataclass(frozen=True)
@@ -271,6 +283,74 @@ def start_values(dtheta_m: np.ndarray, dt: np.ndarray, moving: np.ndarray) -> np
     return values
 
 
+def attitude_wander_ratio(profile: NoiseProfile, duration_s: float, gravity_mps2: float) -> float:
+    """Second-order gravity through the run's attitude wander over the accelerometer-bias resolution.
+
+    White gyro noise makes the tilt a random walk of variance ``arw^2 T`` at
+    the run's end; gravity leaks through it as ``g phi^2 / 2``, which the
+    linear model does not have. The bias resolution of a run of length ``T``
+    is ``vrw / sqrt(T)``.
+    """
+    if profile.vrw <= 0.0:
+        return math.inf
+    return 0.5 * gravity_mps2 * profile.arw ** 2 * duration_s ** 1.5 / profile.vrw
+
+
+@dataclass(frozen=True)
+class AttitudeFeedback:
+    """A gyro correction that takes the estimated attitude noise out of the navigation.
+
+    ``body_rate`` (K, 3), rad/s per interval, is added to the compensated gyro
+    increments; ``dv`` (K + 1, 3), m/s at the interval ends, is its effect on
+    the navigation velocity to first order, which the observations add back.
+    """
+
+    body_rate: np.ndarray
+    dv: np.ndarray
+
+
+@functools.lru_cache(maxsize=256)
+def _rate_response(A_bytes: bytes, T: float) -> tuple[np.ndarray, np.ndarray]:
+    """``Phi = exp(A T)`` and the ``[phi, dv]`` response ``Gamma`` (6, 3) to a constant attitude rate."""
+    from scipy.linalg import expm
+
+    M = np.zeros((9, 9))
+    M[:6, :6] = np.frombuffer(A_bytes).reshape(6, 6)
+    M[:3, 6:] = np.eye(3)
+    E = expm(M * T)
+    return E[:6, :6], E[:6, 6:]
+
+
+def attitude_feedback(noise, residual: np.ndarray, A: np.ndarray, T: np.ndarray,
+                      C_mid: np.ndarray) -> AttitudeFeedback:
+    """Feed the smoothed attitude noise back into the reference trajectory.
+
+    The observations are linear in the noise part of the attitude error
+    (:mod:`calib.noise`), which a MEMS gyro's noise walks by degrees over a
+    run: gravity then leaks through at second order, ``g phi^2 / 2``, tens of
+    times the accelerometer-bias resolution, and the fit is biased. The
+    smoothed noise ``phi_hat`` given the fit's residuals (:func:`calib.noise.smooth`)
+    is taken out of the next navigation by a gyro correction, and its
+    first-order effect on the velocity is added back to the observations: to
+    first order nothing changes (the same GLS problem), while the neglected
+    terms shrink to second order in the smoothing error ``phi - phi_hat``.
+    Iterated with Gauss-Newton, this is an iterated extended smoother.
+    """
+    phi_hat = smooth(list(noise.models), residual)[:, :3]
+    key = np.ascontiguousarray(A, dtype=float).tobytes()
+    K = len(T)
+    m, dv, rate = np.zeros(6), np.zeros((K + 1, 3)), np.empty((K, 3))
+    for k in range(K):
+        Phi, G = _rate_response(key, round(float(T[k]), 6))
+        # The attitude rate u over interval k that brings the correction to -phi_hat at its end.
+        u = np.linalg.solve(G[:3], -phi_hat[k + 1] - Phi[:3] @ m)
+        m = Phi @ m + G @ u
+        dv[k + 1] = m[3:]
+        # A gyro error e in the body drives the attitude error by -C_b_n e (calib.jacobian).
+        rate[k] = -C_mid[k].T @ u
+    return AttitudeFeedback(rate, dv)
+
+
 def check_run(dtheta_m: np.ndarray, dv_m: np.ndarray, dt: np.ndarray, latitude_rad: float,
               gravity_mps2: float, profile: NoiseProfile, moving: np.ndarray | None,
               where: str, requirements: Requirements = PAPER) -> Segmentation:
@@ -319,10 +399,13 @@ class _Problem:
     def t_nav(self) -> np.ndarray:
         return np.concatenate([[self.time_s[0] - self.dt[0]], self.time_s])
 
-    def compensate_and_navigate(self, values, extra_values, C0, turn):
-        """Compensate the raw increments with the current estimate and navigate."""
+    def compensate_and_navigate(self, values, extra_values, C0, turn, feedback=None):
+        """Compensate the raw increments with the current estimate (and feedback) and navigate."""
         model = ErrorModel(values)
         dth, dvv = model.compensate(self.dtheta_m, self.dv_m, self.dt)
+        if feedback is not None:
+            b = self.grid.bounds  # b[0] = 0 and b[-1] = n: every sample is in an interval
+            dth = dth + np.repeat(feedback.body_rate, np.diff(b), axis=0) * self.dt[:, None]
         if self.extras.n:
             dvv = X.compensate(self.extras.unpack(extra_values), dth, self.dv_m, self.dt,
                                lambda x: model.compensate(self.dtheta_m, x, self.dt)[1], turn)
@@ -330,14 +413,15 @@ class _Problem:
                        t0=self.t_nav[0])
         return dth, dvv, nav
 
-    def observations(self, nav, Phi_vv, it: int) -> np.ndarray:
+    def observations(self, nav, Phi_vv, it: int, feedback=None) -> np.ndarray:
         """Velocity changes over the observation intervals, less the noise model's prediction."""
-        return _observations(nav.v_n[self.grid.bounds], Phi_vv, it, self.where)
+        y = nav.v_n[self.grid.bounds]
+        return _observations(y if feedback is None else y - feedback.dv, Phi_vv, it, self.where)
 
 
 def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitude_rad: float,
               gravity_mps2: float, profile: NoiseProfile, moving: np.ndarray | None = None,
-              max_iterations: int = 12, tol_sigma: float = 1e-3, where: str = "run",
+              max_iterations: int | None = None, tol_sigma: float = 1e-3, where: str = "run",
               extras: Extras = X.NONE, partial: bool = False,
               requirements: Requirements = PAPER, sequence=None,
               renavigate: str = "when-needed") -> Fit:
@@ -355,8 +439,10 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
         Weights the observations and scales the covariance.
     moving : ndarray of bool, optional
         Which samples turn (from the sequence); detected from the gyros if None.
-    max_iterations : int
-        Gauss-Newton iterations at most.
+    max_iterations : int, optional
+        Gauss-Newton iterations at most. Default: :data:`MAX_ITERATIONS`, or
+        :data:`WANDER_MAX_ITERATIONS` for a run whose attitude noise needs
+        the feedback of :func:`attitude_feedback`.
     tol_sigma : float
         Converged when every correction is below this fraction of its sigma.
     where : str
@@ -410,7 +496,7 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
 
 
 def _fit_renavigating(pb: "_Problem", C0: np.ndarray, extras: Extras, partial: bool,
-                      requirements: Requirements, max_iterations: int, tol_sigma: float,
+                      requirements: Requirements, max_iterations: int | None, tol_sigma: float,
                       where: str, start: np.ndarray | None = None, judge=None) -> Fit:
     """The reference loop: re-navigate the whole run in memory at every iteration."""
     latitude_rad, gravity_mps2, profile, grid, dt = (pb.latitude_rad, pb.gravity_mps2, pb.profile,
@@ -423,16 +509,18 @@ def _fit_renavigating(pb: "_Problem", C0: np.ndarray, extras: Extras, partial: b
     omega_ie_n = earth.omega_ie_n(latitude_rad)
     # Until the first navigation, the Earth's turn as seen at the start attitude.
     turn = X.earth_turn(np.broadcast_to(C0, (len(dt), 3, 3)), omega_ie_n, dt)
-    noise, sol, history, converged = None, None, [], False
-    for it in range(1, max_iterations + 1):
-        dth, dvv, nav = pb.compensate_and_navigate(values, extra_values, C0, turn)
+    noise, sol, history, converged, feedback = None, None, [], False, None
+    wander = attitude_wander_ratio(profile, float(T.sum()), gravity_mps2) > ATTITUDE_FEEDBACK_RATIO
+    limit = max_iterations or (WANDER_MAX_ITERATIONS if wander else MAX_ITERATIONS)
+    for it in range(1, limit + 1):
+        dth, dvv, nav = pb.compensate_and_navigate(values, extra_values, C0, turn, feedback)
         if extras.n:  # the Earth's turn in the body, for the next compensation
             turn = X.earth_turn(0.5 * (nav.C_b_n[1:] + nav.C_b_n[:-1]), omega_ie_n, dt)
         if noise is None or (profile.has_gauss_markov and it <= 3):
             # Gauss-Markov bias noise enters through the attitude (C_b_n b): its weights follow
             # the navigated attitude while the Jacobian does. Phi_vv does not depend on it.
             noise = noise_model(A, T, profile, C_b_n=nav.C_b_n[mid])
-        z = pb.observations(nav, noise.Phi_vv, it)
+        z = pb.observations(nav, noise.Phi_vv, it, feedback)
         if _relinearise(it, sol, history):
             # The Jacobian changes little once the big errors are compensated; while steps are
             # still large (a MEMS unit's percent-level errors) it follows them. A partial fit's
@@ -456,6 +544,9 @@ def _fit_renavigating(pb: "_Problem", C0: np.ndarray, extras: Extras, partial: b
         if step < tol_sigma:
             converged = True
             break
+        if wander:
+            feedback = attitude_feedback(noise, z - np.einsum("kin,n->ki", H, delta), A, T,
+                                         nav.C_b_n[mid])
     return _fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, converged, extras)
 
 
@@ -527,7 +618,7 @@ def _nominal_judge(sequence, time_s, dtheta_m, dv_m, dt, moving, C0, start, mode
 
 def fit_intervals(chunks, grid, site: Site, C0: np.ndarray, profile: NoiseProfile,
                   extras: Extras = X.NONE, partial: bool = False,
-                  requirements: Requirements = PAPER, max_iterations: int = 12,
+                  requirements: Requirements = PAPER, max_iterations: int | None = None,
                   tol_sigma: float = 1e-3, where: str = "run", start: np.ndarray | None = None,
                   judge=None) -> Fit:
     """The Gauss-Newton loop on per-interval quantities, navigating only when it must.
@@ -548,14 +639,21 @@ def fit_intervals(chunks, grid, site: Site, C0: np.ndarray, profile: NoiseProfil
     values = np.zeros(P.N_PARAMS) if start is None else start.copy()
     extra_values = np.zeros(extras.n)
     noise, sol, history, converged, turn = None, None, [], False, None
-    for it in range(1, max_iterations + 1):
+    feedback, wander, it, limit = None, None, 0, max_iterations or MAX_ITERATIONS
+    while it < limit:
+        it += 1
         want_H = _relinearise(it, sol, history)
         data = navigate_pass(chunks(), grid, site, values, extra_values, C0, turn, extras,
-                             with_moments=want_H)
+                             with_moments=want_H,
+                             gyro_correction=None if feedback is None else feedback.body_rate)
         turn, T = data.turn, np.diff(data.t_bounds)
+        if wander is None:
+            wander = attitude_wander_ratio(profile, float(T.sum()), g) > ATTITUDE_FEEDBACK_RATIO
+            limit = max_iterations or (WANDER_MAX_ITERATIONS if wander else MAX_ITERATIONS)
         if noise is None or (profile.has_gauss_markov and it <= 3):
             noise = noise_model(A, T, profile, C_b_n=data.C_mid)
-        z = _observations(data.y, noise.Phi_vv, it, where)
+        z = _observations(data.y if feedback is None else data.y - feedback.dv, noise.Phi_vv,
+                          it, where)
         if want_H:
             H = observation_matrix(sensitivities(data.moments, T, lat, g, data.extra),
                                    noise.Phi_vv)
@@ -577,6 +675,9 @@ def fit_intervals(chunks, grid, site: Site, C0: np.ndarray, profile: NoiseProfil
         if step < tol_sigma or bound < tol_sigma:
             converged = True
             break
+        if wander:
+            feedback = attitude_feedback(noise, z - np.einsum("kin,n->ki", H, delta), A, T,
+                                         data.C_mid)
     return _fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, converged, extras)
 
 
