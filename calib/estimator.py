@@ -358,6 +358,28 @@ def attitude_feedback(noise, residual: np.ndarray, A: np.ndarray, T: np.ndarray,
     return AttitudeFeedback(rate, dv)
 
 
+def _aitken(delta: np.ndarray, sigma: np.ndarray, last: np.ndarray | None):
+    """Aitken's extrapolation of a linearly converging Gauss-Newton step.
+
+    About a held attitude feedback the loop can converge linearly or settle
+    in a two-cycle along the barely observable heading (measured: steps of
+    0.24 sigma alternating in sign for 30 iterations on one MEMS run in 50):
+    the held correction turns with the heading in the body while its
+    first-order effect does not. When the step (in sigmas) is a multiple
+    ``rho`` of the last, the remaining steps sum to ``delta / (1 - rho)``; it
+    is taken only for ``-1.5 < rho < 0.5``, so it damps and never amplifies
+    much. The fixed point is the same. Returns the step and the natural step
+    in sigmas (the next call's ``last``).
+    """
+    u = delta / sigma
+    if last is not None and np.linalg.norm(last) > 0 and np.linalg.norm(u) > 0:
+        rho = float(u @ last / (last @ last))
+        cos = float(u @ last / (np.linalg.norm(u) * np.linalg.norm(last)))
+        if abs(cos) > 0.9 and -1.5 < rho < 0.5:
+            delta = delta / (1.0 - rho)
+    return delta, u
+
+
 def _feedback_pending(wander: bool, updates: int) -> bool:
     """Whether the feedback has still to move: no convergence before it is held."""
     return wander and updates < FEEDBACK_UPDATES
@@ -661,6 +683,7 @@ def fit_intervals(chunks, grid, site: Site, C0: np.ndarray, profile: NoiseProfil
     extra_values = np.zeros(extras.n)
     noise, sol, history, converged, turn = None, None, [], False, None
     feedback, wander, it, limit, updates, moved = None, None, 0, max_iterations or MAX_ITERATIONS, 0, 0
+    last = None
     while it < limit:
         it += 1
         want_H = _relinearise(it, sol, history)
@@ -685,6 +708,9 @@ def fit_intervals(chunks, grid, site: Site, C0: np.ndarray, profile: NoiseProfil
             cov = sol.covariance * np.outer(D, D)
         zw = Hz[:, :, -1].reshape(-1) if want_H else whiten(noise.whitener, z[:, :, None]).reshape(-1)
         delta, resid = _solve_step(Hs, D, zw, sol)
+        if wander and updates == FEEDBACK_UPDATES:
+            delta, last = _aitken(delta, np.sqrt(np.diag(cov)), last if it > moved + 1 else None)
+            resid = zw - Hs @ (delta / D)
         values, extra_values = _apply(values, extra_values, delta, sol, D)
         C0 = rotvec_to_dcm(delta[PHI0]) @ C0
         step = float(np.max(np.abs(delta) / np.sqrt(np.diag(cov))))

@@ -117,3 +117,39 @@ def test_mems_monte_carlo_nees_is_in_its_band():
         nees.append(res.nees(truth.errors.values))
     lo, hi = chi2.ppf([0.005, 0.995], 21 * n) / n
     assert lo < np.mean(nees) < hi, nees
+
+
+def test_rest_gyrocompass_finds_bias_and_heading_through_a_mems_bias():
+    # Noise-free, MEMS errors: at each rest the gyros read the bias plus the Earth rate in that
+    # rest's body axes, linear in (bias, W cos L sin psi, W cos L cos psi). What is left is
+    # the rests' attitudes integrated through uncompensated scale factors and misalignments
+    # (0.5 %, a few hundred arcsec: about 1 deg per flip), which moves the Earth rate's
+    # projection by ~0.2 deg/h: the bias to 1 deg/h, the heading to 3 deg (0.2 / 11.5 rad is
+    # 1 deg). A first-rest gyrocompass after removing the mean rate over the rests is off by
+    # the Earth rate's own average over them.
+    from calib import params as P
+    from calib.errormodel import ErrorModel
+    from calib.estimator import calibrate, coarse_alignment, detect_motion, start_values
+    from calib.gyrocompass import rest_gyrocompass
+    from calib.requirements import load_requirements
+    from calib.sequence import load_sequence
+    from calib.sim import SimConfig, simulate
+    from calib.strapdown import sample_intervals
+    from calib.transform import dcm_to_rotvec
+
+    errors = ErrorModel.from_units([MEMS_ERRORS[p.name] for p in P.PARAMETERS])
+    cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=20.0)
+    run, _ = simulate(load_sequence("paper-9pos"), cfg, errors, load_profile("mems"),
+                      noise=False, setup_rotvec=np.radians([2.0, -1.0, 40.0]))
+    dt = sample_intervals(run.time_s)
+    seg = detect_motion(run.dtheta_rad, dt)
+    start = start_values(run.dtheta_rad, dt, seg.moving)[P.GYRO_BIAS]
+    first = slice(0, seg.first_rest_end)
+    C_lev = coarse_alignment(run.dtheta_rad[first] - start * dt[first, None], run.dv_mps[first],
+                             dt[first])
+    bias, C0 = rest_gyrocompass(run.dtheta_rad, dt, seg.moving, C_lev, LAT, start)
+    deg_h = np.degrees(np.abs(bias - errors.values[P.GYRO_BIAS])) * 3600.0
+    assert deg_h.max() < 1.0, deg_h
+    exact = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity,
+                      load_profile("tactical"), requirements=load_requirements("mems")).C_b_n0
+    assert np.degrees(np.linalg.norm(dcm_to_rotvec(C0 @ exact.T))) < 3.0
