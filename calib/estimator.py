@@ -675,7 +675,11 @@ def fit_intervals(chunks, grid, site: Site, C0: np.ndarray, profile: NoiseProfil
     geometrically here, so after steps ``s_prev``, ``s`` the next one is at
     most ``s * (s / s_prev)``; when that is below ``tol_sigma`` the estimate
     is converged without another pass (the test suite checks it against the
-    reference loop, noise-free and noisy).
+    reference loop, noise-free and noisy). A run whose gyro noise walks the
+    attitude far enough for gravity to leak through at second order
+    (:func:`attitude_wander_ratio`) gets the attitude feedback
+    (:func:`attitude_feedback`, docs/grades.md); every other run is fitted
+    exactly as without it.
     """
     lat, g = site.latitude_rad, site.gravity_mps2
     A, names = state_matrix(lat, g), UNKNOWN_NAMES + extras.names
