@@ -70,7 +70,6 @@ MEMS_ERRORS = {
     "saz": 4000.0, "mayx": 500.0, "mazx": -400.0, "mazy": 600.0}
 
 
-@pytest.mark.slow
 def test_a_noisy_mems_run_calibrates_through_the_cli(tmp_path):
     errors = tmp_path / "errors.toml"
     errors.write_text("[errors]\n" + "".join(f"{k} = {v}\n" for k, v in MEMS_ERRORS.items()))
