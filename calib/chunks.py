@@ -235,7 +235,7 @@ def _first_rest(path, moving, rows, where, period, latitude_rad, gravity_mps2, p
 def calibrate_file(path, latitude_rad: float, gravity_mps2: float, profile: NoiseProfile,
                    extras: Extras = NO_EXTRAS, partial: bool = False,
                    requirements: Requirements = PAPER, rows: int = READ_ROWS,
-                   max_iterations: int = 12, tol_sigma: float = 1e-3):
+                   max_iterations: int | None = None, tol_sigma: float = 1e-3):
     """:func:`calib.estimator.calibrate` of a run log read from disk chunk by chunk.
 
     Returns the same :class:`calib.estimator.Fit`; the estimates equal those

@@ -302,7 +302,8 @@ def _extra_moments(C_mid, dth_ctx, dvv_ctx, h_ctx, turn, S3, extras: Extras, sit
 
 def navigate_pass(chunks, grid: ObservationGrid, site: Site, values: np.ndarray,
                   extra_values: np.ndarray, C_b_n0: np.ndarray, turn: np.ndarray | None,
-                  extras: Extras = X.NONE, with_moments: bool = True) -> PassResult:
+                  extras: Extras = X.NONE, with_moments: bool = True,
+                  gyro_correction: np.ndarray | None = None) -> PassResult:
     """Compensate, navigate and reduce a run to its per-interval quantities in one pass.
 
     Parameters
@@ -321,6 +322,9 @@ def navigate_pass(chunks, grid: ObservationGrid, site: Site, values: np.ndarray,
     extras : Extras
     with_moments : bool
         Skip the moments (and the optional terms' inputs) when the Jacobian is not wanted.
+    gyro_correction : ndarray, shape (K, 3), optional
+        A body rate (rad/s) per interval added to the compensated gyro increments:
+        the estimator's attitude feedback (:func:`calib.estimator.attitude_feedback`).
     """
     b, K = grid.bounds, grid.n_intervals
     model, carry = ErrorModel(values), _Carry(C_b_n0, site.omega_ie_n)
@@ -336,6 +340,8 @@ def navigate_pass(chunks, grid: ObservationGrid, site: Site, values: np.ndarray,
         dth, dvv = _compensate(ch, dt, model, extras, extra_values, tn, carry)
         k0, k1 = np.searchsorted(b, [ch.start, ch.start + m])
         lb = b[k0:k1 + 1] - ch.start
+        if gyro_correction is not None:  # the estimator's attitude feedback (a MEMS unit's wander)
+            dth = dth + np.repeat(gyro_correction[k0:k1], np.diff(lb), axis=0) * dt[:, None]
         q, y[k0 + 1:k1 + 1], axis, rate = _navigate_chunk(dth, dvv, t, lb, site, carry)
         t_bounds[k0 + 1:k1 + 1] = t[lb[1:]] + site.t0
         mid = (lb[:-1] + lb[1:]) // 2
