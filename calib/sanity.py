@@ -98,7 +98,23 @@ def runs_of(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return edges[::2], edges[1::2]
 
 
-def _saturated_stretch(data: np.ndarray, axis: int) -> tuple[int, int] | None:
+def _still_level(data: np.ndarray, magnitude: np.ndarray) -> float | None:
+    """Changes of a sensor below this are float rounding; None for a sensor without noise.
+
+    ``magnitude`` is ``|data|``. Any real quantum is at least 1e-6 of the
+    sensor's largest reading, so changes below ``STILL_RELATIVE`` of it are
+    rounding of an exact simulation. A noise-free sensor (its typical second
+    difference at rounding level) is not judged: in a noise-free log a
+    constant-rate flip is a flat top too, and clipping cannot be told from it.
+    """
+    still = STILL_RELATIVE * float(magnitude.max())
+    if len(data) < 3 or np.median(np.abs(np.diff(data, 2, axis=0)).max(axis=1)) <= still:
+        return None
+    return still
+
+
+def _saturated_stretch(data: np.ndarray, axis: int, magnitude: np.ndarray,
+                       still: float) -> tuple[int, int] | None:
     """The first stretch where channel ``axis`` is pinned at its extreme while the sensor moves.
 
     A clipped channel sits at its range limit while the true signal goes on:
@@ -106,25 +122,20 @@ def _saturated_stretch(data: np.ndarray, axis: int) -> tuple[int, int] | None:
     noise-free or quantised channel at rest also repeats one value (often its
     extreme, gravity being the largest specific force a static run sees), but
     then either the whole sensor is still or the value is the channel's
-    ordinary reading (its median). In a noise-free log a constant-rate flip is
-    a flat top too: clipping cannot be told from it, so a sensor without noise
-    (its typical second difference at rounding level) is not judged.
+    ordinary reading (its median).
     """
-    x = data[:, axis]
-    peak = np.max(np.abs(x))
+    x, peak = data[:, axis], magnitude[:, axis].max()
     if peak == 0.0:
         return None
-    # Changes below this are float rounding of an exact simulation, not motion or noise:
-    # any real quantum is at least 1e-6 of the sensor's largest reading.
-    still = STILL_RELATIVE * float(np.max(np.abs(data)))
-    if len(data) < 3 or np.median(np.max(np.abs(np.diff(data, 2, axis=0)), axis=1)) <= still:
-        return None
-    others = np.delete(data, axis, axis=1)
-    typical = float(np.median(x))
-    for a, b in zip(*runs_of(np.abs(x) == peak)):
-        if b - a < SATURATION_RUN or x[a] == typical:
+    others = [i for i in range(data.shape[1]) if i != axis]
+    typical = None  # the median costs a sort of the channel: only when a stretch is found
+    for a, b in zip(*runs_of(magnitude[:, axis] == peak)):
+        if b - a < SATURATION_RUN:
             continue
-        if np.max(np.ptp(others[a:b], axis=0)) > still:
+        typical = float(np.median(x)) if typical is None else typical
+        if x[a] == typical:
+            continue
+        if np.max(np.ptp(data[a:b][:, others], axis=0)) > still:
             return int(a), int(b)
     return None
 
@@ -132,8 +143,12 @@ def _saturated_stretch(data: np.ndarray, axis: int) -> tuple[int, int] | None:
 def check_saturation(dtheta: np.ndarray, dv: np.ndarray, where: str) -> None:
     """Refuse runs with a channel clipped: pinned at its extreme while the sensor moves."""
     for name, data in (("dtheta", dtheta), ("dv", dv)):
+        magnitude = np.abs(data)
+        still = _still_level(data, magnitude)  # once per sensor, not once per channel
+        if still is None:
+            continue
         for axis in range(3):
-            found = _saturated_stretch(data, axis)
+            found = _saturated_stretch(data, axis, magnitude, still)
             if found is None:
                 continue
             a, b = found

@@ -23,7 +23,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 
 from . import earth
 from . import extras as X
@@ -253,6 +252,8 @@ def _navigate_chunk(dth, dvv, t, lb, site: Site, carry: _Carry):
 
 def _interval_sums(lb: np.ndarray, t: np.ndarray, orders: int):
     """Sparse ``(orders * Kc, m)`` matrix of ``tau^w`` per sample and interval, for the moments."""
+    import scipy.sparse as sp  # only with optional terms: importing scipy costs every start 0.1 s
+
     m, Kc = lb[-1], len(lb) - 1
     idx = np.repeat(np.arange(Kc), np.diff(lb))
     tau = t[lb[1:]][idx] - 0.5 * (t[1:] + t[:-1])
