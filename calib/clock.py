@@ -283,7 +283,8 @@ def settle(run, allow_gaps: bool):
     Parameters
     ----------
     run : calib.runlog.Run
-        A run that passed the reader's checks.
+        A run that passed the reader's checks; its ``clock``, when set, is the
+        one they found in its time column (not searched again).
     allow_gaps : bool
 
     Returns
@@ -292,15 +293,17 @@ def settle(run, allow_gaps: bool):
         A new run (``clock`` set); the input is not modified.
     """
     period = run.dt_nominal
-    dup = duplicate_rows(run.time_s, run.dtheta_rad, run.dv_mps, period)
-    try:
-        clock = sample_clock(run.time_s, run.sample_rate_hz, dup)
-    except CalibError as exc:
-        raise CalibError(exc.what, f"{run.source}, sample {exc.where}", exc.fix) from None
+    clock = run.clock  # found by the reader's checks on this time column, else found here
+    if clock is None:
+        try:
+            clock = sample_clock(run.time_s, run.sample_rate_hz,
+                                 duplicate_rows(run.time_s, run.dtheta_rad, run.dv_mps, period))
+        except CalibError as exc:
+            raise CalibError(exc.what, f"{run.source}, sample {exc.where}", exc.fix) from None
     if clock.dropped or clock.duplicates:
         if not allow_gaps:
             raise refusal(clock, run.source)
-        keep = ~dup
+        keep = ~duplicate_rows(run.time_s, run.dtheta_rad, run.dv_mps, period)
         clean = dataclasses.replace(clock, index=clock.index[keep])
         gimbal = None if run.gimbal_deg is None else run.gimbal_deg[keep]
         try:
