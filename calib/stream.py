@@ -308,9 +308,13 @@ def _moments(C_mid, dth, dvv, h, lb, t):
         ks = np.flatnonzero(lengths == L)
         idx = lb[ks][:, None] + np.arange(L)
         tau = (t_end[ks][:, None] - t_mid[idx])[..., None]
-        th, dv, hh = dth[idx], dvv[idx], h[idx][..., None]
-        right = np.concatenate([th, th * tau, th * tau ** 2, dv, dv * tau,
-                                hh, hh * tau, hh * tau ** 2], axis=2)
+        tau2 = tau * tau
+        # [inc, inc tau, inc tau^2, dv, dv tau, h, h tau, h tau^2] written in place: no temporaries.
+        right = np.empty(idx.shape + (18,))
+        th, dv, hh = right[..., 0:3], right[..., 9:12], right[..., 15:16]
+        th[...], dv[...], hh[...] = dth[idx], dvv[idx], h[idx][..., None]
+        for col, x, w in ((3, th, tau), (6, th, tau2), (12, dv, tau), (16, hh, tau), (17, hh, tau2)):
+            np.multiply(x, w, out=right[..., col:col + x.shape[-1]])
         R = np.matmul(Cf[idx].transpose(0, 2, 1), right)  # (nk, 9, 18)
         n = len(ks)
         # gyro w = 0, 1, 2 then accel w = 0, 1: [27 K (a, i, m), 9 B (a, i)] each
