@@ -154,24 +154,33 @@ def sample_clock(time_s: np.ndarray, sample_rate_hz: float,
     period = 1.0 / sample_rate_hz
     dup = np.zeros(len(time_s), dtype=bool) if duplicate is None else duplicate
     steps = _whole_steps(time_s, period, dup)
-    index = np.concatenate([[0], np.cumsum(steps)])
-    residual = time_s - index * period
+    dropped = [(float(time_s[i] + period), int(steps[i] - 1)) for i in np.flatnonzero(steps > 1)]
+    index = np.zeros(len(time_s), dtype=np.int64)
+    np.cumsum(steps, out=index[1:])
+    del steps
+    # In place below: the same arithmetic with three whole-run arrays alive instead of seven.
+    residual = index * period
+    np.subtract(time_s, residual, out=residual)
     offset = float(np.mean(residual))
     # A logger clock running at another rate than the IMU's is a trend, not jitter.
     centred = index - index.mean()
     slope = float(centred @ residual / (centred @ centred)) if index[-1] > 0 else 0.0
-    jitter = residual - offset - slope * centred
-    dropped = [(float(time_s[i] + period), int(steps[i] - 1)) for i in np.flatnonzero(steps > 1)]
+    jitter = residual
+    jitter -= offset
+    centred *= slope
+    jitter -= centred
+    jitter_max = float(np.maximum(jitter.max(), -jitter.min()))
     return SampleClock(index=index, period_s=period, offset_s=offset,
                        rate_error_ppm=1e6 * slope / period,
-                       jitter_rms_s=float(np.sqrt(np.mean(jitter ** 2))),
-                       jitter_max_s=float(np.max(np.abs(jitter))),
-                       dropped=dropped, duplicates=_runs_of(dup, time_s))
+                       jitter_rms_s=float(np.sqrt(np.mean(np.square(jitter, out=jitter)))),
+                       jitter_max_s=jitter_max, dropped=dropped,
+                       duplicates=_runs_of(dup, time_s))
 
 
 def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarray:
     """Each time step in whole periods (0 for a duplicate); refuse jumps and fractions."""
-    periods = np.diff(time_s) / period
+    periods = np.diff(time_s)
+    periods /= period
     fix = "the time column must locate samples taken at sample_rate_hz; "
     huge = np.flatnonzero(periods > MAX_STEP_PERIODS)
     if huge.size:
@@ -181,13 +190,16 @@ def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarr
                          fix + "split the log where its clock jumps")
     steps = np.rint(periods).astype(np.int64)
     steps[dup[1:]] = 0
-    off = np.abs(periods - steps)
+    off = periods  # |periods - steps|, in place
+    off -= steps
+    np.abs(off, out=off)
     off[dup[1:]] = 0.0
     bad = np.flatnonzero((off > MAX_STEP_FRACTION) | ((steps == 0) & ~dup[1:]))
     if bad.size:
         i = int(bad[0]) + 1
         raise CalibError(f"the time step {time_s[i] - time_s[i - 1]:.6g} s before row {i} is "
-                         f"{periods[i - 1]:.3f} nominal periods, not a whole number", str(i),
+                         f"{(time_s[i] - time_s[i - 1]) / period:.3f} nominal periods, not a "
+                         "whole number", str(i),
                          fix + "check the rate, or whether the log mixes clocks")
     return steps
 
