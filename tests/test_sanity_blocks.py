@@ -52,8 +52,9 @@ def test_a_clipped_channel_is_found_across_block_ends(monkeypatch, block):
     # Clip dv_x at its noise's 2-sigma level from sample 995 to 1045: a stretch that crosses
     # the block end at 1000 whatever the block (except the whole-run one).
     limit = 2e-5
-    dv[995:1045, 0] = limit
     dv[:, 0] = np.clip(dv[:, 0], -limit, limit)
+    dv[990:1050, 0] = 0.0  # the samples either side inside the range: the stretch is exactly 50
+    dv[995:1045, 0] = limit
     monkeypatch.setattr(sanity, "MOTION_BLOCK", block)
     with pytest.raises(CalibError, match="dv_x is stuck .* for 50 consecutive samples from sample 995"):
         sanity.check_saturation(dtheta, dv, "run")
