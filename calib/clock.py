@@ -119,7 +119,11 @@ def duplicate_rows(time_s: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
     same = np.zeros(len(time_s), dtype=bool)
     step = np.diff(time_s)
     close = (step >= 0.0) & (step < 0.5 * period_s)
-    same[1:] = close & np.all(dtheta[1:] == dtheta[:-1], axis=1) & np.all(dv[1:] == dv[:-1], axis=1)
+    # Column by column: numpy reduces a 3-wide axis one row at a time, ten times slower.
+    for x in (dtheta, dv):
+        for i in range(x.shape[1]):
+            close &= x[1:, i] == x[:-1, i]
+    same[1:] = close
     return same
 
 

@@ -439,6 +439,8 @@ def _check_finite(run: Run, locate) -> None:
         if array is None:
             continue
         array = np.asarray(array)
+        if np.isfinite(array).all():  # the common case, without a row-by-row reduction
+            continue
         bad = ~np.isfinite(array)
         rows = np.flatnonzero(bad if array.ndim == 1 else bad.any(axis=1))
         if rows.size and (first is None or rows[0] < first[0]):
