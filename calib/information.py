@@ -21,7 +21,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import qr
 
 from . import params as P
 
@@ -179,6 +178,8 @@ def describe_null(null_basis: np.ndarray, names=UNKNOWN_NAMES) -> list[str]:
     k = null.shape[0]
     if k == 0:
         return []
+    from scipy.linalg import qr  # only for a run that leaves directions unobserved
+
     _, _, piv = qr(null, pivoting=True)
     basis = np.linalg.solve(null[:, piv[:k]], null)
     out = []

@@ -20,7 +20,7 @@ import os
 import tokenize
 import zipfile
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -387,8 +387,11 @@ def _check_array_shape(array: np.ndarray, name: str, n: int, where: str) -> None
                          "store one row per sample, all arrays the same length")
 
 
-def _check_samples(run: Run, locate, allow_gaps: bool) -> None:
-    """Refuse too few samples, non-finite values, non-increasing time and (unless allowed) gaps."""
+def _check_samples(run: Run, locate, allow_gaps: bool) -> clock.SampleClock:
+    """Refuse too few samples, non-finite values, non-increasing time and (unless allowed) gaps.
+
+    Returns the sample clock of the time column (:func:`calib.clock.sample_clock`).
+    """
     time = np.asarray(run.time_s)
     n = time.shape[0]
     if n < 2:
@@ -425,6 +428,7 @@ def _check_samples(run: Run, locate, allow_gaps: bool) -> None:
     if not allow_gaps and (found.dropped or found.duplicates):
         first = np.flatnonzero(np.diff(found.index) != 1)[0] + 1
         raise clock.refusal(found, locate.sample("time_s", int(first)))
+    return found
 
 
 def _check_finite(run: Run, locate) -> None:
@@ -435,6 +439,8 @@ def _check_finite(run: Run, locate) -> None:
         if array is None:
             continue
         array = np.asarray(array)
+        if np.isfinite(array).all():  # the common case, without a row-by-row reduction
+            continue
         bad = ~np.isfinite(array)
         rows = np.flatnonzero(bad if array.ndim == 1 else bad.any(axis=1))
         if rows.size and (first is None or rows[0] < first[0]):
@@ -518,8 +524,8 @@ def _read_csv(path: str | os.PathLike, allow_gaps: bool, options: dict | None = 
               meta=meta,
               gimbal_deg=np.ascontiguousarray(data[:, 7:10]) if has_gimbal else None,
               source=name)
-    _check_samples(run, locate, allow_gaps)
-    return run
+    # The clock the checks found goes with the run: clock.settle does not find it again.
+    return replace(run, clock=_check_samples(run, locate, allow_gaps))
 
 
 def _to_commas(lines: list[str], header_index: int, name: str) -> list[str]:
@@ -781,8 +787,7 @@ def _read_npz(path: str | os.PathLike, allow_gaps: bool) -> Run:
               source=name)
     locate = _ArrayLocator(name)
     _check_meta(meta, locate)
-    _check_samples(run, locate, allow_gaps)
-    return run
+    return replace(run, clock=_check_samples(run, locate, allow_gaps))
 
 
 def _load_npz_arrays(path: str | os.PathLike, name: str) -> dict[str, np.ndarray]:

@@ -18,11 +18,23 @@ from .errors import CalibError
 MAX_PLAUSIBLE_RATE = 5.0  # rad/s: 286 deg/s, beyond any calibration gimbal (the paper turns at 10)
 MAX_REST_RATE = 1e-3  # rad/s: 14x the Earth rate, 200 deg/h of bias: beyond a navigation IMU
 GRAVITY_TOLERANCE = 0.02  # relative: biases and scale errors stay far below 2 % of g
+MOTION_BLOCK = 1 << 16  # samples per block of the motion diagnosis (its memory, not its result)
 SATURATION_RUN = 10  # consecutive samples stuck at the same extreme value
 STILL_RELATIVE = 1e-9  # changes below this fraction of a sensor's peak reading are float rounding
 REST_NOISE_FACTOR = 20.0  # a rest whose specific force varies 20x more than the noise moved
 
 
+
+
+def row_norm(a: np.ndarray) -> np.ndarray:
+    """``|a_i|`` of each row of an ``(n, 3)`` array.
+
+    Bit-identical to ``np.linalg.norm(a, axis=1)`` (the same three squares
+    summed in the same order) and about ten times faster: numpy reduces a
+    3-wide axis one row at a time.
+    """
+    x, y, z = a[:, 0], a[:, 1], a[:, 2]
+    return np.sqrt(x * x + y * y + z * z)
 
 
 def check_latitude(latitude_rad: float, where: str) -> None:
@@ -36,7 +48,7 @@ def check_latitude(latitude_rad: float, where: str) -> None:
 
 def check_rates(dtheta: np.ndarray, dt: np.ndarray, where: str) -> None:
     """Refuse gyro data in degrees, or rates for increments (from magnitudes)."""
-    rate = np.linalg.norm(dtheta, axis=1) / dt
+    rate = row_norm(dtheta) / dt
     peak = float(rate.max())
     if peak > MAX_PLAUSIBLE_RATE:
         k = int(np.argmax(rate))
@@ -98,7 +110,30 @@ def runs_of(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return edges[::2], edges[1::2]
 
 
-def _saturated_stretch(data: np.ndarray, axis: int) -> tuple[int, int] | None:
+def _still_level(data: np.ndarray, peaks: np.ndarray) -> float | None:
+    """Changes of a sensor below this are float rounding; None for a sensor without noise.
+
+    ``peaks`` are the channels' largest magnitudes. Any real quantum is at
+    least 1e-6 of the sensor's largest reading, so changes below
+    ``STILL_RELATIVE`` of it are rounding of an exact simulation. A
+    noise-free sensor (its typical second difference at rounding level) is
+    not judged: in a noise-free log a constant-rate flip is a flat top too,
+    and clipping cannot be told from it.
+    """
+    still = STILL_RELATIVE * float(peaks.max())
+    n = len(data)
+    if n < 3:
+        return None
+    # Largest |second difference| of the three channels per sample, a block at a time.
+    d2max = np.empty(n - 2)
+    for a in range(0, n - 2, MOTION_BLOCK):
+        d2 = np.abs(np.diff(data[a:a + MOTION_BLOCK + 2], 2, axis=0))
+        d2max[a:a + len(d2)] = np.maximum(np.maximum(d2[:, 0], d2[:, 1]), d2[:, 2])
+    return None if np.median(d2max) <= still else still
+
+
+def _saturated_stretch(data: np.ndarray, axis: int, peak: float,
+                       still: float) -> tuple[int, int] | None:
     """The first stretch where channel ``axis`` is pinned at its extreme while the sensor moves.
 
     A clipped channel sits at its range limit while the true signal goes on:
@@ -106,25 +141,20 @@ def _saturated_stretch(data: np.ndarray, axis: int) -> tuple[int, int] | None:
     noise-free or quantised channel at rest also repeats one value (often its
     extreme, gravity being the largest specific force a static run sees), but
     then either the whole sensor is still or the value is the channel's
-    ordinary reading (its median). In a noise-free log a constant-rate flip is
-    a flat top too: clipping cannot be told from it, so a sensor without noise
-    (its typical second difference at rounding level) is not judged.
+    ordinary reading (its median).
     """
-    x = data[:, axis]
-    peak = np.max(np.abs(x))
     if peak == 0.0:
         return None
-    # Changes below this are float rounding of an exact simulation, not motion or noise:
-    # any real quantum is at least 1e-6 of the sensor's largest reading.
-    still = STILL_RELATIVE * float(np.max(np.abs(data)))
-    if len(data) < 3 or np.median(np.max(np.abs(np.diff(data, 2, axis=0)), axis=1)) <= still:
-        return None
-    others = np.delete(data, axis, axis=1)
-    typical = float(np.median(x))
-    for a, b in zip(*runs_of(np.abs(x) == peak)):
-        if b - a < SATURATION_RUN or x[a] == typical:
+    x = data[:, axis]
+    others = [i for i in range(data.shape[1]) if i != axis]
+    typical = None  # the median costs a sort of the channel: only when a stretch is found
+    for a, b in zip(*runs_of((x == peak) | (x == -peak))):
+        if b - a < SATURATION_RUN:
             continue
-        if np.max(np.ptp(others[a:b], axis=0)) > still:
+        typical = float(np.median(x)) if typical is None else typical
+        if x[a] == typical:
+            continue
+        if np.max(np.ptp(data[a:b][:, others], axis=0)) > still:
             return int(a), int(b)
     return None
 
@@ -132,8 +162,13 @@ def _saturated_stretch(data: np.ndarray, axis: int) -> tuple[int, int] | None:
 def check_saturation(dtheta: np.ndarray, dv: np.ndarray, where: str) -> None:
     """Refuse runs with a channel clipped: pinned at its extreme while the sensor moves."""
     for name, data in (("dtheta", dtheta), ("dv", dv)):
+        # |x| at its largest, without a copy of |data|.
+        peaks = np.array([np.maximum(data[:, i].max(), -data[:, i].min()) for i in range(3)])
+        still = _still_level(data, peaks)  # once per sensor, not once per channel
+        if still is None:
+            continue
         for axis in range(3):
-            found = _saturated_stretch(data, axis)
+            found = _saturated_stretch(data, axis, float(peaks[axis]), still)
             if found is None:
                 continue
             a, b = found
@@ -199,20 +234,53 @@ def diagnose_motion(dtheta: np.ndarray, dt: np.ndarray, flip_rate: float,
     -------
     MotionDiagnosis
     """
-    w = max(1, min(len(dt), int(round(window_s / float(np.median(dt))))))
-    angle = np.concatenate([np.zeros((1, 3)), np.cumsum(dtheta, axis=0)])
-    clock = np.concatenate([[0.0], np.cumsum(dt)])
-    mean_rates = (angle[w:] - angle[:-w]) / (clock[w:] - clock[:-w])[:, None]
-    mean = angle[-1] / clock[-1]
-    sway = angle - np.outer(clock, mean)
+    n = len(dt)
+    w = max(1, min(n, int(round(window_s / float(np.median(dt))))))
+    # The run's mean rate first (the sway is measured about it), then the window means and
+    # the sway block by block: memory stays at one block, whatever the length of the log.
+    angle_end, clock_end = np.zeros(3), 0.0
+    for a in range(0, n, MOTION_BLOCK):
+        angle_end = _carried_cumsum(dtheta[a:a + MOTION_BLOCK].T, angle_end)[:, -1]
+        clock_end = float(_carried_cumsum(dt[a:a + MOTION_BLOCK], clock_end)[-1])
+    mean = angle_end / clock_end
+    max_mean, square_sum = 0.0, np.zeros(3)
+    low, high = np.zeros(3), np.zeros(3)  # sway is 0 at the start
+    tail_angle, tail_clock = np.zeros((3, 1)), np.zeros(1)  # the w samples before a block
+    for a in range(0, n, MOTION_BLOCK):
+        angle = np.hstack([tail_angle, _carried_cumsum(dtheta[a:a + MOTION_BLOCK].T,
+                                                       tail_angle[:, -1])])
+        clock = np.concatenate([tail_clock, _carried_cumsum(dt[a:a + MOTION_BLOCK],
+                                                            tail_clock[-1])])
+        new = slice(len(tail_clock), None)
+        sway = angle[:, new] - mean[:, None] * clock[new]
+        low, high = np.minimum(low, sway.min(axis=1)), np.maximum(high, sway.max(axis=1))
+        if len(clock) > w:
+            rates = (angle[:, w:] - angle[:, :-w]) / (clock[w:] - clock[:-w])
+            max_mean = max(max_mean, float(np.max(row_norm(rates.T))))
+            square_sum += np.sum((rates - mean[:, None]) ** 2, axis=1)
+        tail_angle, tail_clock = angle[:, -w:], clock[-w:]
     arcsec = math.degrees(1.0) * 3600.0
-    max_mean = float(np.max(np.linalg.norm(mean_rates, axis=1)))
     return MotionDiagnosis(
         has_flip=max_mean > flip_rate,
-        max_rate_rad_s=float(np.max(np.linalg.norm(dtheta, axis=1) / dt)),
-        max_mean_rate_rad_s=max_mean, window_s=float(clock[w] - clock[0]),
-        mean_rate_rad_s=mean, sway_arcsec=0.5 * np.ptp(sway, axis=0) * arcsec,
-        sway_rate_arcsec_s=np.sqrt(np.mean((mean_rates - mean) ** 2, axis=0)) * arcsec)
+        max_rate_rad_s=max(float(np.max(row_norm(dtheta[a:a + MOTION_BLOCK])
+                                        / dt[a:a + MOTION_BLOCK])) for a in range(0, n, MOTION_BLOCK)),
+        max_mean_rate_rad_s=max_mean, window_s=_window_s(dt, w),
+        mean_rate_rad_s=mean, sway_arcsec=0.5 * (high - low) * arcsec,
+        sway_rate_arcsec_s=np.sqrt(square_sum / max(1, n + 1 - w)) * arcsec)
+
+
+def _carried_cumsum(x: np.ndarray, start) -> np.ndarray:
+    """``start + x[0], start + x[0] + x[1], ...`` along the last axis, summed in that order.
+
+    Prepending ``start`` keeps the sums bit-identical to one cumulative sum over the whole run.
+    """
+    start = np.asarray(start, dtype=float)
+    return np.cumsum(np.concatenate([start[..., None], x], axis=-1), axis=-1)[..., 1:]
+
+
+def _window_s(dt: np.ndarray, w: int) -> float:
+    """The averaging time of ``w`` samples from the run's start, as the whole-run clock sums it."""
+    return float(_carried_cumsum(dt[:w], 0.0)[-1])
 
 
 def never_rotates(motion: MotionDiagnosis, flip_rate: float, where: str) -> CalibError:
@@ -227,6 +295,18 @@ def never_rotates(motion: MotionDiagnosis, flip_rate: float, where: str) -> Cali
         f"{math.degrees(motion.max_rate_rad_s):.3g} deg/s)", where,
         "a calibration run must flip the IMU; a static log like this one serves noise "
         "analysis (Allan deviation), not calibration")
+
+
+def _row_median(x: np.ndarray) -> np.ndarray:
+    """``np.median(x, axis=-1)``, the same values; an odd count by one partition.
+
+    np.median costs six times more on short rows (it also checks for NaN,
+    which this one does only when there is one).
+    """
+    k = x.shape[-1] // 2
+    if x.shape[-1] % 2 == 0 or np.isnan(x).any():
+        return np.median(x, axis=-1)
+    return np.partition(x, k, axis=-1)[..., k]
 
 
 def check_rests(dv: np.ndarray, dt: np.ndarray, moving: np.ndarray, vrw: float, where: str,
@@ -244,9 +324,11 @@ def check_rests(dv: np.ndarray, dt: np.ndarray, moving: np.ndarray, vrw: float, 
         n = (b - a) // window
         if n == 0:
             continue
-        f = (dv[a:a + n * window] / dt[a:a + n * window, None]).reshape(n, window, 3)
-        d = np.diff(f, axis=1)
-        spread = np.median(np.abs(d - np.median(d, axis=1, keepdims=True)), axis=1) / 0.6745
+        # (window, axis, sample) with the samples contiguous: the medians run along rows.
+        f = np.ascontiguousarray((dv[a:a + n * window] / dt[a:a + n * window, None])
+                                 .reshape(n, window, 3).transpose(0, 2, 1))
+        d = np.diff(f, axis=2)
+        spread = _row_median(np.abs(d - _row_median(d)[..., None])) / 0.6745
         spread = spread.max(axis=1) / math.sqrt(2.0)
         expected = vrw / math.sqrt(float(np.median(dt[a:b])))
         k = int(np.argmax(spread))

@@ -23,7 +23,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 
 from . import earth
 from . import extras as X
@@ -89,27 +88,58 @@ def _hillis_steele(q: np.ndarray) -> np.ndarray:
     return out
 
 
+def _quat_mult_soa(p: np.ndarray, q: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """:func:`quat_mult` of quaternions stored component first, ``(4, ...)``, into ``out``.
+
+    The same products and sums in the same order (bit-identical), on contiguous
+    component arrays instead of strided columns; ``out`` must not share memory with p, q.
+    """
+    pw, px, py, pz = p
+    qw, qx, qy, qz = q
+    np.multiply(pw, qw, out=out[0])
+    out[0] -= px * qx
+    out[0] -= py * qy
+    out[0] -= pz * qz
+    np.multiply(pw, qx, out=out[1])
+    out[1] += px * qw
+    out[1] += py * qz
+    out[1] -= pz * qy
+    np.multiply(pw, qy, out=out[2])
+    out[2] -= px * qz
+    out[2] += py * qw
+    out[2] += pz * qx
+    np.multiply(pw, qz, out=out[3])
+    out[3] += px * qy
+    out[3] -= py * qx
+    out[3] += pz * qw
+    return out
+
+
 def quat_scan(q: np.ndarray) -> np.ndarray:
     """Inclusive prefix products ``q[0] q[1] ... q[k]`` of ``(n, 4)`` quaternions.
 
     Sequential inside blocks of :data:`SCAN_BLOCK` (vectorised across blocks),
     the block totals by doubling, then each block is multiplied by the product
     of all before it: about two passes over the data, against ``log2 n`` for a
-    doubling scan of the whole array.
+    doubling scan of the whole array. The blocks are held component first,
+    ``(4, SCAN_BLOCK, blocks)``, so that every step works on contiguous rows.
     """
     n = len(q)
     if n <= 4 * SCAN_BLOCK:
         return _hillis_steele(q)
     nb = -(-n // SCAN_BLOCK)
-    blocks = np.zeros((nb * SCAN_BLOCK, 4))
-    blocks[:, 0] = 1.0  # identity padding
-    blocks[:n] = q
-    blocks = blocks.reshape(nb, SCAN_BLOCK, 4)
+    padded = np.zeros((nb * SCAN_BLOCK, 4))
+    padded[:, 0] = 1.0  # identity padding
+    padded[:n] = q
+    blocks = np.ascontiguousarray(padded.reshape(nb, SCAN_BLOCK, 4).transpose(2, 1, 0))
+    step = np.empty((4, nb))
     for k in range(1, SCAN_BLOCK):
-        blocks[:, k] = quat_mult(blocks[:, k - 1], blocks[:, k])
-    before = _hillis_steele(blocks[:, -1])  # product of blocks 0..b
-    blocks[1:] = quat_mult(before[:-1, None, :], blocks[1:])
-    return blocks.reshape(-1, 4)[:n]
+        blocks[:, k] = _quat_mult_soa(blocks[:, k - 1], blocks[:, k], step)
+    before = _hillis_steele(np.ascontiguousarray(blocks[:, -1].T))  # product of blocks 0..b
+    tail = np.empty((4, SCAN_BLOCK, nb - 1))
+    _quat_mult_soa(before[:-1].T[:, None, :], blocks[:, :, 1:], tail)
+    blocks[:, :, 1:] = tail
+    return blocks.transpose(2, 1, 0).reshape(-1, 4)[:n]
 
 
 def _cross_axis(axis: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -128,12 +158,30 @@ def rotate_about(axis: np.ndarray, angle: np.ndarray, v: np.ndarray) -> np.ndarr
     return v * c + _cross_axis(axis, v) * s + ((1.0 - c) * (v @ axis)[:, None]) * axis
 
 
-def earth_fixed_quat(q_i: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """``q(angle * axis) q_i`` for every row: the ENU attitude from the inertial one."""
-    r = np.empty((len(angle), 4))
-    r[:, 0] = np.cos(0.5 * angle)
-    r[:, 1:] = np.sin(0.5 * angle)[:, None] * axis
-    return quat_mult(r, q_i)
+def earth_fixed_dcm(q_i: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Direction cosines of ``q(angle * axis) q_i`` for every row: the ENU attitude from the inertial one.
+
+    The product with the rotation about the fixed ``axis`` and the conversion
+    to a matrix (normalised first, as :func:`calib.strapdown.quat_to_dcm`) in
+    one pass over contiguous component arrays, with no ``(n, 4)`` temporaries:
+    these matrices are most of a navigation pass's arithmetic.
+    """
+    c, s = np.cos(0.5 * angle), np.sin(0.5 * angle)
+    qw, qx, qy, qz = np.ascontiguousarray(q_i.T)
+    rx, ry, rz = s * axis[0], s * axis[1], s * axis[2]
+    w = c * qw - rx * qx - ry * qy - rz * qz
+    x = c * qx + rx * qw + ry * qz - rz * qy
+    y = c * qy - rx * qz + ry * qw + rz * qx
+    z = c * qz + rx * qy - ry * qx + rz * qw
+    k = 2.0 / (w * w + x * x + y * y + z * z)
+    xs, ys, zs = x * k, y * k, z * k
+    wx, wy, wz, xx, xy, xz = w * xs, w * ys, w * zs, x * xs, x * ys, x * zs
+    yy, yz, zz = y * ys, y * zs, z * zs
+    out = np.empty((len(w), 3, 3))
+    out[:, 0, 0], out[:, 0, 1], out[:, 0, 2] = 1.0 - (yy + zz), xy - wz, xz + wy
+    out[:, 1, 0], out[:, 1, 1], out[:, 1, 2] = xy + wz, 1.0 - (xx + zz), yz - wx
+    out[:, 2, 0], out[:, 2, 1], out[:, 2, 2] = xz - wy, yz + wx, 1.0 - (xx + yy)
+    return out
 
 
 def array_chunks(time_s, dtheta_m, dv_m, t_start: float, cuts: np.ndarray):
@@ -204,23 +252,6 @@ def _compensate(ch: Chunk, dt, model: ErrorModel, extras: Extras, extra_values, 
     return (dth[1:], dvv[1:]) if ctx else (dth, dvv)
 
 
-def dcm(q: np.ndarray) -> np.ndarray:
-    """Direction cosines of ``(n, 4)`` quaternions, normalised first.
-
-    As :func:`calib.strapdown.quat_to_dcm`, for one array without broadcasting.
-    """
-    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    s = 2.0 / np.einsum("ni,ni->n", q, q)
-    out = np.empty((len(q), 3, 3))
-    xs, ys, zs = x * s, y * s, z * s
-    wx, wy, wz, xx, xy, xz = w * xs, w * ys, w * zs, x * xs, x * ys, x * zs
-    yy, yz, zz = y * ys, y * zs, z * zs
-    out[:, 0, 0], out[:, 0, 1], out[:, 0, 2] = 1.0 - (yy + zz), xy - wz, xz + wy
-    out[:, 1, 0], out[:, 1, 1], out[:, 1, 2] = xy + wz, 1.0 - (xx + zz), yz - wx
-    out[:, 2, 0], out[:, 2, 1], out[:, 2, 2] = xz - wy, yz + wx, 1.0 - (xx + yy)
-    return out
-
-
 def _navigate_chunk(dth, dvv, t, lb, site: Site, carry: _Carry):
     """Inertial attitude quaternions at every boundary and velocity at the interval ends of a chunk.
 
@@ -236,7 +267,7 @@ def _navigate_chunk(dth, dvv, t, lb, site: Site, carry: _Carry):
     carry.q, carry.dtheta = q[-1], dth[-1]
     t_mid, dt = 0.5 * (t[1:] + t[:-1]), np.diff(t)
     # R(W t_mid) C_b_i at each sample start, as one quaternion product.
-    C_a = dcm(earth_fixed_quat(q[:-1], axis, rate * t_mid))
+    C_a = earth_fixed_dcm(q[:-1], axis, rate * t_mid)
     dw = np.einsum("nij,nj->ni", C_a, sculling_dv(dth, dvv))
     dw = np.add.reduceat(dw, lb[:-1], axis=0)
     g_n = np.array([0.0, 0.0, -site.gravity_mps2])
@@ -253,6 +284,8 @@ def _navigate_chunk(dth, dvv, t, lb, site: Site, carry: _Carry):
 
 def _interval_sums(lb: np.ndarray, t: np.ndarray, orders: int):
     """Sparse ``(orders * Kc, m)`` matrix of ``tau^w`` per sample and interval, for the moments."""
+    import scipy.sparse as sp  # only with optional terms: importing scipy costs every start 0.1 s
+
     m, Kc = lb[-1], len(lb) - 1
     idx = np.repeat(np.arange(Kc), np.diff(lb))
     tau = t[lb[1:]][idx] - 0.5 * (t[1:] + t[:-1])
@@ -275,9 +308,13 @@ def _moments(C_mid, dth, dvv, h, lb, t):
         ks = np.flatnonzero(lengths == L)
         idx = lb[ks][:, None] + np.arange(L)
         tau = (t_end[ks][:, None] - t_mid[idx])[..., None]
-        th, dv, hh = dth[idx], dvv[idx], h[idx][..., None]
-        right = np.concatenate([th, th * tau, th * tau ** 2, dv, dv * tau,
-                                hh, hh * tau, hh * tau ** 2], axis=2)
+        tau2 = tau * tau
+        # [inc, inc tau, inc tau^2, dv, dv tau, h, h tau, h tau^2] written in place: no temporaries.
+        right = np.empty(idx.shape + (18,))
+        th, dv, hh = right[..., 0:3], right[..., 9:12], right[..., 15:16]
+        th[...], dv[...], hh[...] = dth[idx], dvv[idx], h[idx][..., None]
+        for col, x, w in ((3, th, tau), (6, th, tau2), (12, dv, tau), (16, hh, tau), (17, hh, tau2)):
+            np.multiply(x, w, out=right[..., col:col + x.shape[-1]])
         R = np.matmul(Cf[idx].transpose(0, 2, 1), right)  # (nk, 9, 18)
         n = len(ks)
         # gyro w = 0, 1, 2 then accel w = 0, 1: [27 K (a, i, m), 9 B (a, i)] each
@@ -345,10 +382,10 @@ def navigate_pass(chunks, grid: ObservationGrid, site: Site, values: np.ndarray,
         q, y[k0 + 1:k1 + 1], axis, rate = _navigate_chunk(dth, dvv, t, lb, site, carry)
         t_bounds[k0 + 1:k1 + 1] = t[lb[1:]] + site.t0
         mid = (lb[:-1] + lb[1:]) // 2
-        C_mid[k0:k1] = dcm(earth_fixed_quat(q[mid], axis, -rate * t[mid]))
+        C_mid[k0:k1] = earth_fixed_dcm(q[mid], axis, -rate * t[mid])
         if not (with_moments or extras.n):
             continue
-        C_b_n = dcm(earth_fixed_quat(q, axis, -rate * t))
+        C_b_n = earth_fixed_dcm(q, axis, -rate * t)
         Cm = 0.5 * (C_b_n[1:] + C_b_n[:-1])
         if extras.n:
             turn_out[ch.start:ch.start + m] = X.earth_turn(Cm, site.omega_ie_n, dt)
