@@ -47,7 +47,7 @@ from calib.sequence import Sequence, Step, Timeline, nominal_attitude
 from calib.sim import body_integrals
 from calib.transform import AXES
 
-from .gmsearch import SegmentColumns, fold, noise_blocks, stack, start_state, take
+from .gmsearch import SegmentColumns, fold, noise_blocks, stack, start_state
 from .graph import Move, Node, apply_move, attitude_of, flip_graph
 from .graph import moves as all_moves
 
@@ -415,10 +415,10 @@ class SearchModel:
         for i, (node, mv) in enumerate(keys):
             by_move.setdefault(mv, []).append(i)
         for mv, idx in by_move.items():
-            nodes = [stacks["index"][keys[i][0]] for i in idx]
-            X[idx], N[idx], P[idx] = fold(take(stacks[mv], nodes), X[idx], N[idx], P[idx])
-        nodes = [stacks["index"][k.node] for k in kids]
-        X, N, P = fold(take(stacks["rest"], nodes), X, N, P)
+            nodes = np.array([stacks["index"][keys[i][0]] for i in idx])
+            X[idx], N[idx], P[idx] = fold(stacks[mv], X[idx], N[idx], P[idx], nodes)
+        nodes = np.array([stacks["index"][k.node] for k in kids])
+        X, N, P = fold(stacks["rest"], X, N, P, nodes)
         s = score(N, objective, prior, self.requirements)
         for k, x, n, p, v in zip(kids, X, N, P, s):
             k.X, k.N, k.P, k.score = x, n, p, float(v)
