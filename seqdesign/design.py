@@ -235,11 +235,11 @@ class Constraints:
 
     start: Node = ("east", "up", "south")
     end: Node | None = None
-    max_flips: int = 10
+    max_flips: int = 60  # at most; the budget ends most walks sooner
     axes: str = AXES
     max_quarters: int = 5
     rate_dps: float = 10.0
-    min_dwell_s: float = 30.0
+    min_dwell_s: float = 10.0  # as the CLI: short dwells are what GM profiles need
     max_dwell_s: float = 300.0
     budget_s: float = 900.0
     accel_dps2: float | None = None  # every move a trapezoid (None: constant rate)
@@ -572,7 +572,9 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
     """Optimise the dwells of a walk under the time budget (IPOPT).
 
     A walk that plays a motif ``repeats`` times keeps one dwell per motif move
-    (tied across the plays), so IPOPT sees ``len(walk) / repeats + 1`` variables.
+    (tied across the plays), so IPOPT sees ``len(walk) / repeats + 1`` variables;
+    a motif longer than :data:`MAX_REFINE_DWELLS` moves ties its dwells in that many
+    contiguous blocks (:func:`dwell_groups`: the derivatives are finite differences).
 
     Minimises ``t`` subject to ``ratio_i(dwells) <= t`` for all 21 (the
     worst ratio, made smooth by the epigraph form) and ``sum(dwells) +
@@ -586,10 +588,12 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
 
     g = earth.gravity(latitude_rad, height_m)
     P_ss = rest_steady_state(latitude_rad, g, profile, dwell0)
-    n = len(walk) // repeats + 1
+    groups = dwell_groups(len(walk), repeats)
+    n = int(groups.max()) + 1
+    count = np.bincount(groups, minlength=n).astype(float)
 
     def expand(x):
-        return np.concatenate([x[:1], np.tile(x[1:], repeats)])
+        return np.asarray(x)[groups]
 
     turn_time = sum(turn_seconds(m, c) for m in walk)
     scale = 100.0  # dwells in units of 100 s for IPOPT
@@ -603,7 +607,7 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
     x = ca.MX.sym("d", n)
     t = ca.MX.sym("t")
     r = cb(x)
-    total = (x[0] + repeats * ca.sum1(x[1:])) * scale + turn_time
+    total = ca.dot(ca.DM(count), x) * scale + turn_time
     if objective == "worst":
         f, gcon = t, ca.vertcat(r - t, total - c.budget_s)
         ubg = np.zeros(P.N_PARAMS + 1)
@@ -625,11 +629,25 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
     over = expand(dw).sum() + turn_time - c.budget_s
     if over > 0:  # IPOPT's tolerance: shave the excess off the longest dwell
         i = int(np.argmax(dw))
-        dw[i] -= over / (1 if i == 0 else repeats)
+        dw[i] -= over / count[i]
     r1 = ratios(dw)
     if r1.max() >= r0.max():  # never return worse than the uniform start
         return list(expand(uniform)), float(r0.max()), float(r0.max())
     return [float(round(d, 3)) for d in expand(dw)], float(r0.max()), float(r1.max())
+
+
+MAX_REFINE_DWELLS = 8  # IPOPT dwell variables besides the initial dwell
+
+
+def dwell_groups(n_moves: int, repeats: int = 1) -> np.ndarray:
+    """Which IPOPT variable each dwell is (initial dwell first, variable 0).
+
+    One per motif move, tied across the ``repeats`` plays; a motif of more than
+    :data:`MAX_REFINE_DWELLS` moves in that many contiguous blocks.
+    """
+    m = n_moves // repeats
+    per_move = np.arange(m) if m <= MAX_REFINE_DWELLS else (np.arange(m) * MAX_REFINE_DWELLS) // m
+    return np.concatenate([[0], 1 + np.tile(per_move, repeats)])
 
 
 def _ratios_callback(ratios, n: int, scale: float):
@@ -670,8 +688,8 @@ def check_constraints(c: Constraints) -> None:
     """Refuse constraints no walk can meet, naming the option."""
     if c.budget_s <= 0 or not math.isfinite(c.budget_s):
         raise CalibError(f"budget {c.budget_s} s must be positive", "--budget-min")
-    if not 1 <= c.max_flips <= 30:
-        raise CalibError(f"--max-flips {c.max_flips} outside [1, 30]", "--max-flips")
+    if not 1 <= c.max_flips <= MAX_FLIPS:
+        raise CalibError(f"--max-flips {c.max_flips} outside [1, {MAX_FLIPS}]", "--max-flips")
     if not 1 <= c.max_quarters <= 12:
         raise CalibError(f"--max-quarters {c.max_quarters} outside [1, 12]", "--max-quarters")
     if not c.axes or any(a not in AXES for a in c.axes):
@@ -723,10 +741,27 @@ def design_steps(c: Constraints, keep: int) -> int:
     return 2 * n + 2 * n * keep * (1 + len(MOTIF_REPEATS)) + SCREEN_KEEP + 2
 
 
+MAX_FLIPS = 60
+SHORT_WALK_FLIPS = 10  # the classic space: up to 10 moves at long dwells
+# Many short moves (issue 12): beams at these dwells walk until the budget is spent.
+# Under Gauss-Markov accelerometer bias they win: gravity must reverse on each axis
+# much faster than tau, and 450 deg turns sweep it round while turning.
+LONG_WALK_DWELLS_S = (10.0, 15.0, 20.0)
+
+
 def search_dwells(c: Constraints) -> list[float]:
-    """Uniform dwells the search tries: fitting roughly all, two thirds and half the flips."""
-    counts = sorted({max(1, c.max_flips), max(1, (2 * c.max_flips) // 3), max(1, c.max_flips // 2)})
-    return sorted({round(uniform_dwell(c, n, 3.0), 1) for n in counts})
+    """Uniform dwells the search tries.
+
+    Those fitting roughly 10, 6 and 5 moves of three quarter turns (few moves, long
+    dwells), and, when ``max_flips`` allows more than 10 moves, the short dwells of
+    :data:`LONG_WALK_DWELLS_S` (many moves; each beam walks until the budget is spent).
+    """
+    n = min(c.max_flips, SHORT_WALK_FLIPS)
+    counts = sorted({n, max(1, (2 * n) // 3), max(1, n // 2)})
+    out = {round(uniform_dwell(c, k, 3.0), 1) for k in counts}
+    if c.max_flips > SHORT_WALK_FLIPS:
+        out |= {d for d in LONG_WALK_DWELLS_S if c.min_dwell_s <= d <= c.max_dwell_s}
+    return sorted(out)
 
 
 def map_jobs(fn, jobs, workers: int = 1, scheduler: str | None = None):
@@ -774,7 +809,6 @@ def _exact_worst(seq: Sequence, profile, latitude_rad, height_m, tolerance_deg, 
 
 
 MOTIF_REPEATS = (2, 3, 4)  # a finalist's walk also played 2-4 times, with shorter dwells
-MAX_MOTIF_MOVES = 45  # the space holds many short moves (issue 12: at least 30)
 
 
 def motif_dwell(walk, c: Constraints, repeats: int) -> float | None:
@@ -785,7 +819,7 @@ def motif_dwell(walk, c: Constraints, repeats: int) -> float | None:
     playing a good motif several times with short dwells does exactly that.
     """
     n = len(walk) * repeats
-    if n > MAX_MOTIF_MOVES:
+    if n > c.max_flips:
         return None
     turn = repeats * sum(turn_seconds(m, c) for m in walk)
     d = math.floor(10.0 * (c.budget_s - turn) / (n + 1)) / 10.0
