@@ -738,7 +738,7 @@ def _search_at_dwell(args):
 def design_steps(c: Constraints, keep: int) -> int:
     """Progress steps of :func:`design`: searches, finalists, refinement, final check."""
     n = len(search_dwells(c))
-    return 2 * n + 2 * n * keep * (1 + len(MOTIF_REPEATS)) + SCREEN_KEEP + 2
+    return 2 * n + 2 * n * keep * (1 + len(MOTIF_REPEATS)) + 2 * SCREEN_KEEP + 4
 
 
 MAX_FLIPS = 60
@@ -868,6 +868,9 @@ SCREEN_KEEP = 6  # candidates re-scored over the whole box after the nominal-mou
 
 def _search(c, profile, latitude_rad, height_m, objective, beam_width, keep, requirements,
             workers, scheduler, progress):
+    """Run every beam; returns ``(results, evaluated, narrow)``, ``narrow`` the results of the
+    beams of 20 alone (None when that is all there is).
+    """
     jobs = [(c, d, latitude_rad, height_m, profile, objective, bw, keep, requirements)
             for d in search_dwells(c) for bw in _beam_widths(beam_width)]
     if progress:
@@ -878,7 +881,10 @@ def _search(c, profile, latitude_rad, height_m, objective, beam_width, keep, req
     evaluated = sum(r[2] for r in results)
     if progress:
         progress(f"searched {evaluated} candidates", len(jobs))
-    return results, evaluated
+    narrow = None
+    if len(_beam_widths(beam_width)) > 1:
+        narrow = [r for r, j in zip(results, jobs) if j[6] == NARROW_BEAM]
+    return results, evaluated, narrow
 
 
 def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m: float = 0.0,
@@ -891,8 +897,12 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
     The candidates are the beams' finalists and their motif repetitions; each is
     re-scored exactly (27 box points, with ``extras`` fitted beside the 21), the
     best one's dwells are refined with IPOPT, and the answer is the best exactly
-    re-scored candidate seen, refined or not. ``progress(message, steps)`` is told
-    each stage as it ends; there are ``design_steps(c, keep)`` steps in all.
+    re-scored candidate seen, refined or not. More effort never gives a worse
+    answer, by construction: the answers ``--beam-width 20`` and ``--no-refine``
+    would return are computed from the same beams and go through the same final
+    check, and the best final figure wins (:func:`_select`).
+    ``progress(message, steps)`` is told each stage as it ends; there are
+    ``design_steps(c, keep)`` steps in all.
     """
     import time as _time
     check_constraints(c)
@@ -900,41 +910,74 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
         raise CalibError(f"unknown objective {objective!r}", "--objective", "use worst, D, A or E")
     t0 = _time.perf_counter()
     site = (math.degrees(latitude_rad), height_m)  # written into the sequence: analyse it there
-    results, evaluated = _search(c, profile, latitude_rad, height_m, objective, beam_width, keep,
-                                 requirements, workers, scheduler, progress)
+    results, evaluated, narrow = _search(c, profile, latitude_rad, height_m, objective,
+                                         beam_width, keep, requirements, workers, scheduler,
+                                         progress)
     search_seconds = _time.perf_counter() - t0
+    memo = {}
 
     def exact(walk, dwells, search=False, tol=tolerance_deg):
-        seq = to_sequence(walk, c, dwells, name, None, *site)
-        return (*_exact_worst(seq, profile, latitude_rad, height_m, tol, search,
-                              requirements, extras), seq)
+        key = (walk, tuple(dwells), search, tol)
+        if key not in memo:  # the narrow beams' candidates are among the wide ones'
+            seq = to_sequence(walk, c, dwells, name, None, *site)
+            memo[key] = (*_exact_worst(seq, profile, latitude_rad, height_m, tol, search,
+                                       requirements, extras), seq)
+        return memo[key]
 
-    screened = _screen(_candidates(results, c), exact, progress)
-    pool = []  # the same, worst over the box
-    for f in screened[:SCREEN_KEEP]:
-        worst, wname, _, _, _ = exact(f[3], f[2])
-        pool.append((worst,) + f[1:])
-        if progress:
-            progress(f"box worst of {f[1][:40]}...: {worst:.3f} ({wname}); "
-                     f"best so far {min(p[0] for p in pool):.3f}", 1)
-    pool.sort(key=lambda f: (f[0], f[1]))
-    uniform = pool[0][0]
-    if refine:
-        pool.extend(_refined(pool[0], c, latitude_rad, height_m, profile, objective,
-                             requirements, exact, progress))
-        pool.sort(key=lambda f: (f[0], f[1]))
-    worst, label, dwells, walk, reps = pool[0]
-    worst, wname, rob, cost, seq = exact(walk, dwells, search=True)
+    def pipeline(res):  # (pool of exact box scores, the same with the refined best)
+        pool = _boxed(_screen(_candidates(res, c), exact, progress), exact, progress)
+        key = (pool[0][3], tuple(pool[0][2]))
+        if refine and key not in memo:
+            memo[key] = _refined(pool[0], c, latitude_rad, height_m, profile, objective,
+                                 requirements, exact, progress)
+        refined = memo[key] if refine else []
+        return pool, sorted(pool + refined, key=lambda f: (f[0], f[1]))
+
+    unrefined, pool = pipeline(results)
+    answers = [pool[0], unrefined[0]]  # the default's, and what --no-refine returns
+    if narrow is not None:  # what --beam-width 20 (with and without --no-refine) returns
+        n_unrefined, n_pool = pipeline(narrow)
+        pool = sorted(pool + n_pool, key=lambda f: (f[0], f[1]))
+        answers += [pool[0], n_pool[0], n_unrefined[0]]
+    worst, wname, rob, cost, seq, (_, label, _, _, reps) = _select(answers, exact)
     from .gimbalsearch import check_sequence_plays
     check_sequence_plays(seq, c.gimbal)
     if progress:
         progress(f"best of {len(pool)}: {label}; worst case over +-{tolerance_deg:g} deg: "
                  f"{worst:.3f} ({wname})", 1)
     return DesignResult(sequence=seq, worst_ratio=worst, worst_name=wname,
-                        uniform_worst_ratio=uniform, evaluated=evaluated,
+                        uniform_worst_ratio=unrefined[0][0], evaluated=evaluated,
                         search_seconds=search_seconds,
                         finalists=[(f[1], f[2][-1], f[0]) for f in pool], robustness=rob,
                         extras_cost=cost, repeats=reps)
+
+
+def _select(answers, exact):
+    """The final check (IPOPT inside the box for white profiles) of each distinct answer;
+    the best final figure: ``(worst, name, Robustness, ExtrasCost, Sequence, pool entry)``.
+    """
+    best, seen = None, set()
+    for f in answers:
+        key = (f[3], tuple(f[2]))
+        if key in seen:
+            continue
+        seen.add(key)
+        worst, wname, rob, cost, seq = exact(f[3], f[2], search=True)
+        if best is None or (worst, f[1]) < (best[0], best[5][1]):
+            best = (worst, wname, rob, cost, seq, f)
+    return best
+
+
+def _boxed(screened, exact, progress) -> list:
+    """The best :data:`SCREEN_KEEP` screened candidates, worst over the box, best first."""
+    pool = []
+    for f in screened[:SCREEN_KEEP]:
+        worst, wname, _, _, _ = exact(f[3], f[2])
+        pool.append((worst,) + f[1:])
+        if progress:
+            progress(f"box worst of {f[1][:40]}...: {worst:.3f} ({wname}); "
+                     f"best so far {min(p[0] for p in pool):.3f}", 1)
+    return sorted(pool, key=lambda f: (f[0], f[1]))
 
 
 def _screen(candidates, exact, progress) -> list:
