@@ -23,6 +23,8 @@ def main() -> None:
     ap.add_argument("--budgets", default="10,15,30")
     ap.add_argument("--profile", default="navigation")
     ap.add_argument("--with", dest="with_terms", default=None)
+    ap.add_argument("--save-dir", default=None,
+                    help="Also write each budget's default design there (with its provenance).")
     args = ap.parse_args()
     print(f"profile {args.profile}, --with {args.with_terms or 'none'}; worst ratio over +-3 deg")
     print(f"{'budget':>6}  {'variant':<16} {'worst':>7}  {'CPU s':>6}  moves")
@@ -34,6 +36,10 @@ def main() -> None:
             cpu = time.process_time() - cpu
             r = rep.rows[0].result
             worst[label] = r.worst_ratio
+            if args.save_dir and label == "default":
+                from seqdesign.clitools import provenance
+                rep.save_design(rep.rows[0], f"{args.save_dir}/designed-{b:g}min.toml",
+                                provenance())
             print(f"{b:5g}m  {label:<16} {r.worst_ratio:7.4f}  {cpu:6.0f}  "
                   f"{len(r.sequence.steps)} ({r.worst_name})", flush=True)
         ok = all(worst["default"] <= v + 1e-12 for v in worst.values())
