@@ -571,16 +571,13 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
                   repeats: int = 1) -> tuple[list[float], float, float]:
     """Optimise the dwells of a walk under the time budget (IPOPT).
 
-    A walk that plays a motif ``repeats`` times keeps one dwell per motif move
-    (tied across the plays), so IPOPT sees ``len(walk) / repeats + 1`` variables;
-    a motif longer than :data:`MAX_REFINE_DWELLS` moves ties its dwells in that many
-    contiguous blocks (:func:`dwell_groups`: the derivatives are finite differences).
+    The dwells of a motif played ``repeats`` times are tied across the plays, and a
+    motif longer than :data:`MAX_REFINE_DWELLS` moves ties them in that many blocks
+    (:func:`dwell_groups`: IPOPT's derivatives are finite differences).
 
-    Minimises ``t`` subject to ``ratio_i(dwells) <= t`` for all 21 (the
-    worst ratio, made smooth by the epigraph form) and ``sum(dwells) +
-    turns <= budget``, ``min_dwell <= dwell <= max_dwell``. Ratios come from
-    a casadi Callback over the search model with finite-difference
-    derivatives.
+    Minimises ``t`` subject to ``ratio_i(dwells) <= t`` for all 21 (the worst ratio,
+    smooth in epigraph form), ``sum(dwells) + turns <= budget`` and the dwell bounds;
+    ratios from a casadi Callback over the search model.
 
     Returns the dwells, the objective with uniform dwells and after.
     """
@@ -591,15 +588,11 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
     groups = dwell_groups(len(walk), repeats)
     n = int(groups.max()) + 1
     count = np.bincount(groups, minlength=n).astype(float)
-
-    def expand(x):
-        return np.asarray(x)[groups]
-
     turn_time = sum(turn_seconds(m, c) for m in walk)
     scale = 100.0  # dwells in units of 100 s for IPOPT
 
     def ratios(dw):
-        N = walk_information(walk, c, list(expand(np.asarray(dw))), latitude_rad, g, profile,
+        N = walk_information(walk, c, list(np.asarray(dw)[groups]), latitude_rad, g, profile,
                              P_ss)
         return 3.0 * np.sqrt(inverse_diagonal(scaled_marginal(N, False, requirements)))
 
@@ -626,14 +619,14 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
                  lbg=np.full(len(ubg), -np.inf), ubg=ubg)
     dw = np.asarray(sol["x"]).ravel()[:n] * scale
     dw = np.clip(dw, c.min_dwell_s, c.max_dwell_s)
-    over = expand(dw).sum() + turn_time - c.budget_s
+    over = dw[groups].sum() + turn_time - c.budget_s
     if over > 0:  # IPOPT's tolerance: shave the excess off the longest dwell
         i = int(np.argmax(dw))
         dw[i] -= over / count[i]
     r1 = ratios(dw)
     if r1.max() >= r0.max():  # never return worse than the uniform start
-        return list(expand(uniform)), float(r0.max()), float(r0.max())
-    return [float(round(d, 3)) for d in expand(dw)], float(r0.max()), float(r1.max())
+        return list(uniform[groups]), float(r0.max()), float(r0.max())
+    return [float(round(d, 3)) for d in dw[groups]], float(r0.max()), float(r1.max())
 
 
 MAX_REFINE_DWELLS = 8  # IPOPT dwell variables besides the initial dwell
@@ -896,13 +889,10 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
 
     The candidates are the beams' finalists and their motif repetitions; each is
     re-scored exactly (27 box points, with ``extras`` fitted beside the 21), the
-    best one's dwells are refined with IPOPT, and the answer is the best exactly
-    re-scored candidate seen, refined or not. More effort never gives a worse
-    answer, by construction: the answers ``--beam-width 20`` and ``--no-refine``
-    would return are computed from the same beams and go through the same final
-    check, and the best final figure wins (:func:`_select`).
-    ``progress(message, steps)`` is told each stage as it ends; there are
-    ``design_steps(c, keep)`` steps in all.
+    best one's dwells are refined with IPOPT. The answers ``--beam-width 20`` and
+    ``--no-refine`` would give come from the same beams and get the same final
+    check; the best final figure wins (:func:`_select`), so more effort is never
+    worse. ``progress(message, steps)``: ``design_steps(c, keep)`` steps in all.
     """
     import time as _time
     check_constraints(c)
