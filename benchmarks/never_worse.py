@@ -10,6 +10,7 @@ final check) and the CPU time it took. The default must be no worse than either.
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 
 from seqdesign.designs import design_budgets
@@ -38,8 +39,10 @@ def main() -> None:
             worst[label] = r.worst_ratio
             if args.save_dir and label == "default":
                 from seqdesign.clitools import provenance
+                cmd = (f"PYTHONPATH=. python benchmarks/never_worse.py {' '.join(sys.argv[1:])} "
+                       f"(its default run: the defaults of seqdesign design --budget-min {b:g})")
                 rep.save_design(rep.rows[0], f"{args.save_dir}/designed-{b:g}min.toml",
-                                provenance())
+                                provenance() | {"command": cmd})
             print(f"{b:5g}m  {label:<16} {r.worst_ratio:7.4f}  {cpu:6.0f}  "
                   f"{len(r.sequence.steps)} ({r.worst_name})", flush=True)
         ok = all(worst["default"] <= v + 1e-12 for v in worst.values())
