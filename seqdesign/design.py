@@ -888,16 +888,13 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
     """Search walks, re-score every candidate exactly over the tolerance box, refine the best.
 
     The candidates are the beams' finalists and their motif repetitions; each is
-    re-scored exactly (27 box points, with ``extras`` fitted beside the 21), the
-    best one's dwells are refined with IPOPT. The answers ``--beam-width 20`` and
-    ``--no-refine`` would give come from the same beams and get the same final
-    check; the best final figure wins (:func:`_select`), so more effort is never
-    worse. ``progress(message, steps)``: ``design_steps(c, keep)`` steps in all.
+    re-scored exactly (27 box points, ``extras`` fitted beside the 21), the best is
+    IPOPT-refined. What ``--beam-width 20`` and ``--no-refine`` would answer comes from the
+    same beams and gets the same final check; the best final figure wins (:func:`_select`).
+    ``progress(message, steps)``: ``design_steps(c, keep)`` steps in all.
     """
     import time as _time
-    check_constraints(c)
-    if objective not in OBJECTIVES:
-        raise CalibError(f"unknown objective {objective!r}", "--objective", "use worst, D, A or E")
+    _check_design_args(c, objective)
     t0 = _time.perf_counter()
     site = (math.degrees(latitude_rad), height_m)  # written into the sequence: analyse it there
     results, evaluated, narrow = _search(c, profile, latitude_rad, height_m, objective,
@@ -910,8 +907,11 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
         key = (walk, tuple(dwells), search, tol)
         if key not in memo:  # the narrow beams' candidates are among the wide ones'
             seq = to_sequence(walk, c, dwells, name, None, *site)
-            memo[key] = (*_exact_worst(seq, profile, latitude_rad, height_m, tol, search,
-                                       requirements, extras), seq)
+            worst, wname, rob, cost = _exact_worst(seq, profile, latitude_rad, height_m, tol,
+                                                   search, requirements, extras)
+            if search:  # final checks: few, and their models are large: not kept
+                return worst, wname, rob, cost, seq
+            memo[key] = (worst, wname, None, None, seq)  # only the figures are kept
         return memo[key]
 
     def pipeline(res):  # (pool of exact box scores, the same with the refined best)
@@ -940,6 +940,12 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
                         search_seconds=search_seconds,
                         finalists=[(f[1], f[2][-1], f[0]) for f in pool], robustness=rob,
                         extras_cost=cost, repeats=reps)
+
+
+def _check_design_args(c: Constraints, objective: str) -> None:
+    check_constraints(c)
+    if objective not in OBJECTIVES:
+        raise CalibError(f"unknown objective {objective!r}", "--objective", "use worst, D, A or E")
 
 
 def _select(answers, exact):
