@@ -369,8 +369,8 @@ def compare(sequences, profile, latitude, tolerance_deg, requirements, as_json):
 @main.command(short_help="Search for a sequence that beats the paper's, robust to the mounting tolerance.")
 @click.option("--budget-min", type=click.FloatRange(min=0.5), default=15.0, show_default=True,
               help="Total time budget, minutes.")
-@click.option("--max-flips", type=click.IntRange(min=1), default=10, show_default=True,
-              help="Most moves (continuous turns).")
+@click.option("--max-flips", type=click.IntRange(min=1), default=60, show_default=True,
+              help="Most moves (continuous turns); the budget ends most walks sooner.")
 @click.option("--max-quarters", type=click.IntRange(min=1), default=5, show_default=True,
               help="Longest move in quarter turns (5 = a turn and a quarter).")
 @click.option("--start", default="east,up,south", show_default=True, help="Where X, Y, Z point at the start.")

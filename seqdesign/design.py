@@ -47,7 +47,7 @@ from calib.sequence import Sequence, Step, Timeline, nominal_attitude
 from calib.sim import body_integrals
 from calib.transform import AXES
 
-from .gmsearch import SegmentColumns, fold, noise_blocks, stack, start_state, take
+from .gmsearch import SegmentColumns, fold, noise_blocks, stack, start_state
 from .graph import Move, Node, apply_move, attitude_of, flip_graph
 from .graph import moves as all_moves
 
@@ -235,11 +235,11 @@ class Constraints:
 
     start: Node = ("east", "up", "south")
     end: Node | None = None
-    max_flips: int = 10
+    max_flips: int = 60  # at most; the budget ends most walks sooner
     axes: str = AXES
     max_quarters: int = 5
     rate_dps: float = 10.0
-    min_dwell_s: float = 30.0
+    min_dwell_s: float = 10.0  # as the CLI: short dwells are what GM profiles need
     max_dwell_s: float = 300.0
     budget_s: float = 900.0
     accel_dps2: float | None = None  # every move a trapezoid (None: constant rate)
@@ -415,10 +415,10 @@ class SearchModel:
         for i, (node, mv) in enumerate(keys):
             by_move.setdefault(mv, []).append(i)
         for mv, idx in by_move.items():
-            nodes = [stacks["index"][keys[i][0]] for i in idx]
-            X[idx], N[idx], P[idx] = fold(take(stacks[mv], nodes), X[idx], N[idx], P[idx])
-        nodes = [stacks["index"][k.node] for k in kids]
-        X, N, P = fold(take(stacks["rest"], nodes), X, N, P)
+            nodes = np.array([stacks["index"][keys[i][0]] for i in idx])
+            X[idx], N[idx], P[idx] = fold(stacks[mv], X[idx], N[idx], P[idx], nodes)
+        nodes = np.array([stacks["index"][k.node] for k in kids])
+        X, N, P = fold(stacks["rest"], X, N, P, nodes)
         s = score(N, objective, prior, self.requirements)
         for k, x, n, p, v in zip(kids, X, N, P, s):
             k.X, k.N, k.P, k.score = x, n, p, float(v)
@@ -571,14 +571,13 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
                   repeats: int = 1) -> tuple[list[float], float, float]:
     """Optimise the dwells of a walk under the time budget (IPOPT).
 
-    A walk that plays a motif ``repeats`` times keeps one dwell per motif move
-    (tied across the plays), so IPOPT sees ``len(walk) / repeats + 1`` variables.
+    The dwells of a motif played ``repeats`` times are tied across the plays, and a
+    motif longer than :data:`MAX_REFINE_DWELLS` moves ties them in that many blocks
+    (:func:`dwell_groups`: IPOPT's derivatives are finite differences).
 
-    Minimises ``t`` subject to ``ratio_i(dwells) <= t`` for all 21 (the
-    worst ratio, made smooth by the epigraph form) and ``sum(dwells) +
-    turns <= budget``, ``min_dwell <= dwell <= max_dwell``. Ratios come from
-    a casadi Callback over the search model with finite-difference
-    derivatives.
+    Minimises ``t`` subject to ``ratio_i(dwells) <= t`` for all 21 (the worst ratio,
+    smooth in epigraph form), ``sum(dwells) + turns <= budget`` and the dwell bounds;
+    ratios from a casadi Callback over the search model.
 
     Returns the dwells, the objective with uniform dwells and after.
     """
@@ -586,16 +585,14 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
 
     g = earth.gravity(latitude_rad, height_m)
     P_ss = rest_steady_state(latitude_rad, g, profile, dwell0)
-    n = len(walk) // repeats + 1
-
-    def expand(x):
-        return np.concatenate([x[:1], np.tile(x[1:], repeats)])
-
+    groups = dwell_groups(len(walk), repeats)
+    n = int(groups.max()) + 1
+    count = np.bincount(groups, minlength=n).astype(float)
     turn_time = sum(turn_seconds(m, c) for m in walk)
     scale = 100.0  # dwells in units of 100 s for IPOPT
 
     def ratios(dw):
-        N = walk_information(walk, c, list(expand(np.asarray(dw))), latitude_rad, g, profile,
+        N = walk_information(walk, c, list(np.asarray(dw)[groups]), latitude_rad, g, profile,
                              P_ss)
         return 3.0 * np.sqrt(inverse_diagonal(scaled_marginal(N, False, requirements)))
 
@@ -603,7 +600,7 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
     x = ca.MX.sym("d", n)
     t = ca.MX.sym("t")
     r = cb(x)
-    total = (x[0] + repeats * ca.sum1(x[1:])) * scale + turn_time
+    total = ca.dot(ca.DM(count), x) * scale + turn_time
     if objective == "worst":
         f, gcon = t, ca.vertcat(r - t, total - c.budget_s)
         ubg = np.zeros(P.N_PARAMS + 1)
@@ -622,14 +619,28 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
                  lbg=np.full(len(ubg), -np.inf), ubg=ubg)
     dw = np.asarray(sol["x"]).ravel()[:n] * scale
     dw = np.clip(dw, c.min_dwell_s, c.max_dwell_s)
-    over = expand(dw).sum() + turn_time - c.budget_s
+    over = dw[groups].sum() + turn_time - c.budget_s
     if over > 0:  # IPOPT's tolerance: shave the excess off the longest dwell
         i = int(np.argmax(dw))
-        dw[i] -= over / (1 if i == 0 else repeats)
+        dw[i] -= over / count[i]
     r1 = ratios(dw)
     if r1.max() >= r0.max():  # never return worse than the uniform start
-        return list(expand(uniform)), float(r0.max()), float(r0.max())
-    return [float(round(d, 3)) for d in expand(dw)], float(r0.max()), float(r1.max())
+        return list(uniform[groups]), float(r0.max()), float(r0.max())
+    return [float(round(d, 3)) for d in dw[groups]], float(r0.max()), float(r1.max())
+
+
+MAX_REFINE_DWELLS = 8  # IPOPT dwell variables besides the initial dwell
+
+
+def dwell_groups(n_moves: int, repeats: int = 1) -> np.ndarray:
+    """Which IPOPT variable each dwell is (initial dwell first, variable 0).
+
+    One per motif move, tied across the ``repeats`` plays; a motif of more than
+    :data:`MAX_REFINE_DWELLS` moves in that many contiguous blocks.
+    """
+    m = n_moves // repeats
+    per_move = np.arange(m) if m <= MAX_REFINE_DWELLS else (np.arange(m) * MAX_REFINE_DWELLS) // m
+    return np.concatenate([[0], 1 + np.tile(per_move, repeats)])
 
 
 def _ratios_callback(ratios, n: int, scale: float):
@@ -670,8 +681,8 @@ def check_constraints(c: Constraints) -> None:
     """Refuse constraints no walk can meet, naming the option."""
     if c.budget_s <= 0 or not math.isfinite(c.budget_s):
         raise CalibError(f"budget {c.budget_s} s must be positive", "--budget-min")
-    if not 1 <= c.max_flips <= 30:
-        raise CalibError(f"--max-flips {c.max_flips} outside [1, 30]", "--max-flips")
+    if not 1 <= c.max_flips <= MAX_FLIPS:
+        raise CalibError(f"--max-flips {c.max_flips} outside [1, {MAX_FLIPS}]", "--max-flips")
     if not 1 <= c.max_quarters <= 12:
         raise CalibError(f"--max-quarters {c.max_quarters} outside [1, 12]", "--max-quarters")
     if not c.axes or any(a not in AXES for a in c.axes):
@@ -720,13 +731,30 @@ def _search_at_dwell(args):
 def design_steps(c: Constraints, keep: int) -> int:
     """Progress steps of :func:`design`: searches, finalists, refinement, final check."""
     n = len(search_dwells(c))
-    return 2 * n + 2 * n * keep * (1 + len(MOTIF_REPEATS)) + SCREEN_KEEP + 2
+    return 2 * n + 2 * n * keep * (1 + len(MOTIF_REPEATS)) + 2 * SCREEN_KEEP + 4
+
+
+MAX_FLIPS = 60
+SHORT_WALK_FLIPS = 10  # the classic space: up to 10 moves at long dwells
+# Many short moves (issue 12): beams at these dwells walk until the budget is spent.
+# Under Gauss-Markov accelerometer bias they win: gravity must reverse on each axis
+# much faster than tau, and 450 deg turns sweep it round while turning.
+LONG_WALK_DWELLS_S = (10.0, 15.0, 20.0)
 
 
 def search_dwells(c: Constraints) -> list[float]:
-    """Uniform dwells the search tries: fitting roughly all, two thirds and half the flips."""
-    counts = sorted({max(1, c.max_flips), max(1, (2 * c.max_flips) // 3), max(1, c.max_flips // 2)})
-    return sorted({round(uniform_dwell(c, n, 3.0), 1) for n in counts})
+    """Uniform dwells the search tries.
+
+    Those fitting roughly 10, 6 and 5 moves of three quarter turns (few moves, long
+    dwells), and, when ``max_flips`` allows more than 10 moves, the short dwells of
+    :data:`LONG_WALK_DWELLS_S` (many moves; each beam walks until the budget is spent).
+    """
+    n = min(c.max_flips, SHORT_WALK_FLIPS)
+    counts = sorted({n, max(1, (2 * n) // 3), max(1, n // 2)})
+    out = {round(uniform_dwell(c, k, 3.0), 1) for k in counts}
+    if c.max_flips > SHORT_WALK_FLIPS:
+        out |= {d for d in LONG_WALK_DWELLS_S if c.min_dwell_s <= d <= c.max_dwell_s}
+    return sorted(out)
 
 
 def map_jobs(fn, jobs, workers: int = 1, scheduler: str | None = None):
@@ -774,7 +802,6 @@ def _exact_worst(seq: Sequence, profile, latitude_rad, height_m, tolerance_deg, 
 
 
 MOTIF_REPEATS = (2, 3, 4)  # a finalist's walk also played 2-4 times, with shorter dwells
-MAX_MOTIF_MOVES = 45  # the space holds many short moves (issue 12: at least 30)
 
 
 def motif_dwell(walk, c: Constraints, repeats: int) -> float | None:
@@ -785,7 +812,7 @@ def motif_dwell(walk, c: Constraints, repeats: int) -> float | None:
     playing a good motif several times with short dwells does exactly that.
     """
     n = len(walk) * repeats
-    if n > MAX_MOTIF_MOVES:
+    if n > c.max_flips:
         return None
     turn = repeats * sum(turn_seconds(m, c) for m in walk)
     d = math.floor(10.0 * (c.budget_s - turn) / (n + 1)) / 10.0
@@ -834,6 +861,9 @@ SCREEN_KEEP = 6  # candidates re-scored over the whole box after the nominal-mou
 
 def _search(c, profile, latitude_rad, height_m, objective, beam_width, keep, requirements,
             workers, scheduler, progress):
+    """Run every beam; returns ``(results, evaluated, narrow)``, ``narrow`` the results of the
+    beams of 20 alone (None when that is all there is).
+    """
     jobs = [(c, d, latitude_rad, height_m, profile, objective, bw, keep, requirements)
             for d in search_dwells(c) for bw in _beam_widths(beam_width)]
     if progress:
@@ -844,7 +874,10 @@ def _search(c, profile, latitude_rad, height_m, objective, beam_width, keep, req
     evaluated = sum(r[2] for r in results)
     if progress:
         progress(f"searched {evaluated} candidates", len(jobs))
-    return results, evaluated
+    narrow = None
+    if len(_beam_widths(beam_width)) > 1:
+        narrow = [r for r, j in zip(results, jobs) if j[6] == NARROW_BEAM]
+    return results, evaluated, narrow
 
 
 def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m: float = 0.0,
@@ -855,52 +888,92 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
     """Search walks, re-score every candidate exactly over the tolerance box, refine the best.
 
     The candidates are the beams' finalists and their motif repetitions; each is
-    re-scored exactly (27 box points, with ``extras`` fitted beside the 21), the
-    best one's dwells are refined with IPOPT, and the answer is the best exactly
-    re-scored candidate seen, refined or not. ``progress(message, steps)`` is told
-    each stage as it ends; there are ``design_steps(c, keep)`` steps in all.
+    re-scored exactly (27 box points, ``extras`` fitted beside the 21), the best is
+    IPOPT-refined. What ``--beam-width 20`` and ``--no-refine`` would answer comes from the
+    same beams and gets the same final check; the best final figure wins (:func:`_select`).
+    ``progress(message, steps)``: ``design_steps(c, keep)`` steps in all.
     """
     import time as _time
-    check_constraints(c)
-    if objective not in OBJECTIVES:
-        raise CalibError(f"unknown objective {objective!r}", "--objective", "use worst, D, A or E")
+    _check_design_args(c, objective)
     t0 = _time.perf_counter()
     site = (math.degrees(latitude_rad), height_m)  # written into the sequence: analyse it there
-    results, evaluated = _search(c, profile, latitude_rad, height_m, objective, beam_width, keep,
-                                 requirements, workers, scheduler, progress)
+    results, evaluated, narrow = _search(c, profile, latitude_rad, height_m, objective,
+                                         beam_width, keep, requirements, workers, scheduler,
+                                         progress)
     search_seconds = _time.perf_counter() - t0
+    memo = {}
 
     def exact(walk, dwells, search=False, tol=tolerance_deg):
-        seq = to_sequence(walk, c, dwells, name, None, *site)
-        return (*_exact_worst(seq, profile, latitude_rad, height_m, tol, search,
-                              requirements, extras), seq)
+        key = (walk, tuple(dwells), search, tol)
+        if key not in memo:  # the narrow beams' candidates are among the wide ones'
+            seq = to_sequence(walk, c, dwells, name, None, *site)
+            worst, wname, rob, cost = _exact_worst(seq, profile, latitude_rad, height_m, tol,
+                                                   search, requirements, extras)
+            if search:  # final checks: few, and their models are large: not kept
+                return worst, wname, rob, cost, seq
+            memo[key] = (worst, wname, None, None, seq)  # only the figures are kept
+        return memo[key]
 
-    screened = _screen(_candidates(results, c), exact, progress)
-    pool = []  # the same, worst over the box
-    for f in screened[:SCREEN_KEEP]:
-        worst, wname, _, _, _ = exact(f[3], f[2])
-        pool.append((worst,) + f[1:])
-        if progress:
-            progress(f"box worst of {f[1][:40]}...: {worst:.3f} ({wname}); "
-                     f"best so far {min(p[0] for p in pool):.3f}", 1)
-    pool.sort(key=lambda f: (f[0], f[1]))
-    uniform = pool[0][0]
-    if refine:
-        pool.extend(_refined(pool[0], c, latitude_rad, height_m, profile, objective,
-                             requirements, exact, progress))
-        pool.sort(key=lambda f: (f[0], f[1]))
-    worst, label, dwells, walk, reps = pool[0]
-    worst, wname, rob, cost, seq = exact(walk, dwells, search=True)
+    def pipeline(res):  # (pool of exact box scores, the same with the refined best)
+        pool = _boxed(_screen(_candidates(res, c), exact, progress), exact, progress)
+        key = (pool[0][3], tuple(pool[0][2]))
+        if refine and key not in memo:
+            memo[key] = _refined(pool[0], c, latitude_rad, height_m, profile, objective,
+                                 requirements, exact, progress)
+        refined = memo[key] if refine else []
+        return pool, sorted(pool + refined, key=lambda f: (f[0], f[1]))
+
+    unrefined, pool = pipeline(results)
+    answers = [pool[0], unrefined[0]]  # the default's, and what --no-refine returns
+    if narrow is not None:  # what --beam-width 20 (with and without --no-refine) returns
+        n_unrefined, n_pool = pipeline(narrow)
+        pool = sorted(pool + n_pool, key=lambda f: (f[0], f[1]))
+        answers += [pool[0], n_pool[0], n_unrefined[0]]
+    worst, wname, rob, cost, seq, (_, label, _, _, reps) = _select(answers, exact)
     from .gimbalsearch import check_sequence_plays
     check_sequence_plays(seq, c.gimbal)
     if progress:
         progress(f"best of {len(pool)}: {label}; worst case over +-{tolerance_deg:g} deg: "
                  f"{worst:.3f} ({wname})", 1)
     return DesignResult(sequence=seq, worst_ratio=worst, worst_name=wname,
-                        uniform_worst_ratio=uniform, evaluated=evaluated,
+                        uniform_worst_ratio=unrefined[0][0], evaluated=evaluated,
                         search_seconds=search_seconds,
                         finalists=[(f[1], f[2][-1], f[0]) for f in pool], robustness=rob,
                         extras_cost=cost, repeats=reps)
+
+
+def _check_design_args(c: Constraints, objective: str) -> None:
+    check_constraints(c)
+    if objective not in OBJECTIVES:
+        raise CalibError(f"unknown objective {objective!r}", "--objective", "use worst, D, A or E")
+
+
+def _select(answers, exact):
+    """The final check (IPOPT inside the box for white profiles) of each distinct answer;
+    the best final figure: ``(worst, name, Robustness, ExtrasCost, Sequence, pool entry)``.
+    """
+    best, seen = None, set()
+    for f in answers:
+        key = (f[3], tuple(f[2]))
+        if key in seen:
+            continue
+        seen.add(key)
+        worst, wname, rob, cost, seq = exact(f[3], f[2], search=True)
+        if best is None or (worst, f[1]) < (best[0], best[5][1]):
+            best = (worst, wname, rob, cost, seq, f)
+    return best
+
+
+def _boxed(screened, exact, progress) -> list:
+    """The best :data:`SCREEN_KEEP` screened candidates, worst over the box, best first."""
+    pool = []
+    for f in screened[:SCREEN_KEEP]:
+        worst, wname, _, _, _ = exact(f[3], f[2])
+        pool.append((worst,) + f[1:])
+        if progress:
+            progress(f"box worst of {f[1][:40]}...: {worst:.3f} ({wname}); "
+                     f"best so far {min(p[0] for p in pool):.3f}", 1)
+    return sorted(pool, key=lambda f: (f[0], f[1]))
 
 
 def _screen(candidates, exact, progress) -> list:

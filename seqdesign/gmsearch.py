@@ -10,7 +10,17 @@ and a segment is folded by running the Riccati recursion and the whitening of
 the candidate's columns, batched over all candidates that take the same
 segment. The observation columns of a segment do not depend on ``P``: they are
 computed once per search (:func:`segment_columns`). The recursions are those
-of :func:`calib.noise.whitener` and :func:`calib.noise.whiten`.
+of :func:`calib.noise.whitener` and :func:`calib.noise.whiten`, rearranged for
+speed (same arithmetic to rounding):
+
+- the state and velocity rows of the transition are one ``(s + 3, s)`` matrix
+  ``F`` and the noise one ``(s + 3, s + 3)`` matrix ``Q``, so ``F P F' + Q``
+  gives the predicted covariance, the innovation covariance and their
+  cross term in two products;
+- the 3 x 3 innovation covariance is factored in closed form (no LAPACK call
+  per candidate);
+- the whitened rows of every interval are kept and the information is one
+  product ``W' W`` per segment.
 """
 from __future__ import annotations
 
@@ -27,29 +37,31 @@ class SegmentColumns:
 
     ``H[k]`` is ``(3, 6 + 24)``: the response to a unit sensitivity ``S`` (6 x 24
     columns of ``[phi, dv]``) at the segment start, then the 24 unknowns'
-    particular responses; ``S_end = A S + B``. The noise blocks are ordered as the
-    filter orders them (filter state first, velocity last).
+    particular responses; ``S_end = A S + B``. ``F[k]`` stacks the filter-state
+    rows ``F_ss`` over the velocity rows ``F_vs``; ``Q[k]`` is the interval's noise
+    covariance in the same order (filter state first, velocity last).
+
+    Stacked (:func:`stack`, one per node) the interval axis comes first,
+    ``H (K, n, 3, 30)``, ``F (K, n, s + 3, s)``, ``Q (K, n, s + 3, s + 3)``, and
+    ``A (n, 6, 6)``, ``B (n, 6, 24)``: a fold gathers one interval at a time.
     """
 
     H: np.ndarray  # (K, 3, 30)
     A: np.ndarray  # (6, 6)
     B: np.ndarray  # (6, 24)
-    F_ss: np.ndarray  # (K, s, s)
-    F_vs: np.ndarray  # (K, 3, s)
-    Q_ss: np.ndarray  # (K, s, s)
-    Q_sv: np.ndarray  # (K, s, 3)
-    Q_vv: np.ndarray  # (K, 3, 3)
+    F: np.ndarray  # (K, s + 3, s)
+    Q: np.ndarray  # (K, s + 3, s + 3)
 
 
 def noise_blocks(A6: np.ndarray, T: np.ndarray, profile, C_mid: np.ndarray | None):
-    """``F_ss, F_vs, Q_ss, Q_sv, Q_vv`` of each interval, in the filter's state order."""
+    """``F`` and ``Q`` of each interval, in the filter's state order (velocity last)."""
     models = interval_models(A6, T, profile, C_mid)
     w = whitener(models[:1])  # the ordering convention of calib.noise.whitener
     s = w.state_size
     order = np.r_[0:3, 6:s + 3, 3:6] if s != 3 else np.r_[0:6]
     Phi = np.array([m.Phi for m in models])[:, order][:, :, order]
     Q = np.array([m.Q for m in models])[:, order][:, :, order]
-    return (Phi[:, :s, :s], Phi[:, s:, :s], Q[:, :s, :s], Q[:, :s, s:], Q[:, s:, s:])
+    return np.ascontiguousarray(Phi[:, :, :s]), Q
 
 
 def start_state(P0: np.ndarray, n_unknown: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -65,51 +77,78 @@ def start_state(P0: np.ndarray, n_unknown: int) -> tuple[np.ndarray, np.ndarray,
 
 
 def stack(cols: list[SegmentColumns]) -> SegmentColumns:
-    """Segments of equal interval count stacked on a leading axis (one per candidate or node)."""
-    return SegmentColumns(*(np.stack([getattr(c, f) for c in cols])
-                            for f in SegmentColumns.__dataclass_fields__))
+    """Segments of equal interval count stacked, one per node (interval axis first)."""
+    def st(f, axis):
+        return np.ascontiguousarray(np.stack([getattr(c, f) for c in cols], axis=axis))
+    return SegmentColumns(H=st("H", 1), A=st("A", 0), B=st("B", 0), F=st("F", 1), Q=st("Q", 1))
 
 
-def take(cols: SegmentColumns, index) -> SegmentColumns:
-    """Rows ``index`` of stacked columns (one per candidate)."""
-    return SegmentColumns(*(getattr(cols, f)[index] for f in SegmentColumns.__dataclass_fields__))
+def _tr(a: np.ndarray) -> np.ndarray:
+    return np.swapaxes(a, -1, -2)
 
 
-def fold(cols: SegmentColumns, X: np.ndarray, N: np.ndarray, P: np.ndarray):
+def cholesky_inverse_3(S: np.ndarray) -> np.ndarray:
+    """``L^-1`` of the Cholesky factor ``S = L L'`` of a batch of 3 x 3 SPD matrices.
+
+    Closed form, elementwise over the batch: a LAPACK call per 3 x 3 matrix costs
+    more than the arithmetic.
+    """
+    l11 = np.sqrt(S[..., 0, 0])
+    l21, l31 = S[..., 1, 0] / l11, S[..., 2, 0] / l11
+    l22 = np.sqrt(S[..., 1, 1] - l21 * l21)
+    l32 = (S[..., 2, 1] - l31 * l21) / l22
+    m33 = 1.0 / np.sqrt(S[..., 2, 2] - l31 * l31 - l32 * l32)
+    Li = np.zeros(S.shape)
+    Li[..., 0, 0] = 1.0 / l11
+    Li[..., 1, 1] = 1.0 / l22
+    Li[..., 2, 2] = m33
+    Li[..., 1, 0] = -l21 * Li[..., 0, 0] * Li[..., 1, 1]
+    Li[..., 2, 1] = -l32 * Li[..., 1, 1] * m33
+    Li[..., 2, 0] = -(Li[..., 2, 1] * l21 + m33 * l31) * Li[..., 0, 0]
+    return Li
+
+
+def fold(cols: SegmentColumns, X: np.ndarray, N: np.ndarray, P: np.ndarray, index=None):
     """Fold one segment into a batch of candidates.
 
     Parameters
     ----------
     cols : SegmentColumns
-        One segment shared by the batch, or stacked (:func:`take`): one per candidate.
+        One segment shared by the batch, or stacked (:func:`stack`) with
+        ``index`` giving each candidate's row.
     X : ndarray, shape (b, 6 + s, 24)
         ``[S; filter state]`` of each candidate.
     N : ndarray, shape (b, 24, 24)
         Information so far.
     P : ndarray, shape (b, s, s)
         Filter covariance.
+    index : array of int, optional
+        Each candidate's row of stacked columns.
 
     Returns
     -------
     X, N, P after the segment (new arrays).
     """
-    def tr(a):
-        return np.swapaxes(a, -1, -2)
+    def at(a, k):
+        return a[k] if index is None else a[k, index]
 
+    s = P.shape[-1]
     S, ph = X[:, :6], X[:, 6:]
-    N = N.copy()
-    for k in range(cols.H.shape[-3]):
-        Fss, Fvs = cols.F_ss[..., k, :, :], cols.F_vs[..., k, :, :]
-        H = cols.H[..., k, :, :6] @ S + cols.H[..., k, :, 6:]
-        PFt = P @ tr(Fvs)
-        Sk = Fvs @ PFt + cols.Q_vv[..., k, :, :]
-        Li = np.linalg.inv(np.linalg.cholesky(Sk))
-        G = (Fss @ PFt + cols.Q_sv[..., k, :, :]) @ (tr(Li) @ Li)
-        P = Fss @ P @ tr(Fss) + cols.Q_ss[..., k, :, :] - G @ Sk @ tr(G)
-        P = 0.5 * (P + tr(P))
-        e = H - Fvs @ ph
-        ph = Fss @ ph + G @ e
-        w = Li @ e
-        N += tr(w) @ w
-    S = cols.A @ S + cols.B
-    return np.concatenate([S, ph], axis=1), N, P
+    K = cols.H.shape[0]
+    W = np.empty((len(X), K, 3, X.shape[-1]))
+    for k in range(K):
+        F, Hk = at(cols.F, k), at(cols.H, k)
+        M = F @ P @ _tr(F) + at(cols.Q, k)  # predicted [state; velocity] covariance
+        Li = cholesky_inverse_3(M[:, s:, s:])
+        C = M[:, :s, s:]
+        G = C @ (_tr(Li) @ Li)
+        P = M[:, :s, :s] - G @ _tr(C)
+        P = 0.5 * (P + _tr(P))
+        Fph = F @ ph
+        e = Hk[..., :6] @ S + Hk[..., 6:] - Fph[:, s:]
+        ph = Fph[:, :s] + G @ e
+        W[:, k] = Li @ e
+    W = W.reshape(len(X), 3 * K, -1)
+    N = N + _tr(W) @ W
+    A, B = (cols.A, cols.B) if index is None else (cols.A[index], cols.B[index])
+    return np.concatenate([A @ S + B, ph], axis=1), N, P

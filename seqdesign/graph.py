@@ -69,11 +69,19 @@ def flip_graph(start: Node, axes: str = AXES) -> nx.MultiDiGraph:
 
 
 def apply_move(graph: nx.MultiDiGraph, node: Node, move: Move) -> Node:
-    """Follow ``move.quarters`` edges labelled (axis, sign) from ``node``."""
-    for _ in range(move.quarters):
-        node = next(v for _, v, d in graph.out_edges(node, data=True)
-                    if d["axis"] == move.axis and d["sign"] == move.sign)
-    return node
+    """Follow ``move.quarters`` edges labelled (axis, sign) from ``node``.
+
+    Memoised in the graph's attribute dict: the search asks this once per candidate.
+    """
+    memo = graph.graph.setdefault("apply_move", {})
+    key = (node, move)
+    if key not in memo:
+        end = node
+        for _ in range(move.quarters):
+            end = next(v for _, v, d in graph.out_edges(end, data=True)
+                       if d["axis"] == move.axis and d["sign"] == move.sign)
+        memo[key] = end
+    return memo[key]
 
 
 def parse_node(text: str, where: str = "--start") -> Node:
