@@ -129,14 +129,17 @@ def view_rows(tmp: Path) -> list:
             (f"  .rrd size: {(tmp / 'v.rrd').stat().st_size / 1e6:.1f} MB", 0.0, "<= 100 MB")]
 
 
-def monte_carlo(n: int, workers: int, prof, lat) -> None:
+MC_SEQUENCES = ("paper-9pos", "paper-9pos-turns", "designed-15min", "designed-30min")
+
+
+def monte_carlo(n: int, workers: int, prof, lat, sequences=MC_SEQUENCES) -> None:
     """N simulate -> calibrate trials per shipped sequence against the predicted sigmas."""
     from calib import params as P
     from calib.sequence import load_sequence
     from seqdesign.montecarlo import run_trials
     from seqdesign.observability import analyze
 
-    for name in ("paper-9pos", "paper-9pos-turns", "designed-15min", "designed-30min"):
+    for name in sequences:
         s = load_sequence(name)
         t = time.perf_counter()
         trials = run_trials(s, prof, n, seed=1000, workers=workers)
@@ -163,6 +166,8 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--mc", type=int, default=0, help="also run N Monte Carlo trials per sequence")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--mc-only", default="", help="comma-separated sequences: run only their "
+                    "Monte Carlo (with --mc N), no speed benchmarks")
     args = ap.parse_args()
 
     from calib.profiles import load_profile
@@ -171,6 +176,9 @@ def main() -> None:
     tmp = Path(tempfile.mkdtemp(prefix="seqdesign-bench-"))
     seq, prof = load_sequence("paper-9pos"), load_profile("navigation")
     lat = math.radians(40.0)
+    if args.mc_only:
+        monte_carlo(args.mc or 50, args.workers, prof, lat, args.mc_only.split(","))
+        return
     rows = cli_rows(tmp) + analysis_rows(seq, prof, lat) + search_rows(seq, prof, lat, tmp) \
         + view_rows(tmp)
     print(f"Measured {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC on "

@@ -28,6 +28,7 @@ state depends on it, so ``s_k = F_ss s_{k-1} + w_s`` and
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -173,6 +174,30 @@ class Whitener:
         return self.F_ss.shape[-1]
 
 
+def _cholesky_inverse_3(S: np.ndarray) -> tuple[np.ndarray, float]:
+    """``L^-1`` and ``log det L`` of the Cholesky factor ``S = L L'`` of one 3 x 3 SPD matrix.
+
+    Closed form on Python floats: the recursion calls this once per interval
+    (tens of thousands of times), where two LAPACK calls cost more than the arithmetic.
+    """
+    (s11, _, _), (s21, s22, _), (s31, s32, s33) = S.tolist()
+    d1 = s11
+    l11 = math.sqrt(d1) if d1 > 0.0 else math.nan
+    l21, l31 = s21 / l11, s31 / l11
+    d2 = s22 - l21 * l21
+    l22 = math.sqrt(d2) if d2 > 0.0 else math.nan
+    l32 = (s32 - l31 * l21) / l22
+    d3 = s33 - l31 * l31 - l32 * l32
+    l33 = math.sqrt(d3) if d3 > 0.0 else math.nan
+    if math.isnan(l11 + l22 + l33):
+        raise np.linalg.LinAlgError("innovation covariance is not positive definite")
+    m11, m22, m33 = 1.0 / l11, 1.0 / l22, 1.0 / l33
+    m21, m32 = -l21 * m11 * m22, -l32 * m22 * m33
+    m31 = -(l31 * m33 + l21 * m32) * m11
+    Li = np.array([[m11, 0.0, 0.0], [m21, m22, 0.0], [m31, m32, m33]])
+    return Li, math.log(l11 * l22 * l33)
+
+
 def whitener(models: list[IntervalModel], P0: np.ndarray | None = None) -> Whitener:
     """Riccati recursion of the noise filter (data-independent).
 
@@ -205,14 +230,14 @@ def whitener(models: list[IntervalModel], P0: np.ndarray | None = None) -> White
     for k in range(K):
         Fss, Fvs = F_ss[k], F_vs[k]
         Qss, Qsv, Qvv = Q[k, :s, :s], Q[k, :s, s:], Q[k, s:, s:]
-        S = Fvs @ P @ Fvs.T + Qvv
-        L = np.linalg.cholesky(S)
-        Li = np.linalg.inv(L)
-        G = (Fss @ P @ Fvs.T + Qsv) @ (Li.T @ Li)
+        PFvs = P @ Fvs.T
+        S = Fvs @ PFvs + Qvv
+        Li, log_det_L = _cholesky_inverse_3(S)
+        G = (Fss @ PFvs + Qsv) @ (Li.T @ Li)
         P = Fss @ P @ Fss.T + Qss - G @ S @ G.T
         P = 0.5 * (P + P.T)
         gain[k], L_inv[k] = G, Li
-        logdet += 2.0 * np.sum(np.log(np.diag(L)))
+        logdet += 2.0 * log_det_L
     return Whitener(F_ss, F_vs, gain, L_inv, logdet, P)
 
 
