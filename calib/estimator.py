@@ -48,7 +48,13 @@ from .stream import Site, array_chunks, chunk_cuts, navigate_pass
 from .transform import rotvec_to_dcm
 
 MOTION_THRESHOLD = 0.01  # rad/s: far above Earth rate + bias + noise, far below a flip
-MIN_ALIGN_S = 10.0
+# The first rest seeds Gauss-Newton by levelling and gyrocompassing (the fit then estimates the
+# initial attitude error itself); 8 s levels a navigation-grade unit to ~1e-5 rad. It sits below
+# the designs' shortest dwell (10 s) by more than motion detection takes from a rest's ends, so a
+# designed sequence whose first dwell is at the minimum still aligns (seqdesign.design checks
+# --min-dwell-s against it).
+MIN_ALIGN_S = 8.0
+FIRST_REST_MARGIN_S = 1.0  # what motion detection may take from the first rest's end, at most
 PHI0_SCALE = 1e-4  # rad, for scaling the normal equations only
 # Past the third iteration the Jacobian is rebuilt only while the last step exceeded this many
 # sigmas: below it the linearisation error is far below the convergence tolerance.

@@ -28,6 +28,7 @@ import numpy as np
 from calib import earth
 from calib import params as P
 from calib.errors import CalibError
+from calib.estimator import FIRST_REST_MARGIN_S, MIN_ALIGN_S
 from calib.extras import NONE as NO_EXTRAS
 from calib.extras import Extras
 from calib.information import inverse_diagonal, marginal
@@ -690,6 +691,11 @@ def check_constraints(c: Constraints) -> None:
     if not 0 < c.min_dwell_s <= c.max_dwell_s:
         raise CalibError(f"dwell range [{c.min_dwell_s}, {c.max_dwell_s}] s is empty",
                          "--min-dwell-s/--max-dwell-s")
+    shortest = MIN_ALIGN_S + FIRST_REST_MARGIN_S
+    if c.min_dwell_s < shortest:
+        raise CalibError(f"--min-dwell-s {c.min_dwell_s:g} s is too short: the first rest of a "
+                         f"run must last {shortest:g} s for calibrate to align on it",
+                         "--min-dwell-s", f"give --min-dwell-s {shortest:g} or more")
     if not 0.1 <= c.rate_dps <= 100:
         raise CalibError(f"--rate-dps {c.rate_dps} outside [0.1, 100]", "--rate-dps")
     if c.min_dwell_s * 2 + 90.0 / c.rate_dps > c.budget_s:

@@ -204,3 +204,26 @@ def test_unknown_sequence_name_refused():
         load_sequence("no-such-sequence-xyz")
     assert "no-such-sequence-xyz" in str(info.value)
     assert "paper-9pos" in str(info.value)  # lists what is available
+
+
+def test_every_shipped_sequence_starts_with_a_rest_calibrate_can_align_on():
+    # A designed sequence's first dwell may sit at the design's minimum; calibrate refuses a first
+    # rest shorter than MIN_ALIGN_S, and motion detection takes up to FIRST_REST_MARGIN_S from its
+    # end (designed-15min-gm, with a 10.0 s first rest, was once refused at a 10 s limit).
+    from calib.estimator import FIRST_REST_MARGIN_S, MIN_ALIGN_S
+    from calib.sequence import builtin_sequence_dir, load_sequence
+    for path in sorted(builtin_sequence_dir().glob("*.toml")):
+        seq = load_sequence(path)
+        assert seq.initial_dwell_s >= MIN_ALIGN_S + FIRST_REST_MARGIN_S, path.name
+
+
+def test_design_refuses_dwells_too_short_to_align_on(tmp_path):
+    from click.testing import CliRunner
+
+    from seqdesign.cli import main
+    out = tmp_path / "d.toml"
+    r = CliRunner().invoke(main, ["design", "--budget-min", "5", "--min-dwell-s", "5",
+                                  "-o", str(out)])
+    assert r.exit_code == 2 and "Traceback" not in r.output
+    assert "--min-dwell-s" in r.output and "align" in r.output
+    assert not out.exists()
