@@ -788,23 +788,48 @@ def _exact_worst(seq: Sequence, profile, latitude_rad, height_m, tolerance_deg, 
                  requirements: Requirements = PAPER, extras: Extras = NO_EXTRAS):
     """Worst 3 sigma/requirement of the 21 over the box, with ``extras`` fitted beside them.
 
-    Returns ``(ratio, parameter, Robustness, ExtrasCost or None)``.
+    The same figures as ``seqdesign analyze`` (with ``--with``): with ``search``, IPOPT
+    then looks inside the box from its worst point. Returns ``(ratio, parameter,
+    Robustness, ExtrasCost or None)``; the Robustness (the 21 alone) only with ``search``.
     """
     from .observability import analyze_extras, analyze_tolerance
     if extras.n:
         cost = analyze_extras(seq, profile, latitude_rad, extras, height_m, tolerance_deg,
-                              requirements)
+                              requirements, search=search)
         r = requirements.ratio(cost.sigma_with)
         i = int(np.argmax(r))
-        if not search:
-            return float(r[i]), P.NAMES[i], None, cost
+        rob = (analyze_tolerance(seq, profile, latitude_rad, height_m, tolerance_deg,
+                                 search=True, requirements=requirements) if search else None)
+        return float(r[i]), P.NAMES[i], rob, cost
     rob = analyze_tolerance(seq, profile, latitude_rad, height_m, tolerance_deg, search=search,
                             requirements=requirements)
-    if extras.n:  # the terms cost the 21 the same factor at the searched mounting
-        return float(r[i]), P.NAMES[i], rob, cost
     r = rob.per_parameter_worst_ratio
     i = int(np.argmax(r))
     return float(r[i]), P.NAMES[i], rob, None
+
+
+@dataclass(frozen=True)
+class ExactScorer:
+    """What the exact re-scoring of a walk needs besides the walk: picklable, so that the
+    candidates can be scored on the same workers (or dask cluster) as the beams.
+    """
+
+    c: Constraints
+    name: str
+    site: tuple  # (latitude deg, height m), written into each sequence
+    profile: NoiseProfile
+    latitude_rad: float
+    height_m: float
+    requirements: Requirements
+    extras: Extras
+
+    def __call__(self, job):
+        walk, dwells, search, tol = job
+        seq = to_sequence(walk, self.c, list(dwells), self.name, None, *self.site)
+        worst, wname, rob, cost = _exact_worst(seq, self.profile, self.latitude_rad,
+                                               self.height_m, tol, search, self.requirements,
+                                               self.extras)
+        return worst, wname, rob, cost, seq
 
 
 MOTIF_REPEATS = (2, 3, 4)  # a finalist's walk also played 2-4 times, with shorter dwells
@@ -862,6 +887,7 @@ def _beam_widths(beam_width: int | None) -> list:
 
 
 NARROW_BEAM = 20
+SCHEDULER_BATCH = 4  # candidates re-scored at once on a dask cluster (its size is unknown here)
 SCREEN_KEEP = 6  # candidates re-scored over the whole box after the nominal-mounting screen
 
 
@@ -907,25 +933,25 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
                                          beam_width, keep, requirements, workers, scheduler,
                                          progress)
     search_seconds = _time.perf_counter() - t0
+    scorer = ExactScorer(c, name, site, profile, latitude_rad, height_m, requirements, extras)
+    batch = max(workers, SCHEDULER_BATCH if scheduler else 1)
     memo = {}
 
-    def exact(walk, dwells, search=False, tol=tolerance_deg):
-        key = (walk, tuple(dwells), search, tol)
-        if key not in memo:  # the narrow beams' candidates are among the wide ones'
-            seq = to_sequence(walk, c, dwells, name, None, *site)
-            worst, wname, rob, cost = _exact_worst(seq, profile, latitude_rad, height_m, tol,
-                                                   search, requirements, extras)
-            if search:  # final checks: few, and their models are large: not kept
-                return worst, wname, rob, cost, seq
-            memo[key] = (worst, wname, None, None, seq)  # only the figures are kept
-        return memo[key]
+    def exact(jobs):  # [(walk, dwells, search, tol)] -> [(worst, name, rob, cost, seq)]
+        todo = list(dict.fromkeys(j for j in jobs if j not in memo))  # the narrow beams'
+        for job, out in zip(todo, map_jobs(scorer, todo, workers, scheduler)):  # are mostly
+            memo[job] = out if job[2] else out[:2] + (None, None, out[4])  # the wide ones'
+        return [memo[j] for j in jobs]
 
     def pipeline(res):  # (pool of exact box scores, the same with the refined best)
-        pool = _boxed(_screen(_candidates(res, c), exact, progress), exact, progress)
+        pool = _boxed(_screen(_candidates(res, c), exact, progress), exact, tolerance_deg,
+                      progress, batch)
         key = (pool[0][3], tuple(pool[0][2]))
         if refine and key not in memo:
             memo[key] = _refined(pool[0], c, latitude_rad, height_m, profile, objective,
-                                 requirements, exact, progress)
+                                 requirements, lambda w, d: exact([(w, d, False,
+                                                                    tolerance_deg)])[0],
+                                 progress)
         refined = memo[key] if refine else []
         return pool, sorted(pool + refined, key=lambda f: (f[0], f[1]))
 
@@ -935,7 +961,8 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
         n_unrefined, n_pool = pipeline(narrow)
         pool = sorted(pool + n_pool, key=lambda f: (f[0], f[1]))
         answers += [pool[0], n_pool[0], n_unrefined[0]]
-    worst, wname, rob, cost, seq, (_, label, _, _, reps) = _select(answers, exact)
+    worst, wname, rob, cost, seq, (_, label, _, _, reps) = _select(answers, exact,
+                                                                   tolerance_deg, batch)
     from .gimbalsearch import check_sequence_plays
     check_sequence_plays(seq, c.gimbal)
     if progress:
@@ -954,31 +981,62 @@ def _check_design_args(c: Constraints, objective: str) -> None:
         raise CalibError(f"unknown objective {objective!r}", "--objective", "use worst, D, A or E")
 
 
-def _select(answers, exact):
-    """The final check (IPOPT inside the box for white profiles) of each distinct answer;
-    the best final figure: ``(worst, name, Robustness, ExtrasCost, Sequence, pool entry)``.
+def _select(answers, exact, tolerance_deg, batch: int = 1):
+    """The final check (IPOPT inside the box) of each distinct answer; the best final
+    figure: ``(worst, name, Robustness, ExtrasCost, Sequence, pool entry)``.
+
+    The search inside the box can only raise an answer's box figure (``f[0]``), so an
+    answer whose box figure is not below the best final figure so far cannot win and
+    is not checked; answers go best box figure first, ``batch`` at a time (the workers).
     """
-    best, seen = None, set()
+    first = {}
     for f in answers:
-        key = (f[3], tuple(f[2]))
-        if key in seen:
-            continue
-        seen.add(key)
-        worst, wname, rob, cost, seq = exact(f[3], f[2], search=True)
-        if best is None or (worst, f[1]) < (best[0], best[5][1]):
-            best = (worst, wname, rob, cost, seq, f)
-    return best
+        first.setdefault((f[3], tuple(f[2])), f)
+    order = sorted(first.values(), key=lambda f: (f[0], f[1]))
+    return _pruned(order, lambda fs: exact([(f[3], tuple(f[2]), True, tolerance_deg)
+                                            for f in fs]), batch)[0]
 
 
-def _boxed(screened, exact, progress) -> list:
-    """The best :data:`SCREEN_KEEP` screened candidates, worst over the box, best first."""
+def _pruned(order, score, batch: int):
+    """Score entries (sorted by a lower bound ``f[0]`` of their score) ``batch`` at a time,
+    skipping those whose bound is not below the best score so far.
+
+    Returns ``(best, scored)``: ``best`` = the best ``score(f) + (f,)``, ``scored`` every
+    ``(result, f)`` scored, in order. Exact: ``score(f)[0] >= f[0]`` for every entry.
+    """
+    best, scored, k = None, [], 0
+    while k < len(order):
+        todo = [f for f in order[k:k + batch]
+                if best is None or (f[0], f[1]) < (best[0], best[-1][1])]
+        k += batch
+        if not todo:
+            break  # sorted by bound: nothing later can win either
+        for f, out in zip(todo, score(todo)):
+            scored.append((out, f))
+            if best is None or (out[0], f[1]) < (best[0], best[-1][1]):
+                best = tuple(out) + (f,)
+    return best, scored
+
+
+def _boxed(screened, exact, tolerance_deg, progress, batch: int = 1) -> list:
+    """The best of the :data:`SCREEN_KEEP` screened candidates, worst over the box, best first.
+
+    The nominal mounting is one of the box's points, so a candidate's nominal figure is
+    a lower bound of its box figure: one whose nominal figure is not below the best box
+    figure so far cannot come first and is not re-scored (only the first is used).
+    """
+    top = screened[:SCREEN_KEEP]
+    _, scored = _pruned(top, lambda fs: exact([(f[3], tuple(f[2]), False, tolerance_deg)
+                                               for f in fs]), batch)
     pool = []
-    for f in screened[:SCREEN_KEEP]:
-        worst, wname, _, _, _ = exact(f[3], f[2])
+    for (worst, wname, *_), f in scored:
         pool.append((worst,) + f[1:])
         if progress:
             progress(f"box worst of {f[1][:40]}...: {worst:.3f} ({wname}); "
                      f"best so far {min(p[0] for p in pool):.3f}", 1)
+    if progress and len(scored) < len(top):
+        progress(f"{len(top) - len(scored)} candidates skipped: their nominal figure is "
+                 f"already above the best box worst", len(top) - len(scored))
     return sorted(pool, key=lambda f: (f[0], f[1]))
 
 
@@ -986,17 +1044,17 @@ def _screen(candidates, exact, progress) -> list:
     """Every candidate scored exactly at the nominal mounting, best first:
     ``(worst, label, dwells, walk, repeats)``.
     """
+    if not candidates:
+        raise CalibError("no walk fits the constraints", "design",
+                         "raise --budget-min or --max-flips, or lower --min-dwell-s")
+    jobs = [(walk, (dwell,) * (len(walk) + 1), False, 0.0) for walk, dwell, _ in candidates]
     screened = []
-    for walk, dwell, reps in candidates:
-        worst, wname, _, _, _ = exact(walk, [dwell] * (len(walk) + 1), tol=0.0)
+    for (walk, dwell, reps), (worst, wname, *_) in zip(candidates, exact(jobs)):
         screened.append((worst, " ".join(m.label() for m in walk), [dwell] * (len(walk) + 1),
                          walk, reps))
         if progress:
             progress(f"screened {len(screened)} ({len(walk)} moves, {dwell:g} s dwells): "
                      f"{worst:.3f} ({wname}) at the nominal mounting", 1)
-    if not screened:
-        raise CalibError("no walk fits the constraints", "design",
-                         "raise --budget-min or --max-flips, or lower --min-dwell-s")
     return sorted(screened, key=lambda f: (f[0], f[1]))
 
 
@@ -1009,7 +1067,7 @@ def _refined(best, c, latitude_rad, height_m, profile, objective, requirements, 
                                      objective, requirements, reps)
     if new_dwells == dwells:
         return []
-    w2, n2, _, _, _ = exact(walk, new_dwells)
+    w2, n2, _, _, _ = exact(walk, tuple(new_dwells))
     if progress:
         progress(f"refined: {w2:.3f} ({n2}) against {worst:.3f} uniform", 1)
     return [(w2, label + " (refined)", new_dwells, walk, reps)]

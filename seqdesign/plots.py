@@ -33,6 +33,7 @@ def save_png(fig, path) -> None:
 
 def pareto_png(report, gravity_mps2: float, path) -> None:
     """Worst ratio against total time for each design, the paper's point and the bound curve."""
+    from .designs import design_rate_dps
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     rows = sorted(report.rows, key=lambda r: r.result.sequence.duration_s)
@@ -46,7 +47,12 @@ def pareto_png(report, gravity_mps2: float, path) -> None:
     grid = np.linspace(max(1.0, tmax / 40), tmax, 80)
     ax.plot(grid, [accel_scale_bound(x * 60, report.profile, gravity_mps2, report.requirements)
                    for x in grid], "--",
-            color="#d62728", label="accelerometer scale-factor bound")
+            color="#d62728", label="accelerometer scale-factor bound (white noise)")
+    if report.profile.accel_gm_sigma > 0:  # the coloured-noise bound at the gimbal's rate
+        rate = max(design_rate_dps(r.result.sequence) for r in rows)
+        ax.plot(grid, [accel_scale_bound(x * 60, report.profile, gravity_mps2,
+                                         report.requirements, rate) for x in grid], ":",
+                color="#9467bd", label=f"same with Gauss-Markov bias, turning at {rate:g} deg/s")
     ax.plot([report.paper_duration_s / 60], [report.paper_worst_ratio], "s", color="#ff7f0e",
             label="paper-9pos")
     ax.set_yscale("log")

@@ -82,6 +82,40 @@ def test_paper_sequence_is_full_rank_and_matches_physical_bound():
     assert info_sum <= earth.gravity(LAT) ** 2 * seq.duration_s / prof.vrw ** 2 * 1.0001
 
 
+def test_gauss_markov_density_integrates_to_its_variance_and_has_the_right_limits():
+    # S(f) = 2 sigma^2 tau / (1 + (2 pi f tau)^2) is the two-sided PSD of a first-order GM
+    # process: its integral over all f is the stationary variance sigma^2 (quadrature
+    # on a log grid to 1e-4; the tails beyond 1e4/tau hold < 1e-4 of it).
+    from seqdesign.observability import accel_density_at_rate
+    prof = load_profile("navigation-gm")
+    tau, var = prof.accel_bias_correlation_s, prof.accel_gm_sigma ** 2
+    f = np.logspace(-8, 4, 20001) / tau
+    rate_dps = np.degrees(2 * np.pi * f)
+    excess = np.array([accel_density_at_rate(prof, r) for r in rate_dps]) - prof.vrw ** 2
+    assert 2 * np.trapezoid(excess, f) == pytest.approx(var, rel=1e-4)
+    # at zero frequency the bias is a constant of variance sigma^2 held for tau: 2 sigma^2 tau
+    assert excess[0] == pytest.approx(2 * var * tau, rel=1e-6)
+    # a white profile has no excess at any rate
+    white = load_profile("navigation")
+    assert accel_density_at_rate(white, 10.0) == white.vrw ** 2
+
+
+@pytest.mark.parametrize("name", ["designed-30min-gm", "designed-15min-gm"])
+def test_gauss_markov_sequences_do_not_beat_the_rate_bound(name):
+    # The coloured-noise bound (docs/gm-bound.md) is the best a gimbal turning at the
+    # sequence's rate can do for the accelerometer scale factors under navigation-gm: no
+    # sequence's sigma may fall below it. Nominal mounting (the bound holds for any).
+    from seqdesign.designs import design_rate_dps
+    from seqdesign.observability import accel_scale_bound
+    seq = load_sequence(name)
+    prof = load_profile("navigation-gm")
+    obs = analyze(seq, prof, LAT)
+    bound = accel_scale_bound(seq.duration_s, prof, earth.gravity(LAT), rate_dps=design_rate_dps(seq))
+    white = accel_scale_bound(seq.duration_s, prof, earth.gravity(LAT))
+    assert bound > white  # the GM bias costs information at any finite rate
+    assert max(obs.ratio[P.ACCEL_SCALE]) >= bound
+
+
 def test_sigma_scales_with_noise():
     # Halving both noise densities halves every sigma (information is 1/noise^2).
     seq = load_sequence("paper-9pos")
