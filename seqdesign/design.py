@@ -719,7 +719,7 @@ class DesignResult:
     evaluated: int  # candidates scored by the search
     search_seconds: float
     finalists: list  # (walk label, dwell, exact worst ratio), every candidate re-scored
-    robustness: object
+    robustness: object  # observability.Robustness of the 21 alone (None with --with)
     extras_cost: object = None  # observability.ExtrasCost of the winner when --with was given
     repeats: int = 1  # how many times the winner plays its motif
 
@@ -789,8 +789,9 @@ def _exact_worst(seq: Sequence, profile, latitude_rad, height_m, tolerance_deg, 
     """Worst 3 sigma/requirement of the 21 over the box, with ``extras`` fitted beside them.
 
     The same figures as ``seqdesign analyze`` (with ``--with``): with ``search``, IPOPT
-    then looks inside the box from its worst point. Returns ``(ratio, parameter,
-    Robustness, ExtrasCost or None)``; the Robustness (the 21 alone) only with ``search``.
+    then looks inside the box from its worst point. Returns ``(ratio, parameter, Robustness
+    or None, ExtrasCost or None)``: with ``extras`` the ExtrasCost alone (it holds the 21's
+    sigma with and without the terms at the same mountings).
     """
     from .observability import analyze_extras, analyze_tolerance
     if extras.n:
@@ -798,9 +799,7 @@ def _exact_worst(seq: Sequence, profile, latitude_rad, height_m, tolerance_deg, 
                               requirements, search=search)
         r = requirements.ratio(cost.sigma_with)
         i = int(np.argmax(r))
-        rob = (analyze_tolerance(seq, profile, latitude_rad, height_m, tolerance_deg,
-                                 search=True, requirements=requirements) if search else None)
-        return float(r[i]), P.NAMES[i], rob, cost
+        return float(r[i]), P.NAMES[i], None, cost
     rob = analyze_tolerance(seq, profile, latitude_rad, height_m, tolerance_deg, search=search,
                             requirements=requirements)
     r = rob.per_parameter_worst_ratio
