@@ -534,20 +534,42 @@ def walk_information(walk, c: Constraints, dwells, latitude_rad: float, gravity_
 def _walk_information_exact(walk, c: Constraints, dwells, latitude_rad: float,
                             gravity_mps2: float, profile: NoiseProfile) -> np.ndarray:
     """:func:`walk_information` with the filter covariance carried along (GM profiles)."""
+    return walk_informations_exact(walk, c, [dwells], latitude_rad, gravity_mps2, profile)[0]
+
+
+def walk_informations_exact(walk, c: Constraints, dwell_sets, latitude_rad: float,
+                            gravity_mps2: float, profile: NoiseProfile) -> np.ndarray:
+    """Information ``(B, 24, 24)`` of one walk under ``B`` sets of dwells, batched (GM).
+
+    The turns are shared; every rest has :data:`SEARCH_REST_INTERVALS` intervals
+    whatever its length, so the rests of the ``B`` candidates stack and one fold
+    carries them all (what IPOPT's finite differences need at once).
+    """
     graph = flip_graph(c.start, c.axes)
     node = tuple(c.start)
-    X, N, Pc = (a[None] for a in start_state(gm_start_covariance(profile), N_UNKNOWN))
-    segs = [segment_columns(attitude_of(node), dwells[0], 0.0, -1, latitude_rad, gravity_mps2,
-                            profile, SEARCH_REST_INTERVALS)]
-    for mv, d in zip(walk, dwells[1:]):
-        segs.append(_turn_columns(node, mv, turn_seconds(mv, c), turn_rate(mv, c), latitude_rad,
-                                  gravity_mps2, profile))
+    B = len(dwell_sets)
+    X, N, Pc = (np.repeat(a[None], B, axis=0)
+                for a in start_state(gm_start_covariance(profile), N_UNKNOWN))
+    dwell_sets = np.asarray(dwell_sets, dtype=float)
+    rows = np.arange(B)
+
+    def rests(node, k):
+        return stack([_rest_columns(node, float(d), latitude_rad, gravity_mps2, profile)
+                      for d in dwell_sets[:, k]])
+
+    X, N, Pc = fold(rests(node, 0), X, N, Pc, rows)
+    for k, mv in enumerate(walk, start=1):
+        X, N, Pc = fold(_turn_columns(node, mv, turn_seconds(mv, c), turn_rate(mv, c),
+                                      latitude_rad, gravity_mps2, profile), X, N, Pc)
         node = apply_move(graph, node, mv)
-        segs.append(segment_columns(attitude_of(node), d, 0.0, -1, latitude_rad, gravity_mps2,
-                                    profile, SEARCH_REST_INTERVALS))
-    for cols in segs:
-        X, N, Pc = fold(cols, X, N, Pc)
-    return N[0]
+        X, N, Pc = fold(rests(node, k), X, N, Pc, rows)
+    return N
+
+
+@functools.lru_cache(maxsize=4096)
+def _rest_columns(node, duration, latitude_rad, gravity_mps2, profile):
+    return segment_columns(attitude_of(node), duration, 0.0, -1, latitude_rad, gravity_mps2,
+                           profile, SEARCH_REST_INTERVALS)
 
 
 @functools.lru_cache(maxsize=4096)
@@ -592,12 +614,19 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
     turn_time = sum(turn_seconds(m, c) for m in walk)
     scale = 100.0  # dwells in units of 100 s for IPOPT
 
-    def ratios(dw):
-        N = walk_information(walk, c, list(np.asarray(dw)[groups]), latitude_rad, g, profile,
-                             P_ss)
-        return 3.0 * np.sqrt(inverse_diagonal(scaled_marginal(N, False, requirements)))
+    def ratios_many(D):  # (B, n) dwell variables, s -> (B, 21) ratios
+        sets = [list(d[groups]) for d in np.asarray(D, dtype=float)]
+        if profile.has_gauss_markov:  # one batched fold for all (finite differences)
+            Ns = walk_informations_exact(walk, c, sets, latitude_rad, g, profile)
+        else:
+            Ns = [walk_information(walk, c, d, latitude_rad, g, profile, P_ss) for d in sets]
+        return np.array([3.0 * np.sqrt(inverse_diagonal(scaled_marginal(N, False, requirements)))
+                         for N in Ns])
 
-    cb = _ratios_callback(ratios, n, scale)
+    def ratios(dw):
+        return ratios_many(np.asarray(dw, dtype=float)[None])[0]
+
+    cb = _ratios_callback(ratios_many, n, scale)
     x = ca.MX.sym("d", n)
     t = ca.MX.sym("t")
     r = cb(x)
@@ -644,14 +673,45 @@ def dwell_groups(n_moves: int, repeats: int = 1) -> np.ndarray:
     return np.concatenate([[0], 1 + np.tile(per_move, repeats)])
 
 
-def _ratios_callback(ratios, n: int, scale: float):
-    """The 21 ratios as a casadi function of ``n`` scaled dwells (finite differences)."""
+REFINE_FD_STEP = 1e-4  # central differences in dwells of 100 s units: 0.01 s
+
+
+def _ratios_callback(ratios_many, n: int, scale: float):
+    """The 21 ratios as a casadi function of ``n`` scaled dwells.
+
+    Its Jacobian is central differences :data:`REFINE_FD_STEP` apart, all ``2 n``
+    points in one call of ``ratios_many`` (batched: under GM one fold carries them).
+    Truncation ~ step^2 x the third derivative (~1e-8 of a ratio); rounding ~1e-16 / 1e-4.
+    """
     import casadi as ca
+
+    class _Jacobian(ca.Callback):
+        def __init__(self, name, opts):
+            ca.Callback.__init__(self)
+            self.construct(name, opts)
+
+        def get_n_in(self):
+            return 2  # the point, and the function's value there (unused)
+
+        def get_n_out(self):
+            return 1
+
+        def get_sparsity_in(self, i):
+            return ca.Sparsity.dense(n, 1) if i == 0 else ca.Sparsity.dense(P.N_PARAMS, 1)
+
+        def get_sparsity_out(self, i):
+            return ca.Sparsity.dense(P.N_PARAMS, n)
+
+        def eval(self, arg):
+            x = np.asarray(arg[0], dtype=float).ravel()
+            steps = REFINE_FD_STEP * np.eye(n)
+            r = ratios_many(np.vstack([x + steps, x - steps]) * scale)
+            return [(r[:n] - r[n:]).T / (2.0 * REFINE_FD_STEP)]
 
     class _Ratios(ca.Callback):
         def __init__(self):
             ca.Callback.__init__(self)
-            self.construct("ratios", {"enable_fd": True, "fd_method": "central"})
+            self.construct("ratios", {})
 
         def get_n_in(self):
             return 1
@@ -666,7 +726,14 @@ def _ratios_callback(ratios, n: int, scale: float):
             return ca.Sparsity.dense(P.N_PARAMS, 1)
 
         def eval(self, arg):
-            return [ratios(np.asarray(arg[0], dtype=float).ravel() * scale)]
+            return [ratios_many(np.asarray(arg[0], dtype=float).reshape(1, n) * scale)[0]]
+
+        def has_jacobian(self):
+            return True
+
+        def get_jacobian(self, name, inames, onames, opts):
+            self.jacobian_callback = _Jacobian(name, opts)  # casadi keeps no reference
+            return self.jacobian_callback
 
     return _Ratios()
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from calib import params as P
 from calib.profiles import load_profile
 from calib.requirements import PAPER
 from calib.sequence import load_sequence
@@ -323,3 +324,40 @@ def test_pruned_rescoring_finds_the_brute_force_best(batch):
         brute = min(entries, key=lambda f: (f[2], f[1]))
         assert best[-1] == brute and best[0] == brute[2]
         assert len(scored) <= n
+
+
+def test_refinement_jacobian_is_the_derivative_of_the_ratios():
+    # The callback's batched central differences against a function whose derivative is
+    # known in closed form: r_i(x) = sum_j a_ij (scale x_j)^2 / 2, dr_i/dx_j = a_ij scale^2 x_j.
+    # Quadratic, so central differences are exact up to rounding (~1e-16 / 1e-4 relative).
+    import casadi as ca
+
+    from seqdesign.design import _ratios_callback
+    n, scale = 4, 100.0
+    a = np.random.default_rng(3).uniform(0.5, 2.0, (P.N_PARAMS, n))
+
+    def ratios_many(D):
+        return 0.5 * np.asarray(D) ** 2 @ a.T
+
+    cb = _ratios_callback(ratios_many, n, scale)
+    x = ca.MX.sym("x", n)
+    jac = ca.Function("dratios", [x], [ca.jacobian(cb(x), x)])
+    x0 = np.array([0.1, 0.2, 0.3, 0.4])
+    assert np.allclose(np.asarray(jac(x0)), a * scale ** 2 * x0, rtol=1e-9)
+    assert np.allclose(np.asarray(cb(x0)).ravel(), ratios_many((x0 * scale)[None])[0])
+
+
+def test_batched_walk_information_equals_one_walk_at_a_time():
+    # The GM refinement folds all finite-difference points at once; each row must be the
+    # information of that dwell set alone (same arithmetic, batched: equal to rounding).
+    from calib import earth
+    from seqdesign.design import _walk_information_exact, walk_informations_exact
+    prof = load_profile("navigation-gm")
+    c = Constraints(budget_s=600.0, min_dwell_s=10.0)
+    walk = (Move("Z", 1, 5), Move("Y", 1, 5), Move("X", -1, 5))
+    g = earth.gravity(LAT)
+    D = np.array([[10.0, 12.0, 15.0, 11.0], [30.0, 10.0, 10.0, 25.0], [10.0] * 4])
+    batched = walk_informations_exact(walk, c, D, LAT, g, prof)
+    for d, N in zip(D, batched):
+        single = _walk_information_exact(walk, c, list(d), LAT, g, prof)
+        assert np.allclose(N, single, rtol=1e-12, atol=1e-12 * np.abs(single).max())
