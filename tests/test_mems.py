@@ -152,3 +152,67 @@ def test_rest_gyrocompass_finds_bias_and_heading_through_a_mems_bias():
     exact = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity,
                       load_profile("tactical"), requirements=load_requirements("mems")).C_b_n0
     assert np.degrees(np.linalg.norm(dcm_to_rotvec(C0 @ exact.T))) < 3.0
+
+
+def _held(schedule):
+    """Move the feedback until it is held (the updates the loops make)."""
+    from calib.estimator import FEEDBACK_UPDATES
+    for it in range(1, FEEDBACK_UPDATES + 1):
+        assert schedule.pending() and schedule.due(1.0)
+        schedule.moved_at(it)
+    assert not schedule.pending() and not schedule.due(1.0)
+    return FEEDBACK_UPDATES
+
+
+def test_held_feedback_steps_sum_their_geometric_series():
+    # A linear problem whose Gauss-Newton step is the observation itself (H = D = I): a loop
+    # converging linearly makes steps u, rho u, rho^2 u, ... whose sum is u / (1 - rho). Once the
+    # feedback is held, the second step is extrapolated by Aitken's rule to the rest of that
+    # series: u + rho u / (1 - rho) = u / (1 - rho), to a few roundings.
+    from types import SimpleNamespace
+
+    from calib.estimator import FeedbackSchedule
+    n, u, rho = 4, np.array([1.0, -2.0, 0.5, 3.0]), -0.5
+    sol, eye, ones = SimpleNamespace(covariance=np.eye(n)), np.eye(n), np.ones(n)
+    schedule = FeedbackSchedule(wander=True)
+    it = _held(schedule) + 1
+    d1, _ = schedule.step(eye, ones, u, sol, eye, it)  # the first step after the last move
+    d2, r2 = schedule.step(eye, ones, rho * u, sol, eye, it + 1)
+    np.testing.assert_array_equal(d1, u)  # nothing to extrapolate from yet
+    np.testing.assert_allclose(d1 + d2, u / (1.0 - rho), rtol=1e-14)
+    np.testing.assert_allclose(r2, rho * u - d2, rtol=1e-14)
+    # Never across a feedback move (the step before it belongs to another problem), never
+    # before the feedback is held, never without wander.
+    fresh = FeedbackSchedule(wander=True)
+    fresh.step(eye, ones, u, sol, eye, 1)
+    np.testing.assert_array_equal(fresh.step(eye, ones, rho * u, sol, eye, 2)[0], rho * u)
+    for schedule in (FeedbackSchedule(wander=False), FeedbackSchedule(wander=True)):
+        if schedule.wander:
+            schedule.moved_at(1)
+        schedule.step(eye, ones, u, sol, eye, 3)
+        np.testing.assert_array_equal(schedule.step(eye, ones, rho * u, sol, eye, 4)[0], rho * u)
+
+
+@pytest.mark.slow
+def test_streamed_mems_fit_equals_renavigating_fit():
+    # Both loops move the attitude feedback on the same schedule from the same residuals (to
+    # rounding), so they share the held feedback and its fixed point; each stops within
+    # tol_sigma (1e-3) of it, so they agree to tol_sigma, as without feedback (test_stream.py).
+    from calib import params as P
+    from calib.errormodel import ErrorModel
+    from calib.estimator import calibrate
+    from calib.requirements import load_requirements
+    from calib.sequence import load_sequence
+    from calib.sim import SimConfig, simulate
+
+    errors = ErrorModel.from_units([MEMS_ERRORS[p.name] for p in P.PARAMETERS])
+    cfg, prof = SimConfig(latitude_rad=LAT, sample_rate_hz=20.0), load_profile("mems")
+    run, _ = simulate(load_sequence("paper-9pos"), cfg, errors, prof, seed=5,
+                      random_setup_deg=3.0, flip_error_deg=0.5)
+    args = (run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, prof)
+    req = load_requirements("mems")
+    ref = calibrate(*args, requirements=req, renavigate="always")
+    fit = calibrate(*args, requirements=req)
+    assert ref.converged and fit.converged
+    assert np.all(np.abs(fit.values - ref.values) <= 1e-3 * ref.sigma)
+    assert fit.iterations <= ref.iterations
