@@ -95,6 +95,30 @@ def _grow(moving: np.ndarray, samples: int = 2) -> np.ndarray:
     return grown
 
 
+def motion_window(arw: float, period_s: float) -> int:
+    """Samples to average a gyro of ``arw`` (rad/sqrt(s)) over: its noise 5x below the threshold."""
+    return max(1, int(math.ceil((5.0 * arw / MOTION_THRESHOLD) ** 2 / period_s)))
+
+
+def windowed_motion(window: int, steady: np.ndarray) -> bool:
+    """Whether motion is judged on windowed rates less the ``steady`` rate (noise or a MEMS bias)."""
+    return window > 1 or float(np.linalg.norm(steady)) > 0.1 * MOTION_THRESHOLD
+
+
+def window_rate(angle: np.ndarray, clock: np.ndarray, i: np.ndarray, n: int, window: int,
+                offset: int = 0) -> np.ndarray:
+    """Mean rate (norm) over the window about each sample ``i`` of a run of ``n`` samples.
+
+    ``angle`` (m, 3) and ``clock`` (m,) are the running sums of the steady-free
+    increments and of the intervals, ``angle[j - offset]`` being the sum of the
+    first ``j`` samples: a whole run (``offset`` 0) or the part of it a stream holds.
+    """
+    half = window // 2
+    lo = np.clip(i - half, 0, n) - offset
+    hi = np.clip(i + window - half, 0, n) - offset
+    return np.linalg.norm(angle[hi] - angle[lo], axis=1) / (clock[hi] - clock[lo])
+
+
 def detect_motion(dtheta: np.ndarray, dt: np.ndarray, where: str = "run",
                   arw: float = 0.0) -> Segmentation:
     """Rest/rotation segments from the gyro increments alone.
@@ -104,17 +128,14 @@ def detect_motion(dtheta: np.ndarray, dt: np.ndarray, where: str = "run",
     constant rate (a MEMS bias) is removed first; a navigation-grade gyro is
     judged sample by sample, as before.
     """
-    window = max(1, int(math.ceil((5.0 * arw / MOTION_THRESHOLD) ** 2 / float(np.median(dt)))))
+    window = motion_window(arw, float(np.median(dt)))
     # Rests dominate a calibration run. Column by column: one whole-run temporary, not four.
     steady = np.array([np.median(dtheta[:, i] / dt) for i in range(3)])
-    if window > 1 or np.linalg.norm(steady) > 0.1 * MOTION_THRESHOLD:
+    if windowed_motion(window, steady):
         rate_vec = dtheta / dt[:, None]
         angle = np.cumsum(np.vstack([np.zeros((1, 3)), (rate_vec - steady) * dt[:, None]]), axis=0)
-        half = window // 2
-        lo = np.clip(np.arange(len(dt)) - half, 0, len(dt))
-        hi = np.clip(np.arange(len(dt)) + window - half, 0, len(dt))
         clock = np.concatenate([[0.0], np.cumsum(dt)])
-        rate = np.linalg.norm(angle[hi] - angle[lo], axis=1) / (clock[hi] - clock[lo])
+        rate = window_rate(angle, clock, np.arange(len(dt)), len(dt), window)
         grown = _grow(rate > MOTION_THRESHOLD, 2 + window)
     else:
         rate = sanity.row_norm(dtheta) / dt  # = np.linalg.norm(dtheta, axis=1), 10x faster
@@ -280,18 +301,23 @@ def nominal_decision(seq, latitude_rad: float, profile: NoiseProfile, extras: Ex
 
 
 def start_values(dtheta_m: np.ndarray, dt: np.ndarray, moving: np.ndarray) -> np.ndarray:
+    """Where Gauss-Newton starts, from the mean gyro rate over all rests (:func:`start_from_rests`)."""
+    rest = ~moving
+    return start_from_rests(dtheta_m[rest].sum(axis=0) / dt[rest].sum())
+
+
+def start_from_rests(mean_rate: np.ndarray) -> np.ndarray:
     """Where Gauss-Newton starts: zero, or the gyro biases when they dwarf the Earth rate.
 
     A gyro bias of 1000 deg/h (a MEMS unit) tilts an uncompensated navigation
     by hundreds of degrees in half an hour, far outside what a linearisation
-    can correct. The mean rate over all rests is the bias to within the
-    Earth rate (15 deg/h), which the rests' different attitudes average down:
-    from there the fit is in its linear range. A navigation-grade unit, whose
-    biases are far below the Earth rate, starts from zero as it always did.
+    can correct. The mean rate over all rests (``mean_rate``, rad/s) is the
+    bias to within the Earth rate (15 deg/h), which the rests' different
+    attitudes average down: from there the fit is in its linear range. A
+    navigation-grade unit, whose biases are far below the Earth rate, starts
+    from zero as it always did.
     """
     values = np.zeros(P.N_PARAMS)
-    rest = ~moving
-    mean_rate = dtheta_m[rest].sum(axis=0) / dt[rest].sum()
     if np.linalg.norm(mean_rate) > 2.0 * earth.RATE:
         values[P.GYRO_BIAS] = mean_rate
     return values
@@ -450,25 +476,35 @@ def check_run(dtheta_m: np.ndarray, dv_m: np.ndarray, dt: np.ndarray, latitude_r
     What is plausible follows the unit's class (its profile and requirements):
     a MEMS unit's biases of 1000 deg/h and 20 mg are not a log in wrong units.
     """
-    req = requirements.si
     sanity.check_latitude(latitude_rad, where)
     sanity.check_rates(dtheta_m, dt, where)
     seg = detect_motion(dtheta_m, dt, where, arw=profile.arw)
     if moving is not None:
         seg = Segmentation(moving=moving, first_rest_end=int(np.argmax(moving)))
-    t_align = float(dt[:seg.first_rest_end].sum())
+    check_first_rest(dtheta_m, dv_m, dt, slice(0, seg.first_rest_end), gravity_mps2, where,
+                     requirements)
+    sanity.check_saturation(dtheta_m, dv_m, where)
+    sanity.check_rests(dv_m, dt, seg.moving, profile.vrw, where)
+    return seg
+
+
+def check_first_rest(dtheta_m: np.ndarray, dv_m: np.ndarray, dt: np.ndarray, rest: slice,
+                     gravity_mps2: float, where: str, requirements: Requirements = PAPER) -> None:
+    """Refuse a first rest (samples ``rest``) too short to align on or that is no rest.
+
+    What is plausible follows the unit's class (its requirements): a MEMS
+    unit's biases of 1000 deg/h and 20 mg are not a log in wrong units.
+    """
+    req = requirements.si
+    t_align = float(dt[rest].sum())
     if t_align < MIN_ALIGN_S:
         raise CalibError(f"the first rest lasts {t_align:.1f} s, too short to align "
                          f"(needs >= {MIN_ALIGN_S:.0f} s)", where,
                          "start the run with the IMU at rest")
-    sanity.check_rest_rate(dtheta_m, dt, slice(0, seg.first_rest_end), where,
-                           float(req[P.GYRO_BIAS].max()))
+    sanity.check_rest_rate(dtheta_m, dt, rest, where, float(req[P.GYRO_BIAS].max()))
     accel_class = sanity.CLASS_FACTOR * float(req[P.ACCEL_BIAS].max() / gravity_mps2
                                               + req[P.ACCEL_SCALE].max())
-    sanity.check_gravity(dv_m, dt, slice(0, seg.first_rest_end), gravity_mps2, where, accel_class)
-    sanity.check_saturation(dtheta_m, dv_m, where)
-    sanity.check_rests(dv_m, dt, seg.moving, profile.vrw, where)
-    return seg
+    sanity.check_gravity(dv_m, dt, rest, gravity_mps2, where, accel_class)
 
 
 @dataclass
