@@ -95,6 +95,30 @@ def _grow(moving: np.ndarray, samples: int = 2) -> np.ndarray:
     return grown
 
 
+def motion_window(arw: float, period_s: float) -> int:
+    """Samples to average a gyro of ``arw`` (rad/sqrt(s)) over: its noise 5x below the threshold."""
+    return max(1, int(math.ceil((5.0 * arw / MOTION_THRESHOLD) ** 2 / period_s)))
+
+
+def windowed_motion(window: int, steady: np.ndarray) -> bool:
+    """Whether motion is judged on windowed rates less the ``steady`` rate (noise or a MEMS bias)."""
+    return window > 1 or float(np.linalg.norm(steady)) > 0.1 * MOTION_THRESHOLD
+
+
+def window_rate(angle: np.ndarray, clock: np.ndarray, i: np.ndarray, n: int, window: int,
+                offset: int = 0) -> np.ndarray:
+    """Mean rate (norm) over the window about each sample ``i`` of a run of ``n`` samples.
+
+    ``angle`` (m, 3) and ``clock`` (m,) are the running sums of the steady-free
+    increments and of the intervals, ``angle[j - offset]`` being the sum of the
+    first ``j`` samples: a whole run (``offset`` 0) or the part of it a stream holds.
+    """
+    half = window // 2
+    lo = np.clip(i - half, 0, n) - offset
+    hi = np.clip(i + window - half, 0, n) - offset
+    return np.linalg.norm(angle[hi] - angle[lo], axis=1) / (clock[hi] - clock[lo])
+
+
 def detect_motion(dtheta: np.ndarray, dt: np.ndarray, where: str = "run",
                   arw: float = 0.0) -> Segmentation:
     """Rest/rotation segments from the gyro increments alone.
@@ -104,17 +128,14 @@ def detect_motion(dtheta: np.ndarray, dt: np.ndarray, where: str = "run",
     constant rate (a MEMS bias) is removed first; a navigation-grade gyro is
     judged sample by sample, as before.
     """
-    window = max(1, int(math.ceil((5.0 * arw / MOTION_THRESHOLD) ** 2 / float(np.median(dt)))))
+    window = motion_window(arw, float(np.median(dt)))
     # Rests dominate a calibration run. Column by column: one whole-run temporary, not four.
     steady = np.array([np.median(dtheta[:, i] / dt) for i in range(3)])
-    if window > 1 or np.linalg.norm(steady) > 0.1 * MOTION_THRESHOLD:
+    if windowed_motion(window, steady):
         rate_vec = dtheta / dt[:, None]
         angle = np.cumsum(np.vstack([np.zeros((1, 3)), (rate_vec - steady) * dt[:, None]]), axis=0)
-        half = window // 2
-        lo = np.clip(np.arange(len(dt)) - half, 0, len(dt))
-        hi = np.clip(np.arange(len(dt)) + window - half, 0, len(dt))
         clock = np.concatenate([[0.0], np.cumsum(dt)])
-        rate = np.linalg.norm(angle[hi] - angle[lo], axis=1) / (clock[hi] - clock[lo])
+        rate = window_rate(angle, clock, np.arange(len(dt)), len(dt), window)
         grown = _grow(rate > MOTION_THRESHOLD, 2 + window)
     else:
         rate = sanity.row_norm(dtheta) / dt  # = np.linalg.norm(dtheta, axis=1), 10x faster
@@ -280,18 +301,23 @@ def nominal_decision(seq, latitude_rad: float, profile: NoiseProfile, extras: Ex
 
 
 def start_values(dtheta_m: np.ndarray, dt: np.ndarray, moving: np.ndarray) -> np.ndarray:
+    """Where Gauss-Newton starts, from the mean gyro rate over all rests (:func:`start_from_rests`)."""
+    rest = ~moving
+    return start_from_rests(dtheta_m[rest].sum(axis=0) / dt[rest].sum())
+
+
+def start_from_rests(mean_rate: np.ndarray) -> np.ndarray:
     """Where Gauss-Newton starts: zero, or the gyro biases when they dwarf the Earth rate.
 
     A gyro bias of 1000 deg/h (a MEMS unit) tilts an uncompensated navigation
     by hundreds of degrees in half an hour, far outside what a linearisation
-    can correct. The mean rate over all rests is the bias to within the
-    Earth rate (15 deg/h), which the rests' different attitudes average down:
-    from there the fit is in its linear range. A navigation-grade unit, whose
-    biases are far below the Earth rate, starts from zero as it always did.
+    can correct. The mean rate over all rests (``mean_rate``, rad/s) is the
+    bias to within the Earth rate (15 deg/h), which the rests' different
+    attitudes average down: from there the fit is in its linear range. A
+    navigation-grade unit, whose biases are far below the Earth rate, starts
+    from zero as it always did.
     """
     values = np.zeros(P.N_PARAMS)
-    rest = ~moving
-    mean_rate = dtheta_m[rest].sum(axis=0) / dt[rest].sum()
     if np.linalg.norm(mean_rate) > 2.0 * earth.RATE:
         values[P.GYRO_BIAS] = mean_rate
     return values
@@ -387,14 +413,59 @@ def _aitken(delta: np.ndarray, sigma: np.ndarray, last: np.ndarray | None):
     return delta, u
 
 
-def _feedback_pending(wander: bool, updates: int) -> bool:
-    """Whether the feedback has still to move: no convergence before it is held."""
-    return wander and updates < FEEDBACK_UPDATES
+@dataclass
+class FeedbackSchedule:
+    """When the attitude feedback moves and how the steps about it are taken.
 
+    The one schedule of both Gauss-Newton loops (:func:`fit_intervals` and the
+    reference loop of ``calibrate(..., renavigate="always")``): the reference
+    loop checks the streamed loop's navigation shortcut, not a different
+    iteration, so they take the same steps. Without ``wander`` (the attitude
+    wander of :func:`attitude_wander_ratio` is harmless) it does nothing.
+    """
 
-def _feed_back(wander: bool, updates: int, step: float) -> bool:
-    """Whether this step's residuals update the attitude feedback (see FEEDBACK_UPDATES)."""
-    return wander and updates < FEEDBACK_UPDATES and (updates > 0 or step < FEEDBACK_START_SIGMA)
+    wander: bool
+    updates: int = 0  # feedback updates so far
+    moved: int = 0  # the iteration whose residuals last moved it
+    last: np.ndarray | None = None  # the last step in sigmas, for Aitken's rule
+
+    @classmethod
+    def for_run(cls, profile: NoiseProfile, duration_s: float, gravity_mps2: float):
+        """On exactly when the run's attitude wander leaks gravity (:func:`attitude_wander_ratio`)."""
+        return cls(attitude_wander_ratio(profile, duration_s, gravity_mps2)
+                   > ATTITUDE_FEEDBACK_RATIO)
+
+    def limit(self, max_iterations: int | None) -> int:
+        """Iterations allowed: ``max_iterations`` as given, else the default of the run's kind."""
+        return max_iterations or (WANDER_MAX_ITERATIONS if self.wander else MAX_ITERATIONS)
+
+    def pending(self) -> bool:
+        """Whether the feedback has still to move: no convergence before it is held."""
+        return self.wander and self.updates < FEEDBACK_UPDATES
+
+    def due(self, step: float) -> bool:
+        """Whether this step's residuals update the feedback (see FEEDBACK_UPDATES)."""
+        return self.pending() and (self.updates > 0 or step < FEEDBACK_START_SIGMA)
+
+    def moved_at(self, it: int) -> None:
+        self.updates, self.moved = self.updates + 1, it
+
+    def settled(self, it: int) -> bool:
+        """Whether iteration ``it`` and the one before it share the same feedback.
+
+        Only then is the step a continuation of the last (geometric
+        convergence, Aitken's rule).
+        """
+        return it > self.moved + 1
+
+    def step(self, Hs, D, zw, sol, cov: np.ndarray, it: int):
+        """The Gauss-Newton step (SI) and whitened residual after it; Aitken's once held."""
+        delta, resid = _solve_step(Hs, D, zw, sol)
+        if self.wander and self.updates == FEEDBACK_UPDATES:
+            last = self.last if self.settled(it) else None
+            delta, self.last = _aitken(delta, np.sqrt(np.diag(cov)), last)
+            resid = zw - Hs @ (delta / D)
+        return delta, resid
 
 
 def check_run(dtheta_m: np.ndarray, dv_m: np.ndarray, dt: np.ndarray, latitude_rad: float,
@@ -405,25 +476,35 @@ def check_run(dtheta_m: np.ndarray, dv_m: np.ndarray, dt: np.ndarray, latitude_r
     What is plausible follows the unit's class (its profile and requirements):
     a MEMS unit's biases of 1000 deg/h and 20 mg are not a log in wrong units.
     """
-    req = requirements.si
     sanity.check_latitude(latitude_rad, where)
     sanity.check_rates(dtheta_m, dt, where)
     seg = detect_motion(dtheta_m, dt, where, arw=profile.arw)
     if moving is not None:
         seg = Segmentation(moving=moving, first_rest_end=int(np.argmax(moving)))
-    t_align = float(dt[:seg.first_rest_end].sum())
+    check_first_rest(dtheta_m, dv_m, dt, slice(0, seg.first_rest_end), gravity_mps2, where,
+                     requirements)
+    sanity.check_saturation(dtheta_m, dv_m, where)
+    sanity.check_rests(dv_m, dt, seg.moving, profile.vrw, where)
+    return seg
+
+
+def check_first_rest(dtheta_m: np.ndarray, dv_m: np.ndarray, dt: np.ndarray, rest: slice,
+                     gravity_mps2: float, where: str, requirements: Requirements = PAPER) -> None:
+    """Refuse a first rest (samples ``rest``) too short to align on or that is no rest.
+
+    What is plausible follows the unit's class (its requirements): a MEMS
+    unit's biases of 1000 deg/h and 20 mg are not a log in wrong units.
+    """
+    req = requirements.si
+    t_align = float(dt[rest].sum())
     if t_align < MIN_ALIGN_S:
         raise CalibError(f"the first rest lasts {t_align:.1f} s, too short to align "
                          f"(needs >= {MIN_ALIGN_S:.0f} s)", where,
                          "start the run with the IMU at rest")
-    sanity.check_rest_rate(dtheta_m, dt, slice(0, seg.first_rest_end), where,
-                           float(req[P.GYRO_BIAS].max()))
+    sanity.check_rest_rate(dtheta_m, dt, rest, where, float(req[P.GYRO_BIAS].max()))
     accel_class = sanity.CLASS_FACTOR * float(req[P.ACCEL_BIAS].max() / gravity_mps2
                                               + req[P.ACCEL_SCALE].max())
-    sanity.check_gravity(dv_m, dt, slice(0, seg.first_rest_end), gravity_mps2, where, accel_class)
-    sanity.check_saturation(dtheta_m, dv_m, where)
-    sanity.check_rests(dv_m, dt, seg.moving, profile.vrw, where)
-    return seg
+    sanity.check_gravity(dv_m, dt, rest, gravity_mps2, where, accel_class)
 
 
 @dataclass
@@ -547,7 +628,13 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
 def _fit_renavigating(pb: "_Problem", C0: np.ndarray, extras: Extras, partial: bool,
                       requirements: Requirements, max_iterations: int | None, tol_sigma: float,
                       where: str, start: np.ndarray | None = None, judge=None) -> Fit:
-    """The reference loop: re-navigate the whole run in memory at every iteration."""
+    """The reference loop: re-navigate the whole run in memory at every iteration.
+
+    It is the reference for the streamed loop's navigation shortcut (navigate
+    only while a step can matter) and its per-interval arithmetic, not for a
+    different iteration: the attitude feedback and the steps about it follow
+    the same :class:`FeedbackSchedule`.
+    """
     latitude_rad, gravity_mps2, profile, grid, dt = (pb.latitude_rad, pb.gravity_mps2, pb.profile,
                                                      pb.grid, pb.dt)
     A, T = state_matrix(latitude_rad, gravity_mps2), np.diff(pb.t_nav[grid.bounds])
@@ -558,10 +645,9 @@ def _fit_renavigating(pb: "_Problem", C0: np.ndarray, extras: Extras, partial: b
     omega_ie_n = earth.omega_ie_n(latitude_rad)
     # Until the first navigation, the Earth's turn as seen at the start attitude.
     turn = X.earth_turn(np.broadcast_to(C0, (len(dt), 3, 3)), omega_ie_n, dt)
-    noise, sol, history, converged, feedback, updates = None, None, [], False, None, 0
-    wander = attitude_wander_ratio(profile, float(T.sum()), gravity_mps2) > ATTITUDE_FEEDBACK_RATIO
-    limit = max_iterations or (WANDER_MAX_ITERATIONS if wander else MAX_ITERATIONS)
-    for it in range(1, limit + 1):
+    noise, sol, history, converged, feedback = None, None, [], False, None
+    schedule = FeedbackSchedule.for_run(profile, float(T.sum()), gravity_mps2)
+    for it in range(1, schedule.limit(max_iterations) + 1):
         dth, dvv, nav = pb.compensate_and_navigate(values, extra_values, C0, turn, feedback)
         if extras.n:  # the Earth's turn in the body, for the next compensation
             turn = X.earth_turn(0.5 * (nav.C_b_n[1:] + nav.C_b_n[:-1]), omega_ie_n, dt)
@@ -581,20 +667,16 @@ def _fit_renavigating(pb: "_Problem", C0: np.ndarray, extras: Extras, partial: b
             sol = solve_information(Hs.T @ Hs, where, names, partial, judge)
             cov = sol.covariance * np.outer(D, D)
         zw = whiten(noise.whitener, z[:, :, None]).reshape(-1)
-        delta_scaled = sol.covariance @ (Hs.T @ zw)
-        delta = D * delta_scaled
+        delta, resid = schedule.step(Hs, D, zw, sol, cov, it)
         values, extra_values = _apply(values, extra_values, delta, sol, D)
         C0 = rotvec_to_dcm(delta[PHI0]) @ C0
-        step = np.max(np.abs(delta) / np.sqrt(np.diag(cov)))
-        resid = zw - Hs @ delta_scaled
-        n_fitted = sol.covariance.shape[0] - len(sol.null_directions)
-        history.append({"iteration": it, "max_step_sigma": float(step),
-                        "chi2_per_dof": float(resid @ resid / max(1, resid.size - n_fitted))})
-        if step < tol_sigma and not _feedback_pending(wander, updates):
+        history.append(_history_entry(it, delta, cov, resid, sol))
+        step = history[-1]["max_step_sigma"]
+        if step < tol_sigma and not schedule.pending():
             converged = True
             break
-        if _feed_back(wander, updates, step):
-            updates += 1
+        if schedule.due(step):
+            schedule.moved_at(it)
             feedback = attitude_feedback(noise, z - np.einsum("kin,n->ki", H, delta), A, T,
                                          nav.C_b_n[mid])
     return _fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, converged, extras)
@@ -609,6 +691,13 @@ def _fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, conver
                chi2_per_dof=history[-1]["chi2_per_dof"], n_observations=int(z.size),
                history=history, extras=extras, extra_values=extra_values,
                estimable=sol.estimable, null_directions=sol.null_directions)
+
+
+def _history_entry(it: int, delta, cov, resid, sol) -> dict:
+    """An iteration's record: its largest step in sigmas and the chi-square after it."""
+    n_fitted = sol.covariance.shape[0] - len(sol.null_directions)
+    return {"iteration": it, "max_step_sigma": float(np.max(np.abs(delta) / np.sqrt(np.diag(cov)))),
+            "chi2_per_dof": float(resid @ resid / max(1, resid.size - n_fitted))}
 
 
 def _solve_step(Hs, D, zw, sol):
@@ -678,23 +767,18 @@ def fit_intervals(chunks, grid, site: Site, C0: np.ndarray, profile: NoiseProfil
     that leaves only per-interval quantities. As in the reference loop the
     Jacobian is re-evaluated along the navigations of the first three
     iterations and kept after. The loop stops re-navigating when the next
-    step cannot reach ``tol_sigma``: Gauss-Newton converges at least
-    geometrically here, so after steps ``s_prev``, ``s`` the next one is at
-    most ``s * (s / s_prev)``; when that is below ``tol_sigma`` the estimate
-    is converged without another pass (the test suite checks it against the
-    reference loop, noise-free and noisy). A run whose gyro noise walks the
-    attitude far enough for gravity to leak through at second order
-    (:func:`attitude_wander_ratio`) gets the attitude feedback
-    (:func:`attitude_feedback`, docs/grades.md); every other run is fitted
-    exactly as without it.
+    step cannot reach ``tol_sigma`` (:func:`_record`): the estimate is then
+    converged without another pass (the test suite checks it against the
+    reference loop). A run whose gyro noise walks the attitude far enough for
+    gravity to leak through at second order gets the attitude feedback on the
+    schedule both loops share (:class:`FeedbackSchedule`, docs/grades.md);
+    every other run is fitted exactly as without it.
     """
-    lat, g = site.latitude_rad, site.gravity_mps2
-    A, names = state_matrix(lat, g), UNKNOWN_NAMES + extras.names
+    A, names = state_matrix(site.latitude_rad, site.gravity_mps2), UNKNOWN_NAMES + extras.names
     values = np.zeros(P.N_PARAMS) if start is None else start.copy()
     extra_values = np.zeros(extras.n)
-    noise, sol, history, converged, turn = None, None, [], False, None
-    feedback, wander, it, limit, updates, moved = None, None, 0, max_iterations or MAX_ITERATIONS, 0, 0
-    last = None
+    noise, sol, history, turn, feedback, schedule = None, None, [], None, None, None
+    it, limit = 0, max_iterations or MAX_ITERATIONS
     while it < limit:
         it += 1
         want_H = _relinearise(it, sol, history)
@@ -702,44 +786,54 @@ def fit_intervals(chunks, grid, site: Site, C0: np.ndarray, profile: NoiseProfil
                              with_moments=want_H,
                              gyro_correction=None if feedback is None else feedback.body_rate)
         turn, T = data.turn, np.diff(data.t_bounds)
-        if wander is None:
-            wander = attitude_wander_ratio(profile, float(T.sum()), g) > ATTITUDE_FEEDBACK_RATIO
-            limit = max_iterations or (WANDER_MAX_ITERATIONS if wander else MAX_ITERATIONS)
+        if schedule is None:  # (the run's length is known after its first pass)
+            schedule = FeedbackSchedule.for_run(profile, float(T.sum()), site.gravity_mps2)
+            limit = schedule.limit(max_iterations)
         if noise is None or (profile.has_gauss_markov and it <= 3):
             noise = noise_model(A, T, profile, C_b_n=data.C_mid)
         z = _observations(data.y if feedback is None else data.y - feedback.dv, noise.Phi_vv,
                           it, where)
         if want_H:
-            H = observation_matrix(sensitivities(data.moments, T, lat, g, data.extra),
-                                   noise.Phi_vv)
-            # H and z share the whitening filter: one recursion for both.
-            Hz = whiten(noise.whitener, np.concatenate([H, z[:, :, None]], axis=2))
-            Hs, D = scaled_design(Hz[:, :, :-1], extras, requirements)
+            H, Hs, D, zw = _pass_design(data, T, site, noise, z, extras, requirements)
             sol = solve_information(Hs.T @ Hs, where, names, partial, judge)
             cov = sol.covariance * np.outer(D, D)
-        zw = Hz[:, :, -1].reshape(-1) if want_H else whiten(noise.whitener, z[:, :, None]).reshape(-1)
-        delta, resid = _solve_step(Hs, D, zw, sol)
-        if wander and updates == FEEDBACK_UPDATES:
-            delta, last = _aitken(delta, np.sqrt(np.diag(cov)), last if it > moved + 1 else None)
-            resid = zw - Hs @ (delta / D)
+        else:
+            zw = whiten(noise.whitener, z[:, :, None]).reshape(-1)
+        delta, resid = schedule.step(Hs, D, zw, sol, cov, it)
         values, extra_values = _apply(values, extra_values, delta, sol, D)
         C0 = rotvec_to_dcm(delta[PHI0]) @ C0
-        step = float(np.max(np.abs(delta) / np.sqrt(np.diag(cov))))
-        n_fitted = sol.covariance.shape[0] - len(sol.null_directions)
-        # Geometric convergence holds from the step after the feedback was last moved.
-        bound = (step * step / history[-1]["max_step_sigma"] if history and it > moved + 1
-                 else math.inf)
-        history.append({"iteration": it, "max_step_sigma": step,
-                        "chi2_per_dof": float(resid @ resid / max(1, resid.size - n_fitted)),
-                        "next_step_bound_sigma": float(bound)})
-        if (step < tol_sigma or bound < tol_sigma) and not _feedback_pending(wander, updates):
-            converged = True
-            break
-        if _feed_back(wander, updates, step):
-            updates, moved = updates + 1, it
+        step, bound = _record(history, _history_entry(it, delta, cov, resid, sol),
+                              schedule.settled(it))
+        if (step < tol_sigma or bound < tol_sigma) and not schedule.pending():
+            return _fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, True,
+                               extras)
+        if schedule.due(step):
+            schedule.moved_at(it)
             feedback = attitude_feedback(noise, z - np.einsum("kin,n->ki", H, delta), A, T,
                                          data.C_mid)
-    return _fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, converged, extras)
+    return _fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, False, extras)
+
+
+def _pass_design(data, T, site: Site, noise, z, extras: Extras, requirements: Requirements):
+    """A pass's Jacobian, its whitened and scaled form, and the whitened observations."""
+    H = observation_matrix(sensitivities(data.moments, T, site.latitude_rad, site.gravity_mps2,
+                                         data.extra), noise.Phi_vv)
+    # H and z share the whitening filter: one recursion for both.
+    Hz = whiten(noise.whitener, np.concatenate([H, z[:, :, None]], axis=2))
+    Hs, D = scaled_design(Hz[:, :, :-1], extras, requirements)
+    return H, Hs, D, Hz[:, :, -1].reshape(-1)
+
+
+def _record(history: list, entry: dict, settled: bool) -> tuple[float, float]:
+    """Append an iteration of the streamed loop, with its bound on the next step (sigmas).
+
+    Geometric convergence holds from the step after the feedback was last
+    moved: after steps ``s_prev``, ``s`` the next one is at most ``s * (s / s_prev)``.
+    """
+    step = entry["max_step_sigma"]
+    bound = step * step / history[-1]["max_step_sigma"] if history and settled else math.inf
+    history.append({**entry, "next_step_bound_sigma": float(bound)})
+    return step, bound
 
 
 def _observations(y: np.ndarray, Phi_vv: np.ndarray, it: int, where: str) -> np.ndarray:

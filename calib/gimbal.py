@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import CalibError
+from .fields import Fields, check_format_version
 from .fileio import load_toml, toml_number
 from .rateprofile import Pieces, RateProfile
 from .transform import axis_index, gimbal_from_relative, gimbal_to_relative, rot_axis, unwrap_gimbal
@@ -103,12 +104,10 @@ def _axis_from_dict(name: str, table, where: str) -> GimbalAxis:
     _warn_unknown(table, AXIS_KEYS, "gimbal axis", here)
     lo, hi = -math.inf, math.inf
     if "range_deg" in table:
-        raw = table["range_deg"]
-        vals = [toml_number(v) for v in raw] if isinstance(raw, list) else []
-        if len(vals) != 2 or any(v is None or not math.isfinite(v) for v in vals):
-            raise CalibError(f"range_deg must be [min, max] in degrees, got {raw!r}", here,
-                             "e.g. range_deg = [-360, 360]; leave it out for slip rings")
-        lo, hi = vals
+        lo, hi = Fields(table, here).numbers(
+            "range_deg", length=2, unit=" deg",
+            fix="give [min, max] in degrees, e.g. range_deg = [-360, 360]; leave it out for "
+                "slip rings")
         if not lo < 0.0 < hi:
             raise CalibError(f"range_deg = [{lo:g}, {hi:g}] excludes the start (every encoder "
                              "starts at 0)", here, "give min < 0 < max")
@@ -127,14 +126,12 @@ def _warn_unknown(table: dict, known, kind: str, where: str) -> None:
     """A near miss of a known key is refused (a typo would drop a limit); others are warned."""
     import warnings
 
-    from .fields import Fields
     for message in Fields(table, where).check_keys(known, kind):
         warnings.warn(message, stacklevel=3)
 
 
 def gimbal_from_dict(doc: dict, where: str) -> Gimbal:
     """Validate a parsed gimbal TOML document (see docs/gimbal.md)."""
-    from .fields import check_format_version
     check_format_version(doc, "gimbal", where)
     _warn_unknown(doc, GIMBAL_KEYS, "gimbal", where)
     name = doc.get("name", Path(where).stem)

@@ -38,25 +38,56 @@ def _rest_attitudes(dtheta: np.ndarray, starts: np.ndarray, ends: np.ndarray) ->
     return quat_to_dcm(q[(starts + ends) // 2])
 
 
-def rest_gyrocompass(dtheta_m: np.ndarray, dt: np.ndarray, moving: np.ndarray,
-                     C_lev: np.ndarray, latitude_rad: float, bias0: np.ndarray,
-                     passes: int = 2) -> tuple[np.ndarray, np.ndarray]:
-    """Gyro bias (rad/s) and start attitude ``C_b_n`` from all rests, by linear least squares.
-
-    ``C_lev`` is the levelled start attitude (its heading is corrected),
-    ``bias0`` the bias that compensates the gyros while their rest attitudes
-    are integrated; each pass integrates again with the bias of the last.
-    Each rest's mean rate is weighted by its length (its noise variance is
-    ``arw^2 / T``).
-    """
+def rest_rates(dtheta_m: np.ndarray, dt: np.ndarray, moving: np.ndarray):
+    """Each rest's start and end (samples), length (s) and mean gyro rate (rad/s)."""
     starts, ends = runs_of(~moving)
     T = np.array([dt[a:b].sum() for a, b in zip(starts, ends)])
     w = np.array([dtheta_m[a:b].sum(axis=0) for a, b in zip(starts, ends)]) / T[:, None]
+    return starts, ends, T, w
+
+
+def rest_gyrocompass(dtheta_m: np.ndarray, dt: np.ndarray, moving: np.ndarray,
+                     C_lev: np.ndarray, latitude_rad: float, bias0: np.ndarray,
+                     passes: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """Gyro bias (rad/s) and start attitude ``C_b_n`` from all rests of a run in memory.
+
+    See :func:`gyrocompass_rests`; the rests' attitudes are integrated here.
+    """
+    starts, ends, T, w = rest_rates(dtheta_m, dt, moving)
+    return gyrocompass_rests(lambda bias: _rest_attitudes(dtheta_m - bias * dt[:, None], starts,
+                                                          ends),
+                             T, w, C_lev, latitude_rad, bias0, passes)
+
+
+def gyrocompass_rests(attitudes, T: np.ndarray, w: np.ndarray, C_lev: np.ndarray,
+                      latitude_rad: float, bias0: np.ndarray,
+                      passes: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """Gyro bias (rad/s) and start attitude ``C_b_n`` from the rests, by linear least squares.
+
+    Parameters
+    ----------
+    attitudes : callable
+        ``attitudes(bias)``: the body attitude at the middle of each rest
+        relative to the body at the run's start, ``(r, 3, 3)``, integrated
+        from the gyros compensated by ``bias`` (rad/s).
+    T, w : ndarray, shapes (r,) and (r, 3)
+        Each rest's length (s) and mean gyro rate (:func:`rest_rates`).
+    C_lev : ndarray, shape (3, 3)
+        The levelled start attitude (its heading is corrected).
+    latitude_rad : float
+    bias0 : ndarray, shape (3,)
+        The bias that compensates the gyros for the first integration; each
+        pass integrates again with the bias of the last.
+    passes : int
+
+    Each rest's mean rate is weighted by its length (its noise variance is
+    ``arw^2 / T``).
+    """
     omega = earth.omega_ie_n(latitude_rad)
     horizontal, up = float(np.hypot(omega[0], omega[1])), float(omega[2])
     bias = np.asarray(bias0, dtype=float)
     for _ in range(passes):
-        R = _rest_attitudes(dtheta_m - bias * dt[:, None], starts, ends)
+        R = attitudes(bias)
         to_body = R.transpose(0, 2, 1) @ C_lev.T  # nav (levelled) -> body of each rest
         A = np.concatenate([np.broadcast_to(np.eye(3), to_body.shape),
                             horizontal * to_body[:, :, :2]], axis=2).reshape(-1, 5)

@@ -32,14 +32,6 @@ SETUP_LIMIT_DEG = 10.0
 FLIP_ERROR_LIMIT_DEG = 10.0
 
 
-def _within(value, limit: float, where: str) -> float:
-    number = _finite(value, where)
-    if abs(number) > limit:
-        raise CalibError(f"{number:g} deg is beyond +-{limit:g} deg", where,
-                         "a simulated run's mounting rotation and flip errors are small angles")
-    return number
-
-
 def errors_from_table(table, where: str) -> ErrorModel:
     """An :class:`ErrorModel` from an ``[errors]`` table keyed by spec names, spec units."""
     if not isinstance(table, dict):
@@ -79,13 +71,10 @@ def read_truth(path: str | Path) -> Truth:
     rotvec = np.radians([setup.number(k, 0.0, low=-SETUP_LIMIT_DEG, high=SETUP_LIMIT_DEG,
                                       unit=" deg", fix=small)
                          for k in ("east_deg", "north_deg", "up_deg")])
-    flips = (fields.sub("flips") or Fields({}, where)).table.get("angle_error_deg", [])
-    if not isinstance(flips, list):
-        raise CalibError(f"must be an array of numbers (degrees), got {flips!r}",
-                         f"{where}: [flips] angle_error_deg")
-    flip_errors = np.array([_within(f, FLIP_ERROR_LIMIT_DEG,
-                                    f"{where}: [flips] angle_error_deg[{i}]")
-                            for i, f in enumerate(flips)], dtype=float)
+    flips = fields.sub("flips") or Fields({}, f"{where}: [flips]")
+    flip_errors = np.array(flips.numbers(
+        "angle_error_deg", [], low=-FLIP_ERROR_LIMIT_DEG, high=FLIP_ERROR_LIMIT_DEG, unit=" deg",
+        fix="a simulated run's flip errors: one small angle per flip, in degrees"), dtype=float)
     meta = fields.sub("meta") or Fields({}, f"{where}: [meta]")
     profile = meta.string("profile", "")
     seed = meta.integer("seed", None)

@@ -17,8 +17,8 @@ speed (same arithmetic to rounding):
   ``F`` and the noise one ``(s + 3, s + 3)`` matrix ``Q``, so ``F P F' + Q``
   gives the predicted covariance, the innovation covariance and their
   cross term in two products;
-- the 3 x 3 innovation covariance is factored in closed form (no LAPACK call
-  per candidate);
+- the 3 x 3 innovation covariance is factored in closed form
+  (:func:`calib.noise.cholesky_inverse_3`, no LAPACK call per candidate);
 - the whitened rows of every interval are kept and the information is one
   product ``W' W`` per segment.
 """
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.noise import interval_models, whitener
+from calib.noise import cholesky_inverse_3, interval_models, whitener
 
 
 @dataclass(frozen=True)
@@ -85,27 +85,6 @@ def stack(cols: list[SegmentColumns]) -> SegmentColumns:
 
 def _tr(a: np.ndarray) -> np.ndarray:
     return np.swapaxes(a, -1, -2)
-
-
-def cholesky_inverse_3(S: np.ndarray) -> np.ndarray:
-    """``L^-1`` of the Cholesky factor ``S = L L'`` of a batch of 3 x 3 SPD matrices.
-
-    Closed form, elementwise over the batch: a LAPACK call per 3 x 3 matrix costs
-    more than the arithmetic.
-    """
-    l11 = np.sqrt(S[..., 0, 0])
-    l21, l31 = S[..., 1, 0] / l11, S[..., 2, 0] / l11
-    l22 = np.sqrt(S[..., 1, 1] - l21 * l21)
-    l32 = (S[..., 2, 1] - l31 * l21) / l22
-    m33 = 1.0 / np.sqrt(S[..., 2, 2] - l31 * l31 - l32 * l32)
-    Li = np.zeros(S.shape)
-    Li[..., 0, 0] = 1.0 / l11
-    Li[..., 1, 1] = 1.0 / l22
-    Li[..., 2, 2] = m33
-    Li[..., 1, 0] = -l21 * Li[..., 0, 0] * Li[..., 1, 1]
-    Li[..., 2, 1] = -l32 * Li[..., 1, 1] * m33
-    Li[..., 2, 0] = -(Li[..., 2, 1] * l21 + m33 * l31) * Li[..., 0, 0]
-    return Li
 
 
 def fold(cols: SegmentColumns, X: np.ndarray, N: np.ndarray, P: np.ndarray, index=None):

@@ -152,3 +152,141 @@ def test_rest_gyrocompass_finds_bias_and_heading_through_a_mems_bias():
     exact = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity,
                       load_profile("tactical"), requirements=load_requirements("mems")).C_b_n0
     assert np.degrees(np.linalg.norm(dcm_to_rotvec(C0 @ exact.T))) < 3.0
+
+
+def _held(schedule):
+    """Move the feedback until it is held (the updates the loops make)."""
+    from calib.estimator import FEEDBACK_UPDATES
+    for it in range(1, FEEDBACK_UPDATES + 1):
+        assert schedule.pending() and schedule.due(1.0)
+        schedule.moved_at(it)
+    assert not schedule.pending() and not schedule.due(1.0)
+    return FEEDBACK_UPDATES
+
+
+def test_held_feedback_steps_sum_their_geometric_series():
+    # A linear problem whose Gauss-Newton step is the observation itself (H = D = I): a loop
+    # converging linearly makes steps u, rho u, rho^2 u, ... whose sum is u / (1 - rho). Once the
+    # feedback is held, the second step is extrapolated by Aitken's rule to the rest of that
+    # series: u + rho u / (1 - rho) = u / (1 - rho), to a few roundings.
+    from types import SimpleNamespace
+
+    from calib.estimator import FeedbackSchedule
+    n, u, rho = 4, np.array([1.0, -2.0, 0.5, 3.0]), -0.5
+    sol, eye, ones = SimpleNamespace(covariance=np.eye(n)), np.eye(n), np.ones(n)
+    schedule = FeedbackSchedule(wander=True)
+    it = _held(schedule) + 1
+    d1, _ = schedule.step(eye, ones, u, sol, eye, it)  # the first step after the last move
+    d2, r2 = schedule.step(eye, ones, rho * u, sol, eye, it + 1)
+    np.testing.assert_array_equal(d1, u)  # nothing to extrapolate from yet
+    np.testing.assert_allclose(d1 + d2, u / (1.0 - rho), rtol=1e-14)
+    np.testing.assert_allclose(r2, rho * u - d2, rtol=1e-14)
+    # Never across a feedback move (the step before it belongs to another problem), never
+    # before the feedback is held, never without wander.
+    fresh = FeedbackSchedule(wander=True)
+    fresh.step(eye, ones, u, sol, eye, 1)
+    np.testing.assert_array_equal(fresh.step(eye, ones, rho * u, sol, eye, 2)[0], rho * u)
+    for schedule in (FeedbackSchedule(wander=False), FeedbackSchedule(wander=True)):
+        if schedule.wander:
+            schedule.moved_at(1)
+        schedule.step(eye, ones, u, sol, eye, 3)
+        np.testing.assert_array_equal(schedule.step(eye, ones, rho * u, sol, eye, 4)[0], rho * u)
+
+
+@pytest.mark.slow
+def test_streamed_mems_fit_equals_renavigating_fit():
+    # Both loops move the attitude feedback on the same schedule from the same residuals (to
+    # rounding), so they share the held feedback and its fixed point; each stops within
+    # tol_sigma (1e-3) of it, so they agree to tol_sigma, as without feedback (test_stream.py).
+    from calib import params as P
+    from calib.errormodel import ErrorModel
+    from calib.estimator import calibrate
+    from calib.requirements import load_requirements
+    from calib.sequence import load_sequence
+    from calib.sim import SimConfig, simulate
+
+    errors = ErrorModel.from_units([MEMS_ERRORS[p.name] for p in P.PARAMETERS])
+    cfg, prof = SimConfig(latitude_rad=LAT, sample_rate_hz=20.0), load_profile("mems")
+    run, _ = simulate(load_sequence("paper-9pos"), cfg, errors, prof, seed=5,
+                      random_setup_deg=3.0, flip_error_deg=0.5)
+    args = (run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, prof)
+    req = load_requirements("mems")
+    ref = calibrate(*args, requirements=req, renavigate="always")
+    fit = calibrate(*args, requirements=req)
+    assert ref.converged and fit.converged
+    assert np.all(np.abs(fit.values - ref.values) <= 1e-3 * ref.sigma)
+    assert fit.iterations <= ref.iterations
+
+
+def _mems_run(tmp_path, runner):
+    errors = tmp_path / "errors.toml"
+    errors.write_text("[errors]\n" + "".join(f"{k} = {v}\n" for k, v in MEMS_ERRORS.items()))
+    run = tmp_path / "run.npz"
+    res = runner.invoke(main, ["simulate", "paper-9pos", "--profile", "mems", "--errors",
+                               str(errors), "--random-setup", "--seed", "5",
+                               "--sample-rate-hz", "20", "-o", str(run)])
+    assert res.exit_code == 0, res.output
+    return run
+
+
+@pytest.mark.slow
+def test_calibrate_stream_gives_a_mems_run_the_calibrate_start(tmp_path):
+    # calibrate-stream reads the same samples, judges motion on the same windowed rates, solves
+    # bias and heading from all rests and fits with the same attitude feedback as calibrate: the
+    # two differ only by the rounding of sums taken chunk by chunk, far below the fit's own
+    # tolerance. Each stops within tol_sigma = 1e-3 sigma of the same fixed point, so they agree
+    # to 1e-3 sigma (measured: 1e-9), at the default chunk and at 1000-sample chunks that cut
+    # the run's rests, flips and smoothing windows in 34 places.
+    from calib.chunks import calibrate_file, survey
+    from calib.errormodel import ErrorModel
+    from calib.estimator import detect_motion
+    from calib.requirements import load_requirements
+    from calib.runlog import read_run
+    from calib.strapdown import sample_intervals
+
+    runner = CliRunner()
+    run = _mems_run(tmp_path, runner)
+    opts = ["--profile", "mems", "--requirements", "mems", "--json"]
+    out = {}
+    for command in ("calibrate", "calibrate-stream"):
+        res = runner.invoke(main, [command, str(run), *opts, "-o", str(tmp_path / f"{command}.toml")])
+        assert res.exit_code == 0, res.output
+        out[command] = json.loads(res.stdout)
+        assert out[command]["fit"]["converged"]
+    for name, p in out["calibrate"]["parameters"].items():
+        assert abs(out["calibrate-stream"]["parameters"][name]["value"] - p["value"]) \
+            <= 1e-3 * p["sigma"], name
+    log, prof = read_run(str(run)), load_profile("mems")
+    assert np.array_equal(survey(run, prof, rows=1000)[0],
+                          detect_motion(log.dtheta_rad, sample_intervals(log.time_s),
+                                        arw=prof.arw).moving)
+    fit = calibrate_file(run, LAT, out["calibrate"]["gravity"]["value_mps2"], prof,
+                         requirements=load_requirements("mems"), rows=1000)
+    assert fit.converged
+    sigma = np.array([p["sigma"] for p in out["calibrate"]["parameters"].values()])
+    value = np.array([p["value"] for p in out["calibrate"]["parameters"].values()])
+    assert np.all(np.abs(ErrorModel(fit.values).in_units() - value) <= 1e-3 * sigma)
+
+
+def test_calibrate_stream_refuses_a_run_that_starts_turning(tmp_path):
+    # A log cut inside its first flip has no first rest to align on: one line, exit 2 (it
+    # was a ValueError traceback when no sample before the first motion was read).
+    from calib.chunks import read_meta
+    from calib.estimator import detect_motion
+    from calib.strapdown import sample_intervals
+
+    runner = CliRunner()
+    run = _mems_run(tmp_path, runner)
+    with np.load(run) as z:
+        moving = detect_motion(z["dtheta_rad"], sample_intervals(z["time_s"]),
+                               arw=load_profile("mems").arw).moving
+        cut = int(np.argmax(moving)) + 10  # inside the first flip
+        arrays = {k: z[k][cut:] for k in ("time_s", "dtheta_rad", "dv_mps")}
+    cut_run = tmp_path / "cut.npz"
+    np.savez(cut_run, **arrays, meta=np.array(json.dumps(read_meta(run))))
+    res = runner.invoke(main, ["calibrate-stream", str(cut_run), "--profile", "mems",
+                               "--requirements", "mems"])
+    assert res.exit_code == 2
+    lines = res.output.strip().splitlines()
+    assert "Traceback" not in res.output and "first rest lasts 0.0 s" in lines[-1], res.output
+    assert "start the run with the IMU at rest" in lines[-1]
