@@ -6,7 +6,7 @@ shrinks, more turns fit and gravity reverses on each axis more often. Each
 sequence is analysed at the nominal mounting under the white ``navigation``
 profile and under ``navigation-gm``; the accelerometer scale factors' worst ratio
 is set against the white-noise bound of the conventions and the coloured-noise
-bound at the gimbal's rate (``accel_scale_bound(..., rate_dps)``, docs/gm-bound.md).
+bound at the gimbal's rate (``accel_scale_bound(..., rate_dps)``, docs/design.md).
 
     python benchmarks/gm_bound.py --budgets 15,30 --rates 10,20
 """
