@@ -60,18 +60,23 @@ class DesignReport:
                                "worst_ratio": self.paper_worst_ratio}}
 
     def to_text(self) -> str:
-        lines = [f"{'budget':>7} {'time':>7} {'worst ratio':>16} {'uniform':>8} {'bound':>6}  moves"]
+        coloured = self.profile.accel_gm_sigma > 0  # then the bound at the gimbal's rate too
+        lines = [f"{'budget':>7} {'time':>7} {'worst ratio':>16} {'uniform':>8} {'bound':>6} "
+                 + ("rate-bound  " if coloured else " ") + "moves"]
         for row in self.rows:
             r = row.result
             moves = " ".join(f"{s.angle_deg:+.0f}{s.axis}" for s in r.sequence.steps)
             lines.append(f"{row.budget_min:6g}m {r.sequence.duration_s / 60:6.1f}m "
                          f"{r.worst_name:>5} {r.worst_ratio:9.3f} {r.uniform_worst_ratio:8.3f} "
-                         f"{row.bound_ratio:6.3f}  {moves}")
+                         f"{row.bound_ratio:6.3f} "
+                         + (f"{row.rate_bound_ratio:10.3f}  " if coloured else " ") + moves)
             lines.extend(extras_lines(r))
         lines.append(f"paper-9pos: {self.paper_duration_s / 60:.1f} min, worst ratio "
                      f"{self.paper_worst_ratio:.2f}. Ratios are 3 sigma/requirement, worst over "
                      f"+-{self.tolerance_deg:g} deg, profile {self.profile.name}; bound = best "
-                     "possible for the accelerometer scale factors at that time.")
+                     "possible for the accelerometer scale factors at that time"
+                     + ("; rate-bound = the same with the Gauss-Markov bias, turning at the "
+                        "design's rate (docs/design.md)." if coloured else "."))
         return "\n".join(lines)
 
     def save_design(self, row: DesignRow, path: str | Path, provenance: dict) -> None:

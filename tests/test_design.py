@@ -361,3 +361,31 @@ def test_batched_walk_information_equals_one_walk_at_a_time():
     for d, N in zip(D, batched):
         single = _walk_information_exact(walk, c, list(d), LAT, g, prof)
         assert np.allclose(N, single, rtol=1e-12, atol=1e-12 * np.abs(single).max())
+
+
+@pytest.mark.slow
+def test_cli_pareto_front_writes_both_bounds_for_a_gauss_markov_profile(tmp_path):
+    # The front's CSV carries the white-noise bound of the conventions and the coloured-noise
+    # bound at the gimbal's rate: VRW only, sqrt(3/T) VRW/g, and with the GM density at one
+    # turn per 360/rate s added to VRW^2 (derived here from the profile, not the code).
+    stem = tmp_path / "front"
+    r = CliRunner().invoke(main, ["design", "--pareto", "--budgets", "4,6", "--max-flips", "3",
+                                  "--max-quarters", "1", "--beam-width", "10", "--no-refine",
+                                  "--tolerance-deg", "0", "--profile", "navigation-gm",
+                                  "-o", str(stem)])
+    assert r.exit_code == 0, r.output
+    lines = (tmp_path / "front.csv").read_text().splitlines()
+    assert lines[0] == "budget_min,duration_s,worst_ratio,worst_parameter,bound_ratio,rate_bound_ratio"
+    s2 = math.sin(LAT) ** 2  # WGS-84 normal gravity at sea level (Somigliana, conventions.md)
+    g = 9.7803253359 * (1 + 0.00193185265241 * s2) / math.sqrt(1 - 0.00669437999013 * s2)
+    tau, sigma = GM.accel_bias_correlation_s, GM.accel_gm_sigma
+    omega = math.radians(10.0)  # the default rate, rad/s
+    density = GM.vrw ** 2 + 2 * sigma ** 2 * tau / (1 + (omega * tau) ** 2)
+    for line in lines[1:3]:
+        _, T, worst, _, bound, rate_bound = line.split(",")
+        T = float(T)
+        white = 3 * GM.vrw * math.sqrt(3 / T) / g / (1e-6 * 1.0)  # requirement 1 ppm
+        assert float(bound) == pytest.approx(white, rel=1e-4)  # the CSV's 4 decimals
+        assert float(rate_bound) == pytest.approx(white * math.sqrt(density) / GM.vrw, rel=1e-4)
+        assert float(worst) >= float(rate_bound)  # no design beats the bound
+    assert (tmp_path / "front.png").stat().st_size > 0
