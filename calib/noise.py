@@ -134,15 +134,27 @@ def interval_models(A: np.ndarray, T: np.ndarray, profile: NoiseProfile,
         Attitude of each interval (at its mid-point). Required when
         ``profile.has_gauss_markov``, ignored otherwise.
     """
-    key = np.ascontiguousarray(A, dtype=float).tobytes()
     if not profile.has_gauss_markov:
+        key = np.ascontiguousarray(A, dtype=float).tobytes()
         return [_interval(key, round(float(t), 6), profile.arw, profile.vrw) for t in T]
+    Phi, Q, P_bias = gm_interval_arrays(A, T, profile, C_b_n)
+    return [IntervalModel(Phi=p, Q=q, P_bias=P_bias) for p, q in zip(Phi, Q)]
+
+
+def gm_interval_arrays(A: np.ndarray, T: np.ndarray, profile: NoiseProfile,
+                       C_b_n: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``Phi`` and ``Q`` (K, 12, 12) of every interval with Gauss-Markov bias, and ``P_bias``.
+
+    The arrays :func:`interval_models` wraps, for a caller that wants them stacked
+    (:func:`whiten_batch`). ``C_b_n`` (K, 3, 3) is each interval's mid-point attitude.
+    """
     if C_b_n is None:
         raise ValueError(f"profile {profile.name!r} has Gauss-Markov bias instability: "
                          "the noise model needs the attitude of every interval (C_b_n)")
     C_b_n = np.asarray(C_b_n, dtype=float)
     if C_b_n.shape != (len(T), 3, 3):
         raise ValueError(f"C_b_n must have shape ({len(T)}, 3, 3), got {C_b_n.shape}")
+    key = np.ascontiguousarray(A, dtype=float).tobytes()
     keys, index = np.unique(np.round(np.asarray(T, dtype=float), 6), return_inverse=True)
     nav = [_gm_interval_nav(key, float(t), profile) for t in keys]
     Phi_nav = np.array([p for p, _ in nav])[index]
@@ -154,7 +166,19 @@ def interval_models(A: np.ndarray, T: np.ndarray, profile: NoiseProfile,
     Phi, Q = Rt @ Phi_nav @ R, Rt @ Q_nav @ R
     Q = 0.5 * (Q + Q.transpose(0, 2, 1))
     P_bias = np.diag(np.repeat([profile.gyro_gm_sigma ** 2, profile.accel_gm_sigma ** 2], 3))
-    return [IntervalModel(Phi=p, Q=q, P_bias=P_bias) for p, q in zip(Phi, Q)]
+    return Phi, Q, P_bias
+
+
+def velocity_transitions(A: np.ndarray, T: np.ndarray, profile: NoiseProfile) -> np.ndarray:
+    """``Phi_vv`` (K, 3, 3) of every interval: the ``dv`` block of :func:`interval_models`.
+
+    It does not depend on the attitude, with or without GM bias (the GM model
+    takes its ``[phi, dv]`` block from the 6-state one, and the frame change
+    leaves the velocity rows alone), so every mounting of a sequence shares it.
+    """
+    key = np.ascontiguousarray(A, dtype=float).tobytes()
+    return np.array([_interval(key, round(float(t), 6), profile.arw, profile.vrw).Phi[3:6, 3:6]
+                     for t in T])
 
 
 @dataclass(frozen=True)
@@ -314,6 +338,73 @@ def whiten(w: Whitener, X: np.ndarray, phi0: np.ndarray | None = None,
         phi = w.F_ss[k] @ phi + w.gain[k] @ e
         out[k] = w.L_inv[k] @ e
     return (out, phi) if return_final else out
+
+
+def filter_blocks(Phi: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``F_ss, F_vs, Q_ss, Q_sv, Q_vv`` of stacked interval models (..., s + 3, s + 3).
+
+    The blocks :func:`whitener` reads, filter state first and observed velocity
+    last, each a contiguous copy.
+    """
+    s = Phi.shape[-1] - 3
+    order = np.r_[0:3, 6:s + 3, 3:6] if s != 3 else np.r_[0:6]
+    Phi, Q = Phi[..., order, :][..., order], Q[..., order, :][..., order]
+
+    def block(a, rows, cols):
+        return np.ascontiguousarray(a[..., rows, cols])
+    return (block(Phi, slice(None, s), slice(None, s)), block(Phi, slice(s, None), slice(None, s)),
+            block(Q, slice(None, s), slice(None, s)), block(Q, slice(None, s), slice(s, None)),
+            block(Q, slice(s, None), slice(s, None)))
+
+
+def whiten_batch(blocks: tuple[np.ndarray, ...], X: np.ndarray, P: np.ndarray,
+                 state: np.ndarray, out: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`whitener` and :func:`whiten` in one pass, over a batch of ``M`` noise models.
+
+    Several mountings of one sequence share its interval grid but not its
+    filter (the GM biases are seen through each mounting's attitude): one loop
+    over the intervals with the mountings on a batch axis costs little more
+    than one mounting's. The arithmetic is :func:`whitener`'s and
+    :func:`whiten`'s, operation for operation, on ``(M, ., .)`` stacks.
+
+    Parameters
+    ----------
+    blocks : tuple of ndarray
+        :func:`filter_blocks` of the intervals, interval axis first:
+        ``F_ss (K, M, s, s)``, ``F_vs (K, M, 3, s)``, ``Q_ss``, ``Q_sv``, ``Q_vv``.
+    X : ndarray, shape (K, M, 3, c)
+        Observation-shaped columns of each mounting.
+    P : ndarray, shape (M, s, s)
+        Filter covariance before the first interval.
+    state : ndarray, shape (M, s, c)
+        The filter's state (of the columns) before the first interval.
+    out : ndarray, shape (K, M, 3, c), optional
+        Where to write the whitened rows; may be ``X`` itself (an interval's rows
+        are read before they are overwritten).
+
+    Returns
+    -------
+    Xw : ndarray, shape (K, M, 3, c)
+        Whitened innovations, as :func:`whiten` returns them per mounting.
+    P, state : ndarray
+        After the last interval, to carry into the next block of intervals.
+    """
+    F_ss, F_vs, Q_ss, Q_sv, Q_vv = blocks
+    out = np.empty_like(X) if out is None else out
+    for k in range(len(X)):
+        Fss, Fvs = F_ss[k], F_vs[k]
+        Fss_t = Fss.transpose(0, 2, 1)
+        PFvs = P @ Fvs.transpose(0, 2, 1)
+        S = Fvs @ PFvs + Q_vv[k]
+        Li = cholesky_inverse_3(S)
+        G = (Fss @ PFvs + Q_sv[k]) @ (Li.transpose(0, 2, 1) @ Li)
+        P = Fss @ P @ Fss_t + Q_ss[k] - G @ S @ G.transpose(0, 2, 1)
+        P = 0.5 * (P + P.transpose(0, 2, 1))
+        e = X[k] - Fvs @ state
+        state = Fss @ state + G @ e
+        out[k] = Li @ e
+    return out, P, state
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,7 @@ import numpy as np
 from .extras import NONE as NO_EXTRAS
 from .extras import Extras
 from .jacobian import MOVE_STEP_S, ObservationGrid, observation_jacobian, state_matrix
-from .noise import noise_model, whiten
+from .noise import filter_blocks, gm_interval_arrays, noise_model, velocity_transitions, whiten, whiten_batch
 from .profiles import NoiseProfile
 from .sequence import Sequence, nominal_attitude, timeline
 from .sim import SimConfig, true_increments
@@ -120,3 +120,62 @@ def information_along(nom: NominalRun, profile: NoiseProfile, latitude_rad: floa
     return Hw.T @ Hw
 
 
+
+
+BATCH_INTERVALS = 1024  # intervals of noise model held per mounting (~2.4 MB each)
+
+
+def same_grid(noms: list[NominalRun]) -> bool:
+    """Whether trajectories share their sample times and observation intervals.
+
+    True for every mounting of one sequence (:func:`nominal_samples` reads only the
+    timeline), checked rather than assumed before their noise filters are batched.
+    """
+    first = noms[0]
+    return all(np.array_equal(n.grid.bounds, first.grid.bounds)
+               and np.array_equal(n.time_nav, first.time_nav) for n in noms[1:])
+
+
+def information_along_many(noms: list[NominalRun], profile: NoiseProfile, latitude_rad: float,
+                           gravity_mps2: float, extras: Extras = NO_EXTRAS) -> np.ndarray:
+    """:func:`information_along` of several trajectories of one sequence, (M, n, n).
+
+    With Gauss-Markov bias each mounting has its own noise filter, a Riccati
+    recursion over every interval: run once over the shared interval grid with
+    the mountings on a batch axis (:func:`calib.noise.whiten_batch`, the same
+    arithmetic), ``BATCH_INTERVALS`` intervals of noise model at a time. The
+    observation columns of all ``M`` are held, (K, M, 3, n): callers bound ``M``.
+    Without GM, or if the grids differ, each is evaluated on its own.
+    """
+    if not profile.has_gauss_markov or not same_grid(noms):
+        return np.array([information_along(n, profile, latitude_rad, gravity_mps2, extras)
+                         for n in noms])
+    A = state_matrix(latitude_rad, gravity_mps2)
+    bounds, time_nav = noms[0].grid.bounds, noms[0].time_nav
+    T = np.diff(time_nav[bounds])
+    Phi_vv = velocity_transitions(A, T, profile)
+    X = np.stack([observation_jacobian(n.C_b_n, n.dtheta, n.dv, n.time_nav, n.grid, latitude_rad,
+                                       gravity_mps2, Phi_vv, extras) for n in noms], axis=1)
+    mid = (bounds[:-1] + bounds[1:]) // 2
+    C_mid = [n.C_b_n[mid] for n in noms]
+    M, c = len(noms), X.shape[-1]
+    P = state = None
+    for k0 in range(0, len(T), BATCH_INTERVALS):
+        part = slice(k0, k0 + BATCH_INTERVALS)
+        models = [gm_interval_arrays(A, T[part], profile, C[part]) for C in C_mid]
+        if P is None:  # as calib.noise.whitener's default P0: phi unknown, biases stationary
+            s = models[0][0].shape[-1] - 3
+            P = np.zeros((M, s, s))
+            P[:, 3:, 3:] = models[0][2]
+            state = np.zeros((M, s, c))
+        blocks = filter_blocks(np.stack([m[0] for m in models], axis=1),
+                               np.stack([m[1] for m in models], axis=1))
+        _, P, state = whiten_batch(blocks, X[part], P, state, out=X[part])
+    # Each mounting's Gram matrix as information_along forms it (one product over the
+    # whole run, not summed block by block): the direct search's forward differences
+    # over 1e-3 deg steps would turn a 1e-15 rounding difference into another path.
+    out = np.empty((M, c, c))
+    for m in range(M):
+        Hw = np.ascontiguousarray(X[:, m]).reshape(-1, c)
+        out[m] = Hw.T @ Hw
+    return out

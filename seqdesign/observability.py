@@ -35,6 +35,7 @@ from calib.nominal import (  # noqa: F401
     REST_SUBSAMPLES,
     NominalRun,
     information_along,
+    information_along_many,
     noise_along,
     nominal_run,
     nominal_samples,
@@ -575,7 +576,8 @@ DIRECT_MAX_ITER = 8
 
 
 def search_worst_direct(sigma_of, start_deg, tolerance_deg: float,
-                        max_iter: int = DIRECT_MAX_ITER) -> tuple[np.ndarray, float]:
+                        max_iter: int = DIRECT_MAX_ITER,
+                        sigmas_of=None) -> tuple[np.ndarray, float]:
     """Maximise ``sigma_of(rotvec)`` over the box with IPOPT where no closed form exists.
 
     For Gauss-Markov bias instability the noise filter's gains depend on the
@@ -588,20 +590,32 @@ def search_worst_direct(sigma_of, start_deg, tolerance_deg: float,
     rounding ~1e-12 / 2e-5 rad). What is returned is the best exact evaluation
     seen, so the search can only raise the worst case, never invent one.
 
+    ``sigmas_of(rotvecs) -> sigmas``, if given, evaluates a gradient's points (the
+    value and its three steps, those not yet seen) in one call: a batch shares one
+    pass of the noise filter (:func:`calib.nominal.information_along_many`).
+
     Returns the mounting (rotation vector, rad) and its ``sigma_of``.
     """
     seen: dict[tuple, float] = {}
 
+    def key_of(theta_deg):
+        return tuple(np.round(theta_deg, 12))
+
     def value(theta_deg):
-        key = tuple(np.round(theta_deg, 12))
+        key = key_of(theta_deg)
         if key not in seen:
             seen[key] = float(sigma_of(np.radians(theta_deg)))
         return seen[key]
 
     def gradient(theta_deg):
-        f0 = value(theta_deg)
-        return np.array([(value(theta_deg + FD_STEP_DEG * e) - f0) / FD_STEP_DEG
-                         for e in np.eye(3)])
+        points = [np.asarray(theta_deg, dtype=float)] + [theta_deg + FD_STEP_DEG * e
+                                                         for e in np.eye(3)]
+        new = [t for t in points if key_of(t) not in seen]
+        if sigmas_of is not None and len(new) > 1:
+            for t, sigma in zip(new, sigmas_of([np.radians(t) for t in new])):
+                seen[key_of(t)] = float(sigma)
+        f0 = value(points[0])
+        return np.array([(value(t) - f0) / FD_STEP_DEG for t in points[1:]])
 
     scale = value(np.asarray(start_deg, dtype=float))
     cb = _scalar_callback("sigma", lambda t: value(t) / scale, lambda t: gradient(t) / scale)
@@ -612,30 +626,58 @@ def search_worst_direct(sigma_of, start_deg, tolerance_deg: float,
     return np.radians(np.array(key)), inside[key]
 
 
+BATCH_MOUNTINGS = 9  # mountings per pass of the GM noise filter: the 27 box points in 3 passes
+
+
+def _batches(items: list, size: int) -> list[list]:
+    return [items[i:i + size] for i in range(0, len(items), size)]
+
+
+def _gm_information(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float,
+                    rotvecs: list, extras: Extras | None = None,
+                    batch: int = BATCH_MOUNTINGS) -> list[np.ndarray]:
+    """Fisher information of each mounting, evaluated along its own nominal trajectory.
+
+    ``batch`` mountings share a pass of the noise filter
+    (:func:`calib.nominal.information_along_many`); ``batch=1`` evaluates each on its
+    own (:func:`calib.nominal.information_along`), the reference the tests hold the
+    batches to.
+    """
+    g = earth.gravity(latitude_rad, height_m)
+    kw = {} if extras is None else {"extras": extras}
+    out = []
+    for part in _batches(list(rotvecs), max(1, batch)):
+        noms = [nominal_run(seq, latitude_rad, height_m, rv) for rv in part]
+        if batch > 1:
+            out.extend(information_along_many(noms, profile, latitude_rad, g, **kw))
+        else:
+            out.extend(information_along(n, profile, latitude_rad, g, **kw) for n in noms)
+    return out
+
+
 def _evaluator(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float,
-               requirements: Requirements):
-    """``evaluate(rotvec, nominal=None) -> Observability`` and the basis model (None with GM)."""
+               requirements: Requirements, batch: int = BATCH_MOUNTINGS):
+    """``evaluate(rotvecs, nominal=None) -> [Observability]`` and the basis model (None with GM)."""
     if profile.has_gauss_markov:
         # Bias-instability weights depend on the mounting (measured: up to 4.7 % on a sigma
         # for designed-30min if the nominal weights are reused), so evaluate each directly.
-        g = earth.gravity(latitude_rad, height_m)
-
-        def evaluate(rotvec, nominal=None):
-            nom = nominal_run(seq, latitude_rad, height_m, rotvec)
-            return from_information(information_along(nom, profile, latitude_rad, g),
-                                    seq.duration_s, profile.name, rotvec, nominal, requirements)
+        def evaluate(rotvecs, nominal=None):
+            infos = _gm_information(seq, profile, latitude_rad, height_m, rotvecs, batch=batch)
+            return [from_information(info, seq.duration_s, profile.name, rv, nominal, requirements)
+                    for info, rv in zip(infos, rotvecs)]
         return evaluate, None
     model = sequence_model(seq, profile, latitude_rad, height_m)
 
-    def evaluate(rotvec, nominal=None):
-        return model.analyze(rotvec, nominal, requirements)
+    def evaluate(rotvecs, nominal=None):
+        return [model.analyze(rv, nominal, requirements) for rv in rotvecs]
     return evaluate, model
 
 
 def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
                       height_m: float = 0.0, tolerance_deg: float = 3.0,
                       search: bool = True, starts: int = 2,
-                      requirements: Requirements = PAPER) -> Robustness:
+                      requirements: Requirements = PAPER,
+                      batch: int = BATCH_MOUNTINGS) -> Robustness:
     """Worst case over the +-tolerance box of base mountings.
 
     The 27 corner/edge/face/centre points are evaluated; then, if ``search``,
@@ -644,15 +686,16 @@ def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
     points with the exact gradient of the mounting basis
     (:func:`search_worst_mounting`); under Gauss-Markov bias instability, whose
     whitening the basis does not hold, from its worst grid point over direct
-    evaluations (:func:`search_worst_direct`).
+    evaluations (:func:`search_worst_direct`), ``batch`` mountings at a time
+    (``batch=1``: one at a time, the unbatched reference).
     """
-    evaluate, model = _evaluator(seq, profile, latitude_rad, height_m, requirements)
-    nominal = evaluate(np.zeros(3))
+    evaluate, model = _evaluator(seq, profile, latitude_rad, height_m, requirements, batch)
+    nominal = evaluate([np.zeros(3)])[0]
     if tolerance_deg == 0:
         return Robustness(nominal, nominal, nominal.sigma, 1, 0.0)
     levels = (-tolerance_deg, 0.0, tolerance_deg)
     grid = [np.array(p) for p in itertools.product(levels, levels, levels)]
-    results = [evaluate(np.radians(p), nominal) for p in grid]
+    results = evaluate([np.radians(p) for p in grid], nominal)
     sigmas = np.array([r.sigma for r in results])
     per_param = sigmas.max(axis=0)
     worst = max(results, key=lambda r: r.worst[1])
@@ -664,10 +707,11 @@ def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
         rotvec, sigma = search_worst_mounting(model, index, [grid[i] for i in order[:starts]],
                                               tolerance_deg, requirements)
     else:
-        rotvec, sigma = search_worst_direct(lambda rv: evaluate(rv, nominal).sigma[index],
-                                            grid[order[0]], tolerance_deg)
+        rotvec, sigma = search_worst_direct(
+            lambda rv: evaluate([rv], nominal)[0].sigma[index], grid[order[0]], tolerance_deg,
+            sigmas_of=lambda rvs: [o.sigma[index] for o in evaluate(rvs, nominal)])
     if sigma > per_param[index]:
-        found = evaluate(rotvec, nominal)
+        found = evaluate([rotvec], nominal)[0]
         per_param = np.maximum(per_param, found.sigma)
         if found.worst[1] > worst.worst[1]:
             worst = found
@@ -711,37 +755,40 @@ class ExtrasCost:
 
 
 def _extras_evaluator(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
-                      extras: Extras, height_m: float, requirements: Requirements):
-    """``evaluate(rotvec) -> (sigma of the 21 without, with, sigma of the extras)`` (SI).
+                      extras: Extras, height_m: float, requirements: Requirements,
+                      batch: int = BATCH_MOUNTINGS):
+    """``evaluate(rotvecs) -> [(sigma of the 21 without, with, sigma of the extras)]`` (SI).
 
-    Each mounting is evaluated directly along its own nominal trajectory; what is
-    observed is judged at the nominal mounting (the first evaluation), returned
-    as the second value.
+    Each mounting is evaluated directly along its own nominal trajectory, ``batch``
+    at a time (:func:`_gm_information`); what is observed is judged at the nominal
+    mounting (the first evaluation), returned as the second value.
     """
-    g = earth.gravity(latitude_rad, height_m)
     scale = np.concatenate([requirements.si, extras.scale_si])
     names = P.NAMES + extras.names
-    nom_info = information_along(nominal_run(seq, latitude_rad, height_m, np.zeros(3)), profile,
-                                 latitude_rad, g, extras)
+    nom_info = _gm_information(seq, profile, latitude_rad, height_m, [np.zeros(3)], extras,
+                               batch)[0]
     nominal = scaled_inverse(eliminate(nom_info, PHI0_IDX) * np.outer(scale, scale), names)
     nominal_without = from_information(nom_info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s,
                                        profile.name, np.zeros(3), None, requirements)
 
-    def evaluate(rotvec):
-        nom = nominal_run(seq, latitude_rad, height_m, rotvec)
-        info = information_along(nom, profile, latitude_rad, g, extras)
+    def sigmas(rotvec, info):
         obs = from_information(info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s, profile.name,
                                rotvec, nominal_without, requirements)
         M = eliminate(info, PHI0_IDX) * np.outer(scale, scale)
         variance = np.diag(projected_covariance(M, nominal.null_basis))
         s = np.where(nominal.estimable, np.sqrt(np.abs(variance)), np.inf) * scale
         return obs.sigma, s[:P.N_PARAMS], s[P.N_PARAMS:]
+
+    def evaluate(rotvecs):
+        infos = _gm_information(seq, profile, latitude_rad, height_m, rotvecs, extras, batch)
+        return [sigmas(rv, info) for rv, info in zip(rotvecs, infos)]
     return evaluate, nominal
 
 
 def analyze_extras(seq: Sequence, profile: NoiseProfile, latitude_rad: float, extras: Extras,
                    height_m: float = 0.0, tolerance_deg: float = 3.0,
-                   requirements: Requirements = PAPER, search: bool = False) -> ExtrasCost:
+                   requirements: Requirements = PAPER, search: bool = False,
+                   batch: int = BATCH_MOUNTINGS) -> ExtrasCost:
     """Sigma of the 21 with and without the optional terms, and theirs, worst over the box.
 
     Both figures come from the same 27 mountings (corners, edges, faces and
@@ -750,20 +797,23 @@ def analyze_extras(seq: Sequence, profile: NoiseProfile, latitude_rad: float, ex
     are not in the 63-term mounting basis, hence direct evaluation.) With
     ``search``, IPOPT then maximises the sigma (with the terms) of the worst of
     the 21 from its worst grid point (:func:`search_worst_direct`), and that
-    mounting counts as a 28th.
+    mounting counts as a 28th. ``batch`` mountings are evaluated at a time
+    (``batch=1``: one at a time, the unbatched reference).
     """
     levels = (-tolerance_deg, 0.0, tolerance_deg) if tolerance_deg > 0 else (0.0,)
     points = [np.radians(p) for p in itertools.product(levels, levels, levels)]
     evaluate, nominal = _extras_evaluator(seq, profile, latitude_rad, extras, height_m,
-                                          requirements)
-    results = [evaluate(rotvec) for rotvec in points]
+                                          requirements, batch)
+    results = evaluate(points)
     searched = search and tolerance_deg > 0 and bool(nominal.estimable[:P.N_PARAMS].all())
     if searched:
         with_ = np.array([r[1] for r in results])
         index = int(np.argmax(requirements.ratio(with_.max(axis=0))))
         start = np.degrees(points[int(np.argmax(with_[:, index]))])
-        rotvec, _ = search_worst_direct(lambda rv: evaluate(rv)[1][index], start, tolerance_deg)
-        results.append(evaluate(rotvec))
+        rotvec, _ = search_worst_direct(lambda rv: evaluate([rv])[0][1][index], start,
+                                        tolerance_deg,
+                                        sigmas_of=lambda rvs: [r[1][index] for r in evaluate(rvs)])
+        results.extend(evaluate([rotvec]))
     without, with_, extra = (np.max([r[i] for r in results], axis=0) for i in range(3))
     return ExtrasCost(extras, without, with_, extra, nominal.null_directions(), len(points),
                       tolerance_deg, searched)
