@@ -828,8 +828,8 @@ def accel_scale_bound(duration_s: float, profile: NoiseProfile, gravity_mps2: fl
     ``sigma >= VRW sqrt(3 / T) / g``.
 
     With a Gauss-Markov accelerometer bias and a gimbal turning at most ``rate_dps``
-    (docs/design.md, "What bounds the Gauss-Markov front"): the information of a long run in stationary noise of
-    two-sided density ``S(f)`` is ``int |F(f)|^2 / S(f) df`` (Whittle). The noise
+    (docs/design.md, "What bounds the Gauss-Markov front"): the information of a long
+    run in stationary noise of two-sided density ``S(f)`` is ``int |F(f)|^2 / S(f) df`` (Whittle). The noise
     density ``VRW^2 + S_gm(f)`` falls with frequency, and the rate limit
     ``|du/dt| <= omega`` on the direction of gravity bounds the regressor's power
     above ``f`` by ``(omega / 2 pi f)^2`` of its total; since ``1 / S`` is concave in
