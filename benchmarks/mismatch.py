@@ -1,6 +1,6 @@
 """Mismatch report (issue 8): what ignoring a real unit's extra terms costs, and what fitting them buys.
 
-    python benchmarks/mismatch.py [--n 30] [--sequence designed-30min] [--workers 2]
+    python benchmarks/mismatch.py [--n 30] [--sequence designed-30min-9moves] [--workers 2]
 
 Simulates runs with each extra term on (lever arms, accelerometer K2, a
 gyro-accelerometer time offset, Gauss-Markov bias instability, then all of
@@ -52,7 +52,7 @@ def summary(trials):
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--n", type=int, default=30)
-    ap.add_argument("--sequence", default="designed-30min")
+    ap.add_argument("--sequence", default="designed-30min-9moves")  # docs/mismatch.md
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args()
     seq = load_sequence(args.sequence)

@@ -127,7 +127,8 @@ def test_rate_above_the_gimbal_is_refused(tmp_path):
 
 
 def test_sequence_outside_the_gimbal_is_refused_with_one_line(tmp_path):
-    # designed-30min has constant-rate moves (no accel_dps2): cable-wrap's 10 deg/s^2 refuses it
+    # designed-30min turns 450 deg at constant rate (no accel_dps2): the cable wrap's +-360 deg
+    # range and 10 deg/s^2 refuse it
     out = tmp_path / "c.csv"
     res = CliRunner().invoke(main, ["export", "designed-30min", "--gimbal", "cable-wrap",
                                     "-o", str(out)])

@@ -196,8 +196,20 @@ def test_bad_gimbal_file_is_refused(tmp_path, text, needles):
            "g.toml", *needles)
 
 
+LOCKING_QUARTER_TURN = """format_version = 1
+name = "lock"
+start = ["east", "up", "south"]
+initial_dwell_s = 60.0
+step = [{ axis = "X", angle_deg = -90.0, rate_dps = 10.0, accel_dps2 = 10.0, dwell_s = 60.0 }]
+"""
+
+
 def test_sequence_outside_the_gimbal_is_refused_by_export_and_simulate(tmp_path):
-    msg = refuse(tmp_path, ["export", "designed-30min", "--gimbal", "cable-wrap",
+    # From the start attitude, a quarter turn about body X takes the middle gimbal to 90 deg
+    # (docs/gimbal.md): gimbal lock, which the cable wrap keeps 15 deg away from.
+    seq = tmp_path / "lock.toml"
+    seq.write_text(LOCKING_QUARTER_TURN)
+    msg = refuse(tmp_path, ["export", str(seq), "--gimbal", "cable-wrap",
                             "-o", str(tmp_path / "commands.csv")],
                  "step 1", "middle gimbal", "cable-wrap")
     assert "gimbal lock" in msg and "15 deg" in msg
@@ -212,10 +224,15 @@ def test_show_flags_the_same_violations_without_refusing(tmp_path):
     res = CliRunner().invoke(main, ["show", "designed-30min", "--gimbal", "cable-wrap", "--json"])
     assert res.exit_code == 0
     doc = json.loads(res.output)
-    assert not doc["playable"]
+    assert not doc["playable"]  # 450 deg turns on a +-360 deg cable wrap
     assert any("range" in v or "beyond its range" in v for v in doc["violations"])
+    seq = tmp_path / "lock.toml"
+    seq.write_text(LOCKING_QUARTER_TURN)
+    res = CliRunner().invoke(main, ["show", str(seq), "--gimbal", "cable-wrap", "--json"])
+    assert res.exit_code == 0
+    doc = json.loads(res.output)
     assert any("gimbal lock" in v for v in doc["violations"])
-    assert any("home" in v for v in doc["violations"])
+    assert any("home" in v for v in doc["violations"])  # it ends a quarter turn away
     text = CliRunner().invoke(main, ["show", "designed-15min"]).output
     assert "GIMBAL LOCK:" in text and "every move playable" in text
 
