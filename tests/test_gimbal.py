@@ -16,7 +16,8 @@ from calib.sequence import Sequence, Step, load_sequence, nominal_attitude, time
 from seqdesign.cli import main
 from seqdesign.cli_gimbal import read_schedule
 
-SHIPPED = ["paper-9pos", "paper-9pos-turns", "designed-15min", "designed-30min"]
+SHIPPED = ["paper-9pos", "paper-9pos-turns", "designed-15min", "designed-30min",
+           "designed-30min-9moves"]
 D = math.radians
 E = np.eye(3)
 
