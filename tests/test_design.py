@@ -255,6 +255,24 @@ def test_whole_design_on_two_workers_equals_the_serial_one():
     assert serial.uniform_worst_ratio == parallel.uniform_worst_ratio
 
 
+@pytest.mark.slow
+def test_whole_design_on_a_dask_cluster_equals_the_serial_one():
+    # The exact re-scoring goes to the cluster too (a picklable ExactScorer through
+    # client.map): same walk, dwells and figures as the serial run, bit for bit.
+    distributed = pytest.importorskip("dask.distributed")
+    from seqdesign.design import design
+    c = Constraints(budget_s=300.0, max_flips=3, max_quarters=1, min_dwell_s=10.0)
+    kw = dict(tolerance_deg=3.0, keep=1, beam_width=30, refine=True)
+    serial = design(c, PROFILE, LAT, 0.0, **kw)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        remote = design(c, PROFILE, LAT, 0.0, scheduler=client, **kw)
+    assert serial.sequence.steps == remote.sequence.steps
+    assert (serial.worst_ratio, serial.worst_name) == (remote.worst_ratio, remote.worst_name)
+    assert serial.finalists[0] == remote.finalists[0]
+
+
 def test_motif_repetitions_fill_the_budget_with_short_dwells():
     from seqdesign.design import motif_dwell
     c = Constraints(budget_s=1800.0, min_dwell_s=10.0)
