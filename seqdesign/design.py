@@ -656,7 +656,22 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
     r1 = ratios(dw)
     if r1.max() >= r0.max():  # never return worse than the uniform start
         return list(uniform[groups]), float(r0.max()), float(r0.max())
-    return [float(round(d, 3)) for d in dw[groups]], float(r0.max()), float(r1.max())
+    return (dwells_in_ms(dw[groups], c.budget_s - turn_time), float(r0.max()),
+            float(r1.max()))
+
+
+def dwells_in_ms(dwells, available_s: float) -> list[float]:
+    """Dwells rounded to the millisecond a sequence file holds, their sum within ``available_s``.
+
+    Rounding each of ~60 dwells can add up to 30 ms; what overruns comes off the longest
+    dwell (rounded down), so a design never lasts longer than its budget.
+    """
+    out = [round(float(d), 3) for d in dwells]
+    excess = sum(out) - available_s
+    if excess > 0:
+        i = int(np.argmax(out))
+        out[i] = math.floor((out[i] - excess) * 1000.0) / 1000.0
+    return out
 
 
 MAX_REFINE_DWELLS = 8  # IPOPT dwell variables besides the initial dwell

@@ -407,3 +407,18 @@ def test_cli_pareto_front_writes_both_bounds_for_a_gauss_markov_profile(tmp_path
         assert float(rate_bound) == pytest.approx(white * math.sqrt(density) / GM.vrw, rel=1e-4)
         assert float(worst) >= float(rate_bound)  # no design beats the bound
     assert (tmp_path / "front.png").stat().st_size > 0
+
+
+def test_refined_dwells_in_ms_never_overrun_the_budget():
+    # 57 dwells that each round up by 0.4 ms overrun a budget their exact sum fits by ~23 ms;
+    # the millisecond dwells must fit it again, the longest taking the excess.
+    from seqdesign.design import dwells_in_ms
+    exact = [10.0006] * 56 + [10.2864]
+    available = sum(exact)
+    assert sum(round(d, 3) for d in exact) > available + 0.02  # plain rounding overruns
+    out = dwells_in_ms(exact, available)
+    assert sum(out) <= available
+    assert all(round(d * 1000) == d * 1000 for d in out)  # whole milliseconds
+    assert max(abs(a - b) for a, b in zip(out[:56], exact[:56])) <= 0.0005
+    assert exact[56] - 0.03 < out[56] < exact[56] - 0.02  # the ~22 ms overrun, taken off
+    assert dwells_in_ms([10.0, 20.0], 30.0) == [10.0, 20.0]  # nothing to take off
