@@ -135,8 +135,7 @@ def interval_models(A: np.ndarray, T: np.ndarray, profile: NoiseProfile,
         ``profile.has_gauss_markov``, ignored otherwise.
     """
     if not profile.has_gauss_markov:
-        key = np.ascontiguousarray(A, dtype=float).tobytes()
-        return [_interval(key, round(float(t), 6), profile.arw, profile.vrw) for t in T]
+        return _white_models(A, T, profile)
     Phi, Q, P_bias = gm_interval_arrays(A, T, profile, C_b_n)
     return [IntervalModel(Phi=p, Q=q, P_bias=P_bias) for p, q in zip(Phi, Q)]
 
@@ -176,9 +175,13 @@ def velocity_transitions(A: np.ndarray, T: np.ndarray, profile: NoiseProfile) ->
     takes its ``[phi, dv]`` block from the 6-state one, and the frame change
     leaves the velocity rows alone), so every mounting of a sequence shares it.
     """
+    return np.array([m.Phi[3:6, 3:6] for m in _white_models(A, T, profile)])
+
+
+def _white_models(A: np.ndarray, T: np.ndarray, profile: NoiseProfile) -> list[IntervalModel]:
+    """The 6-state ``[phi, dv]`` model of every interval (cached by length to 1 us)."""
     key = np.ascontiguousarray(A, dtype=float).tobytes()
-    return np.array([_interval(key, round(float(t), 6), profile.arw, profile.vrw).Phi[3:6, 3:6]
-                     for t in T])
+    return [_interval(key, round(float(t), 6), profile.arw, profile.vrw) for t in T]
 
 
 @dataclass(frozen=True)
@@ -267,6 +270,15 @@ def cholesky_inverse_3(S: np.ndarray) -> np.ndarray:
     return Li
 
 
+def filter_order(s: int) -> np.ndarray:
+    """Index putting an interval model's rows and columns in the noise filter's order.
+
+    Filter state first, observed velocity last: ``[phi, (b_g, b_a,) dv]`` from the
+    models' ``[phi, dv, (b_g, b_a)]``; the identity for the 3-state filter (``s = 3``).
+    """
+    return np.r_[0:3, 6:s + 3, 3:6]
+
+
 def whitener(models: list[IntervalModel], P0: np.ndarray | None = None) -> Whitener:
     """Riccati recursion of the noise filter (data-independent).
 
@@ -277,8 +289,7 @@ def whitener(models: list[IntervalModel], P0: np.ndarray | None = None) -> White
     """
     K = len(models)
     s = models[0].state_size if K else 3
-    # Filter state first, observed velocity last: [phi, (b_g, b_a,) dv].
-    order = np.r_[0:3, 6:s + 3, 3:6]
+    order = filter_order(s)
     Phi = np.array([m.Phi for m in models]).reshape(K, s + 3, s + 3)
     Q = np.array([m.Q for m in models]).reshape(K, s + 3, s + 3)
     if s != 3:  # (no copy without GM: the arithmetic stays bit-identical to the 3-state filter)
@@ -347,7 +358,7 @@ def filter_blocks(Phi: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, ...]:
     last, each a contiguous copy.
     """
     s = Phi.shape[-1] - 3
-    order = np.r_[0:3, 6:s + 3, 3:6] if s != 3 else np.r_[0:6]
+    order = filter_order(s)
     Phi, Q = Phi[..., order, :][..., order], Q[..., order, :][..., order]
 
     def block(a, rows, cols):
@@ -449,7 +460,7 @@ def _decorrelated(models: list[IntervalModel]):
     """
     K = len(models)
     s = models[0].state_size
-    order = np.r_[0:3, 6:s + 3, 3:6]
+    order = filter_order(s)
     Phi = np.array([m.Phi for m in models]).reshape(K, s + 3, s + 3)[:, order][:, :, order]
     Q = np.array([m.Q for m in models]).reshape(K, s + 3, s + 3)[:, order][:, :, order]
     F_ss, F_vs = Phi[:, :s, :s], Phi[:, s:, :s]

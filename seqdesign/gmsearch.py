@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.noise import cholesky_inverse_3, interval_models, whitener
+from calib.noise import cholesky_inverse_3, filter_order, interval_models
 
 
 @dataclass(frozen=True)
@@ -56,9 +56,8 @@ class SegmentColumns:
 def noise_blocks(A6: np.ndarray, T: np.ndarray, profile, C_mid: np.ndarray | None):
     """``F`` and ``Q`` of each interval, in the filter's state order (velocity last)."""
     models = interval_models(A6, T, profile, C_mid)
-    w = whitener(models[:1])  # the ordering convention of calib.noise.whitener
-    s = w.state_size
-    order = np.r_[0:3, 6:s + 3, 3:6] if s != 3 else np.r_[0:6]
+    s = models[0].state_size
+    order = filter_order(s)
     Phi = np.array([m.Phi for m in models])[:, order][:, :, order]
     Q = np.array([m.Q for m in models])[:, order][:, :, order]
     return np.ascontiguousarray(Phi[:, :, :s]), Q

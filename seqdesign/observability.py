@@ -660,7 +660,7 @@ def _evaluator(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height
     """``evaluate(rotvecs, nominal=None) -> [Observability]`` and the basis model (None with GM)."""
     if profile.has_gauss_markov:
         # Bias-instability weights depend on the mounting (measured: up to 4.7 % on a sigma
-        # for designed-30min if the nominal weights are reused), so evaluate each directly.
+        # for designed-30min-9moves if the nominal weights are reused), so evaluate each directly.
         def evaluate(rotvecs, nominal=None):
             infos = _gm_information(seq, profile, latitude_rad, height_m, rotvecs, batch=batch)
             return [from_information(info, seq.duration_s, profile.name, rv, nominal, requirements)
