@@ -39,6 +39,7 @@ from .jacobian import (
     sensitivities,
     state_matrix,
 )
+from .matexp import expm  # not scipy.linalg: its import costs 0.15 s per command
 from .noise import noise_model, smooth, whiten
 from .profiles import NoiseProfile
 from .requirements import PAPER, Requirements
@@ -352,8 +353,6 @@ class AttitudeFeedback:
 @functools.lru_cache(maxsize=256)
 def _rate_response(A_bytes: bytes, T: float) -> tuple[np.ndarray, np.ndarray]:
     """``Phi = exp(A T)`` and the ``[phi, dv]`` response ``Gamma`` (6, 3) to a constant attitude rate."""
-    from scipy.linalg import expm
-
     M = np.zeros((9, 9))
     M[:6, :6] = np.frombuffer(A_bytes).reshape(6, 6)
     M[:3, 6:] = np.eye(3)
@@ -530,12 +529,12 @@ class _Problem:
         """Compensate the raw increments with the current estimate (and feedback) and navigate."""
         model = ErrorModel(values)
         dth, dvv = model.compensate(self.dtheta_m, self.dv_m, self.dt)
-        if feedback is not None:
-            b = self.grid.bounds  # b[0] = 0 and b[-1] = n: every sample is in an interval
-            dth = dth + np.repeat(feedback.body_rate, np.diff(b), axis=0) * self.dt[:, None]
         if self.extras.n:
             dvv = X.compensate(self.extras.unpack(extra_values), dth, self.dv_m, self.dt,
                                lambda x: model.compensate(self.dtheta_m, x, self.dt)[1], turn)
+        if feedback is not None:  # after the extra terms, as calib.stream applies it
+            b = self.grid.bounds  # b[0] = 0 and b[-1] = n: every sample is in an interval
+            dth = dth + np.repeat(feedback.body_rate, np.diff(b), axis=0) * self.dt[:, None]
         nav = navigate(dth, dvv, self.time_s, C0, self.latitude_rad, self.gravity_mps2,
                        t0=self.t_nav[0])
         return dth, dvv, nav

@@ -102,15 +102,13 @@ def _axis_from_dict(name: str, table, where: str) -> GimbalAxis:
     if not isinstance(table, dict):
         raise CalibError(f"'{name}' must be a table", here, f"write [{name}] with its limits")
     _warn_unknown(table, AXIS_KEYS, "gimbal axis", here)
-    lo, hi = -math.inf, math.inf
-    if "range_deg" in table:
-        lo, hi = Fields(table, here).numbers(
-            "range_deg", length=2, unit=" deg",
-            fix="give [min, max] in degrees, e.g. range_deg = [-360, 360]; leave it out for "
-                "slip rings")
-        if not lo < 0.0 < hi:
-            raise CalibError(f"range_deg = [{lo:g}, {hi:g}] excludes the start (every encoder "
-                             "starts at 0)", here, "give min < 0 < max")
+    lo, hi = Fields(table, here).numbers(  # no range: slip rings
+        "range_deg", (-math.inf, math.inf), length=2, unit=" deg",
+        fix="give [min, max] in degrees, e.g. range_deg = [-360, 360]; leave it out for "
+            "slip rings")
+    if not lo < 0.0 < hi:
+        raise CalibError(f"range_deg = [{lo:g}, {hi:g}] excludes the start (every encoder "
+                         "starts at 0)", here, "give min < 0 < max")
     deg = math.radians
     return GimbalAxis(name, deg(lo), deg(hi), deg(_limit(table, "max_rate_dps", here)),
                       deg(_limit(table, "max_accel_dps2", here)),
