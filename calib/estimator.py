@@ -449,6 +449,15 @@ class FeedbackSchedule:
     def moved_at(self, it: int) -> None:
         self.updates, self.moved = self.updates + 1, it
 
+    def update(self, it: int, step: float, feedback, noise, z, H, delta, A, T, C_mid):
+        """The feedback after iteration ``it``: re-estimated from the fit's residual
+        ``z - H delta`` when :meth:`due`, else ``feedback`` unchanged.
+        """
+        if not self.due(step):
+            return feedback
+        self.moved_at(it)
+        return attitude_feedback(noise, z - np.einsum("kin,n->ki", H, delta), A, T, C_mid)
+
     def settled(self, it: int) -> bool:
         """Whether iteration ``it`` and the one before it share the same feedback.
 
@@ -674,10 +683,7 @@ def _fit_renavigating(pb: "_Problem", C0: np.ndarray, extras: Extras, partial: b
         if step < tol_sigma and not schedule.pending():
             converged = True
             break
-        if schedule.due(step):
-            schedule.moved_at(it)
-            feedback = attitude_feedback(noise, z - np.einsum("kin,n->ki", H, delta), A, T,
-                                         nav.C_b_n[mid])
+        feedback = schedule.update(it, step, feedback, noise, z, H, delta, A, T, nav.C_b_n[mid])
     return _fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, converged, extras)
 
 
@@ -806,10 +812,7 @@ def fit_intervals(chunks, grid, site: Site, C0: np.ndarray, profile: NoiseProfil
         if (step < tol_sigma or bound < tol_sigma) and not schedule.pending():
             return _fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, True,
                                extras)
-        if schedule.due(step):
-            schedule.moved_at(it)
-            feedback = attitude_feedback(noise, z - np.einsum("kin,n->ki", H, delta), A, T,
-                                         data.C_mid)
+        feedback = schedule.update(it, step, feedback, noise, z, H, delta, A, T, data.C_mid)
     return _fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, False, extras)
 
 
