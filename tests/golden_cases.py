@@ -1,0 +1,150 @@
+"""The golden figures: what the CLI and the library say today, to hold a refactoring to.
+
+Each case is a command run through the CLI (``--json``) or a library call, on inputs a
+fresh clone makes itself (simulated runs, shipped sequences).  ``python
+tests/golden_cases.py`` rewrites ``tests/golden/figures.json`` from the current code:
+do that only when a change of figures is intended, and say which in the commit.
+Volatile keys (wall-clock time, versions, paths, dates) are dropped before comparing.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from click.testing import CliRunner
+
+GOLDEN = Path(__file__).resolve().parent / "golden" / "figures.json"
+
+# Keys whose values depend on the clock, the machine or the checkout, not on the physics.
+VOLATILE = {"search_seconds", "seconds", "elapsed_s", "tool_version", "version", "created",
+            "date", "path", "run", "truth", "output", "file", "written", "provenance",
+            "wall_s", "cpu_s", "commit", "source_file", "result"}
+
+SIMULATIONS = {
+    # name: simulate arguments (the run is written to <tmp>/<name>.npz)
+    "nav": ["paper-9pos", "--table2", "--setup-deg", "1", "-2", "3", "--seed", "7",
+            "--sample-rate-hz", "100"],
+    "mems": ["designed-15min", "--profile", "mems", "--table2", "--setup-deg", "-2", "1", "0.5",
+             "--seed", "3", "--sample-rate-hz", "100"],
+}
+
+ANALYSES = {
+    **{f"analyze {s}": ["analyze", s] for s in (
+        "paper-9pos", "paper-9pos-turns", "designed-15min", "designed-15min-gm",
+        "designed-30min", "designed-30min-9moves", "designed-30min-cable-wrap",
+        "designed-30min-slip-rings", "designed-30min-gm")},
+    "analyze paper-9pos mems": ["analyze", "paper-9pos", "--profile", "mems",
+                                "--requirements", "mems"],
+    "analyze paper-9pos with all": ["analyze", "paper-9pos", "--with", "all"],
+    "analyze designed-15min-gm gm": ["analyze", "designed-15min-gm", "--profile",
+                                     "navigation-gm", "--tolerance-deg", "0"],
+    "compare": ["compare", "paper-9pos", "designed-15min"],
+    "show paper-9pos": ["show", "paper-9pos"],
+}
+
+CALIBRATIONS = {
+    # name: (run, arguments after the run file)
+    "calibrate nav": ("nav", ["calibrate"]),
+    "calibrate nav sequence": ("nav", ["calibrate", "--sequence", "paper-9pos"]),
+    "calibrate nav with all": ("nav", ["calibrate", "--with", "all"]),
+    "calibrate nav mems-req": ("nav", ["calibrate", "--requirements", "mems"]),
+    "calibrate-stream nav": ("nav", ["calibrate-stream"]),
+    "calibrate mems": ("mems", ["calibrate", "--profile", "mems"]),
+    "calibrate-stream mems": ("mems", ["calibrate-stream", "--profile", "mems"]),
+}
+
+# The clock's fit of a simulated (ideal) time column: round-off figures (jitter ~1e-13 s, rate
+# error ~2e-11 ppm) whose last digits vary from run to run; held to an absolute floor
+# far below anything a user reads (1 ns, 1e-9 ppm).
+ABSOLUTE = {"jitter_max_s": 1e-9, "jitter_rms_s": 1e-9, "rate_error_ppm": 1e-9}
+
+DESIGN = ["design", "--budget-min", "2", "--beam-width", "8", "--min-dwell-s", "10"]
+
+
+def scrub(doc):
+    """The document without its volatile keys (recursively)."""
+    if isinstance(doc, dict):
+        return {k: scrub(v) for k, v in doc.items() if k not in VOLATILE}
+    if isinstance(doc, list):
+        return [scrub(v) for v in doc]
+    return doc
+
+
+def _cli(args: list[str]) -> dict:
+    from seqdesign.cli import main
+
+    res = CliRunner().invoke(main, [*args, "--json"])
+    if res.exit_code != 0:
+        raise RuntimeError(f"{' '.join(args)} failed ({res.exit_code}): {res.output[-2000:]}")
+    return scrub(json.loads(res.stdout))
+
+
+def figures(tmp: Path, which: str = "all") -> dict:
+    """Every golden figure, computed now, run files written under ``tmp``."""
+    out: dict = {}
+    if which in ("all", "analyze"):
+        for name, args in ANALYSES.items():
+            out[name] = _cli(args)
+    if which in ("all", "calibrate"):
+        for name, args in SIMULATIONS.items():
+            out[f"simulate {name}"] = _cli(["simulate", *args, "-o", str(tmp / f"{name}.npz")])
+        for name, (run, args) in CALIBRATIONS.items():
+            out[name] = _cli([args[0], str(tmp / f"{run}.npz"), *args[1:],
+                              "-o", str(tmp / f"{name.replace(' ', '_')}.result.toml")])
+        out["api calibrate nav"] = _api_calibrate(tmp / "nav.npz")
+    if which in ("all", "design"):
+        out["design 2 min"] = _cli([*DESIGN, "-o", str(tmp / "d2.toml")])
+        out["api design 2 min"] = _api_design()
+        out["api analyze designed-15min"] = _api_analyze()
+    return out
+
+
+def _api_calibrate(path: Path) -> dict:
+    from seqdesign import api as sd
+
+    return scrub(sd.calibrate(sd.read_run(path), profile="navigation").to_json())
+
+
+def _api_analyze() -> dict:
+    from seqdesign import api as sd
+
+    return scrub(sd.analyze("designed-15min", tolerance_deg=3.0).to_json())
+
+
+def _api_design() -> dict:
+    from seqdesign import api as sd
+
+    constraints = {"min_dwell_s": 10.0}
+    report = sd.design([2.0], constraints, "navigation", beam_width=8)
+    return scrub(report.to_json())
+
+
+def compare(got, want, where: str = "", rel: float = 1e-12) -> list[str]:
+    """Differences between two documents: numbers beyond ``rel`` relative, anything else unequal."""
+    if isinstance(want, dict):
+        if not isinstance(got, dict) or set(got) != set(want):
+            return [f"{where}: keys {sorted(set(got) ^ set(want)) if isinstance(got, dict) else got}"]
+        return [d for k in want for d in compare(got[k], want[k], f"{where}.{k}", rel)]
+    if isinstance(want, list):
+        if not isinstance(got, list) or len(got) != len(want):
+            return [f"{where}: length {len(got) if isinstance(got, list) else got} != {len(want)}"]
+        return [d for i, (g, w) in enumerate(zip(got, want, strict=True))
+                for d in compare(g, w, f"{where}[{i}]", rel)]
+    if isinstance(want, float) and isinstance(got, (int, float)) and not isinstance(got, bool):
+        floor = ABSOLUTE.get(where.rsplit(".", 1)[-1], 0.0)
+        if got == want or abs(got - want) <= max(rel * max(abs(want), abs(got)), floor):
+            return []
+        return [f"{where}: {got!r} != {want!r}"]
+    return [] if got == want else [f"{where}: {got!r} != {want!r}"]
+
+
+if __name__ == "__main__":
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        doc = figures(Path(tmp))
+    GOLDEN.parent.mkdir(exist_ok=True)
+    GOLDEN.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
+    print(f"wrote {GOLDEN} ({len(doc)} cases)", file=sys.stderr)
