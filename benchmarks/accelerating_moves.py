@@ -12,6 +12,7 @@ of the 21 against the reported and the analyser's predicted covariance, with
 the 99 % interval of the mean of N chi-square(21) draws, and RMS(error)/sigma
 per parameter.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -40,9 +41,11 @@ def main() -> None:
     args = ap.parse_args()
     base = load_sequence(args.sequence)
     jerk = args.jerk_dps3 if args.jerk_dps3 > 0 else None
-    seq = replace(base, name=base.name + "-accelerating",
-                  steps=tuple(replace(s, accel_dps2=args.accel_dps2, jerk_dps3=jerk)
-                              for s in base.steps))
+    seq = replace(
+        base,
+        name=base.name + "-accelerating",
+        steps=tuple(replace(s, accel_dps2=args.accel_dps2, jerk_dps3=jerk) for s in base.steps),
+    )
     prof = load_profile("navigation")
     t = time.perf_counter()
     trials = run_trials(seq, prof, args.n, seed=2000, workers=args.workers)
@@ -50,25 +53,36 @@ def main() -> None:
     pred = analyze(seq, prof, math.radians(40.0))
     lo, hi = chi2.ppf([0.005, 0.995], P.N_PARAMS * args.n) / args.n
     kind = "S-curve" if jerk else "trapezoid"
-    print(f"{seq.name}: {base.duration_s:.0f} s -> {seq.duration_s:.0f} s with {kind} moves "
-          f"(accel {args.accel_dps2:g} deg/s^2" + (f", jerk {jerk:g} deg/s^3" if jerk else "")
-          + f"); N = {args.n}, {elapsed:.0f} s, {args.workers} worker(s); "
-          f"all converged: {bool(trials.converged.all())}")
-    print(f"mean NEES (reported covariance) {trials.nees.mean():.2f}, (predicted) "
-          f"{trials.nees_against(pred.covariance).mean():.2f}; 99 % interval [{lo:.1f}, {hi:.1f}]")
+    print(
+        f"{seq.name}: {base.duration_s:.0f} s -> {seq.duration_s:.0f} s with {kind} moves "
+        f"(accel {args.accel_dps2:g} deg/s^2"
+        + (f", jerk {jerk:g} deg/s^3" if jerk else "")
+        + f"); N = {args.n}, {elapsed:.0f} s, {args.workers} worker(s); "
+        f"all converged: {bool(trials.converged.all())}"
+    )
+    print(
+        f"mean NEES (reported covariance) {trials.nees.mean():.2f}, (predicted) "
+        f"{trials.nees_against(pred.covariance).mean():.2f}; 99 % interval [{lo:.1f}, {hi:.1f}]"
+    )
     rms, ms, ps = (P.from_si(x) for x in (trials.rms_error, trials.mean_sigma, pred.sigma))
     ratio, ratio_pred = rms / ms, rms / ps
-    print(f"RMS(error)/reported sigma: {ratio.min():.2f}-{ratio.max():.2f}; "
-          f"RMS(error)/predicted sigma: {ratio_pred.min():.2f}-{ratio_pred.max():.2f}")
+    print(
+        f"RMS(error)/reported sigma: {ratio.min():.2f}-{ratio.max():.2f}; "
+        f"RMS(error)/predicted sigma: {ratio_pred.min():.2f}-{ratio_pred.max():.2f}"
+    )
     print("| param | RMS error | mean reported sigma | RMS/sigma | predicted sigma | RMS/predicted |")
     print("|---|---|---|---|---|---|")
     for p in P.PARAMETERS:
         i = p.index
-        print(f"| {p.name} | {rms[i]:.4g} {p.unit} | {ms[i]:.4g} | {ratio[i]:.2f} | "
-              f"{ps[i]:.4g} | {ratio_pred[i]:.2f} |")
+        print(
+            f"| {p.name} | {rms[i]:.4g} {p.unit} | {ms[i]:.4g} | {ratio[i]:.2f} | "
+            f"{ps[i]:.4g} | {ratio_pred[i]:.2f} |"
+        )
     worst = np.argmax(pred.sigma * 3 / P.REQUIREMENTS_SI)
-    print(f"analyser: worst 3 sigma/requirement at the nominal mounting "
-          f"{3 * pred.sigma[worst] / P.REQUIREMENTS_SI[worst]:.2f} ({P.NAMES[worst]})")
+    print(
+        f"analyser: worst 3 sigma/requirement at the nominal mounting "
+        f"{3 * pred.sigma[worst] / P.REQUIREMENTS_SI[worst]:.2f} ({P.NAMES[worst]})"
+    )
 
 
 if __name__ == "__main__":

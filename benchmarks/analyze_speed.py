@@ -12,6 +12,7 @@ older commit), interleaved run by run so that both see the same load.
 
     python benchmarks/analyze_speed.py [--repeat 3] [--profile navigation] [--against DIR]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -31,12 +32,12 @@ def run(root: Path, args: list[str]) -> tuple[float, float, str]:
     """Wall time, child CPU time (user + sys) and stdout of one CLI run from ``root``."""
     cpu0 = os.times()
     t = time.perf_counter()
-    out = subprocess.run([sys.executable, "-m", "seqdesign.cli", *args], cwd=root,
-                         capture_output=True, text=True, check=True).stdout
+    out = subprocess.run(
+        [sys.executable, "-m", "seqdesign.cli", *args], cwd=root, capture_output=True, text=True, check=True
+    ).stdout
     wall = time.perf_counter() - t
     cpu1 = os.times()
-    cpu = (cpu1.children_user - cpu0.children_user) + (cpu1.children_system
-                                                       - cpu0.children_system)
+    cpu = (cpu1.children_user - cpu0.children_user) + (cpu1.children_system - cpu0.children_system)
     return wall, cpu, out
 
 
@@ -60,8 +61,13 @@ def main() -> None:
     commands = [["analyze", n, "--profile", a.profile, "--json"] for n in names]
     commands.append(["compare", *COMPARED, "--profile", a.profile])
     print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
-    print(f"{'command':<36}" + "".join(f"{'wall s':>8}{'cpu s':>7}  {'worst ratio':<14}"
-                                       for _ in roots) + "  (" + ", ".join(map(str, roots)) + ")")
+    print(
+        f"{'command':<36}"
+        + "".join(f"{'wall s':>8}{'cpu s':>7}  {'worst ratio':<14}" for _ in roots)
+        + "  ("
+        + ", ".join(map(str, roots))
+        + ")"
+    )
     for args in commands:
         best = [(float("inf"), 0.0, "")] * len(roots)
         for _ in range(a.repeat):
@@ -69,8 +75,10 @@ def main() -> None:
                 r = run(root, args)
                 best[i] = min(best[i], r)
         label = args[1] if args[0] == "analyze" else "compare of the four"
-        print(f"{label:<36}" + "".join(f"{w:8.2f}{c:7.2f}  {worst_of(args, o):<14}"
-                                       for w, c, o in best), flush=True)
+        print(
+            f"{label:<36}" + "".join(f"{w:8.2f}{c:7.2f}  {worst_of(args, o):<14}" for w, c, o in best),
+            flush=True,
+        )
     print(f"load average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 
 

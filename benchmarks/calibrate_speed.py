@@ -12,6 +12,7 @@ time of each, their ratios, the load average before and after (the machine
 is shared: the CPU ratio is the fairer figure) and the largest difference of
 the 21 estimates in units of the base's sigma. Nothing is asserted.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -30,10 +31,11 @@ def side_by_side(run: Path, base: Path, rounds: int, folder: Path) -> dict:
     for _ in range(rounds):
         new.append(calibrate(ROOT, run, folder / "new.result.toml"))
         old.append(calibrate(base, run, folder / "base.result.toml"))
-    best = {name: {key: min(r[key] for r in runs) for key in ("wall_s", "cpu_s", "rss_mb")}
-            for name, runs in (("new", new), ("base", old))}
-    best["diff_sigma"] = max_difference_sigma(folder / "new.result.toml",
-                                              folder / "base.result.toml")
+    best = {
+        name: {key: min(r[key] for r in runs) for key in ("wall_s", "cpu_s", "rss_mb")}
+        for name, runs in (("new", new), ("base", old))
+    }
+    best["diff_sigma"] = max_difference_sigma(folder / "new.result.toml", folder / "base.result.toml")
     return best
 
 
@@ -56,10 +58,8 @@ def main() -> None:
         load_after = os.getloadavg()
     n, b = best["new"], best["base"]
     print(f"run {run} ({a.minutes:g} min at {a.rate:g} Hz unless given), best of {a.rounds}")
-    print(f"  wall  new {n['wall_s']:.2f} s  base {b['wall_s']:.2f} s  ratio "
-          f"{n['wall_s'] / b['wall_s']:.3f}")
-    print(f"  CPU   new {n['cpu_s']:.2f} s  base {b['cpu_s']:.2f} s  ratio "
-          f"{n['cpu_s'] / b['cpu_s']:.3f}")
+    print(f"  wall  new {n['wall_s']:.2f} s  base {b['wall_s']:.2f} s  ratio {n['wall_s'] / b['wall_s']:.3f}")
+    print(f"  CPU   new {n['cpu_s']:.2f} s  base {b['cpu_s']:.2f} s  ratio {n['cpu_s'] / b['cpu_s']:.3f}")
     print(f"  peak  new {n['rss_mb']:.0f} MB  base {b['rss_mb']:.0f} MB")
     print(f"  largest |new - base| / sigma over the 21: {best['diff_sigma']:.2e}")
     print(f"  load average (1 min) before {load_before[0]:.2f}, after {load_after[0]:.2f}")

@@ -9,6 +9,7 @@ exactly (trapezoids, as ``seqdesign analyze`` does) and the same sequence
 with each move replaced by that constant-rate turn, and prints both worst
 ratios (nominal mounting and worst over the +-3 deg box) and the change.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -21,8 +22,7 @@ from seqdesign.analysis import analyze
 
 def constant_rate_twin(seq):
     """Each move at the constant rate that lasts as long as its real (accelerating) profile."""
-    steps = tuple(Step(s.axis, s.angle_deg, abs(s.angle_deg) / s.duration_s, s.dwell_s)
-                  for s in seq.steps)
+    steps = tuple(Step(s.axis, s.angle_deg, abs(s.angle_deg) / s.duration_s, s.dwell_s) for s in seq.steps)
     return replace(seq, steps=steps, name=seq.name + "-constant-rate")
 
 

@@ -10,6 +10,7 @@ bound at the gimbal's rate (``accel_scale_bound(..., rate_dps)``, docs/design.md
 
     python benchmarks/gm_bound.py --budgets 15,30 --rates 10,20
 """
+
 from __future__ import annotations
 
 import argparse
@@ -32,10 +33,13 @@ def cycling_sequence(budget_s: float, dwell_s: float, rate_dps: float) -> Sequen
     """As many motif turns as fit the budget with ``dwell_s`` after each."""
     turn_s = 450.0 / rate_dps
     n = int((budget_s - max(dwell_s, FIRST_DWELL_S)) // (turn_s + dwell_s))
-    steps = tuple(Step(*MOTIF[k % len(MOTIF)], rate_dps=rate_dps, dwell_s=dwell_s)
-                  for k in range(n))
-    return Sequence(name=f"cycle-{dwell_s:g}s", start=("east", "up", "south"), steps=steps,
-                    initial_dwell_s=max(dwell_s, FIRST_DWELL_S))
+    steps = tuple(Step(*MOTIF[k % len(MOTIF)], rate_dps=rate_dps, dwell_s=dwell_s) for k in range(n))
+    return Sequence(
+        name=f"cycle-{dwell_s:g}s",
+        start=("east", "up", "south"),
+        steps=steps,
+        initial_dwell_s=max(dwell_s, FIRST_DWELL_S),
+    )
 
 
 def main() -> None:
@@ -46,8 +50,10 @@ def main() -> None:
     args = ap.parse_args()
     white, gm = load_profile("navigation"), load_profile("navigation-gm")
     g = earth.gravity(LAT)
-    print("budget rate  dwell moves  T_min | white: worst  sa   bound | GM: worst  sa  "
-          "rate_bound  sa/rate_bound")
+    print(
+        "budget rate  dwell moves  T_min | white: worst  sa   bound | GM: worst  sa  "
+        "rate_bound  sa/rate_bound"
+    )
     t0 = time.process_time()
     for budget in (float(b) for b in args.budgets.split(",")):
         for rate in (float(r) for r in args.rates.split(",")):
@@ -59,9 +65,12 @@ def main() -> None:
                 sa_g = max(og.ratio[P.ACCEL_SCALE])
                 b_w = accel_scale_bound(T, white, g)
                 b_g = accel_scale_bound(T, gm, g, rate_dps=rate)
-                print(f"{budget:5g}m {rate:4g} {dwell:6g} {len(seq.steps):5d} {T / 60:6.1f} | "
-                      f"{ow.worst[1]:6.3f} {sa_w:6.3f} {b_w:6.3f} | {og.worst[1]:6.3f} "
-                      f"{sa_g:6.3f} {b_g:6.3f} {sa_g / b_g:8.3f}", flush=True)
+                print(
+                    f"{budget:5g}m {rate:4g} {dwell:6g} {len(seq.steps):5d} {T / 60:6.1f} | "
+                    f"{ow.worst[1]:6.3f} {sa_w:6.3f} {b_w:6.3f} | {og.worst[1]:6.3f} "
+                    f"{sa_g:6.3f} {b_g:6.3f} {sa_g / b_g:8.3f}",
+                    flush=True,
+                )
     print(f"CPU {time.process_time() - t0:.0f} s")
 
 

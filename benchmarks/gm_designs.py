@@ -7,6 +7,7 @@ RMS(error)/sigma per parameter (issue 12 asks for [0.67, 1.36]).
 
     python benchmarks/gm_designs.py designed-30min-gm --n 50 --workers 2
 """
+
 from __future__ import annotations
 
 import argparse
@@ -34,19 +35,25 @@ def main() -> None:
     extras = Extras(GROUP_NAMES)
     typical = ExtraValues.from_units({p.name: p.scale for p in extras.parameters})
     t0 = time.perf_counter()
-    trials = run_trials(seq, prof, args.n, seed=12000, workers=args.workers, extra=typical,
-                        extras=extras, fit_profile=prof)
+    trials = run_trials(
+        seq, prof, args.n, seed=12000, workers=args.workers, extra=typical, extras=extras, fit_profile=prof
+    )
     nees = trials.nees.mean()
     lo, hi = chi2.ppf([0.005, 0.995], P.N_PARAMS * args.n) / args.n
     ratio = trials.rms_error / trials.mean_sigma
-    print(f"{args.sequence}: {args.n} runs, profile {prof.name}, --with all, extras at typical "
-          f"sizes; {time.perf_counter() - t0:.0f} s; converged {int(trials.converged.sum())}")
-    print(f"mean NEES {nees:.2f}, 99 % band [{lo:.2f}, {hi:.2f}]: "
-          f"{'inside' if lo <= nees <= hi else 'OUTSIDE'}")
-    print(f"RMS(error)/sigma {ratio.min():.2f} ({P.NAMES[int(np.argmin(ratio))]}) to "
-          f"{ratio.max():.2f} ({P.NAMES[int(np.argmax(ratio))]}); "
-          f"{'all inside' if ratio.min() >= 0.67 and ratio.max() <= 1.36 else 'NOT all inside'}"
-          " [0.67, 1.36]")
+    print(
+        f"{args.sequence}: {args.n} runs, profile {prof.name}, --with all, extras at typical "
+        f"sizes; {time.perf_counter() - t0:.0f} s; converged {int(trials.converged.sum())}"
+    )
+    print(
+        f"mean NEES {nees:.2f}, 99 % band [{lo:.2f}, {hi:.2f}]: {'inside' if lo <= nees <= hi else 'OUTSIDE'}"
+    )
+    print(
+        f"RMS(error)/sigma {ratio.min():.2f} ({P.NAMES[int(np.argmin(ratio))]}) to "
+        f"{ratio.max():.2f} ({P.NAMES[int(np.argmax(ratio))]}); "
+        f"{'all inside' if ratio.min() >= 0.67 and ratio.max() <= 1.36 else 'NOT all inside'}"
+        " [0.67, 1.36]"
+    )
 
 
 if __name__ == "__main__":

@@ -14,6 +14,7 @@ against the 99 % band of its chi-square distribution (21 N degrees of
 freedom, divided by N) and, per parameter, RMS(error / sigma) over the runs
 (1 when the reported sigmas are honest; the issue asks for [0.67, 1.36]).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -35,8 +36,12 @@ from calib.sequence import load_sequence
 from calib.sim import SimConfig, simulate
 
 # Issue 14 point 4: the sizes of a MEMS unit's errors before calibration, spec units.
-HALF_RANGE = {("gyro", "bias"): 1000.0, ("accel", "bias"): 20000.0,
-              ("gyro", "scale"): 5000.0, ("accel", "scale"): 5000.0}
+HALF_RANGE = {
+    ("gyro", "bias"): 1000.0,
+    ("accel", "bias"): 20000.0,
+    ("gyro", "scale"): 5000.0,
+    ("accel", "scale"): 5000.0,
+}
 MISALIGNMENT_ARCSEC = 1000.0  # 0.28 deg: MEMS data sheets give 0.1-0.5 deg
 SAMPLE_RATE_HZ = 100.0  # the rate of the ADIS16405 log in the shared realdata folder
 LATITUDE_DEG = 40.0
@@ -57,16 +62,30 @@ def one_run(args):
     errors = draw_errors(rng)
     prof = load_profile("mems")
     cfg = SimConfig(latitude_rad=math.radians(LATITUDE_DEG), sample_rate_hz=SAMPLE_RATE_HZ)
-    run, truth = simulate(load_sequence(sequence), cfg, errors, prof, noise=True, seed=seed,
-                          flip_error_deg=FLIP_ERROR_DEG, random_setup_deg=SETUP_DEG)
+    run, truth = simulate(
+        load_sequence(sequence),
+        cfg,
+        errors,
+        prof,
+        noise=True,
+        seed=seed,
+        flip_error_deg=FLIP_ERROR_DEG,
+        random_setup_deg=SETUP_DEG,
+    )
     t0 = time.process_time()
     try:
         res = calibrate_run(run, prof, requirements="mems", require_convergence=False)
     except CalibError as e:  # a refusal is a failed run, counted and named, not a crash
         print(f"seed {seed}: {e}", flush=True)
         return None, None, False, 0, time.process_time() - t0, seed
-    return (res.values - truth.errors.values, res.covariance, res.converged, res.iterations,
-            time.process_time() - t0, seed)
+    return (
+        res.values - truth.errors.values,
+        res.covariance,
+        res.converged,
+        res.iterations,
+        time.process_time() - t0,
+        seed,
+    )
 
 
 def band(n: int, dof: int = P.N_PARAMS) -> tuple[float, float]:
@@ -93,19 +112,25 @@ def main() -> None:
     err = np.array([o[0] for o in out])
     cov = np.array([o[1] for o in out])
     nees = np.array([e @ np.linalg.solve(C, e) for e, C in zip(err, cov)])
-    ratio = np.sqrt(np.mean(err ** 2 / np.einsum("nii->ni", cov), axis=0))
+    ratio = np.sqrt(np.mean(err**2 / np.einsum("nii->ni", cov), axis=0))
     lo, hi = band(len(out))
     iters = np.array([o[3] for o in out])
-    print(f"{args.sequence}, `mems` profile and requirements, {SAMPLE_RATE_HZ:g} Hz, N = {args.n} "
-          f"runs (seeds {args.seed}..{args.seed + args.n - 1}); {platform.machine()}, "
-          f"{args.workers} workers, wall {wall / 60:.1f} min, calibrate CPU "
-          f"{np.mean([o[4] for o in out]):.1f} s/run")
+    print(
+        f"{args.sequence}, `mems` profile and requirements, {SAMPLE_RATE_HZ:g} Hz, N = {args.n} "
+        f"runs (seeds {args.seed}..{args.seed + args.n - 1}); {platform.machine()}, "
+        f"{args.workers} workers, wall {wall / 60:.1f} min, calibrate CPU "
+        f"{np.mean([o[4] for o in out]):.1f} s/run"
+    )
     print(f"refused (diverged): {failed or 'none'}; not converged: {unconverged or 'none'}")
-    print(f"converged: {sum(o[2] for o in out)}/{args.n}; iterations median "
-          f"{np.median(iters):.0f}, max {iters.max()}")
+    print(
+        f"converged: {sum(o[2] for o in out)}/{args.n}; iterations median "
+        f"{np.median(iters):.0f}, max {iters.max()}"
+    )
     verdict = "in" if lo <= nees.mean() <= hi else "OUTSIDE"
-    print(f"mean NEES {nees.mean():.2f} (99 % band [{lo:.2f}, {hi:.2f}]: {verdict}); "
-          f"median {np.median(nees):.1f}, max {nees.max():.1f}")
+    print(
+        f"mean NEES {nees.mean():.2f} (99 % band [{lo:.2f}, {hi:.2f}]: {verdict}); "
+        f"median {np.median(nees):.1f}, max {nees.max():.1f}"
+    )
     print()
     print("| parameter | RMS(error/sigma) | mean(error/sigma) | in [0.67, 1.36] |")
     print("|---|---|---|---|")

@@ -11,6 +11,7 @@ the 21 in units of the reported sigma, the largest bias in units of the
 requirement, and the mean NEES of the 21 (21 expected when the sigmas are
 honest); then the per-parameter biases of the all-terms case.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -25,8 +26,17 @@ from calib.profiles import load_profile
 from calib.sequence import load_sequence
 from seqdesign.montecarlo import run_trials
 
-LEVER = {"rxx": 3.0, "rxy": -2.0, "rxz": 1.5, "ryx": 1.0, "ryy": -4.0, "ryz": 2.0,
-         "rzx": -1.0, "rzy": 2.5, "rzz": 3.5}  # cm: a few cm, as in a real cluster
+LEVER = {
+    "rxx": 3.0,
+    "rxy": -2.0,
+    "rxz": 1.5,
+    "ryx": 1.0,
+    "ryy": -4.0,
+    "ryz": 2.0,
+    "rzx": -1.0,
+    "rzy": 2.5,
+    "rzz": 3.5,
+}  # cm: a few cm, as in a real cluster
 K2 = {"k2x": 20.0, "k2y": 20.0, "k2z": 20.0}  # ug/g^2: quartz accelerometers
 OFFSET = {"dt_ga": 0.5}  # ms
 GM_PROFILE = "navigation-gm"
@@ -62,29 +72,47 @@ def main() -> None:
     for label, (values, groups, with_gm) in CASES.items():
         extra = ExtraValues.from_units(values) if values else None
         sim_profile = gm if with_gm else white
-        off = run_trials(seq, sim_profile, args.n, seed=2000, workers=args.workers, extra=extra,
-                         fit_profile=white)
-        on = run_trials(seq, sim_profile, args.n, seed=2000, workers=args.workers, extra=extra,
-                        extras=Extras(groups), fit_profile=sim_profile)
+        off = run_trials(
+            seq, sim_profile, args.n, seed=2000, workers=args.workers, extra=extra, fit_profile=white
+        )
+        on = run_trials(
+            seq,
+            sim_profile,
+            args.n,
+            seed=2000,
+            workers=args.workers,
+            extra=extra,
+            extras=Extras(groups),
+            fit_profile=sim_profile,
+        )
         rows[label] = (summary(off), summary(on), groups, with_gm)
     elapsed = time.perf_counter() - t0
-    print(f"{args.sequence}, Table 2 errors, random mounting within +-3 deg, flip errors within "
-          f"+-0.5 deg, N = {args.n} runs per case (the same runs off and on); "
-          f"{elapsed / 60:.1f} min with {args.workers} workers")
+    print(
+        f"{args.sequence}, Table 2 errors, random mounting within +-3 deg, flip errors within "
+        f"+-0.5 deg, N = {args.n} runs per case (the same runs off and on); "
+        f"{elapsed / 60:.1f} min with {args.workers} workers"
+    )
     print()
-    print("off: the 21-parameter model, white-noise profile `navigation`. on: the terms fitted "
-          f"(`calibrate --with ...`) and, for bias instability, profile `{GM_PROFILE}`.")
+    print(
+        "off: the 21-parameter model, white-noise profile `navigation`. on: the terms fitted "
+        f"(`calibrate --with ...`) and, for bias instability, profile `{GM_PROFILE}`."
+    )
     print()
-    print("| simulated | fitted on | off: max abs bias/sigma | off: max abs bias/req | off: mean NEES "
-          "| on: max abs bias/sigma | on: max abs bias/req | on: mean NEES |")
+    print(
+        "| simulated | fitted on | off: max abs bias/sigma | off: max abs bias/req | off: mean NEES "
+        "| on: max abs bias/sigma | on: max abs bias/req | on: mean NEES |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     for label, (off, on, groups, with_gm) in rows.items():
         fitted = ", ".join(list(groups) + ([f"profile {GM_PROFILE}"] if with_gm else [])) or "-"
         cells = []
         for bs, br, nees, conv in (off, on):
             i, j = int(np.argmax(np.abs(bs))), int(np.argmax(np.abs(br)))
-            cells += [f"{bs[i]:+.1f} ({P.NAMES[i]})", f"{br[j]:+.2f} ({P.NAMES[j]})",
-                      f"**{nees:.1f}**" + ("" if conv == args.n else f" ({conv} converged)")]
+            cells += [
+                f"{bs[i]:+.1f} ({P.NAMES[i]})",
+                f"{br[j]:+.2f} ({P.NAMES[j]})",
+                f"**{nees:.1f}**" + ("" if conv == args.n else f" ({conv} converged)"),
+            ]
         print(f"| {label} | {fitted} | " + " | ".join(cells) + " |")
     print()
     off, on, _, _ = rows["all of them"]

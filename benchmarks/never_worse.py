@@ -7,6 +7,7 @@ final check) and the CPU time it took. The default must be no worse than either.
 
     PYTHONPATH=. python benchmarks/never_worse.py [--budgets 10,15,30] [--profile navigation]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -15,8 +16,7 @@ import time
 
 from seqdesign.designs import design_budgets
 
-VARIANTS = {"default": {}, "--beam-width 20": {"beam_width": 20},
-            "--no-refine": {"refine": False}}
+VARIANTS = {"default": {}, "--beam-width 20": {"beam_width": 20}, "--no-refine": {"refine": False}}
 
 
 def main() -> None:
@@ -24,8 +24,11 @@ def main() -> None:
     ap.add_argument("--budgets", default="10,15,30")
     ap.add_argument("--profile", default="navigation")
     ap.add_argument("--with", dest="with_terms", default=None)
-    ap.add_argument("--save-dir", default=None,
-                    help="Also write each budget's default design there (with its provenance).")
+    ap.add_argument(
+        "--save-dir",
+        default=None,
+        help="Also write each budget's default design there (with its provenance).",
+    )
     args = ap.parse_args()
     print(f"profile {args.profile}, --with {args.with_terms or 'none'}; worst ratio over +-3 deg")
     print(f"{'budget':>6}  {'variant':<16} {'worst':>7}  {'CPU s':>6}  moves")
@@ -39,12 +42,19 @@ def main() -> None:
             worst[label] = r.worst_ratio
             if args.save_dir and label == "default":
                 from seqdesign.clitools import provenance
-                cmd = (f"PYTHONPATH=. python benchmarks/never_worse.py {' '.join(sys.argv[1:])} "
-                       f"(its default run: the defaults of seqdesign design --budget-min {b:g})")
-                rep.save_design(rep.rows[0], f"{args.save_dir}/designed-{b:g}min.toml",
-                                provenance() | {"command": cmd})
-            print(f"{b:5g}m  {label:<16} {r.worst_ratio:7.4f}  {cpu:6.0f}  "
-                  f"{len(r.sequence.steps)} ({r.worst_name})", flush=True)
+
+                cmd = (
+                    f"PYTHONPATH=. python benchmarks/never_worse.py {' '.join(sys.argv[1:])} "
+                    f"(its default run: the defaults of seqdesign design --budget-min {b:g})"
+                )
+                rep.save_design(
+                    rep.rows[0], f"{args.save_dir}/designed-{b:g}min.toml", provenance() | {"command": cmd}
+                )
+            print(
+                f"{b:5g}m  {label:<16} {r.worst_ratio:7.4f}  {cpu:6.0f}  "
+                f"{len(r.sequence.steps)} ({r.worst_name})",
+                flush=True,
+            )
         ok = all(worst["default"] <= v + 1e-12 for v in worst.values())
         print(f"{b:5g}m  default never worse: {'yes' if ok else 'NO'}", flush=True)
 

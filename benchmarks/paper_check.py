@@ -6,6 +6,7 @@ Prints a Markdown table: the paper's Table 2 error, our error on one
 simulated run (setup (1, -2, 3) deg, lat 40 deg), our reported sigma, the
 requirement, and whether 3 sigma meets it.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -30,24 +31,28 @@ def main() -> None:
     lat = math.radians(40.0)
     cfg = SimConfig(latitude_rad=lat)
     truth = ErrorModel.from_table2()
-    run, _ = simulate(seq, cfg, truth, prof, setup_rotvec=np.radians([1.0, -2.0, 3.0]),
-                      seed=args.seed)
+    run, _ = simulate(seq, cfg, truth, prof, setup_rotvec=np.radians([1.0, -2.0, 3.0]), seed=args.seed)
     fit = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, lat, cfg.gravity, prof)
     err = P.from_si(fit.values - truth.values)
     sig = P.from_si(fit.sigma)
     paper_err = paper_table("table2_simulation", "paper_error")
-    print(f"paper-9pos, Table 2 values, navigation profile, setup (1, -2, 3) deg, latitude 40 deg, "
-          f"seed {args.seed}: converged {fit.converged} in {fit.iterations} iterations, "
-          f"chi2/dof {fit.chi2_per_dof:.3f}")
+    print(
+        f"paper-9pos, Table 2 values, navigation profile, setup (1, -2, 3) deg, latitude 40 deg, "
+        f"seed {args.seed}: converged {fit.converged} in {fit.iterations} iterations, "
+        f"chi2/dof {fit.chi2_per_dof:.3f}"
+    )
     print()
-    print("| param | unit | paper's error (Table 2) | our error | our sigma | requirement "
-          "| 3 sigma meets it |")
+    print(
+        "| param | unit | paper's error (Table 2) | our error | our sigma | requirement | 3 sigma meets it |"
+    )
     print("|---|---|---|---|---|---|---|")
     for p in P.PARAMETERS:
         i = p.index
         ok = "yes" if 3 * sig[i] <= p.requirement else "**no**"
-        print(f"| {p.name} | {p.unit} | {paper_err[i]:+.4g} | {err[i]:+.4g} | {sig[i]:.3g} | "
-              f"{p.requirement:g} | {ok} |")
+        print(
+            f"| {p.name} | {p.unit} | {paper_err[i]:+.4g} | {err[i]:+.4g} | {sig[i]:.3g} | "
+            f"{p.requirement:g} | {ok} |"
+        )
 
 
 if __name__ == "__main__":

@@ -3,6 +3,7 @@
 Prints a Markdown table of what was measured, on this machine, now. Figures
 in BENCHMARKS.md come from this script; the tests assert physics, not time.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -44,30 +45,77 @@ def cli_rows(tmp: Path) -> list:
     rows = []
     npz, csv = tmp / "run.npz", tmp / "run.csv"
     sim = [str(BIN), "simulate", "paper-9pos", "--table2", "--setup-deg", "1", "-2", "3", "--seed", "7"]
-    rows.append(("simulate paper-9pos (28.2 min, 200 Hz) -> NPZ, CLI wall",
-                 wall(sim + ["-o", str(npz)]), "<= 3 s"))
+    rows.append(
+        ("simulate paper-9pos (28.2 min, 200 Hz) -> NPZ, CLI wall", wall(sim + ["-o", str(npz)]), "<= 3 s")
+    )
     rows.append(("simulate paper-9pos -> CSV, CLI wall", wall(sim + ["-o", str(csv)], 1), "-"))
-    rows.append(("calibrate 28.2 min 200 Hz run from NPZ, CLI wall",
-                 wall([str(BIN), "calibrate", str(npz), "-o", str(tmp / "r.toml")]), "<= 5 s"))
-    rows.append(("calibrate the same run from CSV, CLI wall",
-                 wall([str(BIN), "calibrate", str(csv), "-o", str(tmp / "r2.toml")], 1), "-"))
+    rows.append(
+        (
+            "calibrate 28.2 min 200 Hz run from NPZ, CLI wall",
+            wall([str(BIN), "calibrate", str(npz), "-o", str(tmp / "r.toml")]),
+            "<= 5 s",
+        )
+    )
+    rows.append(
+        (
+            "calibrate the same run from CSV, CLI wall",
+            wall([str(BIN), "calibrate", str(csv), "-o", str(tmp / "r2.toml")], 1),
+            "-",
+        )
+    )
     # Issue 8: a real unit's terms simulated and fitted; bias instability weighted.
     npz_x = tmp / "run-extra.npz"
-    subprocess.run(sim + ["--extra", "rxx=3,ryy=-2,k2y=20,dt_ga=0.3", "-o", str(npz_x)], check=True,
-                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    rows.append(("calibrate --with all (21 + 13 extra parameters), same run size, CLI wall",
-                 wall([str(BIN), "calibrate", str(npz_x), "--with", "all", "-o", str(tmp / "rx.toml")]),
-                 "-"))
+    subprocess.run(
+        sim + ["--extra", "rxx=3,ryy=-2,k2y=20,dt_ga=0.3", "-o", str(npz_x)],
+        check=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    rows.append(
+        (
+            "calibrate --with all (21 + 13 extra parameters), same run size, CLI wall",
+            wall([str(BIN), "calibrate", str(npz_x), "--with", "all", "-o", str(tmp / "rx.toml")]),
+            "-",
+        )
+    )
     npz_gm = tmp / "run-gm.npz"
-    subprocess.run(sim + ["--profile", "navigation-gm", "-o", str(npz_gm)], check=True,
-                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    rows.append(("calibrate --profile navigation-gm (9-state GM whitening), CLI wall",
-                 wall([str(BIN), "calibrate", str(npz_gm), "--profile", "navigation-gm",
-                       "-o", str(tmp / "rgm.toml")]), "-"))
-    rows.append(("analyze paper-9pos --with all (+-3 deg, 27 direct evaluations), CLI wall",
-                 wall([str(BIN), "analyze", "paper-9pos", "--with", "all"], 1), "-"))
-    rows.append(("analyze paper-9pos --profile navigation-gm (+-3 deg), CLI wall",
-                 wall([str(BIN), "analyze", "paper-9pos", "--profile", "navigation-gm"], 1), "-"))
+    subprocess.run(
+        sim + ["--profile", "navigation-gm", "-o", str(npz_gm)],
+        check=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    rows.append(
+        (
+            "calibrate --profile navigation-gm (9-state GM whitening), CLI wall",
+            wall(
+                [
+                    str(BIN),
+                    "calibrate",
+                    str(npz_gm),
+                    "--profile",
+                    "navigation-gm",
+                    "-o",
+                    str(tmp / "rgm.toml"),
+                ]
+            ),
+            "-",
+        )
+    )
+    rows.append(
+        (
+            "analyze paper-9pos --with all (+-3 deg, 27 direct evaluations), CLI wall",
+            wall([str(BIN), "analyze", "paper-9pos", "--with", "all"], 1),
+            "-",
+        )
+    )
+    rows.append(
+        (
+            "analyze paper-9pos --profile navigation-gm (+-3 deg), CLI wall",
+            wall([str(BIN), "analyze", "paper-9pos", "--profile", "navigation-gm"], 1),
+            "-",
+        )
+    )
     return rows
 
 
@@ -76,14 +124,28 @@ def analysis_rows(seq, prof, lat) -> list:
     from seqdesign.observability import analyze, analyze_tolerance
 
     analyze(seq, prof, lat)  # warm caches (casadi step model, whitening) as a search loop would
-    return [("one analysis, nominal mounting, in-process (paper-9pos)",
-             best_of(lambda: analyze(seq, prof, lat)), "<= 10 ms"),
-            ("worst case over +-3 deg (27 mountings), in-process",
-             best_of(lambda: analyze_tolerance(seq, prof, lat, 0.0, 3.0), 2), "<= 2 s"),
-            ("analyze paper-9pos (+-3 deg), CLI wall incl. start-up",
-             wall([str(BIN), "analyze", "paper-9pos"]), "<= 3 s"),
-            ("analyze paper-9pos --tolerance-deg 0, CLI wall",
-             wall([str(BIN), "analyze", "paper-9pos", "--tolerance-deg", "0"]), "-")]
+    return [
+        (
+            "one analysis, nominal mounting, in-process (paper-9pos)",
+            best_of(lambda: analyze(seq, prof, lat)),
+            "<= 10 ms",
+        ),
+        (
+            "worst case over +-3 deg (27 mountings), in-process",
+            best_of(lambda: analyze_tolerance(seq, prof, lat, 0.0, 3.0), 2),
+            "<= 2 s",
+        ),
+        (
+            "analyze paper-9pos (+-3 deg), CLI wall incl. start-up",
+            wall([str(BIN), "analyze", "paper-9pos"]),
+            "<= 3 s",
+        ),
+        (
+            "analyze paper-9pos --tolerance-deg 0, CLI wall",
+            wall([str(BIN), "analyze", "paper-9pos", "--tolerance-deg", "0"]),
+            "-",
+        ),
+    ]
 
 
 def search_rows(seq, prof, lat, tmp: Path) -> list:
@@ -100,8 +162,14 @@ def search_rows(seq, prof, lat, tmp: Path) -> list:
         for mv in walk:
             cand = next(k for k in m9.extend([cand], "worst") if k.walk[-1] == mv)
         return cand
-    rows = [("one analysis inside the search (paper's 9-position walk, segment model)",
-             best_of(score_walk), "<= 10 ms")]
+
+    rows = [
+        (
+            "one analysis inside the search (paper's 9-position walk, segment model)",
+            best_of(score_walk),
+            "<= 10 ms",
+        )
+    ]
     c15 = Constraints(budget_s=900.0, max_flips=10, max_quarters=5)
     t = time.perf_counter()
     m15 = SearchModel.build(c15, 57.3, lat, 0.0, prof)
@@ -109,24 +177,54 @@ def search_rows(seq, prof, lat, tmp: Path) -> list:
     t = time.perf_counter()
     _, n = beam_search(m15, "worst", 200)
     el = time.perf_counter() - t
-    rows.append((f"search: {n} candidates scored by beam search (15 min, width 200)", el,
-                 f"{n / el:,.0f} candidates/s (>= 10,000); model build {build:.1f} s"))
-    rows.append(("seqdesign design --budget-min 15 (search, exact +-3 deg re-scoring, IPOPT), CLI wall",
-                 wall([str(BIN), "design", "--budget-min", "15", "-o", str(tmp / "d15.toml")], 1),
-                 "<= 5 min"))
+    rows.append(
+        (
+            f"search: {n} candidates scored by beam search (15 min, width 200)",
+            el,
+            f"{n / el:,.0f} candidates/s (>= 10,000); model build {build:.1f} s",
+        )
+    )
+    rows.append(
+        (
+            "seqdesign design --budget-min 15 (search, exact +-3 deg re-scoring, IPOPT), CLI wall",
+            wall([str(BIN), "design", "--budget-min", "15", "-o", str(tmp / "d15.toml")], 1),
+            "<= 5 min",
+        )
+    )
     return rows
 
 
 def view_rows(tmp: Path) -> list:
     """Record a calibrated run for the viewer."""
-    sim = [str(BIN), "simulate", "paper-9pos", "--table2", "--setup-deg", "1", "-2", "3", "--seed", "7",
-           "-o", str(tmp / "v.npz")]
+    sim = [
+        str(BIN),
+        "simulate",
+        "paper-9pos",
+        "--table2",
+        "--setup-deg",
+        "1",
+        "-2",
+        "3",
+        "--seed",
+        "7",
+        "-o",
+        str(tmp / "v.npz"),
+    ]
     subprocess.run(sim, check=True, stdout=subprocess.DEVNULL)
-    subprocess.run([str(BIN), "calibrate", str(tmp / "v.npz")], check=True,
-                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    return [("view: record the 28.2 min 200 Hz run with result and truth, CLI wall",
-             wall([str(BIN), "view", str(tmp / "v.npz"), "-o", str(tmp / "v.rrd")]), "<= 5 s"),
-            (f"  .rrd size: {(tmp / 'v.rrd').stat().st_size / 1e6:.1f} MB", 0.0, "<= 100 MB")]
+    subprocess.run(
+        [str(BIN), "calibrate", str(tmp / "v.npz")],
+        check=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    return [
+        (
+            "view: record the 28.2 min 200 Hz run with result and truth, CLI wall",
+            wall([str(BIN), "view", str(tmp / "v.npz"), "-o", str(tmp / "v.rrd")]),
+            "<= 5 s",
+        ),
+        (f"  .rrd size: {(tmp / 'v.rrd').stat().st_size / 1e6:.1f} MB", 0.0, "<= 100 MB"),
+    ]
 
 
 MC_SEQUENCES = ("paper-9pos", "paper-9pos-turns", "designed-15min", "designed-30min")
@@ -146,11 +244,15 @@ def monte_carlo(n: int, workers: int, prof, lat, sequences=MC_SEQUENCES) -> None
         el = time.perf_counter() - t
         pred = analyze(s, prof, lat)
         print()
-        print(f"Monte Carlo {name}: N = {n} (navigation profile, Table 2 errors, random "
-              f"mounting within +-3 deg, flip errors within +-0.5 deg), {el:.0f} s with "
-              f"{workers} workers; all converged: {bool(trials.converged.all())}")
-        print(f"mean NEES (reported covariance) {trials.nees.mean():.2f}, (predicted) "
-              f"{trials.nees_against(pred.covariance).mean():.2f}; 99 % interval [18.1, 24.2]")
+        print(
+            f"Monte Carlo {name}: N = {n} (navigation profile, Table 2 errors, random "
+            f"mounting within +-3 deg, flip errors within +-0.5 deg), {el:.0f} s with "
+            f"{workers} workers; all converged: {bool(trials.converged.all())}"
+        )
+        print(
+            f"mean NEES (reported covariance) {trials.nees.mean():.2f}, (predicted) "
+            f"{trials.nees_against(pred.covariance).mean():.2f}; 99 % interval [18.1, 24.2]"
+        )
         print()
         print("| param | RMS error | mean reported sigma | RMS/sigma | predicted sigma | RMS/predicted |")
         print("|---|---|---|---|---|---|")
@@ -158,16 +260,21 @@ def monte_carlo(n: int, workers: int, prof, lat, sequences=MC_SEQUENCES) -> None
         ps = P.from_si(pred.sigma)
         for p in P.PARAMETERS:
             i = p.index
-            print(f"| {p.name} | {rms[i]:.4g} {p.unit} | {ms[i]:.4g} | {rms[i] / ms[i]:.2f} | "
-                  f"{ps[i]:.4g} | {rms[i] / ps[i]:.2f} |")
+            print(
+                f"| {p.name} | {rms[i]:.4g} {p.unit} | {ms[i]:.4g} | {rms[i] / ms[i]:.2f} | "
+                f"{ps[i]:.4g} | {rms[i] / ps[i]:.2f} |"
+            )
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--mc", type=int, default=0, help="also run N Monte Carlo trials per sequence")
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--mc-only", default="", help="comma-separated sequences: run only their "
-                    "Monte Carlo (with --mc N), no speed benchmarks")
+    ap.add_argument(
+        "--mc-only",
+        default="",
+        help="comma-separated sequences: run only their Monte Carlo (with --mc N), no speed benchmarks",
+    )
     args = ap.parse_args()
 
     from calib.profiles import load_profile
@@ -179,12 +286,13 @@ def main() -> None:
     if args.mc_only:
         monte_carlo(args.mc or 50, args.workers, prof, lat, args.mc_only.split(","))
         return
-    rows = cli_rows(tmp) + analysis_rows(seq, prof, lat) + search_rows(seq, prof, lat, tmp) \
-        + view_rows(tmp)
-    print(f"Measured {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC on "
-          f"{platform.node()} ({platform.machine()}, {os.cpu_count()} cores, Python "
-          f"{platform.python_version()}); command: python benchmarks/run_all.py"
-          + (f" --mc {args.mc}" if args.mc else ""))
+    rows = cli_rows(tmp) + analysis_rows(seq, prof, lat) + search_rows(seq, prof, lat, tmp) + view_rows(tmp)
+    print(
+        f"Measured {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC on "
+        f"{platform.node()} ({platform.machine()}, {os.cpu_count()} cores, Python "
+        f"{platform.python_version()}); command: python benchmarks/run_all.py"
+        + (f" --mc {args.mc}" if args.mc else "")
+    )
     print()
     print("| what | measured | target |")
     print("|---|---|---|")

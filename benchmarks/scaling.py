@@ -15,6 +15,7 @@ same files, in the same run, and the estimates of the two are compared in
 units of the reported sigma. Nothing is asserted: the table says what was
 measured, where and when.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -55,9 +56,11 @@ def timed(cmd: list[str], cwd: Path) -> dict:
 
     elapsed = field(r"Elapsed \(wall clock\) time \(h:mm:ss or m:ss\)")
     h, m, s = ([0] + [float(x) for x in elapsed.split(":")])[-3:]
-    return {"wall_s": 3600 * h + 60 * m + s,
-            "cpu_s": float(field("User time \\(seconds\\)")) + float(field("System time \\(seconds\\)")),
-            "rss_mb": int(field("Maximum resident set size \\(kbytes\\)")) / 1024.0}
+    return {
+        "wall_s": 3600 * h + 60 * m + s,
+        "cpu_s": float(field("User time \\(seconds\\)")) + float(field("System time \\(seconds\\)")),
+        "rss_mb": int(field("Maximum resident set size \\(kbytes\\)")) / 1024.0,
+    }
 
 
 def calibrate(tree: Path, run: Path, out: Path) -> dict:
@@ -65,9 +68,27 @@ def calibrate(tree: Path, run: Path, out: Path) -> dict:
 
 
 def simulate(seq: Path, rate: float, run: Path) -> dict:
-    return timed([PYTHON, "-m", "seqdesign.cli", "simulate-stream", str(seq), "-o", str(run),
-                  "--table2", "--setup-deg", "1", "-2", "3", "--seed", "7",
-                  "--sample-rate-hz", f"{rate:g}"], ROOT)
+    return timed(
+        [
+            PYTHON,
+            "-m",
+            "seqdesign.cli",
+            "simulate-stream",
+            str(seq),
+            "-o",
+            str(run),
+            "--table2",
+            "--setup-deg",
+            "1",
+            "-2",
+            "3",
+            "--seed",
+            "7",
+            "--sample-rate-hz",
+            f"{rate:g}",
+        ],
+        ROOT,
+    )
 
 
 def max_difference_sigma(new: Path, base: Path) -> float:
@@ -86,12 +107,18 @@ def measure(rates, minutes, base: Path | None, base_max: int, folder: Path) -> l
         for rate in rates:
             run = folder / f"run-{rate:g}hz-{mins:g}min.npz"
             sim = simulate(seq, rate, run)
-            row = {"rate": rate, "minutes": mins, "samples": int(round(rate * 60 * mins)),
-                   "sim": sim, "new": calibrate(ROOT, run, run.with_suffix(".new.toml"))}
+            row = {
+                "rate": rate,
+                "minutes": mins,
+                "samples": int(round(rate * 60 * mins)),
+                "sim": sim,
+                "new": calibrate(ROOT, run, run.with_suffix(".new.toml")),
+            }
             if base is not None and row["samples"] <= base_max:
                 row["base"] = calibrate(base, run, run.with_suffix(".base.toml"))
-                row["diff_sigma"] = max_difference_sigma(run.with_suffix(".new.toml"),
-                                                         run.with_suffix(".base.toml"))
+                row["diff_sigma"] = max_difference_sigma(
+                    run.with_suffix(".new.toml"), run.with_suffix(".base.toml")
+                )
             rows.append(row)
             print(_line(row), flush=True)
             run.unlink()
@@ -100,24 +127,39 @@ def measure(rates, minutes, base: Path | None, base_max: int, folder: Path) -> l
 
 def _line(r: dict) -> str:
     base = r.get("base")
-    cells = [f"{r['rate']:g}", f"{r['minutes']:g}", f"{r['samples']:,}",
-             f"{r['new']['wall_s']:.2f}", f"{r['new']['cpu_s']:.2f}", f"{r['new']['rss_mb']:.0f}",
-             f"{base['wall_s']:.2f}" if base else "-", f"{base['cpu_s']:.2f}" if base else "-",
-             f"{base['rss_mb']:.0f}" if base else "-",
-             f"{r['diff_sigma']:.1e}" if "diff_sigma" in r else "-",
-             f"{r['sim']['wall_s']:.1f}", f"{r['sim']['rss_mb']:.0f}"]
+    cells = [
+        f"{r['rate']:g}",
+        f"{r['minutes']:g}",
+        f"{r['samples']:,}",
+        f"{r['new']['wall_s']:.2f}",
+        f"{r['new']['cpu_s']:.2f}",
+        f"{r['new']['rss_mb']:.0f}",
+        f"{base['wall_s']:.2f}" if base else "-",
+        f"{base['cpu_s']:.2f}" if base else "-",
+        f"{base['rss_mb']:.0f}" if base else "-",
+        f"{r['diff_sigma']:.1e}" if "diff_sigma" in r else "-",
+        f"{r['sim']['wall_s']:.1f}",
+        f"{r['sim']['rss_mb']:.0f}",
+    ]
     return "| " + " | ".join(cells) + " |"
 
 
 def table(rows: list[dict], command: str, base: Path | None) -> str:
-    head = ("| rate Hz | min | samples | calibrate wall s | CPU s | peak MB | base wall s | "
-            "base CPU s | base peak MB | max |new-base|/sigma | simulate wall s | simulate peak MB |\n"
-            "|---|---|---|---|---|---|---|---|---|---|---|---|\n")
-    machine = (f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
-               f"{platform.node()}")
-    return (f"{BEGIN}\nMeasured {datetime.date.today().isoformat()} on {machine}; base = "
-            f"{base or 'not run'}; command:\n\n    {command}\n\n" + head
-            + "\n".join(_line(r) for r in rows) + f"\n{END}\n")
+    head = (
+        "| rate Hz | min | samples | calibrate wall s | CPU s | peak MB | base wall s | "
+        "base CPU s | base peak MB | max |new-base|/sigma | simulate wall s | simulate peak MB |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+    )
+    machine = (
+        f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, {platform.node()}"
+    )
+    return (
+        f"{BEGIN}\nMeasured {datetime.date.today().isoformat()} on {machine}; base = "
+        f"{base or 'not run'}; command:\n\n    {command}\n\n"
+        + head
+        + "\n".join(_line(r) for r in rows)
+        + f"\n{END}\n"
+    )
 
 
 def main() -> None:
@@ -138,7 +180,7 @@ def main() -> None:
     if a.write:
         doc = a.write.read_text() if a.write.exists() else ""
         if BEGIN in doc:
-            doc = doc[:doc.index(BEGIN)] + text + doc[doc.index(END) + len(END) + 1:]
+            doc = doc[: doc.index(BEGIN)] + text + doc[doc.index(END) + len(END) + 1 :]
         else:
             doc += "\n## Calibrate scaling (issue 18)\n\n" + text
         a.write.write_text(doc)
@@ -148,6 +190,7 @@ def main() -> None:
 
 def plot(rows: list[dict], path: Path) -> None:
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 

@@ -9,6 +9,7 @@ candidate evaluations: the script accepts it to say so.
 
     PYTHONPATH=. python benchmarks/search_speed.py navigation-gm [--with all]
 """
+
 from __future__ import annotations
 
 import math
@@ -34,9 +35,11 @@ def main() -> None:
     wall, cpu = time.perf_counter(), time.process_time()
     kids = model.extend(parents, "worst")
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
-    print(f"{prof.name} (--with {terms}; the beam ranks without the terms): "
-          f"{len(kids)} candidates in {wall:.2f} s wall ({len(kids) / wall:.0f}/s), "
-          f"{cpu:.2f} s CPU ({len(kids) / cpu:.0f}/s); model built in {build:.1f} s")
+    print(
+        f"{prof.name} (--with {terms}; the beam ranks without the terms): "
+        f"{len(kids)} candidates in {wall:.2f} s wall ({len(kids) / wall:.0f}/s), "
+        f"{cpu:.2f} s CPU ({len(kids) / cpu:.0f}/s); model built in {build:.1f} s"
+    )
 
 
 if __name__ == "__main__":

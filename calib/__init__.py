@@ -1,4 +1,5 @@
 """Self-calibration of a three-axis hybrid INS (see README)."""
+
 import os as _os
 
 # The work here is many small matrix products: OpenBLAS threads cost far more

@@ -23,6 +23,7 @@ maximum, over ``x = tau / T_c``, is at x = 1.893 and is 0.6174 sigma
 numerically, checked in tests/test_allan.py): the relation between an Allan
 floor and the GM sigma and tau of a profile.
 """
+
 from __future__ import annotations
 
 import math
@@ -98,8 +99,7 @@ def allan_deviation(rate: np.ndarray, dt: float, taus: np.ndarray | None = None)
     rate = np.asarray(rate, dtype=float)
     taus = octave_taus(rate.size, dt) if taus is None else np.asarray(taus, dtype=float)
     # Removing the mean changes no Allan deviation; it keeps the sums well conditioned.
-    tau, adev, _, _ = allantools.oadev(rate - rate.mean(), rate=1.0 / dt,
-                                       data_type="freq", taus=taus)
+    tau, adev, _, _ = allantools.oadev(rate - rate.mean(), rate=1.0 / dt, data_type="freq", taus=taus)
     m = np.round(tau / dt).astype(int)
     edf = np.array([allantools.edf_simple(rate.size, int(k), 0) for k in m])
     low, high = np.array([allantools.confidence_interval(a, e) for a, e in zip(adev, edf)]).T
@@ -168,9 +168,12 @@ class NoiseFit:
 
     def model_adev(self, tau) -> np.ndarray:
         """Allan deviation of the fitted terms (quantisation, white, GM, RRW)."""
-        return np.sqrt(avar_quantisation(tau, self.quantisation) + avar_white(tau, self.white)
-                       + avar_gauss_markov(tau, self.gm_sigma, self.gm_correlation_s)
-                       + avar_rate_random_walk(tau, self.rate_random_walk))
+        return np.sqrt(
+            avar_quantisation(tau, self.quantisation)
+            + avar_white(tau, self.white)
+            + avar_gauss_markov(tau, self.gm_sigma, self.gm_correlation_s)
+            + avar_rate_random_walk(tau, self.rate_random_walk)
+        )
 
 
 def _runs(mask: np.ndarray) -> list[np.ndarray]:
@@ -193,8 +196,10 @@ def white_region(curve: AllanCurve) -> np.ndarray:
     on_line[floor:] = False
     runs = [r for r in _runs(on_line) if r.size >= 3] or _runs(on_line)
     if not runs:
-        raise ValueError("no slope -1/2 region before the floor: the log is too short "
-                         "or too coarsely sampled to show white noise")
+        raise ValueError(
+            "no slope -1/2 region before the floor: the log is too short "
+            "or too coarsely sampled to show white noise"
+        )
     level = [np.median(curve.adev[r] * np.sqrt(curve.tau_s[r])) for r in runs]
     return runs[int(np.argmin(level))]
 
@@ -212,19 +217,22 @@ def fit_noise(curve: AllanCurve) -> NoiseFit:
     white = float(np.exp(np.mean(np.log(adev[region] * np.sqrt(tau[region])))))
     early = np.arange(region[0])
     steep = early[curve.slope[early] <= -1.0 + SLOPE_TOLERANCE]
-    quantisation = float(np.median(adev[steep] * tau[steep] / math.sqrt(3.0))) \
-        if steep.size else 0.0
+    quantisation = float(np.median(adev[steep] * tau[steep] / math.sqrt(3.0))) if steep.size else 0.0
     floor = int(np.argmin(adev))
     sigma, correlation, k = _fit_gm(curve, region[0], white, quantisation)
-    return NoiseFit(white=white, white_tau_s=(float(tau[region[0]]), float(tau[region[-1]])),
-                    quantisation=quantisation,
-                    bias_instability=float(adev[floor] / FLICKER_FLOOR_RATIO),
-                    floor_tau_s=float(tau[floor]), gm_sigma=sigma, gm_correlation_s=correlation,
-                    rate_random_walk=k)
+    return NoiseFit(
+        white=white,
+        white_tau_s=(float(tau[region[0]]), float(tau[region[-1]])),
+        quantisation=quantisation,
+        bias_instability=float(adev[floor] / FLICKER_FLOOR_RATIO),
+        floor_tau_s=float(tau[floor]),
+        gm_sigma=sigma,
+        gm_correlation_s=correlation,
+        rate_random_walk=k,
+    )
 
 
-def _fit_gm(curve: AllanCurve, start: int, white: float,
-            quantisation: float) -> tuple[float, float, float]:
+def _fit_gm(curve: AllanCurve, start: int, white: float, quantisation: float) -> tuple[float, float, float]:
     """GM sigma, correlation time and K by weighted least squares in log(adev).
 
     Each tau is weighted by the width of its confidence interval in log units
@@ -240,8 +248,7 @@ def _fit_gm(curve: AllanCurve, start: int, white: float,
 
     def residual(x):
         sigma, correlation, k = np.exp(x)
-        model = fixed + avar_gauss_markov(tau, sigma, correlation) \
-            + avar_rate_random_walk(tau, k)
+        model = fixed + avar_gauss_markov(tau, sigma, correlation) + avar_rate_random_walk(tau, k)
         return 0.5 * np.log(model / adev**2) / scale
 
     # Correlation times from MIN_CORRELATION_S (the profiles' lower bound: shorter
@@ -254,8 +261,7 @@ def _fit_gm(curve: AllanCurve, start: int, white: float,
     for log_tc in np.linspace(low, high, 6):  # multi-start: the cost has several valleys
         peak = np.clip(math.exp(log_tc) * GM_PEAK_TAU_RATIO, tau[0], tau[-1])
         level = np.interp(math.log(peak), np.log(tau), adev)
-        x0 = np.array([math.log(level / GM_PEAK_ADEV_RATIO), log_tc,
-                       math.log(adev[-1] / math.sqrt(tau[-1]))])
+        x0 = np.array([math.log(level / GM_PEAK_ADEV_RATIO), log_tc, math.log(adev[-1] / math.sqrt(tau[-1]))])
         fit = least_squares(residual, x0, bounds=bounds, loss="soft_l1", f_scale=2.0)
         if best is None or fit.cost < best.cost:
             best = fit

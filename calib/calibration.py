@@ -8,6 +8,7 @@ residuals are larger than the noise profile says), and, for a run that
 leaves directions unobserved, which parameters are not estimable. A
 notebook, the Monte Carlo and the CLI get the same sigmas from it.
 """
+
 from __future__ import annotations
 
 import math
@@ -50,8 +51,10 @@ class SiteGravity:
     def describe(self) -> str:
         if self.source == "measured":
             return f"{self.value_mps2:.7f} m/s^2 (measured, from the log's gravity_mps2)"
-        return (f"{self.value_mps2:.7f} m/s^2 (WGS-84 normal gravity at the log's latitude and "
-                "height; local anomalies of tens of mGal are not in it)")
+        return (
+            f"{self.value_mps2:.7f} m/s^2 (WGS-84 normal gravity at the log's latitude and "
+            "height; local anomalies of tens of mGal are not in it)"
+        )
 
 
 def site_gravity(run, gravity_mps2: float | None = None) -> SiteGravity:
@@ -63,11 +66,18 @@ def site_gravity(run, gravity_mps2: float | None = None) -> SiteGravity:
     return SiteGravity(earth.gravity(math.radians(run.latitude_deg), run.height_m), "normal")
 
 
-def calibrate_run(run, profile: NoiseProfile | str = "navigation", *, sequence=None,
-                  extras: Extras | str | None = None, partial: bool = False,
-                  require_convergence: bool = True, requirements=None,
-                  gravity_mps2: float | None = None,
-                  provenance: dict | None = None) -> CalibrationResult:
+def calibrate_run(
+    run,
+    profile: NoiseProfile | str = "navigation",
+    *,
+    sequence=None,
+    extras: Extras | str | None = None,
+    partial: bool = False,
+    require_convergence: bool = True,
+    requirements=None,
+    gravity_mps2: float | None = None,
+    provenance: dict | None = None,
+) -> CalibrationResult:
     """Fit the 21 parameters (and any optional terms) of a run log.
 
     Parameters
@@ -109,32 +119,63 @@ def calibrate_run(run, profile: NoiseProfile | str = "navigation", *, sequence=N
     if sequence is not None:
         dt = sample_intervals(run.time_s)
         moving = sequence_motion(sequence, run.time_s, dt)
-        check_sequence_matches(sequence, detect_motion(run.dtheta_rad, dt, run.source).moving,
-                               moving, dt, run.source)
-    fit = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, lat, gravity.value_mps2, prof,
-                    moving=moving, where=run.source, extras=extras, partial=partial,
-                    requirements=req, sequence=sequence)
+        check_sequence_matches(
+            sequence, detect_motion(run.dtheta_rad, dt, run.source).moving, moving, dt, run.source
+        )
+    fit = calibrate(
+        run.time_s,
+        run.dtheta_rad,
+        run.dv_mps,
+        lat,
+        gravity.value_mps2,
+        prof,
+        moving=moving,
+        where=run.source,
+        extras=extras,
+        partial=partial,
+        requirements=req,
+        sequence=sequence,
+    )
     if require_convergence and not fit.converged:
-        raise CalibError(f"the fit did not converge in {fit.iterations} iterations (last step "
-                         f"{fit.history[-1]['max_step_sigma']:.3g} sigma)", run.source,
-                         "no result written; check the run and the noise profile")
+        raise CalibError(
+            f"the fit did not converge in {fit.iterations} iterations (last step "
+            f"{fit.history[-1]['max_step_sigma']:.3g} sigma)",
+            run.source,
+            "no result written; check the run and the noise profile",
+        )
     return result_from_fit(fit, prof, gravity, provenance or {}, req)
 
 
-def result_from_fit(fit: Fit, profile: NoiseProfile, gravity: SiteGravity,
-                    provenance: dict, requirements: Requirements = PAPER) -> CalibrationResult:
+def result_from_fit(
+    fit: Fit,
+    profile: NoiseProfile,
+    gravity: SiteGravity,
+    provenance: dict,
+    requirements: Requirements = PAPER,
+) -> CalibrationResult:
     """The result a user sees: sigmas Birge-checked, the 21's correlation, what is estimable."""
     scale = math.sqrt(fit.chi2_per_dof) if fit.chi2_per_dof > BIRGE_LIMIT else 1.0
-    estimable = fit.estimable if fit.estimable is not None else np.ones(
-        P.N_PARAMS + fit.extras.n, dtype=bool)
+    estimable = fit.estimable if fit.estimable is not None else np.ones(P.N_PARAMS + fit.extras.n, dtype=bool)
     names = P.NAMES + fit.extras.names
     return CalibrationResult(
-        values=fit.values, sigma=fit.sigma * scale, C_b_n0=fit.C_b_n0, converged=fit.converged,
-        iterations=fit.iterations, residual_rms_mps=fit.residual_rms_mps, profile=profile.name,
-        chi2_per_dof=fit.chi2_per_dof, correlation=fit.correlation[:P.N_PARAMS, :P.N_PARAMS],
-        provenance=dict(provenance), extras=fit.extras, extra_values=fit.extra_values,
-        extra_sigma=fit.extra_sigma * scale, sigma_scale=scale,
+        values=fit.values,
+        sigma=fit.sigma * scale,
+        C_b_n0=fit.C_b_n0,
+        converged=fit.converged,
+        iterations=fit.iterations,
+        residual_rms_mps=fit.residual_rms_mps,
+        profile=profile.name,
+        chi2_per_dof=fit.chi2_per_dof,
+        correlation=fit.correlation[: P.N_PARAMS, : P.N_PARAMS],
+        provenance=dict(provenance),
+        extras=fit.extras,
+        extra_values=fit.extra_values,
+        extra_sigma=fit.extra_sigma * scale,
+        sigma_scale=scale,
         not_estimable=tuple(n for n, e in zip(names, estimable) if not e),
-        null_directions=tuple(fit.null_directions), n_observations=fit.n_observations,
-        gravity_mps2=gravity.value_mps2, gravity_source=gravity.source,
-        requirements=requirements)
+        null_directions=tuple(fit.null_directions),
+        n_observations=fit.n_observations,
+        gravity_mps2=gravity.value_mps2,
+        gravity_source=gravity.source,
+        requirements=requirements,
+    )

@@ -17,6 +17,7 @@ chunk end is not seen; the grid's nominal period is the median of the
 chunks' median periods. Gaps are refused (no ``--allow-gaps`` here), and
 ``--sequence`` is not supported: flips are detected from the gyros.
 """
+
 from __future__ import annotations
 
 import itertools
@@ -51,8 +52,7 @@ from .strapdown import quat_mult, quat_to_dcm, rotvec_to_quat
 from .stream import Chunk, Site, chunk_cuts, quat_scan
 
 READ_ROWS = 1 << 16
-COLUMNS = ("time_s", "dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad", "dv_x_mps", "dv_y_mps",
-           "dv_z_mps")
+COLUMNS = ("time_s", "dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad", "dv_x_mps", "dv_y_mps", "dv_z_mps")
 NPZ_FIX = "write the file with numpy.savez (time_s, dtheta_rad, dv_mps, meta), or use CSV"
 
 
@@ -89,8 +89,11 @@ def nominal_period(meta: dict[str, str], where: str) -> float:
     except (KeyError, ValueError):
         rate = math.nan
     if not (math.isfinite(rate) and rate > 0):
-        raise CalibError(f"sample_rate_hz is {meta.get('sample_rate_hz')!r}", where,
-                         "the log's metadata must give the IMU's output rate in Hz")
+        raise CalibError(
+            f"sample_rate_hz is {meta.get('sample_rate_hz')!r}",
+            where,
+            "the log's metadata must give the IMU's output rate in Hz",
+        )
     return 1.0 / rate
 
 
@@ -101,12 +104,16 @@ def _npy_stream(archive: zipfile.ZipFile, name: str, where: str):
     except KeyError:
         raise CalibError(f"archive lacks array '{name}'", where, NPZ_FIX) from None
     version = np.lib.format.read_magic(member)
-    read_header = (np.lib.format.read_array_header_1_0 if version == (1, 0)
-                   else np.lib.format.read_array_header_2_0)
+    read_header = (
+        np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+    )
     shape, fortran, dtype = read_header(member)
     if fortran or dtype.kind not in "fiu" or len(shape) not in (1, 2):
-        raise CalibError(f"array '{name}' is {dtype} of shape {shape}"
-                         f"{' in Fortran order' if fortran else ''}", where, NPZ_FIX)
+        raise CalibError(
+            f"array '{name}' is {dtype} of shape {shape}{' in Fortran order' if fortran else ''}",
+            where,
+            NPZ_FIX,
+        )
     return member, shape, dtype
 
 
@@ -120,16 +127,18 @@ def _npz_chunks(path, rows: int):
         streams = [_npy_stream(archive, name, where) for name in ("time_s", "dtheta_rad", "dv_mps")]
         n = streams[0][1][0]
         if any(s[1] != (n,) + ((3,) if i else ()) for i, s in enumerate(streams)):
-            raise CalibError("time_s, dtheta_rad and dv_mps do not have shapes (n,), (n, 3), (n, 3)",
-                             where, NPZ_FIX)
+            raise CalibError(
+                "time_s, dtheta_rad and dv_mps do not have shapes (n,), (n, 3), (n, 3)", where, NPZ_FIX
+            )
         for a in range(0, n, rows):
             m = min(rows, n - a)
             out = []
             for member, shape, dtype in streams:
                 width = 1 if len(shape) == 1 else 3
                 data = member.read(m * width * dtype.itemsize)
-                out.append(np.frombuffer(data, dtype).astype(np.float64).reshape(
-                    (m,) if width == 1 else (m, 3)))
+                out.append(
+                    np.frombuffer(data, dtype).astype(np.float64).reshape((m,) if width == 1 else (m, 3))
+                )
             yield tuple(out)
         for member, _, _ in streams:
             member.close()
@@ -144,16 +153,22 @@ def _csv_chunks(path, rows: int):
         header = [c.strip() for c in line.strip().split(",")]
         missing = [c for c in COLUMNS if c not in header]
         if missing:
-            raise CalibError(f"header lacks column(s) {', '.join(missing)}", where,
-                             "name the columns as spec/files.md (imu-run/1) does")
+            raise CalibError(
+                f"header lacks column(s) {', '.join(missing)}",
+                where,
+                "name the columns as spec/files.md (imu-run/1) does",
+            )
         use = [header.index(c) for c in COLUMNS]
         done = 0
         while block := list(itertools.islice(handle, rows)):
             try:
                 table = np.loadtxt(block, delimiter=",", usecols=use, ndmin=2)
             except ValueError as exc:
-                raise CalibError(f"unreadable data row among rows {done + 1}-{done + len(block)} "
-                                 f"({exc})", where, "`seqdesign calibrate` names the line") from None
+                raise CalibError(
+                    f"unreadable data row among rows {done + 1}-{done + len(block)} ({exc})",
+                    where,
+                    "`seqdesign calibrate` names the line",
+                ) from None
             done += len(block)
             yield table[:, 0], table[:, 1:4], table[:, 4:7]
 
@@ -162,8 +177,9 @@ def read_chunks(path, rows: int = READ_ROWS):
     """Yield ``(time_s, dtheta_rad, dv_mps)`` blocks of ``rows`` samples of an NPZ or CSV run log."""
     kind = Path(path).suffix.lower()
     if kind not in (".npz", ".csv"):
-        raise CalibError(f"unknown run format {Path(path).suffix!r}", str(path),
-                         "give a .csv or .npz run log")
+        raise CalibError(
+            f"unknown run format {Path(path).suffix!r}", str(path), "give a .csv or .npz run log"
+        )
     return (_npz_chunks if kind == ".npz" else _csv_chunks)(path, rows)
 
 
@@ -192,10 +208,12 @@ def _blocks_with_dt(path, rows: int, where: str, period: float):
         bad = np.flatnonzero((dt <= 0) | (dt > 2.0 * period) | ~np.isfinite(dt))
         if bad.size:
             k = int(bad[0])
-            raise CalibError(f"time steps by {dt[k]:.6g} s at sample {start + k} (nominal period "
-                             f"{period:.6g} s)", where,
-                             "time must strictly increase without gaps; `seqdesign calibrate "
-                             "--allow-gaps` reads logs with gaps")
+            raise CalibError(
+                f"time steps by {dt[k]:.6g} s at sample {start + k} (nominal period {period:.6g} s)",
+                where,
+                "time must strictly increase without gaps; `seqdesign calibrate "
+                "--allow-gaps` reads logs with gaps",
+            )
         yield start, t, th, dv, dt
         prev, start = t[-1], start + len(t)
 
@@ -230,9 +248,12 @@ def survey(path, profile: NoiseProfile, rows: int = READ_ROWS, where: str | None
     else:
         moving = _grow(np.concatenate(masks))
     if not moving.any():
-        raise CalibError("no rotation found in the run (gyro rates never exceed "
-                         f"{math.degrees(MOTION_THRESHOLD):.2f} deg/s)", where,
-                         "a calibration run must flip the IMU")
+        raise CalibError(
+            "no rotation found in the run (gyro rates never exceed "
+            f"{math.degrees(MOTION_THRESHOLD):.2f} deg/s)",
+            where,
+            "a calibration run must flip the IMU",
+        )
     return moving, float(t_start), period
 
 
@@ -251,13 +272,13 @@ def _windowed_mask(path, rows: int, where: str, period: float, window: int, stea
         total = a + len(t)
         upto = total - (window - half)  # the samples whose windows end within what was read
         if upto > done:
-            masks.append(window_rate(angle, clock, np.arange(done, upto), total, window, base)
-                         > MOTION_THRESHOLD)
+            masks.append(
+                window_rate(angle, clock, np.arange(done, upto), total, window, base) > MOTION_THRESHOLD
+            )
             done = upto
             keep = max(0, done - half - base)
             angle, clock, base = angle[keep:], clock[keep:], base + keep
-    masks.append(window_rate(angle, clock, np.arange(done, total), total, window, base)
-                 > MOTION_THRESHOLD)
+    masks.append(window_rate(angle, clock, np.arange(done, total), total, window, base) > MOTION_THRESHOLD)
     return np.concatenate(masks)
 
 
@@ -267,17 +288,16 @@ def _read_rests(path, moving, rows, where, period, profile):
     starts, _ = sanity.runs_of(~moving)
     first, T, turned = ([], [], []), np.zeros(len(starts)), np.zeros((len(starts), 3))
     for a, t, th, dv, dt in _blocks_with_dt(path, rows, where, period):
-        still = ~moving[a:a + len(t)]
+        still = ~moving[a : a + len(t)]
         sanity.check_rests(dv, dt, ~still, profile.vrw, f"{where}, samples {a}-{a + len(t) - 1}")
         if a < end:
             for part, x in zip(first, (th, dv, dt)):
-                part.append(x[:end - a])
+                part.append(x[: end - a])
         rest = np.searchsorted(starts, np.flatnonzero(still) + a, side="right") - 1
         T += np.bincount(rest, weights=dt[still], minlength=len(starts))
         for i in range(3):
             turned[:, i] += np.bincount(rest, weights=th[still, i], minlength=len(starts))
-    th, dv, dt = (np.concatenate(p) if p else np.zeros((0, 3) if i < 2 else 0)
-                  for i, p in enumerate(first))
+    th, dv, dt = (np.concatenate(p) if p else np.zeros((0, 3) if i < 2 else 0) for i, p in enumerate(first))
     return (th, dv, dt), T, turned
 
 
@@ -293,8 +313,7 @@ def _rest_attitudes(path, rows, where, period, moving, bias):
     return quat_to_dcm(q_mid)
 
 
-def start_attitude(path, moving, rows, where, period, latitude_rad, gravity_mps2, profile,
-                   requirements):
+def start_attitude(path, moving, rows, where, period, latitude_rad, gravity_mps2, profile, requirements):
     """Checked rests, the start values and ``C_b_n`` at the start, as the in-memory path has them.
 
     Levelling and gyrocompassing on the first rest; a gyro bias beyond the
@@ -309,15 +328,28 @@ def start_attitude(path, moving, rows, where, period, latitude_rad, gravity_mps2
     C0 = coarse_alignment(th - start[P.GYRO_BIAS] * dt[:, None], dv, dt)
     if np.any(start[P.GYRO_BIAS]):
         start[P.GYRO_BIAS], C0 = gyrocompass_rests(
-            lambda bias: _rest_attitudes(path, rows, where, period, moving, bias), T,
-            turned / T[:, None], C0, latitude_rad, start[P.GYRO_BIAS])
+            lambda bias: _rest_attitudes(path, rows, where, period, moving, bias),
+            T,
+            turned / T[:, None],
+            C0,
+            latitude_rad,
+            start[P.GYRO_BIAS],
+        )
     return start, C0
 
 
-def calibrate_file(path, latitude_rad: float, gravity_mps2: float, profile: NoiseProfile,
-                   extras: Extras = NO_EXTRAS, partial: bool = False,
-                   requirements: Requirements = PAPER, rows: int = READ_ROWS,
-                   max_iterations: int | None = None, tol_sigma: float = 1e-3):
+def calibrate_file(
+    path,
+    latitude_rad: float,
+    gravity_mps2: float,
+    profile: NoiseProfile,
+    extras: Extras = NO_EXTRAS,
+    partial: bool = False,
+    requirements: Requirements = PAPER,
+    rows: int = READ_ROWS,
+    max_iterations: int | None = None,
+    tol_sigma: float = 1e-3,
+):
     """:func:`calib.estimator.calibrate` of a run log read from disk chunk by chunk.
 
     Returns the same :class:`calib.estimator.Fit`; the estimates equal those
@@ -325,12 +357,31 @@ def calibrate_file(path, latitude_rad: float, gravity_mps2: float, profile: Nois
     """
     where = str(path)
     moving, t_start, period = survey(path, profile, rows, where)
-    start, C0 = start_attitude(path, moving, rows, where, nominal_period(read_meta(path), where),
-                               latitude_rad, gravity_mps2, profile, requirements)
+    start, C0 = start_attitude(
+        path,
+        moving,
+        rows,
+        where,
+        nominal_period(read_meta(path), where),
+        latitude_rad,
+        gravity_mps2,
+        profile,
+        requirements,
+    )
     grid = default_grid(moving, 1.0 / period)
     del moving
     site, cuts = Site(latitude_rad, gravity_mps2, t_start), chunk_cuts(grid)
-    return fit_intervals(lambda: aligned(read_chunks(path, rows), cuts, t_start), grid, site, C0,
-                         profile, extras=extras, partial=partial, requirements=requirements,
-                         max_iterations=max_iterations, tol_sigma=tol_sigma, where=where,
-                         start=start)
+    return fit_intervals(
+        lambda: aligned(read_chunks(path, rows), cuts, t_start),
+        grid,
+        site,
+        C0,
+        profile,
+        extras=extras,
+        partial=partial,
+        requirements=requirements,
+        max_iterations=max_iterations,
+        tol_sigma=tol_sigma,
+        where=where,
+        start=start,
+    )

@@ -8,6 +8,7 @@ sample count (rounding each step to whole periods), the jitter is measured
 against that count, and lost and repeated samples are named. Pure functions
 over arrays; :mod:`calib.runlog` applies them when it reads a run.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -79,9 +80,11 @@ class SampleClock:
 
     def summary(self) -> str:
         """One line for the user: jitter in ms, lost and repeated samples."""
-        text = (f"clock: time column jitters by {1e3 * self.jitter_rms_s:.3g} ms RMS, "
-                f"{1e3 * self.jitter_max_s:.3g} ms max, against the nominal "
-                f"{1e3 * self.period_s:.6g} ms period")
+        text = (
+            f"clock: time column jitters by {1e3 * self.jitter_rms_s:.3g} ms RMS, "
+            f"{1e3 * self.jitter_max_s:.3g} ms max, against the nominal "
+            f"{1e3 * self.period_s:.6g} ms period"
+        )
         if abs(self.rate_error_ppm) >= 1.0:
             text += f"; its period is {self.rate_error_ppm:+.3g} ppm off the nominal"
         if self.uniform:
@@ -89,17 +92,21 @@ class SampleClock:
         if self.dropped:
             text += f"; {sum(c for _, c in self.dropped)} dropped sample(s): " + describe(self.dropped)
         if self.duplicates:
-            text += (f"; {sum(c for _, c in self.duplicates)} duplicated sample(s): "
-                     + describe(self.duplicates))
+            text += f"; {sum(c for _, c in self.duplicates)} duplicated sample(s): " + describe(
+                self.duplicates
+            )
         return text
 
     def as_dict(self) -> dict:
         """JSON-ready figures (SI)."""
-        return {"period_s": self.period_s, "rate_error_ppm": self.rate_error_ppm,
-                "jitter_rms_s": self.jitter_rms_s,
-                "jitter_max_s": self.jitter_max_s,
-                "dropped": [{"time_s": t, "count": c} for t, c in self.dropped],
-                "duplicates": [{"time_s": t, "count": c} for t, c in self.duplicates]}
+        return {
+            "period_s": self.period_s,
+            "rate_error_ppm": self.rate_error_ppm,
+            "jitter_rms_s": self.jitter_rms_s,
+            "jitter_max_s": self.jitter_max_s,
+            "dropped": [{"time_s": t, "count": c} for t, c in self.dropped],
+            "duplicates": [{"time_s": t, "count": c} for t, c in self.duplicates],
+        }
 
 
 def describe(events: list) -> str:
@@ -107,8 +114,7 @@ def describe(events: list) -> str:
     return ", ".join(f"{c} at t = {t:.6g} s" for t, c in events)
 
 
-def duplicate_rows(time_s: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
-                   period_s: float) -> np.ndarray:
+def duplicate_rows(time_s: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, period_s: float) -> np.ndarray:
     """Rows that repeat the previous row: same increments, at most half a period later.
 
     Returns
@@ -127,8 +133,9 @@ def duplicate_rows(time_s: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
     return same
 
 
-def sample_clock(time_s: np.ndarray, sample_rate_hz: float,
-                 duplicate: np.ndarray | None = None) -> SampleClock:
+def sample_clock(
+    time_s: np.ndarray, sample_rate_hz: float, duplicate: np.ndarray | None = None
+) -> SampleClock:
     """Sample count, jitter, dropped and duplicated samples from a time column.
 
     Each step between rows that are not duplicates is rounded to whole
@@ -174,11 +181,16 @@ def sample_clock(time_s: np.ndarray, sample_rate_hz: float,
     centred *= slope
     jitter -= centred
     jitter_max = float(np.maximum(jitter.max(), -jitter.min()))
-    return SampleClock(index=index, period_s=period, offset_s=offset,
-                       rate_error_ppm=1e6 * slope / period,
-                       jitter_rms_s=float(np.sqrt(np.mean(np.square(jitter, out=jitter)))),
-                       jitter_max_s=jitter_max, dropped=dropped,
-                       duplicates=_runs_of(dup, time_s))
+    return SampleClock(
+        index=index,
+        period_s=period,
+        offset_s=offset,
+        rate_error_ppm=1e6 * slope / period,
+        jitter_rms_s=float(np.sqrt(np.mean(np.square(jitter, out=jitter)))),
+        jitter_max_s=jitter_max,
+        dropped=dropped,
+        duplicates=_runs_of(dup, time_s),
+    )
 
 
 def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarray:
@@ -189,9 +201,12 @@ def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarr
     huge = np.flatnonzero(periods > MAX_STEP_PERIODS)
     if huge.size:
         i = int(huge[0]) + 1
-        raise CalibError(f"the time jumps by {time_s[i] - time_s[i - 1]:.6g} s before row {i}, "
-                         f"{periods[i - 1]:.3g} nominal periods", str(i),
-                         fix + "split the log where its clock jumps")
+        raise CalibError(
+            f"the time jumps by {time_s[i] - time_s[i - 1]:.6g} s before row {i}, "
+            f"{periods[i - 1]:.3g} nominal periods",
+            str(i),
+            fix + "split the log where its clock jumps",
+        )
     steps = np.rint(periods).astype(np.int64)
     steps[dup[1:]] = 0
     off = periods  # |periods - steps|, in place
@@ -201,10 +216,13 @@ def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarr
     bad = np.flatnonzero((off > MAX_STEP_FRACTION) | ((steps == 0) & ~dup[1:]))
     if bad.size:
         i = int(bad[0]) + 1
-        raise CalibError(f"the time step {time_s[i] - time_s[i - 1]:.6g} s before row {i} is "
-                         f"{(time_s[i] - time_s[i - 1]) / period:.3f} nominal periods, not a "
-                         "whole number", str(i),
-                         fix + "check the rate, or whether the log mixes clocks")
+        raise CalibError(
+            f"the time step {time_s[i] - time_s[i - 1]:.6g} s before row {i} is "
+            f"{(time_s[i] - time_s[i - 1]) / period:.3f} nominal periods, not a "
+            "whole number",
+            str(i),
+            fix + "check the rate, or whether the log mixes clocks",
+        )
     return steps
 
 
@@ -221,8 +239,7 @@ def uniform_time(clock: SampleClock, time_s: np.ndarray) -> np.ndarray:
     return clock.offset_s + clock.index * clock.period_s
 
 
-def fill_dropped(clock: SampleClock, dtheta: np.ndarray, dv: np.ndarray,
-                 gimbal: np.ndarray | None = None):
+def fill_dropped(clock: SampleClock, dtheta: np.ndarray, dv: np.ndarray, gimbal: np.ndarray | None = None):
     """Put each lost sample back, at rest, as the mean increment of its neighbours.
 
     At rest the increments are the Earth rate and gravity seen through the
@@ -277,16 +294,21 @@ def _check_fillable(clock: SampleClock, row: int, neighbours: np.ndarray) -> Non
     lost = int(index[row + 1] - index[row] - 1)
     t = clock.offset_s + (index[row] + 1) * clock.period_s
     if lost > MAX_FILL:
-        raise CalibError(f"{lost} samples lost at t = {t:.6g} s, more than the "
-                         f"{MAX_FILL} that the {FILL_NEIGHBOURS} samples each side can "
-                         "stand for", f"t = {t:.6g} s",
-                         "split the log at the hole and calibrate each part")
+        raise CalibError(
+            f"{lost} samples lost at t = {t:.6g} s, more than the "
+            f"{MAX_FILL} that the {FILL_NEIGHBOURS} samples each side can "
+            "stand for",
+            f"t = {t:.6g} s",
+            "split the log at the hole and calibrate each part",
+        )
     rate = np.linalg.norm(neighbours.mean(axis=0)) / clock.period_s
     peak = np.max(np.linalg.norm(neighbours, axis=1)) / clock.period_s
     if rate > REST_RATE or peak > TURN_RATE:
-        raise CalibError(f"{lost} sample(s) lost at t = {t:.6g} s, while the IMU turns",
-                         f"t = {t:.6g} s", "the increments of a flip cannot be recovered; "
-                         "repair the log or record the run again")
+        raise CalibError(
+            f"{lost} sample(s) lost at t = {t:.6g} s, while the IMU turns",
+            f"t = {t:.6g} s",
+            "the increments of a flip cannot be recovered; repair the log or record the run again",
+        )
 
 
 def settle(run, allow_gaps: bool):
@@ -312,8 +334,9 @@ def settle(run, allow_gaps: bool):
     clock = run.clock  # found by the reader's checks on this time column, else found here
     if clock is None:
         try:
-            clock = sample_clock(run.time_s, run.sample_rate_hz,
-                                 duplicate_rows(run.time_s, run.dtheta_rad, run.dv_mps, period))
+            clock = sample_clock(
+                run.time_s, run.sample_rate_hz, duplicate_rows(run.time_s, run.dtheta_rad, run.dv_mps, period)
+            )
         except CalibError as exc:
             raise CalibError(exc.what, f"{run.source}, sample {exc.where}", exc.fix) from None
     if clock.dropped or clock.duplicates:
@@ -323,13 +346,13 @@ def settle(run, allow_gaps: bool):
         clean = dataclasses.replace(clock, index=clock.index[keep])
         gimbal = None if run.gimbal_deg is None else run.gimbal_deg[keep]
         try:
-            dtheta, dv, gimbal, index = fill_dropped(clean, run.dtheta_rad[keep],
-                                                     run.dv_mps[keep], gimbal)
+            dtheta, dv, gimbal, index = fill_dropped(clean, run.dtheta_rad[keep], run.dv_mps[keep], gimbal)
         except CalibError as exc:
             raise CalibError(exc.what, f"{run.source}, {exc.where}", exc.fix) from None
         time = clock.offset_s + index * period
-        return dataclasses.replace(run, time_s=time, dtheta_rad=dtheta, dv_mps=dv,
-                                   gimbal_deg=gimbal, clock=clock)
+        return dataclasses.replace(
+            run, time_s=time, dtheta_rad=dtheta, dv_mps=dv, gimbal_deg=gimbal, clock=clock
+        )
     return dataclasses.replace(run, time_s=uniform_time(clock, run.time_s), clock=clock)
 
 
@@ -337,12 +360,14 @@ def refusal(clock: SampleClock, source: str) -> CalibError:
     """The error naming every dropped and duplicated sample."""
     parts = []
     if clock.dropped:
-        parts.append(f"{sum(c for _, c in clock.dropped)} sample(s) dropped: "
-                     + describe(clock.dropped))
+        parts.append(f"{sum(c for _, c in clock.dropped)} sample(s) dropped: " + describe(clock.dropped))
     if clock.duplicates:
-        parts.append(f"{sum(c for _, c in clock.duplicates)} sample(s) duplicated: "
-                     + describe(clock.duplicates))
-    return CalibError("; ".join(parts) + " (a lost or repeated increment is a velocity "
-                      "step the fit would read as IMU error)", source,
-                      "repair the log, or pass --allow-gaps to fill samples lost at rest "
-                      "and remove exact duplicates")
+        parts.append(
+            f"{sum(c for _, c in clock.duplicates)} sample(s) duplicated: " + describe(clock.duplicates)
+        )
+    return CalibError(
+        "; ".join(parts) + " (a lost or repeated increment is a velocity "
+        "step the fit would read as IMU error)",
+        source,
+        "repair the log, or pass --allow-gaps to fill samples lost at rest and remove exact duplicates",
+    )

@@ -20,6 +20,7 @@ output interval (the decimation filter averages), so this is exact for that
 reading; a trapezoid would mix neighbouring samples and correlate their noise,
 which bends the Allan deviation at the shortest averaging times.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -100,12 +101,16 @@ def plan_columns(names: list[str], where: str) -> ColumnPlan:
     seen: dict[str, int] = {}
     for position, column in enumerate(names):
         if column in seen and (column == TIME_COLUMN or _split(column)):
-            raise CalibError(f"column '{column}' appears twice in the header", where,
-                             "keep one of the two columns")
+            raise CalibError(
+                f"column '{column}' appears twice in the header", where, "keep one of the two columns"
+            )
         seen.setdefault(column, position)
         if column.startswith("time_") and column != TIME_COLUMN:
-            raise CalibError(f"column '{column}': the time unit must be s", where,
-                             f"name the time column '{TIME_COLUMN}', in seconds")
+            raise CalibError(
+                f"column '{column}': the time unit must be s",
+                where,
+                f"name the time column '{TIME_COLUMN}', in seconds",
+            )
         split = _split(column)
         if split is None:
             continue
@@ -113,14 +118,21 @@ def plan_columns(names: list[str], where: str) -> ColumnPlan:
         units = QUANTITIES[quantity][2]
         if unit not in units:
             what = "has no unit" if not unit else f"has unknown unit '{unit}'"
-            raise CalibError(f"column '{column}' {what}", where,
-                             f"name it {quantity}_{axis}_<unit> with <unit> one of "
-                             + ", ".join(units) + f", e.g. {EXAMPLE_HEADER}")
+            raise CalibError(
+                f"column '{column}' {what}",
+                where,
+                f"name it {quantity}_{axis}_<unit> with <unit> one of "
+                + ", ".join(units)
+                + f", e.g. {EXAMPLE_HEADER}",
+            )
         found.setdefault(quantity, {})[axis] = (column, position, units[unit])
     if TIME_COLUMN not in seen:
         _missing([TIME_COLUMN], names, where)
-    return ColumnPlan(time=seen[TIME_COLUMN], gyro=_sensor("gyro", found, names, where),
-                      accel=_sensor("accel", found, names, where))
+    return ColumnPlan(
+        time=seen[TIME_COLUMN],
+        gyro=_sensor("gyro", found, names, where),
+        accel=_sensor("accel", found, names, where),
+    )
 
 
 def _sensor(sensor: str, found: dict, names: list[str], where: str) -> SensorColumns:
@@ -128,33 +140,42 @@ def _sensor(sensor: str, found: dict, names: list[str], where: str) -> SensorCol
     given = [q for q, (s, _, _) in QUANTITIES.items() if s == sensor and q in found]
     if len(given) > 1:
         a, b = (next(iter(found[q].values()))[0] for q in given)
-        raise CalibError(f"the {sensor} is given twice, as '{a}' and as '{b}'", where,
-                         "keep either the rates or the increments")
+        raise CalibError(
+            f"the {sensor} is given twice, as '{a}' and as '{b}'",
+            where,
+            "keep either the rates or the increments",
+        )
     quantity = given[0] if given else _CLASSIC[sensor]
     axes = found.get(quantity, {})
     if len(axes) < 3:
-        unit = (next(iter(axes.values()))[0].split("_", 2)[2] if axes
-                else _CLASSIC_UNIT[quantity])
+        unit = next(iter(axes.values()))[0].split("_", 2)[2] if axes else _CLASSIC_UNIT[quantity]
         _missing([f"{quantity}_{a}_{unit}" for a in AXES if a not in axes], names, where)
     columns = [axes[a] for a in AXES]
-    return SensorColumns(quantity=quantity, names=tuple(c[0] for c in columns),
-                         positions=tuple(c[1] for c in columns),
-                         si_per_unit=tuple(c[2] for c in columns))
+    return SensorColumns(
+        quantity=quantity,
+        names=tuple(c[0] for c in columns),
+        positions=tuple(c[1] for c in columns),
+        si_per_unit=tuple(c[2] for c in columns),
+    )
 
 
 def _missing(missing: list[str], names: list[str], where: str) -> None:
     lower = {c.lower(): c for c in names}
     hints = [f"'{lower[c.lower()]}' should be '{c}'" for c in missing if c.lower() in lower]
     hint = f"; column names are case-sensitive: {', '.join(hints)}" if hints else ""
-    raise CalibError(f"header row lacks column{'s' if len(missing) > 1 else ''} "
-                     f"{', '.join(repr(c) for c in missing)}{hint}", where,
-                     "the header row (first line not starting with '#') names time_s and "
-                     "the gyro and accelerometer on x, y, z as quantity_axis_unit, e.g. "
-                     f"{EXAMPLE_HEADER} (see docs/logs-columns.md)")
+    raise CalibError(
+        f"header row lacks column{'s' if len(missing) > 1 else ''} "
+        f"{', '.join(repr(c) for c in missing)}{hint}",
+        where,
+        "the header row (first line not starting with '#') names time_s and "
+        "the gyro and accelerometer on x, y, z as quantity_axis_unit, e.g. "
+        f"{EXAMPLE_HEADER} (see docs/logs-columns.md)",
+    )
 
 
-def to_increments(values: np.ndarray, sensor: SensorColumns, time_s: np.ndarray,
-                  nominal_dt: float) -> np.ndarray:
+def to_increments(
+    values: np.ndarray, sensor: SensorColumns, time_s: np.ndarray, nominal_dt: float
+) -> np.ndarray:
     """A sensor's ``(n, 3)`` file values as SI increments over each sample.
 
     Rates use the rectangular rule of the module docstring: ``rate_k * (t_k - t_{k-1})``,

@@ -1,4 +1,5 @@
 """Earth model of the conventions: WGS-84 rotation rate and normal gravity, ENU."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -29,8 +30,7 @@ def gravity(latitude_rad: float, height_m: float = 0.0) -> float:
     """
     s2 = np.sin(latitude_rad) ** 2
     g0 = _GE * (1.0 + _K * s2) / np.sqrt(1.0 - _E2 * s2)
-    return float(g0 * (1.0 - 2.0 * height_m / A * (1.0 + F + M - 2.0 * F * s2)
-                       + 3.0 * height_m ** 2 / A ** 2))
+    return float(g0 * (1.0 - 2.0 * height_m / A * (1.0 + F + M - 2.0 * F * s2) + 3.0 * height_m**2 / A**2))
 
 
 def omega_ie_n(latitude_rad: float) -> np.ndarray:
@@ -55,10 +55,15 @@ def check_site(latitude_deg: float, height_m: float) -> None:
     from .errors import CalibError
 
     if not -MAX_LATITUDE_DEG <= latitude_deg <= MAX_LATITUDE_DEG:
-        raise CalibError(f"latitude {latitude_deg} deg is outside [-{MAX_LATITUDE_DEG:g}, "
-                         f"{MAX_LATITUDE_DEG:g}]", "latitude",
-                         "stationary calibration needs the Earth rate to have a horizontal part")
+        raise CalibError(
+            f"latitude {latitude_deg} deg is outside [-{MAX_LATITUDE_DEG:g}, {MAX_LATITUDE_DEG:g}]",
+            "latitude",
+            "stationary calibration needs the Earth rate to have a horizontal part",
+        )
     low, high = HEIGHT_RANGE_M
     if not low <= height_m <= high:
-        raise CalibError(f"height {height_m} m is outside [{low:g}, {high:g}]", "height",
-                         "give the ellipsoidal height of the site in metres")
+        raise CalibError(
+            f"height {height_m} m is outside [{low:g}, {high:g}]",
+            "height",
+            "give the ellipsoidal height of the site in metres",
+        )

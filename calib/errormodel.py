@@ -3,6 +3,7 @@
 ``apply`` turns true increments into what the IMU outputs; ``compensate``
 is its exact inverse. Values are held in SI (rad/s, m/s^2, dimensionless).
 """
+
 from __future__ import annotations
 
 import csv
@@ -103,7 +104,6 @@ class ErrorModel:
 def paper_table(table: str, column: str) -> np.ndarray:
     """A column of a copied paper table (``calib/data``) as a 21-vector in spec order."""
     text = (resources.files("calib") / "data" / f"{table}.csv").read_text("utf-8")
-    rows = [r for r in csv.DictReader(line for line in text.splitlines()
-                                      if not line.startswith("#"))]
+    rows = [r for r in csv.DictReader(line for line in text.splitlines() if not line.startswith("#"))]
     by_name = {r["name"]: float(r[column]) for r in rows}
     return np.array([by_name[name] for name in P.NAMES])

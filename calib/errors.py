@@ -1,4 +1,5 @@
 """The tool's own error type: every refusal a user can see goes through it."""
+
 from __future__ import annotations
 
 

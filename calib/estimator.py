@@ -14,6 +14,7 @@ The run is streamed (:mod:`calib.stream`): each navigation is one pass over
 the samples, a chunk at a time, that leaves only per-interval quantities,
 and :func:`fit_intervals` navigates only while a step can still matter.
 """
+
 from __future__ import annotations
 
 import functools
@@ -106,8 +107,9 @@ def windowed_motion(window: int, steady: np.ndarray) -> bool:
     return window > 1 or float(np.linalg.norm(steady)) > 0.1 * MOTION_THRESHOLD
 
 
-def window_rate(angle: np.ndarray, clock: np.ndarray, i: np.ndarray, n: int, window: int,
-                offset: int = 0) -> np.ndarray:
+def window_rate(
+    angle: np.ndarray, clock: np.ndarray, i: np.ndarray, n: int, window: int, offset: int = 0
+) -> np.ndarray:
     """Mean rate (norm) over the window about each sample ``i`` of a run of ``n`` samples.
 
     ``angle`` (m, 3) and ``clock`` (m,) are the running sums of the steady-free
@@ -120,8 +122,7 @@ def window_rate(angle: np.ndarray, clock: np.ndarray, i: np.ndarray, n: int, win
     return np.linalg.norm(angle[hi] - angle[lo], axis=1) / (clock[hi] - clock[lo])
 
 
-def detect_motion(dtheta: np.ndarray, dt: np.ndarray, where: str = "run",
-                  arw: float = 0.0) -> Segmentation:
+def detect_motion(dtheta: np.ndarray, dt: np.ndarray, where: str = "run", arw: float = 0.0) -> Segmentation:
     """Rest/rotation segments from the gyro increments alone.
 
     A noisy gyro (``arw``, rad/sqrt(s)) is averaged over a window long enough
@@ -193,7 +194,7 @@ class Fit:
 
     @property
     def sigma(self) -> np.ndarray:
-        return self._std()[:P.N_PARAMS]
+        return self._std()[: P.N_PARAMS]
 
     @property
     def extra_sigma(self) -> np.ndarray:
@@ -213,7 +214,7 @@ class Fit:
 
 def _param_index(n_total: int) -> np.ndarray:
     """Indices of [21 parameters, extras] in the full unknown vector (phi0 skipped)."""
-    return np.r_[0:P.N_PARAMS, N_UNKNOWN:n_total]
+    return np.r_[0 : P.N_PARAMS, N_UNKNOWN:n_total]
 
 
 def _scale(extras: Extras = X.NONE, requirements: Requirements = PAPER) -> np.ndarray:
@@ -245,8 +246,9 @@ class Solution:
         return x_scaled - self.null_basis @ (self.null_basis.T @ x_scaled)
 
 
-def solve_information(N: np.ndarray, where: str = "run", names=None,
-                      partial: bool = False, nominal=None) -> Solution:
+def solve_information(
+    N: np.ndarray, where: str = "run", names=None, partial: bool = False, nominal=None
+) -> Solution:
     """Covariance of the unknowns from a requirement-scaled information matrix.
 
     Observability is judged by :mod:`calib.information`'s one rule on the
@@ -278,19 +280,22 @@ def solve_information(N: np.ndarray, where: str = "run", names=None,
         raise CalibError(
             f"the run cannot observe {len(dirs)} direction(s) of the parameters, so it cannot "
             f"estimate {', '.join(inv.not_estimable()) or 'them'} on their own; unobserved "
-            "(in units of each requirement): " + "; ".join(dirs), where,
+            "(in units of each requirement): " + "; ".join(dirs),
+            where,
             "use a sequence that excites them (`seqdesign analyze` shows which), or fit the "
-            "estimable part with --partial")
+            "estimable part with --partial",
+        )
     null_full = np.zeros((N.shape[0], inv.null_basis.shape[1]))
     null_full[_param_index(N.shape[0])] = inv.null_basis
     u, _, _ = np.linalg.svd(null_full, full_matrices=True)
-    Q = u[:, null_full.shape[1]:]  # unknowns with no component along the weak subspace
+    Q = u[:, null_full.shape[1] :]  # unknowns with no component along the weak subspace
     cov = Q @ np.linalg.inv(Q.T @ N @ Q) @ Q.T
     return Solution(cov, inv.estimable, dirs, inv.null_basis)
 
 
-def nominal_decision(seq, latitude_rad: float, profile: NoiseProfile, extras: Extras,
-                     requirements: Requirements, names) -> ScaledInverse:
+def nominal_decision(
+    seq, latitude_rad: float, profile: NoiseProfile, extras: Extras, requirements: Requirements, names
+) -> ScaledInverse:
     """What the error-free trajectory of ``seq`` observes, by :mod:`calib.information`'s rule."""
     from .nominal import information_along, nominal_run
 
@@ -334,7 +339,7 @@ def attitude_wander_ratio(profile: NoiseProfile, duration_s: float, gravity_mps2
     """
     if profile.vrw <= 0.0:
         return math.inf
-    return 0.5 * gravity_mps2 * profile.arw ** 2 * duration_s ** 1.5 / profile.vrw
+    return 0.5 * gravity_mps2 * profile.arw**2 * duration_s**1.5 / profile.vrw
 
 
 @dataclass(frozen=True)
@@ -360,8 +365,9 @@ def _rate_response(A_bytes: bytes, T: float) -> tuple[np.ndarray, np.ndarray]:
     return E[:6, :6], E[:6, 6:]
 
 
-def attitude_feedback(noise, residual: np.ndarray, A: np.ndarray, T: np.ndarray,
-                      C_mid: np.ndarray) -> AttitudeFeedback:
+def attitude_feedback(
+    noise, residual: np.ndarray, A: np.ndarray, T: np.ndarray, C_mid: np.ndarray
+) -> AttitudeFeedback:
     """Feed the smoothed attitude noise back into the reference trajectory.
 
     The observations are linear in the noise part of the attitude error
@@ -431,8 +437,7 @@ class FeedbackSchedule:
     @classmethod
     def for_run(cls, profile: NoiseProfile, duration_s: float, gravity_mps2: float):
         """On exactly when the run's attitude wander leaks gravity (:func:`attitude_wander_ratio`)."""
-        return cls(attitude_wander_ratio(profile, duration_s, gravity_mps2)
-                   > ATTITUDE_FEEDBACK_RATIO)
+        return cls(attitude_wander_ratio(profile, duration_s, gravity_mps2) > ATTITUDE_FEEDBACK_RATIO)
 
     def limit(self, max_iterations: int | None) -> int:
         """Iterations allowed: ``max_iterations`` as given, else the default of the run's kind."""
@@ -476,9 +481,17 @@ class FeedbackSchedule:
         return delta, resid
 
 
-def check_run(dtheta_m: np.ndarray, dv_m: np.ndarray, dt: np.ndarray, latitude_rad: float,
-              gravity_mps2: float, profile: NoiseProfile, moving: np.ndarray | None,
-              where: str, requirements: Requirements = PAPER) -> Segmentation:
+def check_run(
+    dtheta_m: np.ndarray,
+    dv_m: np.ndarray,
+    dt: np.ndarray,
+    latitude_rad: float,
+    gravity_mps2: float,
+    profile: NoiseProfile,
+    moving: np.ndarray | None,
+    where: str,
+    requirements: Requirements = PAPER,
+) -> Segmentation:
     """Refuse a log the fit cannot use, naming why; return where it turns.
 
     What is plausible follows the unit's class (its profile and requirements):
@@ -489,15 +502,21 @@ def check_run(dtheta_m: np.ndarray, dv_m: np.ndarray, dt: np.ndarray, latitude_r
     seg = detect_motion(dtheta_m, dt, where, arw=profile.arw)
     if moving is not None:
         seg = Segmentation(moving=moving, first_rest_end=int(np.argmax(moving)))
-    check_first_rest(dtheta_m, dv_m, dt, slice(0, seg.first_rest_end), gravity_mps2, where,
-                     requirements)
+    check_first_rest(dtheta_m, dv_m, dt, slice(0, seg.first_rest_end), gravity_mps2, where, requirements)
     sanity.check_saturation(dtheta_m, dv_m, where)
     sanity.check_rests(dv_m, dt, seg.moving, profile.vrw, where)
     return seg
 
 
-def check_first_rest(dtheta_m: np.ndarray, dv_m: np.ndarray, dt: np.ndarray, rest: slice,
-                     gravity_mps2: float, where: str, requirements: Requirements = PAPER) -> None:
+def check_first_rest(
+    dtheta_m: np.ndarray,
+    dv_m: np.ndarray,
+    dt: np.ndarray,
+    rest: slice,
+    gravity_mps2: float,
+    where: str,
+    requirements: Requirements = PAPER,
+) -> None:
     """Refuse a first rest (samples ``rest``) too short to align on or that is no rest.
 
     What is plausible follows the unit's class (its requirements): a MEMS
@@ -506,12 +525,15 @@ def check_first_rest(dtheta_m: np.ndarray, dv_m: np.ndarray, dt: np.ndarray, res
     req = requirements.si
     t_align = float(dt[rest].sum())
     if t_align < MIN_ALIGN_S:
-        raise CalibError(f"the first rest lasts {t_align:.1f} s, too short to align "
-                         f"(needs >= {MIN_ALIGN_S:.0f} s)", where,
-                         "start the run with the IMU at rest")
+        raise CalibError(
+            f"the first rest lasts {t_align:.1f} s, too short to align (needs >= {MIN_ALIGN_S:.0f} s)",
+            where,
+            "start the run with the IMU at rest",
+        )
     sanity.check_rest_rate(dtheta_m, dt, rest, where, float(req[P.GYRO_BIAS].max()))
-    accel_class = sanity.CLASS_FACTOR * float(req[P.ACCEL_BIAS].max() / gravity_mps2
-                                              + req[P.ACCEL_SCALE].max())
+    accel_class = sanity.CLASS_FACTOR * float(
+        req[P.ACCEL_BIAS].max() / gravity_mps2 + req[P.ACCEL_SCALE].max()
+    )
     sanity.check_gravity(dv_m, dt, rest, gravity_mps2, where, accel_class)
 
 
@@ -539,13 +561,18 @@ class _Problem:
         model = ErrorModel(values)
         dth, dvv = model.compensate(self.dtheta_m, self.dv_m, self.dt)
         if self.extras.n:
-            dvv = X.compensate(self.extras.unpack(extra_values), dth, self.dv_m, self.dt,
-                               lambda x: model.compensate(self.dtheta_m, x, self.dt)[1], turn)
+            dvv = X.compensate(
+                self.extras.unpack(extra_values),
+                dth,
+                self.dv_m,
+                self.dt,
+                lambda x: model.compensate(self.dtheta_m, x, self.dt)[1],
+                turn,
+            )
         if feedback is not None:  # after the extra terms, as calib.stream applies it
             b = self.grid.bounds  # b[0] = 0 and b[-1] = n: every sample is in an interval
             dth = dth + np.repeat(feedback.body_rate, np.diff(b), axis=0) * self.dt[:, None]
-        nav = navigate(dth, dvv, self.time_s, C0, self.latitude_rad, self.gravity_mps2,
-                       t0=self.t_nav[0])
+        nav = navigate(dth, dvv, self.time_s, C0, self.latitude_rad, self.gravity_mps2, t0=self.t_nav[0])
         return dth, dvv, nav
 
     def observations(self, nav, Phi_vv, it: int, feedback=None) -> np.ndarray:
@@ -554,12 +581,23 @@ class _Problem:
         return _observations(y if feedback is None else y - feedback.dv, Phi_vv, it, self.where)
 
 
-def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitude_rad: float,
-              gravity_mps2: float, profile: NoiseProfile, moving: np.ndarray | None = None,
-              max_iterations: int | None = None, tol_sigma: float = 1e-3, where: str = "run",
-              extras: Extras = X.NONE, partial: bool = False,
-              requirements: Requirements = PAPER, sequence=None,
-              renavigate: str = "when-needed") -> Fit:
+def calibrate(
+    time_s: np.ndarray,
+    dtheta_m: np.ndarray,
+    dv_m: np.ndarray,
+    latitude_rad: float,
+    gravity_mps2: float,
+    profile: NoiseProfile,
+    moving: np.ndarray | None = None,
+    max_iterations: int | None = None,
+    tol_sigma: float = 1e-3,
+    where: str = "run",
+    extras: Extras = X.NONE,
+    partial: bool = False,
+    requirements: Requirements = PAPER,
+    sequence=None,
+    renavigate: str = "when-needed",
+) -> Fit:
     """Identify the 21 parameters, the initial attitude and any optional terms from raw increments.
 
     Parameters
@@ -607,35 +645,59 @@ def calibrate(time_s: np.ndarray, dtheta_m: np.ndarray, dv_m: np.ndarray, latitu
     if renavigate not in ("when-needed", "always"):
         raise ValueError(f"renavigate must be 'when-needed' or 'always', not {renavigate!r}")
     dt = sample_intervals(time_s)
-    seg = check_run(dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, moving, where,
-                    requirements)
+    seg = check_run(dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, moving, where, requirements)
     grid = default_grid(seg.moving, 1.0 / np.median(dt))
     first = slice(0, seg.first_rest_end)
     start = start_values(dtheta_m, dt, seg.moving)
-    C0 = coarse_alignment(dtheta_m[first] - start[P.GYRO_BIAS] * dt[first, None], dv_m[first],
-                          dt[first])
+    C0 = coarse_alignment(dtheta_m[first] - start[P.GYRO_BIAS] * dt[first, None], dv_m[first], dt[first])
     if np.any(start[P.GYRO_BIAS]):  # a bias beyond the Earth rate: bias and heading from all rests
-        start[P.GYRO_BIAS], C0 = rest_gyrocompass(dtheta_m, dt, seg.moving, C0, latitude_rad,
-                                                  start[P.GYRO_BIAS])
-    judge = _nominal_judge(sequence, time_s, dtheta_m, dv_m, dt, seg.moving, C0, start,
-                           (latitude_rad, gravity_mps2, profile, extras, requirements))
-    options = dict(extras=extras, partial=partial, requirements=requirements,
-                   max_iterations=max_iterations, tol_sigma=tol_sigma, where=where,
-                   start=start, judge=judge)
+        start[P.GYRO_BIAS], C0 = rest_gyrocompass(
+            dtheta_m, dt, seg.moving, C0, latitude_rad, start[P.GYRO_BIAS]
+        )
+    judge = _nominal_judge(
+        sequence,
+        time_s,
+        dtheta_m,
+        dv_m,
+        dt,
+        seg.moving,
+        C0,
+        start,
+        (latitude_rad, gravity_mps2, profile, extras, requirements),
+    )
+    options = dict(
+        extras=extras,
+        partial=partial,
+        requirements=requirements,
+        max_iterations=max_iterations,
+        tol_sigma=tol_sigma,
+        where=where,
+        start=start,
+        judge=judge,
+    )
     if renavigate == "always":
-        pb = _Problem(time_s, dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, extras,
-                      grid, where)
+        pb = _Problem(time_s, dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, extras, grid, where)
         return _fit_renavigating(pb, C0, **options)
     site = Site(latitude_rad, gravity_mps2, float(time_s[0] - dt[0]))
     cuts = chunk_cuts(grid)
     del dt, seg  # whole-run temporaries: the passes need one chunk at a time
-    return fit_intervals(lambda: array_chunks(time_s, dtheta_m, dv_m, site.t0, cuts), grid, site,
-                         C0, profile, **options)
+    return fit_intervals(
+        lambda: array_chunks(time_s, dtheta_m, dv_m, site.t0, cuts), grid, site, C0, profile, **options
+    )
 
 
-def _fit_renavigating(pb: "_Problem", C0: np.ndarray, extras: Extras, partial: bool,
-                      requirements: Requirements, max_iterations: int | None, tol_sigma: float,
-                      where: str, start: np.ndarray | None = None, judge=None) -> Fit:
+def _fit_renavigating(
+    pb: "_Problem",
+    C0: np.ndarray,
+    extras: Extras,
+    partial: bool,
+    requirements: Requirements,
+    max_iterations: int | None,
+    tol_sigma: float,
+    where: str,
+    start: np.ndarray | None = None,
+    judge=None,
+) -> Fit:
     """The reference loop: re-navigate the whole run in memory at every iteration.
 
     It is the reference for the streamed loop's navigation shortcut (navigate
@@ -643,8 +705,13 @@ def _fit_renavigating(pb: "_Problem", C0: np.ndarray, extras: Extras, partial: b
     different iteration: the attitude feedback and the steps about it follow
     the same :class:`FeedbackSchedule`.
     """
-    latitude_rad, gravity_mps2, profile, grid, dt = (pb.latitude_rad, pb.gravity_mps2, pb.profile,
-                                                     pb.grid, pb.dt)
+    latitude_rad, gravity_mps2, profile, grid, dt = (
+        pb.latitude_rad,
+        pb.gravity_mps2,
+        pb.profile,
+        pb.grid,
+        pb.dt,
+    )
     A, T = state_matrix(latitude_rad, gravity_mps2), np.diff(pb.t_nav[grid.bounds])
     mid = (grid.bounds[:-1] + grid.bounds[1:]) // 2
     values = np.zeros(P.N_PARAMS) if start is None else start.copy()
@@ -669,8 +736,9 @@ def _fit_renavigating(pb: "_Problem", C0: np.ndarray, extras: Extras, partial: b
             # still large (a MEMS unit's percent-level errors) it follows them. A partial fit's
             # covariance is sensitive to where its nearly-null directions lie, so it follows
             # the trajectory to the end.
-            H = observation_jacobian(nav.C_b_n, dth, dvv, nav.time_s, grid, latitude_rad,
-                                     gravity_mps2, noise.Phi_vv, extras)
+            H = observation_jacobian(
+                nav.C_b_n, dth, dvv, nav.time_s, grid, latitude_rad, gravity_mps2, noise.Phi_vv, extras
+            )
             Hs, D = scaled_design(whiten(noise.whitener, H), extras, requirements)
             sol = solve_information(Hs.T @ Hs, where, names, partial, judge)
             cov = sol.covariance * np.outer(D, D)
@@ -687,22 +755,34 @@ def _fit_renavigating(pb: "_Problem", C0: np.ndarray, extras: Extras, partial: b
     return _fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, converged, extras)
 
 
-def _fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, converged,
-                extras) -> Fit:
+def _fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, converged, extras) -> Fit:
     """The :class:`Fit` both loops end with; the residual is after the last correction (m/s)."""
     z_fit = z - np.einsum("kin,n->ki", H, delta)
-    return Fit(values=values, C_b_n0=C0, covariance=cov, converged=converged,
-               iterations=len(history), residual_rms_mps=float(np.sqrt(np.mean(z_fit ** 2))),
-               chi2_per_dof=history[-1]["chi2_per_dof"], n_observations=int(z.size),
-               history=history, extras=extras, extra_values=extra_values,
-               estimable=sol.estimable, null_directions=sol.null_directions)
+    return Fit(
+        values=values,
+        C_b_n0=C0,
+        covariance=cov,
+        converged=converged,
+        iterations=len(history),
+        residual_rms_mps=float(np.sqrt(np.mean(z_fit**2))),
+        chi2_per_dof=history[-1]["chi2_per_dof"],
+        n_observations=int(z.size),
+        history=history,
+        extras=extras,
+        extra_values=extra_values,
+        estimable=sol.estimable,
+        null_directions=sol.null_directions,
+    )
 
 
 def _history_entry(it: int, delta, cov, resid, sol) -> dict:
     """An iteration's record: its largest step in sigmas and the chi-square after it."""
     n_fitted = sol.covariance.shape[0] - len(sol.null_directions)
-    return {"iteration": it, "max_step_sigma": float(np.max(np.abs(delta) / np.sqrt(np.diag(cov)))),
-            "chi2_per_dof": float(resid @ resid / max(1, resid.size - n_fitted))}
+    return {
+        "iteration": it,
+        "max_step_sigma": float(np.max(np.abs(delta) / np.sqrt(np.diag(cov)))),
+        "chi2_per_dof": float(resid @ resid / max(1, resid.size - n_fitted)),
+    }
 
 
 def _solve_step(Hs, D, zw, sol):
@@ -719,8 +799,13 @@ def _relinearise(it: int, sol, history: list) -> bool:
     errors); a partial fit's covariance is sensitive to where its nearly-null
     directions lie, so it follows the trajectory to the end.
     """
-    return (sol is None or it <= 3 or bool(sol.null_directions)
-            or bool(history) and history[-1]["max_step_sigma"] > RELINEARISE_STEP_SIGMA)
+    return (
+        sol is None
+        or it <= 3
+        or bool(sol.null_directions)
+        or bool(history)
+        and history[-1]["max_step_sigma"] > RELINEARISE_STEP_SIGMA
+    )
 
 
 def _apply(values, extra_values, delta, sol, D):
@@ -729,11 +814,11 @@ def _apply(values, extra_values, delta, sol, D):
     Zeroing them only in each step would let them drift as the directions
     turn from one Jacobian to the next, and the drift bends the trajectory.
     """
-    values, extra_values = values + delta[:P.N_PARAMS], extra_values + delta[N_UNKNOWN:]
+    values, extra_values = values + delta[: P.N_PARAMS], extra_values + delta[N_UNKNOWN:]
     if sol.null_directions:
         Dp = D[_param_index(len(D))]
         x = sol.project(np.concatenate([values, extra_values]) / Dp) * Dp
-        values, extra_values = x[:P.N_PARAMS], x[P.N_PARAMS:]
+        values, extra_values = x[: P.N_PARAMS], x[P.N_PARAMS :]
     return values, extra_values
 
 
@@ -754,17 +839,33 @@ def _nominal_judge(sequence, time_s, dtheta_m, dv_m, dt, moving, C0, start, mode
                 dth = dtheta_m - start[P.GYRO_BIAS] * dt[:, None]
                 nav = navigate(dth, dv_m, time_s, C0, latitude_rad, gravity_mps2)
                 seq = infer_sequence(nav.C_b_n, dtheta_m, moving, dt)
-            memo["inv"] = None if seq is None else nominal_decision(
-                seq, latitude_rad, profile, extras, requirements, UNKNOWN_NAMES + extras.names)
+            memo["inv"] = (
+                None
+                if seq is None
+                else nominal_decision(
+                    seq, latitude_rad, profile, extras, requirements, UNKNOWN_NAMES + extras.names
+                )
+            )
         return memo["inv"]
+
     return judge
 
 
-def fit_intervals(chunks, grid, site: Site, C0: np.ndarray, profile: NoiseProfile,
-                  extras: Extras = X.NONE, partial: bool = False,
-                  requirements: Requirements = PAPER, max_iterations: int | None = None,
-                  tol_sigma: float = 1e-3, where: str = "run", start: np.ndarray | None = None,
-                  judge=None) -> Fit:
+def fit_intervals(
+    chunks,
+    grid,
+    site: Site,
+    C0: np.ndarray,
+    profile: NoiseProfile,
+    extras: Extras = X.NONE,
+    partial: bool = False,
+    requirements: Requirements = PAPER,
+    max_iterations: int | None = None,
+    tol_sigma: float = 1e-3,
+    where: str = "run",
+    start: np.ndarray | None = None,
+    judge=None,
+) -> Fit:
     """The Gauss-Newton loop on per-interval quantities, navigating only when it must.
 
     ``chunks()`` gives the run again, chunk by chunk (:mod:`calib.stream`);
@@ -787,17 +888,25 @@ def fit_intervals(chunks, grid, site: Site, C0: np.ndarray, profile: NoiseProfil
     while it < limit:
         it += 1
         want_H = _relinearise(it, sol, history)
-        data = navigate_pass(chunks(), grid, site, values, extra_values, C0, turn, extras,
-                             with_moments=want_H,
-                             gyro_correction=None if feedback is None else feedback.body_rate)
+        data = navigate_pass(
+            chunks(),
+            grid,
+            site,
+            values,
+            extra_values,
+            C0,
+            turn,
+            extras,
+            with_moments=want_H,
+            gyro_correction=None if feedback is None else feedback.body_rate,
+        )
         turn, T = data.turn, np.diff(data.t_bounds)
         if schedule is None:  # (the run's length is known after its first pass)
             schedule = FeedbackSchedule.for_run(profile, float(T.sum()), site.gravity_mps2)
             limit = schedule.limit(max_iterations)
         if noise is None or (profile.has_gauss_markov and it <= 3):
             noise = noise_model(A, T, profile, C_b_n=data.C_mid)
-        z = _observations(data.y if feedback is None else data.y - feedback.dv, noise.Phi_vv,
-                          it, where)
+        z = _observations(data.y if feedback is None else data.y - feedback.dv, noise.Phi_vv, it, where)
         if want_H:
             H, Hs, D, zw = _pass_design(data, T, site, noise, z, extras, requirements)
             sol = solve_information(Hs.T @ Hs, where, names, partial, judge)
@@ -807,19 +916,18 @@ def fit_intervals(chunks, grid, site: Site, C0: np.ndarray, profile: NoiseProfil
         delta, resid = schedule.step(Hs, D, zw, sol, cov, it)
         values, extra_values = _apply(values, extra_values, delta, sol, D)
         C0 = rotvec_to_dcm(delta[PHI0]) @ C0
-        step, bound = _record(history, _history_entry(it, delta, cov, resid, sol),
-                              schedule.settled(it))
+        step, bound = _record(history, _history_entry(it, delta, cov, resid, sol), schedule.settled(it))
         if (step < tol_sigma or bound < tol_sigma) and not schedule.pending():
-            return _fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, True,
-                               extras)
+            return _fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, True, extras)
         feedback = schedule.update(it, step, feedback, noise, z, H, delta, A, T, data.C_mid)
     return _fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, False, extras)
 
 
 def _pass_design(data, T, site: Site, noise, z, extras: Extras, requirements: Requirements):
     """A pass's Jacobian, its whitened and scaled form, and the whitened observations."""
-    H = observation_matrix(sensitivities(data.moments, T, site.latitude_rad, site.gravity_mps2,
-                                         data.extra), noise.Phi_vv)
+    H = observation_matrix(
+        sensitivities(data.moments, T, site.latitude_rad, site.gravity_mps2, data.extra), noise.Phi_vv
+    )
     # H and z share the whitening filter: one recursion for both.
     Hz = whiten(noise.whitener, np.concatenate([H, z[:, :, None]], axis=2))
     Hs, D = scaled_design(Hz[:, :, :-1], extras, requirements)
@@ -842,9 +950,11 @@ def _observations(y: np.ndarray, Phi_vv: np.ndarray, it: int, where: str) -> np.
     """Velocity changes over the observation intervals, less the noise model's prediction."""
     z = y[1:] - np.einsum("kij,kj->ki", Phi_vv, y[:-1])
     if not np.all(np.isfinite(z)) or np.abs(y).max() > 1e5:
-        raise CalibError(f"the fit diverged at iteration {it} (navigation velocity "
-                         f"{np.abs(y).max():.3g} m/s)", where,
-                         "check units and that the run is a stationary-base calibration")
+        raise CalibError(
+            f"the fit diverged at iteration {it} (navigation velocity {np.abs(y).max():.3g} m/s)",
+            where,
+            "check units and that the run is a stationary-base calibration",
+        )
     return z
 
 
@@ -861,9 +971,11 @@ def sequence_motion(seq, time_s: np.ndarray, dt: np.ndarray) -> np.ndarray:
     return _grow(moving)
 
 
-def check_sequence_matches(seq, detected: np.ndarray, from_sequence: np.ndarray, dt: np.ndarray,
-                           where: str) -> None:
+def check_sequence_matches(
+    seq, detected: np.ndarray, from_sequence: np.ndarray, dt: np.ndarray, where: str
+) -> None:
     """Refuse a sequence file whose flips are not where the log turns."""
+
     def runs(mask):
         edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
         return edges[::2], edges[1::2]
@@ -871,13 +983,18 @@ def check_sequence_matches(seq, detected: np.ndarray, from_sequence: np.ndarray,
     d0, _ = runs(detected)
     s0, _ = runs(from_sequence)
     if len(d0) != len(s0):
-        raise CalibError(f"the sequence {seq.name!r} has {len(s0)} flips where the log turns "
-                         f"{len(d0)} times", where,
-                         "give the sequence the run was made with, or omit --sequence")
+        raise CalibError(
+            f"the sequence {seq.name!r} has {len(s0)} flips where the log turns {len(d0)} times",
+            where,
+            "give the sequence the run was made with, or omit --sequence",
+        )
     t = np.cumsum(dt)
     offsets = np.abs(t[d0] - t[s0])
     if offsets.max() > 2.0:
         k = int(np.argmax(offsets))
-        raise CalibError(f"flip {k + 1} of sequence {seq.name!r} starts at {t[s0[k]]:.2f} s but the "
-                         f"log turns at {t[d0[k]]:.2f} s", where,
-                         "give the sequence the run was made with, or omit --sequence")
+        raise CalibError(
+            f"flip {k + 1} of sequence {seq.name!r} starts at {t[s0[k]]:.2f} s but the "
+            f"log turns at {t[d0[k]]:.2f} s",
+            where,
+            "give the sequence the run was made with, or omit --sequence",
+        )

@@ -37,6 +37,7 @@ length ``h``), on top of the 21-parameter model::
   second-order error ``~ dt_ga^2 omega^2 g T_flip / 2`` (3e-7 m/s per flip for
   0.5 ms at 10 deg/s). Parameter ``dt_ga`` in ms.
 """
+
 from __future__ import annotations
 
 import math
@@ -86,20 +87,51 @@ class ExtraParameter:
         return self.scale * self.si_per_unit
 
 
-K2_SI_PER_UG_PER_G2 = MICRO_G / STANDARD_GRAVITY ** 2  # 1 ug/g^2 in 1/(m/s^2)
+K2_SI_PER_UG_PER_G2 = MICRO_G / STANDARD_GRAVITY**2  # 1 ug/g^2 in 1/(m/s^2)
 
 
 def _table() -> dict[str, tuple[ExtraParameter, ...]]:
     axes = "xyz"
-    lever = tuple(ExtraParameter(f"r{axes[i]}{axes[m]}", "lever-arm", "cm", 0.01, 1.0,
-                                 f"{axes[m]} component of the {axes[i]}-accelerometer's "
-                                 "position from the rotation centre", 50.0, i, m)
-                  for i in range(3) for m in range(3))
-    k2 = tuple(ExtraParameter(f"k2{axes[i]}", "k2", "ug/g^2", K2_SI_PER_UG_PER_G2, 10.0,
-                              f"quadratic error of the {axes[i]}-accelerometer", 1000.0, i, -1)
-               for i in range(3))
-    offset = (ExtraParameter("dt_ga", "time-offset", "ms", 1e-3, 0.1,
-                             "accelerometer samples lag the gyro samples by this", 100.0),)
+    lever = tuple(
+        ExtraParameter(
+            f"r{axes[i]}{axes[m]}",
+            "lever-arm",
+            "cm",
+            0.01,
+            1.0,
+            f"{axes[m]} component of the {axes[i]}-accelerometer's position from the rotation centre",
+            50.0,
+            i,
+            m,
+        )
+        for i in range(3)
+        for m in range(3)
+    )
+    k2 = tuple(
+        ExtraParameter(
+            f"k2{axes[i]}",
+            "k2",
+            "ug/g^2",
+            K2_SI_PER_UG_PER_G2,
+            10.0,
+            f"quadratic error of the {axes[i]}-accelerometer",
+            1000.0,
+            i,
+            -1,
+        )
+        for i in range(3)
+    )
+    offset = (
+        ExtraParameter(
+            "dt_ga",
+            "time-offset",
+            "ms",
+            1e-3,
+            0.1,
+            "accelerometer samples lag the gyro samples by this",
+            100.0,
+        ),
+    )
     return {"lever-arm": lever, "k2": k2, "time-offset": offset}
 
 
@@ -116,8 +148,11 @@ def parse_groups(text: str | None, where: str = "--with") -> tuple[str, ...]:
         return GROUP_NAMES
     unknown = [n for n in names if n not in GROUPS]
     if unknown:
-        raise CalibError(f"unknown extra term(s) {', '.join(map(repr, unknown))}", where,
-                         "choose from " + ", ".join(GROUP_NAMES) + " (or 'all')")
+        raise CalibError(
+            f"unknown extra term(s) {', '.join(map(repr, unknown))}",
+            where,
+            "choose from " + ", ".join(GROUP_NAMES) + " (or 'all')",
+        )
     return tuple(g for g in GROUP_NAMES if g in names)
 
 
@@ -168,8 +203,11 @@ class Extras:
         return out
 
     def pack(self, values: "ExtraValues") -> np.ndarray:
-        parts = {"lever-arm": values.lever_arm_m.reshape(9), "k2": values.k2,
-                 "time-offset": np.array([values.time_offset_s])}
+        parts = {
+            "lever-arm": values.lever_arm_m.reshape(9),
+            "k2": values.k2,
+            "time-offset": np.array([values.time_offset_s]),
+        }
         return np.concatenate([parts[g] for g in self.groups]) if self.groups else np.zeros(0)
 
 
@@ -197,13 +235,19 @@ class ExtraValues:
     def replace(self, **kw) -> "ExtraValues":
         d = {"lever_arm_m": self.lever_arm_m, "k2": self.k2, "time_offset_s": self.time_offset_s}
         d.update(kw)
-        return ExtraValues(np.asarray(d["lever_arm_m"], dtype=float).reshape(3, 3),
-                           np.asarray(d["k2"], dtype=float).reshape(3), float(d["time_offset_s"]))
+        return ExtraValues(
+            np.asarray(d["lever_arm_m"], dtype=float).reshape(3, 3),
+            np.asarray(d["k2"], dtype=float).reshape(3),
+            float(d["time_offset_s"]),
+        )
 
     @property
     def groups(self) -> tuple[str, ...]:
-        on = {"lever-arm": np.any(self.lever_arm_m != 0), "k2": np.any(self.k2 != 0),
-              "time-offset": self.time_offset_s != 0}
+        on = {
+            "lever-arm": np.any(self.lever_arm_m != 0),
+            "k2": np.any(self.k2 != 0),
+            "time-offset": self.time_offset_s != 0,
+        }
         return tuple(g for g in GROUP_NAMES if on[g])
 
     @property
@@ -213,8 +257,7 @@ class ExtraValues:
     def in_units(self) -> dict[str, float]:
         """Every parameter by name, in its report unit."""
         full = Extras(GROUP_NAMES)
-        return {p.name: float(v / p.si_per_unit)
-                for p, v in zip(full.parameters, full.pack(self))}
+        return {p.name: float(v / p.si_per_unit) for p, v in zip(full.parameters, full.pack(self))}
 
     @classmethod
     def from_units(cls, by_name: dict[str, float], where: str = "extra terms") -> "ExtraValues":
@@ -222,13 +265,17 @@ class ExtraValues:
         known = {p.name: p for p in full.parameters}
         unknown = sorted(set(by_name) - set(known))
         if unknown:
-            raise CalibError(f"unknown extra parameter(s) {', '.join(unknown)}", where,
-                             "known: " + ", ".join(known))
+            raise CalibError(
+                f"unknown extra parameter(s) {', '.join(unknown)}", where, "known: " + ", ".join(known)
+            )
         for name, value in by_name.items():
             if not abs(value) <= known[name].limit:
-                raise CalibError(f"{name} = {value:g} {known[name].unit} is beyond the plausible "
-                                 f"{known[name].limit:g} {known[name].unit}", where,
-                                 f"give {name} in {known[name].unit}")
+                raise CalibError(
+                    f"{name} = {value:g} {known[name].unit} is beyond the plausible "
+                    f"{known[name].limit:g} {known[name].unit}",
+                    where,
+                    f"give {name} in {known[name].unit}",
+                )
         v = np.array([float(by_name.get(p.name, 0.0)) * p.si_per_unit for p in full.parameters])
         return full.unpack(v)
 
@@ -247,8 +294,9 @@ def parse_values(text: str | None, where: str = "--extra") -> ExtraValues:
         except ValueError:
             number = math.nan
         if not sep or not math.isfinite(number):
-            raise CalibError(f"{item!r} is not name=number", where,
-                             "e.g. --extra rxx=3,k2y=20,dt_ga=0.5 (cm, ug/g^2, ms)")
+            raise CalibError(
+                f"{item!r} is not name=number", where, "e.g. --extra rxx=3,k2y=20,dt_ga=0.5 (cm, ug/g^2, ms)"
+            )
         values[name.strip()] = number
     return ExtraValues.from_units(values, where)
 
@@ -271,7 +319,7 @@ def lever_matrix(dtheta: np.ndarray, h: np.ndarray) -> np.ndarray:
     """
     t = dtheta
     # [t x]^2 = t t^T - |t|^2 I
-    A = (np.einsum("ni,nm->nim", t, t) - np.einsum("n,im->nim", np.sum(t * t, 1), np.eye(3)))
+    A = np.einsum("ni,nm->nim", t, t) - np.einsum("n,im->nim", np.sum(t * t, 1), np.eye(3))
     A /= h[:, None, None]
     d = _rate_steps(dtheta, h)
     A[:, 0, 1] -= d[:, 2]
@@ -289,19 +337,26 @@ def lever(lever_arm_m: np.ndarray, dtheta: np.ndarray, h: np.ndarray) -> np.ndar
     return np.einsum("nim,im->ni", A, lever_arm_m)
 
 
-def apply(values: ExtraValues, dtheta_true: np.ndarray, dv_shift: np.ndarray, h: np.ndarray,
-          accel_apply) -> np.ndarray:
+def apply(
+    values: ExtraValues, dtheta_true: np.ndarray, dv_shift: np.ndarray, h: np.ndarray, accel_apply
+) -> np.ndarray:
     """Accelerometer output from true gyro increments and (time-shifted) true velocity increments.
 
     ``accel_apply(dv)`` applies the 21-parameter model (scale, misalignment,
     bias) to velocity increments.
     """
     dv_loc = dv_shift + lever(values.lever_arm_m, dtheta_true, h)
-    return accel_apply(dv_loc) + values.k2 * dv_loc ** 2 / h[:, None]
+    return accel_apply(dv_loc) + values.k2 * dv_loc**2 / h[:, None]
 
 
-def compensate(values: ExtraValues, dtheta: np.ndarray, dv_m: np.ndarray, h: np.ndarray,
-               accel_compensate, earth_dtheta: np.ndarray | float = 0.0) -> np.ndarray:
+def compensate(
+    values: ExtraValues,
+    dtheta: np.ndarray,
+    dv_m: np.ndarray,
+    h: np.ndarray,
+    accel_compensate,
+    earth_dtheta: np.ndarray | float = 0.0,
+) -> np.ndarray:
     """Inverse of :func:`apply` (exact but for the first-order time shift).
 
     ``dtheta`` are the already compensated gyro increments;
@@ -313,7 +368,7 @@ def compensate(values: ExtraValues, dtheta: np.ndarray, dv_m: np.ndarray, h: np.
     if np.any(values.k2 != 0):
         # k2 f^2 is ~1e-4 of f: each pass gains four orders of magnitude.
         for _ in range(3):
-            dv_loc = accel_compensate(dv_m - values.k2 * dv_loc ** 2 / h[:, None])
+            dv_loc = accel_compensate(dv_m - values.k2 * dv_loc**2 / h[:, None])
     dv = dv_loc - lever(values.lever_arm_m, dtheta, h)
     if values.time_offset_s != 0:
         dv = dv - values.time_offset_s * np.cross(dtheta - earth_dtheta, dv) / h[:, None]
@@ -325,8 +380,9 @@ def earth_turn(C_b_n_mid: np.ndarray, omega_ie_n: np.ndarray, h: np.ndarray) -> 
     return np.einsum("nab,a->nb", C_b_n_mid, omega_ie_n) * h[:, None]
 
 
-def dv_sensitivity(extras: Extras, dtheta: np.ndarray, dv: np.ndarray, h: np.ndarray,
-                   earth_dtheta: np.ndarray | float = 0.0) -> np.ndarray:
+def dv_sensitivity(
+    extras: Extras, dtheta: np.ndarray, dv: np.ndarray, h: np.ndarray, earth_dtheta: np.ndarray | float = 0.0
+) -> np.ndarray:
     """``d dv_meas / d(extra parameters, SI)`` per sample: shape (n, 3, extras.n)."""
     n = len(h)
     D = np.zeros((n, 3, extras.n))
@@ -334,7 +390,7 @@ def dv_sensitivity(extras: Extras, dtheta: np.ndarray, dv: np.ndarray, h: np.nda
         A = lever_matrix(dtheta, h)
         s = extras.index("lever-arm").start
         for i in range(3):
-            D[:, i, s + 3 * i:s + 3 * i + 3] = A[:, i, :]
+            D[:, i, s + 3 * i : s + 3 * i + 3] = A[:, i, :]
     if "k2" in extras.groups:
         s = extras.index("k2").start
         for i in range(3):

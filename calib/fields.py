@@ -7,6 +7,7 @@ a near miss of one ("``rate_dsp``: did you mean ``rate_dps``?"); was the
 file written by a newer version of the tool. They ask them here, so every
 refusal reads the same: what, where (file and key), how to fix.
 """
+
 from __future__ import annotations
 
 import difflib
@@ -45,17 +46,25 @@ class Fields:
     def here(self, key: str) -> str:
         return f"{self.where}: key '{key}'"
 
-    def number(self, key: str, default=_MISSING, *, low: float | None = None,
-               high: float | None = None, positive: bool = False, finite: bool = True,
-               unit: str = "", fix: str | None = None) -> float:
+    def number(
+        self,
+        key: str,
+        default=_MISSING,
+        *,
+        low: float | None = None,
+        high: float | None = None,
+        positive: bool = False,
+        finite: bool = True,
+        unit: str = "",
+        fix: str | None = None,
+    ) -> float:
         """A number, refused with the key's name unless it is finite and within the bounds.
 
         ``fix`` is the advice every refusal of this key carries (e.g. the unit expected).
         """
         if key not in self.table:
             if default is _MISSING:
-                raise CalibError(f"missing key '{key}'", self.where,
-                                 fix or f"add '{key} = <number>'")
+                raise CalibError(f"missing key '{key}'", self.where, fix or f"add '{key} = <number>'")
             return default
         raw = self.table[key]
         value = toml_number(raw)
@@ -67,13 +76,22 @@ class Fields:
             raise CalibError(f"'{key}' must be > 0, got {value}", self.here(key), fix)
         if (low is not None and value < low) or (high is not None and value > high):
             span = f"[{'-inf' if low is None else f'{low:g}'}, {'inf' if high is None else f'{high:g}'}]"
-            raise CalibError(f"'{key}' = {value:g}{unit} is outside {span}{unit}",
-                             self.here(key), fix)
+            raise CalibError(f"'{key}' = {value:g}{unit} is outside {span}{unit}", self.here(key), fix)
         return value
 
-    def numbers(self, key: str, default=_MISSING, *, length: int | None = None,
-                low: float | None = None, high: float | None = None, positive: bool = False,
-                finite: bool = True, unit: str = "", fix: str | None = None) -> list[float]:
+    def numbers(
+        self,
+        key: str,
+        default=_MISSING,
+        *,
+        length: int | None = None,
+        low: float | None = None,
+        high: float | None = None,
+        positive: bool = False,
+        finite: bool = True,
+        unit: str = "",
+        fix: str | None = None,
+    ) -> list[float]:
         """An array of numbers, each checked as :meth:`number` checks one.
 
         ``length`` (when given) is the array's required size. A refused item is
@@ -81,17 +99,19 @@ class Fields:
         """
         if key not in self.table:
             if default is _MISSING:
-                raise CalibError(f"missing key '{key}'", self.where,
-                                 fix or f"add '{key} = [<number>, ...]'")
+                raise CalibError(f"missing key '{key}'", self.where, fix or f"add '{key} = [<number>, ...]'")
             return default
         raw = self.table[key]
         if not isinstance(raw, list) or (length is not None and len(raw) != length):
             size = "numbers" if length is None else f"{length} numbers"
-            raise CalibError(f"'{key}' must be an array of {size}, got {reprlib.repr(raw)}",
-                             self.here(key), fix)
+            raise CalibError(
+                f"'{key}' must be an array of {size}, got {reprlib.repr(raw)}", self.here(key), fix
+            )
         items = Fields({f"{key}[{i}]": item for i, item in enumerate(raw)}, self.where)
-        return [items.number(name, low=low, high=high, positive=positive, finite=finite,
-                             unit=unit, fix=fix) for name in items.table]
+        return [
+            items.number(name, low=low, high=high, positive=positive, finite=finite, unit=unit, fix=fix)
+            for name in items.table
+        ]
 
     def integer(self, key: str, default=_MISSING, *, low: int | None = None) -> int:
         """A whole number (booleans refused)."""
@@ -124,8 +144,7 @@ class Fields:
         if not isinstance(raw, str):
             raise CalibError(f"'{key}' must be a string, got {raw!r}", self.here(key))
         if choices is not None and raw not in choices:
-            raise CalibError(f"'{key}' = {raw!r} is not one of {', '.join(choices)}",
-                             self.here(key))
+            raise CalibError(f"'{key}' = {raw!r} is not one of {', '.join(choices)}", self.here(key))
         return raw
 
     def sub(self, key: str, required: bool = False) -> "Fields | None":
@@ -150,9 +169,11 @@ class Fields:
                 continue
             close = difflib.get_close_matches(key, known, n=1, cutoff=0.75)
             if close:
-                raise CalibError(f"unknown key '{key}': did you mean '{close[0]}'?", self.here(key),
-                                 f"rename it to '{close[0]}' (the {kind} keys are: "
-                                 f"{', '.join(known)})")
+                raise CalibError(
+                    f"unknown key '{key}': did you mean '{close[0]}'?",
+                    self.here(key),
+                    f"rename it to '{close[0]}' (the {kind} keys are: {', '.join(known)})",
+                )
             warnings.append(f"{self.where}: key '{key}' is not a {kind} key; it is ignored")
         return warnings
 
@@ -161,7 +182,9 @@ def check_format_version(table: dict, kind: str, where: str) -> int:
     """The file's ``format_version`` (1 when absent); refuse one newer than this tool reads."""
     version = Fields(table, where).integer("format_version", FORMAT_VERSION, low=1)
     if version > FORMAT_VERSION:
-        raise CalibError(f"{kind} format_version {version} is newer than this tool reads "
-                         f"({FORMAT_VERSION})", f"{where}: key 'format_version'",
-                         "upgrade seqdesign")
+        raise CalibError(
+            f"{kind} format_version {version} is newer than this tool reads ({FORMAT_VERSION})",
+            f"{where}: key 'format_version'",
+            "upgrade seqdesign",
+        )
     return version

@@ -4,6 +4,7 @@ A file the tool writes is either complete or absent: a crash, a full disk or
 Ctrl-C half way through never leaves a truncated run log or result behind
 that a later command would trust.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -37,6 +38,7 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
         If the file cannot be written (missing directory, no permission,
         disk full, ...).
     """
+
     def write(tmp_name: str) -> None:
         with open(tmp_name, "wb") as handle:
             handle.write(data)
@@ -65,8 +67,11 @@ def atomic_write_with(path: str | os.PathLike, write):
         fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
         os.close(fd)
     except OSError as exc:
-        raise CalibError(f"cannot write the file: {exc.strerror or exc}", str(target),
-                         "check that the directory exists and is writable") from exc
+        raise CalibError(
+            f"cannot write the file: {exc.strerror or exc}",
+            str(target),
+            "check that the directory exists and is writable",
+        ) from exc
     try:
         out = write(tmp_name)
         # mkstemp creates the file private (0600); give it the permissions an
@@ -76,8 +81,11 @@ def atomic_write_with(path: str | os.PathLike, write):
     except BaseException as exc:
         remove_quietly(tmp_name)
         if isinstance(exc, OSError):
-            raise CalibError(f"cannot write the file: {exc.strerror or exc}", str(target),
-                             "check free disk space and permissions") from exc
+            raise CalibError(
+                f"cannot write the file: {exc.strerror or exc}",
+                str(target),
+                "check free disk space and permissions",
+            ) from exc
         raise
     _fsync_directory(directory)
     return out
@@ -119,8 +127,9 @@ def sha256_file(path: str | os.PathLike) -> str:
         with open(path, "rb") as handle:
             return hashlib.file_digest(handle, "sha256").hexdigest()
     except OSError as exc:
-        raise CalibError(f"cannot read the file: {exc.strerror or exc}", str(path),
-                         "check the path and permissions") from exc
+        raise CalibError(
+            f"cannot read the file: {exc.strerror or exc}", str(path), "check the path and permissions"
+        ) from exc
 
 
 def default_mode(target: Path) -> int:
@@ -166,13 +175,15 @@ def load_toml(path: str | os.PathLike) -> dict:
         return tomllib.loads(Path(path).read_bytes().decode("utf-8"))
     except UnicodeDecodeError as exc:
         line = exc.object.count(b"\n", 0, exc.start) + 1
-        raise CalibError(f"not UTF-8 text (line {line}, byte {exc.start})", where,
-                         "save the file as UTF-8") from None
+        raise CalibError(
+            f"not UTF-8 text (line {line}, byte {exc.start})", where, "save the file as UTF-8"
+        ) from None
     except tomllib.TOMLDecodeError as exc:
         raise CalibError(f"not valid TOML: {exc}", where) from None
     except ValueError as exc:  # tomllib: an integer of more than 4300 digits
-        raise CalibError(f"not valid TOML: {str(exc).split(';')[0]}", where,
-                         "write numbers with fewer digits") from None
+        raise CalibError(
+            f"not valid TOML: {str(exc).split(';')[0]}", where, "write numbers with fewer digits"
+        ) from None
     except RecursionError:
         raise CalibError("not valid TOML: arrays or tables nested too deeply", where) from None
     except OSError as exc:
@@ -197,8 +208,10 @@ def check_writable_dir(path: str | os.PathLike, where: str) -> None:
     """Refuse, before any long computation, an output whose folder is missing or read-only."""
     directory = Path(path).parent if str(Path(path).parent) else Path(".")
     if not directory.is_dir():
-        raise CalibError(f"folder {str(directory)!r} does not exist", where,
-                         "create it first or choose another path")
+        raise CalibError(
+            f"folder {str(directory)!r} does not exist", where, "create it first or choose another path"
+        )
     if not os.access(directory, os.W_OK | os.X_OK):
-        raise CalibError(f"folder {str(directory)!r} is not writable", where,
-                         "choose a folder you can write to")
+        raise CalibError(
+            f"folder {str(directory)!r} is not writable", where, "choose a folder you can write to"
+        )

@@ -5,6 +5,7 @@ to ``calibrate`` would otherwise be refused for a missing key. The readers
 call :func:`expect` first: it looks at the suffix and, for TOML, at the
 tables and keys that only one kind of file has.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -20,15 +21,23 @@ _TOML_MARKS = (
     ("profile", ("gyro_arw_dph", "accel_vrw_ug")),
     ("gimbal", ("outer", "middle", "inner")),
 )
-_WHAT = {"result": "a calibration result (what calibrate writes)",
-         "truth": "a truth file (what simulate writes beside a run)",
-         "sequence": "a sequence file", "requirements": "a requirements file",
-         "profile": "a noise profile", "gimbal": "a gimbal description",
-         "run": "a run log", "psins": "a PSINS .imu log", "unknown": "an unknown file"}
-_FIX = {"sequence": "give a sequence file (.toml with start and [[step]]) or a shipped name",
-        "run": "give the run log (.csv, .csv.gz, .npz or .imu) that simulate or a logger wrote",
-        "result": "give the result TOML that calibrate wrote",
-        "profile": "give a profile TOML or a built-in name"}
+_WHAT = {
+    "result": "a calibration result (what calibrate writes)",
+    "truth": "a truth file (what simulate writes beside a run)",
+    "sequence": "a sequence file",
+    "requirements": "a requirements file",
+    "profile": "a noise profile",
+    "gimbal": "a gimbal description",
+    "run": "a run log",
+    "psins": "a PSINS .imu log",
+    "unknown": "an unknown file",
+}
+_FIX = {
+    "sequence": "give a sequence file (.toml with start and [[step]]) or a shipped name",
+    "run": "give the run log (.csv, .csv.gz, .npz or .imu) that simulate or a logger wrote",
+    "result": "give the result TOML that calibrate wrote",
+    "profile": "give a profile TOML or a built-in name",
+}
 
 
 def kind_of(path: str | Path) -> str:
@@ -44,6 +53,7 @@ def kind_of(path: str | Path) -> str:
         return "unknown"
     try:
         import tomllib
+
         doc = tomllib.loads(Path(path).read_text("utf-8"))
     except (OSError, ValueError, UnicodeDecodeError, RecursionError):
         return "unknown"  # the reader itself says what is wrong with it
@@ -60,5 +70,8 @@ def expect(path: str | Path, wanted: str) -> None:
     kind = kind_of(path)
     same = kind == wanted or (wanted == "run" and kind == "psins") or kind == "unknown"
     if not same:
-        raise CalibError(f"this is {_WHAT[kind]}, not {_WHAT[wanted]}", str(path),
-                         _FIX.get(wanted, f"give {_WHAT[wanted]}"))
+        raise CalibError(
+            f"this is {_WHAT[kind]}, not {_WHAT[wanted]}",
+            str(path),
+            _FIX.get(wanted, f"give {_WHAT[wanted]}"),
+        )

@@ -8,6 +8,7 @@ stationary, it has variance ``sigma^2`` and autocorrelation
 
 with ``w_k ~ N(0, 1)``, started from the stationary ``b_0 ~ N(0, sigma^2)``.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -18,8 +19,7 @@ import numpy as np
 _BLOCK_DECAY = 30.0
 
 
-def gauss_markov(n: int, dt: np.ndarray, sigma: float, tau: float,
-                 rng: np.random.Generator) -> np.ndarray:
+def gauss_markov(n: int, dt: np.ndarray, sigma: float, tau: float, rng: np.random.Generator) -> np.ndarray:
     """Per-sample values of three independent stationary GM processes.
 
     Parameters
@@ -63,6 +63,7 @@ def gauss_markov(n: int, dt: np.ndarray, sigma: float, tau: float,
         return out
     if np.all(a == a[0]):  # uniform sampling: a linear filter with constant coefficient
         from scipy.signal import lfilter  # lazy: importing scipy.signal costs 0.5 s per CLI start
+
         out[1:] = lfilter([1.0], [1.0, -a[0]], u, axis=0, zi=(a[0] * b0)[None, :])[0]
     else:
         out[1:] = _varying_ar1(a, u, b0)

@@ -30,6 +30,7 @@ follow the continuous decomposition of the attitude along the flip (sampled
 every 0.5 deg of flip, interpolated in between: approximate, unlike the
 single-gimbal moves, which are exact).
 """
+
 from __future__ import annotations
 
 import math
@@ -78,8 +79,7 @@ class Gimbal:
         return min(a.max_rate for a in self.axes)
 
 
-DEFAULT_GIMBAL = Gimbal(name="default (slip rings, no limits)",
-                        axes=tuple(GimbalAxis(n) for n in NAMES))
+DEFAULT_GIMBAL = Gimbal(name="default (slip rings, no limits)", axes=tuple(GimbalAxis(n) for n in NAMES))
 
 
 # ---------------------------------------------------------------------------
@@ -92,8 +92,11 @@ def _limit(table: dict, key: str, where: str) -> float:
         return math.inf
     value = toml_number(table[key])
     if value is None or not math.isfinite(value) or value <= 0:
-        raise CalibError(f"'{key}' must be a positive number, got {table[key]!r}", where,
-                         f"give {key} > 0, or leave it out for no limit")
+        raise CalibError(
+            f"'{key}' must be a positive number, got {table[key]!r}",
+            where,
+            f"give {key} > 0, or leave it out for no limit",
+        )
     return value
 
 
@@ -103,20 +106,39 @@ def _axis_from_dict(name: str, table, where: str) -> GimbalAxis:
         raise CalibError(f"'{name}' must be a table", here, f"write [{name}] with its limits")
     _warn_unknown(table, AXIS_KEYS, "gimbal axis", here)
     lo, hi = Fields(table, here).numbers(  # no range: slip rings
-        "range_deg", (-math.inf, math.inf), length=2, unit=" deg",
-        fix="give [min, max] in degrees, e.g. range_deg = [-360, 360]; leave it out for "
-            "slip rings")
+        "range_deg",
+        (-math.inf, math.inf),
+        length=2,
+        unit=" deg",
+        fix="give [min, max] in degrees, e.g. range_deg = [-360, 360]; leave it out for slip rings",
+    )
     if not lo < 0.0 < hi:
-        raise CalibError(f"range_deg = [{lo:g}, {hi:g}] excludes the start (every encoder "
-                         "starts at 0)", here, "give min < 0 < max")
+        raise CalibError(
+            f"range_deg = [{lo:g}, {hi:g}] excludes the start (every encoder starts at 0)",
+            here,
+            "give min < 0 < max",
+        )
     deg = math.radians
-    return GimbalAxis(name, deg(lo), deg(hi), deg(_limit(table, "max_rate_dps", here)),
-                      deg(_limit(table, "max_accel_dps2", here)),
-                      deg(_limit(table, "max_jerk_dps3", here)))
+    return GimbalAxis(
+        name,
+        deg(lo),
+        deg(hi),
+        deg(_limit(table, "max_rate_dps", here)),
+        deg(_limit(table, "max_accel_dps2", here)),
+        deg(_limit(table, "max_jerk_dps3", here)),
+    )
 
 
-GIMBAL_KEYS = ("format_version", "name", "description", "lock_margin_deg", "end_at_home",
-               "outer", "middle", "inner")
+GIMBAL_KEYS = (
+    "format_version",
+    "name",
+    "description",
+    "lock_margin_deg",
+    "end_at_home",
+    "outer",
+    "middle",
+    "inner",
+)
 AXIS_KEYS = ("range_deg", "max_rate_dps", "max_accel_dps2", "max_jerk_dps3")
 
 
@@ -137,25 +159,36 @@ def gimbal_from_dict(doc: dict, where: str) -> Gimbal:
         raise CalibError("'name' must be a non-empty string", f"{where}: key 'name'")
     missing = [n for n in NAMES if n not in doc]
     if missing:
-        raise CalibError(f"no [{missing[0]}] table", where,
-                         "give [outer], [middle] and [inner] (an empty table means no limits)")
+        raise CalibError(
+            f"no [{missing[0]}] table",
+            where,
+            "give [outer], [middle] and [inner] (an empty table means no limits)",
+        )
     axes = tuple(_axis_from_dict(n, doc[n], where) for n in NAMES)
     margin = toml_number(doc.get("lock_margin_deg", 0.0))
     if margin is None or not 0.0 <= margin < 90.0:
-        raise CalibError(f"lock_margin_deg must be in [0, 90), got {doc.get('lock_margin_deg')!r}",
-                         f"{where}: key 'lock_margin_deg'")
+        raise CalibError(
+            f"lock_margin_deg must be in [0, 90), got {doc.get('lock_margin_deg')!r}",
+            f"{where}: key 'lock_margin_deg'",
+        )
     home = doc.get("end_at_home", False)
     if not isinstance(home, bool):
-        raise CalibError(f"end_at_home must be true or false, got {home!r}",
-                         f"{where}: key 'end_at_home'")
+        raise CalibError(f"end_at_home must be true or false, got {home!r}", f"{where}: key 'end_at_home'")
     description = doc.get("description", "")
-    return Gimbal(name=name, axes=axes, lock_margin=math.radians(margin), end_at_home=home,
-                  description=description if isinstance(description, str) else "", path=where)
+    return Gimbal(
+        name=name,
+        axes=axes,
+        lock_margin=math.radians(margin),
+        end_at_home=home,
+        description=description if isinstance(description, str) else "",
+        path=where,
+    )
 
 
 def builtin_gimbal_dir() -> Path:
     """Folder of the gimbal descriptions shipped with the tool."""
     from .sequence import builtin_sequence_dir
+
     return builtin_sequence_dir() / "gimbals"
 
 
@@ -170,8 +203,11 @@ def load_gimbal(name_or_path: str | Path | None) -> Gimbal:
             p = shipped
         else:
             names = ", ".join(sorted(f.stem for f in builtin_gimbal_dir().glob("*.toml")))
-            raise CalibError(f"no gimbal file {str(name_or_path)!r}", "--gimbal",
-                             f"give a path to a .toml file or a shipped name: {names}")
+            raise CalibError(
+                f"no gimbal file {str(name_or_path)!r}",
+                "--gimbal",
+                f"give a path to a .toml file or a shipped name: {names}",
+            )
     return gimbal_from_dict(load_toml(p), str(p))
 
 
@@ -228,8 +264,7 @@ def gimbal_axes_in_body(state: np.ndarray) -> np.ndarray:
     """Rows: the outer, middle and inner axes written in the body frame at encoder ``state``."""
     _, m, i = state
     Ri = rot_axis(1, i)
-    return np.array([(rot_axis(0, m) @ Ri).T @ [0.0, 0.0, 1.0], Ri.T @ [1.0, 0.0, 0.0],
-                     [0.0, 1.0, 0.0]])
+    return np.array([(rot_axis(0, m) @ Ri).T @ [0.0, 0.0, 1.0], Ri.T @ [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 
 
 def in_lock(state: np.ndarray) -> bool:
@@ -263,13 +298,22 @@ def unlock_profile(gimbal: Gimbal, profile: RateProfile) -> RateProfile:
     def pick(a, b, own):
         lim = min(a, b)
         return lim if math.isfinite(lim) else own
-    return RateProfile(rate=pick(o.max_rate, i.max_rate, profile.rate),
-                       accel=pick(o.max_accel, i.max_accel, profile.accel),
-                       jerk=pick(o.max_jerk, i.max_jerk, profile.jerk))
+
+    return RateProfile(
+        rate=pick(o.max_rate, i.max_rate, profile.rate),
+        accel=pick(o.max_accel, i.max_accel, profile.accel),
+        jerk=pick(o.max_jerk, i.max_jerk, profile.jerk),
+    )
 
 
-def plan_move(gimbal: Gimbal, state: np.ndarray, axis: str | int, angle_rad: float,
-              profile: RateProfile, step: int | None = None) -> Move:
+def plan_move(
+    gimbal: Gimbal,
+    state: np.ndarray,
+    axis: str | int,
+    angle_rad: float,
+    profile: RateProfile,
+    step: int | None = None,
+) -> Move:
     """How ``gimbal`` plays a flip about body ``axis`` by ``angle_rad`` from encoder ``state``.
 
     Pure: returns the new encoder state, the move's duration, any lock
@@ -300,20 +344,31 @@ def plan_move(gimbal: Gimbal, state: np.ndarray, axis: str | int, angle_rad: flo
         direction[g] = sign
         end = start + direction * angle_rad
         viol = _single_violations(gimbal, start, end, g, pieces, step)
-        return Move(state, unlock, u_s, u_prof, g, direction, pieces.duration_s, end,
-                    tuple(u_viol + viol))
+        return Move(state, unlock, u_s, u_prof, g, direction, pieces.duration_s, end, tuple(u_viol + viol))
     theta, path = combined_path(start, ax, angle_rad)
     viol = _combined_violations(gimbal, theta, path, pieces, step)
-    return Move(state, unlock, u_s, u_prof, -1, np.zeros(3), pieces.duration_s, path[-1],
-                tuple(u_viol + viol), theta, path)
+    return Move(
+        state,
+        unlock,
+        u_s,
+        u_prof,
+        -1,
+        np.zeros(3),
+        pieces.duration_s,
+        path[-1],
+        tuple(u_viol + viol),
+        theta,
+        path,
+    )
 
 
 # ---------------------------------------------------------------------------
 # Limits
 
 
-def _range_violations(gimbal: Gimbal, lo: np.ndarray, hi: np.ndarray, step,
-                      moving=(0, 1, 2)) -> list[Violation]:
+def _range_violations(
+    gimbal: Gimbal, lo: np.ndarray, hi: np.ndarray, step, moving=(0, 1, 2)
+) -> list[Violation]:
     """Range limits of the gimbals that move.
 
     A gimbal left beyond its range was flagged when it got there.
@@ -324,10 +379,16 @@ def _range_violations(gimbal: Gimbal, lo: np.ndarray, hi: np.ndarray, step,
             continue
         if lo[g] < a.min_angle - LIMIT_TOL or hi[g] > a.max_angle + LIMIT_TOL:
             bad = lo[g] if lo[g] < a.min_angle - LIMIT_TOL else hi[g]
-            out.append(Violation(step, a.name, "range",
-                                 f"reaches {math.degrees(bad):.1f} deg, beyond its range "
-                                 f"[{math.degrees(a.min_angle):g}, {math.degrees(a.max_angle):g}] "
-                                 f"deg of gimbal {gimbal.name!r}"))
+            out.append(
+                Violation(
+                    step,
+                    a.name,
+                    "range",
+                    f"reaches {math.degrees(bad):.1f} deg, beyond its range "
+                    f"[{math.degrees(a.min_angle):g}, {math.degrees(a.max_angle):g}] "
+                    f"deg of gimbal {gimbal.name!r}",
+                )
+            )
     return out
 
 
@@ -336,8 +397,9 @@ def lock_distance(lo: float, hi: float) -> float:
     k = math.ceil((lo - 0.5 * math.pi) / math.pi)
     if 0.5 * math.pi + k * math.pi <= hi:
         return 0.0
-    return min(abs(math.remainder(lo - 0.5 * math.pi, math.pi)),
-               abs(math.remainder(hi - 0.5 * math.pi, math.pi)))
+    return min(
+        abs(math.remainder(lo - 0.5 * math.pi, math.pi)), abs(math.remainder(hi - 0.5 * math.pi, math.pi))
+    )
 
 
 def _lock_violations(gimbal: Gimbal, lo: float, hi: float, step) -> list[Violation]:
@@ -346,40 +408,76 @@ def _lock_violations(gimbal: Gimbal, lo: float, hi: float, step) -> list[Violati
     d = lock_distance(lo, hi)
     if d >= gimbal.lock_margin - LIMIT_TOL:
         return []
-    return [Violation(step, "middle", "lock margin",
-                      f"comes within {math.degrees(d):.1f} deg of gimbal lock (|middle| = 90 deg); "
-                      f"gimbal {gimbal.name!r} keeps {math.degrees(gimbal.lock_margin):g} deg away")]
+    return [
+        Violation(
+            step,
+            "middle",
+            "lock margin",
+            f"comes within {math.degrees(d):.1f} deg of gimbal lock (|middle| = 90 deg); "
+            f"gimbal {gimbal.name!r} keeps {math.degrees(gimbal.lock_margin):g} deg away",
+        )
+    ]
 
 
-def _dynamic_violations(gimbal: Gimbal, g: int, gain: float, curve: float, pieces: Pieces,
-                        profile_jerk: float, step) -> list[Violation]:
+def _dynamic_violations(
+    gimbal: Gimbal, g: int, gain: float, curve: float, pieces: Pieces, profile_jerk: float, step
+) -> list[Violation]:
     """Rate, acceleration and jerk of gimbal ``g`` turning ``gain`` rad per rad of flip."""
     a = gimbal.axes[g]
     out = []
     rate = gain * pieces.peak_rate
     if rate > a.max_rate * (1 + LIMIT_TOL):
-        out.append(Violation(step, a.name, "rate", f"turns at {math.degrees(rate):.3g} deg/s, above "
-                             f"its {math.degrees(a.max_rate):g} deg/s"))
-    accel = gain * pieces.peak_accel + curve * pieces.peak_rate ** 2
+        out.append(
+            Violation(
+                step,
+                a.name,
+                "rate",
+                f"turns at {math.degrees(rate):.3g} deg/s, above its {math.degrees(a.max_rate):g} deg/s",
+            )
+        )
+    accel = gain * pieces.peak_accel + curve * pieces.peak_rate**2
     if np.any(pieces.rate0[:1] != 0.0) and math.isfinite(a.max_accel):
-        out.append(Violation(step, a.name, "acceleration",
-                             "starts at full rate in zero time (no accel_dps2), but it accelerates "
-                             f"at most {math.degrees(a.max_accel):g} deg/s^2 (give the step "
-                             f"accel_dps2 <= {math.degrees(a.max_accel):g})"))
+        out.append(
+            Violation(
+                step,
+                a.name,
+                "acceleration",
+                "starts at full rate in zero time (no accel_dps2), but it accelerates "
+                f"at most {math.degrees(a.max_accel):g} deg/s^2 (give the step "
+                f"accel_dps2 <= {math.degrees(a.max_accel):g})",
+            )
+        )
     elif accel > a.max_accel * (1 + LIMIT_TOL):
-        out.append(Violation(step, a.name, "acceleration", f"accelerates at "
-                             f"{math.degrees(accel):.3g} deg/s^2, above its "
-                             f"{math.degrees(a.max_accel):g} deg/s^2"))
-    if math.isfinite(a.max_jerk) and (math.isinf(profile_jerk)
-                                      or gain * profile_jerk > a.max_jerk * (1 + LIMIT_TOL)):
-        out.append(Violation(step, a.name, "jerk", "needs jerk above its "
-                             f"{math.degrees(a.max_jerk):g} deg/s^3 (give jerk_dps3 within it)"))
+        out.append(
+            Violation(
+                step,
+                a.name,
+                "acceleration",
+                f"accelerates at "
+                f"{math.degrees(accel):.3g} deg/s^2, above its "
+                f"{math.degrees(a.max_accel):g} deg/s^2",
+            )
+        )
+    if math.isfinite(a.max_jerk) and (
+        math.isinf(profile_jerk) or gain * profile_jerk > a.max_jerk * (1 + LIMIT_TOL)
+    ):
+        out.append(
+            Violation(
+                step,
+                a.name,
+                "jerk",
+                f"needs jerk above its {math.degrees(a.max_jerk):g} deg/s^3 (give jerk_dps3 within it)",
+            )
+        )
     return out
 
 
 def _jerk_of(pieces: Pieces) -> float:
-    return float(np.max(np.abs(pieces.jerk))) if np.any(pieces.jerk) else (
-        math.inf if np.any(pieces.accel0) or np.any(pieces.rate0[:1]) else 0.0)
+    return (
+        float(np.max(np.abs(pieces.jerk)))
+        if np.any(pieces.jerk)
+        else (math.inf if np.any(pieces.accel0) or np.any(pieces.rate0[:1]) else 0.0)
+    )
 
 
 def _single_violations(gimbal: Gimbal, start, end, g: int, pieces: Pieces, step) -> list:
@@ -454,8 +552,11 @@ class GimbalPlan:
     @property
     def unlocks(self) -> list[tuple[int, float, float, np.ndarray]]:
         """``(step number, start s, end s, encoder change)`` of every lock counter-rotation."""
-        return [(k + 1, float(t - m.unlock_s), float(t), m.unlock)
-                for k, (m, t) in enumerate(zip(self.moves, self.move_start_s)) if m.unlock_s > 0]
+        return [
+            (k + 1, float(t - m.unlock_s), float(t), m.unlock)
+            for k, (m, t) in enumerate(zip(self.moves, self.move_start_s))
+            if m.unlock_s > 0
+        ]
 
     def state_after(self, k: int) -> np.ndarray:
         """Encoder state (rad) at the rest after step ``k`` (0-based), before any later unlock."""
@@ -471,20 +572,31 @@ def plan_sequence(seq, gimbal: Gimbal = DEFAULT_GIMBAL) -> GimbalPlan:
         mv = plan_move(gimbal, state, s.axis, math.radians(s.angle_deg), s.profile, step=k + 1)
         viol.extend(mv.violations)
         if mv.unlock_s > rest_before + 1e-9:
-            viol.append(Violation(k + 1, "outer and inner", "rest",
-                                  f"the rest before this flip is in gimbal lock and lasts "
-                                  f"{rest_before:.1f} s, but the counter-rotation it needs first "
-                                  f"takes {mv.unlock_s:.1f} s (lengthen that rest's dwell_s)"))
+            viol.append(
+                Violation(
+                    k + 1,
+                    "outer and inner",
+                    "rest",
+                    f"the rest before this flip is in gimbal lock and lasts "
+                    f"{rest_before:.1f} s, but the counter-rotation it needs first "
+                    f"takes {mv.unlock_s:.1f} s (lengthen that rest's dwell_s)",
+                )
+            )
         moves.append(mv)
         starts.append(t)
         t += s.duration_s + s.dwell_s
         rest_before = s.dwell_s
         state = mv.state_end
     if gimbal.end_at_home and np.any(np.abs(state) > 1e-6):
-        away = ", ".join(f"{n} {math.degrees(a):.1f}" for n, a in zip(NAMES, state)
-                         if abs(a) > 1e-6)
-        viol.append(Violation(None, "every", "home", f"ends at {away} deg, not at home (0, 0, 0); "
-                              f"gimbal {gimbal.name!r} must end there"))
+        away = ", ".join(f"{n} {math.degrees(a):.1f}" for n, a in zip(NAMES, state) if abs(a) > 1e-6)
+        viol.append(
+            Violation(
+                None,
+                "every",
+                "home",
+                f"ends at {away} deg, not at home (0, 0, 0); gimbal {gimbal.name!r} must end there",
+            )
+        )
     return GimbalPlan(gimbal, tuple(moves), np.array(starts), tuple(viol))
 
 
@@ -493,9 +605,12 @@ def check_playable(plan: GimbalPlan, where: str) -> None:
     if plan.violations:
         v = plan.violations[0]
         more = f" (and {len(plan.violations) - 1} more)" if len(plan.violations) > 1 else ""
-        raise CalibError(f"{v}{more}", where,
-                         f"change the sequence or the gimbal; 'seqdesign show SEQ --gimbal "
-                         f"{plan.gimbal.path or 'FILE'}' lists every violation")
+        raise CalibError(
+            f"{v}{more}",
+            where,
+            f"change the sequence or the gimbal; 'seqdesign show SEQ --gimbal "
+            f"{plan.gimbal.path or 'FILE'}' lists every violation",
+        )
 
 
 # ---------------------------------------------------------------------------
@@ -525,19 +640,38 @@ def encoder_track(plan: GimbalPlan, seq, time_s: np.ndarray) -> tuple[np.ndarray
     for k, (s, mv) in enumerate(zip(seq.steps, plan.moves)):
         if mv.unlock_s > 0:
             u = float(np.max(np.abs(mv.unlock)))
-            _fill(angles, rates, t, t0 - mv.unlock_s, t0, state, mv.unlock / u,
-                  mv.unlock_profile.pieces(u), None)
+            _fill(
+                angles,
+                rates,
+                t,
+                t0 - mv.unlock_s,
+                t0,
+                state,
+                mv.unlock / u,
+                mv.unlock_profile.pieces(u),
+                None,
+            )
             state = state + mv.unlock
         pieces = s.profile.pieces(math.radians(s.angle_deg))
         sign = 1.0 if s.angle_deg > 0 else -1.0
-        end = _fill(angles, rates, t, t0, t0 + s.duration_s, state, sign * mv.direction, pieces,
-                    mv if mv.gimbal < 0 else None)
+        end = _fill(
+            angles,
+            rates,
+            t,
+            t0,
+            t0 + s.duration_s,
+            state,
+            sign * mv.direction,
+            pieces,
+            mv if mv.gimbal < 0 else None,
+        )
         state, t0 = end, t0 + s.duration_s + s.dwell_s
     return angles, rates
 
 
-def _fill(angles, rates, t, t_a: float, t_b: float, state, direction, pieces: Pieces,
-          combined: Move | None) -> np.ndarray:
+def _fill(
+    angles, rates, t, t_a: float, t_b: float, state, direction, pieces: Pieces, combined: Move | None
+) -> np.ndarray:
     """Write one motion into the track from ``t_a`` on (later motions overwrite the hold)."""
     after = t >= t_a
     th, w = _piece_eval(pieces, t[after] - t_a)
@@ -555,4 +689,4 @@ def _fill(angles, rates, t, t_a: float, t_b: float, state, direction, pieces: Pi
 
 def _last_sweep(pieces: Pieces) -> float:
     d = pieces.duration[-1]
-    return float(pieces.rate0[-1] * d + 0.5 * pieces.accel0[-1] * d * d + pieces.jerk[-1] * d ** 3 / 6)
+    return float(pieces.rate0[-1] * d + 0.5 * pieces.accel0[-1] * d * d + pieces.jerk[-1] * d**3 / 6)

@@ -22,6 +22,7 @@ three equations per rest. The heading is as good as the Earth rate against
 the rests' gyro noise allows (tens of degrees for a MEMS unit), which is
 inside the fit's reach; the fit then refines it with everything else.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -46,22 +47,40 @@ def rest_rates(dtheta_m: np.ndarray, dt: np.ndarray, moving: np.ndarray):
     return starts, ends, T, w
 
 
-def rest_gyrocompass(dtheta_m: np.ndarray, dt: np.ndarray, moving: np.ndarray,
-                     C_lev: np.ndarray, latitude_rad: float, bias0: np.ndarray,
-                     passes: int = 2) -> tuple[np.ndarray, np.ndarray]:
+def rest_gyrocompass(
+    dtheta_m: np.ndarray,
+    dt: np.ndarray,
+    moving: np.ndarray,
+    C_lev: np.ndarray,
+    latitude_rad: float,
+    bias0: np.ndarray,
+    passes: int = 2,
+) -> tuple[np.ndarray, np.ndarray]:
     """Gyro bias (rad/s) and start attitude ``C_b_n`` from all rests of a run in memory.
 
     See :func:`gyrocompass_rests`; the rests' attitudes are integrated here.
     """
     starts, ends, T, w = rest_rates(dtheta_m, dt, moving)
-    return gyrocompass_rests(lambda bias: _rest_attitudes(dtheta_m - bias * dt[:, None], starts,
-                                                          ends),
-                             T, w, C_lev, latitude_rad, bias0, passes)
+    return gyrocompass_rests(
+        lambda bias: _rest_attitudes(dtheta_m - bias * dt[:, None], starts, ends),
+        T,
+        w,
+        C_lev,
+        latitude_rad,
+        bias0,
+        passes,
+    )
 
 
-def gyrocompass_rests(attitudes, T: np.ndarray, w: np.ndarray, C_lev: np.ndarray,
-                      latitude_rad: float, bias0: np.ndarray,
-                      passes: int = 2) -> tuple[np.ndarray, np.ndarray]:
+def gyrocompass_rests(
+    attitudes,
+    T: np.ndarray,
+    w: np.ndarray,
+    C_lev: np.ndarray,
+    latitude_rad: float,
+    bias0: np.ndarray,
+    passes: int = 2,
+) -> tuple[np.ndarray, np.ndarray]:
     """Gyro bias (rad/s) and start attitude ``C_b_n`` from the rests, by linear least squares.
 
     Parameters
@@ -89,13 +108,13 @@ def gyrocompass_rests(attitudes, T: np.ndarray, w: np.ndarray, C_lev: np.ndarray
     for _ in range(passes):
         R = attitudes(bias)
         to_body = R.transpose(0, 2, 1) @ C_lev.T  # nav (levelled) -> body of each rest
-        A = np.concatenate([np.broadcast_to(np.eye(3), to_body.shape),
-                            horizontal * to_body[:, :, :2]], axis=2).reshape(-1, 5)
+        A = np.concatenate(
+            [np.broadcast_to(np.eye(3), to_body.shape), horizontal * to_body[:, :, :2]], axis=2
+        ).reshape(-1, 5)
         y = (w - up * to_body[:, :, 2]).reshape(-1)
         sw = np.repeat(np.sqrt(T), 3)
         x = np.linalg.lstsq(A * sw[:, None], y * sw, rcond=None)[0]
         bias, (a, c) = x[:3], x[3:]
     psi = np.arctan2(a, c)
-    Rz = np.array([[np.cos(psi), -np.sin(psi), 0.0], [np.sin(psi), np.cos(psi), 0.0],
-                   [0.0, 0.0, 1.0]])
+    Rz = np.array([[np.cos(psi), -np.sin(psi), 0.0], [np.sin(psi), np.cos(psi), 0.0], [0.0, 0.0, 1.0]])
     return bias, Rz @ C_lev

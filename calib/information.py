@@ -16,6 +16,7 @@ observed directions: its component along the weak subspace is below
 pseudo-inverse's (the variance of the best linear unbiased estimate of that
 parameter when the weak combinations are left unfitted).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -49,7 +50,7 @@ def marginal(info: np.ndarray, n_keep: int = P.N_PARAMS) -> np.ndarray:
 def eliminate(info: np.ndarray, nuisance: slice) -> np.ndarray:
     """Information of every unknown but ``nuisance`` (a contiguous block), by Schur complement."""
     n = info.shape[-1]
-    keep = np.r_[0:nuisance.start, nuisance.stop:n]
+    keep = np.r_[0 : nuisance.start, nuisance.stop : n]
     a = info[np.ix_(keep, keep)]
     b = info[keep, nuisance]
     c = info[nuisance, nuisance]
@@ -118,9 +119,14 @@ def scaled_inverse(M: np.ndarray, names=UNKNOWN_NAMES, n_weak: int | None = None
     good = ~weak
     cov = (evecs[:, good] / evals[good]) @ evecs[:, good].T
     null = evecs[:, weak]
-    lean = np.sqrt(np.sum(null ** 2, axis=1))  # each unit vector's component along the null space
-    return ScaledInverse(covariance=cov, rank=int(good.sum()), null_basis=null,
-                         estimable=lean < ESTIMABLE_TOL, names=tuple(names[:M.shape[0]]))
+    lean = np.sqrt(np.sum(null**2, axis=1))  # each unit vector's component along the null space
+    return ScaledInverse(
+        covariance=cov,
+        rank=int(good.sum()),
+        null_basis=null,
+        estimable=lean < ESTIMABLE_TOL,
+        names=tuple(names[: M.shape[0]]),
+    )
 
 
 def projected_covariance(M: np.ndarray, null_basis: np.ndarray) -> np.ndarray:
@@ -136,7 +142,7 @@ def projected_covariance(M: np.ndarray, null_basis: np.ndarray) -> np.ndarray:
         Q = np.eye(n)
     else:
         u, _, _ = np.linalg.svd(null_basis, full_matrices=True)
-        Q = u[:, null_basis.shape[1]:]
+        Q = u[:, null_basis.shape[1] :]
     R = Q.T @ M @ Q
     evals, evecs = np.linalg.eigh(0.5 * (R + R.T))
     if np.any(weak_mask(evals)):

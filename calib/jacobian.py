@@ -29,6 +29,7 @@ Observations: the navigation velocity at the interval ends ``y_k``, taken as
 ``z_k = y_k - Phi_vv(T_k) y_{k-1}``, so that ``z_k = H_k p + Phi_vphi phi_noise
 + w_k`` with ``H_k = E S_k - Phi_vv E S_{k-1}`` (see :mod:`calib.noise`).
 """
+
 from __future__ import annotations
 
 import functools
@@ -85,8 +86,9 @@ def observation_grid(moving: np.ndarray, rest_step: int, move_step: int) -> Obse
 
 def default_grid(moving: np.ndarray, sample_rate_hz: float) -> ObservationGrid:
     """The observation intervals the estimator and the analyser both use."""
-    return observation_grid(moving, max(1, round(REST_STEP_S * sample_rate_hz)),
-                            max(1, round(MOVE_STEP_S * sample_rate_hz)))
+    return observation_grid(
+        moving, max(1, round(REST_STEP_S * sample_rate_hz)), max(1, round(MOVE_STEP_S * sample_rate_hz))
+    )
 
 
 def state_matrix(latitude_rad: float, gravity_mps2: float) -> np.ndarray:
@@ -117,13 +119,23 @@ def sample_layout(C_b_n: np.ndarray, time_s: np.ndarray, grid: ObservationGrid) 
     sl = slice(b[0], b[-1])
     interval = np.repeat(np.arange(len(b) - 1), np.diff(b))
     s_mid = 0.5 * (time_s[1:] + time_s[:-1])[sl]
-    return SampleLayout(C_mid=0.5 * (C_b_n[1:] + C_b_n[:-1])[sl], h=np.diff(time_s)[sl],
-                        tau=time_s[b[1:]][interval] - s_mid, starts=b[:-1] - b[0], samples=sl)
+    return SampleLayout(
+        C_mid=0.5 * (C_b_n[1:] + C_b_n[:-1])[sl],
+        h=np.diff(time_s)[sl],
+        tau=time_s[b[1:]][interval] - s_mid,
+        starts=b[:-1] - b[0],
+        samples=sl,
+    )
 
 
-def trajectory_moments(C_b_n: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
-                       time_s: np.ndarray, grid: ObservationGrid,
-                       layout: SampleLayout | None = None) -> np.ndarray:
+def trajectory_moments(
+    C_b_n: np.ndarray,
+    dtheta: np.ndarray,
+    dv: np.ndarray,
+    time_s: np.ndarray,
+    grid: ObservationGrid,
+    layout: SampleLayout | None = None,
+) -> np.ndarray:
     """Kinematic moments of every interval, shape ``(K, N_MOMENTS)``.
 
     Parameters
@@ -146,19 +158,21 @@ def trajectory_moments(C_b_n: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
         return np.hstack([K, B])
 
     gyro, accel = block(dtheta), block(dv)
-    out = [np.add.reduceat(gyro, L.starts, axis=0),
-           np.add.reduceat(gyro * tau[:, None], L.starts, axis=0),
-           np.add.reduceat(gyro * (tau ** 2)[:, None], L.starts, axis=0),
-           np.add.reduceat(accel, L.starts, axis=0),
-           np.add.reduceat(accel * tau[:, None], L.starts, axis=0)]
+    out = [
+        np.add.reduceat(gyro, L.starts, axis=0),
+        np.add.reduceat(gyro * tau[:, None], L.starts, axis=0),
+        np.add.reduceat(gyro * (tau**2)[:, None], L.starts, axis=0),
+        np.add.reduceat(accel, L.starts, axis=0),
+        np.add.reduceat(accel * tau[:, None], L.starts, axis=0),
+    ]
     return np.hstack(out)
 
 
 def _sensor_terms(moments, values, sensor: str, K_off: int):
     """``sum C (E inc + b h)`` written with casadi: moments (27 + 9) and parameter symbols."""
     bias = P.GYRO_BIAS if sensor == "gyro" else P.ACCEL_BIAS
-    K = moments[K_off:K_off + 27]
-    B = moments[K_off + 27:K_off + 36]
+    K = moments[K_off : K_off + 27]
+    B = moments[K_off + 27 : K_off + 36]
     out = ca.SX.zeros(3)
     for p in P.PARAMETERS:
         if p.sensor != sensor or p.kind == "bias":
@@ -222,13 +236,21 @@ def step_model(latitude_rad: float, gravity_mps2: float) -> StepModel:
     q = ca.SX.sym("q")
     x_extra = ca.vertcat(ca.SX.zeros(3), accel_input(mx[:3] * q, mx[3:] * q))
     extra_map = ca.Function("Gx", [mx], [ca.jacobian(ca.jacobian(x_extra, q), mx)])(np.zeros(6))
-    return StepModel(transition=transition,
-                     input_map=np.ascontiguousarray(np.asarray(ca.DM(input_map)).T),
-                     extra_map=np.asarray(ca.DM(extra_map)))
+    return StepModel(
+        transition=transition,
+        input_map=np.ascontiguousarray(np.asarray(ca.DM(input_map)).T),
+        extra_map=np.asarray(ca.DM(extra_map)),
+    )
 
 
-def propagate(inputs: np.ndarray, T: np.ndarray, S0: np.ndarray, latitude_rad: float,
-              gravity_mps2: float, return_final: bool = False):
+def propagate(
+    inputs: np.ndarray,
+    T: np.ndarray,
+    S0: np.ndarray,
+    latitude_rad: float,
+    gravity_mps2: float,
+    return_final: bool = False,
+):
     """Velocity rows of ``S_k = Phi(T_k) S_{k-1} + inputs_k`` for any number of columns.
 
     Parameters
@@ -262,8 +284,14 @@ def moment_inputs(moments: np.ndarray, latitude_rad: float, gravity_mps2: float)
     return (moments @ G).reshape(lead + (N_UNKNOWN, 6)).swapaxes(-1, -2)
 
 
-def extra_inputs(dtheta: np.ndarray, dv: np.ndarray, layout: SampleLayout, extras: Extras,
-                 latitude_rad: float, gravity_mps2: float) -> np.ndarray:
+def extra_inputs(
+    dtheta: np.ndarray,
+    dv: np.ndarray,
+    layout: SampleLayout,
+    extras: Extras,
+    latitude_rad: float,
+    gravity_mps2: float,
+) -> np.ndarray:
     """``d x_next / d(extra parameters)`` of every interval: shape ``(K, 6, extras.n)``.
 
     The moments ``sum_j tau_j^w C_j D_j`` (w = 0, 1) of the per-sample
@@ -274,17 +302,22 @@ def extra_inputs(dtheta: np.ndarray, dv: np.ndarray, layout: SampleLayout, extra
     if extras.n == 0:
         return np.zeros((len(L.starts), 6, 0))
     turn = earth_turn(L.C_mid, earth.omega_ie_n(latitude_rad), L.h)
-    CD = np.einsum("nai,nic->nac", L.C_mid,
-                   dv_sensitivity(extras, dtheta[sl], dv[sl], L.h, turn))
-    moments = np.concatenate([np.add.reduceat(CD, L.starts, axis=0),
-                              np.add.reduceat(CD * L.tau[:, None, None], L.starts, axis=0)],
-                             axis=1)
+    CD = np.einsum("nai,nic->nac", L.C_mid, dv_sensitivity(extras, dtheta[sl], dv[sl], L.h, turn))
+    moments = np.concatenate(
+        [np.add.reduceat(CD, L.starts, axis=0), np.add.reduceat(CD * L.tau[:, None, None], L.starts, axis=0)],
+        axis=1,
+    )
     G = step_model(float(latitude_rad), float(gravity_mps2)).extra_map
     return np.einsum("sm,kmc->ksc", G, moments)
 
 
-def sensitivities(moments: np.ndarray, T: np.ndarray, latitude_rad: float,
-                  gravity_mps2: float, extra: np.ndarray | None = None) -> np.ndarray:
+def sensitivities(
+    moments: np.ndarray,
+    T: np.ndarray,
+    latitude_rad: float,
+    gravity_mps2: float,
+    extra: np.ndarray | None = None,
+) -> np.ndarray:
     """``d(dv at each interval end) / d(params, phi0[, extras])``, shape ``(K + 1, 3, N_UNKNOWN [+ e])``.
 
     Carries ``S = dx / d(params, phi0)`` through the intervals:
@@ -308,10 +341,17 @@ def observation_matrix(S_v: np.ndarray, Phi_vv: np.ndarray) -> np.ndarray:
     return S_v[1:] - np.einsum("kij,kjn->kin", Phi_vv, S_v[:-1])
 
 
-def observation_jacobian(C_b_n: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
-                         time_nav: np.ndarray, grid: ObservationGrid, latitude_rad: float,
-                         gravity_mps2: float, Phi_vv: np.ndarray,
-                         extras: Extras = NO_EXTRAS) -> np.ndarray:
+def observation_jacobian(
+    C_b_n: np.ndarray,
+    dtheta: np.ndarray,
+    dv: np.ndarray,
+    time_nav: np.ndarray,
+    grid: ObservationGrid,
+    latitude_rad: float,
+    gravity_mps2: float,
+    Phi_vv: np.ndarray,
+    extras: Extras = NO_EXTRAS,
+) -> np.ndarray:
     """``H`` of every interval along a trajectory, shape ``(K, 3, N_UNKNOWN + extras.n)``.
 
     The one linear model of the tool: the estimator evaluates it along the

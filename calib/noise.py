@@ -25,6 +25,7 @@ velocity ``dv`` is observed exactly (``z_k = y_k - Phi_vv y_{k-1}``) and no
 state depends on it, so ``s_k = F_ss s_{k-1} + w_s`` and
 ``z_k = F_vs s_{k-1} + w_v``.
 """
+
 from __future__ import annotations
 
 import functools
@@ -73,7 +74,7 @@ def _van_loan(A: np.ndarray, Qc: np.ndarray, T: float) -> tuple[np.ndarray, np.n
 @functools.lru_cache(maxsize=4096)
 def _interval(A_bytes: bytes, T: float, arw: float, vrw: float) -> IntervalModel:
     A = np.frombuffer(A_bytes).reshape(6, 6)
-    Phi, Q = _van_loan(A, np.diag([arw ** 2] * 3 + [vrw ** 2] * 3), T)
+    Phi, Q = _van_loan(A, np.diag([arw**2] * 3 + [vrw**2] * 3), T)
     return IntervalModel(Phi=Phi, Q=Q)
 
 
@@ -92,13 +93,17 @@ def _gm_interval_nav(A_bytes: bytes, T: float, profile: NoiseProfile) -> tuple[n
     A[:6, :6] = A6
     A[:3, 6:9] = -np.eye(3)
     A[3:6, 9:] = np.eye(3)
-    qc = [profile.arw ** 2, profile.vrw ** 2]
-    for i, (sigma, tau) in enumerate([(profile.gyro_gm_sigma, profile.gyro_bias_correlation_s),
-                                      (profile.accel_gm_sigma, profile.accel_bias_correlation_s)]):
+    qc = [profile.arw**2, profile.vrw**2]
+    for i, (sigma, tau) in enumerate(
+        [
+            (profile.gyro_gm_sigma, profile.gyro_bias_correlation_s),
+            (profile.accel_gm_sigma, profile.accel_bias_correlation_s),
+        ]
+    ):
         # A sensor without GM keeps its bias states at exactly zero (no noise, zero P0).
         if sigma > 0:
-            A[6 + 3 * i:9 + 3 * i, 6 + 3 * i:9 + 3 * i] = -np.eye(3) / tau
-        qc.append(2.0 * sigma ** 2 / tau if sigma > 0 else 0.0)
+            A[6 + 3 * i : 9 + 3 * i, 6 + 3 * i : 9 + 3 * i] = -np.eye(3) / tau
+        qc.append(2.0 * sigma**2 / tau if sigma > 0 else 0.0)
     Phi, Q = _van_loan(A, np.diag(np.repeat(qc, 3)), T)
     # The [phi, dv] block is exp(A6 T) in exact arithmetic; take the 6-state model's own
     # so that Phi_vv, hence the observations z, are bit-identical with and without GM.
@@ -119,8 +124,9 @@ def _rotations(C: np.ndarray) -> np.ndarray:
     return R
 
 
-def interval_models(A: np.ndarray, T: np.ndarray, profile: NoiseProfile,
-                    C_b_n: np.ndarray | None = None) -> list[IntervalModel]:
+def interval_models(
+    A: np.ndarray, T: np.ndarray, profile: NoiseProfile, C_b_n: np.ndarray | None = None
+) -> list[IntervalModel]:
     """One :class:`IntervalModel` per interval (cached by length to 1 us).
 
     Parameters
@@ -140,16 +146,19 @@ def interval_models(A: np.ndarray, T: np.ndarray, profile: NoiseProfile,
     return [IntervalModel(Phi=p, Q=q, P_bias=P_bias) for p, q in zip(Phi, Q)]
 
 
-def gm_interval_arrays(A: np.ndarray, T: np.ndarray, profile: NoiseProfile,
-                       C_b_n: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def gm_interval_arrays(
+    A: np.ndarray, T: np.ndarray, profile: NoiseProfile, C_b_n: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``Phi`` and ``Q`` (K, 12, 12) of every interval with Gauss-Markov bias, and ``P_bias``.
 
     The arrays :func:`interval_models` wraps, for a caller that wants them stacked
     (:func:`whiten_batch`). ``C_b_n`` (K, 3, 3) is each interval's mid-point attitude.
     """
     if C_b_n is None:
-        raise ValueError(f"profile {profile.name!r} has Gauss-Markov bias instability: "
-                         "the noise model needs the attitude of every interval (C_b_n)")
+        raise ValueError(
+            f"profile {profile.name!r} has Gauss-Markov bias instability: "
+            "the noise model needs the attitude of every interval (C_b_n)"
+        )
     C_b_n = np.asarray(C_b_n, dtype=float)
     if C_b_n.shape != (len(T), 3, 3):
         raise ValueError(f"C_b_n must have shape ({len(T)}, 3, 3), got {C_b_n.shape}")
@@ -164,7 +173,7 @@ def gm_interval_arrays(A: np.ndarray, T: np.ndarray, profile: NoiseProfile,
     Rt = R.transpose(0, 2, 1)
     Phi, Q = Rt @ Phi_nav @ R, Rt @ Q_nav @ R
     Q = 0.5 * (Q + Q.transpose(0, 2, 1))
-    P_bias = np.diag(np.repeat([profile.gyro_gm_sigma ** 2, profile.accel_gm_sigma ** 2], 3))
+    P_bias = np.diag(np.repeat([profile.gyro_gm_sigma**2, profile.accel_gm_sigma**2], 3))
     return Phi, Q, P_bias
 
 
@@ -276,7 +285,7 @@ def filter_order(s: int) -> np.ndarray:
     Filter state first, observed velocity last: ``[phi, (b_g, b_a,) dv]`` from the
     models' ``[phi, dv, (b_g, b_a)]``; the identity for the 3-state filter (``s = 3``).
     """
-    return np.r_[0:3, 6:s + 3, 3:6]
+    return np.r_[0:3, 6 : s + 3, 3:6]
 
 
 def whitener(models: list[IntervalModel], P0: np.ndarray | None = None) -> Whitener:
@@ -321,8 +330,7 @@ def whitener(models: list[IntervalModel], P0: np.ndarray | None = None) -> White
     return Whitener(F_ss, F_vs, gain, L_inv, logdet, P)
 
 
-def whiten(w: Whitener, X: np.ndarray, phi0: np.ndarray | None = None,
-           return_final: bool = False):
+def whiten(w: Whitener, X: np.ndarray, phi0: np.ndarray | None = None, return_final: bool = False):
     """Whitened innovations of observation columns.
 
     Parameters
@@ -363,14 +371,23 @@ def filter_blocks(Phi: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, ...]:
 
     def block(a, rows, cols):
         return np.ascontiguousarray(a[..., rows, cols])
-    return (block(Phi, slice(None, s), slice(None, s)), block(Phi, slice(s, None), slice(None, s)),
-            block(Q, slice(None, s), slice(None, s)), block(Q, slice(None, s), slice(s, None)),
-            block(Q, slice(s, None), slice(s, None)))
+
+    return (
+        block(Phi, slice(None, s), slice(None, s)),
+        block(Phi, slice(s, None), slice(None, s)),
+        block(Q, slice(None, s), slice(None, s)),
+        block(Q, slice(None, s), slice(s, None)),
+        block(Q, slice(s, None), slice(s, None)),
+    )
 
 
-def whiten_batch(blocks: tuple[np.ndarray, ...], X: np.ndarray, P: np.ndarray,
-                 state: np.ndarray, out: np.ndarray | None = None
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def whiten_batch(
+    blocks: tuple[np.ndarray, ...],
+    X: np.ndarray,
+    P: np.ndarray,
+    state: np.ndarray,
+    out: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`whitener` and :func:`whiten` in one pass, over a batch of ``M`` noise models.
 
     Several mountings of one sequence share its interval grid but not its
@@ -427,8 +444,13 @@ class NoiseModel:
     models: tuple = ()  # the IntervalModel of every interval (for :func:`smooth`)
 
 
-def noise_model(A: np.ndarray, T: np.ndarray, profile: NoiseProfile,
-                P0: np.ndarray | None = None, C_b_n: np.ndarray | None = None) -> NoiseModel:
+def noise_model(
+    A: np.ndarray,
+    T: np.ndarray,
+    profile: NoiseProfile,
+    P0: np.ndarray | None = None,
+    C_b_n: np.ndarray | None = None,
+) -> NoiseModel:
     """The noise filter of a run's intervals.
 
     Parameters
@@ -445,8 +467,7 @@ def noise_model(A: np.ndarray, T: np.ndarray, profile: NoiseProfile,
         ``profile.has_gauss_markov`` (``ValueError`` otherwise), ignored without GM.
     """
     models = interval_models(A, T, profile, C_b_n)
-    return NoiseModel(whitener(models, P0), np.array([m.Phi[3:6, 3:6] for m in models]),
-                      tuple(models))
+    return NoiseModel(whitener(models, P0), np.array([m.Phi[3:6, 3:6] for m in models]), tuple(models))
 
 
 def _decorrelated(models: list[IntervalModel]):

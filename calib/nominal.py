@@ -6,6 +6,7 @@ the estimator to decide, as the analyser does, which parameters a
 rank-deficient run can estimate (a run's own trajectory is bent by the
 errors it has not yet estimated, which turns nearly-null directions).
 """
+
 from __future__ import annotations
 
 import functools
@@ -55,8 +56,11 @@ def nominal_samples(tl) -> tuple[np.ndarray, np.ndarray]:
     for k, (t0, t1, rate) in enumerate(zip(tl.t0, tl.t1, tl.rate)):
         step = ANALYSIS_REST_STEP_S if rate == 0.0 else MOVE_STEP_S
         m = max(1, int(round((t1 - t0) / step)))
-        sub = REST_SUBSAMPLES if rate == 0.0 else max(
-            1, int(math.ceil(abs(math.degrees(rate)) * (t1 - t0) / m / FLIP_SUBSAMPLE_DEG)))
+        sub = (
+            REST_SUBSAMPLES
+            if rate == 0.0
+            else max(1, int(math.ceil(abs(math.degrees(rate)) * (t1 - t0) / m / FLIP_SUBSAMPLE_DEG)))
+        )
         edges = np.linspace(t0, t1, m * sub + 1)[1:]
         edges[-1] = t1
         ends = sub * np.arange(1, m + 1)
@@ -84,16 +88,26 @@ def nominal_run(seq: Sequence, latitude_rad: float, height_m: float, setup_rotve
 
 
 @functools.lru_cache(maxsize=64)
-def _noise(T_bytes: bytes, latitude_rad: float, gravity_mps2: float, profile: NoiseProfile,
-           C_bytes: bytes | None = None):
+def _noise(
+    T_bytes: bytes,
+    latitude_rad: float,
+    gravity_mps2: float,
+    profile: NoiseProfile,
+    C_bytes: bytes | None = None,
+):
     """Whitening of an interval pattern (cached): see :func:`noise_along`."""
     C = None if C_bytes is None else np.frombuffer(C_bytes).reshape(-1, 3, 3)
-    return noise_model(state_matrix(latitude_rad, gravity_mps2), np.frombuffer(T_bytes), profile,
-                       C_b_n=C)
+    return noise_model(state_matrix(latitude_rad, gravity_mps2), np.frombuffer(T_bytes), profile, C_b_n=C)
 
 
-def noise_along(time_nav: np.ndarray, C_b_n: np.ndarray, bounds: np.ndarray,
-                latitude_rad: float, gravity_mps2: float, profile: NoiseProfile):
+def noise_along(
+    time_nav: np.ndarray,
+    C_b_n: np.ndarray,
+    bounds: np.ndarray,
+    latitude_rad: float,
+    gravity_mps2: float,
+    profile: NoiseProfile,
+):
     """The noise model of a trajectory's intervals.
 
     White noise depends only on the interval lengths, so every mounting of a
@@ -109,17 +123,28 @@ def noise_along(time_nav: np.ndarray, C_b_n: np.ndarray, bounds: np.ndarray,
     return _noise(T.tobytes(), latitude_rad, gravity_mps2, profile, C)
 
 
-def information_along(nom: NominalRun, profile: NoiseProfile, latitude_rad: float,
-                      gravity_mps2: float, extras: Extras = NO_EXTRAS) -> np.ndarray:
+def information_along(
+    nom: NominalRun,
+    profile: NoiseProfile,
+    latitude_rad: float,
+    gravity_mps2: float,
+    extras: Extras = NO_EXTRAS,
+) -> np.ndarray:
     """Fisher information (24 + e square, SI) of the shared model along one trajectory."""
-    noise = noise_along(nom.time_nav, nom.C_b_n, nom.grid.bounds, latitude_rad, gravity_mps2,
-                        profile)
-    H = observation_jacobian(nom.C_b_n, nom.dtheta, nom.dv, nom.time_nav, nom.grid,
-                             latitude_rad, gravity_mps2, noise.Phi_vv, extras)
+    noise = noise_along(nom.time_nav, nom.C_b_n, nom.grid.bounds, latitude_rad, gravity_mps2, profile)
+    H = observation_jacobian(
+        nom.C_b_n,
+        nom.dtheta,
+        nom.dv,
+        nom.time_nav,
+        nom.grid,
+        latitude_rad,
+        gravity_mps2,
+        noise.Phi_vv,
+        extras,
+    )
     Hw = whiten(noise.whitener, H).reshape(-1, H.shape[-1])
     return Hw.T @ Hw
-
-
 
 
 BATCH_INTERVALS = 1024  # intervals of noise model held per mounting (~2.4 MB each)
@@ -132,12 +157,19 @@ def same_grid(noms: list[NominalRun]) -> bool:
     timeline), checked rather than assumed before their noise filters are batched.
     """
     first = noms[0]
-    return all(np.array_equal(n.grid.bounds, first.grid.bounds)
-               and np.array_equal(n.time_nav, first.time_nav) for n in noms[1:])
+    return all(
+        np.array_equal(n.grid.bounds, first.grid.bounds) and np.array_equal(n.time_nav, first.time_nav)
+        for n in noms[1:]
+    )
 
 
-def information_along_many(noms: list[NominalRun], profile: NoiseProfile, latitude_rad: float,
-                           gravity_mps2: float, extras: Extras = NO_EXTRAS) -> np.ndarray:
+def information_along_many(
+    noms: list[NominalRun],
+    profile: NoiseProfile,
+    latitude_rad: float,
+    gravity_mps2: float,
+    extras: Extras = NO_EXTRAS,
+) -> np.ndarray:
     """:func:`information_along` of several trajectories of one sequence, (M, n, n).
 
     With Gauss-Markov bias each mounting has its own noise filter, a Riccati
@@ -148,14 +180,20 @@ def information_along_many(noms: list[NominalRun], profile: NoiseProfile, latitu
     Without GM, or if the grids differ, each is evaluated on its own.
     """
     if not profile.has_gauss_markov or not same_grid(noms):
-        return np.array([information_along(n, profile, latitude_rad, gravity_mps2, extras)
-                         for n in noms])
+        return np.array([information_along(n, profile, latitude_rad, gravity_mps2, extras) for n in noms])
     A = state_matrix(latitude_rad, gravity_mps2)
     bounds, time_nav = noms[0].grid.bounds, noms[0].time_nav
     T = np.diff(time_nav[bounds])
     Phi_vv = velocity_transitions(A, T, profile)
-    X = np.stack([observation_jacobian(n.C_b_n, n.dtheta, n.dv, n.time_nav, n.grid, latitude_rad,
-                                       gravity_mps2, Phi_vv, extras) for n in noms], axis=1)
+    X = np.stack(
+        [
+            observation_jacobian(
+                n.C_b_n, n.dtheta, n.dv, n.time_nav, n.grid, latitude_rad, gravity_mps2, Phi_vv, extras
+            )
+            for n in noms
+        ],
+        axis=1,
+    )
     mid = (bounds[:-1] + bounds[1:]) // 2
     C_mid = [n.C_b_n[mid] for n in noms]
     M, c = len(noms), X.shape[-1]
@@ -168,8 +206,9 @@ def information_along_many(noms: list[NominalRun], profile: NoiseProfile, latitu
             P = np.zeros((M, s, s))
             P[:, 3:, 3:] = models[0][2]
             state = np.zeros((M, s, c))
-        blocks = filter_blocks(np.stack([m[0] for m in models], axis=1),
-                               np.stack([m[1] for m in models], axis=1))
+        blocks = filter_blocks(
+            np.stack([m[0] for m in models], axis=1), np.stack([m[1] for m in models], axis=1)
+        )
         _, P, state = whiten_batch(blocks, X[part], P, state, out=X[part])
     # Each mounting's Gram matrix as information_along forms it (one product over the
     # whole run, not summed block by block): the direct search's forward differences

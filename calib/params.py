@@ -12,6 +12,7 @@ Sensor model (body frame defined by the accelerometers)::
 ``M_g`` is full off-diagonal (6 terms), ``M_a`` strictly lower-triangular
 (3 terms), ``M[i, j]`` = what sensor ``i`` senses of body axis ``j``.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -74,27 +75,42 @@ def _table() -> tuple[Parameter, ...]:
     axes = "xyz"
 
     def add(name, group, unit, si, req, paper, sensor, kind, row, col):
-        rows.append(Parameter(len(rows), name, group, unit, si, req, paper,
-                              sensor, kind, row, col))
+        rows.append(Parameter(len(rows), name, group, unit, si, req, paper, sensor, kind, row, col))
 
     for i in range(3):
-        add(f"bg{axes[i]}", "gyro_bias", "deg/h", DEG_PER_HOUR, 0.03,
-            f"D0{axes[i]}", "gyro", "bias", i, -1)
+        add(f"bg{axes[i]}", "gyro_bias", "deg/h", DEG_PER_HOUR, 0.03, f"D0{axes[i]}", "gyro", "bias", i, -1)
     for i in range(3):
-        add(f"sg{axes[i]}", "gyro_scale", "ppm", PPM, 1.0,
-            f"Wg{axes[i] * 2}", "gyro", "scale", i, i)
+        add(f"sg{axes[i]}", "gyro_scale", "ppm", PPM, 1.0, f"Wg{axes[i] * 2}", "gyro", "scale", i, i)
     for i, j in [(0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1)]:
-        add(f"mg{axes[i]}{axes[j]}", "gyro_misalignment", "arcsec", ARCSEC,
-            15.0, f"Wg{axes[i]}{axes[j]}", "gyro", "misalignment", i, j)
+        add(
+            f"mg{axes[i]}{axes[j]}",
+            "gyro_misalignment",
+            "arcsec",
+            ARCSEC,
+            15.0,
+            f"Wg{axes[i]}{axes[j]}",
+            "gyro",
+            "misalignment",
+            i,
+            j,
+        )
     for i in range(3):
-        add(f"ba{axes[i]}", "accel_bias", "ug", MICRO_G, 50.0,
-            f"E0{axes[i]}", "accel", "bias", i, -1)
+        add(f"ba{axes[i]}", "accel_bias", "ug", MICRO_G, 50.0, f"E0{axes[i]}", "accel", "bias", i, -1)
     for i in range(3):
-        add(f"sa{axes[i]}", "accel_scale", "ppm", PPM, 1.0,
-            f"Ka{axes[i] * 2}", "accel", "scale", i, i)
+        add(f"sa{axes[i]}", "accel_scale", "ppm", PPM, 1.0, f"Ka{axes[i] * 2}", "accel", "scale", i, i)
     for i, j in [(1, 0), (2, 0), (2, 1)]:
-        add(f"ma{axes[i]}{axes[j]}", "accel_misalignment", "arcsec", ARCSEC,
-            10.0, f"Ka{axes[i]}{axes[j]}", "accel", "misalignment", i, j)
+        add(
+            f"ma{axes[i]}{axes[j]}",
+            "accel_misalignment",
+            "arcsec",
+            ARCSEC,
+            10.0,
+            f"Ka{axes[i]}{axes[j]}",
+            "accel",
+            "misalignment",
+            i,
+            j,
+        )
     return tuple(rows)
 
 

@@ -5,6 +5,7 @@ keys of :mod:`calib.profiles`) are the worst axis; the per-axis values, the
 biases and the fit's provenance go in a ``[fit]`` table that `load_profile`
 ignores (``docs/profiles.md``).
 """
+
 from __future__ import annotations
 
 import math
@@ -50,50 +51,76 @@ def fit_profile(run: Run, name: str) -> ProfileFit:
     """Allan deviation and noise fit of each gyro and accelerometer axis of a static run."""
     dt = run.dt_nominal
     if run.duration_s < 100.0 * dt or run.n_samples < 1000:
-        raise CalibError(f"the log has {run.n_samples} samples ({run.duration_s:.3g} s); "
-                         "an Allan deviation needs thousands", run.source,
-                         "record at least an hour at rest (bias instability needs hours)")
+        raise CalibError(
+            f"the log has {run.n_samples} samples ({run.duration_s:.3g} s); "
+            "an Allan deviation needs thousands",
+            run.source,
+            "record at least an hour at rest (bias instability needs hours)",
+        )
     gyro_rate, force = run.dtheta_rad / dt, run.dv_mps / dt
     latitude = math.radians(run.latitude_deg)
     gravity = run.gravity_mps2 or earth.gravity(latitude, run.height_m)
     level = static_level(gyro_rate, force, latitude, gravity)
-    curves = {s: tuple(allan_deviation(x[:, j], dt) for j in range(3))
-              for s, x in (("gyro", gyro_rate), ("accel", force))}
+    curves = {
+        s: tuple(allan_deviation(x[:, j], dt) for j in range(3))
+        for s, x in (("gyro", gyro_rate), ("accel", force))
+    }
     fits = {}
     for sensor, sensor_curves in curves.items():
         try:
             fits[sensor] = tuple(fit_noise(c) for c in sensor_curves)
         except ValueError as exc:
-            raise CalibError(f"{sensor}: {exc}", run.source,
-                             "fit a longer static log at the IMU's full output rate") from None
-    return ProfileFit(name=name, gyro_curves=curves["gyro"], accel_curves=curves["accel"],
-                      gyro=fits["gyro"], accel=fits["accel"], level=level,
-                      latitude_deg=run.latitude_deg, height_m=run.height_m,
-                      sample_rate_hz=run.sample_rate_hz, duration_s=run.duration_s,
-                      n_samples=run.n_samples)
+            raise CalibError(
+                f"{sensor}: {exc}", run.source, "fit a longer static log at the IMU's full output rate"
+            ) from None
+    return ProfileFit(
+        name=name,
+        gyro_curves=curves["gyro"],
+        accel_curves=curves["accel"],
+        gyro=fits["gyro"],
+        accel=fits["accel"],
+        level=level,
+        latitude_deg=run.latitude_deg,
+        height_m=run.height_m,
+        sample_rate_hz=run.sample_rate_hz,
+        duration_s=run.duration_s,
+        n_samples=run.n_samples,
+    )
 
 
 def _per_axis(fits, white_unit, bias_unit, rrw_unit, q_unit) -> dict:
-    return {"white": [f.white / white_unit for f in fits],
-            "white_tau_s": [list(f.white_tau_s) for f in fits],
-            "quantisation": [f.quantisation / q_unit for f in fits],
-            "bias_instability": [f.bias_instability / bias_unit for f in fits],
-            "floor_tau_s": [f.floor_tau_s for f in fits],
-            "gm_sigma": [f.gm_sigma / bias_unit for f in fits],
-            "gm_correlation_s": [f.gm_correlation_s for f in fits],
-            "rate_random_walk": [f.rate_random_walk / rrw_unit for f in fits]}
+    return {
+        "white": [f.white / white_unit for f in fits],
+        "white_tau_s": [list(f.white_tau_s) for f in fits],
+        "quantisation": [f.quantisation / q_unit for f in fits],
+        "bias_instability": [f.bias_instability / bias_unit for f in fits],
+        "floor_tau_s": [f.floor_tau_s for f in fits],
+        "gm_sigma": [f.gm_sigma / bias_unit for f in fits],
+        "gm_correlation_s": [f.gm_correlation_s for f in fits],
+        "rate_random_walk": [f.rate_random_walk / rrw_unit for f in fits],
+    }
 
 
 def per_axis_tables(fit: ProfileFit) -> dict:
     """The ``[fit.gyro]`` and ``[fit.accel]`` tables: per-axis figures in their units."""
     g = _per_axis(fit.gyro, ARW_UNIT, DEG_PER_HOUR, RRW_GYRO_UNIT, 1e-6)
     a = _per_axis(fit.accel, MICRO_G, MICRO_G, RRW_ACCEL_UNIT, 1e-3)
-    rename = {"gyro": {"white": "arw_dph", "quantisation": "quantisation_urad",
-                       "bias_instability": "bias_instability_dph", "gm_sigma": "gm_sigma_dph",
-                       "rate_random_walk": "rrw_dph_per_sqrt_h"},
-              "accel": {"white": "vrw_ug", "quantisation": "quantisation_mmps",
-                        "bias_instability": "bias_instability_ug", "gm_sigma": "gm_sigma_ug",
-                        "rate_random_walk": "rrw_ug_per_sqrt_h"}}
+    rename = {
+        "gyro": {
+            "white": "arw_dph",
+            "quantisation": "quantisation_urad",
+            "bias_instability": "bias_instability_dph",
+            "gm_sigma": "gm_sigma_dph",
+            "rate_random_walk": "rrw_dph_per_sqrt_h",
+        },
+        "accel": {
+            "white": "vrw_ug",
+            "quantisation": "quantisation_mmps",
+            "bias_instability": "bias_instability_ug",
+            "gm_sigma": "gm_sigma_ug",
+            "rate_random_walk": "rrw_ug_per_sqrt_h",
+        },
+    }
     out = {s: {rename[s].get(k, k): v for k, v in d.items()} for s, d in (("gyro", g), ("accel", a))}
     out["gyro"]["bias_dph"] = list(fit.level.gyro_bias / DEG_PER_HOUR)
     out["accel"]["bias_ug"] = list(fit.level.accel_bias / MICRO_G)
@@ -113,14 +140,22 @@ def profile_doc(fit: ProfileFit, provenance: dict) -> dict:
         "gyro_bias_correlation_s": fit.gyro[worst_g].gm_correlation_s,
         "accel_bias_instability_ug": fit.accel[worst_a].gm_sigma / MICRO_G,
         "accel_bias_correlation_s": fit.accel[worst_a].gm_correlation_s,
-        "fit": {**per_axis_tables(fit),
-                "site": {"latitude_deg": fit.latitude_deg, "height_m": fit.height_m,
-                         "gravity_removed_mps2": lv.gravity_mps2,
-                         "up_body": list(lv.up_b),
-                         "earth_rate_removed_dph": lv.earth_rate_vertical / DEG_PER_HOUR,
-                         "earth_rate_left_in_bias_dph": lv.earth_rate_horizontal / DEG_PER_HOUR},
-                "log": {"sample_rate_hz": fit.sample_rate_hz, "duration_s": fit.duration_s,
-                        "n_samples": fit.n_samples}},
+        "fit": {
+            **per_axis_tables(fit),
+            "site": {
+                "latitude_deg": fit.latitude_deg,
+                "height_m": fit.height_m,
+                "gravity_removed_mps2": lv.gravity_mps2,
+                "up_body": list(lv.up_b),
+                "earth_rate_removed_dph": lv.earth_rate_vertical / DEG_PER_HOUR,
+                "earth_rate_left_in_bias_dph": lv.earth_rate_horizontal / DEG_PER_HOUR,
+            },
+            "log": {
+                "sample_rate_hz": fit.sample_rate_hz,
+                "duration_s": fit.duration_s,
+                "n_samples": fit.n_samples,
+            },
+        },
         "provenance": provenance,
     }
 
@@ -144,9 +179,11 @@ def save_profile(doc: dict, path) -> None:
     try:
         _from_doc(tomllib.loads(text), str(path))
     except CalibError as exc:
-        raise CalibError(f"the fitted profile would not load: {exc.message}", str(path),
-                         "the log's noise is outside what calib.profiles accepts; "
-                         "check the units of its columns") from None
+        raise CalibError(
+            f"the fitted profile would not load: {exc.message}",
+            str(path),
+            "the log's noise is outside what calib.profiles accepts; check the units of its columns",
+        ) from None
     atomic_write_text(path, text)
 
 
@@ -155,33 +192,43 @@ def plot_allan(fit: ProfileFit, path) -> None:
     try:
         import matplotlib
     except ImportError:
-        raise CalibError("matplotlib is not installed", str(path),
-                         "pip install '.[plot]', or leave out --plot") from None
+        raise CalibError(
+            "matplotlib is not installed", str(path), "pip install '.[plot]', or leave out --plot"
+        ) from None
     matplotlib.use("Agg")
     import io
 
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
-    panels = (("gyro", fit.gyro_curves, fit.gyro, DEG_PER_HOUR, "deg/h"),
-              ("accelerometer", fit.accel_curves, fit.accel, MICRO_G, "ug"))
+    panels = (
+        ("gyro", fit.gyro_curves, fit.gyro, DEG_PER_HOUR, "deg/h"),
+        ("accelerometer", fit.accel_curves, fit.accel, MICRO_G, "ug"),
+    )
     for ax, (title, curves, fits, unit, label) in zip(axes, panels):
         for j, (c, f, colour) in enumerate(zip(curves, fits, ("C0", "C1", "C2"))):
             ax.fill_between(c.tau_s, c.ci_low / unit, c.ci_high / unit, color=colour, alpha=0.2)
             ax.loglog(c.tau_s, c.adev / unit, "o", ms=3, color=colour, label=f"{AXES[j]} measured")
-            ax.loglog(c.tau_s, f.model_adev(c.tau_s) / unit, "-", color=colour, lw=1,
-                      label=f"{AXES[j]} fit")
+            ax.loglog(c.tau_s, f.model_adev(c.tau_s) / unit, "-", color=colour, lw=1, label=f"{AXES[j]} fit")
             lo, hi = f.white_tau_s
-            ax.loglog([lo, hi], [f.white / math.sqrt(lo) / unit, f.white / math.sqrt(hi) / unit],
-                      "--", color="k", lw=1.5)
+            ax.loglog(
+                [lo, hi],
+                [f.white / math.sqrt(lo) / unit, f.white / math.sqrt(hi) / unit],
+                "--",
+                color="k",
+                lw=1.5,
+            )
             ax.axhline(f.bias_instability * FLICKER_FLOOR_RATIO / unit, color=colour, ls=":", lw=0.8)
-        ax.set(title=f"{title}: Allan deviation, {fit.name}", xlabel="tau, s",
-               ylabel=f"Allan deviation, {label}")
+        ax.set(
+            title=f"{title}: Allan deviation, {fit.name}", xlabel="tau, s", ylabel=f"Allan deviation, {label}"
+        )
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7, ncol=2, title="dashed: white (slope -1/2) region; dotted: floor",
-                  title_fontsize=7)
+        ax.legend(
+            fontsize=7, ncol=2, title="dashed: white (slope -1/2) region; dotted: floor", title_fontsize=7
+        )
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=110)
     plt.close(fig)
     from .fileio import atomic_write_bytes
+
     atomic_write_bytes(path, buffer.getvalue())

@@ -1,6 +1,7 @@
 """Noise profiles: the IMU's white noise (ARW, VRW), per ``docs/conventions.md``, and
 optional first-order Gauss-Markov bias instability (see :mod:`calib.gaussmarkov`).
 """
+
 from __future__ import annotations
 
 import tomllib
@@ -101,26 +102,46 @@ def _gauss_markov(fields: Fields) -> dict:
     """The optional GM keys, validated; absent keys are 0 (off)."""
     values = {}
     for key, (tau_key, high, unit) in _GM_KEYS.items():
-        sigma = fields.number(key, 0.0, low=0.0, high=high, unit=f" {unit}",
-                              fix=f"give the bias instability (steady-state 1-sigma) in {unit}, "
-                                  "or leave it out for no Gauss-Markov bias")
-        tau_fix = (f"give the Gauss-Markov correlation time in seconds, in [{_TAU_RANGE[0]:g}, "
-                   f"{_TAU_RANGE[1]:g}]")
+        sigma = fields.number(
+            key,
+            0.0,
+            low=0.0,
+            high=high,
+            unit=f" {unit}",
+            fix=f"give the bias instability (steady-state 1-sigma) in {unit}, "
+            "or leave it out for no Gauss-Markov bias",
+        )
+        tau_fix = (
+            f"give the Gauss-Markov correlation time in seconds, in [{_TAU_RANGE[0]:g}, {_TAU_RANGE[1]:g}]"
+        )
         tau = fields.number(tau_key, 0.0, low=0.0, unit=" s", fix=tau_fix)
         if sigma > 0 and tau == 0:
-            raise CalibError(f"'{key}' = {sigma:g} needs a correlation time, but '{tau_key}' "
-                             f"is {'missing' if tau_key not in fields.table else 0}", fields.where,
-                             f"add '{tau_key} = <seconds>' in [{_TAU_RANGE[0]:g}, "
-                             f"{_TAU_RANGE[1]:g}], or set '{key} = 0'")
+            raise CalibError(
+                f"'{key}' = {sigma:g} needs a correlation time, but '{tau_key}' "
+                f"is {'missing' if tau_key not in fields.table else 0}",
+                fields.where,
+                f"add '{tau_key} = <seconds>' in [{_TAU_RANGE[0]:g}, {_TAU_RANGE[1]:g}], or set '{key} = 0'",
+            )
         if tau != 0:  # 0 means off; any other value must be a plausible correlation time
             fields.number(tau_key, low=_TAU_RANGE[0], high=_TAU_RANGE[1], unit=" s", fix=tau_fix)
         values[key], values[tau_key] = sigma, tau
     return values
 
 
-PROFILE_KEYS = ("format_version", "name", "description", "source", "gyro_arw_dph", "accel_vrw_ug",
-                "gyro_bias_instability_dph", "gyro_bias_correlation_s",
-                "accel_bias_instability_ug", "accel_bias_correlation_s", "fit", "provenance")
+PROFILE_KEYS = (
+    "format_version",
+    "name",
+    "description",
+    "source",
+    "gyro_arw_dph",
+    "accel_vrw_ug",
+    "gyro_bias_instability_dph",
+    "gyro_bias_correlation_s",
+    "accel_bias_instability_ug",
+    "accel_bias_correlation_s",
+    "fit",
+    "provenance",
+)
 
 
 def _from_doc(doc: dict, where: str) -> NoiseProfile:
@@ -128,9 +149,12 @@ def _from_doc(doc: dict, where: str) -> NoiseProfile:
     fields = Fields(doc, where)
     for message in fields.check_keys(PROFILE_KEYS, "profile"):
         warnings.warn(message, stacklevel=3)
-    values = {key: fields.number(key, low=low, high=high, positive=True,
-                                 fix="give ARW in deg/sqrt(h) and VRW in ug/sqrt(Hz)")
-              for key, (low, high) in _RANGES.items()}
+    values = {
+        key: fields.number(
+            key, low=low, high=high, positive=True, fix="give ARW in deg/sqrt(h) and VRW in ug/sqrt(Hz)"
+        )
+        for key, (low, high) in _RANGES.items()
+    }
     values.update(_gauss_markov(fields))
     name = fields.string("name", Path(where).stem)
     if not name:
@@ -148,9 +172,11 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> NoiseProfile:
         if text in builtin_profiles():
             resource = resources.files("calib") / "profiles" / f"{text}.toml"
             return _from_doc(tomllib.loads(resource.read_text("utf-8")), text)
-        raise CalibError(f"no noise profile {text!r}", None,
-                         "give a built-in name (" + ", ".join(builtin_profiles())
-                         + ") or a path to a profile TOML file")
+        raise CalibError(
+            f"no noise profile {text!r}",
+            None,
+            "give a built-in name (" + ", ".join(builtin_profiles()) + ") or a path to a profile TOML file",
+        )
     expect(path, "profile")
     doc = load_toml(path)
     return _from_doc(doc, str(path))

@@ -15,6 +15,7 @@ the unit X right, Y forward, Z up); the calibration needs no particular
 body frame. Each row is the increment over the interval ending at
 ``t0 + (k + 1) * interval``.
 """
+
 from __future__ import annotations
 
 import math
@@ -36,9 +37,11 @@ def _numbers(line: str, count: int, where: str, what: str) -> list[float]:
     except ValueError:
         values = []
     if len(values) != count or not all(math.isfinite(v) for v in values):
-        raise CalibError(f"header row '{line.strip()[:60]}' is not {count} numbers ({what})",
-                         where, "a PSINS .imu log has three header rows of six numbers "
-                         "before the samples (see docs/logs.md)")
+        raise CalibError(
+            f"header row '{line.strip()[:60]}' is not {count} numbers ({what})",
+            where,
+            "a PSINS .imu log has three header rows of six numbers before the samples (see docs/logs.md)",
+        )
     return values
 
 
@@ -50,10 +53,12 @@ def _rows(path: str | os.PathLike) -> tuple[list[tuple[int, str]], str]:
     except FileNotFoundError:
         raise CalibError("file not found", name, "check the path") from None
     except (OSError, UnicodeDecodeError) as exc:
-        raise CalibError(f"cannot read the file as text: {exc}", name,
-                         "give a PSINS text .imu log") from None
-    lines = [(i + 1, ln) for i, ln in enumerate(text.splitlines())
-             if ln.strip() and not ln.lstrip().startswith("%")]
+        raise CalibError(f"cannot read the file as text: {exc}", name, "give a PSINS text .imu log") from None
+    lines = [
+        (i + 1, ln)
+        for i, ln in enumerate(text.splitlines())
+        if ln.strip() and not ln.lstrip().startswith("%")
+    ]
     return lines, name
 
 
@@ -72,15 +77,19 @@ def _counts(body: list[tuple[int, str]], name: str) -> np.ndarray:
             except ValueError:
                 ok = False
             if not ok:
-                raise CalibError(f"sample row '{ln.strip()[:60]}' is not six counts",
-                                 f"{name}, line {number}",
-                                 "each sample row holds dtheta_x..z dv_x..z as integer counts")
+                raise CalibError(
+                    f"sample row '{ln.strip()[:60]}' is not six counts",
+                    f"{name}, line {number}",
+                    "each sample row holds dtheta_x..z dv_x..z as integer counts",
+                )
     bad = np.flatnonzero(~np.all(np.isfinite(data) & (data == np.rint(data)), axis=1))
     if bad.size:
         number, ln = body[int(bad[0])]
-        raise CalibError(f"sample row '{ln.strip()[:60]}' holds a value that is not an "
-                         "integer count", f"{name}, line {number}",
-                         "PSINS logs store integer counts; scale them with the third header row")
+        raise CalibError(
+            f"sample row '{ln.strip()[:60]}' holds a value that is not an integer count",
+            f"{name}, line {number}",
+            "PSINS logs store integer counts; scale them with the third header row",
+        )
     return data
 
 
@@ -108,28 +117,46 @@ def read_psins(path: str | os.PathLike, allow_gaps: bool = False) -> Run:
     """
     lines, name = _rows(path)
     if len(lines) < 5:
-        raise CalibError(f"only {len(lines)} non-comment lines; a PSINS log has three header "
-                         "rows and at least two samples", name, "give a complete .imu log")
+        raise CalibError(
+            f"only {len(lines)} non-comment lines; a PSINS log has three header "
+            "rows and at least two samples",
+            name,
+            "give a complete .imu log",
+        )
     state = _numbers(lines[0][1], 6, f"{name}, line {lines[0][0]}", "pitch roll yaw VE VN VU")
-    site = _numbers(lines[1][1], 6, f"{name}, line {lines[1][0]}",
-                    "latitude longitude height t0 interval_ms g")
-    scale = _numbers(lines[2][1], 6, f"{name}, line {lines[2][0]}",
-                     "gyro arcsec/count x3, accel ug*s/count x3")
+    site = _numbers(
+        lines[1][1], 6, f"{name}, line {lines[1][0]}", "latitude longitude height t0 interval_ms g"
+    )
+    scale = _numbers(
+        lines[2][1], 6, f"{name}, line {lines[2][0]}", "gyro arcsec/count x3, accel ug*s/count x3"
+    )
     lat, lon, height, t0, interval_ms, g = site
     if interval_ms <= 0.0 or g <= 0.0 or min(scale) <= 0.0:
-        raise CalibError(f"sampling interval {interval_ms:g} ms, g {g:g} m/s^2 and the six "
-                         "count scales must be positive", f"{name}, line {lines[1][0]}",
-                         "check the second and third header rows")
+        raise CalibError(
+            f"sampling interval {interval_ms:g} ms, g {g:g} m/s^2 and the six count scales must be positive",
+            f"{name}, line {lines[1][0]}",
+            "check the second and third header rows",
+        )
     counts = _counts(lines[3:], name)
     period = interval_ms * 1e-3
-    meta = make_meta(lat, height, 1.0 / period, gravity_mps2=g, source_format="psins-imu",
-                     psins_longitude_deg=repr(lon), psins_t0_s=repr(t0),
-                     psins_initial_att_deg=" ".join(repr(v) for v in state[:3]),
-                     psins_initial_vel_mps=" ".join(repr(v) for v in state[3:]),
-                     psins_scale=" ".join(repr(v) for v in scale))
-    run = Run(time_s=t0 + np.arange(1, len(counts) + 1) * period,
-              dtheta_rad=counts[:, :3] * (np.asarray(scale[:3]) * ARCSEC),
-              dv_mps=counts[:, 3:] * (np.asarray(scale[3:]) * 1e-6 * g),
-              meta=meta, source=name)
+    meta = make_meta(
+        lat,
+        height,
+        1.0 / period,
+        gravity_mps2=g,
+        source_format="psins-imu",
+        psins_longitude_deg=repr(lon),
+        psins_t0_s=repr(t0),
+        psins_initial_att_deg=" ".join(repr(v) for v in state[:3]),
+        psins_initial_vel_mps=" ".join(repr(v) for v in state[3:]),
+        psins_scale=" ".join(repr(v) for v in scale),
+    )
+    run = Run(
+        time_s=t0 + np.arange(1, len(counts) + 1) * period,
+        dtheta_rad=counts[:, :3] * (np.asarray(scale[:3]) * ARCSEC),
+        dv_mps=counts[:, 3:] * (np.asarray(scale[3:]) * 1e-6 * g),
+        meta=meta,
+        source=name,
+    )
     check_run(run, allow_gaps)
     return run

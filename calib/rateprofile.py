@@ -20,6 +20,7 @@ The cruise rate stays ``rate_dps``, so a finite acceleration makes the move
 longer than ``angle / rate`` by ``rate / accel`` (trapezoid) or
 ``rate / accel + accel / jerk`` (S-curve reaching both limits).
 """
+
 from __future__ import annotations
 
 import math
@@ -49,12 +50,13 @@ class Pieces:
 
     def angle(self, i: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Angle turned at time ``tau`` into piece ``i`` (rad)."""
-        return (self.theta0[i] + self.rate0[i] * tau + 0.5 * self.accel0[i] * tau ** 2
-                + self.jerk[i] * tau ** 3 / 6.0)
+        return (
+            self.theta0[i] + self.rate0[i] * tau + 0.5 * self.accel0[i] * tau**2 + self.jerk[i] * tau**3 / 6.0
+        )
 
     def rate(self, i: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Angular rate at ``tau`` into piece ``i`` (rad/s)."""
-        return self.rate0[i] + self.accel0[i] * tau + 0.5 * self.jerk[i] * tau ** 2
+        return self.rate0[i] + self.accel0[i] * tau + 0.5 * self.jerk[i] * tau**2
 
     @property
     def peak_rate(self) -> float:
@@ -109,8 +111,11 @@ def _trapezoid(A: float, v: float, a: float) -> list[tuple]:
     if A >= v * v / a:
         ta = v / a
         cruise = A / v - v / a
-        return [(ta, 0.0, 0.0, a, 0.0), (cruise, 0.5 * v * ta, v, 0.0, 0.0),
-                (ta, A - 0.5 * v * ta, v, -a, 0.0)]
+        return [
+            (ta, 0.0, 0.0, a, 0.0),
+            (cruise, 0.5 * v * ta, v, 0.0, 0.0),
+            (ta, A - 0.5 * v * ta, v, -a, 0.0),
+        ]
     vp = math.sqrt(A * a)  # triangle: never reaches the cruise rate
     ta = vp / a
     return [(ta, 0.0, 0.0, a, 0.0), (ta, 0.5 * A, vp, -a, 0.0)]
@@ -150,5 +155,5 @@ def _s_curve(A: float, v: float, a: float, j: float) -> list[tuple]:
     rows, theta = [], 0.0
     for d, r, acc, jk in ramp + [(cruise, vp, 0.0, 0.0)] + down:
         rows.append((d, theta, r, acc, jk))
-        theta += r * d + 0.5 * acc * d * d + jk * d ** 3 / 6.0
+        theta += r * d + 0.5 * acc * d * d + jk * d**3 / 6.0
     return rows

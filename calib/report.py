@@ -1,4 +1,5 @@
 """Per-parameter reports (table and ``--json``) shared by calibrate and analyze."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -7,16 +8,23 @@ from . import params as P
 from .requirements import PAPER, Requirements
 
 
-def parameter_entries(sigma_si: np.ndarray, values_si: np.ndarray | None = None,
-                      truth_si: np.ndarray | None = None,
-                      requirements: Requirements = PAPER) -> dict[str, dict]:
+def parameter_entries(
+    sigma_si: np.ndarray,
+    values_si: np.ndarray | None = None,
+    truth_si: np.ndarray | None = None,
+    requirements: Requirements = PAPER,
+) -> dict[str, dict]:
     """``docs/formats.md`` JSON entries keyed by spec name, in spec units."""
     sig = P.from_si(sigma_si)
     ratios = requirements.ratio(sigma_si)
     out = {}
     for p in P.PARAMETERS:
-        e = {"sigma": float(sig[p.index]), "ratio": float(ratios[p.index]),
-             "requirement": requirements.values[p.index], "unit": p.unit}
+        e = {
+            "sigma": float(sig[p.index]),
+            "ratio": float(ratios[p.index]),
+            "requirement": requirements.values[p.index],
+            "unit": p.unit,
+        }
         if values_si is not None:
             e["value"] = float(P.from_si(values_si)[p.index])
         if truth_si is not None:
@@ -28,8 +36,9 @@ def parameter_entries(sigma_si: np.ndarray, values_si: np.ndarray | None = None,
     return out
 
 
-def extra_entries(extras, sigma_si: np.ndarray, values_si: np.ndarray | None = None,
-                  truth_si: np.ndarray | None = None) -> dict[str, dict]:
+def extra_entries(
+    extras, sigma_si: np.ndarray, values_si: np.ndarray | None = None, truth_si: np.ndarray | None = None
+) -> dict[str, dict]:
     """Entries of the optional terms (:mod:`calib.extras`), listed after the 21.
 
     They have no requirement, so no ratio; ``meaning`` says what each is.

@@ -8,6 +8,7 @@ paper's requirements make no sense for a MEMS unit, so they are an input:
 value`` by spec name in spec units; the parameters it leaves out keep the
 paper's), or a shipped name (``paper``, ``tactical``, ``mems``).
 """
+
 from __future__ import annotations
 
 import warnings
@@ -54,8 +55,7 @@ class Requirements:
         return tuple(self.values) == tuple(P.REQUIREMENTS)
 
 
-PAPER = Requirements("paper", tuple(float(x) for x in P.REQUIREMENTS),
-                     "the reference paper, section 3.2")
+PAPER = Requirements("paper", tuple(float(x) for x in P.REQUIREMENTS), "the reference paper, section 3.2")
 
 
 def builtin_dir() -> Path:
@@ -77,9 +77,11 @@ def load_requirements(name_or_path: str | Path | Requirements | None = None) -> 
         builtin = builtin_dir() / f"{text}.toml"
         if not builtin.exists():
             names = sorted(p.stem for p in builtin_dir().glob("*.toml"))
-            raise CalibError(f"no requirements file or shipped set named {text!r}",
-                             "--requirements", f"give a TOML file or one of: paper, "
-                             f"{', '.join(names)}")
+            raise CalibError(
+                f"no requirements file or shipped set named {text!r}",
+                "--requirements",
+                f"give a TOML file or one of: paper, {', '.join(names)}",
+            )
         path = builtin
     return requirements_from_dict(load_toml(path), str(path))
 
@@ -88,19 +90,25 @@ def requirements_from_dict(doc: dict, where: str) -> Requirements:
     """Validate a parsed requirements document; the parameters it omits keep the paper's."""
     top = Fields(doc, where)
     if "requirements" not in doc:
-        raise CalibError("missing table [requirements]", where,
-                         "write [requirements] with NAME = value per parameter, e.g. sgx = 50")
+        raise CalibError(
+            "missing table [requirements]",
+            where,
+            "write [requirements] with NAME = value per parameter, e.g. sgx = 50",
+        )
     check_format_version(doc, "requirements", where)
-    for w in top.check_keys(("name", "source", "format_version", "requirements", "provenance"),
-                            "requirements file"):
+    for w in top.check_keys(
+        ("name", "source", "format_version", "requirements", "provenance"), "requirements file"
+    ):
         warnings.warn(w, stacklevel=2)
     table = top.sub("requirements", required=True)
     table.check_keys(P.NAMES, "parameter")  # a typo of a name is refused, naming the closest
     unknown = [k for k in table.table if k not in P.INDEX]
     if unknown:
-        raise CalibError(f"unknown parameter(s) {', '.join(unknown)}", table.where,
-                         f"use the spec names: {', '.join(P.NAMES)}")
-    values = [table.number(p.name, p.requirement, positive=True, unit=f" {p.unit}")
-              for p in P.PARAMETERS]
+        raise CalibError(
+            f"unknown parameter(s) {', '.join(unknown)}",
+            table.where,
+            f"use the spec names: {', '.join(P.NAMES)}",
+        )
+    values = [table.number(p.name, p.requirement, positive=True, unit=f" {p.unit}") for p in P.PARAMETERS]
     name = top.string("name", Path(where).stem)
     return Requirements(name, tuple(float(v) for v in values), top.string("source", ""))

@@ -4,6 +4,7 @@ Saved and loaded as the result TOML of ``docs/formats.md`` (values in spec
 units). The result knows how to print itself (``to_text``) and how to turn
 itself into the ``--json`` document of ``calibrate`` (``to_json``).
 """
+
 from __future__ import annotations
 
 import math
@@ -126,9 +127,9 @@ class CalibrationResult:
 
     def entries(self, truth=None) -> dict[str, dict]:
         """Per-parameter report entries (spec names and units), extras after the 21."""
-        out = parameter_entries(self.sigma, self.values,
-                                truth.errors.values if truth is not None else None,
-                                self.requirements)
+        out = parameter_entries(
+            self.sigma, self.values, truth.errors.values if truth is not None else None, self.requirements
+        )
         for name in self.not_estimable:
             if name in out:
                 out[name]["estimable"] = False
@@ -143,33 +144,51 @@ class CalibrationResult:
         """What a user must know before trusting the numbers."""
         out = []
         if self.birge_inflated:
-            out.append(f"residuals are {self.chi2_per_dof:.2f}x the profile's noise power; "
-                       f"sigmas inflated by {self.sigma_scale:.2f}")
+            out.append(
+                f"residuals are {self.chi2_per_dof:.2f}x the profile's noise power; "
+                f"sigmas inflated by {self.sigma_scale:.2f}"
+            )
         if self.not_estimable:
-            out.append("not estimable (the run does not separate them): "
-                       + ", ".join(self.not_estimable) + "; unobserved combinations: "
-                       + "; ".join(self.null_directions))
+            out.append(
+                "not estimable (the run does not separate them): "
+                + ", ".join(self.not_estimable)
+                + "; unobserved combinations: "
+                + "; ".join(self.null_directions)
+            )
         req = min(self.requirements.values[P.ACCEL_SCALE])
         if self.gravity_source == "normal" and req <= 5 * self.ppm_per_mgal:
-            out.append(f"accelerometer scale factors rest on modelled normal gravity: each mGal "
-                       f"of local anomaly is {self.ppm_per_mgal:.2f} ppm on sax, say and saz "
-                       f"(requirement {req:g} ppm); give the surveyed gravity (gravity_mps2)")
+            out.append(
+                f"accelerometer scale factors rest on modelled normal gravity: each mGal "
+                f"of local anomaly is {self.ppm_per_mgal:.2f} ppm on sax, say and saz "
+                f"(requirement {req:g} ppm); give the surveyed gravity (gravity_mps2)"
+            )
         return out
 
     def to_json(self, truth=None) -> dict:
         """The ``calibrate --json`` document (``docs/formats.md``), with truth comparisons if given."""
         entries = self.entries(truth)
-        doc = {"parameters": entries, "worst": worst(entries), "profile": self.profile,
-               "requirements": self.requirements.name,
-               "fit": {"converged": self.converged, "iterations": self.iterations,
-                       "residual_rms_mps": self.residual_rms_mps,
-                       "chi2_per_dof": self.chi2_per_dof, "sigma_scale": self.sigma_scale,
-                       "extras": list(self.extras.groups),
-                       "not_estimable": list(self.not_estimable),
-                       "unobserved_directions": list(self.null_directions)},
-               "gravity": {"value_mps2": self.gravity_mps2, "source": self.gravity_source,
-                           "ppm_per_mgal": self.ppm_per_mgal},
-               "warnings": self.warnings()}
+        doc = {
+            "parameters": entries,
+            "worst": worst(entries),
+            "profile": self.profile,
+            "requirements": self.requirements.name,
+            "fit": {
+                "converged": self.converged,
+                "iterations": self.iterations,
+                "residual_rms_mps": self.residual_rms_mps,
+                "chi2_per_dof": self.chi2_per_dof,
+                "sigma_scale": self.sigma_scale,
+                "extras": list(self.extras.groups),
+                "not_estimable": list(self.not_estimable),
+                "unobserved_directions": list(self.null_directions),
+            },
+            "gravity": {
+                "value_mps2": self.gravity_mps2,
+                "source": self.gravity_source,
+                "ppm_per_mgal": self.ppm_per_mgal,
+            },
+            "warnings": self.warnings(),
+        }
         if truth is not None:
             doc["nees"] = self.nees(truth.errors.values)
         return doc
@@ -178,15 +197,19 @@ class CalibrationResult:
         """The table and summary ``calibrate`` prints (its :meth:`warnings` go to stderr)."""
         entries = self.entries(truth)
         w = worst(entries)
-        lines = [format_table(entries),
-                 f"profile {self.profile}; requirements {self.requirements.name}; "
-                 f"{'converged' if self.converged else 'NOT converged'} "
-                 f"in {self.iterations} iterations; residual RMS {self.residual_rms_mps:.3g} m/s; "
-                 f"chi2/dof {self.chi2_per_dof:.3f}; worst 3 sigma/requirement "
-                 f"{w['ratio']:.2f} ({w['name']})"]
+        lines = [
+            format_table(entries),
+            f"profile {self.profile}; requirements {self.requirements.name}; "
+            f"{'converged' if self.converged else 'NOT converged'} "
+            f"in {self.iterations} iterations; residual RMS {self.residual_rms_mps:.3g} m/s; "
+            f"chi2/dof {self.chi2_per_dof:.3f}; worst 3 sigma/requirement "
+            f"{w['ratio']:.2f} ({w['name']})",
+        ]
         if math.isfinite(self.gravity_mps2):
-            lines.append(f"gravity {self.gravity_mps2:.7f} m/s^2 ({self.gravity_source}); "
-                         f"1 mGal = {self.ppm_per_mgal:.2f} ppm on each accelerometer scale factor")
+            lines.append(
+                f"gravity {self.gravity_mps2:.7f} m/s^2 ({self.gravity_source}); "
+                f"1 mGal = {self.ppm_per_mgal:.2f} ppm on each accelerometer scale factor"
+            )
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
@@ -199,14 +222,21 @@ class CalibrationResult:
                 entry["estimable"] = False
             params[p.name] = entry
         for p, v, e in zip(self.extras.parameters, self.extra_values, self.extra_sigma):
-            params[p.name] = {"value": float(v / p.si_per_unit), "sigma": float(e / p.si_per_unit),
-                              "unit": p.unit}
+            params[p.name] = {
+                "value": float(v / p.si_per_unit),
+                "sigma": float(e / p.si_per_unit),
+                "unit": p.unit,
+            }
             if p.name in self.not_estimable:
                 params[p.name]["estimable"] = False
-        fit = {"converged": bool(self.converged), "iterations": int(self.iterations),
-               "residual_rms_mps": float(self.residual_rms_mps),
-               "chi2_per_dof": float(self.chi2_per_dof), "profile": self.profile,
-               "sigma_scale": float(self.sigma_scale)}
+        fit = {
+            "converged": bool(self.converged),
+            "iterations": int(self.iterations),
+            "residual_rms_mps": float(self.residual_rms_mps),
+            "chi2_per_dof": float(self.chi2_per_dof),
+            "profile": self.profile,
+            "sigma_scale": float(self.sigma_scale),
+        }
         if self.extras.groups:
             fit["extras"] = list(self.extras.groups)
         if self.null_directions:
@@ -214,16 +244,21 @@ class CalibrationResult:
         if math.isfinite(self.gravity_mps2):
             fit["gravity_mps2"] = float(self.gravity_mps2)
             fit["gravity_source"] = self.gravity_source
-        doc = {"format_version": FORMAT_VERSION, "parameters": params,
-               "initial_attitude": {"C_b_n": [[float(x) for x in row] for row in self.C_b_n0]},
-               "fit": fit}
+        doc = {
+            "format_version": FORMAT_VERSION,
+            "parameters": params,
+            "initial_attitude": {"C_b_n": [[float(x) for x in row] for row in self.C_b_n0]},
+            "fit": fit,
+        }
         if not self.requirements.is_paper:
             fit["requirements"] = self.requirements.name
             doc["requirements"] = {p.name: self.requirements.values[p.index] for p in P.PARAMETERS}
         if self.correlation is not None:
             corr = np.where(np.isfinite(self.correlation), self.correlation, 0.0)
-            doc["correlation"] = {"names": list(P.NAMES),
-                                  "matrix": [[round(float(x), 6) for x in row] for row in corr]}
+            doc["correlation"] = {
+                "names": list(P.NAMES),
+                "matrix": [[round(float(x), 6) for x in row] for row in corr],
+            }
         if self.provenance:
             doc["provenance"] = dict(self.provenance)
         return doc
@@ -232,6 +267,7 @@ class CalibrationResult:
         import tomli_w
 
         from .fileio import atomic_write_text
+
         atomic_write_text(path, tomli_w.dumps(self.to_dict()))
 
     @classmethod
@@ -249,31 +285,40 @@ class CalibrationResult:
             raise CalibError("missing table [parameters]", where, _kind_hint(doc))
         check_format_version(doc, "result", where)
         table = doc["parameters"]
-        vals, sig, not_est = _read_parameters(table, P.PARAMETERS, where, "a result carries all 21 "
-                                              "parameters")
+        vals, sig, not_est = _read_parameters(
+            table, P.PARAMETERS, where, "a result carries all 21 parameters"
+        )
         C = _attitude(doc.get("initial_attitude"), f"{where}: [initial_attitude]")
         fit = Fields(doc.get("fit", {}), f"{where}: [fit]")
         extras = _read_extras(fit, where)
-        xv, xs, x_not = _read_parameters(table, extras.parameters, where,
-                                         "[fit] extras names it", si=True)
+        xv, xs, x_not = _read_parameters(table, extras.parameters, where, "[fit] extras names it", si=True)
         corr = None
         if "correlation" in doc:
             corr = _correlation(doc["correlation"], f"{where}: [correlation]")
         provenance = doc.get("provenance", {})
         if not isinstance(provenance, dict):
             raise CalibError("[provenance] must be a table", where)
-        return cls(values=P.to_si(vals), sigma=P.to_si(sig), C_b_n0=C,
-                   converged=fit.boolean("converged", False),
-                   iterations=fit.integer("iterations", 0, low=0),
-                   residual_rms_mps=_figure(fit, "residual_rms_mps"), profile=fit.string("profile", ""),
-                   chi2_per_dof=_figure(fit, "chi2_per_dof"), correlation=corr,
-                   provenance=provenance, extras=extras, extra_values=np.array(xv),
-                   extra_sigma=np.array(xs), sigma_scale=fit.number("sigma_scale", 1.0, low=1.0),
-                   not_estimable=tuple(not_est + x_not),
-                   null_directions=tuple(_strings(fit, "unobserved_directions")),
-                   gravity_mps2=fit.number("gravity_mps2", float("nan"), low=9.7, high=9.9),
-                   gravity_source=fit.string("gravity_source", ""),
-                   requirements=_read_requirements(doc, fit, where))
+        return cls(
+            values=P.to_si(vals),
+            sigma=P.to_si(sig),
+            C_b_n0=C,
+            converged=fit.boolean("converged", False),
+            iterations=fit.integer("iterations", 0, low=0),
+            residual_rms_mps=_figure(fit, "residual_rms_mps"),
+            profile=fit.string("profile", ""),
+            chi2_per_dof=_figure(fit, "chi2_per_dof"),
+            correlation=corr,
+            provenance=provenance,
+            extras=extras,
+            extra_values=np.array(xv),
+            extra_sigma=np.array(xs),
+            sigma_scale=fit.number("sigma_scale", 1.0, low=1.0),
+            not_estimable=tuple(not_est + x_not),
+            null_directions=tuple(_strings(fit, "unobserved_directions")),
+            gravity_mps2=fit.number("gravity_mps2", float("nan"), low=9.7, high=9.9),
+            gravity_source=fit.string("gravity_source", ""),
+            requirements=_read_requirements(doc, fit, where),
+        )
 
 
 def _read_requirements(doc: dict, fit: Fields, where: str) -> Requirements:
@@ -324,8 +369,11 @@ def _read_parameters(table: dict, parameters, where: str, missing_fix: str, si: 
 def _finite(entry: dict, key: str, here: str) -> float:
     v = toml_number(entry.get(key))
     if v is None or not math.isfinite(v):
-        raise CalibError(f"'{key}' must be a finite number, got {entry.get(key)!r}", here,
-                         "a result without uncertainties is not a result")
+        raise CalibError(
+            f"'{key}' must be a finite number, got {entry.get(key)!r}",
+            here,
+            "a result without uncertainties is not a result",
+        )
     return v
 
 
@@ -333,8 +381,9 @@ def _figure(fit: Fields, key: str) -> float:
     """NaN stands for "not computed"; anything else must be a finite number >= 0."""
     v = fit.number(key, math.nan, finite=False)
     if math.isinf(v) or v < 0:
-        raise CalibError(f"must be a finite number >= 0 (or nan), got {fit.table.get(key)!r}",
-                         f"{fit.where} {key}")
+        raise CalibError(
+            f"must be a finite number >= 0 (or nan), got {fit.table.get(key)!r}", f"{fit.where} {key}"
+        )
     return v
 
 
@@ -371,8 +420,12 @@ def _matrix(rows, n: int) -> np.ndarray | None:
 def _attitude(table, where: str) -> np.ndarray:
     """``[initial_attitude] C_b_n``: a 3x3 rotation matrix."""
     C = _matrix(table.get("C_b_n") if isinstance(table, dict) else None, 3)
-    if (C is None or np.any(np.abs(C) > 1.0 + 1e-6)
-            or not np.allclose(C @ C.T, np.eye(3), atol=1e-6) or np.linalg.det(C) < 0):
+    if (
+        C is None
+        or np.any(np.abs(C) > 1.0 + 1e-6)
+        or not np.allclose(C @ C.T, np.eye(3), atol=1e-6)
+        or np.linalg.det(C) < 0
+    ):
         raise CalibError("initial_attitude.C_b_n must be a 3x3 rotation matrix", where)
     return C
 

@@ -16,6 +16,7 @@ known zero velocity, and the attitude it starts from is the fit's own
 estimate. What it leaves out (see :func:`velocity_noise_sigma`): the
 uncertainty of that initial attitude and of the 21 parameters.
 """
+
 from __future__ import annotations
 
 import math
@@ -59,8 +60,9 @@ class RunReview:
         return np.cumsum(self.dt)
 
 
-def review_run(run, result=None, latitude_deg: float | None = None,
-               gravity_mps2: float | None = None) -> RunReview:
+def review_run(
+    run, result=None, latitude_deg: float | None = None, gravity_mps2: float | None = None
+) -> RunReview:
     """Motion, coarse alignment and the navigation velocity errors before/after calibration.
 
     With a result, also the predicted 1-sigma of the velocity error after
@@ -69,8 +71,11 @@ def review_run(run, result=None, latitude_deg: float | None = None,
     """
     lat_deg = run.latitude_deg if latitude_deg is None else float(latitude_deg)
     lat = math.radians(lat_deg)
-    g = gravity_mps2 if gravity_mps2 is not None else (
-        run.gravity_mps2 if run.gravity_mps2 is not None else earth.gravity(lat, run.height_m))
+    g = (
+        gravity_mps2
+        if gravity_mps2 is not None
+        else (run.gravity_mps2 if run.gravity_mps2 is not None else earth.gravity(lat, run.height_m))
+    )
     dt = sample_intervals(run.time_s)
     t0 = start_time(run.time_s)
     dtheta, dv = run.dtheta_rad, run.dv_mps
@@ -87,8 +92,10 @@ def review_run(run, result=None, latitude_deg: float | None = None,
         C_align = coarse_alignment(dtheta[first], dv[first], dt[first])
         before = navigate(dtheta, dv, run.time_s, C_align, lat, g, t0=t0)
     else:
-        notes.append(f"the run does not start with {MIN_ALIGN_S:g} s of rest: no coarse "
-                     "alignment, no velocity errors before calibration")
+        notes.append(
+            f"the run does not start with {MIN_ALIGN_S:g} s of rest: no coarse "
+            "alignment, no velocity errors before calibration"
+        )
     review = RunReview(t0, dt, lat_deg, g, moving, before, None, notes)
     if result is not None:
         dth_c, dv_c = ErrorModel(result.values).compensate(dtheta, dv, dt)
@@ -97,13 +104,19 @@ def review_run(run, result=None, latitude_deg: float | None = None,
         if note:
             notes.append(note)
         review.noise_time, review.noise_sigma_v = _noise_envelope(
-            review.after, moving, run.sample_rate_hz, lat, g, profile)
+            review.after, moving, run.sample_rate_hz, lat, g, profile
+        )
         review.noise_profile = profile.name
     return review
 
 
-def velocity_noise_sigma(T: np.ndarray, latitude_rad: float, gravity_mps2: float,
-                         profile: NoiseProfile, C_b_n: np.ndarray | None = None) -> np.ndarray:
+def velocity_noise_sigma(
+    T: np.ndarray,
+    latitude_rad: float,
+    gravity_mps2: float,
+    profile: NoiseProfile,
+    C_b_n: np.ndarray | None = None,
+) -> np.ndarray:
     """1-sigma of the navigation velocity error driven by the IMU's noise, from zero.
 
     The error state ``[phi, dv]`` (and ``[b_g, b_a]`` with Gauss-Markov
@@ -157,11 +170,13 @@ def result_profile(result) -> tuple[NoiseProfile, str | None]:
     except CalibError as exc:
         return load_profile(DEFAULT_PROFILE), (
             f"the result's profile {result.profile!r} could not be loaded ({exc.message}); "
-            f"the noise envelope uses {DEFAULT_PROFILE!r}")
+            f"the noise envelope uses {DEFAULT_PROFILE!r}"
+        )
 
 
-def _noise_envelope(nav: Navigation, moving: np.ndarray, sample_rate_hz: float, lat: float,
-                    g: float, profile: NoiseProfile) -> tuple[np.ndarray, np.ndarray]:
+def _noise_envelope(
+    nav: Navigation, moving: np.ndarray, sample_rate_hz: float, lat: float, g: float, profile: NoiseProfile
+) -> tuple[np.ndarray, np.ndarray]:
     """Times (s since the start) and 1-sigma of :func:`velocity_noise_sigma` on the fit's grid."""
     b = default_grid(moving, sample_rate_hz).bounds
     t = nav.time_s - nav.time_s[0]

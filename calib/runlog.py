@@ -9,6 +9,7 @@ for CSV the 1-based line number counted from the top of the file (plus the
 column and the 0-based sample index), for NPZ the array element (``dv_mps[12, 1]``)
 or the metadata key.
 """
+
 from __future__ import annotations
 
 import gzip
@@ -50,7 +51,6 @@ _ARRAY_COLUMNS = {
 }
 
 GAP_PERIODS = 2.0  # the typical time step must lie within [0.5, 2] nominal periods
-
 
 
 @dataclass
@@ -132,9 +132,14 @@ class Run:
         return float(self.time_s[-1] - self.time_s[0]) + self.dt_nominal
 
 
-def make_meta(latitude_deg: float, height_m: float, sample_rate_hz: float,
-              gravity_mps2: float | None = None, sequence: str | None = None,
-              **extra: str) -> dict[str, str]:
+def make_meta(
+    latitude_deg: float,
+    height_m: float,
+    sample_rate_hz: float,
+    gravity_mps2: float | None = None,
+    sequence: str | None = None,
+    **extra: str,
+) -> dict[str, str]:
     """Build a valid ``Run.meta`` dict, ``format`` first, numbers as exact reprs.
 
     Parameters
@@ -152,10 +157,12 @@ def make_meta(latitude_deg: float, height_m: float, sample_rate_hz: float,
     -------
     dict of str to str
     """
-    meta = {"format": FORMAT,
-            "latitude_deg": repr(float(latitude_deg)),
-            "height_m": repr(float(height_m)),
-            "sample_rate_hz": repr(float(sample_rate_hz))}
+    meta = {
+        "format": FORMAT,
+        "latitude_deg": repr(float(latitude_deg)),
+        "height_m": repr(float(height_m)),
+        "sample_rate_hz": repr(float(sample_rate_hz)),
+    }
     if gravity_mps2 is not None:
         meta["gravity_mps2"] = repr(float(gravity_mps2))
     if sequence is not None:
@@ -168,8 +175,14 @@ def make_meta(latitude_deg: float, height_m: float, sample_rate_hz: float,
 # Public entry points
 # --------------------------------------------------------------------------
 
-def read_run(path: str | os.PathLike, allow_gaps: bool = False, *,
-             latitude_deg: float | None = None, height_m: float | None = None) -> Run:
+
+def read_run(
+    path: str | os.PathLike,
+    allow_gaps: bool = False,
+    *,
+    latitude_deg: float | None = None,
+    height_m: float | None = None,
+) -> Run:
     """Read and check a run log, ``.csv`` (or ``.csv.gz``), ``.npz`` or PSINS ``.imu``.
 
     The time column is mapped to sample counts (:mod:`calib.clock`): a run
@@ -206,6 +219,7 @@ def read_run(path: str | os.PathLike, allow_gaps: bool = False, *,
     kind = _kind(path)
     if kind == ".imu":
         from calib.psins import read_psins
+
         run = read_psins(path, allow_gaps)
     elif kind == ".csv":
         run = _read_csv(path, allow_gaps, {"latitude_deg": latitude_deg, "height_m": height_m})
@@ -237,8 +251,9 @@ def write_run(run: Run, path: str | os.PathLike) -> None:
     """
     kind = _kind(path)
     if kind == ".imu":
-        raise CalibError("the PSINS .imu format is read, not written", str(path),
-                         "write the run as .csv or .npz")
+        raise CalibError(
+            "the PSINS .imu format is read, not written", str(path), "write the run as .csv or .npz"
+        )
     check_run(run, allow_gaps=True)
     if kind == ".csv":
         _check_meta_writable_as_csv(run.meta, run.source)
@@ -265,8 +280,11 @@ def check_run(run: Run, allow_gaps: bool = False) -> None:
     name = run.source
     for key, value in run.meta.items():
         if not isinstance(key, str) or not isinstance(value, str):
-            raise CalibError(f"metadata {key!r}: {value!r} is not a pair of strings", name,
-                             "metadata keys and values are strings, e.g. from make_meta()")
+            raise CalibError(
+                f"metadata {key!r}: {value!r} is not a pair of strings",
+                name,
+                "metadata keys and values are strings, e.g. from make_meta()",
+            )
     time = np.asarray(run.time_s)
     n = time.shape[0] if time.ndim >= 1 else 0
     for array_name in _ARRAY_COLUMNS:
@@ -281,6 +299,7 @@ def check_run(run: Run, allow_gaps: bool = False) -> None:
 # --------------------------------------------------------------------------
 # Shared checks
 # --------------------------------------------------------------------------
+
 
 class _ArrayLocator:
     """Names places in an NPZ file or in-memory run: array elements and meta keys."""
@@ -299,8 +318,13 @@ class _ArrayLocator:
 class _CsvLocator:
     """Names places in a CSV file: 1-based line numbers, column names, sample index."""
 
-    def __init__(self, name: str, key_lines: dict[str, int], sample_lines: np.ndarray,
-                 columns: dict[str, tuple[str, ...]] | None = None):
+    def __init__(
+        self,
+        name: str,
+        key_lines: dict[str, int],
+        sample_lines: np.ndarray,
+        columns: dict[str, tuple[str, ...]] | None = None,
+    ):
         self.name = name
         self.key_lines = key_lines
         self.sample_lines = sample_lines
@@ -329,62 +353,85 @@ _META_HINTS = {
 def _meta_float(meta: dict[str, str], key: str, where: str) -> float:
     """Parse one numeric metadata value; refuse missing, non-numeric or non-finite."""
     if key not in meta:
-        raise CalibError(f"required metadata '{key}' is missing", where,
-                         f"add a line '# {key}: <value>' ({_META_HINTS[key]})")
+        raise CalibError(
+            f"required metadata '{key}' is missing",
+            where,
+            f"add a line '# {key}: <value>' ({_META_HINTS[key]})",
+        )
     text = meta[key]
     try:
         value = float(text)
     except (TypeError, ValueError):
-        raise CalibError(f"metadata '{key}' is {text!r}, not a number", where,
-                         f"write a plain number: {_META_HINTS[key]}") from None
+        raise CalibError(
+            f"metadata '{key}' is {text!r}, not a number", where, f"write a plain number: {_META_HINTS[key]}"
+        ) from None
     if not math.isfinite(value):
-        raise CalibError(f"metadata '{key}' is {text!r}, not a finite number", where,
-                         f"write a plain number: {_META_HINTS[key]}")
+        raise CalibError(
+            f"metadata '{key}' is {text!r}, not a finite number",
+            where,
+            f"write a plain number: {_META_HINTS[key]}",
+        )
     return value
 
 
 def _check_meta(meta: dict[str, str], locate) -> None:
     """Refuse missing/unknown format, missing required keys and out-of-range values."""
     if "format" not in meta:
-        raise CalibError("no 'format' metadata: this does not look like a run log",
-                         locate.key("format"),
-                         f"start the file with '# format: {FORMAT}'")
+        raise CalibError(
+            "no 'format' metadata: this does not look like a run log",
+            locate.key("format"),
+            f"start the file with '# format: {FORMAT}'",
+        )
     if meta["format"].strip() != FORMAT:
-        raise CalibError(f"unknown format {meta['format']!r}", locate.key("format"),
-                         f"this tool reads '{FORMAT}'; convert the file to that format")
+        raise CalibError(
+            f"unknown format {meta['format']!r}",
+            locate.key("format"),
+            f"this tool reads '{FORMAT}'; convert the file to that format",
+        )
     values = {key: _meta_float(meta, key, locate.key(key)) for key in REQUIRED_META[1:]}
     if not -90.0 <= values["latitude_deg"] <= 90.0:
-        raise CalibError(f"latitude_deg = {values['latitude_deg']} is outside [-90, 90]",
-                         locate.key("latitude_deg"),
-                         "give the geodetic latitude in degrees")
+        raise CalibError(
+            f"latitude_deg = {values['latitude_deg']} is outside [-90, 90]",
+            locate.key("latitude_deg"),
+            "give the geodetic latitude in degrees",
+        )
     low, high = HEIGHT_RANGE_M
     if not low <= values["height_m"] <= high:
-        raise CalibError(f"height_m = {values['height_m']} is outside [{low:g}, {high:g}] m",
-                         locate.key("height_m"),
-                         "give the ellipsoidal height of the site in metres")
+        raise CalibError(
+            f"height_m = {values['height_m']} is outside [{low:g}, {high:g}] m",
+            locate.key("height_m"),
+            "give the ellipsoidal height of the site in metres",
+        )
     if values["sample_rate_hz"] <= 0.0:
-        raise CalibError(f"sample_rate_hz = {values['sample_rate_hz']} is not positive",
-                         locate.key("sample_rate_hz"),
-                         "give the IMU output rate in Hz")
+        raise CalibError(
+            f"sample_rate_hz = {values['sample_rate_hz']} is not positive",
+            locate.key("sample_rate_hz"),
+            "give the IMU output rate in Hz",
+        )
     if "gravity_mps2" in meta:
         gravity = _meta_float(meta, "gravity_mps2", locate.key("gravity_mps2"))
         if gravity <= 0.0:
-            raise CalibError(f"gravity_mps2 = {gravity} is not positive",
-                             locate.key("gravity_mps2"),
-                             "give the measured gravity in m/s^2, or leave the key out")
+            raise CalibError(
+                f"gravity_mps2 = {gravity} is not positive",
+                locate.key("gravity_mps2"),
+                "give the measured gravity in m/s^2, or leave the key out",
+            )
 
 
 def _check_array_shape(array: np.ndarray, name: str, n: int, where: str) -> None:
     """Refuse arrays that are not real numbers of shape (n,) for time, (n, 3) otherwise."""
     if array.dtype.kind not in "iuf":
-        raise CalibError(f"array '{name}' has dtype {array.dtype}, not real numbers", where,
-                         "store float64 values")
+        raise CalibError(
+            f"array '{name}' has dtype {array.dtype}, not real numbers", where, "store float64 values"
+        )
     expected = (n,) if name == "time_s" else (n, 3)
     if array.shape != expected:
         text = "(n,)" if name == "time_s" else "(n, 3)"
-        raise CalibError(f"array '{name}' has shape {array.shape}, expected {text} "
-                         f"with n = {n} (the length of time_s)", where,
-                         "store one row per sample, all arrays the same length")
+        raise CalibError(
+            f"array '{name}' has shape {array.shape}, expected {text} with n = {n} (the length of time_s)",
+            where,
+            "store one row per sample, all arrays the same length",
+        )
 
 
 def _check_samples(run: Run, locate, allow_gaps: bool) -> clock.SampleClock:
@@ -395,14 +442,16 @@ def _check_samples(run: Run, locate, allow_gaps: bool) -> clock.SampleClock:
     time = np.asarray(run.time_s)
     n = time.shape[0]
     if n < 2:
-        raise CalibError(f"the run has {n} sample{'s' if n != 1 else ''}; at least 2 are needed",
-                         run.source, "record a longer run")
+        raise CalibError(
+            f"the run has {n} sample{'s' if n != 1 else ''}; at least 2 are needed",
+            run.source,
+            "record a longer run",
+        )
     _check_finite(run, locate)
     step = np.diff(time)
     period = 1.0 / run.sample_rate_hz
     # A row repeating the previous one is a duplicated sample, named below with the gaps.
-    duplicate = clock.duplicate_rows(time, np.asarray(run.dtheta_rad), np.asarray(run.dv_mps),
-                                     period)
+    duplicate = clock.duplicate_rows(time, np.asarray(run.dtheta_rad), np.asarray(run.dv_mps), period)
     backwards = np.flatnonzero((step <= 0.0) & ~duplicate[1:])
     if backwards.size:
         i = int(backwards[0]) + 1
@@ -411,7 +460,8 @@ def _check_samples(run: Run, locate, allow_gaps: bool) -> clock.SampleClock:
             f"{float(time[i - 1])!r}"
             + (f" ({backwards.size} such steps in all)" if backwards.size > 1 else ""),
             locate.sample("time_s", i),
-            "samples must be in time order without repeats; sort the log or remove duplicates")
+            "samples must be in time order without repeats; sort the log or remove duplicates",
+        )
     # The nominal period must describe the time stamps (gaps and jitter aside), or
     # gap detection, durations and the first sample's interval are all wrong.
     typical = float(np.median(step))
@@ -420,7 +470,8 @@ def _check_samples(run: Run, locate, allow_gaps: bool) -> clock.SampleClock:
             f"sample_rate_hz = {run.sample_rate_hz:g} (a period of {period:g} s) does not match "
             f"the time stamps, which are typically {typical:.6g} s apart",
             locate.key("sample_rate_hz"),
-            "give the IMU output rate in Hz, the inverse of the time between samples")
+            "give the IMU output rate in Hz, the inverse of the time between samples",
+        )
     try:
         found = clock.sample_clock(time, run.sample_rate_hz, duplicate)
     except CalibError as exc:
@@ -452,9 +503,11 @@ def _check_finite(run: Run, locate) -> None:
     i, name, component = first
     array = np.asarray(getattr(run, name))
     value = array[i] if component is None else array[i, component]
-    raise CalibError(f"value {float(value)!r} is not a finite number",
-                     locate.sample(name, i, component),
-                     "every sample must be a finite number; remove or repair the sample")
+    raise CalibError(
+        f"value {float(value)!r} is not a finite number",
+        locate.sample(name, i, component),
+        "every sample must be a finite number; remove or repair the sample",
+    )
 
 
 def _kind(path: str | os.PathLike) -> str:
@@ -463,9 +516,11 @@ def _kind(path: str | os.PathLike) -> str:
     if suffix == ".gz" and Path(path).name.lower().endswith(".csv.gz"):
         return ".csv"  # read through gzip (_read_bytes)
     if suffix not in (".csv", ".npz", ".imu"):
-        raise CalibError(f"unknown run log type {suffix or '(no suffix)'!r}", str(path),
-                         "name run logs *.csv (interchange), *.npz (fast native) or "
-                         "*.imu (PSINS text, read only)")
+        raise CalibError(
+            f"unknown run log type {suffix or '(no suffix)'!r}",
+            str(path),
+            "name run logs *.csv (interchange), *.npz (fast native) or *.imu (PSINS text, read only)",
+        )
     return suffix
 
 
@@ -484,14 +539,17 @@ def _read_bytes(path: str | os.PathLike) -> bytes:
         data = Path(path).read_bytes()
         return gzip.decompress(data) if data[:2] == b"\x1f\x8b" else data
     except (OSError, EOFError, zlib.error) as exc:  # gzip.BadGzipFile is an OSError
-        raise CalibError(f"cannot read the file: {getattr(exc, 'strerror', None) or exc}",
-                         str(path),
-                         "check the path and permissions") from None
+        raise CalibError(
+            f"cannot read the file: {getattr(exc, 'strerror', None) or exc}",
+            str(path),
+            "check the path and permissions",
+        ) from None
 
 
 # --------------------------------------------------------------------------
 # CSV
 # --------------------------------------------------------------------------
+
 
 def _read_csv(path: str | os.PathLike, allow_gaps: bool, options: dict | None = None) -> Run:
     """Read a CSV run log (see module docstring for how places are named)."""
@@ -502,9 +560,11 @@ def _read_csv(path: str | os.PathLike, allow_gaps: bool, options: dict | None = 
     plan, has_gimbal, positions = _parse_header(lines[header_index], header_index + 1, name)
     rows, row_lines = _data_rows(lines, header_index + 1)
     if not rows:
-        raise CalibError("the header row is not followed by any data rows",
-                         f"{name}, line {header_index + 1}",
-                         "a run log needs one row per sample")
+        raise CalibError(
+            "the header row is not followed by any data rows",
+            f"{name}, line {header_index + 1}",
+            "a run log needs one row per sample",
+        )
     n_fields = len(lines[header_index].split(","))
     _check_field_counts(rows, row_lines, n_fields, name)
     wanted = [plan.time, *plan.gyro.positions, *plan.accel.positions]
@@ -514,16 +574,19 @@ def _read_csv(path: str | os.PathLike, allow_gaps: bool, options: dict | None = 
     data = _parse_numbers(rows, row_lines, wanted, all_names, name)
     time_s = np.ascontiguousarray(data[:, 0])
     _fill_meta(meta, options or {}, time_s, name, header_index + 1)
-    locate = _CsvLocator(name, key_lines, row_lines,
-                         {"dtheta_rad": plan.gyro.names, "dv_mps": plan.accel.names})
+    locate = _CsvLocator(
+        name, key_lines, row_lines, {"dtheta_rad": plan.gyro.names, "dv_mps": plan.accel.names}
+    )
     _check_meta(meta, locate)
     dt = 1.0 / _meta_float(meta, "sample_rate_hz", name)
-    run = Run(time_s=time_s,
-              dtheta_rad=np.ascontiguousarray(to_increments(data[:, 1:4], plan.gyro, time_s, dt)),
-              dv_mps=np.ascontiguousarray(to_increments(data[:, 4:7], plan.accel, time_s, dt)),
-              meta=meta,
-              gimbal_deg=np.ascontiguousarray(data[:, 7:10]) if has_gimbal else None,
-              source=name)
+    run = Run(
+        time_s=time_s,
+        dtheta_rad=np.ascontiguousarray(to_increments(data[:, 1:4], plan.gyro, time_s, dt)),
+        dv_mps=np.ascontiguousarray(to_increments(data[:, 4:7], plan.accel, time_s, dt)),
+        meta=meta,
+        gimbal_deg=np.ascontiguousarray(data[:, 7:10]) if has_gimbal else None,
+        source=name,
+    )
     # The clock the checks found goes with the run: clock.settle does not find it again.
     return replace(run, clock=_check_samples(run, locate, allow_gaps))
 
@@ -541,18 +604,21 @@ def _to_commas(lines: list[str], header_index: int, name: str) -> list[str]:
     sep = next((c for c in (";", "\t") if c in header), None)
     if sep is None:
         return lines
-    body = lines[header_index + 1:]
+    body = lines[header_index + 1 :]
     decimal_commas = sep == ";" and any("," in row for row in body[:100])
     if decimal_commas:
         body = [row.replace(",", ".") for row in body]
     import warnings
-    warnings.warn(f"{name}: fields separated by {'tabs' if sep == chr(9) else repr(sep)}"
-                  f"{' with decimal commas' if decimal_commas else ''}; read as such", stacklevel=3)
+
+    warnings.warn(
+        f"{name}: fields separated by {'tabs' if sep == chr(9) else repr(sep)}"
+        f"{' with decimal commas' if decimal_commas else ''}; read as such",
+        stacklevel=3,
+    )
     return lines[:header_index] + [row.replace(sep, ",") for row in [header] + body]
 
 
-def _fill_meta(meta: dict[str, str], options: dict, time_s: np.ndarray, name: str,
-               header_line: int) -> None:
+def _fill_meta(meta: dict[str, str], options: dict, time_s: np.ndarray, name: str, header_line: int) -> None:
     """Site keys from options; for a logger's file (no format line) also format and rate.
 
     A file declaring ``imu-run/1`` keeps the contract of files.md: its sample rate
@@ -568,8 +634,11 @@ def _fill_meta(meta: dict[str, str], options: dict, time_s: np.ndarray, name: st
             except ValueError:
                 same = False
             if not same:
-                raise CalibError(f"the file says {key} = {meta[key]} but the option gives "
-                                 f"{value:g}", name, "drop the option, or correct the file")
+                raise CalibError(
+                    f"the file says {key} = {meta[key]} but the option gives {value:g}",
+                    name,
+                    "drop the option, or correct the file",
+                )
             continue
         meta[key] = repr(float(value))
     if "format" in meta:
@@ -582,12 +651,17 @@ def _fill_meta(meta: dict[str, str], options: dict, time_s: np.ndarray, name: st
             meta["sample_rate_hz"] = repr(float(f"{1.0 / step:.9g}"))
     missing = [k for k in REQUIRED_META[1:] if k not in meta]
     if missing:
-        options_hint = {"latitude_deg": "--latitude DEG", "height_m": "--height M",
-                        "sample_rate_hz": "a time_s column that increases"}
+        options_hint = {
+            "latitude_deg": "--latitude DEG",
+            "height_m": "--height M",
+            "sample_rate_hz": "a time_s column that increases",
+        }
         raise CalibError(
-            "the file lacks " + ", ".join(f"'{k}'" for k in missing), f"{name}, line {header_line}",
+            "the file lacks " + ", ".join(f"'{k}'" for k in missing),
+            f"{name}, line {header_line}",
             "give " + ", ".join(options_hint[k] for k in missing) + ", or write them above the "
-            "header, e.g. '# latitude_deg: 51.08', '# height_m: 1100', '# sample_rate_hz: 100'")
+            "header, e.g. '# latitude_deg: 51.08', '# height_m: 1100', '# sample_rate_hz: 100'",
+        )
 
 
 def _decode_lines(data: bytes, name: str) -> list[str]:
@@ -598,13 +672,17 @@ def _decode_lines(data: bytes, name: str) -> list[str]:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
         line = data.count(b"\n", 0, exc.start) + 1
-        raise CalibError(f"byte 0x{data[exc.start]:02x} is not valid UTF-8 "
-                         f"(byte offset {exc.start})", f"{name}, line {line}",
-                         "save the file as UTF-8") from None
+        raise CalibError(
+            f"byte 0x{data[exc.start]:02x} is not valid UTF-8 (byte offset {exc.start})",
+            f"{name}, line {line}",
+            "save the file as UTF-8",
+        ) from None
     if not text.strip():
-        raise CalibError("the file is empty", name,
-                         f"a run log starts with '# format: {FORMAT}', metadata, "
-                         "a header row and one row per sample")
+        raise CalibError(
+            "the file is empty",
+            name,
+            f"a run log starts with '# format: {FORMAT}', metadata, a header row and one row per sample",
+        )
     if "\r" in text:
         text = text.replace("\r\n", "\n")
     return text.split("\n")
@@ -635,20 +713,23 @@ def _parse_preamble(lines: list[str], name: str) -> tuple[dict[str, str], dict[s
             continue  # a plain comment line
         key = key.strip()
         if not key:
-            raise CalibError("metadata line has no key before ':'",
-                             f"{name}, line {index + 1}", "write '# key: value'")
+            raise CalibError(
+                "metadata line has no key before ':'", f"{name}, line {index + 1}", "write '# key: value'"
+            )
         if key in meta:
-            raise CalibError(f"metadata key '{key}' appears twice (first on line "
-                             f"{key_lines[key]})", f"{name}, line {index + 1}",
-                             "keep one of the two lines")
+            raise CalibError(
+                f"metadata key '{key}' appears twice (first on line {key_lines[key]})",
+                f"{name}, line {index + 1}",
+                "keep one of the two lines",
+            )
         meta[key] = value.strip()
         key_lines[key] = index + 1
-    raise CalibError("no header row after the metadata", name,
-                     "add the header row: " + ",".join(REQUIRED_COLUMNS))
+    raise CalibError(
+        "no header row after the metadata", name, "add the header row: " + ",".join(REQUIRED_COLUMNS)
+    )
 
 
-def _parse_header(line: str, line_number: int,
-                  name: str) -> tuple[ColumnPlan, bool, dict[str, int]]:
+def _parse_header(line: str, line_number: int, name: str) -> tuple[ColumnPlan, bool, dict[str, int]]:
     """The columns of the header row (grammar of :mod:`calib.columns`) and the gimbal's."""
     names = [c.strip() for c in line.split(",")]
     where = f"{name}, line {line_number}"
@@ -656,15 +737,19 @@ def _parse_header(line: str, line_number: int,
     positions: dict[str, int] = {}
     for position, column in enumerate(names):
         if column in positions and column in GIMBAL_COLUMNS:
-            raise CalibError(f"column '{column}' appears twice in the header", where,
-                             "keep one of the two columns")
+            raise CalibError(
+                f"column '{column}' appears twice in the header", where, "keep one of the two columns"
+            )
         positions.setdefault(column, position)
     gimbal = [c for c in GIMBAL_COLUMNS if c in positions]
     if gimbal and len(gimbal) < 3:
         absent = [c for c in GIMBAL_COLUMNS if c not in positions]
-        raise CalibError(f"header row has gimbal column{'s' if len(gimbal) > 1 else ''} "
-                         f"{', '.join(gimbal)} but lacks {', '.join(absent)}", where,
-                         "give all three of " + ",".join(GIMBAL_COLUMNS) + " or none")
+        raise CalibError(
+            f"header row has gimbal column{'s' if len(gimbal) > 1 else ''} "
+            f"{', '.join(gimbal)} but lacks {', '.join(absent)}",
+            where,
+            "give all three of " + ",".join(GIMBAL_COLUMNS) + " or none",
+        )
     return plan, bool(gimbal), positions
 
 
@@ -680,25 +765,26 @@ def _data_rows(lines: list[str], first: int) -> tuple[list[str], np.ndarray]:
     return [line for line, k in zip(body, keep.tolist()) if k], numbers
 
 
-def _check_field_counts(rows: list[str], row_lines: np.ndarray, n_fields: int,
-                        name: str) -> None:
+def _check_field_counts(rows: list[str], row_lines: np.ndarray, n_fields: int, name: str) -> None:
     """Refuse rows whose field count differs from the header's."""
     commas = np.fromiter((row.count(",") for row in rows), dtype=np.int64, count=len(rows))
     bad = np.flatnonzero(commas != n_fields - 1)
     if bad.size:
         i = int(bad[0])
         more = f" ({bad.size} such rows in all)" if bad.size > 1 else ""
-        raise CalibError(f"row has {commas[i] + 1} fields, the header has {n_fields}{more}",
-                         f"{name}, line {int(row_lines[i])} (sample {i})",
-                         "every data row needs one value per header column")
+        raise CalibError(
+            f"row has {commas[i] + 1} fields, the header has {n_fields}{more}",
+            f"{name}, line {int(row_lines[i])} (sample {i})",
+            "every data row needs one value per header column",
+        )
 
 
-def _parse_numbers(rows: list[str], row_lines: np.ndarray, wanted: list[int],
-                   names: list[str], name: str) -> np.ndarray:
+def _parse_numbers(
+    rows: list[str], row_lines: np.ndarray, wanted: list[int], names: list[str], name: str
+) -> np.ndarray:
     """Parse the wanted columns as float64, fast; on failure find and name the bad field."""
     try:
-        data = np.loadtxt(rows, delimiter=",", comments=None, dtype=np.float64,
-                          usecols=wanted, ndmin=2)
+        data = np.loadtxt(rows, delimiter=",", comments=None, dtype=np.float64, usecols=wanted, ndmin=2)
     except ValueError:
         data = None
     if data is not None and data.shape == (len(rows), len(wanted)):
@@ -706,8 +792,9 @@ def _parse_numbers(rows: list[str], row_lines: np.ndarray, wanted: list[int],
     return _parse_numbers_slowly(rows, row_lines, wanted, names, name)
 
 
-def _parse_numbers_slowly(rows: list[str], row_lines: np.ndarray, wanted: list[int],
-                          names: list[str], name: str) -> np.ndarray:
+def _parse_numbers_slowly(
+    rows: list[str], row_lines: np.ndarray, wanted: list[int], names: list[str], name: str
+) -> np.ndarray:
     """Field-by-field parse: slow, but it can say exactly which field is bad."""
     data = np.empty((len(rows), len(wanted)))
     for i, row in enumerate(rows):
@@ -716,10 +803,11 @@ def _parse_numbers_slowly(rows: list[str], row_lines: np.ndarray, wanted: list[i
             try:
                 data[i, j] = float(fields[position])
             except ValueError:
-                raise CalibError(f"field {fields[position].strip()!r} is not a number",
-                                 f"{name}, line {int(row_lines[i])}, column "
-                                 f"{names[position]} (sample {i})",
-                                 "write plain decimal numbers such as 1.5e-07") from None
+                raise CalibError(
+                    f"field {fields[position].strip()!r} is not a number",
+                    f"{name}, line {int(row_lines[i])}, column {names[position]} (sample {i})",
+                    "write plain decimal numbers such as 1.5e-07",
+                ) from None
     return data
 
 
@@ -743,12 +831,16 @@ def _format_csv(run: Run) -> str:
 def _check_meta_writable_as_csv(meta: dict[str, str], name: str) -> None:
     """Refuse metadata that would not read back the same from '# key: value' lines."""
     for key, value in meta.items():
-        if (not key or key != key.strip() or ":" in key or "\n" in key or "\r" in key):
-            raise CalibError(f"metadata key {key!r} cannot be written as '# key: value'",
-                             name, "use keys without ':', line breaks or surrounding spaces")
+        if not key or key != key.strip() or ":" in key or "\n" in key or "\r" in key:
+            raise CalibError(
+                f"metadata key {key!r} cannot be written as '# key: value'",
+                name,
+                "use keys without ':', line breaks or surrounding spaces",
+            )
         if "\n" in value or "\r" in value:
-            raise CalibError(f"metadata '{key}' contains a line break", name,
-                             "keep metadata values on one line")
+            raise CalibError(
+                f"metadata '{key}' contains a line break", name, "keep metadata values on one line"
+            )
 
 
 # --------------------------------------------------------------------------
@@ -762,9 +854,21 @@ _NPZ_ARRAYS = ("time_s", "dtheta_rad", "dv_mps")
 # LZMAError a damaged LZMA member, MemoryError a header that declares a huge shape;
 # numpy parses the .npy header as a Python literal, which adds TokenError,
 # SyntaxError, TypeError (e.g. an unhashable key) and RecursionError.
-_ARCHIVE_ERRORS = (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error,
-                   RuntimeError, lzma.LZMAError, MemoryError, tokenize.TokenError,
-                   SyntaxError, TypeError, RecursionError)
+_ARCHIVE_ERRORS = (
+    OSError,
+    ValueError,
+    EOFError,
+    KeyError,
+    zipfile.BadZipFile,
+    zlib.error,
+    RuntimeError,
+    lzma.LZMAError,
+    MemoryError,
+    tokenize.TokenError,
+    SyntaxError,
+    TypeError,
+    RecursionError,
+)
 
 # How a zip archive (empty or not) and a single .npy array start.
 _ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
@@ -782,9 +886,14 @@ def _read_npz(path: str | os.PathLike, allow_gaps: bool) -> Run:
         _check_array_shape(array, array_name, n, f"{name}, array '{array_name}'")
     with np.errstate(over="ignore"):  # e.g. longdouble beyond float64: inf, refused below
         as_float = {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in arrays.items()}
-    run = Run(time_s=as_float["time_s"], dtheta_rad=as_float["dtheta_rad"],
-              dv_mps=as_float["dv_mps"], meta=meta, gimbal_deg=as_float.get("gimbal_deg"),
-              source=name)
+    run = Run(
+        time_s=as_float["time_s"],
+        dtheta_rad=as_float["dtheta_rad"],
+        dv_mps=as_float["dv_mps"],
+        meta=meta,
+        gimbal_deg=as_float.get("gimbal_deg"),
+        source=name,
+    )
     locate = _ArrayLocator(name)
     _check_meta(meta, locate)
     return replace(run, clock=_check_samples(run, locate, allow_gaps))
@@ -797,20 +906,23 @@ def _load_npz_arrays(path: str | os.PathLike, name: str) -> dict[str, np.ndarray
     try:
         handle = open(path, "rb")
     except OSError as exc:
-        raise CalibError(f"cannot read the file: {exc.strerror or exc}", name,
-                         "check the path and permissions") from None
+        raise CalibError(
+            f"cannot read the file: {exc.strerror or exc}", name, "check the path and permissions"
+        ) from None
     with handle:
         try:
             head = handle.read(len(_NPY_MAGIC))
             handle.seek(0)
         except OSError as exc:
-            raise CalibError(f"cannot read the file: {exc.strerror or exc}", name,
-                             "check the path and permissions") from None
+            raise CalibError(
+                f"cannot read the file: {exc.strerror or exc}", name, "check the path and permissions"
+            ) from None
         if not head:
             raise CalibError("not a readable NPZ archive: the file is empty", name, fix)
         if not head.startswith(_ZIP_MAGIC) and not head.startswith(_NPY_MAGIC):
-            raise CalibError("not a readable NPZ archive: the file does not start with a "
-                             "zip signature", name, fix)
+            raise CalibError(
+                "not a readable NPZ archive: the file does not start with a zip signature", name, fix
+            )
         try:
             archive = np.load(handle, allow_pickle=False)
         except _ARCHIVE_ERRORS as exc:
@@ -821,10 +933,12 @@ def _load_npz_arrays(path: str | os.PathLike, name: str) -> dict[str, np.ndarray
             present = set(archive.files)
             missing = [a for a in (*_NPZ_ARRAYS, "meta") if a not in present]
             if missing:
-                raise CalibError(f"archive lacks array{'s' if len(missing) > 1 else ''} "
-                                 f"{', '.join(repr(m) for m in missing)}", name,
-                                 "store time_s, dtheta_rad, dv_mps and meta "
-                                 "(see docs/formats.md)")
+                raise CalibError(
+                    f"archive lacks array{'s' if len(missing) > 1 else ''} "
+                    f"{', '.join(repr(m) for m in missing)}",
+                    name,
+                    "store time_s, dtheta_rad, dv_mps and meta (see docs/formats.md)",
+                )
             arrays = {}
             for a in (*_NPZ_ARRAYS, "gimbal_deg", "meta"):
                 if a not in present:
@@ -832,13 +946,15 @@ def _load_npz_arrays(path: str | os.PathLike, name: str) -> dict[str, np.ndarray
                 try:
                     arrays[a] = archive[a]
                 except _ARCHIVE_ERRORS as exc:
-                    raise CalibError(f"cannot read the archive member: {exc}",
-                                     f"{name}, array '{a}'", fix) from None
+                    raise CalibError(
+                        f"cannot read the archive member: {exc}", f"{name}, array '{a}'", fix
+                    ) from None
     for a, array in arrays.items():
         # numpy hands back the raw bytes of a member that is not in .npy format.
         if not isinstance(array, np.ndarray):
-            raise CalibError(f"archive member '{a}.npy' is not a numpy array (.npy format)",
-                             f"{name}, array '{a}'", fix)
+            raise CalibError(
+                f"archive member '{a}.npy' is not a numpy array (.npy format)", f"{name}, array '{a}'", fix
+            )
     return arrays
 
 
@@ -847,8 +963,9 @@ def _parse_npz_meta(array: np.ndarray, name: str) -> dict[str, str]:
     where = f"{name}, array 'meta'"
     fix = "store meta as a JSON object string, e.g. json.dumps(run.meta)"
     if array.size != 1 or array.dtype.kind not in "US":
-        raise CalibError(f"meta is a {array.dtype} array of shape {array.shape}, "
-                         "not one JSON string", where, fix)
+        raise CalibError(
+            f"meta is a {array.dtype} array of shape {array.shape}, not one JSON string", where, fix
+        )
     text = array.reshape(()).item()
     if isinstance(text, bytes):
         try:
@@ -858,11 +975,11 @@ def _parse_npz_meta(array: np.ndarray, name: str) -> dict[str, str]:
     try:
         raw = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise CalibError(f"meta is not valid JSON ({exc.msg} at line {exc.lineno}, "
-                         f"column {exc.colno})", where, fix) from None
+        raise CalibError(
+            f"meta is not valid JSON ({exc.msg} at line {exc.lineno}, column {exc.colno})", where, fix
+        ) from None
     except ValueError as exc:  # e.g. an integer of more than 4300 digits
-        raise CalibError(f"meta is not valid JSON ({str(exc).split(';')[0]})", where,
-                         fix) from None
+        raise CalibError(f"meta is not valid JSON ({str(exc).split(';')[0]})", where, fix) from None
     except RecursionError:
         raise CalibError("meta is not valid JSON (nested too deeply)", where, fix) from None
     if not isinstance(raw, dict):
@@ -875,17 +992,20 @@ def _parse_npz_meta(array: np.ndarray, name: str) -> dict[str, str]:
             # Other programs may store numbers as numbers; keep them exactly.
             meta[key] = repr(value)
         else:
-            raise CalibError(f"meta value {value!r} is neither a string nor a number",
-                             f"{name}, meta key '{key}'", fix)
+            raise CalibError(
+                f"meta value {value!r} is neither a string nor a number", f"{name}, meta key '{key}'", fix
+            )
     return meta
 
 
 def _format_npz(run: Run) -> bytes:
     """The bytes of an uncompressed NPZ archive of the run."""
-    arrays = {"time_s": np.asarray(run.time_s, dtype=np.float64),
-              "dtheta_rad": np.asarray(run.dtheta_rad, dtype=np.float64),
-              "dv_mps": np.asarray(run.dv_mps, dtype=np.float64),
-              "meta": np.array(json.dumps(run.meta, ensure_ascii=False))}
+    arrays = {
+        "time_s": np.asarray(run.time_s, dtype=np.float64),
+        "dtheta_rad": np.asarray(run.dtheta_rad, dtype=np.float64),
+        "dv_mps": np.asarray(run.dv_mps, dtype=np.float64),
+        "meta": np.array(json.dumps(run.meta, ensure_ascii=False)),
+    }
     if run.gimbal_deg is not None:
         arrays["gimbal_deg"] = np.asarray(run.gimbal_deg, dtype=np.float64)
     buffer = io.BytesIO()

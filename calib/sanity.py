@@ -5,6 +5,7 @@ for m/s^2, clipped samples or a base that moved. Each of these would give
 numbers that look valid and are not; each is refused here with what was
 seen, where, and the likely cause.
 """
+
 from __future__ import annotations
 
 import math
@@ -24,8 +25,6 @@ STILL_RELATIVE = 1e-9  # changes below this fraction of a sensor's peak reading 
 REST_NOISE_FACTOR = 20.0  # a rest whose specific force varies 20x more than the noise moved
 
 
-
-
 def row_norm(a: np.ndarray) -> np.ndarray:
     """``|a_i|`` of each row of an ``(n, 3)`` array.
 
@@ -40,10 +39,13 @@ def row_norm(a: np.ndarray) -> np.ndarray:
 def check_latitude(latitude_rad: float, where: str) -> None:
     """Refuse a site at the poles: the Earth rate there has no horizontal part to find north by."""
     if abs(math.degrees(latitude_rad)) > MAX_LATITUDE_DEG:
-        raise CalibError(f"latitude {math.degrees(latitude_rad):.3f} deg is within "
-                         f"{90 - MAX_LATITUDE_DEG:g} deg of a pole", where,
-                         "stationary self-calibration needs the Earth rate's horizontal part "
-                         "(W cos L) to find the heading; check the latitude_deg metadata")
+        raise CalibError(
+            f"latitude {math.degrees(latitude_rad):.3f} deg is within "
+            f"{90 - MAX_LATITUDE_DEG:g} deg of a pole",
+            where,
+            "stationary self-calibration needs the Earth rate's horizontal part "
+            "(W cos L) to find the heading; check the latitude_deg metadata",
+        )
 
 
 def check_rates(dtheta: np.ndarray, dt: np.ndarray, where: str) -> None:
@@ -53,9 +55,11 @@ def check_rates(dtheta: np.ndarray, dt: np.ndarray, where: str) -> None:
     if peak > MAX_PLAUSIBLE_RATE:
         k = int(np.argmax(rate))
         raise CalibError(
-            f"gyro increments imply {peak:.3g} rad/s at sample {k}, beyond any gimbal", where,
+            f"gyro increments imply {peak:.3g} rad/s at sample {k}, beyond any gimbal",
+            where,
             "dtheta columns must be angle increments in rad: degrees (x57) or rates "
-            f"instead of increments (x{1 / np.median(dt):.0f}) give this")
+            f"instead of increments (x{1 / np.median(dt):.0f}) give this",
+        )
 
 
 # A unit's biases before calibration are at most this many times what its calibration must
@@ -64,8 +68,9 @@ def check_rates(dtheta: np.ndarray, dt: np.ndarray, where: str) -> None:
 CLASS_FACTOR = 100.0
 
 
-def check_rest_rate(dtheta: np.ndarray, dt: np.ndarray, rest: slice, where: str,
-                    gyro_bias_requirement: float = 0.0) -> None:
+def check_rest_rate(
+    dtheta: np.ndarray, dt: np.ndarray, rest: slice, where: str, gyro_bias_requirement: float = 0.0
+) -> None:
     """Refuse a first rest whose mean rate is far beyond Earth rate plus any plausible bias.
 
     The plausible bias follows the unit's class: ``CLASS_FACTOR`` times its
@@ -73,14 +78,17 @@ def check_rest_rate(dtheta: np.ndarray, dt: np.ndarray, rest: slice, where: str,
     """
     w = float(np.linalg.norm(dtheta[rest].sum(axis=0)) / dt[rest].sum())
     if w > max(MAX_REST_RATE, CLASS_FACTOR * gyro_bias_requirement):
-        raise CalibError(f"the gyros read {w:.3g} rad/s at the first rest, {w / 7.292115e-5:.0f}x "
-                         "the Earth rate", where,
-                         "dtheta must be in rad: degrees (x57) give this, as do rates logged "
-                         "as increments or a base that turns")
+        raise CalibError(
+            f"the gyros read {w:.3g} rad/s at the first rest, {w / 7.292115e-5:.0f}x the Earth rate",
+            where,
+            "dtheta must be in rad: degrees (x57) give this, as do rates logged "
+            "as increments or a base that turns",
+        )
 
 
-def check_gravity(dv: np.ndarray, dt: np.ndarray, rest: slice, gravity_mps2: float,
-                  where: str, accel_class: float = 0.0) -> None:
+def check_gravity(
+    dv: np.ndarray, dt: np.ndarray, rest: slice, gravity_mps2: float, where: str, accel_class: float = 0.0
+) -> None:
     """Refuse dv in g, specific force for increments, or a site gravity far from the data.
 
     ``accel_class`` is the unit's plausible relative error of a specific force
@@ -97,11 +105,16 @@ def check_gravity(dv: np.ndarray, dt: np.ndarray, rest: slice, gravity_mps2: flo
         elif abs(ratio / fs - 1.0) < 0.1:
             cause = "the dv columns look like specific force (m/s^2), not increments (m/s)"
         else:
-            cause = ("check the units of dv, the gravity_mps2/latitude/height metadata, "
-                     "and that the IMU was at rest")
-        raise CalibError(f"specific force at the first rest is {f:.6g} m/s^2 but gravity at the "
-                         f"site is {gravity_mps2:.6g} m/s^2 ({100 * (ratio - 1):+.2f} %)", where,
-                         cause)
+            cause = (
+                "check the units of dv, the gravity_mps2/latitude/height metadata, "
+                "and that the IMU was at rest"
+            )
+        raise CalibError(
+            f"specific force at the first rest is {f:.6g} m/s^2 but gravity at the "
+            f"site is {gravity_mps2:.6g} m/s^2 ({100 * (ratio - 1):+.2f} %)",
+            where,
+            cause,
+        )
 
 
 def runs_of(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -127,13 +140,12 @@ def _still_level(data: np.ndarray, peaks: np.ndarray) -> float | None:
     # Largest |second difference| of the three channels per sample, a block at a time.
     d2max = np.empty(n - 2)
     for a in range(0, n - 2, MOTION_BLOCK):
-        d2 = np.abs(np.diff(data[a:a + MOTION_BLOCK + 2], 2, axis=0))
-        d2max[a:a + len(d2)] = np.maximum(np.maximum(d2[:, 0], d2[:, 1]), d2[:, 2])
+        d2 = np.abs(np.diff(data[a : a + MOTION_BLOCK + 2], 2, axis=0))
+        d2max[a : a + len(d2)] = np.maximum(np.maximum(d2[:, 0], d2[:, 1]), d2[:, 2])
     return None if np.median(d2max) <= still else still
 
 
-def _saturated_stretch(data: np.ndarray, axis: int, peak: float,
-                       still: float) -> tuple[int, int] | None:
+def _saturated_stretch(data: np.ndarray, axis: int, peak: float, still: float) -> tuple[int, int] | None:
     """The first stretch where channel ``axis`` is pinned at its extreme while the sensor moves.
 
     A clipped channel sits at its range limit while the true signal goes on:
@@ -172,11 +184,13 @@ def check_saturation(dtheta: np.ndarray, dv: np.ndarray, where: str) -> None:
             if found is None:
                 continue
             a, b = found
-            raise CalibError(f"{name}_{'xyz'[axis]} is stuck at {data[a, axis]:.6g}, its extreme, "
-                             f"for {b - a} consecutive samples from sample {a} while the other "
-                             f"{name} channels change", where,
-                             "the sensor saturated (clipped at its range) or the logger "
-                             "repeated one channel")
+            raise CalibError(
+                f"{name}_{'xyz'[axis]} is stuck at {data[a, axis]:.6g}, its extreme, "
+                f"for {b - a} consecutive samples from sample {a} while the other "
+                f"{name} channels change",
+                where,
+                "the sensor saturated (clipped at its range) or the logger repeated one channel",
+            )
 
 
 @dataclass(frozen=True)
@@ -210,8 +224,9 @@ class MotionDiagnosis:
     sway_rate_arcsec_s: np.ndarray
 
 
-def diagnose_motion(dtheta: np.ndarray, dt: np.ndarray, flip_rate: float,
-                    window_s: float = 1.0) -> MotionDiagnosis:
+def diagnose_motion(
+    dtheta: np.ndarray, dt: np.ndarray, flip_rate: float, window_s: float = 1.0
+) -> MotionDiagnosis:
     """Whether a log flips, and how much its base sways.
 
     A flip turns the IMU by tens of degrees at degrees per second; a swaying
@@ -240,17 +255,15 @@ def diagnose_motion(dtheta: np.ndarray, dt: np.ndarray, flip_rate: float,
     # the sway block by block: memory stays at one block, whatever the length of the log.
     angle_end, clock_end = np.zeros(3), 0.0
     for a in range(0, n, MOTION_BLOCK):
-        angle_end = _carried_cumsum(dtheta[a:a + MOTION_BLOCK].T, angle_end)[:, -1]
-        clock_end = float(_carried_cumsum(dt[a:a + MOTION_BLOCK], clock_end)[-1])
+        angle_end = _carried_cumsum(dtheta[a : a + MOTION_BLOCK].T, angle_end)[:, -1]
+        clock_end = float(_carried_cumsum(dt[a : a + MOTION_BLOCK], clock_end)[-1])
     mean = angle_end / clock_end
     max_mean, square_sum = 0.0, np.zeros(3)
     low, high = np.zeros(3), np.zeros(3)  # sway is 0 at the start
     tail_angle, tail_clock = np.zeros((3, 1)), np.zeros(1)  # the w samples before a block
     for a in range(0, n, MOTION_BLOCK):
-        angle = np.hstack([tail_angle, _carried_cumsum(dtheta[a:a + MOTION_BLOCK].T,
-                                                       tail_angle[:, -1])])
-        clock = np.concatenate([tail_clock, _carried_cumsum(dt[a:a + MOTION_BLOCK],
-                                                            tail_clock[-1])])
+        angle = np.hstack([tail_angle, _carried_cumsum(dtheta[a : a + MOTION_BLOCK].T, tail_angle[:, -1])])
+        clock = np.concatenate([tail_clock, _carried_cumsum(dt[a : a + MOTION_BLOCK], tail_clock[-1])])
         new = slice(len(tail_clock), None)
         sway = angle[:, new] - mean[:, None] * clock[new]
         low, high = np.minimum(low, sway.min(axis=1)), np.maximum(high, sway.max(axis=1))
@@ -262,11 +275,16 @@ def diagnose_motion(dtheta: np.ndarray, dt: np.ndarray, flip_rate: float,
     arcsec = math.degrees(1.0) * 3600.0
     return MotionDiagnosis(
         has_flip=max_mean > flip_rate,
-        max_rate_rad_s=max(float(np.max(row_norm(dtheta[a:a + MOTION_BLOCK])
-                                        / dt[a:a + MOTION_BLOCK])) for a in range(0, n, MOTION_BLOCK)),
-        max_mean_rate_rad_s=max_mean, window_s=_window_s(dt, w),
-        mean_rate_rad_s=mean, sway_arcsec=0.5 * (high - low) * arcsec,
-        sway_rate_arcsec_s=np.sqrt(square_sum / max(1, n + 1 - w)) * arcsec)
+        max_rate_rad_s=max(
+            float(np.max(row_norm(dtheta[a : a + MOTION_BLOCK]) / dt[a : a + MOTION_BLOCK]))
+            for a in range(0, n, MOTION_BLOCK)
+        ),
+        max_mean_rate_rad_s=max_mean,
+        window_s=_window_s(dt, w),
+        mean_rate_rad_s=mean,
+        sway_arcsec=0.5 * (high - low) * arcsec,
+        sway_rate_arcsec_s=np.sqrt(square_sum / max(1, n + 1 - w)) * arcsec,
+    )
 
 
 def _carried_cumsum(x: np.ndarray, start) -> np.ndarray:
@@ -292,9 +310,11 @@ def never_rotates(motion: MotionDiagnosis, flip_rate: float, where: str) -> Cali
         f"a flip turns faster than {math.degrees(flip_rate):.2f} deg/s); the base sways by "
         f"+-{motion.sway_arcsec[k]:.3g} arcsec about {'xyz'[k]} ({motion.sway_rate_arcsec_s[k]:.3g} "
         f"arcsec/s RMS over {motion.window_s:.3g} s; single samples reach "
-        f"{math.degrees(motion.max_rate_rad_s):.3g} deg/s)", where,
+        f"{math.degrees(motion.max_rate_rad_s):.3g} deg/s)",
+        where,
         "a calibration run must flip the IMU; a static log like this one serves noise "
-        "analysis (Allan deviation), not calibration")
+        "analysis (Allan deviation), not calibration",
+    )
 
 
 def _row_median(x: np.ndarray) -> np.ndarray:
@@ -309,8 +329,9 @@ def _row_median(x: np.ndarray) -> np.ndarray:
     return np.partition(x, k, axis=-1)[..., k]
 
 
-def check_rests(dv: np.ndarray, dt: np.ndarray, moving: np.ndarray, vrw: float, where: str,
-                window: int = 50) -> None:
+def check_rests(
+    dv: np.ndarray, dt: np.ndarray, moving: np.ndarray, vrw: float, where: str, window: int = 50
+) -> None:
     """Refuse a rest whose specific force varies far more than the noise allows.
 
     Each rest is cut into windows of ``window`` samples; in each, the spread of
@@ -325,8 +346,9 @@ def check_rests(dv: np.ndarray, dt: np.ndarray, moving: np.ndarray, vrw: float, 
         if n == 0:
             continue
         # (window, axis, sample) with the samples contiguous: the medians run along rows.
-        f = np.ascontiguousarray((dv[a:a + n * window] / dt[a:a + n * window, None])
-                                 .reshape(n, window, 3).transpose(0, 2, 1))
+        f = np.ascontiguousarray(
+            (dv[a : a + n * window] / dt[a : a + n * window, None]).reshape(n, window, 3).transpose(0, 2, 1)
+        )
         d = np.diff(f, axis=2)
         spread = _row_median(np.abs(d - _row_median(d)[..., None])) / 0.6745
         spread = spread.max(axis=1) / math.sqrt(2.0)
@@ -337,5 +359,7 @@ def check_rests(dv: np.ndarray, dt: np.ndarray, moving: np.ndarray, vrw: float, 
             raise CalibError(
                 f"rest {number} ({t[a] - dt[a]:.1f}-{t[b - 1]:.1f} s) is not at rest: from "
                 f"{t0:.1f} s the specific force varies by {spread[k]:.3g} m/s^2 per sample "
-                f"against {expected:.3g} from the noise profile", where,
-                "the base moved or vibrated; or the noise profile is far too optimistic")
+                f"against {expected:.3g} from the noise profile",
+                where,
+                "the base moved or vibrated; or the noise profile is far too optimistic",
+            )

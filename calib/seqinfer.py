@@ -8,6 +8,7 @@ with the sequence it is given, or with the one inferred here when every
 rest is within :data:`SNAP_DEG` of a grid attitude and every flip turns
 about one body axis by a multiple of 90 degrees.
 """
+
 from __future__ import annotations
 
 import math
@@ -33,8 +34,9 @@ def _snap(C: np.ndarray, max_deg: float = SNAP_DEG) -> np.ndarray | None:
     return S if cos_angle >= math.cos(math.radians(max_deg)) else None
 
 
-def infer_sequence(C_b_n: np.ndarray, dtheta: np.ndarray, moving: np.ndarray,
-                   dt: np.ndarray, name: str = "inferred") -> Sequence | None:
+def infer_sequence(
+    C_b_n: np.ndarray, dtheta: np.ndarray, moving: np.ndarray, dt: np.ndarray, name: str = "inferred"
+) -> Sequence | None:
     """A :class:`Sequence` whose rests and flips are the log's, on the grid; None if off it.
 
     Parameters
@@ -53,8 +55,11 @@ def infer_sequence(C_b_n: np.ndarray, dtheta: np.ndarray, moving: np.ndarray,
     turns = list(zip(*runs_of(moving)))
     if not turns:
         return None
-    rests = [(0, turns[0][0])] + [(a[1], b[0]) for a, b in zip(turns[:-1], turns[1:])] \
+    rests = (
+        [(0, turns[0][0])]
+        + [(a[1], b[0]) for a, b in zip(turns[:-1], turns[1:])]
         + [(turns[-1][1], len(moving))]
+    )
     # Rests relative to the first one (the alignment's heading error cancels), snapped to the
     # grid; the first one itself to the nearest grid attitude, whatever its heading error.
     first = C_b_n[(rests[0][0] + rests[0][1]) // 2]
@@ -65,13 +70,21 @@ def infer_sequence(C_b_n: np.ndarray, dtheta: np.ndarray, moving: np.ndarray,
     grid = [start @ r for r in relative]
     steps = []
     for k, (a, b) in enumerate(turns):
-        step = _flip(grid[k].T @ grid[k + 1], np.sum(dtheta[a:b], axis=0), float(np.sum(dt[a:b])),
-                     float(np.sum(dt[rests[k + 1][0]:rests[k + 1][1]])))
+        step = _flip(
+            grid[k].T @ grid[k + 1],
+            np.sum(dtheta[a:b], axis=0),
+            float(np.sum(dt[a:b])),
+            float(np.sum(dt[rests[k + 1][0] : rests[k + 1][1]])),
+        )
         if step is None:
             return None
         steps.append(step)
-    return Sequence(name=name, start=directions_of(grid[0]), steps=tuple(steps),
-                    initial_dwell_s=float(np.sum(dt[:rests[0][1]])))
+    return Sequence(
+        name=name,
+        start=directions_of(grid[0]),
+        steps=tuple(steps),
+        initial_dwell_s=float(np.sum(dt[: rests[0][1]])),
+    )
 
 
 def _flip(R: np.ndarray, turned: np.ndarray, duration_s: float, dwell_s: float) -> Step | None:

@@ -4,6 +4,7 @@ A sequence file is the TOML of ``docs/formats.md``. In memory a :class:`Sequence
 is expanded into a :class:`Timeline` of segments (rest or constant-rate
 rotation) from which the nominal attitude at any time follows exactly.
 """
+
 from __future__ import annotations
 
 import math
@@ -51,7 +52,8 @@ class Step:
         return RateProfile(
             rate=math.radians(self.rate_dps),
             accel=math.inf if self.accel_dps2 is None else math.radians(self.accel_dps2),
-            jerk=math.inf if self.jerk_dps3 is None else math.radians(self.jerk_dps3))
+            jerk=math.inf if self.jerk_dps3 is None else math.radians(self.jerk_dps3),
+        )
 
     @property
     def duration_s(self) -> float:
@@ -84,13 +86,17 @@ class Sequence:
 
     def with_flip_errors(self, errors_deg: np.ndarray) -> "Sequence":
         """The same sequence with each flip's angle off by ``errors_deg[i]`` (same sign convention)."""
-        steps = tuple(replace(s, angle_deg=s.angle_deg + float(e))
-                      for s, e in zip(self.steps, errors_deg))
+        steps = tuple(replace(s, angle_deg=s.angle_deg + float(e)) for s, e in zip(self.steps, errors_deg))
         return replace(self, steps=steps)
 
     def to_toml_dict(self) -> dict:
-        d = {"format_version": FORMAT_VERSION, "name": self.name, "description": self.description,
-             "start": list(self.start), "initial_dwell_s": self.initial_dwell_s}
+        d = {
+            "format_version": FORMAT_VERSION,
+            "name": self.name,
+            "description": self.description,
+            "start": list(self.start),
+            "initial_dwell_s": self.initial_dwell_s,
+        }
         if self.latitude_deg is not None:
             d["latitude_deg"] = self.latitude_deg
         if self.height_m is not None:
@@ -114,16 +120,30 @@ def _step_dict(s: Step) -> dict:
 # Reading and writing
 
 
-def _number(table: dict, key: str, where: str, default=None, positive=False,
-            nonnegative=False) -> float:
+def _number(table: dict, key: str, where: str, default=None, positive=False, nonnegative=False) -> float:
     """A finite number from a sequence table (the shared validator, :mod:`calib.fields`)."""
-    value = Fields(table, where).number(key, REQUIRED if default is None else float(default),
-                                        positive=positive, low=0.0 if nonnegative else None)
+    value = Fields(table, where).number(
+        key,
+        REQUIRED if default is None else float(default),
+        positive=positive,
+        low=0.0 if nonnegative else None,
+    )
     return float(value)
 
 
-SEQUENCE_KEYS = ("format_version", "name", "description", "start", "initial_dwell_s",
-                 "latitude_deg", "height_m", "step", "provenance", "accel_dps2", "jerk_dps3")
+SEQUENCE_KEYS = (
+    "format_version",
+    "name",
+    "description",
+    "start",
+    "initial_dwell_s",
+    "latitude_deg",
+    "height_m",
+    "step",
+    "provenance",
+    "accel_dps2",
+    "jerk_dps3",
+)
 STEP_KEYS = ("axis", "angle_deg", "rate_dps", "dwell_s", "accel_dps2", "jerk_dps3")
 
 
@@ -135,13 +155,14 @@ def _check_keys(table: dict, known, kind: str, where: str) -> None:
 
 def _profile_keys(table: dict, where: str, default: tuple) -> tuple[float | None, float | None]:
     """``accel_dps2`` and ``jerk_dps3`` of a step (or the file's defaults): None means unlimited."""
-    accel = _number(table, "accel_dps2", where, positive=True) if "accel_dps2" in table \
-        else default[0]
-    jerk = _number(table, "jerk_dps3", where, positive=True) if "jerk_dps3" in table \
-        else default[1]
+    accel = _number(table, "accel_dps2", where, positive=True) if "accel_dps2" in table else default[0]
+    jerk = _number(table, "jerk_dps3", where, positive=True) if "jerk_dps3" in table else default[1]
     if jerk is not None and accel is None:
-        raise CalibError("'jerk_dps3' without 'accel_dps2'", where,
-                         "give the acceleration limit too (an S-curve needs both)")
+        raise CalibError(
+            "'jerk_dps3' without 'accel_dps2'",
+            where,
+            "give the acceleration limit too (an S-curve needs both)",
+        )
     return accel, jerk
 
 
@@ -150,10 +171,11 @@ def sequence_from_dict(doc: dict, where: str) -> Sequence:
     check_format_version(doc, "sequence", where)
     _check_keys(doc, SEQUENCE_KEYS, "sequence", where)
     start = doc.get("start")
-    if (not isinstance(start, list) or len(start) != 3
-            or not all(isinstance(s, str) for s in start)):
-        raise CalibError("'start' must be a list of three directions, e.g. "
-                         "[\"east\", \"up\", \"south\"]", f"{where}: key 'start'")
+    if not isinstance(start, list) or len(start) != 3 or not all(isinstance(s, str) for s in start):
+        raise CalibError(
+            '\'start\' must be a list of three directions, e.g. ["east", "up", "south"]',
+            f"{where}: key 'start'",
+        )
     attitude_from_directions(*start, where=f"{where}: key 'start'")
     name = doc.get("name", Path(where).stem)
     if not isinstance(name, str) or not name:
@@ -166,28 +188,41 @@ def sequence_from_dict(doc: dict, where: str) -> Sequence:
     if "latitude_deg" in doc:
         latitude = _number(doc, "latitude_deg", where)
         if not -90.0 < latitude < 90.0:
-            raise CalibError(f"latitude_deg = {latitude} is outside (-90, 90)",
-                             f"{where}: key 'latitude_deg'")
+            raise CalibError(
+                f"latitude_deg = {latitude} is outside (-90, 90)", f"{where}: key 'latitude_deg'"
+            )
     height = _number(doc, "height_m", where) if "height_m" in doc else None
     if height is not None and not -1000.0 <= height <= 10000.0:
-        raise CalibError(f"height_m = {height} is outside [-1000, 10000] m",
-                         f"{where}: key 'height_m'", "give the ellipsoidal height of the site")
+        raise CalibError(
+            f"height_m = {height} is outside [-1000, 10000] m",
+            f"{where}: key 'height_m'",
+            "give the ellipsoidal height of the site",
+        )
     default_profile = _profile_keys(doc, where, (None, None))
     raw_steps = doc.get("step", [])
     if not isinstance(raw_steps, list):
         raise CalibError("'step' must be an array of tables ([[step]])", where)
-    steps = [_step_from_dict(raw, f"{where}: step {i}", default_profile)
-             for i, raw in enumerate(raw_steps, start=1)]
+    steps = [
+        _step_from_dict(raw, f"{where}: step {i}", default_profile)
+        for i, raw in enumerate(raw_steps, start=1)
+    ]
     if not steps:
         raise CalibError("a sequence needs at least one [[step]]", where)
     provenance = doc.get("provenance", {})
-    seq = Sequence(name=name, start=tuple(s.lower() for s in start), steps=tuple(steps),
-                   initial_dwell_s=initial_dwell, description=description,
-                   latitude_deg=latitude, height_m=height,
-                   provenance=provenance if isinstance(provenance, dict) else {})
+    seq = Sequence(
+        name=name,
+        start=tuple(s.lower() for s in start),
+        steps=tuple(steps),
+        initial_dwell_s=initial_dwell,
+        description=description,
+        latitude_deg=latitude,
+        height_m=height,
+        provenance=provenance if isinstance(provenance, dict) else {},
+    )
     if seq.duration_s > 6 * 3600:
-        raise CalibError(f"sequence lasts {seq.duration_s / 3600:.1f} h; more than 6 h is refused",
-                         where, "shorten dwells")
+        raise CalibError(
+            f"sequence lasts {seq.duration_s / 3600:.1f} h; more than 6 h is refused", where, "shorten dwells"
+        )
     return seq
 
 
@@ -198,7 +233,7 @@ def _step_from_dict(raw, here: str, default_profile: tuple) -> Step:
     _check_keys(raw, STEP_KEYS, "step", here)
     axis = raw.get("axis")
     if not isinstance(axis, str) or axis.upper() not in ("X", "Y", "Z"):
-        raise CalibError(f"axis must be \"X\", \"Y\" or \"Z\", got {axis!r}", here)
+        raise CalibError(f'axis must be "X", "Y" or "Z", got {axis!r}', here)
     angle = _number(raw, "angle_deg", here)
     if angle == 0.0 or abs(angle) > 3600.0:
         raise CalibError(f"angle_deg = {angle} must be non-zero and within +-3600", here)
@@ -206,9 +241,13 @@ def _step_from_dict(raw, here: str, default_profile: tuple) -> Step:
     if rate > 1000.0:
         raise CalibError(f"rate_dps = {rate} is beyond any gimbal (max 1000 deg/s)", here)
     if rate < MIN_RATE_DPS:
-        raise CalibError(f"rate_dps = {rate} is below {MIN_RATE_DPS:g} deg/s: such a slow turn "
-                         "cannot be told from rest in the log (flips are detected above "
-                         "0.57 deg/s)", here, f"turn at {MIN_RATE_DPS:g} deg/s or faster")
+        raise CalibError(
+            f"rate_dps = {rate} is below {MIN_RATE_DPS:g} deg/s: such a slow turn "
+            "cannot be told from rest in the log (flips are detected above "
+            "0.57 deg/s)",
+            here,
+            f"turn at {MIN_RATE_DPS:g} deg/s or faster",
+        )
     dwell = _number(raw, "dwell_s", here, DEFAULT_DWELL_S, nonnegative=True)
     accel, jerk = _profile_keys(raw, here, default_profile)
     return Step(axis.upper(), angle, rate, dwell, accel, jerk)
@@ -228,8 +267,11 @@ def resolve_sequence_path(name_or_path: str | Path) -> Path:
     if p.suffix == "" and shipped.exists():
         return shipped
     available = ", ".join(sorted(f.stem for f in builtin_sequence_dir().glob("*.toml")))
-    raise CalibError(f"no sequence file {str(name_or_path)!r}", None,
-                     f"give a path to a .toml file or a shipped name: {available}")
+    raise CalibError(
+        f"no sequence file {str(name_or_path)!r}",
+        None,
+        f"give a path to a .toml file or a shipped name: {available}",
+    )
 
 
 def load_sequence(name_or_path: str | Path) -> Sequence:
@@ -245,6 +287,7 @@ def save_sequence(seq: Sequence, path: str | Path) -> None:
     import tomli_w
 
     from .fileio import atomic_write_text
+
     atomic_write_text(path, tomli_w.dumps(seq.to_toml_dict()))
 
 
@@ -293,14 +336,13 @@ class Timeline:
         """Angle turned (rad) ``tau`` seconds into segments ``seg``."""
         if self.rate0 is None:
             return self.rate[seg] * tau
-        return (self.rate0[seg] * tau + 0.5 * self.accel[seg] * tau ** 2
-                + self.jerk[seg] * tau ** 3 / 6.0)
+        return self.rate0[seg] * tau + 0.5 * self.accel[seg] * tau**2 + self.jerk[seg] * tau**3 / 6.0
 
     def angular_rate(self, seg: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Rate (rad/s) ``tau`` seconds into segments ``seg``."""
         if self.rate0 is None:
             return self.rate[seg] + 0.0 * tau
-        return self.rate0[seg] + self.accel[seg] * tau + 0.5 * self.jerk[seg] * tau ** 2
+        return self.rate0[seg] + self.accel[seg] * tau + 0.5 * self.jerk[seg] * tau**2
 
     @property
     def polynomial(self) -> np.ndarray:
@@ -319,7 +361,7 @@ def _move_rows(t: float, C: np.ndarray, ax: int, step: Step, k: int) -> tuple[li
     pc = step.profile.pieces(math.radians(step.angle_deg))
     rows = []
     for d, th0, r0, a0, j in zip(pc.duration, pc.theta0, pc.rate0, pc.accel0, pc.jerk):
-        swept = r0 * d + 0.5 * a0 * d * d + j * d ** 3 / 6.0
+        swept = r0 * d + 0.5 * a0 * d * d + j * d**3 / 6.0
         rows.append((t, t + d, swept / d, ax, C @ rot_axis(ax, th0), 0, k, r0, a0, j))
         t += d
     return rows, t
@@ -342,11 +384,19 @@ def timeline(seq: Sequence) -> Timeline:
             rows.append((t, t + s.dwell_s, 0.0, -1, C, position, k, 0.0, 0.0, 0.0))
             t += s.dwell_s
     cols = list(zip(*rows))
-    return Timeline(t0=np.array(cols[0]), t1=np.array(cols[1]), rate=np.array(cols[2]),
-                    axis=np.array(cols[3], dtype=int), C0=np.array(cols[4]),
-                    position=np.array(cols[5], dtype=int), step=np.array(cols[6], dtype=int),
-                    C_end=C, rate0=np.array(cols[7]), accel=np.array(cols[8]),
-                    jerk=np.array(cols[9]))
+    return Timeline(
+        t0=np.array(cols[0]),
+        t1=np.array(cols[1]),
+        rate=np.array(cols[2]),
+        axis=np.array(cols[3], dtype=int),
+        C0=np.array(cols[4]),
+        position=np.array(cols[5], dtype=int),
+        step=np.array(cols[6], dtype=int),
+        C_end=C,
+        rate0=np.array(cols[7]),
+        accel=np.array(cols[8]),
+        jerk=np.array(cols[9]),
+    )
 
 
 def nominal_attitude(tl: Timeline, t: np.ndarray) -> np.ndarray:
@@ -396,9 +446,16 @@ def rest_positions(seq: Sequence, gimbal=None) -> list[RestPosition]:
         k = int(tl.step[seg])
         state = np.zeros(3) if k < 0 else plan.state_after(k)
         C = tl.C0[seg]
-        out.append(RestPosition(
-            number=int(tl.position[seg]), C_b_n=C,
-            directions=tuple(describe_axis(C[:, i]) for i in range(3)),
-            gimbal_deg=np.round(np.degrees(state), 9) + 0.0, start_s=float(tl.t0[seg]),
-            end_s=float(tl.t1[seg]), gimbal_lock=in_lock(state), on_grid=on_grid(C)))
+        out.append(
+            RestPosition(
+                number=int(tl.position[seg]),
+                C_b_n=C,
+                directions=tuple(describe_axis(C[:, i]) for i in range(3)),
+                gimbal_deg=np.round(np.degrees(state), 9) + 0.0,
+                start_s=float(tl.t0[seg]),
+                end_s=float(tl.t1[seg]),
+                gimbal_lock=in_lock(state),
+                on_grid=on_grid(C),
+            )
+        )
     return out

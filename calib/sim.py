@@ -8,6 +8,7 @@ increments integrate ``C_n_b [0, 0, g]`` in closed form over every sample
 The 21 errors and any optional terms (:mod:`calib.extras`) are applied to
 the increments, then the noise.
 """
+
 from __future__ import annotations
 
 import math
@@ -97,8 +98,9 @@ def _cos_sin_integrals(tl: Timeline, seg: np.ndarray, a: np.ndarray, b: np.ndarr
     return swept, ic, is_
 
 
-def _rotated_integral(axis: np.ndarray, ic: np.ndarray, is_: np.ndarray,
-                      length: np.ndarray, w: np.ndarray) -> np.ndarray:
+def _rotated_integral(
+    axis: np.ndarray, ic: np.ndarray, is_: np.ndarray, length: np.ndarray, w: np.ndarray
+) -> np.ndarray:
     """``int R_axis(theta(t))^T w dt`` over sub-intervals, from ``int cos theta`` and ``int sin theta``."""
     out = np.empty_like(w)
     for ax in range(3):
@@ -161,8 +163,7 @@ def body_integrals(tl: Timeline, time_s: np.ndarray):
     return out_flip, E.reshape(n, 3, 3)
 
 
-def true_increments(tl: Timeline, R_setup: np.ndarray, cfg: SimConfig,
-                    time_s: np.ndarray | None = None):
+def true_increments(tl: Timeline, R_setup: np.ndarray, cfg: SimConfig, time_s: np.ndarray | None = None):
     """Exact gyro and accelerometer increments of a timeline.
 
     Samples are uniform at ``cfg.sample_rate_hz`` unless ``time_s`` (the end
@@ -183,8 +184,9 @@ def true_increments(tl: Timeline, R_setup: np.ndarray, cfg: SimConfig,
     return time_s, flip + E @ w_ie, E @ f
 
 
-def encoder_angles(seq: Sequence, time_s: np.ndarray, gimbal=None, played: Sequence | None = None
-                   ) -> np.ndarray:
+def encoder_angles(
+    seq: Sequence, time_s: np.ndarray, gimbal=None, played: Sequence | None = None
+) -> np.ndarray:
     """Gimbal encoder angles (deg, continuous) at each sample.
 
     The gimbal sits on the base, so the mounting rotation does not enter.
@@ -193,20 +195,28 @@ def encoder_angles(seq: Sequence, time_s: np.ndarray, gimbal=None, played: Seque
     ``seq``) is what was really played, e.g. with flip errors.
     """
     from .gimbal import DEFAULT_GIMBAL, encoder_track, plan_sequence
+
     plan = plan_sequence(seq, gimbal or DEFAULT_GIMBAL)
     angles, _ = encoder_track(plan, played if played is not None else seq, time_s)
     return np.degrees(angles) + 0.0  # no negative zeros
 
 
-def add_noise(dtheta: np.ndarray, dv: np.ndarray, dt: np.ndarray, profile: NoiseProfile,
-              rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+def add_noise(
+    dtheta: np.ndarray, dv: np.ndarray, dt: np.ndarray, profile: NoiseProfile, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
     """The profile's white noise and any Gauss-Markov bias instability, added to increments."""
     if profile.has_gauss_markov:
         # Bias instability: a stationary first-order Gauss-Markov bias, constant over a sample.
-        dtheta = dtheta + gauss_markov(len(dt), dt, profile.gyro_gm_sigma,
-                                       profile.gyro_bias_correlation_s, rng) * dt[:, None]
-        dv = dv + gauss_markov(len(dt), dt, profile.accel_gm_sigma,
-                               profile.accel_bias_correlation_s, rng) * dt[:, None]
+        dtheta = (
+            dtheta
+            + gauss_markov(len(dt), dt, profile.gyro_gm_sigma, profile.gyro_bias_correlation_s, rng)
+            * dt[:, None]
+        )
+        dv = (
+            dv
+            + gauss_markov(len(dt), dt, profile.accel_gm_sigma, profile.accel_bias_correlation_s, rng)
+            * dt[:, None]
+        )
     sq = np.sqrt(dt)[:, None]
     dtheta = dtheta + profile.arw * sq * rng.standard_normal(dtheta.shape)
     dv = dv + profile.vrw * sq * rng.standard_normal(dv.shape)
@@ -215,19 +225,31 @@ def add_noise(dtheta: np.ndarray, dv: np.ndarray, dt: np.ndarray, profile: Noise
 
 def _run_meta(cfg: SimConfig, sequence_name: str) -> dict:
     """The run log's metadata for a simulated site."""
-    meta = {"format": "imu-run/1", "latitude_deg": repr(math.degrees(cfg.latitude_rad)),
-            "height_m": repr(cfg.height_m), "sample_rate_hz": repr(cfg.sample_rate_hz)}
+    meta = {
+        "format": "imu-run/1",
+        "latitude_deg": repr(math.degrees(cfg.latitude_rad)),
+        "height_m": repr(cfg.height_m),
+        "sample_rate_hz": repr(cfg.sample_rate_hz),
+    }
     if cfg.gravity_mps2 is not None:
         meta["gravity_mps2"] = repr(cfg.gravity_mps2)
     meta["sequence"] = sequence_name
     return meta
 
 
-def simulate(seq: Sequence, cfg: SimConfig, errors: ErrorModel, profile: NoiseProfile,
-             setup_rotvec=(0.0, 0.0, 0.0), flip_error_deg: float = 0.0,
-             noise: bool = True, seed: int | None = None,
-             random_setup_deg: float | None = None,
-             extra: ExtraValues | None = None, gimbal=None) -> tuple[Run, Truth]:
+def simulate(
+    seq: Sequence,
+    cfg: SimConfig,
+    errors: ErrorModel,
+    profile: NoiseProfile,
+    setup_rotvec=(0.0, 0.0, 0.0),
+    flip_error_deg: float = 0.0,
+    noise: bool = True,
+    seed: int | None = None,
+    random_setup_deg: float | None = None,
+    extra: ExtraValues | None = None,
+    gimbal=None,
+) -> tuple[Run, Truth]:
     """Simulate a calibration run.
 
     Parameters
@@ -260,8 +282,11 @@ def simulate(seq: Sequence, cfg: SimConfig, errors: ErrorModel, profile: NoisePr
     truth : Truth
     """
     rng = np.random.default_rng(seed)
-    flip_errors = rng.uniform(-flip_error_deg, flip_error_deg, len(seq.steps)) \
-        if flip_error_deg > 0 else np.zeros(len(seq.steps))
+    flip_errors = (
+        rng.uniform(-flip_error_deg, flip_error_deg, len(seq.steps))
+        if flip_error_deg > 0
+        else np.zeros(len(seq.steps))
+    )
     if random_setup_deg is not None:
         setup_rotvec = np.radians(rng.uniform(-random_setup_deg, random_setup_deg, 3))
     setup_rotvec = np.asarray(setup_rotvec, dtype=float)
@@ -283,9 +308,21 @@ def simulate(seq: Sequence, cfg: SimConfig, errors: ErrorModel, profile: NoisePr
     if noise:
         dtheta, dv = add_noise(dtheta, dv, dt, profile, rng)
     from . import runlog
-    run = runlog.Run(time_s=time_s, dtheta_rad=dtheta, dv_mps=dv, meta=_run_meta(cfg, seq.name),
-                     gimbal_deg=encoder_angles(seq, time_s, gimbal, played=real))
-    truth = Truth(errors=errors, setup_rotvec=setup_rotvec, flip_errors_deg=flip_errors,
-                  profile=profile.name, seed=seed, noise=noise,
-                  extra=extra if extra.active else None)
+
+    run = runlog.Run(
+        time_s=time_s,
+        dtheta_rad=dtheta,
+        dv_mps=dv,
+        meta=_run_meta(cfg, seq.name),
+        gimbal_deg=encoder_angles(seq, time_s, gimbal, played=real),
+    )
+    truth = Truth(
+        errors=errors,
+        setup_rotvec=setup_rotvec,
+        flip_errors_deg=flip_errors,
+        profile=profile.name,
+        seed=seed,
+        noise=noise,
+        extra=extra if extra.active else None,
+    )
     return run, truth

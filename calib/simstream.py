@@ -16,6 +16,7 @@ distributed) noise sequence than :func:`calib.sim.simulate`. Not streamed
 (refused with a clear message): Gauss-Markov bias instability, the optional
 terms of :mod:`calib.extras`, flip errors and the gimbal encoder columns.
 """
+
 from __future__ import annotations
 
 import math
@@ -39,22 +40,36 @@ FORMAT = "imu-run/1"
 
 def run_meta(seq: Sequence, cfg: SimConfig) -> dict[str, str]:
     """The metadata :func:`calib.sim.simulate` writes, for the same site and sequence."""
-    meta = {"format": FORMAT, "latitude_deg": repr(math.degrees(cfg.latitude_rad)),
-            "height_m": repr(cfg.height_m), "sample_rate_hz": repr(cfg.sample_rate_hz)}
+    meta = {
+        "format": FORMAT,
+        "latitude_deg": repr(math.degrees(cfg.latitude_rad)),
+        "height_m": repr(cfg.height_m),
+        "sample_rate_hz": repr(cfg.sample_rate_hz),
+    }
     if cfg.gravity_mps2 is not None:
         meta["gravity_mps2"] = repr(cfg.gravity_mps2)
     meta["sequence"] = seq.name
     return meta
 
 
-def sample_windows(seq: Sequence, cfg: SimConfig, errors: ErrorModel, profile: NoiseProfile,
-                   setup_rotvec=(0.0, 0.0, 0.0), noise: bool = True, seed: int | None = None,
-                   window: int = WINDOW_SAMPLES):
+def sample_windows(
+    seq: Sequence,
+    cfg: SimConfig,
+    errors: ErrorModel,
+    profile: NoiseProfile,
+    setup_rotvec=(0.0, 0.0, 0.0),
+    noise: bool = True,
+    seed: int | None = None,
+    window: int = WINDOW_SAMPLES,
+):
     """Yield ``(time_s, dtheta_m, dv_m)`` of consecutive windows of the run (IMU output)."""
     if profile.has_gauss_markov and noise:
-        raise CalibError(f"profile {profile.name!r} has Gauss-Markov bias instability, which the "
-                         "streamed simulator does not draw", "--profile",
-                         "use a white-noise profile, or `seqdesign simulate` for this run")
+        raise CalibError(
+            f"profile {profile.name!r} has Gauss-Markov bias instability, which the "
+            "streamed simulator does not draw",
+            "--profile",
+            "use a white-noise profile, or `seqdesign simulate` for this run",
+        )
     rng = np.random.default_rng(seed)
     tl = timeline(seq)
     R = rotvec_to_dcm(np.asarray(setup_rotvec, dtype=float))
@@ -79,9 +94,9 @@ def sample_windows(seq: Sequence, cfg: SimConfig, errors: ErrorModel, profile: N
 
 def _npy_header(shape: tuple) -> bytes:
     import io
+
     buffer = io.BytesIO()
-    np.lib.format.write_array_header_1_0(buffer, {"descr": "<f8", "fortran_order": False,
-                                                 "shape": shape})
+    np.lib.format.write_array_header_1_0(buffer, {"descr": "<f8", "fortran_order": False, "shape": shape})
     return buffer.getvalue()
 
 
@@ -126,10 +141,18 @@ def _write_csv(windows, meta: dict, target: Path) -> int:
     return n
 
 
-def simulate_to_file(path, seq: Sequence, cfg: SimConfig, errors: ErrorModel,
-                     profile: NoiseProfile, setup_rotvec=(0.0, 0.0, 0.0), noise: bool = True,
-                     seed: int | None = None, meta_extra: dict | None = None,
-                     window: int = WINDOW_SAMPLES) -> tuple[int, Truth]:
+def simulate_to_file(
+    path,
+    seq: Sequence,
+    cfg: SimConfig,
+    errors: ErrorModel,
+    profile: NoiseProfile,
+    setup_rotvec=(0.0, 0.0, 0.0),
+    noise: bool = True,
+    seed: int | None = None,
+    meta_extra: dict | None = None,
+    window: int = WINDOW_SAMPLES,
+) -> tuple[int, Truth]:
     """Simulate a run window by window into ``path`` (.npz or .csv); nothing is left half-written.
 
     Returns
@@ -146,7 +169,12 @@ def simulate_to_file(path, seq: Sequence, cfg: SimConfig, errors: ErrorModel,
     windows = sample_windows(seq, cfg, errors, profile, setup_rotvec, noise, seed, window)
     writer = _write_npz if kind == ".npz" else _write_csv
     n = atomic_write_with(target, lambda tmp: writer(windows, meta, Path(tmp)))
-    truth = Truth(errors=errors, setup_rotvec=np.asarray(setup_rotvec, dtype=float),
-                  flip_errors_deg=np.zeros(len(seq.steps)), profile=profile.name, seed=seed,
-                  noise=noise)
+    truth = Truth(
+        errors=errors,
+        setup_rotvec=np.asarray(setup_rotvec, dtype=float),
+        flip_errors_deg=np.zeros(len(seq.steps)),
+        profile=profile.name,
+        seed=seed,
+        noise=noise,
+    )
     return n, truth

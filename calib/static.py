@@ -9,6 +9,7 @@ unit would gyrocompass, as ``calib.estimator.coarse_alignment`` does).
 
 Removing a constant changes no Allan deviation; it changes the biases reported.
 """
+
 from __future__ import annotations
 
 import math
@@ -49,8 +50,9 @@ class StaticLevel:
     earth_rate_horizontal: float
 
 
-def static_level(gyro_rate: np.ndarray, specific_force: np.ndarray, latitude_rad: float,
-                 gravity_mps2: float) -> StaticLevel:
+def static_level(
+    gyro_rate: np.ndarray, specific_force: np.ndarray, latitude_rad: float, gravity_mps2: float
+) -> StaticLevel:
     """Biases of a static log (module docstring).
 
     Parameters
@@ -68,8 +70,11 @@ def static_level(gyro_rate: np.ndarray, specific_force: np.ndarray, latitude_rad
     mean_f = np.mean(specific_force, axis=0)
     up_b = mean_f / np.linalg.norm(mean_f)
     vertical = earth.RATE * math.sin(latitude_rad)
-    return StaticLevel(up_b=up_b,
-                       gyro_bias=np.mean(gyro_rate, axis=0) - vertical * up_b,
-                       accel_bias=mean_f - gravity_mps2 * up_b,
-                       gravity_mps2=float(gravity_mps2), earth_rate_vertical=vertical,
-                       earth_rate_horizontal=earth.RATE * math.cos(latitude_rad))
+    return StaticLevel(
+        up_b=up_b,
+        gyro_bias=np.mean(gyro_rate, axis=0) - vertical * up_b,
+        accel_bias=mean_f - gravity_mps2 * up_b,
+        gravity_mps2=float(gravity_mps2),
+        earth_rate_vertical=vertical,
+        earth_rate_horizontal=earth.RATE * math.cos(latitude_rad),
+    )

@@ -14,6 +14,7 @@ and velocity are integrated:
   cumulative sum of rotated velocity increments (rotation
   corrected), vectorised as well.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -45,10 +46,15 @@ def quat_mult(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Hamilton product of ``(..., 4)`` quaternions, scalar first."""
     pw, px, py, pz = np.moveaxis(p, -1, 0)
     qw, qx, qy, qz = np.moveaxis(q, -1, 0)
-    return np.stack([pw * qw - px * qx - py * qy - pz * qz,
-                     pw * qx + px * qw + py * qz - pz * qy,
-                     pw * qy - px * qz + py * qw + pz * qx,
-                     pw * qz + px * qy - py * qx + pz * qw], axis=-1)
+    return np.stack(
+        [
+            pw * qw - px * qx - py * qy - pz * qz,
+            pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx,
+            pw * qz + px * qy - py * qx + pz * qw,
+        ],
+        axis=-1,
+    )
 
 
 def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -72,11 +78,14 @@ def quat_to_dcm(q: np.ndarray) -> np.ndarray:
     """Direction cosines of quaternions ``(..., 4)`` (normalised first)."""
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        -2,
+    )
 
 
 def prefix_product(q: np.ndarray) -> np.ndarray:
@@ -130,8 +139,15 @@ def start_time(time_s: np.ndarray) -> float:
     return float(time_s[0] - (time_s[1] - time_s[0]))
 
 
-def navigate(dtheta: np.ndarray, dv: np.ndarray, time_s: np.ndarray, C_b_n0: np.ndarray,
-             latitude_rad: float, gravity_mps2: float, t0: float | None = None) -> Navigation:
+def navigate(
+    dtheta: np.ndarray,
+    dv: np.ndarray,
+    time_s: np.ndarray,
+    C_b_n0: np.ndarray,
+    latitude_rad: float,
+    gravity_mps2: float,
+    t0: float | None = None,
+) -> Navigation:
     """Navigate on a stationary base from attitude ``C_b_n0`` at rest.
 
     Parameters
@@ -166,8 +182,10 @@ def navigate(dtheta: np.ndarray, dv: np.ndarray, time_s: np.ndarray, C_b_n0: np.
     t_mid = 0.5 * (t[1:] + t[:-1])
     g_n = np.array([0.0, 0.0, -gravity_mps2])
     # v' = C f + g - 2 w x v;  w = R(2 W t) v  ->  w' = R(W t) (C_b_n0 f) + R(2 W t) g.
-    dw = (np.einsum("nij,nj->ni", _earth_rotation(w_ie, t_mid, 1.0), dv_i)
-          + np.einsum("nij,j->ni", _earth_rotation(w_ie, t_mid, 2.0), g_n) * dt[:, None])
+    dw = (
+        np.einsum("nij,nj->ni", _earth_rotation(w_ie, t_mid, 1.0), dv_i)
+        + np.einsum("nij,j->ni", _earth_rotation(w_ie, t_mid, 2.0), g_n) * dt[:, None]
+    )
     w = np.vstack([np.zeros(3), np.cumsum(dw, axis=0)])
     v_n = np.einsum("nij,nj->ni", _earth_rotation(w_ie, t, -2.0), w)
     return Navigation(time_s=t + t0, C_b_n=C_b_n, v_n=v_n)
@@ -175,4 +193,5 @@ def navigate(dtheta: np.ndarray, dv: np.ndarray, time_s: np.ndarray, C_b_n0: np.
 
 def _dcm_rotvec(C: np.ndarray) -> np.ndarray:
     from .transform import dcm_to_rotvec
+
     return dcm_to_rotvec(C)

@@ -18,6 +18,7 @@ numpy array operations over a chunk (the quaternion product is a blocked
 scan, two full passes instead of ``log2 n``), which keeps the tool
 installable from the package registries with no compiler.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -187,8 +188,9 @@ def earth_fixed_dcm(q_i: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.
 def array_chunks(time_s, dtheta_m, dv_m, t_start: float, cuts: np.ndarray):
     """Chunks of in-memory arrays between consecutive sample indices ``cuts`` (views, no copies)."""
     for a, b in zip(cuts[:-1], cuts[1:]):
-        yield Chunk(int(a), time_s[a:b], dtheta_m[a:b], dv_m[a:b],
-                    float(t_start if a == 0 else time_s[a - 1]))
+        yield Chunk(
+            int(a), time_s[a:b], dtheta_m[a:b], dv_m[a:b], float(t_start if a == 0 else time_s[a - 1])
+        )
 
 
 def chunk_cuts(grid: ObservationGrid, size: int = CHUNK_SAMPLES) -> np.ndarray:
@@ -237,17 +239,27 @@ def _compensate(ch: Chunk, dt, model: ErrorModel, extras: Extras, extra_values, 
     """Compensated increments of a chunk; with optional terms, the sample before is context."""
     if not extras.n:  # the inverse error matrices once per pass, not a solve per chunk
         Eg_inv, Ea_inv = carry.inverses(model)
-        return ((ch.dtheta_m - model.gyro_bias * dt[:, None]) @ Eg_inv.T,
-                (ch.dv_m - model.accel_bias * dt[:, None]) @ Ea_inv.T)
+        return (
+            (ch.dtheta_m - model.gyro_bias * dt[:, None]) @ Eg_inv.T,
+            (ch.dv_m - model.accel_bias * dt[:, None]) @ Ea_inv.T,
+        )
     if turn is None:  # before the first navigation: the Earth's turn seen at the start attitude
         turn = np.outer(dt, carry.C_b_n0.T @ carry.omega_ie_n)
     ctx = carry.raw is not None
-    th_m, dv_m, h, tn = ((np.vstack([carry.raw[0], ch.dtheta_m]), np.vstack([carry.raw[1], ch.dv_m]),
-                          np.concatenate([[carry.raw[2]], dt]), np.vstack([carry.raw[3], turn]))
-                         if ctx else (ch.dtheta_m, ch.dv_m, dt, turn))
+    th_m, dv_m, h, tn = (
+        (
+            np.vstack([carry.raw[0], ch.dtheta_m]),
+            np.vstack([carry.raw[1], ch.dv_m]),
+            np.concatenate([[carry.raw[2]], dt]),
+            np.vstack([carry.raw[3], turn]),
+        )
+        if ctx
+        else (ch.dtheta_m, ch.dv_m, dt, turn)
+    )
     dth = model.compensate(th_m, dv_m, h)[0]
-    dvv = X.compensate(extras.unpack(extra_values), dth, dv_m, h,
-                       lambda x: model.compensate(th_m, x, h)[1], tn)
+    dvv = X.compensate(
+        extras.unpack(extra_values), dth, dv_m, h, lambda x: model.compensate(th_m, x, h)[1], tn
+    )
     carry.raw = (ch.dtheta_m[-1], ch.dv_m[-1], dt[-1], turn[-1])
     return (dth[1:], dvv[1:]) if ctx else (dth, dvv)
 
@@ -274,8 +286,11 @@ def _navigate_chunk(dth, dvv, t, lb, site: Site, carry: _Carry):
     trig = np.stack([np.cos(2 * rate * t_mid) * dt, np.sin(2 * rate * t_mid) * dt], axis=1)
     cs = np.add.reduceat(trig, lb[:-1], axis=0)
     # R(a) g = g cos a + (u x g) sin a + (1 - cos a)(u . g) u, summed with weights h.
-    dw += (np.outer(cs[:, 0], g_n - (axis @ g_n) * axis) + np.outer(cs[:, 1], np.cross(axis, g_n))
-           + np.outer(np.add.reduceat(dt, lb[:-1]), (axis @ g_n) * axis))
+    dw += (
+        np.outer(cs[:, 0], g_n - (axis @ g_n) * axis)
+        + np.outer(cs[:, 1], np.cross(axis, g_n))
+        + np.outer(np.add.reduceat(dt, lb[:-1]), (axis @ g_n) * axis)
+    )
     w = carry.w + np.cumsum(dw, axis=0)
     carry.w = w[-1]
     y = rotate_about(axis, -2.0 * rate * t[lb[1:]], w)
@@ -291,7 +306,7 @@ def _interval_sums(lb: np.ndarray, t: np.ndarray, orders: int):
     tau = t[lb[1:]][idx] - 0.5 * (t[1:] + t[:-1])
     rows = np.concatenate([idx + w * Kc for w in range(orders)])
     cols = np.tile(np.arange(m), orders)
-    data = np.concatenate([tau ** w for w in range(orders)])
+    data = np.concatenate([tau**w for w in range(orders)])
     return sp.csr_matrix((data, (rows, cols)), shape=(orders * Kc, m))
 
 
@@ -314,13 +329,13 @@ def _moments(C_mid, dth, dvv, h, lb, t):
         th, dv, hh = right[..., 0:3], right[..., 9:12], right[..., 15:16]
         th[...], dv[...], hh[...] = dth[idx], dvv[idx], h[idx][..., None]
         for col, x, w in ((3, th, tau), (6, th, tau2), (12, dv, tau), (16, hh, tau), (17, hh, tau2)):
-            np.multiply(x, w, out=right[..., col:col + x.shape[-1]])
+            np.multiply(x, w, out=right[..., col : col + x.shape[-1]])
         R = np.matmul(Cf[idx].transpose(0, 2, 1), right)  # (nk, 9, 18)
         n = len(ks)
         # gyro w = 0, 1, 2 then accel w = 0, 1: [27 K (a, i, m), 9 B (a, i)] each
         for col, inc, bias in ((0, 0, 15), (36, 3, 16), (72, 6, 17), (108, 9, 15), (144, 12, 16)):
-            out[ks, col:col + 27] = R[:, :, inc:inc + 3].reshape(n, 27)
-            out[ks, col + 27:col + 36] = R[:, :, bias]
+            out[ks, col : col + 27] = R[:, :, inc : inc + 3].reshape(n, 27)
+            out[ks, col + 27 : col + 36] = R[:, :, bias]
     return out
 
 
@@ -331,16 +346,24 @@ def _extra_moments(C_mid, dth_ctx, dvv_ctx, h_ctx, turn, S3, extras: Extras, sit
     turn_ctx = np.vstack([turn[:1]] * skip + [turn])
     D = X.dv_sensitivity(extras, dth_ctx, dvv_ctx, h_ctx, turn_ctx)[skip:]
     CD = np.einsum("nai,nic->nac", C_mid, D).reshape(m, -1)
-    R = (S3[:2 * Kc] @ CD).reshape(2, Kc, 3, extras.n)
+    R = (S3[: 2 * Kc] @ CD).reshape(2, Kc, 3, extras.n)
     mom = np.concatenate([R[0], R[1]], axis=1)  # (Kc, 6, e)
     G = step_model(float(site.latitude_rad), float(site.gravity_mps2)).extra_map
     return np.einsum("sm,kmc->ksc", G, mom)
 
 
-def navigate_pass(chunks, grid: ObservationGrid, site: Site, values: np.ndarray,
-                  extra_values: np.ndarray, C_b_n0: np.ndarray, turn: np.ndarray | None,
-                  extras: Extras = X.NONE, with_moments: bool = True,
-                  gyro_correction: np.ndarray | None = None) -> PassResult:
+def navigate_pass(
+    chunks,
+    grid: ObservationGrid,
+    site: Site,
+    values: np.ndarray,
+    extra_values: np.ndarray,
+    C_b_n0: np.ndarray,
+    turn: np.ndarray | None,
+    extras: Extras = X.NONE,
+    with_moments: bool = True,
+    gyro_correction: np.ndarray | None = None,
+) -> PassResult:
     """Compensate, navigate and reduce a run to its per-interval quantities in one pass.
 
     Parameters
@@ -372,15 +395,15 @@ def navigate_pass(chunks, grid: ObservationGrid, site: Site, values: np.ndarray,
         m = len(ch.time_s)
         t = np.concatenate([[ch.t_before], ch.time_s]) - site.t0
         dt = np.diff(t)
-        tn = turn[ch.start:ch.start + m] if extras.n and turn is not None else None
+        tn = turn[ch.start : ch.start + m] if extras.n and turn is not None else None
         prev_dth = carry.dtheta
         dth, dvv = _compensate(ch, dt, model, extras, extra_values, tn, carry)
         k0, k1 = np.searchsorted(b, [ch.start, ch.start + m])
-        lb = b[k0:k1 + 1] - ch.start
+        lb = b[k0 : k1 + 1] - ch.start
         if gyro_correction is not None:  # the estimator's attitude feedback (a MEMS unit's wander)
             dth = dth + np.repeat(gyro_correction[k0:k1], np.diff(lb), axis=0) * dt[:, None]
-        q, y[k0 + 1:k1 + 1], axis, rate = _navigate_chunk(dth, dvv, t, lb, site, carry)
-        t_bounds[k0 + 1:k1 + 1] = t[lb[1:]] + site.t0
+        q, y[k0 + 1 : k1 + 1], axis, rate = _navigate_chunk(dth, dvv, t, lb, site, carry)
+        t_bounds[k0 + 1 : k1 + 1] = t[lb[1:]] + site.t0
         mid = (lb[:-1] + lb[1:]) // 2
         C_mid[k0:k1] = earth_fixed_dcm(q[mid], axis, -rate * t[mid])
         if not (with_moments or extras.n):
@@ -388,7 +411,7 @@ def navigate_pass(chunks, grid: ObservationGrid, site: Site, values: np.ndarray,
         C_b_n = earth_fixed_dcm(q, axis, -rate * t)
         Cm = 0.5 * (C_b_n[1:] + C_b_n[:-1])
         if extras.n:
-            turn_out[ch.start:ch.start + m] = X.earth_turn(Cm, site.omega_ie_n, dt)
+            turn_out[ch.start : ch.start + m] = X.earth_turn(Cm, site.omega_ie_n, dt)
         if not with_moments:
             continue
         moments[k0:k1] = _moments(Cm, dth, dvv, dt, lb, t)
@@ -396,8 +419,13 @@ def navigate_pass(chunks, grid: ObservationGrid, site: Site, values: np.ndarray,
             S3 = _interval_sums(lb, t, 3)
             ctx = prev_dth is not None
             extra[k0:k1] = _extra_moments(
-                Cm, np.vstack([prev_dth, dth]) if ctx else dth,
+                Cm,
+                np.vstack([prev_dth, dth]) if ctx else dth,
                 np.vstack([dvv[:1], dvv]) if ctx else dvv,
                 np.concatenate([[dt[0]], dt]) if ctx else dt,
-                turn_out[ch.start:ch.start + m], S3, extras, site)
+                turn_out[ch.start : ch.start + m],
+                S3,
+                extras,
+                site,
+            )
     return PassResult(y=y, t_bounds=t_bounds, moments=moments, C_mid=C_mid, extra=extra, turn=turn_out)

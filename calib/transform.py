@@ -3,6 +3,7 @@
 Attitude is the DCM ``C_b_n`` (columns = body axes written in ENU). A flip
 about a body axis is a right-multiplication ``C_new = C_old @ rot_axis(...)``.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -11,9 +12,12 @@ from .errors import CalibError
 
 AXES = "XYZ"
 DIRECTIONS = {
-    "east": (1.0, 0.0, 0.0), "west": (-1.0, 0.0, 0.0),
-    "north": (0.0, 1.0, 0.0), "south": (0.0, -1.0, 0.0),
-    "up": (0.0, 0.0, 1.0), "down": (0.0, 0.0, -1.0),
+    "east": (1.0, 0.0, 0.0),
+    "west": (-1.0, 0.0, 0.0),
+    "north": (0.0, 1.0, 0.0),
+    "south": (0.0, -1.0, 0.0),
+    "up": (0.0, 0.0, 1.0),
+    "down": (0.0, 0.0, -1.0),
 }
 
 
@@ -61,8 +65,9 @@ def rotvec_to_dcm(rotvec: np.ndarray) -> np.ndarray:
     small = angle <= 1e-3
     a2 = angle * angle
     # sin(a/2)/a by its Taylor series near 0, where the quotient loses digits.
-    scale = np.where(small, 0.5 - a2 / 48.0 + a2 * a2 / 3840.0,
-                     np.sin(0.5 * angle) / np.where(small, 1.0, angle))
+    scale = np.where(
+        small, 0.5 - a2 / 48.0 + a2 * a2 / 3840.0, np.sin(0.5 * angle) / np.where(small, 1.0, angle)
+    )
     w = np.cos(0.5 * angle)
     x, y, z = (v[..., i] * scale for i in range(3))
     out = np.empty(v.shape[:-1] + (3, 3))
@@ -124,8 +129,7 @@ def dcm_to_rotvec(dcm: np.ndarray) -> np.ndarray:
     small = angle <= 1e-3
     a2 = angle * angle
     # angle / sin(angle/2) by its Taylor series near 0.
-    scale = np.where(small, 2.0 + a2 / 12.0 + 7.0 * a2 * a2 / 2880.0,
-                     angle / np.where(small, 1.0, sin_half))
+    scale = np.where(small, 2.0 + a2 / 12.0 + 7.0 * a2 * a2 / 2880.0, angle / np.where(small, 1.0, sin_half))
     return (q[:, :3] * scale[:, None]).reshape(C.shape[:-2] + (3,))
 
 
@@ -133,8 +137,7 @@ def direction_vector(name: str, where: str = "") -> np.ndarray:
     """ENU unit vector of a direction name (``east``, ``up``, ...)."""
     key = str(name).strip().lower()
     if key not in DIRECTIONS:
-        raise CalibError(f"unknown direction {name!r}", where,
-                         "use one of " + ", ".join(DIRECTIONS))
+        raise CalibError(f"unknown direction {name!r}", where, "use one of " + ", ".join(DIRECTIONS))
     return np.array(DIRECTIONS[key])
 
 
@@ -142,8 +145,11 @@ def attitude_from_directions(x: str, y: str, z: str, where: str = "") -> np.ndar
     """``C_b_n`` of a grid attitude given where body X, Y, Z point."""
     C = np.column_stack([direction_vector(d, where) for d in (x, y, z)])
     if not np.allclose(C.T @ C, np.eye(3)) or np.linalg.det(C) < 0.5:
-        raise CalibError(f"body axes pointing {x}, {y}, {z} are not a right-handed frame",
-                         where, "choose three mutually perpendicular directions with X x Y = Z")
+        raise CalibError(
+            f"body axes pointing {x}, {y}, {z} are not a right-handed frame",
+            where,
+            "choose three mutually perpendicular directions with X x Y = Z",
+        )
     return C
 
 

@@ -1,4 +1,5 @@
 """Truth files of simulated runs (``run.truth.toml``) and error files (``--errors``)."""
+
 from __future__ import annotations
 
 import math
@@ -35,12 +36,16 @@ FLIP_ERROR_LIMIT_DEG = 10.0
 def errors_from_table(table, where: str) -> ErrorModel:
     """An :class:`ErrorModel` from an ``[errors]`` table keyed by spec names, spec units."""
     if not isinstance(table, dict):
-        raise CalibError("missing table [errors]", where,
-                         "add [errors] with the 21 parameters: " + " ".join(P.NAMES))
+        raise CalibError(
+            "missing table [errors]", where, "add [errors] with the 21 parameters: " + " ".join(P.NAMES)
+        )
     missing = [n for n in P.NAMES if n not in table]
     if missing:
-        raise CalibError("[errors] lacks " + ", ".join(missing), where,
-                         "give all 21 parameters in the units of docs/conventions.md")
+        raise CalibError(
+            "[errors] lacks " + ", ".join(missing),
+            where,
+            "give all 21 parameters in the units of docs/conventions.md",
+        )
     values = [_finite(table[n], f"{where}: [errors] {n}") for n in P.NAMES]
     # Beyond these the small-error model of the conventions no longer holds (SI):
     # 5 % for scale factors and misalignments; a gyro bias of 1 deg/s (a tenth of
@@ -49,8 +54,11 @@ def errors_from_table(table, where: str) -> ErrorModel:
     for p, v in zip(P.PARAMETERS, values):
         lim = limits.get((p.sensor, p.kind), 0.05)
         if abs(v * p.si_per_unit) > lim:
-            raise CalibError(f"{p.name} = {v} {p.unit} is beyond the small-error model (|.| <= "
-                             f"{lim / p.si_per_unit:g} {p.unit})", f"{where}: [errors] {p.name}")
+            raise CalibError(
+                f"{p.name} = {v} {p.unit} is beyond the small-error model (|.| <= "
+                f"{lim / p.si_per_unit:g} {p.unit})",
+                f"{where}: [errors] {p.name}",
+            )
     return ErrorModel.from_units(values)
 
 
@@ -68,20 +76,37 @@ def read_truth(path: str | Path) -> Truth:
     fields = Fields(doc, where)
     small = "a simulated run's mounting rotation and flip errors are small angles"
     setup = fields.sub("setup") or Fields({}, f"{where}: [setup]")
-    rotvec = np.radians([setup.number(k, 0.0, low=-SETUP_LIMIT_DEG, high=SETUP_LIMIT_DEG,
-                                      unit=" deg", fix=small)
-                         for k in ("east_deg", "north_deg", "up_deg")])
+    rotvec = np.radians(
+        [
+            setup.number(k, 0.0, low=-SETUP_LIMIT_DEG, high=SETUP_LIMIT_DEG, unit=" deg", fix=small)
+            for k in ("east_deg", "north_deg", "up_deg")
+        ]
+    )
     flips = fields.sub("flips") or Fields({}, f"{where}: [flips]")
-    flip_errors = np.array(flips.numbers(
-        "angle_error_deg", [], low=-FLIP_ERROR_LIMIT_DEG, high=FLIP_ERROR_LIMIT_DEG, unit=" deg",
-        fix="a simulated run's flip errors: one small angle per flip, in degrees"), dtype=float)
+    flip_errors = np.array(
+        flips.numbers(
+            "angle_error_deg",
+            [],
+            low=-FLIP_ERROR_LIMIT_DEG,
+            high=FLIP_ERROR_LIMIT_DEG,
+            unit=" deg",
+            fix="a simulated run's flip errors: one small angle per flip, in degrees",
+        ),
+        dtype=float,
+    )
     meta = fields.sub("meta") or Fields({}, f"{where}: [meta]")
     profile = meta.string("profile", "")
     seed = meta.integer("seed", None)
     noise = meta.boolean("noise", True)
-    return Truth(errors=errors, setup_rotvec=rotvec, flip_errors_deg=flip_errors,
-                 profile=profile, seed=seed, noise=noise,
-                 extra=_extra(doc.get("extra"), where))
+    return Truth(
+        errors=errors,
+        setup_rotvec=rotvec,
+        flip_errors_deg=flip_errors,
+        profile=profile,
+        seed=seed,
+        noise=noise,
+        extra=_extra(doc.get("extra"), where),
+    )
 
 
 def _extra(table, where: str):
@@ -108,8 +133,7 @@ def truth_to_dict(truth: Truth) -> dict:
     doc = {
         "format_version": FORMAT_VERSION,
         "errors": {n: float(v) for n, v in zip(P.NAMES, values)},
-        "setup": {"east_deg": float(setup[0]), "north_deg": float(setup[1]),
-                  "up_deg": float(setup[2])},
+        "setup": {"east_deg": float(setup[0]), "north_deg": float(setup[1]), "up_deg": float(setup[2])},
         "flips": {"angle_error_deg": [float(f) for f in truth.flip_errors_deg]},
         "meta": meta,
     }
@@ -123,6 +147,7 @@ def write_truth(path: str | Path, truth: Truth, provenance: dict | None = None) 
     import tomli_w
 
     from .fileio import atomic_write_text
+
     doc = truth_to_dict(truth)
     if provenance:
         doc["provenance"] = provenance

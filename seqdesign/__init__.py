@@ -1,4 +1,5 @@
 """Self-calibration of a three-axis hybrid INS (see README)."""
+
 import os as _os
 
 # The work here is many small matrix products: OpenBLAS threads cost far more
@@ -7,4 +8,3 @@ import os as _os
 # a user's own setting wins.
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     _os.environ.setdefault(_var, "1")
-

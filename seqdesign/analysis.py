@@ -7,6 +7,7 @@ which parameters are estimable and which combinations are not, correlated
 pairs, the D/A/E criteria, the accelerometer scale-factor bound and,
 optionally, what fitting a real unit's extra terms costs.
 """
+
 from __future__ import annotations
 
 import math
@@ -27,13 +28,16 @@ from .observability import ExtrasCost, Robustness, accel_scale_bound, analyze_ex
 from .separability import involvement, motion_hint, separable_combinations
 
 
-def resolve_site(seq: Sequence, latitude_deg: float | None = None,
-                 height_m: float | None = None) -> tuple[float, float]:
+def resolve_site(
+    seq: Sequence, latitude_deg: float | None = None, height_m: float | None = None
+) -> tuple[float, float]:
     """The site: the given values, else the sequence's, else the conventions' defaults."""
-    lat = latitude_deg if latitude_deg is not None else (
-        seq.latitude_deg if seq.latitude_deg is not None else DEFAULT_LATITUDE_DEG)
-    h = height_m if height_m is not None else (
-        seq.height_m if seq.height_m is not None else DEFAULT_HEIGHT_M)
+    lat = (
+        latitude_deg
+        if latitude_deg is not None
+        else (seq.latitude_deg if seq.latitude_deg is not None else DEFAULT_LATITUDE_DEG)
+    )
+    h = height_m if height_m is not None else (seq.height_m if seq.height_m is not None else DEFAULT_HEIGHT_M)
     earth.check_site(lat, h)
     return lat, h
 
@@ -75,22 +79,29 @@ class Analysis:
         w = rob.worst
         entries = self.entries()
         ratios = [entries[n]["ratio"] for n in ("sax", "say", "saz")]
-        doc = {"sequence": seq.name, "duration_s": seq.duration_s, "profile": self.profile.name,
-               "requirements": self.requirements.name,
-               "latitude_deg": self.latitude_deg, "tolerance_deg": rob.tolerance_deg,
-               "setups_evaluated": rob.points, "ipopt_search": rob.searched,
-               "parameters": entries, "worst": worst(entries),
-               "worst_setup_deg": [float(x) for x in np.degrees(w.setup_rotvec)],
-               "rank": rob.nominal.rank,
-               "estimable": [n for n in P.NAMES if entries[n]["estimable"]],
-               "not_estimable": [n for n in P.NAMES if not entries[n]["estimable"]],
-               "unobservable": rob.nominal.unobservable,
-               "separable_combinations": separable_combinations(
-                   rob.nominal.null_basis, self.estimable, scales=self.requirements.values),
-               "correlated_pairs": [{"a": a, "b": b, "rho": r} for a, b, r in w.correlated_pairs()],
-               "criteria": w.criteria(),
-               "accel_scale_bound": {"best_possible_ratio": self.bound,
-                                     "achieved_ratio": float(max(ratios))}}
+        doc = {
+            "sequence": seq.name,
+            "duration_s": seq.duration_s,
+            "profile": self.profile.name,
+            "requirements": self.requirements.name,
+            "latitude_deg": self.latitude_deg,
+            "tolerance_deg": rob.tolerance_deg,
+            "setups_evaluated": rob.points,
+            "ipopt_search": rob.searched,
+            "parameters": entries,
+            "worst": worst(entries),
+            "worst_setup_deg": [float(x) for x in np.degrees(w.setup_rotvec)],
+            "rank": rob.nominal.rank,
+            "estimable": [n for n in P.NAMES if entries[n]["estimable"]],
+            "not_estimable": [n for n in P.NAMES if not entries[n]["estimable"]],
+            "unobservable": rob.nominal.unobservable,
+            "separable_combinations": separable_combinations(
+                rob.nominal.null_basis, self.estimable, scales=self.requirements.values
+            ),
+            "correlated_pairs": [{"a": a, "b": b, "rho": r} for a, b, r in w.correlated_pairs()],
+            "criteria": w.criteria(),
+            "accel_scale_bound": {"best_possible_ratio": self.bound, "achieved_ratio": float(max(ratios))},
+        }
         if self.extras_cost is not None:
             doc["extras"] = _extras_doc(self.extras_cost, self.requirements)
         return doc
@@ -99,21 +110,29 @@ class Analysis:
         """What ``analyze`` prints."""
         rob, seq = self.robustness, self.sequence
         doc = self.to_json()
-        lines = [f"{seq.name}: {seq.duration_s:.0f} s ({seq.duration_s / 60:.1f} min), profile "
-                 f"{self.profile.name}, requirements {self.requirements.name}, latitude "
-                 f"{self.latitude_deg:g} deg, worst case over "
-                 f"+-{rob.tolerance_deg:g} deg ({rob.points} mountings"
-                 f"{' + IPOPT search' if rob.searched else ''})",
-                 format_table(doc["parameters"])] + _verdict(doc)
+        lines = [
+            f"{seq.name}: {seq.duration_s:.0f} s ({seq.duration_s / 60:.1f} min), profile "
+            f"{self.profile.name}, requirements {self.requirements.name}, latitude "
+            f"{self.latitude_deg:g} deg, worst case over "
+            f"+-{rob.tolerance_deg:g} deg ({rob.points} mountings"
+            f"{' + IPOPT search' if rob.searched else ''})",
+            format_table(doc["parameters"]),
+        ] + _verdict(doc)
         if self.extras_cost is not None:
             lines += _extras_text(doc["extras"])
         return "\n".join(lines)
 
 
-def analyze(sequence: Sequence | str, profile: NoiseProfile | str = "navigation", *,
-            latitude_deg: float | None = None, height_m: float | None = None,
-            tolerance_deg: float = 3.0, extras: Extras | str | None = None,
-            requirements: Requirements | str | None = None) -> Analysis:
+def analyze(
+    sequence: Sequence | str,
+    profile: NoiseProfile | str = "navigation",
+    *,
+    latitude_deg: float | None = None,
+    height_m: float | None = None,
+    tolerance_deg: float = 3.0,
+    extras: Extras | str | None = None,
+    requirements: Requirements | str | None = None,
+) -> Analysis:
     """Predict how well a sequence calibrates the 21 parameters.
 
     Parameters
@@ -144,8 +163,9 @@ def analyze(sequence: Sequence | str, profile: NoiseProfile | str = "navigation"
     lat_rad = math.radians(lat)
     rob = analyze_tolerance(seq, prof, lat_rad, h, tolerance_deg, requirements=req)
     bound = accel_scale_bound(seq.duration_s, prof, earth.gravity(lat_rad, h), req)
-    cost = (analyze_extras(seq, prof, lat_rad, extras, h, tolerance_deg, req, search=True)
-            if extras.n else None)
+    cost = (
+        analyze_extras(seq, prof, lat_rad, extras, h, tolerance_deg, req, search=True) if extras.n else None
+    )
     return Analysis(seq, prof, lat, h, rob, bound, cost, req)
 
 
@@ -154,17 +174,23 @@ def compare_text(analyses: list[Analysis]) -> str:
     docs = [a.to_json() for a in analyses]
     names = [d["sequence"] for d in docs]
     width = max(10, *(len(n) + 2 for n in names))
-    lines = [f"{'':<12}" + "".join(f"{n:>{width}}" for n in names),
-             f"{'time min':<12}" + "".join(f"{d['duration_s'] / 60:>{width}.1f}" for d in docs),
-             f"{'worst':<12}" + "".join(f"{_worst_cell(d):>{width}}" for d in docs)]
+    lines = [
+        f"{'':<12}" + "".join(f"{n:>{width}}" for n in names),
+        f"{'time min':<12}" + "".join(f"{d['duration_s'] / 60:>{width}.1f}" for d in docs),
+        f"{'worst':<12}" + "".join(f"{_worst_cell(d):>{width}}" for d in docs),
+    ]
     for p in P.PARAMETERS:
         cells = [d["parameters"][p.name] for d in docs]
-        lines.append(f"{p.name:<12}" + "".join(
-            f"{e['ratio']:>{width}.2f}" if e["estimable"] else f"{'n/e':>{width}}" for e in cells))
+        lines.append(
+            f"{p.name:<12}"
+            + "".join(f"{e['ratio']:>{width}.2f}" if e["estimable"] else f"{'n/e':>{width}}" for e in cells)
+        )
     a = analyses[0]
-    lines.append(f"ratios are 3 sigma / requirement, worst over +-{a.robustness.tolerance_deg:g} "
-                 f"deg, profile {a.profile.name}, requirements {a.requirements.name}; n/e: not "
-                 "estimable on its own")
+    lines.append(
+        f"ratios are 3 sigma / requirement, worst over +-{a.robustness.tolerance_deg:g} "
+        f"deg, profile {a.profile.name}, requirements {a.requirements.name}; n/e: not "
+        "estimable on its own"
+    )
     return "\n".join(lines)
 
 
@@ -177,85 +203,119 @@ def _verdict(doc: dict) -> list[str]:
     lines = []
     if doc["not_estimable"]:
         lines.append("NOT ESTIMABLE on their own: " + ", ".join(doc["not_estimable"]))
-        lines.append("unobserved directions (in units of each requirement): "
-                     + "; ".join(doc["unobservable"]))
+        lines.append(
+            "unobserved directions (in units of each requirement): " + "; ".join(doc["unobservable"])
+        )
         if doc["separable_combinations"]:
-            lines.append("what the sequence does determine of them (each in its own unit): "
-                         + "; ".join(doc["separable_combinations"]))
+            lines.append(
+                "what the sequence does determine of them (each in its own unit): "
+                + "; ".join(doc["separable_combinations"])
+            )
         lines.append("what would add the missing information:")
         lines += [f"  {n}: {doc['parameters'][n]['needs']}" for n in doc["not_estimable"]]
     if doc["correlated_pairs"]:
-        lines.append("correlated pairs (|rho| > 0.9): " + ", ".join(
-            f"{p['a']}/{p['b']} {p['rho']:+.3f}" for p in doc["correlated_pairs"]))
+        lines.append(
+            "correlated pairs (|rho| > 0.9): "
+            + ", ".join(f"{p['a']}/{p['b']} {p['rho']:+.3f}" for p in doc["correlated_pairs"])
+        )
     b = doc["accel_scale_bound"]
-    lines.append(f"accel scale-factor bound for {doc['duration_s']:.0f} s: best possible ratio "
-                 f"{b['best_possible_ratio']:.2f}, this sequence {b['achieved_ratio']:.2f}")
+    lines.append(
+        f"accel scale-factor bound for {doc['duration_s']:.0f} s: best possible ratio "
+        f"{b['best_possible_ratio']:.2f}, this sequence {b['achieved_ratio']:.2f}"
+    )
     lines.append(_verdict_line(doc))
     return lines
 
 
 def _verdict_line(doc: dict) -> str:
     w = doc["worst"]
-    where = ("worst case over the mounting box" if doc["tolerance_deg"] > 0
-             else "at the nominal mounting")
+    where = "worst case over the mounting box" if doc["tolerance_deg"] > 0 else "at the nominal mounting"
     misses = [n for n in doc["estimable"] if doc["parameters"][n]["ratio"] > 1.0]
     if doc["not_estimable"]:
         est = len(doc["estimable"])
-        tail = (f"; of the {est} estimable, the worst is {w['name']} at {w['ratio']:.2f}"
-                if w["name"] else "")
-        return (f"Verdict: this sequence cannot separate {len(doc['not_estimable'])} of 21 "
-                f"parameters ({', '.join(doc['not_estimable'])}; rank {doc['rank']} of 21){tail}, "
-                f"under profile {doc['profile']}, {where}.")
+        tail = f"; of the {est} estimable, the worst is {w['name']} at {w['ratio']:.2f}" if w["name"] else ""
+        return (
+            f"Verdict: this sequence cannot separate {len(doc['not_estimable'])} of 21 "
+            f"parameters ({', '.join(doc['not_estimable'])}; rank {doc['rank']} of 21){tail}, "
+            f"under profile {doc['profile']}, {where}."
+        )
     if not misses:
-        return (f"Verdict: all 21 parameters meet their requirements (worst ratio "
-                f"{w['ratio']:.2f}, {w['name']}) under profile {doc['profile']}, {where}.")
-    return (f"Verdict: {len(misses)} of 21 parameters miss their requirement ("
-            + ", ".join(misses) + f"); the worst is {w['name']} at {w['ratio']:.2f} x the "
-            f"requirement (3 sigma), under profile {doc['profile']}, {where}.")
+        return (
+            f"Verdict: all 21 parameters meet their requirements (worst ratio "
+            f"{w['ratio']:.2f}, {w['name']}) under profile {doc['profile']}, {where}."
+        )
+    return (
+        f"Verdict: {len(misses)} of 21 parameters miss their requirement ("
+        + ", ".join(misses)
+        + f"); the worst is {w['name']} at {w['ratio']:.2f} x the "
+        f"requirement (3 sigma), under profile {doc['profile']}, {where}."
+    )
 
 
 def _extras_doc(cost: ExtrasCost, requirements: Requirements) -> dict:
     """``analyze --with``: the cost of the optional terms to each of the 21, and their sigma."""
     r0, r1 = requirements.ratio(cost.sigma_without), requirements.ratio(cost.sigma_with)
-    params = {p.name: {"unit": p.unit,
-                       "sigma_without": float(cost.sigma_without[p.index] / p.si_per_unit),
-                       "sigma_with": float(cost.sigma_with[p.index] / p.si_per_unit),
-                       "ratio_without": float(r0[p.index]), "ratio_with": float(r1[p.index]),
-                       "sigma_increase": float(cost.sigma_with[p.index]
-                                               / cost.sigma_without[p.index])}
-              for p in P.PARAMETERS}
-    extra = {p.name: {"unit": p.unit, "sigma": float(s / p.si_per_unit), "typical_size": p.scale,
-                      "verdict": v, "meaning": p.meaning}
-             for p, s, v in zip(cost.extras.parameters, cost.extra_sigma, cost.verdicts())}
+    params = {
+        p.name: {
+            "unit": p.unit,
+            "sigma_without": float(cost.sigma_without[p.index] / p.si_per_unit),
+            "sigma_with": float(cost.sigma_with[p.index] / p.si_per_unit),
+            "ratio_without": float(r0[p.index]),
+            "ratio_with": float(r1[p.index]),
+            "sigma_increase": float(cost.sigma_with[p.index] / cost.sigma_without[p.index]),
+        }
+        for p in P.PARAMETERS
+    }
+    extra = {
+        p.name: {
+            "unit": p.unit,
+            "sigma": float(s / p.si_per_unit),
+            "typical_size": p.scale,
+            "verdict": v,
+            "meaning": p.meaning,
+        }
+        for p, s, v in zip(cost.extras.parameters, cost.extra_sigma, cost.verdicts())
+    }
     finite = np.where(np.isfinite(r1), r1, -np.inf)
     w = int(np.argmax(finite))
-    return {"terms": list(cost.extras.groups), "setups_evaluated": cost.points,
-            "ipopt_search": cost.searched,
-            "tolerance_deg": cost.tolerance_deg, "parameters": params, "extra_parameters": extra,
-            "worst_with": {"name": P.NAMES[w], "ratio": float(r1[w])},
-            "unobservable": cost.unobservable}
+    return {
+        "terms": list(cost.extras.groups),
+        "setups_evaluated": cost.points,
+        "ipopt_search": cost.searched,
+        "tolerance_deg": cost.tolerance_deg,
+        "parameters": params,
+        "extra_parameters": extra,
+        "worst_with": {"name": P.NAMES[w], "ratio": float(r1[w])},
+        "unobservable": cost.unobservable,
+    }
 
 
 def _extras_text(d: dict) -> list[str]:
     search = " + IPOPT search" if d["ipopt_search"] else ""
-    lines = ["", f"with {', '.join(d['terms'])} also fitted (worst over {d['setups_evaluated']} "
-             f"mountings{search} within +-{d['tolerance_deg']:g} deg, direct evaluation):",
-             f"{'param':<6}{'unit':<8}{'sigma w/o':>11}{'sigma with':>11}{'x':>7}"
-             f"{'3s/req w/o':>11}{'3s/req with':>12}"]
+    lines = [
+        "",
+        f"with {', '.join(d['terms'])} also fitted (worst over {d['setups_evaluated']} "
+        f"mountings{search} within +-{d['tolerance_deg']:g} deg, direct evaluation):",
+        f"{'param':<6}{'unit':<8}{'sigma w/o':>11}{'sigma with':>11}{'x':>7}"
+        f"{'3s/req w/o':>11}{'3s/req with':>12}",
+    ]
     for name, e in d["parameters"].items():
-        lines.append(f"{name:<6}{e['unit']:<8}{e['sigma_without']:11.4g}{e['sigma_with']:11.4g}"
-                     f"{e['sigma_increase']:7.2f}{e['ratio_without']:11.2f}{e['ratio_with']:12.2f}")
+        lines.append(
+            f"{name:<6}{e['unit']:<8}{e['sigma_without']:11.4g}{e['sigma_with']:11.4g}"
+            f"{e['sigma_increase']:7.2f}{e['ratio_without']:11.2f}{e['ratio_with']:12.2f}"
+        )
     lines.append(f"{'param':<6}{'unit':<8}{'sigma':>11}{'typical':>9}  verdict")
     for name, e in d["extra_parameters"].items():
-        lines.append(f"{name:<6}{e['unit']:<8}{e['sigma']:11.4g}{e['typical_size']:9.4g}  "
-                     f"{e['verdict']}")
+        lines.append(f"{name:<6}{e['unit']:<8}{e['sigma']:11.4g}{e['typical_size']:9.4g}  {e['verdict']}")
     if d["unobservable"]:
         lines.append("UNOBSERVABLE with the extra terms: " + "; ".join(d["unobservable"]))
     finite = {k: v for k, v in d["parameters"].items() if np.isfinite(v["sigma_increase"])}
     if finite:
         name, e = max(finite.items(), key=lambda kv: kv[1]["sigma_increase"])
-        lines.append(f"Fitting them costs most on {name} (sigma x{e['sigma_increase']:.2f}); "
-                     f"worst ratio with them {d['worst_with']['ratio']:.2f} "
-                     f"({d['worst_with']['name']}). 'weak': 3 sigma exceeds the typical size; "
-                     "'unobservable': no information.")
+        lines.append(
+            f"Fitting them costs most on {name} (sigma x{e['sigma_increase']:.2f}); "
+            f"worst ratio with them {d['worst_with']['ratio']:.2f} "
+            f"({d['worst_with']['name']}). 'weak': 3 sigma exceeds the typical size; "
+            "'unobservable': no information."
+        )
     return lines

@@ -12,6 +12,7 @@ Results know how to print themselves (``to_text``) and how to become the
 ``--json`` document of the matching command (``to_json``); the CLI does no
 more than parse options, call these and print.
 """
+
 from __future__ import annotations
 
 from calib.calibration import calibrate_run as calibrate
@@ -27,9 +28,22 @@ from .designs import DesignReport
 from .designs import design_budgets as design
 from .repeatability import compare_results
 
-__all__ = ["Analysis", "CalibrationResult", "DesignReport", "analyze", "calibrate",
-           "compare_results", "compare_text", "design", "load_profile", "load_requirements",
-           "load_sequence", "read_run", "record", "simulate"]
+__all__ = [
+    "Analysis",
+    "CalibrationResult",
+    "DesignReport",
+    "analyze",
+    "calibrate",
+    "compare_results",
+    "compare_text",
+    "design",
+    "load_profile",
+    "load_requirements",
+    "load_sequence",
+    "read_run",
+    "record",
+    "simulate",
+]
 
 
 def record(run, path, result=None, sequence=None, truth=None):
@@ -37,5 +51,4 @@ def record(run, path, result=None, sequence=None, truth=None):
     from calib.review import review_run
     from viz.record import record_run
 
-    return record_run(run, path, review_run(run, result), sequence=sequence, result=result,
-                      truth=truth)
+    return record_run(run, path, review_run(run, result), sequence=sequence, result=result, truth=truth)

@@ -5,6 +5,7 @@ The command is a plain click command; ``seqdesign/cli.py`` registers it with
 navigations) is :func:`calib.review.review_run`; :mod:`viz` only logs what
 it is given. rerun itself is imported only inside the command.
 """
+
 from __future__ import annotations
 
 import json
@@ -42,12 +43,16 @@ def _beside(run_path: str, suffix: str) -> Path:
 
 def _check_output(path: Path) -> None:
     if path.suffix.lower() != ".rrd":
-        raise CalibError(f"unknown recording format {path.suffix!r}", "-o/--output",
-                         "name the recording .rrd")
+        raise CalibError(
+            f"unknown recording format {path.suffix!r}", "-o/--output", "name the recording .rrd"
+        )
     directory = path.parent if str(path.parent) else Path(".")
     if not directory.is_dir():
-        raise CalibError(f"directory {str(directory)!r} does not exist", "-o/--output",
-                         "create it first or choose another path")
+        raise CalibError(
+            f"directory {str(directory)!r} does not exist",
+            "-o/--output",
+            "create it first or choose another path",
+        )
 
 
 def _load_sequence(run, explicit):
@@ -64,8 +69,13 @@ def _load_sequence(run, explicit):
     try:
         seq = load_sequence(name)
         dt = sample_intervals(run.time_s)
-        check_sequence_matches(seq, detect_motion(run.dtheta_rad, dt, run.source).moving,
-                               sequence_motion(seq, run.time_s, dt), dt, run.source)
+        check_sequence_matches(
+            seq,
+            detect_motion(run.dtheta_rad, dt, run.source).moving,
+            sequence_motion(seq, run.time_s, dt),
+            dt,
+            run.source,
+        )
     except CalibError as exc:
         if explicit:
             raise
@@ -97,17 +107,32 @@ def _load_result(run_path, explicit):
 
 @click.command(short_help="Write a rerun recording (.rrd) of a run; --spawn opens the viewer.")
 @click.argument("run_path", metavar="RUN")
-@click.option("--sequence", help="Sequence the run followed (default: the run's 'sequence' key "
-              "if it is a shipped sequence matching the log).")
-@click.option("--result", "result_path", type=click.Path(dir_okay=False),
-              help="Calibration result (default: RUN.result.toml beside the run, if it exists).")
-@click.option("--truth", "truth_path", type=click.Path(dir_okay=False),
-              help="Truth file of a simulated run (default: RUN.truth.toml, if it exists).")
+@click.option(
+    "--sequence",
+    help="Sequence the run followed (default: the run's 'sequence' key "
+    "if it is a shipped sequence matching the log).",
+)
+@click.option(
+    "--result",
+    "result_path",
+    type=click.Path(dir_okay=False),
+    help="Calibration result (default: RUN.result.toml beside the run, if it exists).",
+)
+@click.option(
+    "--truth",
+    "truth_path",
+    type=click.Path(dir_okay=False),
+    help="Truth file of a simulated run (default: RUN.truth.toml, if it exists).",
+)
 @click.option("-o", "--output", help="Recording to write (default: RUN with .rrd).")
-@click.option("--spawn", is_flag=True, help="Open the recording in the rerun viewer. Without a "
-              "display (Linux: neither DISPLAY nor WAYLAND_DISPLAY set) it says so in one line, "
-              f"still writes the recording and exits with code {EXIT_NO_DISPLAY}: not 0, since the "
-              "viewer asked for did not open; not 2, since the input was fine.")
+@click.option(
+    "--spawn",
+    is_flag=True,
+    help="Open the recording in the rerun viewer. Without a "
+    "display (Linux: neither DISPLAY nor WAYLAND_DISPLAY set) it says so in one line, "
+    f"still writes the recording and exits with code {EXIT_NO_DISPLAY}: not 0, since the "
+    "viewer asked for did not open; not 2, since the input was fine.",
+)
 @click.option("--allow-gaps", is_flag=True, help="Accept time gaps in the log.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 @guarded
@@ -134,34 +159,41 @@ def view(run_path, sequence, result_path, truth_path, output, spawn, allow_gaps,
     try:
         import rerun  # noqa: F401  (a clear message if the optional viewer SDK is missing)
     except ImportError:
-        raise CalibError("rerun-sdk is not installed", None,
-                         "pip install 'rerun-sdk>=0.41'") from None
+        raise CalibError("rerun-sdk is not installed", None, "pip install 'rerun-sdk>=0.41'") from None
     from calib.review import review_run
     from viz.record import record_run
 
-    summary = record_run(run, out, review_run(run, result), sequence=seq, result=result,
-                         truth=truth)
+    summary = record_run(run, out, review_run(run, result), sequence=seq, result=result, truth=truth)
     no_display = spawn and not display_available()
     if no_display:
-        _info(f"error: --spawn: no display to open the viewer on (DISPLAY and WAYLAND_DISPLAY "
-              f"are unset); {out} is written: open it with 'rerun {out}' where there is a "
-              f"display, or 'rerun --serve-web {out}' and a browser")
+        _info(
+            f"error: --spawn: no display to open the viewer on (DISPLAY and WAYLAND_DISPLAY "
+            f"are unset); {out} is written: open it with 'rerun {out}' where there is a "
+            f"display, or 'rerun --serve-web {out}' and a browser"
+        )
     elif spawn:
         _spawn_viewer(out)
     doc = summary.to_dict()
-    doc.update({"run": str(run_path), "samples": run.n_samples,
-                "sequence": seq.name if seq is not None else None,
-                "result": str(used_result) if used_result else None,
-                "truth": str(truth_path) if truth_path else None,
-                "notes": doc["notes"] + [n for n in (seq_note, result_note) if n]})
+    doc.update(
+        {
+            "run": str(run_path),
+            "samples": run.n_samples,
+            "sequence": seq.name if seq is not None else None,
+            "result": str(used_result) if used_result else None,
+            "truth": str(truth_path) if truth_path else None,
+            "notes": doc["notes"] + [n for n in (seq_note, result_note) if n],
+        }
+    )
     doc["viewer"] = "no display" if no_display else ("spawned" if spawn else None)
     if as_json:
         click.echo(json.dumps(doc, indent=2, allow_nan=False))
     else:
         rows = sum(doc["entities"].values())
         size = out.stat().st_size / 1e6
-        click.echo(f"wrote {out} ({len(doc['entities'])} entities, {rows} rows, {size:.1f} MB; "
-                   f"scene from {doc['scene_source']})")
+        click.echo(
+            f"wrote {out} ({len(doc['entities'])} entities, {rows} rows, {size:.1f} MB; "
+            f"scene from {doc['scene_source']})"
+        )
         if not spawn:
             click.echo(f"open it with: rerun {out}")
     if no_display:
@@ -176,8 +208,13 @@ def _spawn_viewer(path: Path) -> None:
     file is already written.
     """
     try:
-        subprocess.Popen([sys.executable, "-m", "rerun", str(path)], stdin=subprocess.DEVNULL,
-                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                         start_new_session=True, env=os.environ.copy())
+        subprocess.Popen(
+            [sys.executable, "-m", "rerun", str(path)],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,
+            env=os.environ.copy(),
+        )
     except OSError as exc:
         _info(f"warning: could not start the rerun viewer ({exc}); open {path} with 'rerun {path}'")

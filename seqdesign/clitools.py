@@ -3,6 +3,7 @@
 Kept apart from :mod:`seqdesign.cli` so that commands living elsewhere
 (``seqdesign.cli_view``) use the same ones without importing the command group.
 """
+
 from __future__ import annotations
 
 import functools
@@ -22,6 +23,7 @@ EXIT_BAD_INPUT = 2
 def tool_version() -> str:
     """The installed package's version."""
     from importlib.metadata import PackageNotFoundError, version
+
     try:
         return version("seqdesign")
     except PackageNotFoundError:
@@ -72,6 +74,7 @@ def guarded(fn):
     gets a document either way. The library's warnings are printed as
     ``warning: ...`` lines on stderr.
     """
+
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
         try:
@@ -87,6 +90,7 @@ def guarded(fn):
         except KeyboardInterrupt:
             click.echo("interrupted; nothing was written", err=True)
             sys.exit(130)
+
     return wrapper
 
 

@@ -17,6 +17,7 @@ state at each segment start (the first rest starts from zero exactly); the
 finalists are then re-scored with the exact analyser, worst case over the
 mounting tolerance, which is the figure reported.
 """
+
 from __future__ import annotations
 
 import functools
@@ -74,19 +75,37 @@ class SegmentEffect:
 
 
 def _segment_timeline(C: np.ndarray, duration: float, rate: float = 0.0, axis: int = -1) -> Timeline:
-    return Timeline(t0=np.array([0.0]), t1=np.array([duration]), rate=np.array([rate]),
-                    axis=np.array([axis]), C0=C[None], position=np.array([1]),
-                    step=np.array([-1]), C_end=C)
+    return Timeline(
+        t0=np.array([0.0]),
+        t1=np.array([duration]),
+        rate=np.array([rate]),
+        axis=np.array([axis]),
+        C0=C[None],
+        position=np.array([1]),
+        step=np.array([-1]),
+        C_end=C,
+    )
 
 
-def _segment_inputs(C: np.ndarray, duration: float, rate: float, axis: int, latitude_rad: float,
-                    gravity_mps2: float, profile: NoiseProfile, n_intervals: int | None):
+def _segment_inputs(
+    C: np.ndarray,
+    duration: float,
+    rate: float,
+    axis: int,
+    latitude_rad: float,
+    gravity_mps2: float,
+    profile: NoiseProfile,
+    n_intervals: int | None,
+):
     """Model inputs (K, 6, 24), interval lengths and (with GM) mid-interval attitudes."""
     tl = _segment_timeline(C, duration, rate, axis)
     if n_intervals is None:
         n_intervals = max(1, int(round(duration / SEARCH_MOVE_STEP_S)))
-    sub = 4 if rate == 0.0 else max(1, int(math.ceil(
-        abs(math.degrees(rate)) * duration / n_intervals / SEARCH_SUB_DEG)))
+    sub = (
+        4
+        if rate == 0.0
+        else max(1, int(math.ceil(abs(math.degrees(rate)) * duration / n_intervals / SEARCH_SUB_DEG)))
+    )
     t_nav = np.linspace(0.0, duration, n_intervals * sub + 1)
     flip, E = body_integrals(tl, t_nav[1:])
     dtheta = flip + E @ earth.omega_ie_n(latitude_rad)
@@ -102,12 +121,20 @@ def _segment_inputs(C: np.ndarray, duration: float, rate: float, axis: int, lati
     return inputs, T, C_mid
 
 
-def segment_columns(C: np.ndarray, duration: float, rate: float, axis: int, latitude_rad: float,
-                    gravity_mps2: float, profile: NoiseProfile,
-                    n_intervals: int | None = None) -> SegmentColumns:
+def segment_columns(
+    C: np.ndarray,
+    duration: float,
+    rate: float,
+    axis: int,
+    latitude_rad: float,
+    gravity_mps2: float,
+    profile: NoiseProfile,
+    n_intervals: int | None = None,
+) -> SegmentColumns:
     """A segment's unwhitened observation columns and noise blocks (exact GM search)."""
-    inputs, T, C_mid = _segment_inputs(C, duration, rate, axis, latitude_rad, gravity_mps2,
-                                       profile, n_intervals)
+    inputs, T, C_mid = _segment_inputs(
+        C, duration, rate, axis, latitude_rad, gravity_mps2, profile, n_intervals
+    )
     A6 = state_matrix(latitude_rad, gravity_mps2)
     Phi_vv = np.array([m.Phi[3:6, 3:6] for m in interval_models(A6, T, profile, C_mid)])
     S0 = np.zeros((6, 6 + N_UNKNOWN))
@@ -119,12 +146,22 @@ def segment_columns(C: np.ndarray, duration: float, rate: float, axis: int, lati
     return SegmentColumns(H, S_end[:, :6], S_end[:, 6:], *noise_blocks(A6, T, profile, C_mid))
 
 
-def segment_effect(C: np.ndarray, duration: float, rate: float, axis: int, latitude_rad: float,
-                   gravity_mps2: float, profile: NoiseProfile, P0: np.ndarray | None,
-                   n_intervals: int | None = None, initial: bool = False) -> SegmentEffect:
+def segment_effect(
+    C: np.ndarray,
+    duration: float,
+    rate: float,
+    axis: int,
+    latitude_rad: float,
+    gravity_mps2: float,
+    profile: NoiseProfile,
+    P0: np.ndarray | None,
+    n_intervals: int | None = None,
+    initial: bool = False,
+) -> SegmentEffect:
     """The segment matrices of one rest (``rate == 0``) or turn, by running the model on basis columns."""
-    inputs, T, C_mid = _segment_inputs(C, duration, rate, axis, latitude_rad, gravity_mps2,
-                                       profile, n_intervals)
+    inputs, T, C_mid = _segment_inputs(
+        C, duration, rate, axis, latitude_rad, gravity_mps2, profile, n_intervals
+    )
     noise = noise_model(state_matrix(latitude_rad, gravity_mps2), T, profile, P0, C_mid)
     # Columns: 6 + s homogeneous (unit S, unit filter state, no input; s = 3, or 9 with
     # Gauss-Markov biases), then the 24 unknowns' particular responses (zero start, this
@@ -136,15 +173,14 @@ def segment_effect(C: np.ndarray, duration: float, rate: float, axis: int, latit
     S0 = np.zeros((6, c))
     phi0 = np.zeros((n_s, c))
     if initial:  # the run's start: S = [I; 0] on phi0, filter state zero, nothing else
-        S0[:3, n_hom + P.N_PARAMS:] = np.eye(3)
+        S0[:3, n_hom + P.N_PARAMS :] = np.eye(3)
     else:
         S0[:, :6] = np.eye(6)
         phi0[:, 6:n_hom] = np.eye(n_s)
     all_inputs = np.zeros((len(T), 6, c))
     all_inputs[:, :, n_hom:] = inputs
     S_v, S_end = propagate(all_inputs, T, S0, latitude_rad, gravity_mps2, return_final=True)
-    w, phi_end = whiten(noise.whitener, observation_matrix(S_v, noise.Phi_vv), phi0,
-                        return_final=True)
+    w, phi_end = whiten(noise.whitener, observation_matrix(S_v, noise.Phi_vv), phi0, return_final=True)
     Wh, Wp = w[:, :, :n_hom], w[:, :, n_hom:]
     M1 = np.einsum("kia,kib->ab", Wh, Wh)
     M2 = np.einsum("kia,kib->ab", Wh, Wp)
@@ -153,8 +189,9 @@ def segment_effect(C: np.ndarray, duration: float, rate: float, axis: int, latit
     return SegmentEffect(A=X[:, :n_hom], B=X[:, n_hom:], M1=M1, M2=M2, M3=M3)
 
 
-def rest_steady_state(latitude_rad: float, gravity_mps2: float, profile: NoiseProfile,
-                      dwell_s: float) -> np.ndarray:
+def rest_steady_state(
+    latitude_rad: float, gravity_mps2: float, profile: NoiseProfile, dwell_s: float
+) -> np.ndarray:
     """Noise-filter covariance after a long rest observed with the search's rest intervals.
 
     With Gauss-Markov biases the filter state is ``[phi, b_g, b_a]`` (body frame); the
@@ -165,15 +202,14 @@ def rest_steady_state(latitude_rad: float, gravity_mps2: float, profile: NoisePr
     """
     T = np.full(40 * SEARCH_REST_INTERVALS, dwell_s / SEARCH_REST_INTERVALS)
     C = np.broadcast_to(np.eye(3), (len(T), 3, 3)) if profile.has_gauss_markov else None
-    return whitener(interval_models(state_matrix(latitude_rad, gravity_mps2), T, profile,
-                                    C)).P_end
+    return whitener(interval_models(state_matrix(latitude_rad, gravity_mps2), T, profile, C)).P_end
 
 
 def gm_start_covariance(profile: NoiseProfile) -> np.ndarray:
     """Filter covariance at a run's start with GM biases: phi zero (an unknown of the fit),
     the biases at their stationary ``sigma^2 I`` (as :func:`calib.noise.whitener`).
     """
-    return np.diag(np.repeat([0.0, profile.gyro_gm_sigma ** 2, profile.accel_gm_sigma ** 2], 3))
+    return np.diag(np.repeat([0.0, profile.gyro_gm_sigma**2, profile.accel_gm_sigma**2], 3))
 
 
 def start_covariance(P_nav: np.ndarray, C_b_n: np.ndarray) -> np.ndarray:
@@ -199,12 +235,13 @@ def scaled_marginal(N: np.ndarray, prior: bool, requirements: Requirements = PAP
     D = requirements.si
     M = M * np.outer(D, D)
     if prior:
-        M = M + np.eye(P.N_PARAMS) * (9.0 / PRIOR_RATIO ** 2)
+        M = M + np.eye(P.N_PARAMS) * (9.0 / PRIOR_RATIO**2)
     return M
 
 
-def score(N: np.ndarray, objective: str, prior: bool = True,
-          requirements: Requirements = PAPER) -> np.ndarray:
+def score(
+    N: np.ndarray, objective: str, prior: bool = True, requirements: Requirements = PAPER
+) -> np.ndarray:
     """Figure of merit, smaller is better, for ``(..., 24, 24)`` information matrices.
 
     ``worst``: max 3 sigma / requirement; ``A``: sum of (sigma/requirement)^2;
@@ -253,8 +290,8 @@ def turn_seconds(mv: Move, c: Constraints) -> float:
     if c.accel_dps2 is None:
         return abs(mv.angle_deg) / c.rate_dps
     from .gimbalsearch import move_profile
-    return move_profile(c.rate_dps, c.accel_dps2, c.jerk_dps3).duration_s(
-        math.radians(abs(mv.angle_deg)))
+
+    return move_profile(c.rate_dps, c.accel_dps2, c.jerk_dps3).duration_s(math.radians(abs(mv.angle_deg)))
 
 
 def turn_rate(mv: Move, c: Constraints) -> float:
@@ -296,39 +333,99 @@ class SearchModel:
     exact_noise: bool = False  # GM: each candidate carries its filter covariance (gmsearch)
 
     @classmethod
-    def build(cls, c: Constraints, dwell_s: float, latitude_rad: float, height_m: float,
-              profile: NoiseProfile, requirements: Requirements = PAPER) -> "SearchModel":
+    def build(
+        cls,
+        c: Constraints,
+        dwell_s: float,
+        latitude_rad: float,
+        height_m: float,
+        profile: NoiseProfile,
+        requirements: Requirements = PAPER,
+    ) -> "SearchModel":
         g = earth.gravity(latitude_rad, height_m)
         graph = flip_graph(c.start, c.axes)
         if profile.has_gauss_markov:
             return cls._build_exact(c, dwell_s, latitude_rad, g, profile, requirements, graph)
         P_ss = rest_steady_state(latitude_rad, g, profile, dwell_s)
-        rest = {node: segment_effect(attitude_of(node), dwell_s, 0.0, -1, latitude_rad, g, profile,
-                                     start_covariance(P_ss, attitude_of(node)),
-                                     SEARCH_REST_INTERVALS) for node in graph.nodes}
-        initial = segment_effect(attitude_of(c.start), dwell_s, 0.0, -1, latitude_rad, g, profile,
-                                 None, SEARCH_REST_INTERVALS, initial=True)
-        model = cls(c, dwell_s, latitude_rad, g, profile, graph,
-                    all_moves(c.axes, c.max_quarters), initial, rest, requirements=requirements)
+        rest = {
+            node: segment_effect(
+                attitude_of(node),
+                dwell_s,
+                0.0,
+                -1,
+                latitude_rad,
+                g,
+                profile,
+                start_covariance(P_ss, attitude_of(node)),
+                SEARCH_REST_INTERVALS,
+            )
+            for node in graph.nodes
+        }
+        initial = segment_effect(
+            attitude_of(c.start),
+            dwell_s,
+            0.0,
+            -1,
+            latitude_rad,
+            g,
+            profile,
+            None,
+            SEARCH_REST_INTERVALS,
+            initial=True,
+        )
+        model = cls(
+            c,
+            dwell_s,
+            latitude_rad,
+            g,
+            profile,
+            graph,
+            all_moves(c.axes, c.max_quarters),
+            initial,
+            rest,
+            requirements=requirements,
+        )
         for node in graph.nodes:
             C = attitude_of(node)
             for mv in model.moves:
                 model.turn[(node, mv)] = segment_effect(
-                    C, turn_seconds(mv, c), turn_rate(mv, c), AXES.index(mv.axis),
-                    latitude_rad, g, profile, start_covariance(P_ss, C))
+                    C,
+                    turn_seconds(mv, c),
+                    turn_rate(mv, c),
+                    AXES.index(mv.axis),
+                    latitude_rad,
+                    g,
+                    profile,
+                    start_covariance(P_ss, C),
+                )
         return model
 
     @classmethod
     def _build_exact(cls, c, dwell_s, latitude_rad, g, profile, requirements, graph):
-        rest = {node: segment_columns(attitude_of(node), dwell_s, 0.0, -1, latitude_rad, g,
-                                      profile, SEARCH_REST_INTERVALS) for node in graph.nodes}
-        model = cls(c, dwell_s, latitude_rad, g, profile, graph,
-                    all_moves(c.axes, c.max_quarters), rest[tuple(c.start)], rest,
-                    requirements=requirements, exact_noise=True)
+        rest = {
+            node: segment_columns(
+                attitude_of(node), dwell_s, 0.0, -1, latitude_rad, g, profile, SEARCH_REST_INTERVALS
+            )
+            for node in graph.nodes
+        }
+        model = cls(
+            c,
+            dwell_s,
+            latitude_rad,
+            g,
+            profile,
+            graph,
+            all_moves(c.axes, c.max_quarters),
+            rest[tuple(c.start)],
+            rest,
+            requirements=requirements,
+            exact_noise=True,
+        )
         for node in graph.nodes:
             for mv in model.moves:
-                model.turn[(node, mv)] = _turn_columns(node, mv, turn_seconds(mv, c),
-                                                       turn_rate(mv, c), latitude_rad, g, profile)
+                model.turn[(node, mv)] = _turn_columns(
+                    node, mv, turn_seconds(mv, c), turn_rate(mv, c), latitude_rad, g, profile
+                )
         return model
 
     def turn_time(self, mv: Move) -> float:
@@ -339,11 +436,24 @@ class SearchModel:
         if self.exact_noise:
             X, N, P0 = start_state(gm_start_covariance(self.profile), N_UNKNOWN)
             X, N, P0 = fold(self.initial, X[None], N[None], P0[None])
-            return Candidate(walk=(), node=tuple(self.constraints.start), X=X[0], N=N[0],
-                             time_s=self.dwell_s, P=P0[0], enc=self._enc0())
+            return Candidate(
+                walk=(),
+                node=tuple(self.constraints.start),
+                X=X[0],
+                N=N[0],
+                time_s=self.dwell_s,
+                P=P0[0],
+                enc=self._enc0(),
+            )
         e = self.initial
-        return Candidate(walk=(), node=tuple(self.constraints.start), X=e.B.copy(), N=e.M3.copy(),
-                         time_s=self.dwell_s, enc=self._enc0())
+        return Candidate(
+            walk=(),
+            node=tuple(self.constraints.start),
+            X=e.B.copy(),
+            N=e.M3.copy(),
+            time_s=self.dwell_s,
+            enc=self._enc0(),
+        )
 
     def _enc0(self):
         return None if self.constraints.gimbal is None else (0.0, 0.0, 0.0)
@@ -354,6 +464,7 @@ class SearchModel:
         if c.gimbal is None:
             return True, None
         from .gimbalsearch import home_reachable, next_encoders
+
         enc = next_encoders(c, par.enc, mv)
         if "_min_turn" not in self.__dict__:
             self.__dict__["_min_turn"] = min(self.turn_time(m) for m in self.moves)
@@ -361,8 +472,7 @@ class SearchModel:
         ok = enc is not None and home_reachable(c, enc, len(par.walk) + 1, t, quarter)
         return ok, enc
 
-    def extend(self, parents: list[Candidate], objective: str,
-               prior: bool = True) -> list[Candidate]:
+    def extend(self, parents: list[Candidate], objective: str, prior: bool = True) -> list[Candidate]:
         """All feasible children of ``parents``, scored (batched)."""
         c = self.constraints
         kids, effs, keys = [], [], []
@@ -384,8 +494,7 @@ class SearchModel:
         if not kids:
             return []
         if self.exact_noise:
-            return self._fold_exact(kids, [(par_node, mv) for par_node, mv in keys], objective,
-                                    prior)
+            return self._fold_exact(kids, [(par_node, mv) for par_node, mv in keys], objective, prior)
         X = np.stack([k.X for k in kids])
         N = np.stack([k.N for k in kids])
         for part in (0, 1):
@@ -429,8 +538,7 @@ class SearchModel:
         """Per move, and for the rests, every node's columns stacked (built once)."""
         if "_stacked" not in self.__dict__:
             nodes = list(self.rest)
-            st = {"index": {n: i for i, n in enumerate(nodes)},
-                  "rest": stack([self.rest[n] for n in nodes])}
+            st = {"index": {n: i for i, n in enumerate(nodes)}, "rest": stack([self.rest[n] for n in nodes])}
             for mv in self.moves:
                 st[mv] = stack([self.turn[(n, mv)] for n in nodes])
             self.__dict__["_stacked"] = st
@@ -440,18 +548,21 @@ class SearchModel:
         g = self.constraints.gimbal
         if g is not None and g.end_at_home:
             from .gimbalsearch import at_home
+
             if not at_home(cand.enc):
                 return False
-        return len(cand.walk) > 0 and (self.constraints.end is None
-                                        or cand.node == tuple(self.constraints.end))
+        return len(cand.walk) > 0 and (
+            self.constraints.end is None or cand.node == tuple(self.constraints.end)
+        )
 
 
 def _key(c: Candidate):
     return (c.score, " ".join(m.label() for m in c.walk))
 
 
-def beam_search(model: SearchModel, objective: str = "worst", beam_width: int | None = 200,
-                keep: int = 5, progress=None) -> tuple[list[Candidate], int]:
+def beam_search(
+    model: SearchModel, objective: str = "worst", beam_width: int | None = 200, keep: int = 5, progress=None
+) -> tuple[list[Candidate], int]:
     """Best complete walks (``keep`` of them) and the number of candidates scored.
 
     ``beam_width=None`` keeps every partial walk: an exhaustive search.
@@ -476,6 +587,7 @@ def beam_search(model: SearchModel, objective: str = "worst", beam_width: int | 
 def brute_force(model: SearchModel, depth: int, objective: str = "worst") -> Candidate:
     """Every walk of up to ``depth`` moves, each folded from scratch (for tests)."""
     import itertools
+
     best = None
     for d in range(1, depth + 1):
         for walk in itertools.product(model.moves, repeat=d):
@@ -492,38 +604,90 @@ def brute_force(model: SearchModel, depth: int, objective: str = "worst") -> Can
     return best
 
 
-def to_sequence(walk, c: Constraints, dwells: list[float], name: str,
-                provenance: dict | None = None, latitude_deg: float | None = None,
-                height_m: float | None = None) -> Sequence:
+def to_sequence(
+    walk,
+    c: Constraints,
+    dwells: list[float],
+    name: str,
+    provenance: dict | None = None,
+    latitude_deg: float | None = None,
+    height_m: float | None = None,
+) -> Sequence:
     """A sequence file's content for a walk and its dwells (initial first), with its site."""
-    steps = tuple(Step(mv.axis, mv.angle_deg, c.rate_dps, float(d), c.accel_dps2, c.jerk_dps3)
-                  for mv, d in zip(walk, dwells[1:]))
-    return Sequence(name=name, start=tuple(c.start), steps=steps, initial_dwell_s=float(dwells[0]),
-                    description=f"designed: {' '.join(m.label() for m in walk)}",
-                    latitude_deg=latitude_deg, height_m=height_m, provenance=provenance or {})
+    steps = tuple(
+        Step(mv.axis, mv.angle_deg, c.rate_dps, float(d), c.accel_dps2, c.jerk_dps3)
+        for mv, d in zip(walk, dwells[1:])
+    )
+    return Sequence(
+        name=name,
+        start=tuple(c.start),
+        steps=steps,
+        initial_dwell_s=float(dwells[0]),
+        description=f"designed: {' '.join(m.label() for m in walk)}",
+        latitude_deg=latitude_deg,
+        height_m=height_m,
+        provenance=provenance or {},
+    )
 
 
 # ---------------------------------------------------------------------------
 # Dwell refinement (casadi + IPOPT)
 
 
-def walk_information(walk, c: Constraints, dwells, latitude_rad: float, gravity_mps2: float,
-                     profile: NoiseProfile, P_ss: np.ndarray) -> np.ndarray:
+def walk_information(
+    walk,
+    c: Constraints,
+    dwells,
+    latitude_rad: float,
+    gravity_mps2: float,
+    profile: NoiseProfile,
+    P_ss: np.ndarray,
+) -> np.ndarray:
     """Search-model information of a walk with individual dwells (smooth in the dwells)."""
     graph = flip_graph(c.start, c.axes)
     node = tuple(c.start)
     if profile.has_gauss_markov:
         return _walk_information_exact(walk, c, dwells, latitude_rad, gravity_mps2, profile)
-    e = segment_effect(attitude_of(node), dwells[0], 0.0, -1, latitude_rad, gravity_mps2, profile,
-                       None, SEARCH_REST_INTERVALS, initial=True)
+    e = segment_effect(
+        attitude_of(node),
+        dwells[0],
+        0.0,
+        -1,
+        latitude_rad,
+        gravity_mps2,
+        profile,
+        None,
+        SEARCH_REST_INTERVALS,
+        initial=True,
+    )
     X, N = e.B, e.M3
     for mv, d in zip(walk, dwells[1:]):
-        parts = [_turn_effect(node, mv, turn_seconds(mv, c), turn_rate(mv, c), latitude_rad,
-                              gravity_mps2, profile, P_ss.tobytes())]
+        parts = [
+            _turn_effect(
+                node,
+                mv,
+                turn_seconds(mv, c),
+                turn_rate(mv, c),
+                latitude_rad,
+                gravity_mps2,
+                profile,
+                P_ss.tobytes(),
+            )
+        ]
         node = apply_move(graph, node, mv)
-        parts.append(segment_effect(attitude_of(node), d, 0.0, -1, latitude_rad, gravity_mps2,
-                                    profile, start_covariance(P_ss, attitude_of(node)),
-                                    SEARCH_REST_INTERVALS))
+        parts.append(
+            segment_effect(
+                attitude_of(node),
+                d,
+                0.0,
+                -1,
+                latitude_rad,
+                gravity_mps2,
+                profile,
+                start_covariance(P_ss, attitude_of(node)),
+                SEARCH_REST_INTERVALS,
+            )
+        )
         for eff in parts:
             XM2 = X.T @ eff.M2
             N = N + X.T @ eff.M1 @ X + XM2 + XM2.T + eff.M3
@@ -531,14 +695,16 @@ def walk_information(walk, c: Constraints, dwells, latitude_rad: float, gravity_
     return N
 
 
-def _walk_information_exact(walk, c: Constraints, dwells, latitude_rad: float,
-                            gravity_mps2: float, profile: NoiseProfile) -> np.ndarray:
+def _walk_information_exact(
+    walk, c: Constraints, dwells, latitude_rad: float, gravity_mps2: float, profile: NoiseProfile
+) -> np.ndarray:
     """:func:`walk_information` with the filter covariance carried along (GM profiles)."""
     return walk_informations_exact(walk, c, [dwells], latitude_rad, gravity_mps2, profile)[0]
 
 
-def walk_informations_exact(walk, c: Constraints, dwell_sets, latitude_rad: float,
-                            gravity_mps2: float, profile: NoiseProfile) -> np.ndarray:
+def walk_informations_exact(
+    walk, c: Constraints, dwell_sets, latitude_rad: float, gravity_mps2: float, profile: NoiseProfile
+) -> np.ndarray:
     """Information ``(B, 24, 24)`` of one walk under ``B`` sets of dwells, batched (GM).
 
     The turns are shared; every rest has :data:`SEARCH_REST_INTERVALS` intervals
@@ -548,19 +714,25 @@ def walk_informations_exact(walk, c: Constraints, dwell_sets, latitude_rad: floa
     graph = flip_graph(c.start, c.axes)
     node = tuple(c.start)
     B = len(dwell_sets)
-    X, N, Pc = (np.repeat(a[None], B, axis=0)
-                for a in start_state(gm_start_covariance(profile), N_UNKNOWN))
+    X, N, Pc = (np.repeat(a[None], B, axis=0) for a in start_state(gm_start_covariance(profile), N_UNKNOWN))
     dwell_sets = np.asarray(dwell_sets, dtype=float)
     rows = np.arange(B)
 
     def rests(node, k):
-        return stack([_rest_columns(node, float(d), latitude_rad, gravity_mps2, profile)
-                      for d in dwell_sets[:, k]])
+        return stack(
+            [_rest_columns(node, float(d), latitude_rad, gravity_mps2, profile) for d in dwell_sets[:, k]]
+        )
 
     X, N, Pc = fold(rests(node, 0), X, N, Pc, rows)
     for k, mv in enumerate(walk, start=1):
-        X, N, Pc = fold(_turn_columns(node, mv, turn_seconds(mv, c), turn_rate(mv, c),
-                                      latitude_rad, gravity_mps2, profile), X, N, Pc)
+        X, N, Pc = fold(
+            _turn_columns(
+                node, mv, turn_seconds(mv, c), turn_rate(mv, c), latitude_rad, gravity_mps2, profile
+            ),
+            X,
+            N,
+            Pc,
+        )
         node = apply_move(graph, node, mv)
         X, N, Pc = fold(rests(node, k), X, N, Pc, rows)
     return N
@@ -568,15 +740,23 @@ def walk_informations_exact(walk, c: Constraints, dwell_sets, latitude_rad: floa
 
 @functools.lru_cache(maxsize=4096)
 def _rest_columns(node, duration, latitude_rad, gravity_mps2, profile):
-    return segment_columns(attitude_of(node), duration, 0.0, -1, latitude_rad, gravity_mps2,
-                           profile, SEARCH_REST_INTERVALS)
+    return segment_columns(
+        attitude_of(node), duration, 0.0, -1, latitude_rad, gravity_mps2, profile, SEARCH_REST_INTERVALS
+    )
 
 
 @functools.lru_cache(maxsize=4096)
 def _turn_columns(node, mv, duration, rate, latitude_rad, gravity_mps2, profile):
-    return segment_columns(attitude_of(node), duration, rate, AXES.index(mv.axis),
-                           latitude_rad, gravity_mps2, profile,
-                           max(1, int(round(duration / SEARCH_GM_MOVE_STEP_S))))
+    return segment_columns(
+        attitude_of(node),
+        duration,
+        rate,
+        AXES.index(mv.axis),
+        latitude_rad,
+        gravity_mps2,
+        profile,
+        max(1, int(round(duration / SEARCH_GM_MOVE_STEP_S))),
+    )
 
 
 @functools.lru_cache(maxsize=4096)
@@ -584,14 +764,22 @@ def _turn_effect(node, mv, duration, rate, latitude_rad, gravity_mps2, profile, 
     n = int(round(math.sqrt(len(P_bytes) // 8)))
     P_ss = np.frombuffer(P_bytes).reshape(n, n)
     C = attitude_of(node)
-    return segment_effect(C, duration, rate, AXES.index(mv.axis), latitude_rad,
-                          gravity_mps2, profile, start_covariance(P_ss, C))
+    return segment_effect(
+        C, duration, rate, AXES.index(mv.axis), latitude_rad, gravity_mps2, profile, start_covariance(P_ss, C)
+    )
 
 
-def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, height_m: float,
-                  profile: NoiseProfile, objective: str = "worst",
-                  requirements: Requirements = PAPER,
-                  repeats: int = 1) -> tuple[list[float], float, float]:
+def refine_dwells(
+    walk,
+    c: Constraints,
+    dwell0: float,
+    latitude_rad: float,
+    height_m: float,
+    profile: NoiseProfile,
+    objective: str = "worst",
+    requirements: Requirements = PAPER,
+    repeats: int = 1,
+) -> tuple[list[float], float, float]:
     """Optimise the dwells of a walk under the time budget (IPOPT).
 
     The dwells of a motif played ``repeats`` times are tied across the plays, and a
@@ -620,8 +808,9 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
             Ns = walk_informations_exact(walk, c, sets, latitude_rad, g, profile)
         else:
             Ns = [walk_information(walk, c, d, latitude_rad, g, profile, P_ss) for d in sets]
-        return np.array([3.0 * np.sqrt(inverse_diagonal(scaled_marginal(N, False, requirements)))
-                         for N in Ns])
+        return np.array(
+            [3.0 * np.sqrt(inverse_diagonal(scaled_marginal(N, False, requirements))) for N in Ns]
+        )
 
     def ratios(dw):
         return ratios_many(np.asarray(dw, dtype=float)[None])[0]
@@ -635,18 +824,30 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
         f, gcon = t, ca.vertcat(r - t, total - c.budget_s)
         ubg = np.zeros(P.N_PARAMS + 1)
     else:  # A-optimal in the refinement for the other objectives
-        f, gcon = ca.sum1(r ** 2) / 9.0, ca.vertcat(total - c.budget_s)
+        f, gcon = ca.sum1(r**2) / 9.0, ca.vertcat(total - c.budget_s)
         ubg = np.zeros(1)
     uniform = np.full(n, dwell0)
     r0 = ratios(uniform)
-    solver = ca.nlpsol("dwells", "ipopt", {"x": ca.vertcat(x, t), "f": f, "g": gcon},
-                       {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
-                        "ipopt.hessian_approximation": "limited-memory", "ipopt.max_iter": 40,
-                        "ipopt.tol": 1e-4})
-    sol = solver(x0=np.concatenate([uniform / scale, [r0.max()]]),
-                 lbx=np.concatenate([np.full(n, c.min_dwell_s / scale), [0.0]]),
-                 ubx=np.concatenate([np.full(n, c.max_dwell_s / scale), [np.inf]]),
-                 lbg=np.full(len(ubg), -np.inf), ubg=ubg)
+    solver = ca.nlpsol(
+        "dwells",
+        "ipopt",
+        {"x": ca.vertcat(x, t), "f": f, "g": gcon},
+        {
+            "print_time": False,
+            "ipopt.print_level": 0,
+            "ipopt.sb": "yes",
+            "ipopt.hessian_approximation": "limited-memory",
+            "ipopt.max_iter": 40,
+            "ipopt.tol": 1e-4,
+        },
+    )
+    sol = solver(
+        x0=np.concatenate([uniform / scale, [r0.max()]]),
+        lbx=np.concatenate([np.full(n, c.min_dwell_s / scale), [0.0]]),
+        ubx=np.concatenate([np.full(n, c.max_dwell_s / scale), [np.inf]]),
+        lbg=np.full(len(ubg), -np.inf),
+        ubg=ubg,
+    )
     dw = np.asarray(sol["x"]).ravel()[:n] * scale
     dw = np.clip(dw, c.min_dwell_s, c.max_dwell_s)
     over = dw[groups].sum() + turn_time - c.budget_s
@@ -656,8 +857,7 @@ def refine_dwells(walk, c: Constraints, dwell0: float, latitude_rad: float, heig
     r1 = ratios(dw)
     if r1.max() >= r0.max():  # never return worse than the uniform start
         return list(uniform[groups]), float(r0.max()), float(r0.max())
-    return (dwells_in_ms(dw[groups], c.budget_s - turn_time), float(r0.max()),
-            float(r1.max()))
+    return (dwells_in_ms(dw[groups], c.budget_s - turn_time), float(r0.max()), float(r1.max()))
 
 
 def dwells_in_ms(dwells, available_s: float) -> list[float]:
@@ -771,19 +971,25 @@ def check_constraints(c: Constraints) -> None:
     if not c.axes or any(a not in AXES for a in c.axes):
         raise CalibError(f"--axes {c.axes!r} must be letters from XYZ", "--axes")
     if not 0 < c.min_dwell_s <= c.max_dwell_s:
-        raise CalibError(f"dwell range [{c.min_dwell_s}, {c.max_dwell_s}] s is empty",
-                         "--min-dwell-s/--max-dwell-s")
+        raise CalibError(
+            f"dwell range [{c.min_dwell_s}, {c.max_dwell_s}] s is empty", "--min-dwell-s/--max-dwell-s"
+        )
     shortest = MIN_ALIGN_S + FIRST_REST_MARGIN_S
     if c.min_dwell_s < shortest:
-        raise CalibError(f"--min-dwell-s {c.min_dwell_s:g} s is too short: the first rest of a "
-                         f"run must last {shortest:g} s for calibrate to align on it",
-                         "--min-dwell-s", f"give --min-dwell-s {shortest:g} or more")
+        raise CalibError(
+            f"--min-dwell-s {c.min_dwell_s:g} s is too short: the first rest of a "
+            f"run must last {shortest:g} s for calibrate to align on it",
+            "--min-dwell-s",
+            f"give --min-dwell-s {shortest:g} or more",
+        )
     if not 0.1 <= c.rate_dps <= 100:
         raise CalibError(f"--rate-dps {c.rate_dps} outside [0.1, 100]", "--rate-dps")
     if c.min_dwell_s * 2 + 90.0 / c.rate_dps > c.budget_s:
-        raise CalibError(f"a budget of {c.budget_s:.0f} s cannot hold two dwells of "
-                         f"{c.min_dwell_s:.0f} s and one flip", "--budget-min",
-                         "raise the budget or lower --min-dwell-s")
+        raise CalibError(
+            f"a budget of {c.budget_s:.0f} s cannot hold two dwells of {c.min_dwell_s:.0f} s and one flip",
+            "--budget-min",
+            "raise the budget or lower --min-dwell-s",
+        )
 
 
 # ---------------------------------------------------------------------------
@@ -810,6 +1016,7 @@ def _search_at_dwell(args):
     c, dwell, latitude_rad, height_m, profile, objective, beam_width, keep, *rest = args
     requirements = rest[0] if rest else PAPER
     import time as _time
+
     t = _time.perf_counter()
     model = SearchModel.build(c, dwell, latitude_rad, height_m, profile, requirements)
     finals, n = beam_search(model, objective, beam_width, keep)
@@ -851,8 +1058,9 @@ def map_jobs(fn, jobs, workers: int = 1, scheduler: str | None = None):
         try:
             from dask.distributed import Client
         except ImportError:
-            raise CalibError("--scheduler needs dask.distributed", "--scheduler",
-                             "pip install 'seqdesign[dask]'") from None
+            raise CalibError(
+                "--scheduler needs dask.distributed", "--scheduler", "pip install 'seqdesign[dask]'"
+            ) from None
         client = scheduler if not isinstance(scheduler, str) else Client(scheduler)
         try:
             return client.gather(client.map(fn, jobs, pure=False))
@@ -861,13 +1069,22 @@ def map_jobs(fn, jobs, workers: int = 1, scheduler: str | None = None):
                 client.close()
     if workers > 1:
         from concurrent.futures import ProcessPoolExecutor
+
         with ProcessPoolExecutor(max_workers=workers) as pool:
             return list(pool.map(fn, jobs))
     return [fn(j) for j in jobs]
 
 
-def _exact_worst(seq: Sequence, profile, latitude_rad, height_m, tolerance_deg, search,
-                 requirements: Requirements = PAPER, extras: Extras = NO_EXTRAS):
+def _exact_worst(
+    seq: Sequence,
+    profile,
+    latitude_rad,
+    height_m,
+    tolerance_deg,
+    search,
+    requirements: Requirements = PAPER,
+    extras: Extras = NO_EXTRAS,
+):
     """Worst 3 sigma/requirement of the 21 over the box, with ``extras`` fitted beside them.
 
     The same figures as ``seqdesign analyze`` (with ``--with``): with ``search``, IPOPT
@@ -876,14 +1093,17 @@ def _exact_worst(seq: Sequence, profile, latitude_rad, height_m, tolerance_deg, 
     sigma with and without the terms at the same mountings).
     """
     from .observability import analyze_extras, analyze_tolerance
+
     if extras.n:
-        cost = analyze_extras(seq, profile, latitude_rad, extras, height_m, tolerance_deg,
-                              requirements, search=search)
+        cost = analyze_extras(
+            seq, profile, latitude_rad, extras, height_m, tolerance_deg, requirements, search=search
+        )
         r = requirements.ratio(cost.sigma_with)
         i = int(np.argmax(r))
         return float(r[i]), P.NAMES[i], None, cost
-    rob = analyze_tolerance(seq, profile, latitude_rad, height_m, tolerance_deg, search=search,
-                            requirements=requirements)
+    rob = analyze_tolerance(
+        seq, profile, latitude_rad, height_m, tolerance_deg, search=search, requirements=requirements
+    )
     r = rob.per_parameter_worst_ratio
     i = int(np.argmax(r))
     return float(r[i]), P.NAMES[i], rob, None
@@ -907,9 +1127,9 @@ class ExactScorer:
     def __call__(self, job):
         walk, dwells, search, tol = job
         seq = to_sequence(walk, self.c, list(dwells), self.name, None, *self.site)
-        worst, wname, rob, cost = _exact_worst(seq, self.profile, self.latitude_rad,
-                                               self.height_m, tol, search, self.requirements,
-                                               self.extras)
+        worst, wname, rob, cost = _exact_worst(
+            seq, self.profile, self.latitude_rad, self.height_m, tol, search, self.requirements, self.extras
+        )
         return worst, wname, rob, cost, seq
 
 
@@ -949,9 +1169,12 @@ def _candidates(results, c: Constraints):
                 out.append((walk * r, d, r))
     if c.gimbal is not None:  # a motif's later plays start where the first ended: replay all
         from calib.gimbal import plan_sequence
-        out = [x for x in out
-               if plan_sequence(to_sequence(x[0], c, [x[1]] * (len(x[0]) + 1), "x"),
-                                c.gimbal).playable]
+
+        out = [
+            x
+            for x in out
+            if plan_sequence(to_sequence(x[0], c, [x[1]] * (len(x[0]) + 1), "x"), c.gimbal).playable
+        ]
     return out
 
 
@@ -972,17 +1195,34 @@ SCHEDULER_BATCH = 4  # candidates re-scored at once on a dask cluster (its size 
 SCREEN_KEEP = 6  # candidates re-scored over the whole box after the nominal-mounting screen
 
 
-def _search(c, profile, latitude_rad, height_m, objective, beam_width, keep, requirements,
-            workers, scheduler, progress):
+def _search(
+    c,
+    profile,
+    latitude_rad,
+    height_m,
+    objective,
+    beam_width,
+    keep,
+    requirements,
+    workers,
+    scheduler,
+    progress,
+):
     """Run every beam; returns ``(results, evaluated, narrow)``, ``narrow`` the results of the
     beams of 20 alone (None when that is all there is).
     """
-    jobs = [(c, d, latitude_rad, height_m, profile, objective, bw, keep, requirements)
-            for d in search_dwells(c) for bw in _beam_widths(beam_width)]
+    jobs = [
+        (c, d, latitude_rad, height_m, profile, objective, bw, keep, requirements)
+        for d in search_dwells(c)
+        for bw in _beam_widths(beam_width)
+    ]
     if progress:
-        progress(f"searching {len(jobs)} beams (widths {_beam_widths(beam_width)}, dwells "
-                 f"{search_dwells(c)} s, up to {c.max_flips} moves of up to "
-                 f"{c.max_quarters} quarter turns)", 0)
+        progress(
+            f"searching {len(jobs)} beams (widths {_beam_widths(beam_width)}, dwells "
+            f"{search_dwells(c)} s, up to {c.max_flips} moves of up to "
+            f"{c.max_quarters} quarter turns)",
+            0,
+        )
     results = map_jobs(_search_at_dwell, jobs, workers, scheduler)
     evaluated = sum(r[2] for r in results)
     if progress:
@@ -993,11 +1233,23 @@ def _search(c, profile, latitude_rad, height_m, objective, beam_width, keep, req
     return results, evaluated, narrow
 
 
-def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m: float = 0.0,
-           objective: str = "worst", tolerance_deg: float = 3.0, beam_width: int = 200,
-           keep: int = 4, refine: bool = True, name: str = "designed", workers: int = 1,
-           scheduler=None, progress=None, requirements: Requirements = PAPER,
-           extras: Extras = NO_EXTRAS) -> DesignResult:
+def design(
+    c: Constraints,
+    profile: NoiseProfile,
+    latitude_rad: float,
+    height_m: float = 0.0,
+    objective: str = "worst",
+    tolerance_deg: float = 3.0,
+    beam_width: int = 200,
+    keep: int = 4,
+    refine: bool = True,
+    name: str = "designed",
+    workers: int = 1,
+    scheduler=None,
+    progress=None,
+    requirements: Requirements = PAPER,
+    extras: Extras = NO_EXTRAS,
+) -> DesignResult:
     """Search walks, re-score every candidate exactly over the tolerance box, refine the best.
 
     The candidates are the beams' finalists and their motif repetitions; each is
@@ -1007,12 +1259,23 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
     ``progress(message, steps)``: ``design_steps(c, keep)`` steps in all.
     """
     import time as _time
+
     _check_design_args(c, objective)
     t0 = _time.perf_counter()
     site = (math.degrees(latitude_rad), height_m)  # written into the sequence: analyse it there
-    results, evaluated, narrow = _search(c, profile, latitude_rad, height_m, objective,
-                                         beam_width, keep, requirements, workers, scheduler,
-                                         progress)
+    results, evaluated, narrow = _search(
+        c,
+        profile,
+        latitude_rad,
+        height_m,
+        objective,
+        beam_width,
+        keep,
+        requirements,
+        workers,
+        scheduler,
+        progress,
+    )
     search_seconds = _time.perf_counter() - t0
     scorer = ExactScorer(c, name, site, profile, latitude_rad, height_m, requirements, extras)
     batch = max(workers, SCHEDULER_BATCH if scheduler else 1)
@@ -1025,14 +1288,20 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
         return [memo[j] for j in jobs]
 
     def pipeline(res):  # (pool of exact box scores, the same with the refined best)
-        pool = _boxed(_screen(_candidates(res, c), exact, progress), exact, tolerance_deg,
-                      progress, batch)
+        pool = _boxed(_screen(_candidates(res, c), exact, progress), exact, tolerance_deg, progress, batch)
         key = (pool[0][3], tuple(pool[0][2]))
         if refine and key not in memo:
-            memo[key] = _refined(pool[0], c, latitude_rad, height_m, profile, objective,
-                                 requirements, lambda w, d: exact([(w, d, False,
-                                                                    tolerance_deg)])[0],
-                                 progress)
+            memo[key] = _refined(
+                pool[0],
+                c,
+                latitude_rad,
+                height_m,
+                profile,
+                objective,
+                requirements,
+                lambda w, d: exact([(w, d, False, tolerance_deg)])[0],
+                progress,
+            )
         refined = memo[key] if refine else []
         return pool, sorted(pool + refined, key=lambda f: (f[0], f[1]))
 
@@ -1042,18 +1311,26 @@ def design(c: Constraints, profile: NoiseProfile, latitude_rad: float, height_m:
         n_unrefined, n_pool = pipeline(narrow)
         pool = sorted(pool + n_pool, key=lambda f: (f[0], f[1]))
         answers += [pool[0], n_pool[0], n_unrefined[0]]
-    worst, wname, rob, cost, seq, (_, label, _, _, reps) = _select(answers, exact,
-                                                                   tolerance_deg, batch)
+    worst, wname, rob, cost, seq, (_, label, _, _, reps) = _select(answers, exact, tolerance_deg, batch)
     from .gimbalsearch import check_sequence_plays
+
     check_sequence_plays(seq, c.gimbal)
     if progress:
-        progress(f"best of {len(pool)}: {label}; worst case over +-{tolerance_deg:g} deg: "
-                 f"{worst:.3f} ({wname})", 1)
-    return DesignResult(sequence=seq, worst_ratio=worst, worst_name=wname,
-                        uniform_worst_ratio=unrefined[0][0], evaluated=evaluated,
-                        search_seconds=search_seconds,
-                        finalists=[(f[1], f[2][-1], f[0]) for f in pool], robustness=rob,
-                        extras_cost=cost, repeats=reps)
+        progress(
+            f"best of {len(pool)}: {label}; worst case over +-{tolerance_deg:g} deg: {worst:.3f} ({wname})", 1
+        )
+    return DesignResult(
+        sequence=seq,
+        worst_ratio=worst,
+        worst_name=wname,
+        uniform_worst_ratio=unrefined[0][0],
+        evaluated=evaluated,
+        search_seconds=search_seconds,
+        finalists=[(f[1], f[2][-1], f[0]) for f in pool],
+        robustness=rob,
+        extras_cost=cost,
+        repeats=reps,
+    )
 
 
 def _check_design_args(c: Constraints, objective: str) -> None:
@@ -1074,8 +1351,7 @@ def _select(answers, exact, tolerance_deg, batch: int = 1):
     for f in answers:
         first.setdefault((f[3], tuple(f[2])), f)
     order = sorted(first.values(), key=lambda f: (f[0], f[1]))
-    return _pruned(order, lambda fs: exact([(f[3], tuple(f[2]), True, tolerance_deg)
-                                            for f in fs]), batch)[0]
+    return _pruned(order, lambda fs: exact([(f[3], tuple(f[2]), True, tolerance_deg) for f in fs]), batch)[0]
 
 
 def _pruned(order, score, batch: int):
@@ -1087,8 +1363,7 @@ def _pruned(order, score, batch: int):
     """
     best, scored, k = None, [], 0
     while k < len(order):
-        todo = [f for f in order[k:k + batch]
-                if best is None or (f[0], f[1]) < (best[0], best[-1][1])]
+        todo = [f for f in order[k : k + batch] if best is None or (f[0], f[1]) < (best[0], best[-1][1])]
         k += batch
         if not todo:
             break  # sorted by bound: nothing later can win either
@@ -1107,17 +1382,22 @@ def _boxed(screened, exact, tolerance_deg, progress, batch: int = 1) -> list:
     figure so far cannot come first and is not re-scored (only the first is used).
     """
     top = screened[:SCREEN_KEEP]
-    _, scored = _pruned(top, lambda fs: exact([(f[3], tuple(f[2]), False, tolerance_deg)
-                                               for f in fs]), batch)
+    _, scored = _pruned(top, lambda fs: exact([(f[3], tuple(f[2]), False, tolerance_deg) for f in fs]), batch)
     pool = []
     for (worst, wname, *_), f in scored:
         pool.append((worst,) + f[1:])
         if progress:
-            progress(f"box worst of {f[1][:40]}...: {worst:.3f} ({wname}); "
-                     f"best so far {min(p[0] for p in pool):.3f}", 1)
+            progress(
+                f"box worst of {f[1][:40]}...: {worst:.3f} ({wname}); "
+                f"best so far {min(p[0] for p in pool):.3f}",
+                1,
+            )
     if progress and len(scored) < len(top):
-        progress(f"{len(top) - len(scored)} candidates skipped: their nominal figure is "
-                 f"already above the best box worst", len(top) - len(scored))
+        progress(
+            f"{len(top) - len(scored)} candidates skipped: their nominal figure is "
+            f"already above the best box worst",
+            len(top) - len(scored),
+        )
     return sorted(pool, key=lambda f: (f[0], f[1]))
 
 
@@ -1126,16 +1406,21 @@ def _screen(candidates, exact, progress) -> list:
     ``(worst, label, dwells, walk, repeats)``.
     """
     if not candidates:
-        raise CalibError("no walk fits the constraints", "design",
-                         "raise --budget-min or --max-flips, or lower --min-dwell-s")
+        raise CalibError(
+            "no walk fits the constraints",
+            "design",
+            "raise --budget-min or --max-flips, or lower --min-dwell-s",
+        )
     jobs = [(walk, (dwell,) * (len(walk) + 1), False, 0.0) for walk, dwell, _ in candidates]
     screened = []
     for (walk, dwell, reps), (worst, wname, *_) in zip(candidates, exact(jobs)):
-        screened.append((worst, " ".join(m.label() for m in walk), [dwell] * (len(walk) + 1),
-                         walk, reps))
+        screened.append((worst, " ".join(m.label() for m in walk), [dwell] * (len(walk) + 1), walk, reps))
         if progress:
-            progress(f"screened {len(screened)} ({len(walk)} moves, {dwell:g} s dwells): "
-                     f"{worst:.3f} ({wname}) at the nominal mounting", 1)
+            progress(
+                f"screened {len(screened)} ({len(walk)} moves, {dwell:g} s dwells): "
+                f"{worst:.3f} ({wname}) at the nominal mounting",
+                1,
+            )
     return sorted(screened, key=lambda f: (f[0], f[1]))
 
 
@@ -1144,8 +1429,9 @@ def _refined(best, c, latitude_rad, height_m, profile, objective, requirements, 
     worst, label, dwells, walk, reps = best
     if progress:
         progress(f"refining the dwells of {label} with IPOPT", 0)
-    new_dwells, _, _ = refine_dwells(walk, c, dwells[0], latitude_rad, height_m, profile,
-                                     objective, requirements, reps)
+    new_dwells, _, _ = refine_dwells(
+        walk, c, dwells[0], latitude_rad, height_m, profile, objective, requirements, reps
+    )
     if new_dwells == dwells:
         return []
     w2, n2, _, _, _ = exact(walk, tuple(new_dwells))

@@ -5,6 +5,7 @@ budget and returns a :class:`DesignReport` that knows its ``--json``
 document, its text table, how to save each design with its provenance and
 how to write the Pareto front (CSV, and a PNG drawn with matplotlib).
 """
+
 from __future__ import annotations
 
 import math
@@ -50,45 +51,64 @@ class DesignReport:
 
     def to_json(self) -> dict:
         """The ``design --json`` document."""
-        return {"profile": self.profile.name, "requirements": self.requirements.name,
-                "objective": self.objective,
-                "tolerance_deg": self.tolerance_deg,
-                "with": list(self.extras.groups),
-                "gimbal": None if self.gimbal is None else self.gimbal.name,
-                "designs": [_row_doc(r) for r in self.rows],
-                "paper_9pos": {"duration_s": self.paper_duration_s,
-                               "worst_ratio": self.paper_worst_ratio}}
+        return {
+            "profile": self.profile.name,
+            "requirements": self.requirements.name,
+            "objective": self.objective,
+            "tolerance_deg": self.tolerance_deg,
+            "with": list(self.extras.groups),
+            "gimbal": None if self.gimbal is None else self.gimbal.name,
+            "designs": [_row_doc(r) for r in self.rows],
+            "paper_9pos": {"duration_s": self.paper_duration_s, "worst_ratio": self.paper_worst_ratio},
+        }
 
     def to_text(self) -> str:
         coloured = self.profile.accel_gm_sigma > 0  # then the bound at the gimbal's rate too
-        lines = [f"{'budget':>7} {'time':>7} {'worst ratio':>16} {'uniform':>8} {'bound':>6} "
-                 + ("rate-bound  " if coloured else " ") + "moves"]
+        lines = [
+            f"{'budget':>7} {'time':>7} {'worst ratio':>16} {'uniform':>8} {'bound':>6} "
+            + ("rate-bound  " if coloured else " ")
+            + "moves"
+        ]
         for row in self.rows:
             r = row.result
             moves = " ".join(f"{s.angle_deg:+.0f}{s.axis}" for s in r.sequence.steps)
-            lines.append(f"{row.budget_min:6g}m {r.sequence.duration_s / 60:6.1f}m "
-                         f"{r.worst_name:>5} {r.worst_ratio:9.3f} {r.uniform_worst_ratio:8.3f} "
-                         f"{row.bound_ratio:6.3f} "
-                         + (f"{row.rate_bound_ratio:10.3f}  " if coloured else " ") + moves)
+            lines.append(
+                f"{row.budget_min:6g}m {r.sequence.duration_s / 60:6.1f}m "
+                f"{r.worst_name:>5} {r.worst_ratio:9.3f} {r.uniform_worst_ratio:8.3f} "
+                f"{row.bound_ratio:6.3f} " + (f"{row.rate_bound_ratio:10.3f}  " if coloured else " ") + moves
+            )
             lines.extend(extras_lines(r))
-        lines.append(f"paper-9pos: {self.paper_duration_s / 60:.1f} min, worst ratio "
-                     f"{self.paper_worst_ratio:.2f}. Ratios are 3 sigma/requirement, worst over "
-                     f"+-{self.tolerance_deg:g} deg, profile {self.profile.name}; bound = best "
-                     "possible for the accelerometer scale factors at that time"
-                     + ("; rate-bound = the same with the Gauss-Markov bias, turning at the "
-                        "design's rate (docs/design.md)." if coloured else "."))
+        lines.append(
+            f"paper-9pos: {self.paper_duration_s / 60:.1f} min, worst ratio "
+            f"{self.paper_worst_ratio:.2f}. Ratios are 3 sigma/requirement, worst over "
+            f"+-{self.tolerance_deg:g} deg, profile {self.profile.name}; bound = best "
+            "possible for the accelerometer scale factors at that time"
+            + (
+                "; rate-bound = the same with the Gauss-Markov bias, turning at the "
+                "design's rate (docs/design.md)."
+                if coloured
+                else "."
+            )
+        )
         return "\n".join(lines)
 
     def save_design(self, row: DesignRow, path: str | Path, provenance: dict) -> None:
         """Write one design as a sequence file whose provenance says how it was found."""
         r = row.result
         prov = dict(provenance) | {
-            "objective": self.objective, "profile": self.profile.name,
-            "requirements": self.requirements.name, "score": r.worst_ratio,
-            "score_parameter": r.worst_name, "tolerance_deg": self.tolerance_deg,
-            "latitude_deg": self.latitude_deg, "budget_min": row.budget_min,
-            "uniform_dwell_score": r.uniform_worst_ratio, "candidates_evaluated": r.evaluated,
-            "with": ",".join(self.extras.groups) or "none", "motif_repeats": r.repeats}
+            "objective": self.objective,
+            "profile": self.profile.name,
+            "requirements": self.requirements.name,
+            "score": r.worst_ratio,
+            "score_parameter": r.worst_name,
+            "tolerance_deg": self.tolerance_deg,
+            "latitude_deg": self.latitude_deg,
+            "budget_min": row.budget_min,
+            "uniform_dwell_score": r.uniform_worst_ratio,
+            "candidates_evaluated": r.evaluated,
+            "with": ",".join(self.extras.groups) or "none",
+            "motif_repeats": r.repeats,
+        }
         prov |= gimbal_provenance(self.gimbal)
         save_sequence(replace(r.sequence, provenance=prov), path)
 
@@ -99,15 +119,21 @@ class DesignReport:
         lines = ["budget_min,duration_s,worst_ratio,worst_parameter,bound_ratio,rate_bound_ratio"]
         for row in self.rows:
             r = row.result
-            lines.append(f"{row.budget_min},{r.sequence.duration_s:.1f},{r.worst_ratio:.4f},"
-                         f"{r.worst_name},{row.bound_ratio:.4f},{row.rate_bound_ratio:.4f}")
-        paper = [accel_scale_bound(self.paper_duration_s, self.profile, g, self.requirements,
-                                   rate)
-                 for rate in (None, design_rate_dps(load_sequence("paper-9pos")))]
-        lines.append(f"paper-9pos,{self.paper_duration_s:.1f},{self.paper_worst_ratio:.4f},,"
-                     f"{paper[0]:.4f},{paper[1]:.4f}")
+            lines.append(
+                f"{row.budget_min},{r.sequence.duration_s:.1f},{r.worst_ratio:.4f},"
+                f"{r.worst_name},{row.bound_ratio:.4f},{row.rate_bound_ratio:.4f}"
+            )
+        paper = [
+            accel_scale_bound(self.paper_duration_s, self.profile, g, self.requirements, rate)
+            for rate in (None, design_rate_dps(load_sequence("paper-9pos")))
+        ]
+        lines.append(
+            f"paper-9pos,{self.paper_duration_s:.1f},{self.paper_worst_ratio:.4f},,"
+            f"{paper[0]:.4f},{paper[1]:.4f}"
+        )
         atomic_write_text(stem + ".csv", "\n".join(lines) + "\n")
         from .plots import pareto_png
+
         pareto_png(self, g, stem + ".png")
         return [stem + ".csv", stem + ".png"]
 
@@ -122,6 +148,7 @@ def gimbal_provenance(gimbal) -> dict:
     if gimbal is None:
         return {"gimbal": "none (default: slip rings, no limits)"}
     from calib.fileio import sha256_file
+
     out = {"gimbal": gimbal.name}
     if gimbal.path:
         out |= {"gimbal_file": str(gimbal.path), "gimbal_sha256": sha256_file(gimbal.path)}
@@ -130,16 +157,20 @@ def gimbal_provenance(gimbal) -> dict:
 
 def _row_doc(row: DesignRow) -> dict:
     r = row.result
-    return {"budget_min": row.budget_min, "duration_s": r.sequence.duration_s,
-            "worst": {"name": r.worst_name, "ratio": r.worst_ratio},
-            "uniform_dwell_worst_ratio": r.uniform_worst_ratio,
-            "accel_scale_bound_ratio": row.bound_ratio,
-            "accel_scale_rate_bound_ratio": row.rate_bound_ratio,
-            "steps": [{"axis": s.axis, "angle_deg": s.angle_deg, "dwell_s": s.dwell_s}
-                      for s in r.sequence.steps],
-            "initial_dwell_s": r.sequence.initial_dwell_s,
-            "candidates_evaluated": r.evaluated, "search_seconds": r.search_seconds,
-            "motif_repeats": r.repeats, "extras": extras_doc(r)}
+    return {
+        "budget_min": row.budget_min,
+        "duration_s": r.sequence.duration_s,
+        "worst": {"name": r.worst_name, "ratio": r.worst_ratio},
+        "uniform_dwell_worst_ratio": r.uniform_worst_ratio,
+        "accel_scale_bound_ratio": row.bound_ratio,
+        "accel_scale_rate_bound_ratio": row.rate_bound_ratio,
+        "steps": [{"axis": s.axis, "angle_deg": s.angle_deg, "dwell_s": s.dwell_s} for s in r.sequence.steps],
+        "initial_dwell_s": r.sequence.initial_dwell_s,
+        "candidates_evaluated": r.evaluated,
+        "search_seconds": r.search_seconds,
+        "motif_repeats": r.repeats,
+        "extras": extras_doc(r),
+    }
 
 
 def extras_doc(r: DesignResult) -> list[dict]:
@@ -147,9 +178,10 @@ def extras_doc(r: DesignResult) -> list[dict]:
     cost = r.extras_cost
     if cost is None:
         return []
-    return [{"name": p.name, "unit": p.unit, "sigma": float(s / p.si_per_unit),
-             "typical": p.scale, "verdict": v}
-            for p, s, v in zip(cost.extras.parameters, cost.extra_sigma, cost.verdicts())]
+    return [
+        {"name": p.name, "unit": p.unit, "sigma": float(s / p.si_per_unit), "typical": p.scale, "verdict": v}
+        for p, s, v in zip(cost.extras.parameters, cost.extra_sigma, cost.verdicts())
+    ]
 
 
 def extras_lines(r: DesignResult) -> list[str]:
@@ -157,28 +189,42 @@ def extras_lines(r: DesignResult) -> list[str]:
     docs = extras_doc(r)
     if not docs:
         return []
-    out = ["        " + "  ".join(f"{d['name']} {d['sigma']:.3g}/{d['typical']:g} {d['unit']}"
-                                  for d in docs)]
+    out = ["        " + "  ".join(f"{d['name']} {d['sigma']:.3g}/{d['typical']:g} {d['unit']}" for d in docs)]
     bad = [f"{d['name']} ({d['verdict']})" for d in docs if d["verdict"] != "observable"]
-    out.append("        extra terms: " + ("all observable (3 sigma within the typical size)"
-                                          if not bad else "WARNING " + ", ".join(bad)))
+    out.append(
+        "        extra terms: "
+        + ("all observable (3 sigma within the typical size)" if not bad else "WARNING " + ", ".join(bad))
+    )
     return out
 
 
-def paper_point(profile: NoiseProfile, latitude_rad: float, tolerance_deg: float,
-                requirements: Requirements = PAPER):
+def paper_point(
+    profile: NoiseProfile, latitude_rad: float, tolerance_deg: float, requirements: Requirements = PAPER
+):
     """The paper's sequence: duration and worst ratio over the 27 box points."""
     seq = load_sequence("paper-9pos")
-    rob = analyze_tolerance(seq, profile, latitude_rad, 0.0, tolerance_deg, search=False,
-                            requirements=requirements)
+    rob = analyze_tolerance(
+        seq, profile, latitude_rad, 0.0, tolerance_deg, search=False, requirements=requirements
+    )
     return seq.duration_s, float(rob.per_parameter_worst_ratio.max())
 
 
-def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str = "navigation",
-                   *, latitude_deg: float = 40.0, objective: str = "worst",
-                   tolerance_deg: float = 3.0, beam_width: int = 200, refine: bool = True,
-                   workers: int = 1, scheduler: str | None = None,
-                   progress=None, requirements=None, extras=None) -> DesignReport:
+def design_budgets(
+    budgets_min,
+    constraints: dict,
+    profile: NoiseProfile | str = "navigation",
+    *,
+    latitude_deg: float = 40.0,
+    objective: str = "worst",
+    tolerance_deg: float = 3.0,
+    beam_width: int = 200,
+    refine: bool = True,
+    workers: int = 1,
+    scheduler: str | None = None,
+    progress=None,
+    requirements=None,
+    extras=None,
+) -> DesignReport:
     """Design one sequence per budget.
 
     Parameters
@@ -225,14 +271,42 @@ def design_budgets(budgets_min, constraints: dict, profile: NoiseProfile | str =
     for b in budgets_min:
         c = Constraints(budget_s=b * 60.0, **constraints)
         check_constraints(c)
-        res = design(c, prof, lat, 0.0, objective, tolerance_deg, beam_width, keep=4,
-                     refine=refine, name=f"designed-{b:g}min", workers=workers,
-                     scheduler=scheduler,
-                     progress=None if progress is None else (lambda m, n, b=b: progress(b, m, n)),
-                     requirements=req, extras=ext)
+        res = design(
+            c,
+            prof,
+            lat,
+            0.0,
+            objective,
+            tolerance_deg,
+            beam_width,
+            keep=4,
+            refine=refine,
+            name=f"designed-{b:g}min",
+            workers=workers,
+            scheduler=scheduler,
+            progress=None if progress is None else (lambda m, n, b=b: progress(b, m, n)),
+            requirements=req,
+            extras=ext,
+        )
         T = res.sequence.duration_s
-        rows.append(DesignRow(b, res, accel_scale_bound(T, prof, g, req),
-                              accel_scale_bound(T, prof, g, req, design_rate_dps(res.sequence))))
+        rows.append(
+            DesignRow(
+                b,
+                res,
+                accel_scale_bound(T, prof, g, req),
+                accel_scale_bound(T, prof, g, req, design_rate_dps(res.sequence)),
+            )
+        )
     paper_T, paper_worst = paper_point(prof, lat, tolerance_deg, req)
-    return DesignReport(rows, prof, objective, tolerance_deg, latitude_deg, paper_T, paper_worst,
-                        req, ext, constraints.get("gimbal"))
+    return DesignReport(
+        rows,
+        prof,
+        objective,
+        tolerance_deg,
+        latitude_deg,
+        paper_T,
+        paper_worst,
+        req,
+        ext,
+        constraints.get("gimbal"),
+    )

@@ -14,6 +14,7 @@ gimbal plays it). The search's segment algebra keeps a constant-rate turn
 with the real (trapezoid) duration; the exact re-scoring analyses the
 written sequence, whose steps carry ``accel_dps2``.
 """
+
 from __future__ import annotations
 
 import functools
@@ -44,16 +45,24 @@ def gimbal_limits(gimbal: Gimbal, rate_dps: float | None, default_rate_dps: floa
     if rate_dps is None:
         rate_dps = min(top, MAX_DESIGN_RATE_DPS) if math.isfinite(top) else default_rate_dps
     elif rate_dps > top * (1 + 1e-9):
-        raise CalibError(f"--rate-dps {rate_dps:g} is above the {top:g} deg/s gimbal "
-                         f"{gimbal.name!r} turns at most", where,
-                         f"give --rate-dps <= {top:g}, or leave it out to use the gimbal's rate")
+        raise CalibError(
+            f"--rate-dps {rate_dps:g} is above the {top:g} deg/s gimbal {gimbal.name!r} turns at most",
+            where,
+            f"give --rate-dps <= {top:g}, or leave it out to use the gimbal's rate",
+        )
     accel = math.degrees(_slowest(gimbal, "max_accel"))
     jerk = math.degrees(_slowest(gimbal, "max_jerk"))
     if math.isfinite(jerk) and not math.isfinite(accel):
-        raise CalibError(f"gimbal {gimbal.name!r} limits jerk but not acceleration", where,
-                         "give max_accel_dps2 on the axes too (a move needs both to be an S-curve)")
-    return {"rate_dps": float(rate_dps), "accel_dps2": accel if math.isfinite(accel) else None,
-            "jerk_dps3": jerk if math.isfinite(jerk) else None}
+        raise CalibError(
+            f"gimbal {gimbal.name!r} limits jerk but not acceleration",
+            where,
+            "give max_accel_dps2 on the axes too (a move needs both to be an S-curve)",
+        )
+    return {
+        "rate_dps": float(rate_dps),
+        "accel_dps2": accel if math.isfinite(accel) else None,
+        "jerk_dps3": jerk if math.isfinite(jerk) else None,
+    }
 
 
 def resolve_gimbal(gimbal, constraints: dict) -> tuple[Gimbal | None, dict]:
@@ -72,14 +81,17 @@ def resolve_gimbal(gimbal, constraints: dict) -> tuple[Gimbal | None, dict]:
 
 def move_profile(rate_dps: float, accel_dps2: float | None, jerk_dps3: float | None) -> RateProfile:
     """The rate profile of a designed move (SI)."""
-    return RateProfile(rate=math.radians(rate_dps),
-                       accel=math.inf if accel_dps2 is None else math.radians(accel_dps2),
-                       jerk=math.inf if jerk_dps3 is None else math.radians(jerk_dps3))
+    return RateProfile(
+        rate=math.radians(rate_dps),
+        accel=math.inf if accel_dps2 is None else math.radians(accel_dps2),
+        jerk=math.inf if jerk_dps3 is None else math.radians(jerk_dps3),
+    )
 
 
 @functools.lru_cache(maxsize=65536)
-def _planned(gimbal: Gimbal, enc: tuple, axis: str, angle_deg: float, profile: RateProfile,
-             longest_unlock_s: float):
+def _planned(
+    gimbal: Gimbal, enc: tuple, axis: str, angle_deg: float, profile: RateProfile, longest_unlock_s: float
+):
     mv = plan_move(gimbal, np.array(enc), axis, math.radians(angle_deg), profile)
     if not mv.playable or mv.unlock_s > longest_unlock_s + 1e-9:
         return None
@@ -112,8 +124,7 @@ def home_reachable(c, enc: tuple, n_moves: int, time_s: float, min_turn_s: float
     away = sum(abs(a) > HOME_TOL_RAD for a in enc)
     per_move = 1 if c.gimbal.lock_margin > 0 else 3
     need = math.ceil(away / per_move)
-    return (n_moves + need <= c.max_flips
-            and time_s + need * (min_turn_s + c.min_dwell_s) <= c.budget_s + 1e-9)
+    return n_moves + need <= c.max_flips and time_s + need * (min_turn_s + c.min_dwell_s) <= c.budget_s + 1e-9
 
 
 def check_sequence_plays(seq, gimbal: Gimbal | None, where: str = "design") -> None:
@@ -122,5 +133,8 @@ def check_sequence_plays(seq, gimbal: Gimbal | None, where: str = "design") -> N
         return
     plan = plan_sequence(seq, gimbal)
     if not plan.playable:
-        raise CalibError(f"the designed sequence breaks a limit: {plan.violations[0]}", where,
-                         "report this: the search should only propose playable moves")
+        raise CalibError(
+            f"the designed sequence breaks a limit: {plan.violations[0]}",
+            where,
+            "report this: the search should only propose playable moves",
+        )

@@ -22,6 +22,7 @@ speed (same arithmetic to rounding):
 - the whitened rows of every interval are kept and the information is one
   product ``W' W`` per segment.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -77,8 +78,10 @@ def start_state(P0: np.ndarray, n_unknown: int) -> tuple[np.ndarray, np.ndarray,
 
 def stack(cols: list[SegmentColumns]) -> SegmentColumns:
     """Segments of equal interval count stacked, one per node (interval axis first)."""
+
     def st(f, axis):
         return np.ascontiguousarray(np.stack([getattr(c, f) for c in cols], axis=axis))
+
     return SegmentColumns(H=st("H", 1), A=st("A", 0), B=st("B", 0), F=st("F", 1), Q=st("Q", 1))
 
 
@@ -107,6 +110,7 @@ def fold(cols: SegmentColumns, X: np.ndarray, N: np.ndarray, P: np.ndarray, inde
     -------
     X, N, P after the segment (new arrays).
     """
+
     def at(a, k):
         return a[k] if index is None else a[k, index]
 

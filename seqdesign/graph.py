@@ -6,6 +6,7 @@ consecutive flips about the same axis in the same direction with no dwell
 between them are one continuous turn, so a *move* here is ``q`` quarter
 turns about one axis (``q = 1`` is a flip, ``q = 5`` a turn and a quarter).
 """
+
 from __future__ import annotations
 
 import math
@@ -78,8 +79,11 @@ def apply_move(graph: nx.MultiDiGraph, node: Node, move: Move) -> Node:
     if key not in memo:
         end = node
         for _ in range(move.quarters):
-            end = next(v for _, v, d in graph.out_edges(end, data=True)
-                       if d["axis"] == move.axis and d["sign"] == move.sign)
+            end = next(
+                v
+                for _, v, d in graph.out_edges(end, data=True)
+                if d["axis"] == move.axis and d["sign"] == move.sign
+            )
         memo[key] = end
     return memo[key]
 
@@ -88,8 +92,9 @@ def parse_node(text: str, where: str = "--start") -> Node:
     """A node from ``"east,up,south"``, refused with ``where`` if it is not a frame."""
     parts = [p.strip().lower() for p in str(text).replace(" ", ",").split(",") if p.strip()]
     if len(parts) != 3:
-        raise CalibError(f"{text!r} is not three directions", where,
-                         "write where X, Y, Z point, e.g. \"east,up,south\"")
+        raise CalibError(
+            f"{text!r} is not three directions", where, 'write where X, Y, Z point, e.g. "east,up,south"'
+        )
     attitude_from_directions(*parts, where=where)
     return tuple(parts)
 

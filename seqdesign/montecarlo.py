@@ -4,6 +4,7 @@ Each trial draws its own noise, base mounting within the tolerance and flip
 errors from ``seed + trial``, so a run with N workers gives exactly the
 serial result.
 """
+
 from __future__ import annotations
 
 import math
@@ -35,7 +36,7 @@ class Trials:
 
     @property
     def rms_error(self) -> np.ndarray:
-        return np.sqrt(np.mean(self.errors ** 2, axis=0))
+        return np.sqrt(np.mean(self.errors**2, axis=0))
 
     @property
     def mean_sigma(self) -> np.ndarray:
@@ -48,24 +49,53 @@ class Trials:
 
 def one_trial(args) -> tuple[np.ndarray, np.ndarray, bool]:
     """Simulate one run and calibrate it with the library call the CLI uses (same sigmas)."""
-    (seq, profile, latitude_deg, errors, tolerance_deg, flip_error_deg, seed, extra, extras,
-     fit_profile, *rest) = args
+    (
+        seq,
+        profile,
+        latitude_deg,
+        errors,
+        tolerance_deg,
+        flip_error_deg,
+        seed,
+        extra,
+        extras,
+        fit_profile,
+        *rest,
+    ) = args
     requirements = rest[0] if rest else None
     cfg = SimConfig(latitude_rad=math.radians(latitude_deg))
-    run, truth = simulate(seq, cfg, errors, profile, flip_error_deg=flip_error_deg, noise=True,
-                          seed=seed, random_setup_deg=tolerance_deg if tolerance_deg > 0 else None,
-                          extra=extra)
-    result = calibrate_run(run, fit_profile or profile, extras=extras, require_convergence=False,
-                           requirements=requirements)
+    run, truth = simulate(
+        seq,
+        cfg,
+        errors,
+        profile,
+        flip_error_deg=flip_error_deg,
+        noise=True,
+        seed=seed,
+        random_setup_deg=tolerance_deg if tolerance_deg > 0 else None,
+        extra=extra,
+    )
+    result = calibrate_run(
+        run, fit_profile or profile, extras=extras, require_convergence=False, requirements=requirements
+    )
     return result.values - errors.values, result.covariance, result.converged
 
 
-def run_trials(seq: Sequence, profile: NoiseProfile, n: int, seed: int = 0,
-               latitude_deg: float = 40.0, errors: ErrorModel | None = None,
-               tolerance_deg: float = 3.0, flip_error_deg: float = 0.5,
-               workers: int = 1, extra: ExtraValues | None = None,
-               extras: Extras = NO_EXTRAS, fit_profile: NoiseProfile | None = None,
-               requirements=None) -> Trials:
+def run_trials(
+    seq: Sequence,
+    profile: NoiseProfile,
+    n: int,
+    seed: int = 0,
+    latitude_deg: float = 40.0,
+    errors: ErrorModel | None = None,
+    tolerance_deg: float = 3.0,
+    flip_error_deg: float = 0.5,
+    workers: int = 1,
+    extra: ExtraValues | None = None,
+    extras: Extras = NO_EXTRAS,
+    fit_profile: NoiseProfile | None = None,
+    requirements=None,
+) -> Trials:
     """Simulate and calibrate ``n`` runs; trial ``i`` uses seed ``seed + i``.
 
     ``extra`` adds a real unit's optional terms to the simulated runs;
@@ -75,12 +105,29 @@ def run_trials(seq: Sequence, profile: NoiseProfile, n: int, seed: int = 0,
     ``requirements`` scale the fit (and so what it calls observable).
     """
     errors = errors if errors is not None else ErrorModel.from_table2()
-    jobs = [(seq, profile, latitude_deg, errors, tolerance_deg, flip_error_deg, seed + i,
-             extra, extras, fit_profile, requirements) for i in range(n)]
+    jobs = [
+        (
+            seq,
+            profile,
+            latitude_deg,
+            errors,
+            tolerance_deg,
+            flip_error_deg,
+            seed + i,
+            extra,
+            extras,
+            fit_profile,
+            requirements,
+        )
+        for i in range(n)
+    ]
     if workers > 1:
         with ProcessPoolExecutor(max_workers=workers) as pool:
             out = list(pool.map(one_trial, jobs))
     else:
         out = [one_trial(j) for j in jobs]
-    return Trials(errors=np.array([o[0] for o in out]), covariances=np.array([o[1] for o in out]),
-                  converged=np.array([o[2] for o in out]))
+    return Trials(
+        errors=np.array([o[0] for o in out]),
+        covariances=np.array([o[1] for o in out]),
+        converged=np.array([o[2] for o in out]),
+    )

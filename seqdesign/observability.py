@@ -6,6 +6,7 @@ nominal trajectory of the sequence, the same observation intervals and the
 same noise whitening. Its inverse is the covariance the calibration will
 reach with that noise profile; the Monte Carlo tests check that it does.
 """
+
 from __future__ import annotations
 
 import functools
@@ -110,9 +111,11 @@ class Observability:
     def correlated_pairs(self, limit: float = CORRELATION_LIMIT) -> list[tuple[str, str, float]]:
         """Pairs of estimable parameters with |rho| above ``limit``, strongest first."""
         rho = self.correlation
-        out = [(P.NAMES[i], P.NAMES[j], float(rho[i, j]))
-               for i, j in itertools.combinations(range(P.N_PARAMS), 2)
-               if self.estimable[i] and self.estimable[j] and abs(rho[i, j]) > limit]
+        out = [
+            (P.NAMES[i], P.NAMES[j], float(rho[i, j]))
+            for i, j in itertools.combinations(range(P.N_PARAMS), 2)
+            if self.estimable[i] and self.estimable[j] and abs(rho[i, j]) > limit
+        ]
         return sorted(out, key=lambda t: -abs(t[2]))
 
     def scaled_information(self) -> np.ndarray:
@@ -131,13 +134,22 @@ class Observability:
         ev = np.linalg.eigvalsh(self.scaled_information())
         if self.rank < P.N_PARAMS or ev[0] <= 0:
             return {"D": -math.inf, "A": math.inf, "E": 0.0, "condition": math.inf}
-        return {"D": float(np.sum(np.log(ev))), "A": float(np.sum(1.0 / ev)),
-                "E": float(ev[0]), "condition": float(ev[-1] / ev[0])}
+        return {
+            "D": float(np.sum(np.log(ev))),
+            "A": float(np.sum(1.0 / ev)),
+            "E": float(ev[0]),
+            "condition": float(ev[-1] / ev[0]),
+        }
 
 
-def from_information(info: np.ndarray, duration_s: float, profile: str, setup_rotvec,
-                     nominal: "Observability | None" = None,
-                     requirements: Requirements = PAPER) -> Observability:
+def from_information(
+    info: np.ndarray,
+    duration_s: float,
+    profile: str,
+    setup_rotvec,
+    nominal: "Observability | None" = None,
+    requirements: Requirements = PAPER,
+) -> Observability:
     """Observability from the information of [21, phi0].
 
     With ``nominal`` (the same sequence at the nominal mounting), what is
@@ -150,12 +162,18 @@ def from_information(info: np.ndarray, duration_s: float, profile: str, setup_ro
     if nominal is not None and not nominal.estimable.all():
         cov = projected_covariance(Ms, nominal.null_basis)
         inv = ScaledInverse(cov, nominal.rank, nominal.null_basis, nominal.estimable, inv.names)
-    return Observability(information=info, covariance=inv.covariance * np.outer(D, D),
-                         rank=inv.rank, unobservable=inv.null_directions(),
-                         duration_s=duration_s, profile=profile,
-                         setup_rotvec=np.asarray(setup_rotvec, dtype=float),
-                         estimable=inv.estimable, null_basis=inv.null_basis,
-                         requirements=requirements)
+    return Observability(
+        information=info,
+        covariance=inv.covariance * np.outer(D, D),
+        rank=inv.rank,
+        unobservable=inv.null_directions(),
+        duration_s=duration_s,
+        profile=profile,
+        setup_rotvec=np.asarray(setup_rotvec, dtype=float),
+        estimable=inv.estimable,
+        null_basis=inv.null_basis,
+        requirements=requirements,
+    )
 
 
 N_BASIS = 9 + 27 + 27
@@ -164,8 +182,9 @@ N_BASIS = 9 + 27 + 27
 def basis_weights(R: np.ndarray, omega_ie_n: np.ndarray, f_n: np.ndarray) -> np.ndarray:
     """Weights of the mounting basis: ``R[a,b]``, ``R[a,b] (R^T w)_c``, ``R[a,b] (R^T f)_c``."""
     w, f = R.T @ omega_ie_n, R.T @ f_n
-    return np.concatenate([R.reshape(9), np.einsum("ab,c->abc", R, w).reshape(27),
-                           np.einsum("ab,c->abc", R, f).reshape(27)])
+    return np.concatenate(
+        [R.reshape(9), np.einsum("ab,c->abc", R, w).reshape(27), np.einsum("ab,c->abc", R, f).reshape(27)]
+    )
 
 
 def rotvec_derivatives(rotvec: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -180,26 +199,30 @@ def rotvec_derivatives(rotvec: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     n = float(np.linalg.norm(rotvec))
     K = skew(rotvec)
     if n < 1e-4:
-        a, b = 0.5 - n ** 2 / 24.0, 1.0 / 6.0 - n ** 2 / 120.0
+        a, b = 0.5 - n**2 / 24.0, 1.0 / 6.0 - n**2 / 120.0
     else:
-        a, b = (1.0 - math.cos(n)) / n ** 2, (n - math.sin(n)) / n ** 3
+        a, b = (1.0 - math.cos(n)) / n**2, (n - math.sin(n)) / n**3
     J = np.eye(3) + a * K + b * K @ K
     R = rotvec_to_dcm(rotvec)
     return R, np.array([skew(J[:, k]) @ R for k in range(3)])
 
 
-def basis_weights_jacobian(rotvec: np.ndarray, omega_ie_n: np.ndarray,
-                           f_n: np.ndarray) -> np.ndarray:
+def basis_weights_jacobian(rotvec: np.ndarray, omega_ie_n: np.ndarray, f_n: np.ndarray) -> np.ndarray:
     """``d basis_weights / d rotvec``, shape (N_BASIS, 3): :func:`basis_weights` differentiated."""
     R, dR = rotvec_derivatives(rotvec)
     w, f = R.T @ omega_ie_n, R.T @ f_n
     cols = []
     for d in dR:
         dw, df = d.T @ omega_ie_n, d.T @ f_n
-        cols.append(np.concatenate([
-            d.reshape(9),
-            (np.einsum("ab,c->abc", d, w) + np.einsum("ab,c->abc", R, dw)).reshape(27),
-            (np.einsum("ab,c->abc", d, f) + np.einsum("ab,c->abc", R, df)).reshape(27)]))
+        cols.append(
+            np.concatenate(
+                [
+                    d.reshape(9),
+                    (np.einsum("ab,c->abc", d, w) + np.einsum("ab,c->abc", R, dw)).reshape(27),
+                    (np.einsum("ab,c->abc", d, f) + np.einsum("ab,c->abc", R, df)).reshape(27),
+                ]
+            )
+        )
     return np.array(cols).T
 
 
@@ -255,7 +278,7 @@ class SequenceModel:
         n = len(self.column_basis)
         A = np.zeros((n + 3, N_UNKNOWN))
         A[np.arange(n), self.column_param] = w[self.column_basis]
-        A[n:, P.N_PARAMS:] = np.eye(3)
+        A[n:, P.N_PARAMS :] = np.eye(3)
         return A
 
     def whitened(self, setup_rotvec) -> np.ndarray:
@@ -286,19 +309,24 @@ class SequenceModel:
         sigma = math.sqrt(max(v[index], 0.0))
         n = len(self.column_basis)
         y = (gram_A @ v)[:n]
-        dvar_dw = -2.0 * np.bincount(self.column_basis, weights=y * v[self.column_param],
-                                     minlength=N_BASIS)
+        dvar_dw = -2.0 * np.bincount(self.column_basis, weights=y * v[self.column_param], minlength=N_BASIS)
         J = basis_weights_jacobian(rotvec, self.omega_ie_n, self.f_n)
         return sigma, (dvar_dw @ J) / (2.0 * sigma)
 
-    def analyze(self, setup_rotvec=(0.0, 0.0, 0.0), nominal: "Observability | None" = None,
-                requirements: Requirements = PAPER) -> "Observability":
-        return from_information(self.information(setup_rotvec), self.duration_s, self.profile,
-                                setup_rotvec, nominal, requirements)
+    def analyze(
+        self,
+        setup_rotvec=(0.0, 0.0, 0.0),
+        nominal: "Observability | None" = None,
+        requirements: Requirements = PAPER,
+    ) -> "Observability":
+        return from_information(
+            self.information(setup_rotvec), self.duration_s, self.profile, setup_rotvec, nominal, requirements
+        )
 
 
-def _contract_into(out: np.ndarray, first_column: int, prim: np.ndarray, G: np.ndarray,
-                   params: np.ndarray) -> int:
+def _contract_into(
+    out: np.ndarray, first_column: int, prim: np.ndarray, G: np.ndarray, params: np.ndarray
+) -> int:
     """Write ``sum_{w,i,m} prim[k,w,b,i,m,c] G[w,a,i,m,p,s]`` into ``out[k, s, columns]``.
 
     ``prim`` (K, w, b, i, m, c) and ``G`` (w, a, i, m, p, s); only the parameters
@@ -311,7 +339,7 @@ def _contract_into(out: np.ndarray, first_column: int, prim: np.ndarray, G: np.n
     Y = G[:nw][..., params, :].transpose(5, 0, 2, 3, 1, 4).reshape(6, nw * ni * nm, -1)
     n = nb * nc * 3 * len(params)
     for s in range(6):
-        out[:, s, first_column:first_column + n] = (X @ Y[s]).reshape(K, n)
+        out[:, s, first_column : first_column + n] = (X @ Y[s]).reshape(K, n)
     return first_column + n
 
 
@@ -326,9 +354,16 @@ def _fed(G: np.ndarray) -> np.ndarray:
     return np.flatnonzero(np.any(G != 0.0, axis=tuple(i for i in range(G.ndim) if i != G.ndim - 2)))
 
 
-def _basis_blocks(C_mid: np.ndarray, flip: np.ndarray, E: np.ndarray, h: np.ndarray,
-                  tau: np.ndarray, starts: np.ndarray, latitude_rad: float,
-                  gravity_mps2: float) -> tuple[list, np.ndarray]:
+def _basis_blocks(
+    C_mid: np.ndarray,
+    flip: np.ndarray,
+    E: np.ndarray,
+    h: np.ndarray,
+    tau: np.ndarray,
+    starts: np.ndarray,
+    latitude_rad: float,
+    gravity_mps2: float,
+) -> tuple[list, np.ndarray]:
     """How the 63 mounting basis terms feed ``d x_next / d params`` of every interval.
 
     The moments of basis term ``(a, b)`` are those of the nominal attitude's row ``b``
@@ -348,14 +383,14 @@ def _basis_blocks(C_mid: np.ndarray, flip: np.ndarray, E: np.ndarray, h: np.ndar
         The columns formed, as ``basis_term * 21 + parameter``.
     """
     G = step_model(float(latitude_rad), float(gravity_mps2)).input_map
-    G = G.reshape(5, 36, N_UNKNOWN, 6)[:, :, :P.N_PARAMS]  # moment block, row, unknown, state
+    G = G.reshape(5, 36, N_UNKNOWN, 6)[:, :, : P.N_PARAMS]  # moment block, row, unknown, state
     GK = G[:, :27].reshape(5, 3, 3, 3, P.N_PARAMS, 6)  # block, a, i, m, p, s
     # A bias moment (sum tau^w C h) feeds the gyro bias channel of block w and, for w < 2,
     # the accelerometer's of block 3 + w: a "body axis" m of 2 for the contraction.
     GB = np.zeros((3, 3, 3, 2, P.N_PARAMS, 6))  # w, a, i, m, p, s
     GB[:, :, :, 0] = G[:3, 27:].reshape(3, 3, 3, P.N_PARAMS, 6)
     GB[:2, :, :, 1] = G[3:, 27:].reshape(2, 3, 3, P.N_PARAMS, 6)
-    weights = np.stack([np.ones_like(tau), tau, tau ** 2], axis=1)  # (n, w)
+    weights = np.stack([np.ones_like(tau), tau, tau**2], axis=1)  # (n, w)
     lengths = np.diff(np.append(starts, len(tau)))
 
     def interval_sum(x):  # per sample (n, ...) -> per interval and weight (K, w, ...)
@@ -376,8 +411,9 @@ def _basis_blocks(C_mid: np.ndarray, flip: np.ndarray, E: np.ndarray, h: np.ndar
     t4 = interval_sum(np.einsum("nbi,nmc->nbimc", C_mid, E))  # (K, w, b, i, m, c)
     blocks = [(rot, G_rot, 0), (t4, GK[:3], 9), (t4[:, :2], GK[3:], 36)]
     blocks = [(prim, Gb, _fed(Gb), term) for prim, Gb, term in blocks]
-    keep = np.concatenate([_block_columns(term, prim.shape[2], prim.shape[5], params)
-                           for prim, _, params, term in blocks])
+    keep = np.concatenate(
+        [_block_columns(term, prim.shape[2], prim.shape[5], params) for prim, _, params, term in blocks]
+    )
     return blocks, keep
 
 
@@ -395,8 +431,7 @@ def _chunk_inputs(blocks: list, intervals: slice, extra_columns: int) -> np.ndar
 CHUNK_INTERVALS = 512  # ~13 MB of inputs: buffers reused, not paged in afresh
 
 
-def _whitened_chunks(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
-                     height_m: float):
+def _whitened_chunks(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float):
     """The kept whitened columns and phi0's, ``CHUNK_INTERVALS`` intervals at a time.
 
     Yields ``(X_chunk (3k, n + 3), keep)``. Propagation and whitening are recursions
@@ -418,8 +453,7 @@ def _whitened_chunks(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
     state = None
     for k0 in range(0, len(T), CHUNK_INTERVALS):
         part = slice(k0, k0 + CHUNK_INTERVALS)
-        S_v, S = propagate(_chunk_inputs(blocks, part, 3), T[part], S, latitude_rad, g,
-                           return_final=True)
+        S_v, S = propagate(_chunk_inputs(blocks, part, 3), T[part], S, latitude_rad, g, return_final=True)
         H = observation_matrix(S_v, noise.Phi_vv[part])
         w_part = Whitener(w.F_ss[part], w.F_vs[part], w.gain[part], w.L_inv[part], 0.0, w.P_end)
         Hw, state = whiten(w_part, H, state, return_final=True)
@@ -427,27 +461,44 @@ def _whitened_chunks(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
 
 
 @functools.lru_cache(maxsize=32)
-def sequence_model(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
-                   height_m: float = 0.0) -> SequenceModel:
+def sequence_model(
+    seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float = 0.0
+) -> SequenceModel:
     """Build (and cache) the mounting-independent model of a sequence."""
     gram = 0.0
     for Hw, keep in _whitened_chunks(seq, profile, latitude_rad, height_m):
         gram = gram + Hw.T @ Hw
     g = earth.gravity(latitude_rad, height_m)
-    return SequenceModel(gram=0.5 * (gram + gram.T), column_basis=keep // P.N_PARAMS,
-                         column_param=keep % P.N_PARAMS, omega_ie_n=earth.omega_ie_n(latitude_rad),
-                         f_n=earth.specific_force_n(g), duration_s=seq.duration_s,
-                         profile=profile.name, source=(seq, profile, latitude_rad, height_m))
+    return SequenceModel(
+        gram=0.5 * (gram + gram.T),
+        column_basis=keep // P.N_PARAMS,
+        column_param=keep % P.N_PARAMS,
+        omega_ie_n=earth.omega_ie_n(latitude_rad),
+        f_n=earth.specific_force_n(g),
+        duration_s=seq.duration_s,
+        profile=profile.name,
+        source=(seq, profile, latitude_rad, height_m),
+    )
 
 
-def information(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float = 0.0,
-                setup_rotvec=(0.0, 0.0, 0.0)) -> np.ndarray:
+def information(
+    seq: Sequence,
+    profile: NoiseProfile,
+    latitude_rad: float,
+    height_m: float = 0.0,
+    setup_rotvec=(0.0, 0.0, 0.0),
+) -> np.ndarray:
     """Fisher information (24 x 24, SI) of [21 parameters, phi0] for one base mounting."""
     return sequence_model(seq, profile, latitude_rad, height_m).information(setup_rotvec)
 
 
-def analyze(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float = 0.0,
-            setup_rotvec=(0.0, 0.0, 0.0)) -> Observability:
+def analyze(
+    seq: Sequence,
+    profile: NoiseProfile,
+    latitude_rad: float,
+    height_m: float = 0.0,
+    setup_rotvec=(0.0, 0.0, 0.0),
+) -> Observability:
     """Observability of a sequence at one base mounting."""
     return sequence_model(seq, profile, latitude_rad, height_m).analyze(setup_rotvec)
 
@@ -529,16 +580,26 @@ def _scalar_callback(name: str, value, gradient):
     return _CB()
 
 
-def _ipopt_max(cb, starts_deg: list, tolerance_deg: float, max_iter: int = 25,
-               tol: float = 1e-6) -> tuple[np.ndarray, float]:
+def _ipopt_max(
+    cb, starts_deg: list, tolerance_deg: float, max_iter: int = 25, tol: float = 1e-6
+) -> tuple[np.ndarray, float]:
     """Maximise a scalar callback of the mounting (deg) over the box from each start."""
     import casadi as ca
 
     x = ca.MX.sym("theta_deg", 3)
-    solver = ca.nlpsol("worst", "ipopt", {"x": x, "f": -cb(x)},
-                       {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
-                        "ipopt.hessian_approximation": "limited-memory",
-                        "ipopt.max_iter": max_iter, "ipopt.tol": tol})
+    solver = ca.nlpsol(
+        "worst",
+        "ipopt",
+        {"x": x, "f": -cb(x)},
+        {
+            "print_time": False,
+            "ipopt.print_level": 0,
+            "ipopt.sb": "yes",
+            "ipopt.hessian_approximation": "limited-memory",
+            "ipopt.max_iter": max_iter,
+            "ipopt.tol": tol,
+        },
+    )
     best_x, best = None, -np.inf
     for x0 in starts_deg:
         sol = solver(x0=x0, lbx=-tolerance_deg, ubx=tolerance_deg)
@@ -548,9 +609,13 @@ def _ipopt_max(cb, starts_deg: list, tolerance_deg: float, max_iter: int = 25,
     return best_x, best
 
 
-def search_worst_mounting(model: SequenceModel, index: int, starts_deg: list,
-                          tolerance_deg: float,
-                          requirements: Requirements = PAPER) -> tuple[np.ndarray, float]:
+def search_worst_mounting(
+    model: SequenceModel,
+    index: int,
+    starts_deg: list,
+    tolerance_deg: float,
+    requirements: Requirements = PAPER,
+) -> tuple[np.ndarray, float]:
     """Maximise one parameter's sigma over the mounting box with IPOPT, from several starts.
 
     The gradient is exact (:meth:`SequenceModel.sigma_gradient`: the mounting basis
@@ -575,9 +640,9 @@ FD_STEP_DEG = 1e-3  # forward step of the direct search's gradient (see search_w
 DIRECT_MAX_ITER = 8
 
 
-def search_worst_direct(sigma_of, start_deg, tolerance_deg: float,
-                        max_iter: int = DIRECT_MAX_ITER,
-                        sigmas_of=None) -> tuple[np.ndarray, float]:
+def search_worst_direct(
+    sigma_of, start_deg, tolerance_deg: float, max_iter: int = DIRECT_MAX_ITER, sigmas_of=None
+) -> tuple[np.ndarray, float]:
     """Maximise ``sigma_of(rotvec)`` over the box with IPOPT where no closed form exists.
 
     For Gauss-Markov bias instability the noise filter's gains depend on the
@@ -608,8 +673,7 @@ def search_worst_direct(sigma_of, start_deg, tolerance_deg: float,
         return seen[key]
 
     def gradient(theta_deg):
-        points = [np.asarray(theta_deg, dtype=float)] + [theta_deg + FD_STEP_DEG * e
-                                                         for e in np.eye(3)]
+        points = [np.asarray(theta_deg, dtype=float)] + [theta_deg + FD_STEP_DEG * e for e in np.eye(3)]
         new = [t for t in points if key_of(t) not in seen]
         if sigmas_of is not None and len(new) > 1:
             for t, sigma in zip(new, sigmas_of([np.radians(t) for t in new])):
@@ -630,12 +694,18 @@ BATCH_MOUNTINGS = 9  # mountings per pass of the GM noise filter: the 27 box poi
 
 
 def _batches(items: list, size: int) -> list[list]:
-    return [items[i:i + size] for i in range(0, len(items), size)]
+    return [items[i : i + size] for i in range(0, len(items), size)]
 
 
-def _gm_information(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float,
-                    rotvecs: list, extras: Extras | None = None,
-                    batch: int = BATCH_MOUNTINGS) -> list[np.ndarray]:
+def _gm_information(
+    seq: Sequence,
+    profile: NoiseProfile,
+    latitude_rad: float,
+    height_m: float,
+    rotvecs: list,
+    extras: Extras | None = None,
+    batch: int = BATCH_MOUNTINGS,
+) -> list[np.ndarray]:
     """Fisher information of each mounting, evaluated along its own nominal trajectory.
 
     ``batch`` mountings share a pass of the noise filter
@@ -655,29 +725,45 @@ def _gm_information(seq: Sequence, profile: NoiseProfile, latitude_rad: float, h
     return out
 
 
-def _evaluator(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float,
-               requirements: Requirements, batch: int = BATCH_MOUNTINGS):
+def _evaluator(
+    seq: Sequence,
+    profile: NoiseProfile,
+    latitude_rad: float,
+    height_m: float,
+    requirements: Requirements,
+    batch: int = BATCH_MOUNTINGS,
+):
     """``evaluate(rotvecs, nominal=None) -> [Observability]`` and the basis model (None with GM)."""
     if profile.has_gauss_markov:
         # Bias-instability weights depend on the mounting (measured: up to 4.7 % on a sigma
         # for designed-30min-9moves if the nominal weights are reused), so evaluate each directly.
         def evaluate(rotvecs, nominal=None):
             infos = _gm_information(seq, profile, latitude_rad, height_m, rotvecs, batch=batch)
-            return [from_information(info, seq.duration_s, profile.name, rv, nominal, requirements)
-                    for info, rv in zip(infos, rotvecs)]
+            return [
+                from_information(info, seq.duration_s, profile.name, rv, nominal, requirements)
+                for info, rv in zip(infos, rotvecs)
+            ]
+
         return evaluate, None
     model = sequence_model(seq, profile, latitude_rad, height_m)
 
     def evaluate(rotvecs, nominal=None):
         return [model.analyze(rv, nominal, requirements) for rv in rotvecs]
+
     return evaluate, model
 
 
-def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
-                      height_m: float = 0.0, tolerance_deg: float = 3.0,
-                      search: bool = True, starts: int = 2,
-                      requirements: Requirements = PAPER,
-                      batch: int = BATCH_MOUNTINGS) -> Robustness:
+def analyze_tolerance(
+    seq: Sequence,
+    profile: NoiseProfile,
+    latitude_rad: float,
+    height_m: float = 0.0,
+    tolerance_deg: float = 3.0,
+    search: bool = True,
+    starts: int = 2,
+    requirements: Requirements = PAPER,
+    batch: int = BATCH_MOUNTINGS,
+) -> Robustness:
     """Worst case over the +-tolerance box of base mountings.
 
     The 27 corner/edge/face/centre points are evaluated; then, if ``search``,
@@ -704,12 +790,16 @@ def analyze_tolerance(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
     index = int(np.argmax(requirements.ratio(per_param)))
     order = np.argsort(-sigmas[:, index])
     if model is not None:
-        rotvec, sigma = search_worst_mounting(model, index, [grid[i] for i in order[:starts]],
-                                              tolerance_deg, requirements)
+        rotvec, sigma = search_worst_mounting(
+            model, index, [grid[i] for i in order[:starts]], tolerance_deg, requirements
+        )
     else:
         rotvec, sigma = search_worst_direct(
-            lambda rv: evaluate([rv], nominal)[0].sigma[index], grid[order[0]], tolerance_deg,
-            sigmas_of=lambda rvs: [o.sigma[index] for o in evaluate(rvs, nominal)])
+            lambda rv: evaluate([rv], nominal)[0].sigma[index],
+            grid[order[0]],
+            tolerance_deg,
+            sigmas_of=lambda rvs: [o.sigma[index] for o in evaluate(rvs, nominal)],
+        )
     if sigma > per_param[index]:
         found = evaluate([rotvec], nominal)[0]
         per_param = np.maximum(per_param, found.sigma)
@@ -749,14 +839,21 @@ class ExtrasCost:
         """
         out = []
         for p, s in zip(self.extras.parameters, self.extra_sigma):
-            out.append("unobservable" if not np.isfinite(s)
-                       else "observable" if 3.0 * s <= p.scale_si else "weak")
+            out.append(
+                "unobservable" if not np.isfinite(s) else "observable" if 3.0 * s <= p.scale_si else "weak"
+            )
         return out
 
 
-def _extras_evaluator(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
-                      extras: Extras, height_m: float, requirements: Requirements,
-                      batch: int = BATCH_MOUNTINGS):
+def _extras_evaluator(
+    seq: Sequence,
+    profile: NoiseProfile,
+    latitude_rad: float,
+    extras: Extras,
+    height_m: float,
+    requirements: Requirements,
+    batch: int = BATCH_MOUNTINGS,
+):
     """``evaluate(rotvecs) -> [(sigma of the 21 without, with, sigma of the extras)]`` (SI).
 
     Each mounting is evaluated directly along its own nominal trajectory, ``batch``
@@ -765,30 +862,39 @@ def _extras_evaluator(seq: Sequence, profile: NoiseProfile, latitude_rad: float,
     """
     scale = np.concatenate([requirements.si, extras.scale_si])
     names = P.NAMES + extras.names
-    nom_info = _gm_information(seq, profile, latitude_rad, height_m, [np.zeros(3)], extras,
-                               batch)[0]
+    nom_info = _gm_information(seq, profile, latitude_rad, height_m, [np.zeros(3)], extras, batch)[0]
     nominal = scaled_inverse(eliminate(nom_info, PHI0_IDX) * np.outer(scale, scale), names)
-    nominal_without = from_information(nom_info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s,
-                                       profile.name, np.zeros(3), None, requirements)
+    nominal_without = from_information(
+        nom_info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s, profile.name, np.zeros(3), None, requirements
+    )
 
     def sigmas(rotvec, info):
-        obs = from_information(info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s, profile.name,
-                               rotvec, nominal_without, requirements)
+        obs = from_information(
+            info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s, profile.name, rotvec, nominal_without, requirements
+        )
         M = eliminate(info, PHI0_IDX) * np.outer(scale, scale)
         variance = np.diag(projected_covariance(M, nominal.null_basis))
         s = np.where(nominal.estimable, np.sqrt(np.abs(variance)), np.inf) * scale
-        return obs.sigma, s[:P.N_PARAMS], s[P.N_PARAMS:]
+        return obs.sigma, s[: P.N_PARAMS], s[P.N_PARAMS :]
 
     def evaluate(rotvecs):
         infos = _gm_information(seq, profile, latitude_rad, height_m, rotvecs, extras, batch)
         return [sigmas(rv, info) for rv, info in zip(rotvecs, infos)]
+
     return evaluate, nominal
 
 
-def analyze_extras(seq: Sequence, profile: NoiseProfile, latitude_rad: float, extras: Extras,
-                   height_m: float = 0.0, tolerance_deg: float = 3.0,
-                   requirements: Requirements = PAPER, search: bool = False,
-                   batch: int = BATCH_MOUNTINGS) -> ExtrasCost:
+def analyze_extras(
+    seq: Sequence,
+    profile: NoiseProfile,
+    latitude_rad: float,
+    extras: Extras,
+    height_m: float = 0.0,
+    tolerance_deg: float = 3.0,
+    requirements: Requirements = PAPER,
+    search: bool = False,
+    batch: int = BATCH_MOUNTINGS,
+) -> ExtrasCost:
     """Sigma of the 21 with and without the optional terms, and theirs, worst over the box.
 
     Both figures come from the same 27 mountings (corners, edges, faces and
@@ -802,25 +908,33 @@ def analyze_extras(seq: Sequence, profile: NoiseProfile, latitude_rad: float, ex
     """
     levels = (-tolerance_deg, 0.0, tolerance_deg) if tolerance_deg > 0 else (0.0,)
     points = [np.radians(p) for p in itertools.product(levels, levels, levels)]
-    evaluate, nominal = _extras_evaluator(seq, profile, latitude_rad, extras, height_m,
-                                          requirements, batch)
+    evaluate, nominal = _extras_evaluator(seq, profile, latitude_rad, extras, height_m, requirements, batch)
     results = evaluate(points)
-    searched = search and tolerance_deg > 0 and bool(nominal.estimable[:P.N_PARAMS].all())
+    searched = search and tolerance_deg > 0 and bool(nominal.estimable[: P.N_PARAMS].all())
     if searched:
         with_ = np.array([r[1] for r in results])
         index = int(np.argmax(requirements.ratio(with_.max(axis=0))))
         start = np.degrees(points[int(np.argmax(with_[:, index]))])
-        rotvec, _ = search_worst_direct(lambda rv: evaluate([rv])[0][1][index], start,
-                                        tolerance_deg,
-                                        sigmas_of=lambda rvs: [r[1][index] for r in evaluate(rvs)])
+        rotvec, _ = search_worst_direct(
+            lambda rv: evaluate([rv])[0][1][index],
+            start,
+            tolerance_deg,
+            sigmas_of=lambda rvs: [r[1][index] for r in evaluate(rvs)],
+        )
         results.extend(evaluate([rotvec]))
     without, with_, extra = (np.max([r[i] for r in results], axis=0) for i in range(3))
-    return ExtrasCost(extras, without, with_, extra, nominal.null_directions(), len(points),
-                      tolerance_deg, searched)
+    return ExtrasCost(
+        extras, without, with_, extra, nominal.null_directions(), len(points), tolerance_deg, searched
+    )
 
 
-def accel_scale_bound(duration_s: float, profile: NoiseProfile, gravity_mps2: float,
-                      requirements: Requirements = PAPER, rate_dps: float | None = None) -> float:
+def accel_scale_bound(
+    duration_s: float,
+    profile: NoiseProfile,
+    gravity_mps2: float,
+    requirements: Requirements = PAPER,
+    rate_dps: float | None = None,
+) -> float:
     """Best possible worst ratio of the accelerometer scale factors (conventions.md).
 
     Gravity is their only excitation and ``sum f_i^2 = g^2``: the three share
@@ -837,7 +951,7 @@ def accel_scale_bound(duration_s: float, profile: NoiseProfile, gravity_mps2: fl
     ``f = omega / 2 pi`` (one turn of gravity per ``360 / rate`` s), which
     replaces ``VRW^2`` by :func:`accel_density_at_rate`.
     """
-    density = profile.vrw ** 2 if rate_dps is None else accel_density_at_rate(profile, rate_dps)
+    density = profile.vrw**2 if rate_dps is None else accel_density_at_rate(profile, rate_dps)
     sigma = math.sqrt(density * 3.0 / duration_s) / gravity_mps2
     return 3.0 * sigma / min(requirements.si[P.ACCEL_SCALE])
 
@@ -847,11 +961,9 @@ def accel_density_at_rate(profile: NoiseProfile, rate_dps: float) -> float:
     turn takes at ``rate_dps``: white ``VRW^2`` plus the GM bias's
     ``2 sigma^2 tau / (1 + (2 pi f tau)^2)`` (whose integral over all f is ``sigma^2``).
     """
-    density = profile.vrw ** 2
+    density = profile.vrw**2
     tau = profile.accel_bias_correlation_s
     if profile.accel_gm_sigma > 0 and tau > 0:
         omega = math.radians(rate_dps)  # 2 pi f
-        density += 2.0 * profile.accel_gm_sigma ** 2 * tau / (1.0 + (omega * tau) ** 2)
+        density += 2.0 * profile.accel_gm_sigma**2 * tau / (1.0 + (omega * tau) ** 2)
     return density
-
-

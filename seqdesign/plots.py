@@ -1,4 +1,5 @@
 """Pictures drawn with matplotlib (the optional ``plot`` extra), imported only when asked for."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -14,10 +15,12 @@ def pyplot():
     try:
         import matplotlib
     except ImportError:
-        raise CalibError("matplotlib is not installed", None,
-                         "pip install 'seqdesign[plot]' (or pip install matplotlib)") from None
+        raise CalibError(
+            "matplotlib is not installed", None, "pip install 'seqdesign[plot]' (or pip install matplotlib)"
+        ) from None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     return plt
 
 
@@ -34,27 +37,50 @@ def save_png(fig, path) -> None:
 def pareto_png(report, gravity_mps2: float, path) -> None:
     """Worst ratio against total time for each design, the paper's point and the bound curve."""
     from .designs import design_rate_dps
+
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     rows = sorted(report.rows, key=lambda r: r.result.sequence.duration_s)
     t = [r.result.sequence.duration_s / 60 for r in rows]
-    ax.plot(t, [r.result.worst_ratio for r in rows], "o-", color="#1f77b4",
-            label=f"designs ({report.profile.name})")
+    ax.plot(
+        t,
+        [r.result.worst_ratio for r in rows],
+        "o-",
+        color="#1f77b4",
+        label=f"designs ({report.profile.name})",
+    )
     for r, x in zip(rows, t):
-        ax.annotate(f"{r.result.worst_ratio:.2f}", (x, r.result.worst_ratio),
-                    textcoords="offset points", xytext=(4, 6), fontsize=8)
+        ax.annotate(
+            f"{r.result.worst_ratio:.2f}",
+            (x, r.result.worst_ratio),
+            textcoords="offset points",
+            xytext=(4, 6),
+            fontsize=8,
+        )
     tmax = max(t + [report.paper_duration_s / 60]) * 1.1
     grid = np.linspace(max(1.0, tmax / 40), tmax, 80)
-    ax.plot(grid, [accel_scale_bound(x * 60, report.profile, gravity_mps2, report.requirements)
-                   for x in grid], "--",
-            color="#d62728", label="accelerometer scale-factor bound (white noise)")
+    ax.plot(
+        grid,
+        [accel_scale_bound(x * 60, report.profile, gravity_mps2, report.requirements) for x in grid],
+        "--",
+        color="#d62728",
+        label="accelerometer scale-factor bound (white noise)",
+    )
     if report.profile.accel_gm_sigma > 0:  # the coloured-noise bound at the gimbal's rate
         rate = max(design_rate_dps(r.result.sequence) for r in rows)
-        ax.plot(grid, [accel_scale_bound(x * 60, report.profile, gravity_mps2,
-                                         report.requirements, rate) for x in grid], ":",
-                color="#9467bd", label=f"same with Gauss-Markov bias, turning at {rate:g} deg/s")
-    ax.plot([report.paper_duration_s / 60], [report.paper_worst_ratio], "s", color="#ff7f0e",
-            label="paper-9pos")
+        ax.plot(
+            grid,
+            [
+                accel_scale_bound(x * 60, report.profile, gravity_mps2, report.requirements, rate)
+                for x in grid
+            ],
+            ":",
+            color="#9467bd",
+            label=f"same with Gauss-Markov bias, turning at {rate:g} deg/s",
+        )
+    ax.plot(
+        [report.paper_duration_s / 60], [report.paper_worst_ratio], "s", color="#ff7f0e", label="paper-9pos"
+    )
     ax.set_yscale("log")
     ax.set_xlabel("total time, min")
     ax.set_ylabel(f"worst 3 sigma / requirement (+-{report.tolerance_deg:g} deg)")

@@ -6,6 +6,7 @@ engineer acts on: for the parameters that cannot be estimated on their own,
 the combinations of them that the sequence does determine (in the
 parameters' own units), and, per parameter, the motion that excites it.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -36,8 +37,9 @@ def involvement(null_basis: np.ndarray) -> list[list[int]]:
     return out
 
 
-def separable_combinations(null_basis: np.ndarray, estimable: np.ndarray,
-                           names=P.NAMES, scales=P.REQUIREMENTS) -> list[str]:
+def separable_combinations(
+    null_basis: np.ndarray, estimable: np.ndarray, names=P.NAMES, scales=P.REQUIREMENTS
+) -> list[str]:
     """Combinations of the non-estimable parameters that the sequence does determine.
 
     They are the directions, among the non-estimable parameters, orthogonal
@@ -62,11 +64,11 @@ def separable_combinations(null_basis: np.ndarray, estimable: np.ndarray,
         keep = np.abs(row) > 0.01  # as describe_null: terms above 1 % in requirement units
         own = row / np.asarray(scales)[idx]  # coefficient of each parameter in its own unit
         own = own / own[np.argmax(np.abs(row))]
-        text = " ".join(f"{'+' if own[k] > 0 else '-'} {abs(own[k]):.3g} {names[idx[k]]}"
-                        for k in np.flatnonzero(keep)).lstrip("+ ")
+        text = " ".join(
+            f"{'+' if own[k] > 0 else '-'} {abs(own[k]):.3g} {names[idx[k]]}" for k in np.flatnonzero(keep)
+        ).lstrip("+ ")
         small = np.abs(row[~keep]).max(initial=0.0)
-        out.append(text + (f" (+ terms below {small:.0e} of a requirement)" if small > 1e-6
-                           else ""))
+        out.append(text + (f" (+ terms below {small:.0e} of a requirement)" if small > 1e-6 else ""))
     return out
 
 
@@ -79,8 +81,9 @@ def motion_hint(index: int) -> str:
             return f"body {i} must see gravity with both signs (point {i} up and down)"
         if p.kind == "scale":
             return f"body {i} must see +g and -g (point {i} up, then down)"
-        return (f"body {AXES[p.col]} must see gravity while the {i} accelerometer is "
-                f"horizontal, with both signs")
+        return (
+            f"body {AXES[p.col]} must see gravity while the {i} accelerometer is horizontal, with both signs"
+        )
     if p.kind == "bias":
         return f"body {i} must point in different directions relative to the Earth's rotation"
     if p.kind == "scale":

@@ -4,6 +4,7 @@ Everything here is written from ``conventions.md`` directly (direction names,
 Rodrigues' formula, the WGS-84 formula, the parameter names), so that tests
 compare the code with an independent construction rather than with itself.
 """
+
 from __future__ import annotations
 
 import csv
@@ -16,30 +17,36 @@ import pytest
 import calib  # noqa: F401  first: pins BLAS threads (calib/__init__.py) before numpy loads
 
 REPO = Path(__file__).resolve().parents[1]
-DATA = REPO / "calib" / "data"          # copies of the paper's tables shipped in the repo
+DATA = REPO / "calib" / "data"  # copies of the paper's tables shipped in the repo
 SHARED_PAPER = REPO.parent / "shared" / "paper"  # only on a developer's machine / CI
 
 # Conventions.md constants, typed in from the spec (not imported from the code).
-W_EARTH = 7.292115e-5                   # rad/s
-LAT_DEG = 40.0                          # default site of the conventions
+W_EARTH = 7.292115e-5  # rad/s
+LAT_DEG = 40.0  # default site of the conventions
 DEG = math.pi / 180.0
 ARCSEC = DEG / 3600.0
 DEG_PER_H = DEG / 3600.0
-UG = 9.80665e-6                         # m/s^2
+UG = 9.80665e-6  # m/s^2
 PPM = 1e-6
-ARW_NAV = 0.001 * DEG / 60.0            # navigation profile, rad/sqrt(s)
-VRW_NAV = 10.0 * UG                     # navigation profile, m/s/sqrt(s)
+ARW_NAV = 0.001 * DEG / 60.0  # navigation profile, rad/sqrt(s)
+VRW_NAV = 10.0 * UG  # navigation profile, m/s/sqrt(s)
 
-ENU = {"east": (1.0, 0.0, 0.0), "west": (-1.0, 0.0, 0.0),
-       "north": (0.0, 1.0, 0.0), "south": (0.0, -1.0, 0.0),
-       "up": (0.0, 0.0, 1.0), "down": (0.0, 0.0, -1.0)}
+ENU = {
+    "east": (1.0, 0.0, 0.0),
+    "west": (-1.0, 0.0, 0.0),
+    "north": (0.0, 1.0, 0.0),
+    "south": (0.0, -1.0, 0.0),
+    "up": (0.0, 0.0, 1.0),
+    "down": (0.0, 0.0, -1.0),
+}
 
-SPEC_NAMES = ("bgx bgy bgz sgx sgy sgz mgxy mgxz mgyx mgyz mgzx mgzy "
-              "bax bay baz sax say saz mayx mazx mazy").split()
+SPEC_NAMES = (
+    "bgx bgy bgz sgx sgy sgz mgxy mgxz mgyx mgyz mgzx mgzy bax bay baz sax say saz mayx mazx mazy"
+).split()
 
 # Paper sequence timing (Table 1 with the sequence's 180 s dwells and 10 deg/s flips).
 DWELL_S = 180.0
-FLIP_S = 9.0                            # 90 deg at 10 deg/s
+FLIP_S = 9.0  # 90 deg at 10 deg/s
 N_POS = 9
 
 
@@ -154,6 +161,7 @@ SETUP_DEG = (1.0, -2.0, 3.0)
 @pytest.fixture(scope="session")
 def paper_seq():
     from calib.sequence import load_sequence
+
     return load_sequence("paper-9pos")
 
 
@@ -163,7 +171,15 @@ def clean_sim(paper_seq):
     from calib.errormodel import ErrorModel
     from calib.profiles import load_profile
     from calib.sim import SimConfig, simulate
+
     cfg = SimConfig(latitude_rad=math.radians(LAT_DEG))
-    run, truth = simulate(paper_seq, cfg, ErrorModel.zero(), load_profile("navigation"),
-                          setup_rotvec=np.radians(SETUP_DEG), noise=False, seed=1)
+    run, truth = simulate(
+        paper_seq,
+        cfg,
+        ErrorModel.zero(),
+        load_profile("navigation"),
+        setup_rotvec=np.radians(SETUP_DEG),
+        noise=False,
+        seed=1,
+    )
     return run, truth, cfg

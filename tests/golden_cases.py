@@ -18,28 +18,83 @@ from click.testing import CliRunner
 GOLDEN = Path(__file__).resolve().parent / "golden" / "figures.json"
 
 # Keys whose values depend on the clock, the machine or the checkout, not on the physics.
-VOLATILE = {"search_seconds", "seconds", "elapsed_s", "tool_version", "version", "created",
-            "date", "path", "run", "truth", "output", "file", "written", "provenance",
-            "wall_s", "cpu_s", "commit", "source_file", "result"}
+VOLATILE = {
+    "search_seconds",
+    "seconds",
+    "elapsed_s",
+    "tool_version",
+    "version",
+    "created",
+    "date",
+    "path",
+    "run",
+    "truth",
+    "output",
+    "file",
+    "written",
+    "provenance",
+    "wall_s",
+    "cpu_s",
+    "commit",
+    "source_file",
+    "result",
+}
 
 SIMULATIONS = {
     # name: simulate arguments (the run is written to <tmp>/<name>.npz)
-    "nav": ["paper-9pos", "--table2", "--setup-deg", "1", "-2", "3", "--seed", "7",
-            "--sample-rate-hz", "100"],
-    "mems": ["designed-15min", "--profile", "mems", "--table2", "--setup-deg", "-2", "1", "0.5",
-             "--seed", "3", "--sample-rate-hz", "100"],
+    "nav": [
+        "paper-9pos",
+        "--table2",
+        "--setup-deg",
+        "1",
+        "-2",
+        "3",
+        "--seed",
+        "7",
+        "--sample-rate-hz",
+        "100",
+    ],
+    "mems": [
+        "designed-15min",
+        "--profile",
+        "mems",
+        "--table2",
+        "--setup-deg",
+        "-2",
+        "1",
+        "0.5",
+        "--seed",
+        "3",
+        "--sample-rate-hz",
+        "100",
+    ],
 }
 
 ANALYSES = {
-    **{f"analyze {s}": ["analyze", s] for s in (
-        "paper-9pos", "paper-9pos-turns", "designed-15min", "designed-15min-gm",
-        "designed-30min", "designed-30min-9moves", "designed-30min-cable-wrap",
-        "designed-30min-slip-rings", "designed-30min-gm")},
-    "analyze paper-9pos mems": ["analyze", "paper-9pos", "--profile", "mems",
-                                "--requirements", "mems"],
+    **{
+        f"analyze {s}": ["analyze", s]
+        for s in (
+            "paper-9pos",
+            "paper-9pos-turns",
+            "designed-15min",
+            "designed-15min-gm",
+            "designed-30min",
+            "designed-30min-9moves",
+            "designed-30min-cable-wrap",
+            "designed-30min-slip-rings",
+            "designed-30min-gm",
+        )
+    },
+    "analyze paper-9pos mems": ["analyze", "paper-9pos", "--profile", "mems", "--requirements", "mems"],
     "analyze paper-9pos with all": ["analyze", "paper-9pos", "--with", "all"],
-    "analyze designed-15min-gm gm": ["analyze", "designed-15min-gm", "--profile",
-                                     "navigation-gm", "--tolerance-deg", "0"],
+    "analyze designed-15min-gm gm": [
+        "analyze",
+        "designed-15min-gm",
+        "--profile",
+        "navigation-gm",
+        "--tolerance-deg",
+        "0",
+    ],
     "compare": ["compare", "paper-9pos", "designed-15min"],
     "show paper-9pos": ["show", "paper-9pos"],
 }
@@ -91,8 +146,15 @@ def figures(tmp: Path, which: str = "all") -> dict:
         for name, args in SIMULATIONS.items():
             out[f"simulate {name}"] = _cli(["simulate", *args, "-o", str(tmp / f"{name}.npz")])
         for name, (run, args) in CALIBRATIONS.items():
-            out[name] = _cli([args[0], str(tmp / f"{run}.npz"), *args[1:],
-                              "-o", str(tmp / f"{name.replace(' ', '_')}.result.toml")])
+            out[name] = _cli(
+                [
+                    args[0],
+                    str(tmp / f"{run}.npz"),
+                    *args[1:],
+                    "-o",
+                    str(tmp / f"{name.replace(' ', '_')}.result.toml"),
+                ]
+            )
         out["api calibrate nav"] = _api_calibrate(tmp / "nav.npz")
     if which in ("all", "design"):
         out["design 2 min"] = _cli([*DESIGN, "-o", str(tmp / "d2.toml")])
@@ -130,8 +192,11 @@ def compare(got, want, where: str = "", rel: float = 1e-12) -> list[str]:
     if isinstance(want, list):
         if not isinstance(got, list) or len(got) != len(want):
             return [f"{where}: length {len(got) if isinstance(got, list) else got} != {len(want)}"]
-        return [d for i, (g, w) in enumerate(zip(got, want, strict=True))
-                for d in compare(g, w, f"{where}[{i}]", rel)]
+        return [
+            d
+            for i, (g, w) in enumerate(zip(got, want, strict=True))
+            for d in compare(g, w, f"{where}[{i}]", rel)
+        ]
     if isinstance(want, float) and isinstance(got, (int, float)) and not isinstance(got, bool):
         floor = ABSOLUTE.get(where.rsplit(".", 1)[-1], 0.0)
         if got == want or abs(got - want) <= max(rel * max(abs(want), abs(got)), floor):

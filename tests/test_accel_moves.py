@@ -1,4 +1,5 @@
 """Accelerating moves (issue 13): rate profiles, their exact simulation, and calibration on them."""
+
 from __future__ import annotations
 
 import math
@@ -23,13 +24,15 @@ D = math.radians
 
 def accelerating(seq, accel_dps2=5.0, jerk_dps3=None):
     """The same sequence with every move a trapezoid (or S-curve)."""
-    return replace(seq, steps=tuple(replace(s, accel_dps2=accel_dps2, jerk_dps3=jerk_dps3)
-                                    for s in seq.steps))
+    return replace(
+        seq, steps=tuple(replace(s, accel_dps2=accel_dps2, jerk_dps3=jerk_dps3) for s in seq.steps)
+    )
 
 
 @pytest.mark.parametrize("A_deg", [90.0, 450.0, 3.0])
-@pytest.mark.parametrize("prof", [RateProfile(D(10), D(5)), RateProfile(D(20), D(10), D(8)),
-                                  RateProfile(D(20), D(10), D(200))])
+@pytest.mark.parametrize(
+    "prof", [RateProfile(D(10), D(5)), RateProfile(D(20), D(10), D(8)), RateProfile(D(20), D(10), D(200))]
+)
 def test_profile_turns_the_angle_within_its_limits(prof, A_deg):
     # The rate integrates (numerically, independently of the pieces' closed form) to the
     # angle; the rate and acceleration stay within the limits; rest at both ends.
@@ -40,6 +43,7 @@ def test_profile_turns_the_angle_within_its_limits(prof, A_deg):
     def rate(t):
         i = min(int(np.searchsorted(ends, t)), len(ends) - 1)
         return float(pc.rate(i, t - (ends[i] - pc.duration[i])))
+
     turned = sum(quad(rate, a, b)[0] for a, b in zip(ends - pc.duration, ends))
     assert turned == pytest.approx(A, rel=1e-12)
     assert rate(0.0) == 0.0 and abs(rate(ends[-1])) < 1e-12 * prof.rate
@@ -54,16 +58,20 @@ def test_profile_durations_follow_from_the_limits():
     # Trapezoid reaching the cruise rate: A/v + v/a. S-curve reaching both: A/v + v/a + a/j.
     v, a, j, A = D(20), D(10), D(5), D(450)
     assert RateProfile(v, a).duration_s(A) == pytest.approx(450 / 20 + 20 / 10, rel=1e-12)
-    assert RateProfile(v, a, j).duration_s(A) == pytest.approx(450 / 20 + 20 / 10 + 10 / 5,
-                                                             rel=1e-12)
+    assert RateProfile(v, a, j).duration_s(A) == pytest.approx(450 / 20 + 20 / 10 + 10 / 5, rel=1e-12)
     # Triangle (never reaches the cruise rate): 2 sqrt(A / a).
     assert RateProfile(v, a).duration_s(D(10)) == pytest.approx(2 * math.sqrt(10 / 10), rel=1e-12)
 
 
 def test_sequence_file_keys_default_and_per_step():
-    doc = {"start": ["east", "up", "south"], "accel_dps2": 4.0,
-           "step": [{"axis": "Z", "angle_deg": 90}, {"axis": "Y", "angle_deg": 90,
-                                                      "accel_dps2": 8.0, "jerk_dps3": 16.0}]}
+    doc = {
+        "start": ["east", "up", "south"],
+        "accel_dps2": 4.0,
+        "step": [
+            {"axis": "Z", "angle_deg": 90},
+            {"axis": "Y", "angle_deg": 90, "accel_dps2": 8.0, "jerk_dps3": 16.0},
+        ],
+    }
     seq = sequence_from_dict(doc, "t.toml")
     assert seq.steps[0].accel_dps2 == 4.0 and seq.steps[0].jerk_dps3 is None
     assert seq.steps[1].profile.kind == "s-curve"
@@ -80,6 +88,7 @@ def test_simulated_increments_match_quadrature(jerk):
     # Independent check of the closed form / Gauss-Legendre increments: adaptive quadrature of
     # C_nom(t)^T f over samples in the acceleration, jerk and cruise phases of the first move.
     from calib import earth
+
     seq = accelerating(load_sequence("paper-9pos"), 5.0, jerk)
     tl = timeline(seq)
     cfg = SimConfig(latitude_rad=LAT)
@@ -91,11 +100,15 @@ def test_simulated_increments_match_quadrature(jerk):
 
         def integral(fn, c):
             return quad(lambda s: fn(s)[c], a, b, epsabs=1e-17, epsrel=1e-13)[0]
+
         Cf = [integral(lambda s: nominal_attitude(tl, np.array([s]))[0].T @ f, c) for c in range(3)]
         # Gyro: the flip's rate about body Z integrates to the angle difference of the profile.
         seg = np.searchsorted(tl.t1, [a, b], side="left")
-        flip = tl.angle(seg[1], b - tl.t0[seg[1]]) - tl.angle(seg[0], a - tl.t0[seg[0]]) \
-            if seg[0] == seg[1] else None
+        flip = (
+            tl.angle(seg[1], b - tl.t0[seg[1]]) - tl.angle(seg[0], a - tl.t0[seg[0]])
+            if seg[0] == seg[1]
+            else None
+        )
         # 1e-15 m/s: rounding of a 0.05 m/s increment.
         assert np.max(np.abs(np.array(Cf) - dv[j])) < 1e-15
         if flip is not None:
@@ -123,6 +136,7 @@ def test_real_angular_acceleration_reaches_the_lever_arm_term():
     # Tangential lever-arm term: over a trapezoid's acceleration phase the accelerometer at
     # r senses alpha x r for v/a seconds: a velocity step (alpha x r) v/a = (v x r) in total.
     from calib import extras as X
+
     seq = accelerating(load_sequence("paper-9pos"), 5.0)
     tl = timeline(seq)
     t, dtheta, _ = true_increments(tl, np.eye(3), SimConfig(latitude_rad=LAT))
@@ -149,10 +163,8 @@ def noise_free_accel_fit():
     seq = accelerating(load_sequence("paper-9pos"), 5.0, 10.0)
     cfg = SimConfig(latitude_rad=LAT)
     truth = ErrorModel.from_table2()
-    run, _ = simulate(seq, cfg, truth, load_profile("navigation"),
-                      setup_rotvec=SETUP, noise=False)
-    fit = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity,
-                    load_profile("navigation"))
+    run, _ = simulate(seq, cfg, truth, load_profile("navigation"), setup_rotvec=SETUP, noise=False)
+    fit = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, load_profile("navigation"))
     return fit, truth, run
 
 
@@ -163,8 +175,11 @@ def test_noise_free_recovery_on_accelerating_moves(noise_free_accel_fit):
     fit, truth, _ = noise_free_accel_fit
     assert fit.converged
     err = np.abs(fit.values - truth.values)
-    bad = [f"{n}: {e / p.si_per_unit:.3g} {p.unit}" for n, e, lim, p in
-           zip(P.NAMES, err, P.REQUIREMENTS_SI / 20.0, P.PARAMETERS) if e > lim]
+    bad = [
+        f"{n}: {e / p.si_per_unit:.3g} {p.unit}"
+        for n, e, lim, p in zip(P.NAMES, err, P.REQUIREMENTS_SI / 20.0, P.PARAMETERS)
+        if e > lim
+    ]
     assert not bad, bad
     assert fit.residual_rms_mps < 1e-7  # as on constant-rate runs: no model error left
 
@@ -183,6 +198,7 @@ def test_analyser_models_accelerating_moves_as_the_estimator_sees_them(noise_fre
     # The analyser builds its model from the same timeline (with the profile's pieces); its
     # sigmas must match the estimator's on the accelerating run as on constant-rate ones (1 %).
     from seqdesign.observability import analyze
+
     fit, _, _ = noise_free_accel_fit
     seq = accelerating(load_sequence("paper-9pos"), 5.0, 10.0)
     obs = analyze(seq, load_profile("navigation"), LAT, 0.0, SETUP)
@@ -195,17 +211,29 @@ def test_lever_arms_recovered_on_accelerating_moves():
     # sample: simulated and fitted with the same term, a noise-free run must come back within
     # 1/20 of each requirement and of 1 cm per lever-arm component.
     from calib.extras import Extras, ExtraValues
-    lever = {"rxx": 3.0, "rxy": -2.0, "rxz": 1.5, "ryx": 1.0, "ryy": -4.0, "ryz": 2.0,
-             "rzx": -1.0, "rzy": 2.5, "rzz": 3.5}  # cm
+
+    lever = {
+        "rxx": 3.0,
+        "rxy": -2.0,
+        "rxz": 1.5,
+        "ryx": 1.0,
+        "ryy": -4.0,
+        "ryz": 2.0,
+        "rzx": -1.0,
+        "rzy": 2.5,
+        "rzz": 3.5,
+    }  # cm
     extra = ExtraValues.from_units(lever)
     seq = accelerating(load_sequence("paper-9pos"), 5.0, 10.0)
     cfg = SimConfig(latitude_rad=LAT)
     truth = ErrorModel.from_table2()
-    run, _ = simulate(seq, cfg, truth, load_profile("navigation"), setup_rotvec=SETUP,
-                      noise=False, extra=extra)
+    run, _ = simulate(
+        seq, cfg, truth, load_profile("navigation"), setup_rotvec=SETUP, noise=False, extra=extra
+    )
     ex = Extras(("lever-arm",))
-    fit = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity,
-                    load_profile("navigation"), extras=ex)
+    fit = calibrate(
+        run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, load_profile("navigation"), extras=ex
+    )
     assert fit.converged
     err = np.abs(fit.values - truth.values) / P.REQUIREMENTS_SI
     assert err.max() < 1.0 / 20.0, P.NAMES[int(np.argmax(err))]

@@ -1,4 +1,5 @@
 """Allan deviation and the noise fit: formulas derived, then checked on simulated noise."""
+
 from __future__ import annotations
 
 import math
@@ -13,8 +14,12 @@ from calib.gaussmarkov import gauss_markov
 
 def test_gm_peak_is_where_the_constants_say():
     # Maximise the closed form over x = tau / T_c: the constants must be its maximum.
-    best = minimize_scalar(lambda x: -avar_gauss_markov(x, 1.0, 1.0), bounds=(0.5, 5.0),
-                           method="bounded", options={"xatol": 1e-9})
+    best = minimize_scalar(
+        lambda x: -avar_gauss_markov(x, 1.0, 1.0),
+        bounds=(0.5, 5.0),
+        method="bounded",
+        options={"xatol": 1e-9},
+    )
     assert best.x == pytest.approx(GM_PEAK_TAU_RATIO, abs=1e-3)
     assert math.sqrt(-best.fun) == pytest.approx(GM_PEAK_ADEV_RATIO, abs=1e-4)
 
@@ -24,8 +29,7 @@ def test_gm_limits():
     # of N^2 = 2 sigma^2 T_c (the integral of the autocorrelation). Series terms are
     # O(x) and O(1/x) relative, hence the tolerances.
     sigma, tc = 2.0, 50.0
-    assert avar_gauss_markov(0.005, sigma, tc) == pytest.approx(2 * sigma**2 * 0.005 / (3 * tc),
-                                                                rel=1e-3)
+    assert avar_gauss_markov(0.005, sigma, tc) == pytest.approx(2 * sigma**2 * 0.005 / (3 * tc), rel=1e-3)
     assert avar_gauss_markov(5e5, sigma, tc) == pytest.approx(2 * sigma**2 * tc / 5e5, rel=2e-4)
     # Continuous across the switch to the series at x = 1e-3.
     x = np.array([0.999e-3, 1.001e-3]) * tc

@@ -1,4 +1,5 @@
 """Analysis: the casadi Jacobian against finite differences, rank, CLI."""
+
 from __future__ import annotations
 
 import json
@@ -29,8 +30,9 @@ RATE = 50.0  # Hz: the finite difference runs the whole pipeline 48 times
 def _observations(seq, values, phi0, t_obs, Phi_vv):
     """Full nonlinear pipeline: simulate (errors injected) -> navigate raw data -> z."""
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=RATE)
-    run, _ = simulate(seq, cfg, ErrorModel(values), load_profile("navigation"),
-                      setup_rotvec=SETUP, noise=False)
+    run, _ = simulate(
+        seq, cfg, ErrorModel(values), load_profile("navigation"), setup_rotvec=SETUP, noise=False
+    )
     C_true = rotvec_to_dcm(SETUP) @ seq.C_start
     # C~ = (I - [phi x]) C  <=>  C~ = exp(-[phi x]) C to first order.
     C0 = rotvec_to_dcm(-phi0) @ C_true
@@ -48,8 +50,7 @@ def test_casadi_jacobian_matches_central_finite_difference():
     # Every interval end is a multiple of 0.02 s, so the 50 Hz pipeline samples it exactly.
     assert np.allclose(t_obs * RATE, np.round(t_obs * RATE), atol=1e-6)
     Phi_vv = noise_model(state_matrix(LAT, g), np.diff(t_obs), load_profile("navigation")).Phi_vv
-    H = observation_jacobian(nom.C_b_n, nom.dtheta, nom.dv, nom.time_nav, nom.grid, LAT, g,
-                             Phi_vv)
+    H = observation_jacobian(nom.C_b_n, nom.dtheta, nom.dv, nom.time_nav, nom.grid, LAT, g, Phi_vv)
     # Steps: the requirement of each parameter (the scale the fit resolves) and
     # 1e-5 rad of initial attitude. Central differences cancel the second order;
     # third-order terms are ~(1e-4 rad)^2 relative, rounding ~1e-16 / 1e-9 m/s.
@@ -75,11 +76,12 @@ def test_paper_sequence_is_full_rank_and_matches_physical_bound():
     # Accelerometer scale factors cannot beat the gravity-only bound of conventions.md:
     # sigma >= VRW sqrt(3/T)/g for the best-served axis of the three together.
     from seqdesign.observability import accel_scale_bound
+
     bound = accel_scale_bound(seq.duration_s, prof, earth.gravity(LAT))
     assert max(obs.ratio[P.ACCEL_SCALE]) >= bound * 0.999
     # Information adds: the sum over the three of 1/sigma^2 is at most g^2 T / VRW^2.
     info_sum = np.sum(1.0 / obs.sigma[P.ACCEL_SCALE] ** 2)
-    assert info_sum <= earth.gravity(LAT) ** 2 * seq.duration_s / prof.vrw ** 2 * 1.0001
+    assert info_sum <= earth.gravity(LAT) ** 2 * seq.duration_s / prof.vrw**2 * 1.0001
 
 
 def test_gauss_markov_density_integrates_to_its_variance_and_has_the_right_limits():
@@ -87,17 +89,18 @@ def test_gauss_markov_density_integrates_to_its_variance_and_has_the_right_limit
     # process: its integral over all f is the stationary variance sigma^2 (quadrature
     # on a log grid to 1e-4; the tails beyond 1e4/tau hold < 1e-4 of it).
     from seqdesign.observability import accel_density_at_rate
+
     prof = load_profile("navigation-gm")
-    tau, var = prof.accel_bias_correlation_s, prof.accel_gm_sigma ** 2
+    tau, var = prof.accel_bias_correlation_s, prof.accel_gm_sigma**2
     f = np.logspace(-8, 4, 20001) / tau
     rate_dps = np.degrees(2 * np.pi * f)
-    excess = np.array([accel_density_at_rate(prof, r) for r in rate_dps]) - prof.vrw ** 2
+    excess = np.array([accel_density_at_rate(prof, r) for r in rate_dps]) - prof.vrw**2
     assert 2 * np.trapezoid(excess, f) == pytest.approx(var, rel=1e-4)
     # at zero frequency the bias is a constant of variance sigma^2 held for tau: 2 sigma^2 tau
     assert excess[0] == pytest.approx(2 * var * tau, rel=1e-6)
     # a white profile has no excess at any rate
     white = load_profile("navigation")
-    assert accel_density_at_rate(white, 10.0) == white.vrw ** 2
+    assert accel_density_at_rate(white, 10.0) == white.vrw**2
 
 
 @pytest.mark.parametrize("name", ["designed-30min-gm", "designed-15min-gm"])
@@ -107,6 +110,7 @@ def test_gauss_markov_sequences_do_not_beat_the_rate_bound(name):
     # sequence's sigma may fall below it. Nominal mounting (the bound holds for any).
     from seqdesign.designs import design_rate_dps
     from seqdesign.observability import accel_scale_bound
+
     seq = load_sequence(name)
     prof = load_profile("navigation-gm")
     obs = analyze(seq, prof, LAT)
@@ -120,6 +124,7 @@ def test_sigma_scales_with_noise():
     # Halving both noise densities halves every sigma (information is 1/noise^2).
     seq = load_sequence("paper-9pos")
     from calib.profiles import NoiseProfile
+
     a = analyze(seq, NoiseProfile("a", 0.002, 20.0), LAT)
     b = analyze(seq, NoiseProfile("b", 0.001, 10.0), LAT)
     assert np.allclose(a.sigma / b.sigma, 2.0, rtol=1e-6)
@@ -130,8 +135,12 @@ def test_single_axis_sequence_is_rank_deficient_and_names_directions():
     # accelerometers never see gravity (sax, say unexcited), and the z
     # accelerometer always sees +g, so its bias and scale factor appear only as
     # baz + g * saz.
-    doc = {"name": "spin", "start": ["east", "north", "up"], "initial_dwell_s": 60.0,
-           "step": [{"axis": "Z", "angle_deg": 90.0, "dwell_s": 60.0} for _ in range(4)]}
+    doc = {
+        "name": "spin",
+        "start": ["east", "north", "up"],
+        "initial_dwell_s": 60.0,
+        "step": [{"axis": "Z", "angle_deg": 90.0, "dwell_s": 60.0} for _ in range(4)],
+    }
     seq = sequence_from_dict(doc, "spin")
     obs = analyze(seq, load_profile("navigation"), LAT)
     assert obs.rank < 21
@@ -180,6 +189,7 @@ def test_mounting_basis_model_equals_direct_evaluation():
     # 63 basis terms; it must equal the model evaluated directly along that mounting's
     # trajectory (same arithmetic reordered: agreement to rounding, 1e-10).
     from seqdesign.observability import information_along, sequence_model
+
     seq = load_sequence("paper-9pos")
     prof = load_profile("navigation")
     g = earth.gravity(LAT)
@@ -197,9 +207,11 @@ def test_cli_analyze_view_writes_a_recording_of_the_analysis(tmp_path, monkeypat
     from test_viz import bars  # rerun's BarChart values read back from the recording
 
     from viz.record import read_recording
+
     out = tmp_path / "a.rrd"
-    r = CliRunner().invoke(main, ["analyze", "paper-9pos", "--tolerance-deg", "0", "--view",
-                                  str(out), "--json"])
+    r = CliRunner().invoke(
+        main, ["analyze", "paper-9pos", "--tolerance-deg", "0", "--view", str(out), "--json"]
+    )
     assert r.exit_code == 0, r.output
     doc = json.loads(r.stdout)
     assert doc["recording"] == str(out)
@@ -216,10 +228,14 @@ def test_cli_analyze_json_on_a_rank_deficient_sequence_names_it_without_tracebac
     # JSON has no inf: an unobservable parameter's sigma and ratio are null, and the
     # unobservable directions are listed by name.
     seq = tmp_path / "onez.toml"
-    seq.write_text('name = "onez"\nstart = ["east", "up", "south"]\ninitial_dwell_s = 60\n'
-                   '[[step]]\naxis = "Z"\nangle_deg = 90\ndwell_s = 60\n')
-    for args in (["analyze", str(seq), "--tolerance-deg", "0", "--json"],
-                 ["compare", str(seq), "paper-9pos", "--tolerance-deg", "0", "--json"]):
+    seq.write_text(
+        'name = "onez"\nstart = ["east", "up", "south"]\ninitial_dwell_s = 60\n'
+        '[[step]]\naxis = "Z"\nangle_deg = 90\ndwell_s = 60\n'
+    )
+    for args in (
+        ["analyze", str(seq), "--tolerance-deg", "0", "--json"],
+        ["compare", str(seq), "paper-9pos", "--tolerance-deg", "0", "--json"],
+    ):
         r = CliRunner().invoke(main, args)
         assert r.exit_code == 0, r.output
         doc = json.loads(r.stdout)
@@ -230,8 +246,10 @@ def test_cli_analyze_json_on_a_rank_deficient_sequence_names_it_without_tracebac
 
 def test_cli_show_marks_off_grid_axes(tmp_path):
     seq = tmp_path / "odd.toml"
-    seq.write_text('name = "odd"\nstart = ["east", "up", "south"]\ninitial_dwell_s = 60\n'
-                   '[[step]]\naxis = "Z"\nangle_deg = 135\ndwell_s = 60\n')
+    seq.write_text(
+        'name = "odd"\nstart = ["east", "up", "south"]\ninitial_dwell_s = 60\n'
+        '[[step]]\naxis = "Z"\nangle_deg = 135\ndwell_s = 60\n'
+    )
     doc = json.loads(CliRunner().invoke(main, ["show", str(seq), "--json"]).stdout)
     p2 = doc["positions"][1]
     assert not p2["on_grid"] and p2["z"] == "south"
@@ -245,9 +263,10 @@ def test_mounting_model_is_the_same_built_in_any_chunking(monkeypatch):
     # the whitening filter across chunks: 7-interval chunks must give the one-chunk
     # information (same sums in another order: rounding, 1e-11).
     import seqdesign.observability as O
+
     seq, prof = load_sequence("paper-9pos"), load_profile("navigation")
     rv = np.radians([1.0, -2.0, 3.0])
-    monkeypatch.setattr(O, "CHUNK_INTERVALS", 10 ** 6)
+    monkeypatch.setattr(O, "CHUNK_INTERVALS", 10**6)
     whole = O.sequence_model.__wrapped__(seq, prof, LAT, 0.0).information(rv)
     monkeypatch.setattr(O, "CHUNK_INTERVALS", 7)
     chunked = O.sequence_model.__wrapped__(seq, prof, LAT, 0.0).information(rv)
@@ -260,6 +279,7 @@ def test_direct_search_finds_an_interior_maximum_the_box_misses():
     # must reach the peak from the worst box point within its iteration cap. The 1e-3 deg
     # forward step biases the gradient by half a step: 0.01 deg is ample.
     from seqdesign.observability import search_worst_direct
+
     peak = np.radians([1.2, -0.7, 2.1])
 
     def sigma_of(rotvec):
@@ -280,6 +300,7 @@ def test_gm_and_extras_worst_case_searches_are_exact_and_never_below_the_box():
     # worst mounting it reports is an exact evaluation there.
     from calib.extras import as_extras
     from seqdesign.observability import analyze_extras, analyze_tolerance, from_information, information_along
+
     seq, gm = load_sequence("paper-9pos"), load_profile("navigation-gm")
     box = analyze_tolerance(seq, gm, LAT, search=False)
     found = analyze_tolerance(seq, gm, LAT, search=True)
@@ -287,13 +308,20 @@ def test_gm_and_extras_worst_case_searches_are_exact_and_never_below_the_box():
     assert np.all(found.per_parameter_worst_sigma >= box.per_parameter_worst_sigma * (1 - 1e-12))
     assert found.worst.worst[1] >= box.worst.worst[1] * (1 - 1e-12)
     rv = found.worst.setup_rotvec
-    direct = from_information(information_along(nominal_run(seq, LAT, 0.0, rv), gm, LAT,
-                                                earth.gravity(LAT)), seq.duration_s, gm.name, rv)
+    direct = from_information(
+        information_along(nominal_run(seq, LAT, 0.0, rv), gm, LAT, earth.gravity(LAT)),
+        seq.duration_s,
+        gm.name,
+        rv,
+    )
     assert np.allclose(found.worst.sigma, direct.sigma, rtol=1e-12)
     extras = as_extras("all")
     c_box = analyze_extras(seq, gm, LAT, extras, search=False)
     c_found = analyze_extras(seq, gm, LAT, extras, search=True)
     assert c_found.searched and not c_box.searched
-    for a, b in ((c_found.sigma_with, c_box.sigma_with), (c_found.extra_sigma, c_box.extra_sigma),
-                 (c_found.sigma_without, c_box.sigma_without)):
+    for a, b in (
+        (c_found.sigma_with, c_box.sigma_with),
+        (c_found.extra_sigma, c_box.extra_sigma),
+        (c_found.sigma_without, c_box.sigma_without),
+    ):
         assert np.all(a >= b * (1 - 1e-12))

@@ -1,4 +1,5 @@
 """The library under the CLI (issue 16): layers run one way, and the CLI adds no policy."""
+
 from __future__ import annotations
 
 import ast
@@ -28,8 +29,10 @@ def _imports(path: Path) -> set[str]:
 
 @pytest.mark.parametrize("package", sorted(FORBIDDEN))
 def test_layers_run_one_way(package):
-    offenders = {str(p.relative_to(REPO)): sorted(_imports(p) & FORBIDDEN[package])
-                 for p in (REPO / package).rglob("*.py")}
+    offenders = {
+        str(p.relative_to(REPO)): sorted(_imports(p) & FORBIDDEN[package])
+        for p in (REPO / package).rglob("*.py")
+    }
     assert {k: v for k, v in offenders.items() if v} == {}
 
 
@@ -41,8 +44,15 @@ def noisy_run(paper_seq):
     from calib.errormodel import ErrorModel
     from calib.profiles import load_profile
     from calib.sim import SimConfig, simulate
-    run, _ = simulate(paper_seq, SimConfig(latitude_rad=math.radians(40.0)),
-                      ErrorModel.from_table2(), load_profile("navigation"), noise=True, seed=5)
+
+    run, _ = simulate(
+        paper_seq,
+        SimConfig(latitude_rad=math.radians(40.0)),
+        ErrorModel.from_table2(),
+        load_profile("navigation"),
+        noise=True,
+        seed=5,
+    )
     return run
 
 
@@ -78,16 +88,17 @@ def test_library_result_carries_the_policy(noisy_run):
     assert res.converged and 3.0 < res.chi2_per_dof < 5.0
     assert res.sigma_scale == pytest.approx(np.sqrt(res.chi2_per_dof))
     assert res.correlation.shape == (21, 21)
-    assert res.gravity_source == "normal" and res.ppm_per_mgal == pytest.approx(1e-5 / 9.80 * 1e6,
-                                                                                 rel=0.01)
+    assert res.gravity_source == "normal" and res.ppm_per_mgal == pytest.approx(1e-5 / 9.80 * 1e6, rel=0.01)
     assert any("sigmas inflated" in w for w in res.warnings())
 
 
 def test_json_refusal_is_one_json_document():
     from seqdesign.cli import main
 
-    for args in (["analyze", "no-such-sequence", "--json"],
-                 ["analyze", "paper-9pos", "--tolerance-deg", "20", "--json"]):
+    for args in (
+        ["analyze", "no-such-sequence", "--json"],
+        ["analyze", "paper-9pos", "--tolerance-deg", "20", "--json"],
+    ):
         res = CliRunner().invoke(main, args)
         assert res.exit_code == 2
         doc = json.loads(res.stdout)

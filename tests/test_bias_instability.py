@@ -1,4 +1,5 @@
 """Gauss-Markov bias instability end to end: simulation, estimator weighting, analyser."""
+
 from __future__ import annotations
 
 import math
@@ -32,8 +33,13 @@ def test_bias_instability_only_removes_information():
 def test_simulated_bias_wanders_with_the_profiles_sigma():
     # Noise-free but for a strong, slow accelerometer GM bias: the 10 s means of dv/dt at the
     # first rest wander about the true specific force with the GM sigma (white noise tiny).
-    prof = NoiseProfile("gm-only", gyro_arw_dph=1e-6, accel_vrw_ug=1e-3,
-                        accel_bias_instability_ug=100.0, accel_bias_correlation_s=20.0)
+    prof = NoiseProfile(
+        "gm-only",
+        gyro_arw_dph=1e-6,
+        accel_vrw_ug=1e-3,
+        accel_bias_instability_ug=100.0,
+        accel_bias_correlation_s=20.0,
+    )
     seq = load_sequence("paper-9pos")
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=20.0)
     ref, _ = simulate(seq, cfg, ErrorModel.zero(), prof, noise=False)

@@ -1,4 +1,5 @@
 """CLI foundation: show and simulate, and clean one-line refusals that write nothing."""
+
 from __future__ import annotations
 
 import json
@@ -117,6 +118,7 @@ def refused(runner, tmp_path, args, *parts):
         assert part in lines[0], f"{part!r} not in {lines[0]!r}"
     if "--json" in args:  # issue 17: with --json a refusal is also one JSON document
         import json
+
         assert json.loads(res.stdout)["error"]["what"] in lines[0]
     else:
         assert res.stdout == ""
@@ -125,39 +127,50 @@ def refused(runner, tmp_path, args, *parts):
 
 
 def test_refuses_unknown_sequence(runner, tmp_path):
-    refused(runner, tmp_path, ["simulate", "no-such-seq", "-o", str(tmp_path / "r.npz")],
-            "no-such-seq")
+    refused(runner, tmp_path, ["simulate", "no-such-seq", "-o", str(tmp_path / "r.npz")], "no-such-seq")
     refused(runner, tmp_path, ["show", "no-such-seq", "--json"], "no-such-seq")
 
 
 def test_refuses_txt_output(runner, tmp_path):
-    refused(runner, tmp_path, ["simulate", "paper-9pos", "-o", str(tmp_path / "run.txt")],
-            ".txt")
+    refused(runner, tmp_path, ["simulate", "paper-9pos", "-o", str(tmp_path / "run.txt")], ".txt")
 
 
 def test_refuses_errors_and_table2(runner, tmp_path):
     err = tmp_path / "e.toml"
     write_errors(err)
-    refused(runner, tmp_path, ["simulate", "paper-9pos", "--errors", str(err), "--table2",
-                               "-o", str(tmp_path / "r.npz")], "--errors", "--table2")
+    refused(
+        runner,
+        tmp_path,
+        ["simulate", "paper-9pos", "--errors", str(err), "--table2", "-o", str(tmp_path / "r.npz")],
+        "--errors",
+        "--table2",
+    )
 
 
 def test_refuses_errors_file_missing_parameter(runner, tmp_path):
     err = tmp_path / "e.toml"
     write_errors(err, drop="mazy")
-    refused(runner, tmp_path, ["simulate", "paper-9pos", "--errors", str(err),
-                               "-o", str(tmp_path / "r.npz")], "mazy", "e.toml")
+    refused(
+        runner,
+        tmp_path,
+        ["simulate", "paper-9pos", "--errors", str(err), "-o", str(tmp_path / "r.npz")],
+        "mazy",
+        "e.toml",
+    )
 
 
 def test_refuses_unknown_profile(runner, tmp_path):
-    refused(runner, tmp_path, ["simulate", "paper-9pos", "--profile", "nosuchprofile",
-                               "-o", str(tmp_path / "r.npz")], "nosuchprofile")
+    refused(
+        runner,
+        tmp_path,
+        ["simulate", "paper-9pos", "--profile", "nosuchprofile", "-o", str(tmp_path / "r.npz")],
+        "nosuchprofile",
+    )
 
 
 def test_refuses_bad_sequence_file(runner, tmp_path):
     seq = tmp_path / "bad.toml"
-    seq.write_text('start = ["east", "up", "south"]\n[[step]]\naxis = "W"\nangle_deg = 90\n',
-                   "utf-8")
+    seq.write_text('start = ["east", "up", "south"]\n[[step]]\naxis = "W"\nangle_deg = 90\n', "utf-8")
     refused(runner, tmp_path, ["show", str(seq)], "bad.toml", "step 1")
 
 
@@ -166,8 +179,22 @@ def test_errors_file_accepted(runner, tmp_path):
     err = tmp_path / "e.toml"
     write_errors(err)
     out = tmp_path / "r.npz"
-    res = runner.invoke(main, ["simulate", "paper-9pos", "--errors", str(err), "--noise-free",
-                               "--setup-deg", "1", "-2", "3", "-o", str(out)])
+    res = runner.invoke(
+        main,
+        [
+            "simulate",
+            "paper-9pos",
+            "--errors",
+            str(err),
+            "--noise-free",
+            "--setup-deg",
+            "1",
+            "-2",
+            "3",
+            "-o",
+            str(out),
+        ],
+    )
     assert res.exit_code == 0, res.output
     truth = read_truth(tmp_path / "r.truth.toml")
     std = table_column_units("table2_simulation", "standard")

@@ -1,4 +1,5 @@
 """Run-log columns as loggers name them: quantity_axis_unit, free order, gzip, options."""
+
 from __future__ import annotations
 
 import gzip
@@ -10,15 +11,24 @@ from calib.errors import CalibError
 from calib.params import STANDARD_GRAVITY
 from calib.runlog import read_run
 
-RATE = np.array([[0.5, -0.25, 2.0], [1.0, 0.0, -3.0], [0.0, 0.75, 0.25],
-                 [0.1, 0.2, 0.3]])  # deg/s
-FORCE = np.array([[0.01, 0.0, -1.0], [0.0, -0.02, -1.01], [0.005, 0.0, -0.99],
-                  [0.0, 0.0, -1.0]])  # g
+RATE = np.array([[0.5, -0.25, 2.0], [1.0, 0.0, -3.0], [0.0, 0.75, 0.25], [0.1, 0.2, 0.3]])  # deg/s
+FORCE = np.array([[0.01, 0.0, -1.0], [0.0, -0.02, -1.01], [0.005, 0.0, -0.99], [0.0, 0.0, -1.0]])  # g
 TIMES = np.array([0.01, 0.02, 0.03, 0.04])  # uniform: a two-period step is a dropped sample
 
 
-def logger_text(header=("time_s", "accel_z_g", "gyro_x_dps", "gyro_y_dps", "gyro_z_dps",
-                        "accel_x_g", "accel_y_g", "temp_c"), preamble="") -> str:
+def logger_text(
+    header=(
+        "time_s",
+        "accel_z_g",
+        "gyro_x_dps",
+        "gyro_y_dps",
+        "gyro_z_dps",
+        "accel_x_g",
+        "accel_y_g",
+        "temp_c",
+    ),
+    preamble="",
+) -> str:
     values = {"time_s": TIMES, "temp_c": np.full(4, 25.0)}
     for j, axis in enumerate("xyz"):
         values[f"gyro_{axis}_dps"] = RATE[:, j]
@@ -60,19 +70,23 @@ def test_si_rates_and_gzip_read_the_same(tmp_path):
 def test_increments_in_degrees(tmp_path):
     header = "time_s,dtheta_x_deg,dtheta_y_deg,dtheta_z_deg,dv_x_mps,dv_y_mps,dv_z_mps"
     path = tmp_path / "log.csv"
-    path.write_text("# latitude_deg: 10\n# height_m: 0\n" + header + "\n"
-                    "0.01,1,2,3,0,0,-0.098\n0.02,1,2,3,0,0,-0.098\n")
+    path.write_text(
+        "# latitude_deg: 10\n# height_m: 0\n" + header + "\n0.01,1,2,3,0,0,-0.098\n0.02,1,2,3,0,0,-0.098\n"
+    )
     run = read_run(path)
     np.testing.assert_allclose(run.dtheta_rad[0], np.radians([1, 2, 3]), rtol=1e-15)
 
 
-@pytest.mark.parametrize("change, parts", [
-    (("gyro_y_dps", "gyro_y"), ["column 'gyro_y' has no unit", "radps, dps"]),
-    (("accel_x_g", "accel_x_ms2"), ["column 'accel_x_ms2' has unknown unit 'ms2'", "mps2, g"]),
-    (("gyro_z_dps", "speed"), ["lacks column 'gyro_z_dps'"]),
-    (("temp_c", "dtheta_x_rad"), ["gyro is given twice", "dtheta_x_rad", "gyro_x_dps"]),
-    (("time_s", "time_ms"), ["'time_ms'", "must be s"]),
-])
+@pytest.mark.parametrize(
+    "change, parts",
+    [
+        (("gyro_y_dps", "gyro_y"), ["column 'gyro_y' has no unit", "radps, dps"]),
+        (("accel_x_g", "accel_x_ms2"), ["column 'accel_x_ms2' has unknown unit 'ms2'", "mps2, g"]),
+        (("gyro_z_dps", "speed"), ["lacks column 'gyro_z_dps'"]),
+        (("temp_c", "dtheta_x_rad"), ["gyro is given twice", "dtheta_x_rad", "gyro_x_dps"]),
+        (("time_s", "time_ms"), ["'time_ms'", "must be s"]),
+    ],
+)
 def test_bad_columns_are_named(tmp_path, change, parts):
     path = tmp_path / "log.csv"
     text = logger_text().replace(change[0], change[1], 1)
@@ -105,7 +119,6 @@ def test_option_that_contradicts_the_file_is_refused(tmp_path):
 def test_declared_run_logs_keep_their_contract(tmp_path):
     # A file that declares imu-run/1 must still state its rate (files.md).
     path = tmp_path / "log.csv"
-    path.write_text(logger_text(preamble="# format: imu-run/1\n# latitude_deg: 40\n"
-                                "# height_m: 0\n"))
+    path.write_text(logger_text(preamble="# format: imu-run/1\n# latitude_deg: 40\n# height_m: 0\n"))
     with pytest.raises(CalibError, match="'sample_rate_hz' is missing"):
         read_run(path, allow_gaps=True)

@@ -1,4 +1,5 @@
 """Conventions: gravity, Earth rate, the 21-parameter table, the sensor error model, paper tables."""
+
 from __future__ import annotations
 
 import math
@@ -65,8 +66,7 @@ def test_earth_rate_enu(lat_deg):
     L = math.radians(lat_deg)
     w = earth.omega_ie_n(L)
     # ENU: no east component; north W cos L, up W sin L (exact formula -> rounding-level tolerance).
-    np.testing.assert_allclose(w, [0.0, W_EARTH * math.cos(L), W_EARTH * math.sin(L)],
-                               rtol=0, atol=1e-20)
+    np.testing.assert_allclose(w, [0.0, W_EARTH * math.cos(L), W_EARTH * math.sin(L)], rtol=0, atol=1e-20)
     assert np.linalg.norm(w) == pytest.approx(W_EARTH, rel=1e-15)
 
 
@@ -79,8 +79,12 @@ def test_specific_force_at_rest_points_up():
 
 UNITS = ["deg/h"] * 3 + ["ppm"] * 3 + ["arcsec"] * 6 + ["ug"] * 3 + ["ppm"] * 3 + ["arcsec"] * 3
 REQUIREMENTS = [0.03] * 3 + [1.0] * 3 + [15.0] * 6 + [50.0] * 3 + [1.0] * 3 + [10.0] * 3
-PAPER_NAMES = ["D0x", "D0y", "D0z", "Wgxx", "Wgyy", "Wgzz"] + [None] * 6 + \
-              ["E0x", "E0y", "E0z", "Kaxx", "Kayy", "Kazz"] + [None] * 3
+PAPER_NAMES = (
+    ["D0x", "D0y", "D0z", "Wgxx", "Wgyy", "Wgzz"]
+    + [None] * 6
+    + ["E0x", "E0y", "E0z", "Kaxx", "Kayy", "Kazz"]
+    + [None] * 3
+)
 
 
 def test_parameter_names_and_order():
@@ -101,8 +105,7 @@ def test_parameter_units_requirements_and_paper_names():
 def test_si_factors():
     # conventions.md: 1 arcsec -> M = 4.8481e-6 (printed to 5 digits), 1 ug = 9.80665e-6 m/s^2
     # (exact by definition of standard gravity), 1 deg/h = pi/180/3600 rad/s (exact).
-    expect = {"deg/h": math.pi / 180 / 3600, "ppm": 1e-6, "arcsec": math.pi / 180 / 3600,
-              "ug": 9.80665e-6}
+    expect = {"deg/h": math.pi / 180 / 3600, "ppm": 1e-6, "arcsec": math.pi / 180 / 3600, "ug": 9.80665e-6}
     for p in P.PARAMETERS:
         assert p.si_per_unit == pytest.approx(expect[p.unit], rel=1e-14)
     arcsec = P.PARAMETERS[P.INDEX["mgxy"]].si_per_unit
@@ -127,8 +130,9 @@ def test_parameter_rows_and_columns_follow_names():
 
 def test_ratio_is_three_sigma_over_requirement():
     # sigma exactly at requirement/3 gives ratio 1 for every parameter.
-    req_si = np.array(REQUIREMENTS) * np.array([
-        {"deg/h": DEG / 3600, "ppm": 1e-6, "arcsec": ARCSEC, "ug": UG}[u] for u in UNITS])
+    req_si = np.array(REQUIREMENTS) * np.array(
+        [{"deg/h": DEG / 3600, "ppm": 1e-6, "arcsec": ARCSEC, "ug": UG}[u] for u in UNITS]
+    )
     np.testing.assert_allclose(P.ratio(req_si / 3.0), np.ones(21), rtol=1e-12)
 
 
@@ -218,8 +222,9 @@ def test_table2_requirements_match_parameter_table():
         assert rows[p.name]["unit"] == p.unit
 
 
-@pytest.mark.parametrize("name", ["table1_positions", "table1_gimbal_angles",
-                                  "table2_simulation", "table3_experiment"])
+@pytest.mark.parametrize(
+    "name", ["table1_positions", "table1_gimbal_angles", "table2_simulation", "table3_experiment"]
+)
 def test_copied_tables_equal_shared_paper(name):
     shared = SHARED_PAPER / f"{name}.csv"
     if not shared.exists():

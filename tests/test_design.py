@@ -1,4 +1,5 @@
 """Design: flip graph, exact search = brute force, search model = analyser, shipped designs."""
+
 from __future__ import annotations
 
 import json
@@ -28,7 +29,8 @@ def test_flip_graph_has_the_24_grid_attitudes_and_follows_the_flip_rule():
     for node in g.nodes:
         out = list(g.out_edges(node, data=True))
         assert sorted((d["axis"], d["sign"]) for _, _, d in out) == sorted(
-            (a, s) for a in "XYZ" for s in (1, -1))
+            (a, s) for a in "XYZ" for s in (1, -1)
+        )
         C = attitude_from_directions(*node)
         for _, nxt, d in out:
             expected = C @ rot_axis("XYZ".index(d["axis"]), d["sign"] * math.pi / 2)
@@ -68,12 +70,16 @@ def test_search_model_agrees_with_the_exact_analyser():
 def test_dask_local_cluster_gives_the_serial_result():
     distributed = pytest.importorskip("dask.distributed")
     from seqdesign.design import _search_at_dwell, map_jobs
+
     c = Constraints(budget_s=400.0, max_flips=2, max_quarters=1)
     jobs = [(c, d, LAT, 0.0, PROFILE, "worst", 20, 2, PAPER) for d in (60.0, 90.0)]
     serial = map_jobs(_search_at_dwell, jobs)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster, \
-            distributed.Client(cluster) as client:
+    with (
+        distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster,
+        distributed.Client(cluster) as client,
+    ):
         remote = map_jobs(_search_at_dwell, jobs, scheduler=client)
     for a, b in zip(serial, remote):
         assert a[0] == b[0] and a[2] == b[2]
@@ -83,6 +89,7 @@ def test_dask_local_cluster_gives_the_serial_result():
 
 def test_local_workers_give_the_serial_result():
     from seqdesign.design import _search_at_dwell, map_jobs
+
     c = Constraints(budget_s=400.0, max_flips=2, max_quarters=1)
     jobs = [(c, d, LAT, 0.0, PROFILE, "worst", 20, 2, PAPER) for d in (60.0, 90.0)]
     serial = map_jobs(_search_at_dwell, jobs)
@@ -90,8 +97,9 @@ def test_local_workers_give_the_serial_result():
     assert [(r[0], r[1], r[2]) for r in serial] == [(r[0], r[1], r[2]) for r in parallel]
 
 
-@pytest.mark.parametrize("name,budget_s,target", [("designed-15min", 900.0, 1.9),
-                                                  ("designed-30min", 1800.0, 1.35)])
+@pytest.mark.parametrize(
+    "name,budget_s,target", [("designed-15min", 900.0, 1.9), ("designed-30min", 1800.0, 1.35)]
+)
 def test_shipped_designs_beat_the_paper_and_meet_the_targets(name, budget_s, target):
     """Issue targets: worst ratio <= 1.9 within 15 min, <= 1.35 within 30 min (navigation
     profile, latitude 40 deg, worst case over +-3 deg), each better than paper-9pos."""
@@ -107,6 +115,7 @@ def test_shipped_designs_beat_the_paper_and_meet_the_targets(name, budget_s, tar
 
 def test_to_sequence_round_trips_a_walk(tmp_path):
     from calib.sequence import save_sequence
+
     c = Constraints()
     walk = (Move("X", -1, 4), Move("Z", 1, 5))
     seq = to_sequence(walk, c, [60.0, 70.0, 80.0], "w")
@@ -116,12 +125,15 @@ def test_to_sequence_round_trips_a_walk(tmp_path):
     assert back.initial_dwell_s == 60.0 and [s.dwell_s for s in back.steps] == [70.0, 80.0]
 
 
-@pytest.mark.parametrize("args,needle", [
-    (["--axes", "W"], "--axes"),
-    (["--budget-min", "-1"], "budget"),
-    (["--start", "east,east,up"], "--start"),
-    (["--max-flips", "0"], "--max-flips"),
-])
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (["--axes", "W"], "--axes"),
+        (["--budget-min", "-1"], "budget"),
+        (["--start", "east,east,up"], "--start"),
+        (["--max-flips", "0"], "--max-flips"),
+    ],
+)
 def test_cli_design_refuses_bad_constraints(args, needle, tmp_path):
     r = CliRunner().invoke(main, ["design", "-o", str(tmp_path / "x.toml")] + args)
     assert r.exit_code != 0 and needle in r.output and "Traceback" not in r.output
@@ -130,9 +142,26 @@ def test_cli_design_refuses_bad_constraints(args, needle, tmp_path):
 
 def test_cli_design_small_end_to_end(tmp_path):
     out = tmp_path / "d.toml"
-    r = CliRunner().invoke(main, ["design", "--budget-min", "8", "--max-flips", "3",
-                                  "--max-quarters", "1", "--beam-width", "20", "--no-refine",
-                                  "--tolerance-deg", "0", "-o", str(out), "--json"])
+    r = CliRunner().invoke(
+        main,
+        [
+            "design",
+            "--budget-min",
+            "8",
+            "--max-flips",
+            "3",
+            "--max-quarters",
+            "1",
+            "--beam-width",
+            "20",
+            "--no-refine",
+            "--tolerance-deg",
+            "0",
+            "-o",
+            str(out),
+            "--json",
+        ],
+    )
     assert r.exit_code == 0, r.output
     doc = json.loads(r.stdout)
     seq = load_sequence(out)
@@ -188,19 +217,21 @@ def test_sigma_gradient_matches_finite_differences():
     # truncation h^2 sigma'''/6 ~ 1e-10 of sigma, ~1e-6 of the largest gradient component;
     # tolerance 1e-5 of that component.
     from seqdesign.observability import sequence_model
+
     model = sequence_model(load_sequence("paper-9pos"), PROFILE, LAT)
     theta = np.radians([1.0, -2.0, 2.5])
     for index in (5, 17):  # sgz, saz
         sigma, grad = model.sigma_gradient(theta, index)
         assert sigma == pytest.approx(model.analyze(theta).sigma[index], rel=1e-9)
         h = 1e-5
-        fd = [(model.analyze(theta + h * e).sigma[index]
-               - model.analyze(theta - h * e).sigma[index]) / (2 * h) for e in np.eye(3)]
+        fd = [
+            (model.analyze(theta + h * e).sigma[index] - model.analyze(theta - h * e).sigma[index]) / (2 * h)
+            for e in np.eye(3)
+        ]
         assert np.allclose(grad, fd, rtol=1e-5, atol=1e-5 * np.abs(fd).max())
     # and at the nominal mounting, where the closed form switches to its series
     sigma, grad = model.sigma_gradient(np.zeros(3), 5)
-    fd = [(model.analyze(h * e).sigma[5] - model.analyze(-h * e).sigma[5]) / (2 * h)
-          for e in np.eye(3)]
+    fd = [(model.analyze(h * e).sigma[5] - model.analyze(-h * e).sigma[5]) / (2 * h) for e in np.eye(3)]
     assert np.allclose(grad, fd, rtol=1e-5, atol=1e-5 * np.abs(fd).max())
 
 
@@ -209,10 +240,10 @@ def test_design_with_terms_scores_the_21_with_them_fitted():
     from calib.extras import Extras
     from seqdesign.design import design
     from seqdesign.observability import analyze_extras
+
     c = Constraints(budget_s=360.0, max_flips=3, max_quarters=2, min_dwell_s=10.0)
     ext = Extras(("lever-arm",))
-    res = design(c, PROFILE, LAT, 0.0, tolerance_deg=1.0, beam_width=10, keep=1, refine=False,
-                 extras=ext)
+    res = design(c, PROFILE, LAT, 0.0, tolerance_deg=1.0, beam_width=10, keep=1, refine=False, extras=ext)
     cost = analyze_extras(res.sequence, PROFILE, LAT, ext, 0.0, 1.0, search=True)
     # the objective is the worst 3 sigma/requirement of the 21 with the lever arms fitted,
     # as `analyze --with` reports it (same 27 box points and the same IPOPT search inside
@@ -228,6 +259,7 @@ def test_more_effort_never_gives_a_worse_answer():
     # default beam runs a narrow beam too, so it cannot lose to --beam-width 20 or to
     # --no-refine. A 5-min budget with 3 single quarter turns keeps this short.
     from seqdesign.design import design
+
     c = Constraints(budget_s=300.0, max_flips=3, max_quarters=1, min_dwell_s=10.0)
     kw = dict(tolerance_deg=3.0, keep=1)
     default = design(c, PROFILE, LAT, 0.0, beam_width=60, refine=True, **kw)
@@ -244,6 +276,7 @@ def test_whole_design_on_two_workers_equals_the_serial_one():
     # (Two workers may re-score a candidate the serial run skips as unable to win, so the
     # list of finalists may be longer; its best is the same.)
     from seqdesign.design import design
+
     c = Constraints(budget_s=300.0, max_flips=3, max_quarters=1, min_dwell_s=10.0)
     kw = dict(tolerance_deg=3.0, keep=1, beam_width=30, refine=True)
     serial = design(c, PROFILE, LAT, 0.0, **kw)
@@ -261,12 +294,16 @@ def test_whole_design_on_a_dask_cluster_equals_the_serial_one():
     # client.map): same walk, dwells and figures as the serial run, bit for bit.
     distributed = pytest.importorskip("dask.distributed")
     from seqdesign.design import design
+
     c = Constraints(budget_s=300.0, max_flips=3, max_quarters=1, min_dwell_s=10.0)
     kw = dict(tolerance_deg=3.0, keep=1, beam_width=30, refine=True)
     serial = design(c, PROFILE, LAT, 0.0, **kw)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster, \
-            distributed.Client(cluster) as client:
+    with (
+        distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster,
+        distributed.Client(cluster) as client,
+    ):
         remote = design(c, PROFILE, LAT, 0.0, scheduler=client, **kw)
     assert serial.sequence.steps == remote.sequence.steps
     assert (serial.worst_ratio, serial.worst_name) == (remote.worst_ratio, remote.worst_name)
@@ -275,6 +312,7 @@ def test_whole_design_on_a_dask_cluster_equals_the_serial_one():
 
 def test_motif_repetitions_fill_the_budget_with_short_dwells():
     from seqdesign.design import motif_dwell
+
     c = Constraints(budget_s=1800.0, min_dwell_s=10.0)
     walk = (Move("X", 1, 4), Move("Y", -1, 5))  # 81 s of turning per play
     d = motif_dwell(walk, c, 3)
@@ -283,21 +321,22 @@ def test_motif_repetitions_fill_the_budget_with_short_dwells():
 
 
 def test_cli_design_refuses_unknown_terms(tmp_path):
-    r = CliRunner().invoke(main, ["design", "--with", "magnetometer", "-o",
-                                  str(tmp_path / "x.toml")])
+    r = CliRunner().invoke(main, ["design", "--with", "magnetometer", "-o", str(tmp_path / "x.toml")])
     assert r.exit_code == 2 and "--with" in r.output and "Traceback" not in r.output
     assert not (tmp_path / "x.toml").exists()
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name,budget_s,limit", [("designed-15min-gm", 900.0, 1.95),
-                                                 ("designed-30min-gm", 1800.0, 1.40)])
+@pytest.mark.parametrize(
+    "name,budget_s,limit", [("designed-15min-gm", 900.0, 1.95), ("designed-30min-gm", 1800.0, 1.40)]
+)
 def test_shipped_gm_designs_beat_the_white_noise_designs_on_the_real_unit(name, budget_s, limit):
     """Issue 12's targets: under navigation-gm with every extra term fitted (latitude 40 deg,
     worst over +-3 deg), <= 1.95 within 15 min and <= 1.40 within 30 min (the white-noise
     designs the issue measured, 9 moves each, reached 2.53 and 2.26 there)."""
     from calib.extras import GROUP_NAMES, Extras
     from seqdesign.observability import analyze_extras
+
     seq = load_sequence(name)
     assert seq.duration_s <= budget_s + 1e-6
     cost = analyze_extras(seq, GM, LAT, Extras(GROUP_NAMES), 0.0, 3.0)
@@ -307,6 +346,7 @@ def test_shipped_gm_designs_beat_the_white_noise_designs_on_the_real_unit(name, 
 
 def test_dwell_groups_tie_motif_plays_and_block_long_motifs():
     from seqdesign.design import MAX_REFINE_DWELLS, dwell_groups
+
     g = dwell_groups(18, 3)  # a 6-move motif played 3 times: one variable per motif move
     assert list(g[:1]) == [0] and list(g[1:7]) == list(range(1, 7))
     assert list(g[7:13]) == list(g[1:7]) == list(g[13:19])
@@ -318,6 +358,7 @@ def test_dwell_groups_tie_motif_plays_and_block_long_motifs():
 def test_default_space_holds_many_short_moves():
     # Issue 12: at least 30 moves and dwells down to 10 s in the beam itself.
     from seqdesign.design import search_dwells
+
     c = Constraints(budget_s=1800.0)
     assert c.max_flips >= 30 and min(search_dwells(c)) <= 10.0
     assert max(search_dwells(c)) >= 100.0  # and the few-moves, long-dwell space still
@@ -331,13 +372,13 @@ def test_pruned_rescoring_finds_the_brute_force_best(batch):
     # box; the search inside the box only raises the box figure). Skipping those whose
     # bound is not below the best score so far must still return the overall best.
     from seqdesign.design import _pruned
+
     rng = np.random.default_rng(7)
     for _ in range(200):
         n = int(rng.integers(1, 12))
         bounds = np.round(rng.uniform(1.0, 2.0, n), 2)  # rounded: ties happen
         scores = bounds + np.round(rng.exponential(0.2, n), 2)
-        entries = sorted((float(b), f"walk{i}", float(s)) for i, (b, s) in
-                         enumerate(zip(bounds, scores)))
+        entries = sorted((float(b), f"walk{i}", float(s)) for i, (b, s) in enumerate(zip(bounds, scores)))
         best, scored = _pruned(entries, lambda fs: [(f[2],) for f in fs], batch)
         brute = min(entries, key=lambda f: (f[2], f[1]))
         assert best[-1] == brute and best[0] == brute[2]
@@ -351,6 +392,7 @@ def test_refinement_jacobian_is_the_derivative_of_the_ratios():
     import casadi as ca
 
     from seqdesign.design import _ratios_callback
+
     n, scale = 4, 100.0
     a = np.random.default_rng(3).uniform(0.5, 2.0, (P.N_PARAMS, n))
 
@@ -361,7 +403,7 @@ def test_refinement_jacobian_is_the_derivative_of_the_ratios():
     x = ca.MX.sym("x", n)
     jac = ca.Function("dratios", [x], [ca.jacobian(cb(x), x)])
     x0 = np.array([0.1, 0.2, 0.3, 0.4])
-    assert np.allclose(np.asarray(jac(x0)), a * scale ** 2 * x0, rtol=1e-9)
+    assert np.allclose(np.asarray(jac(x0)), a * scale**2 * x0, rtol=1e-9)
     assert np.allclose(np.asarray(cb(x0)).ravel(), ratios_many((x0 * scale)[None])[0])
 
 
@@ -370,6 +412,7 @@ def test_batched_walk_information_equals_one_walk_at_a_time():
     # information of that dwell set alone (same arithmetic, batched: equal to rounding).
     from calib import earth
     from seqdesign.design import _walk_information_exact, walk_informations_exact
+
     prof = load_profile("navigation-gm")
     c = Constraints(budget_s=600.0, min_dwell_s=10.0)
     walk = (Move("Z", 1, 5), Move("Y", 1, 5), Move("X", -1, 5))
@@ -387,10 +430,28 @@ def test_cli_pareto_front_writes_both_bounds_for_a_gauss_markov_profile(tmp_path
     # bound at the gimbal's rate: VRW only, sqrt(3/T) VRW/g, and with the GM density at one
     # turn per 360/rate s added to VRW^2 (derived here from the profile, not the code).
     stem = tmp_path / "front"
-    r = CliRunner().invoke(main, ["design", "--pareto", "--budgets", "4,6", "--max-flips", "3",
-                                  "--max-quarters", "1", "--beam-width", "10", "--no-refine",
-                                  "--tolerance-deg", "0", "--profile", "navigation-gm",
-                                  "-o", str(stem)])
+    r = CliRunner().invoke(
+        main,
+        [
+            "design",
+            "--pareto",
+            "--budgets",
+            "4,6",
+            "--max-flips",
+            "3",
+            "--max-quarters",
+            "1",
+            "--beam-width",
+            "10",
+            "--no-refine",
+            "--tolerance-deg",
+            "0",
+            "--profile",
+            "navigation-gm",
+            "-o",
+            str(stem),
+        ],
+    )
     assert r.exit_code == 0, r.output
     lines = (tmp_path / "front.csv").read_text().splitlines()
     assert lines[0] == "budget_min,duration_s,worst_ratio,worst_parameter,bound_ratio,rate_bound_ratio"
@@ -398,7 +459,7 @@ def test_cli_pareto_front_writes_both_bounds_for_a_gauss_markov_profile(tmp_path
     g = 9.7803253359 * (1 + 0.00193185265241 * s2) / math.sqrt(1 - 0.00669437999013 * s2)
     tau, sigma = GM.accel_bias_correlation_s, GM.accel_gm_sigma
     omega = math.radians(10.0)  # the default rate, rad/s
-    density = GM.vrw ** 2 + 2 * sigma ** 2 * tau / (1 + (omega * tau) ** 2)
+    density = GM.vrw**2 + 2 * sigma**2 * tau / (1 + (omega * tau) ** 2)
     for line in lines[1:3]:
         _, T, worst, _, bound, rate_bound = line.split(",")
         T = float(T)
@@ -413,6 +474,7 @@ def test_refined_dwells_in_ms_never_overrun_the_budget():
     # 57 dwells that each round up by 0.4 ms overrun a budget their exact sum fits by ~23 ms;
     # the millisecond dwells must fit it again, the longest taking the excess.
     from seqdesign.design import dwells_in_ms
+
     exact = [10.0006] * 56 + [10.2864]
     available = sum(exact)
     assert sum(round(d, 3) for d in exact) > available + 0.02  # plain rounding overruns

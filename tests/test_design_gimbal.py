@@ -1,4 +1,5 @@
 """design --gimbal (issue 13, point 4): the search walks only moves the gimbal plays."""
+
 from __future__ import annotations
 
 import math
@@ -18,17 +19,20 @@ from seqdesign.gimbalsearch import gimbal_limits
 
 # A tight gimbal: +-180 deg wraps make most long moves and any winding unplayable,
 # and the lock margin keeps the middle gimbal still on a 90-degree grid.
-TIGHT = {"name": "tight", "lock_margin_deg": 15, "end_at_home": True,
-         "outer": {"range_deg": [-180, 180], "max_rate_dps": 20, "max_accel_dps2": 10},
-         "middle": {"range_deg": [-180, 180], "max_rate_dps": 20, "max_accel_dps2": 10},
-         "inner": {"range_deg": [-180, 180], "max_rate_dps": 20, "max_accel_dps2": 5}}
+TIGHT = {
+    "name": "tight",
+    "lock_margin_deg": 15,
+    "end_at_home": True,
+    "outer": {"range_deg": [-180, 180], "max_rate_dps": 20, "max_accel_dps2": 10},
+    "middle": {"range_deg": [-180, 180], "max_rate_dps": 20, "max_accel_dps2": 10},
+    "inner": {"range_deg": [-180, 180], "max_rate_dps": 20, "max_accel_dps2": 5},
+}
 
 
 def _tight_constraints(**kw) -> Constraints:
     g = gimbal_from_dict(TIGHT, "tight.toml")
     lim = gimbal_limits(g, None)
-    return Constraints(max_flips=5, max_quarters=3, min_dwell_s=30.0, budget_s=480.0,
-                       gimbal=g, **lim, **kw)
+    return Constraints(max_flips=5, max_quarters=3, min_dwell_s=30.0, budget_s=480.0, gimbal=g, **lim, **kw)
 
 
 def test_limits_are_the_slowest_axis():
@@ -85,10 +89,27 @@ def test_design_cli_writes_a_playable_file_naming_the_gimbal(tmp_path):
     # only, no refinement (the figure does not matter here, only what is written).
     out = tmp_path / "d.toml"
     gimbal = Path(__file__).parents[1] / "sequences" / "gimbals" / "cable-wrap.toml"
-    res = CliRunner().invoke(main, ["design", "--budget-min", "5", "--max-flips", "4",
-                                    "--max-quarters", "2", "--beam-width", "5", "--no-refine",
-                                    "--tolerance-deg", "0", "--gimbal", str(gimbal),
-                                    "-o", str(out)])
+    res = CliRunner().invoke(
+        main,
+        [
+            "design",
+            "--budget-min",
+            "5",
+            "--max-flips",
+            "4",
+            "--max-quarters",
+            "2",
+            "--beam-width",
+            "5",
+            "--no-refine",
+            "--tolerance-deg",
+            "0",
+            "--gimbal",
+            str(gimbal),
+            "-o",
+            str(out),
+        ],
+    )
     assert res.exit_code == 0, res.output
     prov = tomllib.loads(out.read_text())["provenance"]
     assert prov["gimbal"] == "cable-wrap" and prov["gimbal_file"] == str(gimbal)
@@ -97,21 +118,26 @@ def test_design_cli_writes_a_playable_file_naming_the_gimbal(tmp_path):
     check_playable(plan_sequence(seq, load_gimbal(gimbal)), "test")
     assert all(s.rate_dps == 20.0 and s.accel_dps2 == 10.0 for s in seq.steps)
     assert seq.duration_s <= 300.0 + 1e-6
-    res = CliRunner().invoke(main, ["export", str(out), "--gimbal", str(gimbal),
-                                    "-o", str(tmp_path / "c.csv")])
+    res = CliRunner().invoke(
+        main, ["export", str(out), "--gimbal", str(gimbal), "-o", str(tmp_path / "c.csv")]
+    )
     assert res.exit_code == 0, res.output
 
 
-@pytest.mark.parametrize("text, needle", [
-    ("name = 'x'\n[outer\n", "TOML"),  # malformed
-    ("[outer]\nrange_deg = [10, 360]\n[middle]\n[inner]\n", "excludes the start"),  # impossible
-    ("[outer]\nmax_rate_dps = -5\n[middle]\n[inner]\n", "positive"),
-    ("[outer]\nmax_jerk_dps3 = 50\n[middle]\n[inner]\n", "limits jerk but not acceleration"),
-])
+@pytest.mark.parametrize(
+    "text, needle",
+    [
+        ("name = 'x'\n[outer\n", "TOML"),  # malformed
+        ("[outer]\nrange_deg = [10, 360]\n[middle]\n[inner]\n", "excludes the start"),  # impossible
+        ("[outer]\nmax_rate_dps = -5\n[middle]\n[inner]\n", "positive"),
+        ("[outer]\nmax_jerk_dps3 = 50\n[middle]\n[inner]\n", "limits jerk but not acceleration"),
+    ],
+)
 def test_bad_gimbal_is_refused_by_design(tmp_path, text, needle):
     out = tmp_path / "d.toml"
-    res = CliRunner().invoke(main, ["design", "--budget-min", "5", "--gimbal",
-                                    _write(tmp_path, text), "-o", str(out)])
+    res = CliRunner().invoke(
+        main, ["design", "--budget-min", "5", "--gimbal", _write(tmp_path, text), "-o", str(out)]
+    )
     assert res.exit_code == 2
     lines = res.output.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error:") and needle in lines[0], res.output
@@ -120,8 +146,9 @@ def test_bad_gimbal_is_refused_by_design(tmp_path, text, needle):
 
 def test_rate_above_the_gimbal_is_refused(tmp_path):
     out = tmp_path / "d.toml"
-    res = CliRunner().invoke(main, ["design", "--budget-min", "5", "--gimbal", "cable-wrap",
-                                    "--rate-dps", "30", "-o", str(out)])
+    res = CliRunner().invoke(
+        main, ["design", "--budget-min", "5", "--gimbal", "cable-wrap", "--rate-dps", "30", "-o", str(out)]
+    )
     assert res.exit_code == 2 and not out.exists()
     assert res.output.count("\n") == 1 and "above the 20 deg/s" in res.output
 
@@ -130,11 +157,9 @@ def test_sequence_outside_the_gimbal_is_refused_with_one_line(tmp_path):
     # designed-30min turns 450 deg at constant rate (no accel_dps2): the cable wrap's +-360 deg
     # range and 10 deg/s^2 refuse it
     out = tmp_path / "c.csv"
-    res = CliRunner().invoke(main, ["export", "designed-30min", "--gimbal", "cable-wrap",
-                                    "-o", str(out)])
+    res = CliRunner().invoke(main, ["export", "designed-30min", "--gimbal", "cable-wrap", "-o", str(out)])
     assert res.exit_code == 2 and not out.exists()
     assert res.output.count("\n") == 1 and "gimbal" in res.output
-
 
 
 @pytest.mark.parametrize("name", ["designed-30min-cable-wrap", "designed-30min-slip-rings"])
@@ -143,6 +168,7 @@ def test_shipped_gimbal_designs_play_on_their_gimbal(name):
     # replays through plan_sequence on that gimbal, with an acceleration limit per step
     # (no instantaneous rate step), and the run lasts at most its 30-min budget.
     from calib.fileio import sha256_file
+
     path = Path(__file__).parents[1] / "sequences" / f"{name}.toml"
     prov = tomllib.loads(path.read_text())["provenance"]
     gimbal_file = Path(__file__).parents[1] / prov["gimbal_file"]

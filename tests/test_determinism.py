@@ -1,4 +1,5 @@
 """Same inputs and seed -> byte-identical outputs; every output names its inputs."""
+
 from __future__ import annotations
 
 import os
@@ -26,11 +27,25 @@ def test_simulate_and_calibrate_are_byte_identical(tmp_path):
         d = tmp_path / name
         d.mkdir()
         for ext in ("npz", "csv"):
-            _run_in(d, ["simulate", "paper-9pos", "--table2", "--seed", "11", "--random-setup",
-                        "--flip-error-deg", "0.3", "--sample-rate-hz", "20", "-o", f"run.{ext}"])
+            _run_in(
+                d,
+                [
+                    "simulate",
+                    "paper-9pos",
+                    "--table2",
+                    "--seed",
+                    "11",
+                    "--random-setup",
+                    "--flip-error-deg",
+                    "0.3",
+                    "--sample-rate-hz",
+                    "20",
+                    "-o",
+                    f"run.{ext}",
+                ],
+            )
         _run_in(d, ["calibrate", "run.npz", "-o", "result.toml"])
-        outs.append({f: sha256_file(d / f) for f in
-                     ("run.npz", "run.csv", "run.truth.toml", "result.toml")})
+        outs.append({f: sha256_file(d / f) for f in ("run.npz", "run.csv", "run.truth.toml", "result.toml")})
     assert outs[0] == outs[1]
 
 
@@ -39,8 +54,8 @@ def test_outputs_record_version_command_and_input_hashes(tmp_path):
 
     from calib.runlog import read_run
     from calib.sequence import resolve_sequence_path
-    _run_in(tmp_path, ["simulate", "paper-9pos", "--seed", "1", "--sample-rate-hz", "20",
-                       "-o", "run.csv"])
+
+    _run_in(tmp_path, ["simulate", "paper-9pos", "--seed", "1", "--sample-rate-hz", "20", "-o", "run.csv"])
     _run_in(tmp_path, ["calibrate", "run.csv", "-o", "res.toml"])
     seq_hash = sha256_file(resolve_sequence_path("paper-9pos"))
     run = read_run(tmp_path / "run.csv")

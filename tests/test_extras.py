@@ -3,6 +3,7 @@
 Physics of the simulated terms against hand-derived values, then the
 noise-free exactness of the estimator with every term switched on.
 """
+
 from __future__ import annotations
 
 import math
@@ -26,14 +27,33 @@ LAT = math.radians(40.0)
 CFG = SimConfig(latitude_rad=LAT, sample_rate_hz=50.0)
 PROFILE = load_profile("navigation")
 # Every term on, at sizes a real navigation unit could have.
-ALL_ON = {"rxx": 3.0, "rxy": -2.0, "rxz": 1.5, "ryx": 1.0, "ryy": -4.0, "ryz": 2.0,
-          "rzx": -1.0, "rzy": 2.5, "rzz": 3.5, "k2x": 20.0, "k2y": -15.0, "k2z": 30.0,
-          "dt_ga": 0.5}
+ALL_ON = {
+    "rxx": 3.0,
+    "rxy": -2.0,
+    "rxz": 1.5,
+    "ryx": 1.0,
+    "ryy": -4.0,
+    "ryz": 2.0,
+    "rzx": -1.0,
+    "rzy": 2.5,
+    "rzz": 3.5,
+    "k2x": 20.0,
+    "k2y": -15.0,
+    "k2z": 30.0,
+    "dt_ga": 0.5,
+}
 
 
 def _run(extra=None, cfg=CFG, errors=None, setup=(0.0, 0.0, 0.0)):
-    return simulate(load_sequence("paper-9pos"), cfg, errors or ErrorModel.zero(), PROFILE,
-                    noise=False, extra=extra, setup_rotvec=setup)
+    return simulate(
+        load_sequence("paper-9pos"),
+        cfg,
+        errors or ErrorModel.zero(),
+        PROFILE,
+        noise=False,
+        extra=extra,
+        setup_rotvec=setup,
+    )
 
 
 def test_k2_adds_k2_g_squared_on_the_vertical_axis_at_rest():
@@ -45,7 +65,7 @@ def test_k2_adds_k2_g_squared_on_the_vertical_axis_at_rest():
     rest = slice(10, int(170 * CFG.sample_rate_hz))
     dt = 1.0 / CFG.sample_rate_hz
     extra = (run.dv_mps[rest] - base.dv_mps[rest]).mean(axis=0) / dt
-    assert extra[1] == pytest.approx(k2[1] * 1e-6 / 9.80665 * g ** 2, rel=1e-9)
+    assert extra[1] == pytest.approx(k2[1] * 1e-6 / 9.80665 * g**2, rel=1e-9)
     # Level axes see only the Earth's turn in f (1e-20 m/s^2): nothing measurable.
     assert abs(extra[0]) < 1e-12 and abs(extra[2]) < 1e-12
 
@@ -87,11 +107,11 @@ def test_lever_arms_centripetal_and_tangential():
     start, stop = int(180 * fs), int(189 * fs)
     h = 1.0 / fs
     # Earth rate adds 2 w w_ie / w^2 ~ 1e-4 relative to the centripetal term.
-    assert np.allclose(d[start + 1:stop - 1, 0], -w ** 2 * rxx * h, rtol=2e-4)
+    assert np.allclose(d[start + 1 : stop - 1, 0], -(w**2) * rxx * h, rtol=2e-4)
     # Earth rate turning in the body adds w w_ie h r ~ 2e-10 m/s to the steps.
     assert d[start, 1] == pytest.approx(w * ryx, abs=1e-9)
     assert d[stop, 1] == pytest.approx(-w * ryx, abs=1e-9)
-    assert np.all(np.abs(d[start + 1:stop, 1]) < 1e-9)
+    assert np.all(np.abs(d[start + 1 : stop, 1]) < 1e-9)
     # At rest only the Earth's rate acts: w_ie^2 rxx h = 3.2e-12 m/s per sample.
     assert np.all(np.abs(d[:start]) < 1e-11)
 
@@ -124,8 +144,9 @@ def all_on_fit():
     extra = ExtraValues.from_units(ALL_ON)
     setup = np.radians([1.0, -2.0, 3.0])
     run, _ = _run(extra, cfg, truth, setup)
-    fit = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, PROFILE,
-                    extras=Extras(GROUP_NAMES))
+    fit = calibrate(
+        run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, PROFILE, extras=Extras(GROUP_NAMES)
+    )
     return fit, truth, extra, setup
 
 
@@ -181,13 +202,13 @@ def test_extra_columns_match_central_finite_difference():
     ref, _ = simulate(seq, cfg, ErrorModel.zero(), PROFILE, noise=False, setup_rotvec=setup)
     nav = navigate(ref.dtheta_rad, ref.dv_mps, ref.time_s, C0, LAT, cfg.gravity, t0=0.0)
     grid = ObservationGrid(np.round(t_obs * rate).astype(int))
-    H = observation_jacobian(nav.C_b_n, ref.dtheta_rad, ref.dv_mps, nav.time_s, grid, LAT, g,
-                             Phi_vv, extras)
+    H = observation_jacobian(nav.C_b_n, ref.dtheta_rad, ref.dv_mps, nav.time_s, grid, LAT, g, Phi_vv, extras)
     assert H.shape[-1] == N_UNKNOWN + extras.n
 
     def z(values):
-        run, _ = simulate(seq, cfg, ErrorModel.zero(), PROFILE, noise=False, setup_rotvec=setup,
-                          extra=extras.unpack(values))
+        run, _ = simulate(
+            seq, cfg, ErrorModel.zero(), PROFILE, noise=False, setup_rotvec=setup, extra=extras.unpack(values)
+        )
         nav = navigate(run.dtheta_rad, run.dv_mps, run.time_s, C0, LAT, cfg.gravity, t0=0.0)
         y = nav.v_n[np.round(t_obs * rate).astype(int)]
         return y[1:] - np.einsum("kij,kj->ki", Phi_vv, y[:-1])
@@ -212,6 +233,7 @@ def test_analyser_with_extras_predicts_the_estimators_sigma(all_on_fit):
     # 1 s) evaluate the same model at the same mounting; the 21-parameter case agrees to
     # 0.2 %, so 1 % leaves room for the extra columns' coarser sampling.
     from seqdesign.observability import information_along, nominal_run
+
     fit, _, _, setup = all_on_fit
     nom = nominal_run(load_sequence("paper-9pos"), LAT, 0.0, setup)
     info = information_along(nom, PROFILE, LAT, earth.gravity(LAT), Extras(GROUP_NAMES))
@@ -223,8 +245,8 @@ def test_analyser_with_extras_predicts_the_estimators_sigma(all_on_fit):
 def test_fitting_more_terms_never_shrinks_a_sigma():
     # Marginal variances can only grow when unknowns are added (Schur complement).
     from seqdesign.observability import analyze_extras
-    cost = analyze_extras(load_sequence("paper-9pos"), PROFILE, LAT, Extras(("k2",)),
-                          tolerance_deg=0.0)
+
+    cost = analyze_extras(load_sequence("paper-9pos"), PROFILE, LAT, Extras(("k2",)), tolerance_deg=0.0)
     assert np.all(cost.sigma_with >= cost.sigma_without * (1 - 1e-9))
     # K2 on the paper's sequence: y is up or down in 6 of 9 rests and level in 3, so k2y
     # trades with bay and saz/say only through the level rests: it must cost bay most.

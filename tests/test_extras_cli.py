@@ -1,4 +1,5 @@
 """The optional terms through the CLI: simulate --extra, calibrate --with, analyze --with."""
+
 from __future__ import annotations
 
 import json
@@ -20,12 +21,23 @@ def runner():
 
 def test_calibrate_with_terms_lists_them_after_the_21_and_round_trips(runner, tmp_path):
     run = tmp_path / "run.npz"
-    res = runner.invoke(main, ["simulate", "paper-9pos", "--table2", "--noise-free",
-                               "--sample-rate-hz", "50", "--extra", "rxx=3,k2y=20,dt_ga=0.5",
-                               "-o", str(run)])
+    res = runner.invoke(
+        main,
+        [
+            "simulate",
+            "paper-9pos",
+            "--table2",
+            "--noise-free",
+            "--sample-rate-hz",
+            "50",
+            "--extra",
+            "rxx=3,k2y=20,dt_ga=0.5",
+            "-o",
+            str(run),
+        ],
+    )
     assert res.exit_code == 0, res.output
-    res = runner.invoke(main, ["calibrate", str(run), "--with", "lever-arm,k2,time-offset",
-                               "--json"])
+    res = runner.invoke(main, ["calibrate", str(run), "--with", "lever-arm,k2,time-offset", "--json"])
     assert res.exit_code == 0, res.output
     doc = json.loads(res.stdout)
     names = list(doc["parameters"])
@@ -46,24 +58,34 @@ def test_calibrate_with_terms_lists_them_after_the_21_and_round_trips(runner, tm
 
 
 def test_analyze_with_terms_reports_cost_and_observability(runner):
-    res = runner.invoke(main, ["analyze", "paper-9pos", "--with", "k2,time-offset", "--json",
-                               "--tolerance-deg", "0"])
+    res = runner.invoke(
+        main, ["analyze", "paper-9pos", "--with", "k2,time-offset", "--json", "--tolerance-deg", "0"]
+    )
     assert res.exit_code == 0, res.output
     d = json.loads(res.stdout)["extras"]
     assert d["terms"] == ["k2", "time-offset"]
     # Adding unknowns never shrinks a marginal sigma (Schur complement).
     assert all(e["sigma_increase"] >= 1 - 1e-9 for e in d["parameters"].values())
     assert set(d["extra_parameters"]) == {"k2x", "k2y", "k2z", "dt_ga"}
-    assert all(e["verdict"] in ("observable", "weak", "unobservable")
-               for e in d["extra_parameters"].values())
+    assert all(e["verdict"] in ("observable", "weak", "unobservable") for e in d["extra_parameters"].values())
 
 
 def test_bad_terms_are_refused_without_writing(runner, tmp_path):
-    refused(runner, tmp_path, ["analyze", "paper-9pos", "--with", "lever-arms"], "lever-arms",
-            "--with")
-    refused(runner, tmp_path, ["simulate", "paper-9pos", "-o", str(tmp_path / "r.npz"),
-                               "--extra", "rxx=abc"], "rxx=abc", "--extra")
-    refused(runner, tmp_path, ["simulate", "paper-9pos", "-o", str(tmp_path / "r.npz"),
-                               "--extra", "rqq=1"], "rqq")
-    refused(runner, tmp_path, ["simulate", "paper-9pos", "-o", str(tmp_path / "r.npz"),
-                               "--extra", "dt_ga=500"], "dt_ga", "plausible")
+    refused(runner, tmp_path, ["analyze", "paper-9pos", "--with", "lever-arms"], "lever-arms", "--with")
+    refused(
+        runner,
+        tmp_path,
+        ["simulate", "paper-9pos", "-o", str(tmp_path / "r.npz"), "--extra", "rxx=abc"],
+        "rxx=abc",
+        "--extra",
+    )
+    refused(
+        runner, tmp_path, ["simulate", "paper-9pos", "-o", str(tmp_path / "r.npz"), "--extra", "rqq=1"], "rqq"
+    )
+    refused(
+        runner,
+        tmp_path,
+        ["simulate", "paper-9pos", "-o", str(tmp_path / "r.npz"), "--extra", "dt_ga=500"],
+        "dt_ga",
+        "plausible",
+    )

@@ -1,4 +1,5 @@
 """Arrays of numbers read from TOML files (calib.fields.Fields.numbers) and their readers."""
+
 import math
 
 import numpy as np
@@ -45,22 +46,32 @@ def test_numbers_reads_what_number_reads():
 
 
 def _truth_file(tmp_path, flips):
-    doc = truth_to_dict(Truth(errors=ErrorModel.from_units(np.zeros(21)), setup_rotvec=np.zeros(3),
-                              flip_errors_deg=np.zeros(2), profile="navigation", seed=1,
-                              noise=True))
+    doc = truth_to_dict(
+        Truth(
+            errors=ErrorModel.from_units(np.zeros(21)),
+            setup_rotvec=np.zeros(3),
+            flip_errors_deg=np.zeros(2),
+            profile="navigation",
+            seed=1,
+            noise=True,
+        )
+    )
     doc["flips"]["angle_error_deg"] = flips
     path = tmp_path / "run.truth.toml"
     path.write_text(tomli_w.dumps(doc))
     return path
 
 
-@pytest.mark.parametrize("flips, what", [
-    ("0.1", "must be an array"),
-    ([0.1, "x"], "must be a number"),
-    ([0.1, math.nan], "must be finite"),
-    ([0.1, 12.0], "outside [-10, 10] deg"),
-    ([-10.5], "outside [-10, 10] deg"),
-])
+@pytest.mark.parametrize(
+    "flips, what",
+    [
+        ("0.1", "must be an array"),
+        ([0.1, "x"], "must be a number"),
+        ([0.1, math.nan], "must be finite"),
+        ([0.1, 12.0], "outside [-10, 10] deg"),
+        ([-10.5], "outside [-10, 10] deg"),
+    ],
+)
 def test_truth_refuses_bad_flip_errors_naming_file_and_key(tmp_path, flips, what):
     path = _truth_file(tmp_path, flips)
     with pytest.raises(CalibError) as err:
@@ -77,13 +88,16 @@ def test_truth_reads_good_flip_errors(tmp_path):
     assert read_truth(path).flip_errors_deg.shape == (0,)
 
 
-@pytest.mark.parametrize("range_deg, what", [
-    ("[-360]", "array of 2 numbers"),
-    ("[-360, 0, 360]", "array of 2 numbers"),
-    ("[-360, \"a\"]", "must be a number"),
-    ("[nan, 360]", "must be finite"),
-    ("-360", "must be an array"),
-])
+@pytest.mark.parametrize(
+    "range_deg, what",
+    [
+        ("[-360]", "array of 2 numbers"),
+        ("[-360, 0, 360]", "array of 2 numbers"),
+        ('[-360, "a"]', "must be a number"),
+        ("[nan, 360]", "must be finite"),
+        ("-360", "must be an array"),
+    ],
+)
 def test_gimbal_refuses_a_bad_range_naming_file_and_key(tmp_path, range_deg, what):
     path = tmp_path / "g.toml"
     path.write_text(f"[outer]\n[middle]\nrange_deg = {range_deg}\n[inner]\n")

@@ -21,6 +21,7 @@ and the whole suite try different, equally reproducible, cases.) Set
 ``SEQDESIGN_FUZZ_RANDOM=1`` to draw fresh ones; ``--hypothesis-show-statistics``
 shows the outcomes per test, and the module prints the cases tried per reader.
 """
+
 from __future__ import annotations
 
 import copy
@@ -68,11 +69,20 @@ def budget(n: int, **extra) -> settings:
     CI runs the same derandomized cases every time; SEQDESIGN_FUZZ_RANDOM=1 draws
     fresh ones (for exploring locally; a failure prints the seed to reproduce it).
     """
-    return settings(max_examples=max(1, int(n * SCALE)), deadline=None, derandomize=not FRESH,
-                    database=None, print_blob=False,
-                    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
-                                           HealthCheck.filter_too_much,
-                                           HealthCheck.function_scoped_fixture], **extra)
+    return settings(
+        max_examples=max(1, int(n * SCALE)),
+        deadline=None,
+        derandomize=not FRESH,
+        database=None,
+        print_blob=False,
+        suppress_health_check=[
+            HealthCheck.too_slow,
+            HealthCheck.data_too_large,
+            HealthCheck.filter_too_much,
+            HealthCheck.function_scoped_fixture,
+        ],
+        **extra,
+    )
 
 
 # Cases tried per reader and outcome, printed at the end of the module.
@@ -100,8 +110,9 @@ def report_tally(request):
 
 def _write_tally(reporter) -> None:
     reporter.write_line("")
-    reporter.write_line("fuzz cases per reader: valid result / refused with CalibError "
-                        "(CLI: exit 0 / exit 2)")
+    reporter.write_line(
+        "fuzz cases per reader: valid result / refused with CalibError (CLI: exit 0 / exit 2)"
+    )
     for kind, tally in sorted(TALLY.items()):
         if kind.startswith("CLI "):
             ok, refused = tally["CLI exit 0"], tally["CLI exit 2"]
@@ -143,19 +154,32 @@ def work(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def bases(work) -> dict[str, bytes]:
     """The bytes of one valid file per reader, written by the tool's own writers."""
-    out = {"sequence": (REPO / "sequences" / "paper-9pos.toml").read_bytes(),
-           "profile": (REPO / "calib" / "profiles" / "navigation.toml").read_bytes()}
+    out = {
+        "sequence": (REPO / "sequences" / "paper-9pos.toml").read_bytes(),
+        "profile": (REPO / "calib" / "profiles" / "navigation.toml").read_bytes(),
+    }
     (work / "short.toml").write_text(SHORT_SEQUENCE, encoding="utf-8")
     seq = load_sequence(work / "short.toml")
-    run, truth = simulate(seq, SimConfig(latitude_rad=math.radians(40.0), sample_rate_hz=10.0),
-                          ErrorModel.from_table2(), load_profile("navigation"),
-                          setup_rotvec=np.radians([1.0, -2.0, 3.0]), flip_error_deg=0.2,
-                          noise=True, seed=3)
+    run, truth = simulate(
+        seq,
+        SimConfig(latitude_rad=math.radians(40.0), sample_rate_hz=10.0),
+        ErrorModel.from_table2(),
+        load_profile("navigation"),
+        setup_rotvec=np.radians([1.0, -2.0, 3.0]),
+        flip_error_deg=0.2,
+        noise=True,
+        seed=3,
+    )
     write_truth(work / "base.truth.toml", truth, {"tool_version": "fuzz"})
     out["truth"] = (work / "base.truth.toml").read_bytes()
     # A small run keeps CSV/NPZ parsing cheap; the simulated one has gimbal angles.
-    small = Run(time_s=run.time_s[:40].copy(), dtheta_rad=run.dtheta_rad[:40].copy(),
-                dv_mps=run.dv_mps[:40].copy(), meta=run.meta, gimbal_deg=run.gimbal_deg[:40].copy())
+    small = Run(
+        time_s=run.time_s[:40].copy(),
+        dtheta_rad=run.dtheta_rad[:40].copy(),
+        dv_mps=run.dv_mps[:40].copy(),
+        meta=run.meta,
+        gimbal_deg=run.gimbal_deg[:40].copy(),
+    )
     write_run(small, work / "base.csv")
     write_run(small, work / "base.npz")
     out["csv"] = (work / "base.csv").read_bytes()
@@ -165,12 +189,17 @@ def bases(work) -> dict[str, bytes]:
     cov = A @ A.T
     d = np.sqrt(np.diag(cov))
     result = CalibrationResult(
-        values=P.to_si(rng.normal(size=21)), sigma=P.to_si(np.abs(rng.normal(size=21)) + 0.01),
+        values=P.to_si(rng.normal(size=21)),
+        sigma=P.to_si(np.abs(rng.normal(size=21)) + 0.01),
         C_b_n0=attitude_from_directions("east", "up", "south") @ rotvec_to_dcm([0.01, -0.02, 0.03]),
-        converged=True, iterations=4, residual_rms_mps=9e-4, profile="navigation",
-        chi2_per_dof=1.03, correlation=cov / np.outer(d, d),
-        provenance={"tool_version": "fuzz", "command": "seqdesign calibrate run.npz",
-                    "run_sha256": "0" * 64})
+        converged=True,
+        iterations=4,
+        residual_rms_mps=9e-4,
+        profile="navigation",
+        chi2_per_dof=1.03,
+        correlation=cov / np.outer(d, d),
+        provenance={"tool_version": "fuzz", "command": "seqdesign calibrate run.npz", "run_sha256": "0" * 64},
+    )
     result.save(work / "base.result.toml")
     out["result"] = (work / "base.result.toml").read_bytes()
     return out
@@ -295,8 +324,7 @@ def valid_result(res: CalibrationResult) -> None:
     assert isinstance(res.residual_rms_mps, float)
     assert isinstance(res.chi2_per_dof, float)
     assert isinstance(res.profile, str)
-    assert res.correlation is None or (res.correlation.shape == (21, 21)
-                                       and finite(res.correlation))
+    assert res.correlation is None or (res.correlation.shape == (21, 21) and finite(res.correlation))
     assert isinstance(res.provenance, dict)
 
 
@@ -332,18 +360,52 @@ def fuzz_case(kind: str, work: Path, data: bytes) -> CalibError | None:
 # ---------------------------------------------------------------------------
 # Byte-level mutations (every reader)
 
-INVALID_UTF8 = [b"\xff", b"\xfe", b"\xc3", b"\xc3\x28", b"\xe2\x82", b"\xed\xa0\x80",
-                b"\xf0\x9f\x98", b"\xf8\x88\x80\x80\x80", b"\x80"]
-SPECIAL_BYTES = [b"\x00", b"\r", b"\n", b"\r\n", b"\t", b"\"", b"'", b"[", b"]", b"[[",
-                 b"=", b",", b"#", b"{", b"}", b".", b"-", b"e", b"\\", b"\xef\xbb\xbf",
-                 b'"""', b"'''", b"PK\x03\x04", b"\x93NUMPY"]
+INVALID_UTF8 = [
+    b"\xff",
+    b"\xfe",
+    b"\xc3",
+    b"\xc3\x28",
+    b"\xe2\x82",
+    b"\xed\xa0\x80",
+    b"\xf0\x9f\x98",
+    b"\xf8\x88\x80\x80\x80",
+    b"\x80",
+]
+SPECIAL_BYTES = [
+    b"\x00",
+    b"\r",
+    b"\n",
+    b"\r\n",
+    b"\t",
+    b'"',
+    b"'",
+    b"[",
+    b"]",
+    b"[[",
+    b"=",
+    b",",
+    b"#",
+    b"{",
+    b"}",
+    b".",
+    b"-",
+    b"e",
+    b"\\",
+    b"\xef\xbb\xbf",
+    b'"""',
+    b"'''",
+    b"PK\x03\x04",
+    b"\x93NUMPY",
+]
 
 
 def mutate_bytes(data: st.DataObject, base: bytes) -> bytes:
     out = bytearray(base)
     for _ in range(data.draw(st.integers(1, 4), label="mutations")):
-        op = data.draw(st.sampled_from(
-            ["truncate", "flip", "insert", "special", "utf8", "delete", "duplicate"]), label="op")
+        op = data.draw(
+            st.sampled_from(["truncate", "flip", "insert", "special", "utf8", "delete", "duplicate"]),
+            label="op",
+        )
         i = data.draw(st.integers(0, len(out)), label="at")
         if op == "truncate":
             del out[i:]
@@ -356,7 +418,7 @@ def mutate_bytes(data: st.DataObject, base: bytes) -> bytes:
         elif op == "utf8":
             out[i:i] = data.draw(st.sampled_from(INVALID_UTF8), label="invalid")
         elif op == "delete":
-            del out[i:i + data.draw(st.integers(1, 64), label="length")]
+            del out[i : i + data.draw(st.integers(1, 64), label="length")]
         elif op == "duplicate":
             j = min(len(out), i + data.draw(st.integers(1, 80), label="length"))
             out[j:j] = out[i:j]
@@ -390,7 +452,7 @@ def _encodings(base: bytes) -> dict[str, bytes]:
         "utf-8 non-ascii": nonascii.encode("utf-8"),
         "CRLF": text.replace("\n", "\r\n").encode("utf-8"),
         "CR only": text.replace("\n", "\r").encode("utf-8"),
-        "first half": base[:len(base) // 2],
+        "first half": base[: len(base) // 2],
         "one byte": base[:1],
         "binary noise": bytes(range(256)) * 4,
         "no final newline": base.rstrip(b"\n"),
@@ -415,26 +477,138 @@ KEY = re.compile(rb"^([A-Za-z_][\w-]*)[ \t]*=", re.M)
 TABLE = re.compile(rb"^\[\[?[^\]\n]*\]\]?[ \t]*$", re.M)
 LINE = re.compile(rb"^.*$", re.M)
 
-TOML_VALUES = [b"nan", b"+nan", b"-nan", b"inf", b"+inf", b"-inf", b"1e400", b"-1e400",
-               b"1e-400", b"5e-324", b"1.7976931348623157e308", b"0", b"-0.0", b"-1", b"-90",
-               b"1" + b"0" * 30, b"1" + b"0" * 400, b"9" * 4400, b"9223372036854775807",
-               b"-9223372036854775808", b"0x7fffffffffffffff", b"0b1", b"0o7", b"1_000",
-               b"true", b"false", b'"12.5"', b'"nan"', b'""', b'"east"', b'"Z"', b"[]",
-               b"[1, 2]", b"[[1, 2], [3]]", b'["a", 1]', b"{}", b"{ a = 1 }",
-               b"1979-05-27", b"1979-05-27T07:32:00Z", b"07:32:00", b"45", b"30.5", b"89.999",
-               b"3600", b"3601", b"1000.5", b"-180", b"270", b"0.001", b"[" * 2000, b"{a=" * 2000]
-TOML_STRINGS = [b'"X"', b'"Y"', b'"Z"', b'"x"', b'"W"', b'"XY"', b'""', b'" Z "', b'"east"',
-                b'"EAST"', b'"north"', b'"down"', b'"up"', b'"west"', b'"south"', b'"sky"',
-                b'"\\u0000"', b'"\\u00e9"', b'"\\ud800"', b'"nan"', b'"1e400"', b"1", b"90.0",
-                b"nan", b"true", b"[]", b"{}", b'["east"]', b'"' + b"a" * 5000 + b'"']
-TOML_KEYS = [b"name", b"start", b"step", b"axis", b"angle_deg", b"rate_dps", b"dwell_s",
-             b"initial_dwell_s", b"latitude_deg", b"height_m", b"gyro_arw_dph", b"accel_vrw_ug",
-             b"value", b"sigma", b"C_b_n", b"bgx", b"sgy", b"mazy", b"east_deg", b"seed",
-             b"noise", b"iterations", b"converged", b"unknown", b"Axis", b"x"]
-TOML_TABLES = [b"[step]", b"[[step]]", b"[errors]", b"[[errors]]", b"[setup]", b"[meta]",
-               b"[flips]", b"[parameters]", b"[parameters.bgx]", b"[[parameters.bgx]]",
-               b"[initial_attitude]", b"[fit]", b"[correlation]", b"[provenance]", b"[x.y.z]",
-               b"[]", b"[step", b""]
+TOML_VALUES = [
+    b"nan",
+    b"+nan",
+    b"-nan",
+    b"inf",
+    b"+inf",
+    b"-inf",
+    b"1e400",
+    b"-1e400",
+    b"1e-400",
+    b"5e-324",
+    b"1.7976931348623157e308",
+    b"0",
+    b"-0.0",
+    b"-1",
+    b"-90",
+    b"1" + b"0" * 30,
+    b"1" + b"0" * 400,
+    b"9" * 4400,
+    b"9223372036854775807",
+    b"-9223372036854775808",
+    b"0x7fffffffffffffff",
+    b"0b1",
+    b"0o7",
+    b"1_000",
+    b"true",
+    b"false",
+    b'"12.5"',
+    b'"nan"',
+    b'""',
+    b'"east"',
+    b'"Z"',
+    b"[]",
+    b"[1, 2]",
+    b"[[1, 2], [3]]",
+    b'["a", 1]',
+    b"{}",
+    b"{ a = 1 }",
+    b"1979-05-27",
+    b"1979-05-27T07:32:00Z",
+    b"07:32:00",
+    b"45",
+    b"30.5",
+    b"89.999",
+    b"3600",
+    b"3601",
+    b"1000.5",
+    b"-180",
+    b"270",
+    b"0.001",
+    b"[" * 2000,
+    b"{a=" * 2000,
+]
+TOML_STRINGS = [
+    b'"X"',
+    b'"Y"',
+    b'"Z"',
+    b'"x"',
+    b'"W"',
+    b'"XY"',
+    b'""',
+    b'" Z "',
+    b'"east"',
+    b'"EAST"',
+    b'"north"',
+    b'"down"',
+    b'"up"',
+    b'"west"',
+    b'"south"',
+    b'"sky"',
+    b'"\\u0000"',
+    b'"\\u00e9"',
+    b'"\\ud800"',
+    b'"nan"',
+    b'"1e400"',
+    b"1",
+    b"90.0",
+    b"nan",
+    b"true",
+    b"[]",
+    b"{}",
+    b'["east"]',
+    b'"' + b"a" * 5000 + b'"',
+]
+TOML_KEYS = [
+    b"name",
+    b"start",
+    b"step",
+    b"axis",
+    b"angle_deg",
+    b"rate_dps",
+    b"dwell_s",
+    b"initial_dwell_s",
+    b"latitude_deg",
+    b"height_m",
+    b"gyro_arw_dph",
+    b"accel_vrw_ug",
+    b"value",
+    b"sigma",
+    b"C_b_n",
+    b"bgx",
+    b"sgy",
+    b"mazy",
+    b"east_deg",
+    b"seed",
+    b"noise",
+    b"iterations",
+    b"converged",
+    b"unknown",
+    b"Axis",
+    b"x",
+]
+TOML_TABLES = [
+    b"[step]",
+    b"[[step]]",
+    b"[errors]",
+    b"[[errors]]",
+    b"[setup]",
+    b"[meta]",
+    b"[flips]",
+    b"[parameters]",
+    b"[parameters.bgx]",
+    b"[[parameters.bgx]]",
+    b"[initial_attitude]",
+    b"[fit]",
+    b"[correlation]",
+    b"[provenance]",
+    b"[x.y.z]",
+    b"[]",
+    b"[step",
+    b"",
+]
 
 
 def mutate_tokens(data: st.DataObject, base: bytes, rules) -> bytes:
@@ -446,8 +620,9 @@ def mutate_tokens(data: st.DataObject, base: bytes, rules) -> bytes:
         if not matches:
             continue
         m = matches[data.draw(st.integers(0, len(matches) - 1), label="which")]
-        action = data.draw(st.sampled_from(["replace", "replace", "replace", "drop", "repeat"]),
-                           label="action")
+        action = data.draw(
+            st.sampled_from(["replace", "replace", "replace", "drop", "repeat"]), label="action"
+        )
         if action == "replace":
             new = data.draw(st.sampled_from(replacements), label="with")
             if pattern is KEY:
@@ -456,12 +631,17 @@ def mutate_tokens(data: st.DataObject, base: bytes, rules) -> bytes:
             new = b""
         else:
             new = m.group(0) + (b"\n" if pattern in (LINE, TABLE) else b"") + m.group(0)
-        out = out[:m.start()] + new + out[m.end():]
+        out = out[: m.start()] + new + out[m.end() :]
     return out
 
 
-TOML_RULES = [(NUMBER, TOML_VALUES), (STRING, TOML_STRINGS), (KEY, TOML_KEYS),
-              (TABLE, TOML_TABLES), (LINE, [b"", b"x", b"= 1", b"[[step]]"])]
+TOML_RULES = [
+    (NUMBER, TOML_VALUES),
+    (STRING, TOML_STRINGS),
+    (KEY, TOML_KEYS),
+    (TABLE, TOML_TABLES),
+    (LINE, [b"", b"x", b"= 1", b"[[step]]"]),
+]
 
 
 @pytest.mark.parametrize("kind", ["sequence", "profile", "truth", "result"])
@@ -471,22 +651,97 @@ def test_toml_token_mutations(kind, data, bases, work):
     fuzz_case(kind, work, mutate_tokens(data, bases[kind], TOML_RULES))
 
 
-CSV_VALUES = [b"nan", b"NaN", b"inf", b"-inf", b"Infinity", b"1e400", b"-1e400", b"1e-400",
-              b"", b" ", b"abc", b"1,2", b"0x1p3", b"1_0", b"\xff", b"-", b"+", b"1e", b".",
-              b"0", b"-0", b"1e308", b"-1e308", b"5e-324", b"9" * 400, b"1.0.0", b'"1.0"',
-              b"1;2", b"\t1", b"# 1", b"\x00", b"-90.5", b"90", b"-1", b"1e-9", b"1000000"]
-CSV_HEADER_NAMES = [b"time_s", b"dtheta_x_rad", b"dv_z_mps", b"outer_deg", b"inner_deg",
-                    b"Time_s", b"TIME_S", b" time_s ", b"", b"x", b"dv_x_mps,dv_x_mps"]
+CSV_VALUES = [
+    b"nan",
+    b"NaN",
+    b"inf",
+    b"-inf",
+    b"Infinity",
+    b"1e400",
+    b"-1e400",
+    b"1e-400",
+    b"",
+    b" ",
+    b"abc",
+    b"1,2",
+    b"0x1p3",
+    b"1_0",
+    b"\xff",
+    b"-",
+    b"+",
+    b"1e",
+    b".",
+    b"0",
+    b"-0",
+    b"1e308",
+    b"-1e308",
+    b"5e-324",
+    b"9" * 400,
+    b"1.0.0",
+    b'"1.0"',
+    b"1;2",
+    b"\t1",
+    b"# 1",
+    b"\x00",
+    b"-90.5",
+    b"90",
+    b"-1",
+    b"1e-9",
+    b"1000000",
+]
+CSV_HEADER_NAMES = [
+    b"time_s",
+    b"dtheta_x_rad",
+    b"dv_z_mps",
+    b"outer_deg",
+    b"inner_deg",
+    b"Time_s",
+    b"TIME_S",
+    b" time_s ",
+    b"",
+    b"x",
+    b"dv_x_mps,dv_x_mps",
+]
 CSV_NAME = re.compile(rb"(?<=[,\n])[a-z]+_[a-z_]+(?=[,\n])")
 CSV_META_VALUE = re.compile(rb"(?<=: )[^\n]*")
 CSV_META_KEY = re.compile(rb"(?<=^# )[\w ]+(?=:)", re.M)
-CSV_META_VALUES = [b"imu-run/2", b"imu-run/1 ", b"", b"nan", b"inf", b"-91", b"91", b"0",
-                   b"-10", b"1e-300", b"5e-324", b"1e400", b"abc", b"200", b"0.001", b"1e9"]
-CSV_META_KEYS = [b"format", b"latitude_deg", b"height_m", b"sample_rate_hz", b"gravity_mps2",
-                 b"sequence", b"", b" ", b"x", b"Format"]
-CSV_RULES = [(NUMBER, CSV_VALUES), (CSV_NAME, CSV_HEADER_NAMES),
-             (CSV_META_VALUE, CSV_META_VALUES), (CSV_META_KEY, CSV_META_KEYS),
-             (LINE, [b"", b"#", b"# :", b"# x", b",,,,,,,,,", b"1,2,3"])]
+CSV_META_VALUES = [
+    b"imu-run/2",
+    b"imu-run/1 ",
+    b"",
+    b"nan",
+    b"inf",
+    b"-91",
+    b"91",
+    b"0",
+    b"-10",
+    b"1e-300",
+    b"5e-324",
+    b"1e400",
+    b"abc",
+    b"200",
+    b"0.001",
+    b"1e9",
+]
+CSV_META_KEYS = [
+    b"format",
+    b"latitude_deg",
+    b"height_m",
+    b"sample_rate_hz",
+    b"gravity_mps2",
+    b"sequence",
+    b"",
+    b" ",
+    b"x",
+    b"Format",
+]
+CSV_RULES = [
+    (NUMBER, CSV_VALUES),
+    (CSV_NAME, CSV_HEADER_NAMES),
+    (CSV_META_VALUE, CSV_META_VALUES),
+    (CSV_META_KEY, CSV_META_KEYS),
+    (LINE, [b"", b"#", b"# :", b"# x", b",,,,,,,,,", b"1,2,3"]),
+]
 
 
 @budget(600)
@@ -508,8 +763,23 @@ HOSTILE_TOML = {
 }
 
 
-EXTREME_TOML = [b"1e308", b"-1e308", b"1e20", b"-1e20", b"5e-324", b"1e-300", b"0", b"-0.0",
-                b"nan", b"inf", b"-inf", b"9223372036854775807", b"3601", b"-3601", b"10.5"]
+EXTREME_TOML = [
+    b"1e308",
+    b"-1e308",
+    b"1e20",
+    b"-1e20",
+    b"5e-324",
+    b"1e-300",
+    b"0",
+    b"-0.0",
+    b"nan",
+    b"inf",
+    b"-inf",
+    b"9223372036854775807",
+    b"3601",
+    b"-3601",
+    b"10.5",
+]
 
 
 @pytest.mark.parametrize("kind", ["sequence", "profile", "truth", "result"])
@@ -517,11 +787,11 @@ def test_extreme_numbers(kind, bases, work):
     """Every number of a valid file, in turn, replaced by extreme and special values."""
     base = bases[kind]
     numbers = list(NUMBER.finditer(base))
-    for m in numbers[::max(1, len(numbers) // 60)]:  # the result file has 500 numbers
-        line = base[base.rfind(b"\n", 0, m.start()) + 1:m.start()]
+    for m in numbers[:: max(1, len(numbers) // 60)]:  # the result file has 500 numbers
+        line = base[base.rfind(b"\n", 0, m.start()) + 1 : m.start()]
         key = re.match(rb"\s*([\w-]+)\s*=", line)
         for value in EXTREME_TOML:
-            refusal = fuzz_case(kind, work, base[:m.start()] + value + base[m.end():])
+            refusal = fuzz_case(kind, work, base[: m.start()] + value + base[m.end() :])
             if refusal is not None:
                 # The place: the key (or its table, for matrices), or the line for syntax.
                 places = [key.group(1).decode()] if key else ["["]
@@ -529,8 +799,24 @@ def test_extreme_numbers(kind, bases, work):
                 assert any(p in str(refusal) for p in places), (places, str(refusal))
 
 
-CSV_EXTREMES = [b"1e308", b"-1e308", b"5e-324", b"1e-300", b"1e20", b"-1e20", b"0", b"-0",
-                b"nan", b"inf", b"-inf", b"90", b"-90", b"90.000001", b"1e6", b"9" * 400]
+CSV_EXTREMES = [
+    b"1e308",
+    b"-1e308",
+    b"5e-324",
+    b"1e-300",
+    b"1e20",
+    b"-1e20",
+    b"0",
+    b"-0",
+    b"nan",
+    b"inf",
+    b"-inf",
+    b"90",
+    b"-90",
+    b"90.000001",
+    b"1e6",
+    b"9" * 400,
+]
 
 
 def test_csv_extreme_metadata(bases, work):
@@ -538,7 +824,7 @@ def test_csv_extreme_metadata(bases, work):
     base = bases["csv"]
     for m in CSV_META_VALUE.finditer(base.split(b"\ntime_s")[0]):
         for value in CSV_EXTREMES:
-            refusal = fuzz_case("csv", work, base[:m.start()] + value + base[m.end():])
+            refusal = fuzz_case("csv", work, base[: m.start()] + value + base[m.end() :])
             if refusal is not None:
                 assert ", line " in str(refusal), str(refusal)  # the metadata line
 
@@ -551,30 +837,66 @@ def test_hostile_toml(kind, bases, work):
     huge = b"1" + b"0" * 400
     for m in NUMBER.finditer(bases[kind][:4000]):
         for value in (huge, b"-" + huge, b"9" * 4400, b"[" * 3000):
-            fuzz_case(kind, work, bases[kind][:m.start()] + value + bases[kind][m.end():])
+            fuzz_case(kind, work, bases[kind][: m.start()] + value + bases[kind][m.end() :])
 
 
 # ---------------------------------------------------------------------------
 # Random TOML documents (schema-aware edits of valid ones, and from scratch)
 
 FLOATS = st.floats(allow_nan=True, allow_infinity=True)
-HOSTILE = st.sampled_from([math.nan, math.inf, -math.inf, 1e308, -1e308, 5e-324, 0, -0.0,
-                           -1, 10 ** 30, 2 ** 63 - 1, -(2 ** 63), 10 ** 400, True, False, "",
-                           "nan", "1e400", "x", "Z", "east", [], {}, [1, 2, 3], [[1.0]],
-                           {"a": 1}, [math.nan] * 3])
+HOSTILE = st.sampled_from(
+    [
+        math.nan,
+        math.inf,
+        -math.inf,
+        1e308,
+        -1e308,
+        5e-324,
+        0,
+        -0.0,
+        -1,
+        10**30,
+        2**63 - 1,
+        -(2**63),
+        10**400,
+        True,
+        False,
+        "",
+        "nan",
+        "1e400",
+        "x",
+        "Z",
+        "east",
+        [],
+        {},
+        [1, 2, 3],
+        [[1.0]],
+        {"a": 1},
+        [math.nan] * 3,
+    ]
+)
 TEXT = st.text(alphabet=st.characters(blacklist_categories=("Cs",)), max_size=12)
 KEYS = st.one_of(TEXT, st.sampled_from([k.decode() for k in TOML_KEYS]))
-SCALARS = st.one_of(st.booleans(), st.integers(-(10 ** 400), 10 ** 400), FLOATS, TEXT, HOSTILE,
-                    st.dates(), st.sampled_from(["X", "Y", "Z", "W", "east", "up", "south"]))
-VALUES = st.recursive(SCALARS, lambda children: st.lists(children, max_size=4)
-                      | st.dictionaries(KEYS, children, max_size=4), max_leaves=12)
+SCALARS = st.one_of(
+    st.booleans(),
+    st.integers(-(10**400), 10**400),
+    FLOATS,
+    TEXT,
+    HOSTILE,
+    st.dates(),
+    st.sampled_from(["X", "Y", "Z", "W", "east", "up", "south"]),
+)
+VALUES = st.recursive(
+    SCALARS,
+    lambda children: st.lists(children, max_size=4) | st.dictionaries(KEYS, children, max_size=4),
+    max_leaves=12,
+)
 
 
 def _paths(doc, prefix=()):
     if prefix:
         yield prefix
-    items = (doc.items() if isinstance(doc, dict) else enumerate(doc) if isinstance(doc, list)
-             else ())
+    items = doc.items() if isinstance(doc, dict) else enumerate(doc) if isinstance(doc, list) else ()
     for key, value in items:
         yield from _paths(value, prefix + (key,))
 
@@ -616,16 +938,47 @@ def _doc(base: bytes) -> dict:
     return tomllib.loads(base.decode("utf-8"))
 
 
-ANGLES = st.one_of(st.floats(-4000, 4000), st.integers(-4000, 4000),
-                   st.sampled_from([90, -90, 180, 270, 360, 45, 30.5, 89.999, 90.0001, 1e-300,
-                                    0, -0.0, 3600, -3600, 3600.0001, 1e300, math.nan, math.inf]))
+ANGLES = st.one_of(
+    st.floats(-4000, 4000),
+    st.integers(-4000, 4000),
+    st.sampled_from(
+        [
+            90,
+            -90,
+            180,
+            270,
+            360,
+            45,
+            30.5,
+            89.999,
+            90.0001,
+            1e-300,
+            0,
+            -0.0,
+            3600,
+            -3600,
+            3600.0001,
+            1e300,
+            math.nan,
+            math.inf,
+        ]
+    ),
+)
 STEPS = st.fixed_dictionaries(
-    {"axis": st.one_of(st.sampled_from(["X", "Y", "Z", "x", "y", "z"]),
-                       st.sampled_from(["W", "", "XY", " X", "Q", "1"]), st.integers(0, 3))},
-    optional={"angle_deg": ANGLES,
-              "rate_dps": st.one_of(st.floats(-10, 2000), st.sampled_from([0, 1e-300, 1000, 1001])),
-              "dwell_s": st.one_of(st.floats(-10, 30000), st.sampled_from([0, 1e-300, 21600])),
-              "note": TEXT})
+    {
+        "axis": st.one_of(
+            st.sampled_from(["X", "Y", "Z", "x", "y", "z"]),
+            st.sampled_from(["W", "", "XY", " X", "Q", "1"]),
+            st.integers(0, 3),
+        )
+    },
+    optional={
+        "angle_deg": ANGLES,
+        "rate_dps": st.one_of(st.floats(-10, 2000), st.sampled_from([0, 1e-300, 1000, 1001])),
+        "dwell_s": st.one_of(st.floats(-10, 30000), st.sampled_from([0, 1e-300, 21600])),
+        "note": TEXT,
+    },
+)
 
 
 @budget(600)
@@ -635,10 +988,13 @@ def test_sequence_documents(data, bases, work):
     doc = _doc(bases["sequence"])
     if data.draw(st.booleans(), label="random steps"):
         doc["step"] = data.draw(st.lists(STEPS, max_size=6), label="steps")
-        doc["start"] = data.draw(st.one_of(
-            st.just(["east", "up", "south"]),
-            st.lists(st.sampled_from(list(DIRECTIONS) + ["EAST", "sky", " up"]), min_size=0,
-                     max_size=4)), label="start")
+        doc["start"] = data.draw(
+            st.one_of(
+                st.just(["east", "up", "south"]),
+                st.lists(st.sampled_from(list(DIRECTIONS) + ["EAST", "sky", " up"]), min_size=0, max_size=4),
+            ),
+            label="start",
+        )
     if data.draw(st.booleans(), label="edit"):
         doc = mutate_doc(data, doc, STEPS)
     encoded = toml_bytes(doc)
@@ -679,34 +1035,74 @@ GOOD_META = json.dumps(make_meta(40.0, 0.0, 10.0))
 
 def _meta_arrays():
     texts = st.one_of(
-        st.just(GOOD_META), TEXT, st.sampled_from([
-            "", "{}", "[]", "null", "1", '"x"', "{", "[" * 100000, '{"a": ' * 100000,
-            "1" + "0" * 5000, '{"format": "imu-run/1"}', GOOD_META.replace("10.0", "NaN"),
-            GOOD_META.replace("10.0", "1" + "0" * 5000), GOOD_META.replace("10.0", "1e400"),
-            GOOD_META.replace("\"10.0\"", "[10]"), GOOD_META.replace("\"10.0\"", "true"),
-            GOOD_META.replace("\"10.0\"", "null"), GOOD_META.replace("40.0", "91"),
-            GOOD_META.replace("10.0", "0"), GOOD_META.replace("10.0", "1e-320"),
-            GOOD_META.replace("imu-run/1", "imu-run/2"), GOOD_META + "x"]),
-        st.dictionaries(KEYS, st.one_of(TEXT, FLOATS, st.integers(), st.booleans(),
-                                        st.none()), max_size=5).map(
-            lambda d: json.dumps({**make_meta(40.0, 0.0, 10.0), **d})))
+        st.just(GOOD_META),
+        TEXT,
+        st.sampled_from(
+            [
+                "",
+                "{}",
+                "[]",
+                "null",
+                "1",
+                '"x"',
+                "{",
+                "[" * 100000,
+                '{"a": ' * 100000,
+                "1" + "0" * 5000,
+                '{"format": "imu-run/1"}',
+                GOOD_META.replace("10.0", "NaN"),
+                GOOD_META.replace("10.0", "1" + "0" * 5000),
+                GOOD_META.replace("10.0", "1e400"),
+                GOOD_META.replace('"10.0"', "[10]"),
+                GOOD_META.replace('"10.0"', "true"),
+                GOOD_META.replace('"10.0"', "null"),
+                GOOD_META.replace("40.0", "91"),
+                GOOD_META.replace("10.0", "0"),
+                GOOD_META.replace("10.0", "1e-320"),
+                GOOD_META.replace("imu-run/1", "imu-run/2"),
+                GOOD_META + "x",
+            ]
+        ),
+        st.dictionaries(
+            KEYS, st.one_of(TEXT, FLOATS, st.integers(), st.booleans(), st.none()), max_size=5
+        ).map(lambda d: json.dumps({**make_meta(40.0, 0.0, 10.0), **d})),
+    )
     return st.one_of(
         texts.map(np.array),
         texts.map(lambda t: np.array(t.encode("utf-8", "surrogatepass"))),
         st.just(np.array(b"\xff\xfe{")),
         texts.map(lambda t: np.array([t, t])),
-        st.just(np.array(1.0)), st.just(np.zeros((0,), dtype="U1")),
-        st.just(np.array({"format": "imu-run/1"}, dtype=object)))
+        st.just(np.array(1.0)),
+        st.just(np.zeros((0,), dtype="U1")),
+        st.just(np.array({"format": "imu-run/1"}, dtype=object)),
+    )
 
 
 def _bad_array(n: int, cols: int | None):
     """Arrays a run log must refuse (or, for odd but real dtypes, convert)."""
     shape = (n,) if cols is None else (n, cols)
     good = np.arange(1, n + 1) / 10.0 if cols is None else np.full(shape, 1e-4)
-    wrong_shapes = st.sampled_from([(), (0,), (n + 1,), (n - 1,), (n, 2), (n, 4), (3, n),
-                                    (n, 3, 1), (1, n), (n, 1)]).map(np.ones)
-    dtypes = st.sampled_from(["f2", "f4", "i1", "i8", "u8", "?", "c16", "U3", "S3",
-                              "M8[s]", "m8[s]", "V8", np.longdouble, [("a", "f8")]])
+    wrong_shapes = st.sampled_from(
+        [(), (0,), (n + 1,), (n - 1,), (n, 2), (n, 4), (3, n), (n, 3, 1), (1, n), (n, 1)]
+    ).map(np.ones)
+    dtypes = st.sampled_from(
+        [
+            "f2",
+            "f4",
+            "i1",
+            "i8",
+            "u8",
+            "?",
+            "c16",
+            "U3",
+            "S3",
+            "M8[s]",
+            "m8[s]",
+            "V8",
+            np.longdouble,
+            [("a", "f8")],
+        ]
+    )
     special = st.sampled_from([math.nan, math.inf, -math.inf, 1e308, -1e308, 0.0, -1.0])
 
     def poisoned(args):
@@ -722,25 +1118,34 @@ def _bad_array(n: int, cols: int | None):
             return np.ones(shape)
 
     return st.one_of(
-        wrong_shapes, dtypes.map(typed), st.tuples(special, st.integers(0, 10 ** 6)).map(poisoned),
+        wrong_shapes,
+        dtypes.map(typed),
+        st.tuples(special, st.integers(0, 10**6)).map(poisoned),
         st.just(np.array([None] * n, dtype=object)),
         st.just(np.full(shape, 1e300, dtype=np.longdouble) * 1e300),
-        st.just(good[::-1].copy()), st.just(np.zeros(shape)),
-        st.just(good * 100.0), st.just(good / 100.0))
+        st.just(good[::-1].copy()),
+        st.just(np.zeros(shape)),
+        st.just(good * 100.0),
+        st.just(good / 100.0),
+    )
 
 
 @st.composite
 def npz_archives(draw) -> bytes:
     """A valid archive with zero to three faults, sometimes with damaged bytes too."""
     n = draw(st.integers(2, 30), label="n")
-    arrays = {"time_s": np.arange(1, n + 1) / 10.0, "dtheta_rad": np.full((n, 3), 1e-5),
-              "dv_mps": np.tile([0.0, 0.0, 0.98], (n, 1)),
-              "meta": np.array(GOOD_META)}
+    arrays = {
+        "time_s": np.arange(1, n + 1) / 10.0,
+        "dtheta_rad": np.full((n, 3), 1e-5),
+        "dv_mps": np.tile([0.0, 0.0, 0.98], (n, 1)),
+        "meta": np.array(GOOD_META),
+    }
     if draw(st.booleans(), label="gimbal"):
         arrays["gimbal_deg"] = np.zeros((n, 3))
     for _ in range(draw(st.integers(0, 3), label="faults")):
-        name = draw(st.sampled_from(["time_s", "dtheta_rad", "dv_mps", "gimbal_deg", "meta",
-                                     "extra"]), label="array")
+        name = draw(
+            st.sampled_from(["time_s", "dtheta_rad", "dv_mps", "gimbal_deg", "meta", "extra"]), label="array"
+        )
         action = draw(st.sampled_from(["replace", "replace", "replace", "drop"]), label="action")
         if action == "drop":
             arrays.pop(name, None)
@@ -788,32 +1193,41 @@ def _fixed_npz_cases(base: bytes) -> dict[str, bytes]:
     time = members["time_s.npy"]
     # time_s.npy claiming 1e12 samples (8 TB) in an archive of a few kB.
     header_len = int.from_bytes(time[8:10], "little")
-    header = time[10:10 + header_len].decode("latin-1")
+    header = time[10 : 10 + header_len].decode("latin-1")
     big = header.replace("(40,)", "(1000000000000,)")
-    big_npy = time[:8] + len(big.ljust(header_len)).to_bytes(2, "little") \
-        + big.ljust(header_len).encode("latin-1") + time[10 + header_len:]
+    big_npy = (
+        time[:8]
+        + len(big.ljust(header_len)).to_bytes(2, "little")
+        + big.ljust(header_len).encode("latin-1")
+        + time[10 + header_len :]
+    )
     stored = _zip_with(members)
 
     def with_header(text: bytes) -> bytes:
         """time_s.npy with another header (padded to the original length)."""
         padded = text.ljust(header_len - 1) + b"\n"
-        return _zip_with({**members, "time_s.npy": time[:8] + len(padded).to_bytes(2, "little")
-                          + padded + time[10 + header_len:]})
+        return _zip_with(
+            {
+                **members,
+                "time_s.npy": time[:8] + len(padded).to_bytes(2, "little") + padded + time[10 + header_len :],
+            }
+        )
 
     deflated = _zip_with(members, zipfile.ZIP_DEFLATED)
+
     # Local and central headers carry the method (offset 8 / 10) and flags (6 / 8).
     def patch_method(data: bytes, method: int) -> bytes:
         out = bytearray(data)
         for sig, off in ((b"PK\x03\x04", 8), (b"PK\x01\x02", 10)):
             for m in re.finditer(re.escape(sig), data):
-                out[m.start() + off:m.start() + off + 2] = method.to_bytes(2, "little")
+                out[m.start() + off : m.start() + off + 2] = method.to_bytes(2, "little")
         return bytes(out)
 
     def patch_flags(data: bytes, flags: int) -> bytes:
         out = bytearray(data)
         for sig, off in ((b"PK\x03\x04", 6), (b"PK\x01\x02", 8)):
             for m in re.finditer(re.escape(sig), data):
-                out[m.start() + off:m.start() + off + 2] = flags.to_bytes(2, "little")
+                out[m.start() + off : m.start() + off + 2] = flags.to_bytes(2, "little")
         return bytes(out)
 
     cases = {
@@ -822,40 +1236,39 @@ def _fixed_npz_cases(base: bytes) -> dict[str, bytes]:
         "pickle": b"\x80\x04\x95" + b"\x00" * 20,
         "text": b"# format: imu-run/1\n",
         "truncated central directory": stored[:-10],
-        "truncated half": stored[:len(stored) // 2],
-        "deflated truncated": deflated[:len(deflated) - 200],
+        "truncated half": stored[: len(stored) // 2],
+        "deflated truncated": deflated[: len(deflated) - 200],
         "unknown compression": patch_method(stored, 99),
         "lzma garbage": patch_method(stored, 14),
-        "lzma corrupt stream": patch_method(_zip_with({
-            **members, "time_s.npy": b"\x09\x04\x05\x00\x5d\x00\x00\x80\x00" + b"\xff" * 40}), 14),
+        "lzma corrupt stream": patch_method(
+            _zip_with({**members, "time_s.npy": b"\x09\x04\x05\x00\x5d\x00\x00\x80\x00" + b"\xff" * 40}), 14
+        ),
         "bzip2 garbage": patch_method(stored, 12),
         "deflate garbage": patch_method(stored, 8),
         "encrypted flag": patch_flags(stored, 1),
         "utf-8 names flag": patch_flags(stored, 0x800),
         "huge declared shape": _zip_with({**members, "time_s.npy": big_npy}),
-        "object array": _zip_with({**members,
-                                   "meta.npy": _npy(np.array([{"a": 1}], dtype=object))}),
+        "object array": _zip_with({**members, "meta.npy": _npy(np.array([{"a": 1}], dtype=object))}),
         "member not npy": _zip_with({**members, "dv_mps.npy": b"hello"}),
         "member empty": _zip_with({**members, "dv_mps.npy": b""}),
-        "member bad header": _zip_with({**members,
-                                        "dv_mps.npy": time[:10] + b"{'descr': <f8" + time[23:]}),
+        "member bad header": _zip_with({**members, "dv_mps.npy": time[:10] + b"{'descr': <f8" + time[23:]}),
         "member truncated": _zip_with({**members, "dv_mps.npy": members["dv_mps.npy"][:-7]}),
-        "member fortran": _zip_with({**members,
-                                     "dv_mps.npy": _npy(np.asfortranarray(np.ones((40, 3))))}),
+        "member fortran": _zip_with({**members, "dv_mps.npy": _npy(np.asfortranarray(np.ones((40, 3))))}),
         "nested zip": _zip_with({"time_s.npy": stored}),
         "header unbalanced": with_header(header.encode().replace(b"{", b"z", 1)),
         "header unhashable key": with_header(
-            b"{[]: 1, 'descr': '<f8', 'fortran_order': False, 'shape': (40,)}"),
+            b"{[]: 1, 'descr': '<f8', 'fortran_order': False, 'shape': (40,)}"
+        ),
         "header not a dict": with_header(b"(" * 100 + b")" * 100),
-        "header negative shape": with_header(
-            b"{'descr': '<f8', 'fortran_order': False, 'shape': (-40,)}"),
+        "header negative shape": with_header(b"{'descr': '<f8', 'fortran_order': False, 'shape': (-40,)}"),
         "header huge dtype": with_header(
-            b"{'descr': '<V99999999999', 'fortran_order': False, 'shape': (40,)}"),
-        "header object dtype": with_header(
-            b"{'descr': '|O', 'fortran_order': False, 'shape': (40,)}"),
+            b"{'descr': '<V99999999999', 'fortran_order': False, 'shape': (40,)}"
+        ),
+        "header object dtype": with_header(b"{'descr': '|O', 'fortran_order': False, 'shape': (40,)}"),
         "no members": _zip_with({}),
-        "duplicate member": _zip_with({**members, "time_s.npy ": members["time_s.npy"]}
-                                      ).replace(b"time_s.npy ", b"time_s.npy\x00"),
+        "duplicate member": _zip_with({**members, "time_s.npy ": members["time_s.npy"]}).replace(
+            b"time_s.npy ", b"time_s.npy\x00"
+        ),
     }
     return cases
 
@@ -884,9 +1297,13 @@ def test_npz_damaged_archives(bases, work):
 
 NODE_TEXT = st.one_of(
     st.text(max_size=30),
-    st.lists(st.sampled_from(list(DIRECTIONS) + ["EAST", " Up", "sky", "", "north-east",
-                                                 "0", "90", "45", "east,", "ÉAST", "eaſt"]),
-             max_size=5).map(lambda parts: data_join(parts)),
+    st.lists(
+        st.sampled_from(
+            list(DIRECTIONS)
+            + ["EAST", " Up", "sky", "", "north-east", "0", "90", "45", "east,", "ÉAST", "eaſt"]
+        ),
+        max_size=5,
+    ).map(lambda parts: data_join(parts)),
     st.lists(st.sampled_from(list(DIRECTIONS)), min_size=3, max_size=3).map(",".join),
 )
 
@@ -916,14 +1333,25 @@ def test_parse_node(text):
 
 
 @budget(100)
-@given(angles=st.lists(ANGLES.filter(lambda a: isinstance(a, (int, float)) and math.isfinite(a)
-                                     and 0 < abs(a) <= 3600), min_size=1, max_size=4),
-       axes=st.lists(st.sampled_from("XYZ"), min_size=4, max_size=4))
+@given(
+    angles=st.lists(
+        ANGLES.filter(lambda a: isinstance(a, (int, float)) and math.isfinite(a) and 0 < abs(a) <= 3600),
+        min_size=1,
+        max_size=4,
+    ),
+    axes=st.lists(st.sampled_from("XYZ"), min_size=4, max_size=4),
+)
 def test_any_angle_loads_and_expands(angles, axes, work):
     """Angles that are not multiples of 90 deg leave the grid but still load and show."""
-    doc = {"name": "odd", "start": ["east", "up", "south"], "initial_dwell_s": 10.0,
-           "step": [{"axis": ax, "angle_deg": float(a), "rate_dps": 100.0, "dwell_s": 1.0}
-                    for a, ax in zip(angles, axes)]}
+    doc = {
+        "name": "odd",
+        "start": ["east", "up", "south"],
+        "initial_dwell_s": 10.0,
+        "step": [
+            {"axis": ax, "angle_deg": float(a), "rate_dps": 100.0, "dwell_s": 1.0}
+            for a, ax in zip(angles, axes)
+        ],
+    }
     path = case_file(work, ".toml", tomli_w.dumps(doc).encode())
     seq = load_sequence(path)
     valid_sequence(seq)
@@ -974,14 +1402,24 @@ def test_cli_analyze_profile(data, bases, work):
     _invoke("profile", ["analyze", "paper-9pos", "--profile", str(path), "--tolerance-deg", "0"])
 
 
-@pytest.mark.parametrize("arw, vrw", [
-    ("1e-300", "1e-300"), ("1e300", "1e300"), ("1e200", "10"), ("5e-324", "10"),
-    ("0.001", "1e-320"), ("1" + "0" * 400, "10"), ("1e-6", "1e-3"), ("100", "1e5"),
-    ("1e-6", "1e5"), ("100", "1e-3")])
+@pytest.mark.parametrize(
+    "arw, vrw",
+    [
+        ("1e-300", "1e-300"),
+        ("1e300", "1e300"),
+        ("1e200", "10"),
+        ("5e-324", "10"),
+        ("0.001", "1e-320"),
+        ("1" + "0" * 400, "10"),
+        ("1e-6", "1e-3"),
+        ("100", "1e5"),
+        ("1e-6", "1e5"),
+        ("100", "1e-3"),
+    ],
+)
 def test_cli_analyze_extreme_profiles(arw, vrw, work):
     """Profiles the reader accepts must analyse; the rest are refused, not crashed on."""
-    path = case_file(work, ".toml", f'name = "p"\ngyro_arw_dph = {arw}\n'
-                                    f'accel_vrw_ug = {vrw}\n'.encode())
+    path = case_file(work, ".toml", f'name = "p"\ngyro_arw_dph = {arw}\naccel_vrw_ug = {vrw}\n'.encode())
     _invoke("profile", ["analyze", "paper-9pos", "--profile", str(path), "--tolerance-deg", "0"])
 
 
@@ -990,8 +1428,20 @@ def test_cli_analyze_extreme_profiles(arw, vrw, work):
 def test_cli_simulate_errors(data, bases, work):
     errors = case_file(work, ".toml", _cli_mutation(data, bases["truth"], TOML_RULES))
     out = work / f"sim{next(_serial):06d}.npz"
-    result = _invoke("errors", ["simulate", "paper-9pos", "--errors", str(errors), "-o", str(out),
-                      "--noise-free", "--sample-rate-hz", "10"])
+    result = _invoke(
+        "errors",
+        [
+            "simulate",
+            "paper-9pos",
+            "--errors",
+            str(errors),
+            "-o",
+            str(out),
+            "--noise-free",
+            "--sample-rate-hz",
+            "10",
+        ],
+    )
     truth = out.with_name(out.stem + ".truth.toml")
     if result.exit_code == 2:
         assert not out.exists() and not truth.exists(), "a refused simulate left output behind"
@@ -1005,15 +1455,19 @@ def test_cli_simulate_errors(data, bases, work):
 def paper_run(work) -> dict[str, bytes]:
     """The paper's sequence simulated at 10 Hz (calibrates in well under a second)."""
     out = work / "paper.npz"
-    result = CliRunner().invoke(main, ["simulate", "paper-9pos", "--table2", "--seed", "4",
-                                       "--sample-rate-hz", "10", "-o", str(out)])
+    result = CliRunner().invoke(
+        main, ["simulate", "paper-9pos", "--table2", "--seed", "4", "--sample-rate-hz", "10", "-o", str(out)]
+    )
     assert result.exit_code == 0, result.output
     write_run(read_run(out), work / "paper.csv")
     # The provenance records pytest's command line: fix it, so the cases do not depend on it.
     truth = tomllib.loads((work / "paper.truth.toml").read_text("utf-8"))
     truth["provenance"] = {"tool_version": "fuzz", "command": "seqdesign simulate paper-9pos"}
-    return {"npz": out.read_bytes(), "csv": (work / "paper.csv").read_bytes(),
-            "truth": tomli_w.dumps(truth).encode("utf-8")}
+    return {
+        "npz": out.read_bytes(),
+        "csv": (work / "paper.csv").read_bytes(),
+        "truth": tomli_w.dumps(truth).encode("utf-8"),
+    }
 
 
 @pytest.mark.parametrize("kind", ["csv", "npz", "truth"])
@@ -1024,13 +1478,15 @@ def test_cli_calibrate(kind, data, paper_run, work):
     if kind == "truth":
         run = case_file(work, ".npz", paper_run["npz"])
         run.with_name(run.stem + ".truth.toml").write_bytes(
-            _cli_mutation(data, paper_run["truth"], TOML_RULES))
+            _cli_mutation(data, paper_run["truth"], TOML_RULES)
+        )
     elif kind == "csv":
         run = case_file(work, ".csv", _cli_mutation(data, paper_run["csv"], CSV_RULES))
     else:
         how = data.draw(st.sampled_from(["bytes", "bytes", "none"]), label="mutation")
-        run = case_file(work, ".npz", mutate_bytes(data, paper_run["npz"]) if how == "bytes"
-                        else paper_run["npz"])
+        run = case_file(
+            work, ".npz", mutate_bytes(data, paper_run["npz"]) if how == "bytes" else paper_run["npz"]
+        )
     out = run.with_name(run.stem + ".result.toml")
     result = _invoke(f"run {kind}", ["calibrate", str(run), "-o", str(out)])
     if result.exit_code == 2:
@@ -1042,14 +1498,24 @@ def test_cli_calibrate(kind, data, paper_run, work):
 
 def test_cli_simulate_any_angle(work):
     """Flips that are not multiples of 90 deg load, show and simulate."""
-    doc = {"name": "odd-angles", "start": ["east", "up", "south"], "initial_dwell_s": 20.0,
-           "step": [{"axis": "Z", "angle_deg": 45.0, "dwell_s": 10.0},
-                    {"axis": "X", "angle_deg": -137.5, "rate_dps": 20.0, "dwell_s": 10.0},
-                    {"axis": "Y", "angle_deg": 721.0, "rate_dps": 90.0, "dwell_s": 10.0}]}
+    doc = {
+        "name": "odd-angles",
+        "start": ["east", "up", "south"],
+        "initial_dwell_s": 20.0,
+        "step": [
+            {"axis": "Z", "angle_deg": 45.0, "dwell_s": 10.0},
+            {"axis": "X", "angle_deg": -137.5, "rate_dps": 20.0, "dwell_s": 10.0},
+            {"axis": "Y", "angle_deg": 721.0, "rate_dps": 90.0, "dwell_s": 10.0},
+        ],
+    }
     seq = case_file(work, ".toml", tomli_w.dumps(doc).encode())
     assert _invoke("sequence", ["show", str(seq)]).exit_code == 0
     out = work / "odd.csv"
-    assert _invoke("sequence", ["simulate", str(seq), "-o", str(out), "--sample-rate-hz", "10",
-                                "--table2"]).exit_code == 0
+    assert (
+        _invoke(
+            "sequence", ["simulate", str(seq), "-o", str(out), "--sample-rate-hz", "10", "--table2"]
+        ).exit_code
+        == 0
+    )
     valid_run(read_run(out))
     valid_truth(read_truth(work / "odd.truth.toml"))

@@ -6,6 +6,7 @@ quadrature of the 12-state body-frame model (the module uses Van Loan in the
 navigation frame and a rotation), the dense covariance of all observations,
 and a Monte Carlo of the exact discrete-time error model.
 """
+
 from __future__ import annotations
 
 import math
@@ -65,13 +66,13 @@ def test_gm_statistics_variance_and_autocorrelation():
     n, dt, tau, sigma = 340_000, 0.01, 0.1, 3e-7
     b = gauss_markov(n, np.full(n, dt), sigma, tau, np.random.default_rng(11))
     rho = math.exp(-dt / tau)
-    se_var = math.sqrt(2 * (1 + rho ** 2) / (1 - rho ** 2) / n) / math.sqrt(3)
-    assert abs(np.mean(b ** 2) / sigma ** 2 - 1.0) < 5 * se_var
-    power = np.sum(b ** 2, axis=0)
+    se_var = math.sqrt(2 * (1 + rho**2) / (1 - rho**2) / n) / math.sqrt(3)
+    assert abs(np.mean(b**2) / sigma**2 - 1.0) < 5 * se_var
+    power = np.sum(b**2, axis=0)
     for lag in (1, 5, 10, 30):
         r = np.mean(np.sum(b[lag:] * b[:-lag], axis=0) / power)
         r2l = rho ** (2 * lag)
-        se = math.sqrt(((1 + rho ** 2) * (1 - r2l) / (1 - rho ** 2) - 2 * lag * r2l) / n) / math.sqrt(3)
+        se = math.sqrt(((1 + rho**2) * (1 - r2l) / (1 - rho**2) - 2 * lag * r2l) / n) / math.sqrt(3)
         assert abs(r - math.exp(-lag * dt / tau)) < 5 * se, lag
 
 
@@ -117,7 +118,7 @@ def test_gm_refuses_bad_arguments():
 
 def _write(tmp_path, body: str):
     path = tmp_path / "p.toml"
-    path.write_text('gyro_arw_dph = 0.001\naccel_vrw_ug = 10.0\n' + body)
+    path.write_text("gyro_arw_dph = 0.001\naccel_vrw_ug = 10.0\n" + body)
     return path
 
 
@@ -141,21 +142,24 @@ def test_profile_gm_one_sensor_and_explicit_zero(tmp_path):
     assert not p.has_gauss_markov
 
 
-@pytest.mark.parametrize("body, key", [
-    ("gyro_bias_instability_dph = 0.01\n", "gyro_bias_correlation_s"),  # tau missing
-    ("gyro_bias_instability_dph = 0.01\ngyro_bias_correlation_s = 0\n", "gyro_bias_correlation_s"),
-    ("accel_bias_instability_ug = 5\n", "accel_bias_correlation_s"),
-    ("gyro_bias_instability_dph = -0.01\ngyro_bias_correlation_s = 60\n", "gyro_bias_instability_dph"),
-    ("accel_bias_instability_ug = 'five'\naccel_bias_correlation_s = 60\n", "accel_bias_instability_ug"),
-    ("accel_bias_instability_ug = true\naccel_bias_correlation_s = 60\n", "accel_bias_instability_ug"),
-    ("accel_bias_instability_ug = nan\naccel_bias_correlation_s = 60\n", "accel_bias_instability_ug"),
-    ("gyro_bias_instability_dph = inf\ngyro_bias_correlation_s = 60\n", "gyro_bias_instability_dph"),
-    ("gyro_bias_instability_dph = 101\ngyro_bias_correlation_s = 60\n", "gyro_bias_instability_dph"),
-    ("accel_bias_instability_ug = 2e5\naccel_bias_correlation_s = 60\n", "accel_bias_instability_ug"),
-    ("gyro_bias_instability_dph = 0.01\ngyro_bias_correlation_s = 0.5\n", "gyro_bias_correlation_s"),
-    ("gyro_bias_instability_dph = 0.01\ngyro_bias_correlation_s = 2e6\n", "gyro_bias_correlation_s"),
-    ("accel_bias_correlation_s = -3\n", "accel_bias_correlation_s"),
-])
+@pytest.mark.parametrize(
+    "body, key",
+    [
+        ("gyro_bias_instability_dph = 0.01\n", "gyro_bias_correlation_s"),  # tau missing
+        ("gyro_bias_instability_dph = 0.01\ngyro_bias_correlation_s = 0\n", "gyro_bias_correlation_s"),
+        ("accel_bias_instability_ug = 5\n", "accel_bias_correlation_s"),
+        ("gyro_bias_instability_dph = -0.01\ngyro_bias_correlation_s = 60\n", "gyro_bias_instability_dph"),
+        ("accel_bias_instability_ug = 'five'\naccel_bias_correlation_s = 60\n", "accel_bias_instability_ug"),
+        ("accel_bias_instability_ug = true\naccel_bias_correlation_s = 60\n", "accel_bias_instability_ug"),
+        ("accel_bias_instability_ug = nan\naccel_bias_correlation_s = 60\n", "accel_bias_instability_ug"),
+        ("gyro_bias_instability_dph = inf\ngyro_bias_correlation_s = 60\n", "gyro_bias_instability_dph"),
+        ("gyro_bias_instability_dph = 101\ngyro_bias_correlation_s = 60\n", "gyro_bias_instability_dph"),
+        ("accel_bias_instability_ug = 2e5\naccel_bias_correlation_s = 60\n", "accel_bias_instability_ug"),
+        ("gyro_bias_instability_dph = 0.01\ngyro_bias_correlation_s = 0.5\n", "gyro_bias_correlation_s"),
+        ("gyro_bias_instability_dph = 0.01\ngyro_bias_correlation_s = 2e6\n", "gyro_bias_correlation_s"),
+        ("accel_bias_correlation_s = -3\n", "accel_bias_correlation_s"),
+    ],
+)
 def test_profile_gm_bad_values(tmp_path, body, key):
     path = _write(tmp_path, body)
     with pytest.raises(CalibError) as err:
@@ -169,8 +173,7 @@ def test_profile_gm_bad_values(tmp_path, body, key):
 
 
 def _profile(gyro_dph=0.0, accel_ug=0.0, tau=60.0, arw=0.001, vrw=10.0):
-    return NoiseProfile("t", arw, vrw, gyro_dph, tau if gyro_dph else 0.0,
-                        accel_ug, tau if accel_ug else 0.0)
+    return NoiseProfile("t", arw, vrw, gyro_dph, tau if gyro_dph else 0.0, accel_ug, tau if accel_ug else 0.0)
 
 
 def _exact_model(T, C, prof):
@@ -181,32 +184,37 @@ def _exact_model(T, C, prof):
     n = 12 if gm else 6
     A = np.zeros((n, n))
     A[:6, :6] = A6
-    qc = [prof.arw ** 2] * 3 + [prof.vrw ** 2] * 3
+    qc = [prof.arw**2] * 3 + [prof.vrw**2] * 3
     if gm:
         A[:3, 6:9], A[3:6, 9:] = -C, C
-        for i, (s, tau) in enumerate([(prof.gyro_gm_sigma, prof.gyro_bias_correlation_s),
-                                      (prof.accel_gm_sigma, prof.accel_bias_correlation_s)]):
-            A[6 + 3 * i:9 + 3 * i, 6 + 3 * i:9 + 3 * i] = -np.eye(3) / tau if s else 0.0
-            qc += [2 * s ** 2 / tau if s else 0.0] * 3
+        for i, (s, tau) in enumerate(
+            [
+                (prof.gyro_gm_sigma, prof.gyro_bias_correlation_s),
+                (prof.accel_gm_sigma, prof.accel_bias_correlation_s),
+            ]
+        ):
+            A[6 + 3 * i : 9 + 3 * i, 6 + 3 * i : 9 + 3 * i] = -np.eye(3) / tau if s else 0.0
+            qc += [2 * s**2 / tau if s else 0.0] * 3
     x, wts = np.polynomial.legendre.leggauss(24)
-    Q = sum(0.5 * T * wi * (E := expm(A * 0.5 * T * (xi + 1))) @ np.diag(qc) @ E.T
-            for xi, wi in zip(x, wts))
+    Q = sum(0.5 * T * wi * (E := expm(A * 0.5 * T * (xi + 1))) @ np.diag(qc) @ E.T for xi, wi in zip(x, wts))
     return expm(A * T), 0.5 * (Q + Q.T)
 
 
 def _P0(prof):
     if not prof.has_gauss_markov:
         return np.zeros((6, 6))
-    return block_diag(np.zeros((6, 6)), prof.gyro_gm_sigma ** 2 * np.eye(3),
-                      prof.accel_gm_sigma ** 2 * np.eye(3))
+    return block_diag(np.zeros((6, 6)), prof.gyro_gm_sigma**2 * np.eye(3), prof.accel_gm_sigma**2 * np.eye(3))
 
 
 def _random_rotations(rng, K):
     return np.array([rodrigues(rng.normal(size=3) * 2.0) for _ in range(K)])
 
 
-@pytest.mark.parametrize("prof", [_profile(), _profile(0.05, 50.0), _profile(0.0, 30.0, tau=5.0)],
-                         ids=["white", "gm", "accel-gm-only"])
+@pytest.mark.parametrize(
+    "prof",
+    [_profile(), _profile(0.05, 50.0), _profile(0.0, 30.0, tau=5.0)],
+    ids=["white", "gm", "accel-gm-only"],
+)
 def test_whitener_is_the_exact_gls_weight(prof):
     # Dense covariance of all observations z_1..z_K from the exact discrete model, with a
     # different attitude in every interval and mixed lengths. The module's whitening W
@@ -254,16 +262,16 @@ def test_whitener_without_gm_is_unchanged():
     T = rng.choice([1.0, 0.1], size=300)
     X = rng.normal(size=(300, 3, 4)) * 1e-5
     plain = noise_model(A6, T, _profile())
-    zero_gm = noise_model(A6, T, NoiseProfile("z", 0.001, 10.0, 0.0, 600.0, 0.0, 600.0),
-                          C_b_n=_random_rotations(rng, 300))
+    zero_gm = noise_model(
+        A6, T, NoiseProfile("z", 0.001, 10.0, 0.0, 600.0, 0.0, 600.0), C_b_n=_random_rotations(rng, 300)
+    )
     assert plain.whitener.state_size == zero_gm.whitener.state_size == 3
     assert np.array_equal(whiten(plain.whitener, X), whiten(zero_gm.whitener, X))
     assert np.array_equal(plain.Phi_vv, zero_gm.Phi_vv)
     # A vanishing GM bias runs the 9-state filter, which must reduce to the 3-state one.
     tiny = noise_model(A6, T, _profile(1e-9, 1e-6), C_b_n=_random_rotations(rng, 300))
     assert tiny.whitener.state_size == 9
-    np.testing.assert_allclose(whiten(tiny.whitener, X), whiten(plain.whitener, X),
-                               rtol=0, atol=1e-8)
+    np.testing.assert_allclose(whiten(tiny.whitener, X), whiten(plain.whitener, X), rtol=0, atol=1e-8)
     assert np.array_equal(tiny.Phi_vv, plain.Phi_vv)  # z does not depend on the profile
 
 
@@ -274,8 +282,9 @@ def test_noise_model_needs_attitudes_with_gm():
     with pytest.raises(ValueError, match="C_b_n"):
         noise_model(A6, T, load_profile("navigation-gm"), C_b_n=np.tile(np.eye(3), (4, 1, 1)))
     with pytest.raises(ValueError, match="P0"):
-        noise_model(A6, T, load_profile("navigation-gm"), P0=np.zeros((3, 3)),
-                    C_b_n=np.tile(np.eye(3), (5, 1, 1)))
+        noise_model(
+            A6, T, load_profile("navigation-gm"), P0=np.zeros((3, 3)), C_b_n=np.tile(np.eye(3), (5, 1, 1))
+        )
 
 
 def _monte_carlo(prof, n_trials, seed):
@@ -317,10 +326,10 @@ def test_whitened_innovations_are_white_monte_carlo():
     z, C = _monte_carlo(prof, 2000, seed=8)
     T = np.ones(len(z))
     e = whiten(noise_model(A6, T, prof, C_b_n=C).whitener, z)
-    assert abs(np.mean(e ** 2) - 1.0) < 0.0065
-    assert np.max(np.abs(np.mean(e ** 2, axis=(1, 2)) - 1.0)) < 0.082
+    assert abs(np.mean(e**2) - 1.0) < 0.0065
+    assert np.max(np.abs(np.mean(e**2, axis=(1, 2)) - 1.0)) < 0.082
     for lag in range(0, 6):
-        r = np.einsum("kin,kjn->ij", e[lag:], e[:len(e) - lag]) / (e.shape[2] * (len(e) - lag))
+        r = np.einsum("kin,kjn->ij", e[lag:], e[: len(e) - lag]) / (e.shape[2] * (len(e) - lag))
         if lag == 0:
             r -= np.diag(np.diag(r))  # the variances are checked above
         assert np.max(np.abs(r)) < 0.008, lag
@@ -328,6 +337,6 @@ def test_whitened_innovations_are_white_monte_carlo():
     # The white-noise-only filter on the same data: the GM bias is left in the innovations.
     # (Measured ~15x the unit variance; 2 is far above any sampling error.)
     e_white = whiten(noise_model(A6, T, _profile()).whitener, z)
-    assert np.mean(e_white ** 2) > 2.0
+    assert np.mean(e_white**2) > 2.0
     r1 = np.einsum("kin,kin->", e_white[1:], e_white[:-1]) / e_white[1:].size
     assert r1 > 0.1

@@ -1,4 +1,5 @@
 """The gimbal (issue 13): which gimbal plays a flip, gimbal lock, limits, export, refusals."""
+
 from __future__ import annotations
 
 import json
@@ -16,8 +17,7 @@ from calib.sequence import Sequence, Step, load_sequence, nominal_attitude, time
 from seqdesign.cli import main
 from seqdesign.cli_gimbal import read_schedule
 
-SHIPPED = ["paper-9pos", "paper-9pos-turns", "designed-15min", "designed-30min",
-           "designed-30min-9moves"]
+SHIPPED = ["paper-9pos", "paper-9pos-turns", "designed-15min", "designed-30min", "designed-30min-9moves"]
 D = math.radians
 E = np.eye(3)
 
@@ -50,8 +50,12 @@ def test_random_walk_of_flips_keeps_the_gimbal_rule():
 def lock_sequence(dwell=30.0, **kw):
     # X +90 brings the middle gimbal to +90 (body Y points south... along the outer axis):
     # lock. Z is then held by no gimbal (inner = 0 puts the middle axis on body X).
-    return Sequence(name="lock", start=("east", "up", "south"), initial_dwell_s=20.0,
-                    steps=(Step("X", 90.0, 10.0, dwell, **kw), Step("Z", 90.0, 10.0, 20.0, **kw)))
+    return Sequence(
+        name="lock",
+        start=("east", "up", "south"),
+        initial_dwell_s=20.0,
+        steps=(Step("X", 90.0, 10.0, dwell, **kw), Step("Z", 90.0, 10.0, 20.0, **kw)),
+    )
 
 
 def test_flip_at_a_locked_rest_needs_a_counter_rotation():
@@ -66,13 +70,14 @@ def test_flip_at_a_locked_rest_needs_a_counter_rotation():
     # The encoder channels contain it, inside the rest, and the IMU stays still meanwhile.
     t = np.arange(0.0, seq.duration_s, 0.01)
     a, w = encoder_track(plan, seq, t)
-    (_, t_a, t_b, _), = plan.unlocks
+    ((_, t_a, t_b, _),) = plan.unlocks
     assert t_b == pytest.approx(20.0 + 9.0 + 30.0) and t_a == pytest.approx(t_b - 9.0)
     during = (t > t_a) & (t < t_b)
     assert np.all(np.abs(np.degrees(w[during][:, [0, 2]])) > 0)
     C_nom = nominal_attitude(timeline(seq), t[during])
-    C_enc = np.einsum("ij,njk->nik", attitude("east", "up", "south"),
-                      np.array([gimbal_rule(x) for x in a[during]]))
+    C_enc = np.einsum(
+        "ij,njk->nik", attitude("east", "up", "south"), np.array([gimbal_rule(x) for x in a[during]])
+    )
     assert np.max(np.abs(C_enc - C_nom)) < 1e-12
 
 
@@ -83,8 +88,9 @@ def test_too_short_a_locked_rest_is_flagged():
 
 
 def test_middle_move_through_90_is_continuous():
-    seq = Sequence(name="m", start=("east", "up", "south"), initial_dwell_s=10.0,
-                   steps=(Step("X", 270.0, 10.0, 10.0),))
+    seq = Sequence(
+        name="m", start=("east", "up", "south"), initial_dwell_s=10.0, steps=(Step("X", 270.0, 10.0, 10.0),)
+    )
     t = np.arange(0.0, seq.duration_s, 0.005)
     a, _ = encoder_track(plan_sequence(seq), seq, t)
     # One middle move: outer and inner never move, the middle counts 0 -> 270 deg smoothly.
@@ -135,11 +141,14 @@ def cable_wrap_sequence(tmp_path) -> Path:
     # Outer and inner moves only (a 90-degree middle move would reach the 15-deg lock margin),
     # a trapezoid within 20 deg/s and 10 deg/s^2, back at home at the end.
     p = tmp_path / "cw.toml"
-    p.write_text('name = "cw"\nstart = ["east", "up", "south"]\ninitial_dwell_s = 30\n'
-                 'accel_dps2 = 10\n'
-                 + "".join(f'[[step]]\naxis = "{a}"\nangle_deg = {g}\nrate_dps = 20\ndwell_s = 30\n'
-                           for a, g in [("Z", 90), ("Y", 90), ("X", 90), ("Y", -180),
-                                        ("Y", 90)]))
+    p.write_text(
+        'name = "cw"\nstart = ["east", "up", "south"]\ninitial_dwell_s = 30\n'
+        "accel_dps2 = 10\n"
+        + "".join(
+            f'[[step]]\naxis = "{a}"\nangle_deg = {g}\nrate_dps = 20\ndwell_s = 30\n'
+            for a, g in [("Z", 90), ("Y", 90), ("X", 90), ("Y", -180), ("Y", 90)]
+        )
+    )
     return p
 
 
@@ -183,18 +192,25 @@ def gimbal_file(tmp_path, text):
 AXES = "[outer]\n[middle]\n[inner]\n"
 
 
-@pytest.mark.parametrize("text,needles", [
-    ("name = \n", ["not valid TOML"]),
-    ("[outer]\n[middle]\n", ["no [inner] table"]),
-    ("[outer]\nmax_rate_dps = -5\n[middle]\n[inner]\n", ["[outer]", "max_rate_dps", "positive"]),
-    ("[outer]\n[middle]\nrange_deg = [10, 360]\n[inner]\n", ["[middle]", "excludes the start"]),
-    ("lock_margin_deg = 95\n" + AXES, ["lock_margin_deg"]),
-    ("[outer]\n[middle]\n[inner]\nmax_accel_dps2 = \"fast\"\n", ["max_accel_dps2"]),
-])
+@pytest.mark.parametrize(
+    "text,needles",
+    [
+        ("name = \n", ["not valid TOML"]),
+        ("[outer]\n[middle]\n", ["no [inner] table"]),
+        ("[outer]\nmax_rate_dps = -5\n[middle]\n[inner]\n", ["[outer]", "max_rate_dps", "positive"]),
+        ("[outer]\n[middle]\nrange_deg = [10, 360]\n[inner]\n", ["[middle]", "excludes the start"]),
+        ("lock_margin_deg = 95\n" + AXES, ["lock_margin_deg"]),
+        ('[outer]\n[middle]\n[inner]\nmax_accel_dps2 = "fast"\n', ["max_accel_dps2"]),
+    ],
+)
 def test_bad_gimbal_file_is_refused(tmp_path, text, needles):
     g = gimbal_file(tmp_path, text)
-    refuse(tmp_path, ["export", "paper-9pos", "--gimbal", g, "-o", str(tmp_path / "commands.csv")],
-           "g.toml", *needles)
+    refuse(
+        tmp_path,
+        ["export", "paper-9pos", "--gimbal", g, "-o", str(tmp_path / "commands.csv")],
+        "g.toml",
+        *needles,
+    )
 
 
 LOCKING_QUARTER_TURN = """format_version = 1
@@ -210,15 +226,35 @@ def test_sequence_outside_the_gimbal_is_refused_by_export_and_simulate(tmp_path)
     # (docs/gimbal.md): gimbal lock, which the cable wrap keeps 15 deg away from.
     seq = tmp_path / "lock.toml"
     seq.write_text(LOCKING_QUARTER_TURN)
-    msg = refuse(tmp_path, ["export", str(seq), "--gimbal", "cable-wrap",
-                            "-o", str(tmp_path / "commands.csv")],
-                 "step 1", "middle gimbal", "cable-wrap")
+    msg = refuse(
+        tmp_path,
+        ["export", str(seq), "--gimbal", "cable-wrap", "-o", str(tmp_path / "commands.csv")],
+        "step 1",
+        "middle gimbal",
+        "cable-wrap",
+    )
     assert "gimbal lock" in msg and "15 deg" in msg
-    msg = refuse(tmp_path, ["export", "paper-9pos", "--gimbal", "cable-wrap",
-                            "-o", str(tmp_path / "commands.csv")], "step 1", "outer gimbal")
+    msg = refuse(
+        tmp_path,
+        ["export", "paper-9pos", "--gimbal", "cable-wrap", "-o", str(tmp_path / "commands.csv")],
+        "step 1",
+        "outer gimbal",
+    )
     assert "accelerates at most 10 deg/s^2" in msg
-    refuse(tmp_path, ["simulate", "designed-30min", "--gimbal", "cable-wrap", "--noise-free",
-                      "-o", str(tmp_path / "run.npz")], "step 1", "cable-wrap")
+    refuse(
+        tmp_path,
+        [
+            "simulate",
+            "designed-30min",
+            "--gimbal",
+            "cable-wrap",
+            "--noise-free",
+            "-o",
+            str(tmp_path / "run.npz"),
+        ],
+        "step 1",
+        "cable-wrap",
+    )
 
 
 def test_show_flags_the_same_violations_without_refusing(tmp_path):
@@ -239,18 +275,29 @@ def test_show_flags_the_same_violations_without_refusing(tmp_path):
 
 
 def test_export_bad_options(tmp_path):
-    refuse(tmp_path, ["export", "paper-9pos", "-o", str(tmp_path / "commands.csv"),
-                      "--rate-hz", "0"], "--rate-hz")
+    refuse(
+        tmp_path,
+        ["export", "paper-9pos", "-o", str(tmp_path / "commands.csv"), "--rate-hz", "0"],
+        "--rate-hz",
+    )
     refuse(tmp_path, ["export", "paper-9pos", "-o", str(tmp_path / "commands.txt")], ".csv")
-    refuse(tmp_path, ["export", "paper-9pos", "--gimbal", "nope",
-                      "-o", str(tmp_path / "commands.csv")], "no gimbal file", "cable-wrap")
+    refuse(
+        tmp_path,
+        ["export", "paper-9pos", "--gimbal", "nope", "-o", str(tmp_path / "commands.csv")],
+        "no gimbal file",
+        "cable-wrap",
+    )
 
 
 def test_shipped_gimbal_files_load():
     cw = load_gimbal("cable-wrap")
     assert cw.end_at_home and cw.lock_margin == pytest.approx(D(15))
-    assert all(a.min_angle == pytest.approx(D(-360)) and a.max_rate == pytest.approx(D(20))
-               and a.max_accel == pytest.approx(D(10)) for a in cw.axes)
+    assert all(
+        a.min_angle == pytest.approx(D(-360))
+        and a.max_rate == pytest.approx(D(20))
+        and a.max_accel == pytest.approx(D(10))
+        for a in cw.axes
+    )
     sr = load_gimbal("slip-rings")
     assert all(math.isinf(a.max_angle) for a in sr.axes) and sr.lock_margin == 0.0
 
@@ -261,10 +308,12 @@ def test_simulator_encoder_channels_contain_the_counter_rotation():
     from calib.errormodel import ErrorModel
     from calib.profiles import load_profile
     from calib.sim import SimConfig, simulate
+
     seq = lock_sequence()
-    run, _ = simulate(seq, SimConfig(latitude_rad=D(40)), ErrorModel.zero(),
-                      load_profile("navigation"), noise=False)
-    (_, t_a, t_b, _), = plan_sequence(seq).unlocks
+    run, _ = simulate(
+        seq, SimConfig(latitude_rad=D(40)), ErrorModel.zero(), load_profile("navigation"), noise=False
+    )
+    ((_, t_a, t_b, _),) = plan_sequence(seq).unlocks
     inside = (run.time_s >= t_a - 1e-9) & (run.time_s <= t_b + 1e-9)  # 29..38 s: on samples
     g = run.gimbal_deg[inside]
     assert np.ptp(g[:, 0]) == pytest.approx(90.0, abs=1e-9)
@@ -281,18 +330,28 @@ def test_encoders_with_flip_errors_step_no_faster_than_the_moves():
     from calib.errormodel import ErrorModel
     from calib.profiles import load_profile
     from calib.sim import SimConfig, simulate
-    run, _ = simulate(load_sequence("designed-15min"), SimConfig(latitude_rad=D(40)),
-                      ErrorModel.zero(), load_profile("navigation"), noise=False,
-                      flip_error_deg=0.5, seed=3)
+
+    run, _ = simulate(
+        load_sequence("designed-15min"),
+        SimConfig(latitude_rad=D(40)),
+        ErrorModel.zero(),
+        load_profile("navigation"),
+        noise=False,
+        flip_error_deg=0.5,
+        seed=3,
+    )
     step = np.abs(np.diff(run.gimbal_deg, axis=0))
     assert np.max(step) <= 10.0 * 0.005 * (1 + 1e-9)
 
 
-@pytest.mark.parametrize("keys,needles", [
-    ("accel_dps2 = -1\n", ["accel_dps2", "> 0"]),
-    ("jerk_dps3 = 20\n", ["jerk_dps3", "without 'accel_dps2'"]),
-    ("accel_dps2 = \"fast\"\n", ["accel_dps2", "number"]),
-])
+@pytest.mark.parametrize(
+    "keys,needles",
+    [
+        ("accel_dps2 = -1\n", ["accel_dps2", "> 0"]),
+        ("jerk_dps3 = 20\n", ["jerk_dps3", "without 'accel_dps2'"]),
+        ('accel_dps2 = "fast"\n', ["accel_dps2", "number"]),
+    ],
+)
 def test_bad_rate_profile_keys_are_refused(tmp_path, keys, needles):
     p = tmp_path / "s.toml"
     p.write_text('start = ["east", "up", "south"]\n[[step]]\naxis = "Z"\nangle_deg = 90\n' + keys)

@@ -7,6 +7,7 @@ is the unbatched path, :func:`calib.nominal.information_along` (one
 :func:`calib.noise.whitener` and :func:`calib.noise.whiten` per mounting),
 reached in the analyser with ``batch=1``.
 """
+
 from __future__ import annotations
 
 import math
@@ -27,8 +28,9 @@ from seqdesign.observability import analyze_extras, analyze_tolerance
 LAT = math.radians(40.0)
 G = earth.gravity(LAT)
 GM = load_profile("navigation-gm")
-MOUNTINGS = [np.radians(d) for d in ([0.0, 0.0, 0.0], [3.0, -3.0, 3.0], [-1.0, 2.5, -0.5],
-                                      [-3.0, -3.0, -3.0])]
+MOUNTINGS = [
+    np.radians(d) for d in ([0.0, 0.0, 0.0], [3.0, -3.0, 3.0], [-1.0, 2.5, -0.5], [-3.0, -3.0, -3.0])
+]
 
 
 def _scaled_difference(N, N_ref):
@@ -57,8 +59,7 @@ def test_whiten_batch_is_whitener_then_whiten():
     C = [q * np.sign(np.linalg.det(q))[:, None, None] for q in C]
     X = rng.normal(size=(K, M, 3, c))
     arrays = [gm_interval_arrays(A, T, GM, Cm) for Cm in C]
-    blocks = filter_blocks(np.stack([a[0] for a in arrays], axis=1),
-                           np.stack([a[1] for a in arrays], axis=1))
+    blocks = filter_blocks(np.stack([a[0] for a in arrays], axis=1), np.stack([a[1] for a in arrays], axis=1))
     P0 = np.zeros((M, 9, 9))
     P0[:, 3:, 3:] = arrays[0][2]
     Xw, P_end, _ = whiten_batch(blocks, X, P0, np.zeros((M, 9, c)))
@@ -84,8 +85,10 @@ def test_information_along_many_equals_one_at_a_time(extras, monkeypatch):
 
 
 def test_information_along_many_falls_back_when_grids_differ():
-    noms = [nominal_run(load_sequence(name), LAT, 0.0, MOUNTINGS[1])
-            for name in ("paper-9pos", "paper-9pos-turns")]
+    noms = [
+        nominal_run(load_sequence(name), LAT, 0.0, MOUNTINGS[1])
+        for name in ("paper-9pos", "paper-9pos-turns")
+    ]
     many = information_along_many(noms, GM, LAT, G)
     for N, nom in zip(many, noms):
         assert np.array_equal(N, information_along(nom, GM, LAT, G))
@@ -106,14 +109,16 @@ def test_analyze_tolerance_and_extras_batched_equal_unbatched():
     many = analyze_tolerance(seq, GM, LAT)
     assert one.searched and many.searched
     np.testing.assert_allclose(many.nominal.sigma, one.nominal.sigma, rtol=1e-10)
-    np.testing.assert_allclose(many.per_parameter_worst_sigma, one.per_parameter_worst_sigma,
-                               rtol=1e-10)
+    np.testing.assert_allclose(many.per_parameter_worst_sigma, one.per_parameter_worst_sigma, rtol=1e-10)
     np.testing.assert_allclose(many.worst.sigma, one.worst.sigma, rtol=1e-10)
     extras = as_extras("all")
     one = analyze_extras(seq, GM, LAT, extras, search=True, batch=1)
     many = analyze_extras(seq, GM, LAT, extras, search=True)
     assert one.searched and many.searched
-    for a, b in ((many.sigma_without, one.sigma_without), (many.sigma_with, one.sigma_with),
-                 (many.extra_sigma, one.extra_sigma)):
+    for a, b in (
+        (many.sigma_without, one.sigma_without),
+        (many.sigma_with, one.sigma_with),
+        (many.extra_sigma, one.extra_sigma),
+    ):
         np.testing.assert_allclose(a, b, rtol=1e-10)
     assert many.unobservable == one.unobservable

@@ -1,4 +1,5 @@
 """Site gravity (issue 14): the accelerometer scale factors are only as good as the gravity assumed."""
+
 from __future__ import annotations
 
 import json
@@ -14,15 +15,18 @@ from seqdesign.cli import main
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     path = tmp_path_factory.mktemp("g") / "run.npz"
-    res = CliRunner().invoke(main, ["simulate", "paper-9pos", "--table2", "--noise-free",
-                                    "--sample-rate-hz", "50", "-o", str(path)])
+    res = CliRunner().invoke(
+        main,
+        ["simulate", "paper-9pos", "--table2", "--noise-free", "--sample-rate-hz", "50", "-o", str(path)],
+    )
     assert res.exit_code == 0, res.output
     return path
 
 
 def _fit(run, *extra):
-    res = CliRunner().invoke(main, ["calibrate", str(run), "--json",
-                                    "-o", str(run.with_suffix(".r.toml"))] + list(extra))
+    res = CliRunner().invoke(
+        main, ["calibrate", str(run), "--json", "-o", str(run.with_suffix(".r.toml"))] + list(extra)
+    )
     assert res.exit_code == 0, res.output
     return json.loads(res.stdout), res.stderr
 

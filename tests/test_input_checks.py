@@ -4,6 +4,7 @@ Every refusal is checked through the CLI with and without ``--json``: one line o
 naming what, where and how to fix, exit code 2, nothing written, and with ``--json`` one JSON
 document ``{"error": {"what", "where", "fix"}}`` on stdout.
 """
+
 from __future__ import annotations
 
 import json
@@ -24,7 +25,7 @@ dwell_s = 60
 """
 PROFILE = 'name = "p"\n{key} = 0.001\naccel_vrw_ug = 10.0\n'
 GIMBAL = 'name = "g"\n[outer]\n{key} = 20\n[middle]\n[inner]\n'
-REQUIREMENTS = '[requirements]\n{key} = 2.0\n'
+REQUIREMENTS = "[requirements]\n{key} = 2.0\n"
 
 
 def refused(tmp_path, args, *parts):
@@ -45,15 +46,33 @@ def refused(tmp_path, args, *parts):
     return lines[0]
 
 
-@pytest.mark.parametrize("kind, text, args, typo, right", [
-    ("sequence", SEQ.format(rate_key="rate_dsp"), ["show", "{f}"], "rate_dsp", "rate_dps"),
-    ("profile", PROFILE.format(key="gyro_arw_dhp"), ["analyze", "paper-9pos", "--profile", "{f}"],
-     "gyro_arw_dhp", "gyro_arw_dph"),
-    ("gimbal", GIMBAL.format(key="max_rate_dsp"), ["show", "paper-9pos", "--gimbal", "{f}"],
-     "max_rate_dsp", "max_rate_dps"),
-    ("requirements", REQUIREMENTS.format(key="sgxx"),
-     ["analyze", "paper-9pos", "--requirements", "{f}"], "sgxx", "sgx"),
-])
+@pytest.mark.parametrize(
+    "kind, text, args, typo, right",
+    [
+        ("sequence", SEQ.format(rate_key="rate_dsp"), ["show", "{f}"], "rate_dsp", "rate_dps"),
+        (
+            "profile",
+            PROFILE.format(key="gyro_arw_dhp"),
+            ["analyze", "paper-9pos", "--profile", "{f}"],
+            "gyro_arw_dhp",
+            "gyro_arw_dph",
+        ),
+        (
+            "gimbal",
+            GIMBAL.format(key="max_rate_dsp"),
+            ["show", "paper-9pos", "--gimbal", "{f}"],
+            "max_rate_dsp",
+            "max_rate_dps",
+        ),
+        (
+            "requirements",
+            REQUIREMENTS.format(key="sgxx"),
+            ["analyze", "paper-9pos", "--requirements", "{f}"],
+            "sgxx",
+            "sgx",
+        ),
+    ],
+)
 def test_a_near_miss_key_is_refused_naming_the_closest(tmp_path, kind, text, args, typo, right):
     path = tmp_path / f"{kind}.toml"
     path.write_text(text)
@@ -73,20 +92,24 @@ def test_any_other_unknown_key_is_a_warning_not_a_refusal(tmp_path):
 def files(tmp_path_factory):
     folder = tmp_path_factory.mktemp("kinds")
     run = folder / "run.npz"
-    res = CliRunner().invoke(main, ["simulate", "paper-9pos", "--noise-free",
-                                    "--sample-rate-hz", "10", "-o", str(run)])
+    res = CliRunner().invoke(
+        main, ["simulate", "paper-9pos", "--noise-free", "--sample-rate-hz", "10", "-o", str(run)]
+    )
     assert res.exit_code == 0, res.output
     res = CliRunner().invoke(main, ["calibrate", str(run), "-o", str(folder / "r.result.toml")])
     assert res.exit_code == 0, res.output
     return folder
 
 
-@pytest.mark.parametrize("args, named", [
-    (["show", "{d}/r.result.toml"], "this is a calibration result"),
-    (["analyze", "{d}/run.npz"], "this is a run log, not a sequence file"),
-    (["calibrate", "{d}/run.truth.toml"], "this is a truth file"),
-    (["analyze", "paper-9pos", "--profile", "{d}/run.truth.toml"], "not a noise profile"),
-])
+@pytest.mark.parametrize(
+    "args, named",
+    [
+        (["show", "{d}/r.result.toml"], "this is a calibration result"),
+        (["analyze", "{d}/run.npz"], "this is a run log, not a sequence file"),
+        (["calibrate", "{d}/run.truth.toml"], "this is a truth file"),
+        (["analyze", "paper-9pos", "--profile", "{d}/run.truth.toml"], "not a noise profile"),
+    ],
+)
 def test_a_file_of_the_wrong_kind_is_named_as_what_it_is(files, tmp_path, args, named):
     refused(tmp_path, [a.format(d=files) for a in args], named)
 
@@ -98,11 +121,11 @@ def test_csv_with_another_delimiter_is_read(files, tmp_path, sep, decimal):
     base = read_run(files / "run.npz")
     write_run(base, tmp_path / "comma.csv")
     lines = (tmp_path / "comma.csv").read_text().splitlines()
-    text = [ln if ln.startswith("#") else ln.replace(",", sep).replace(".", decimal)
-            for ln in lines]
+    text = [ln if ln.startswith("#") else ln.replace(",", sep).replace(".", decimal) for ln in lines]
     (tmp_path / "other.csv").write_text("\n".join(text) + "\n")
-    res = CliRunner().invoke(main, ["calibrate", str(tmp_path / "other.csv"), "--json",
-                                    "-o", str(tmp_path / "o.toml")])
+    res = CliRunner().invoke(
+        main, ["calibrate", str(tmp_path / "other.csv"), "--json", "-o", str(tmp_path / "o.toml")]
+    )
     assert res.exit_code == 0, res.output
     assert "read as such" in res.stderr
     other = read_run(tmp_path / "other.csv")
@@ -111,7 +134,9 @@ def test_csv_with_another_delimiter_is_read(files, tmp_path, sep, decimal):
 
 def test_a_logger_csv_without_metadata_lists_every_missing_key(tmp_path):
     path = tmp_path / "log.csv"
-    path.write_text("time_s,gyro_x_dps,gyro_y_dps,gyro_z_dps,accel_x_g,accel_y_g,accel_z_g\n"
-                    "0.01,0,0,0,0,0,1\n0.02,0,0,0,0,0,1\n")
+    path.write_text(
+        "time_s,gyro_x_dps,gyro_y_dps,gyro_z_dps,accel_x_g,accel_y_g,accel_z_g\n"
+        "0.01,0,0,0,0,0,1\n0.02,0,0,0,0,0,1\n"
+    )
     line = refused(tmp_path, ["calibrate", str(path)], "latitude_deg", "height_m")
     assert "--latitude" in line

@@ -5,6 +5,7 @@ them; the figures compared are the issue's (estimates within 0.1 sigma of
 the clean run under jitter, within 0.3 sigma with dropped samples filled,
 noise-free within 1/20 of every requirement).
 """
+
 from __future__ import annotations
 
 import json
@@ -33,27 +34,35 @@ PSINS = REALDATA / "psins-lasergyro-static.imu"
 LAT = math.radians(40.0)
 RATE = 200.0  # Hz, the issue's run
 DWELL = 40.0  # s; rests 0-40, 49-89, ... (90 deg flips at 10 deg/s take 9 s)
-STEPS = [("Z", 90), ("Y", 90), ("X", -90), ("Y", -90), ("Y", -90), ("X", -90), ("Y", -90),
-         ("Z", 90)]
+STEPS = [("Z", 90), ("Y", 90), ("X", -90), ("Y", -90), ("Y", -90), ("X", -90), ("Y", -90), ("Z", 90)]
 
 
 def short_sequence():
-    doc = {"name": "short", "start": ["east", "up", "south"], "initial_dwell_s": DWELL,
-           "step": [{"axis": a, "angle_deg": g, "dwell_s": DWELL} for a, g in STEPS]}
+    doc = {
+        "name": "short",
+        "start": ["east", "up", "south"],
+        "initial_dwell_s": DWELL,
+        "step": [{"axis": a, "angle_deg": g, "dwell_s": DWELL} for a, g in STEPS],
+    }
     return sequence_from_dict(doc, "short")
 
 
-def _simulate(noise: bool, rate: float = RATE, errors: ErrorModel | None = None,
-              setup_deg=(1.0, -2.0, 3.0)):
+def _simulate(noise: bool, rate: float = RATE, errors: ErrorModel | None = None, setup_deg=(1.0, -2.0, 3.0)):
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=rate)
     errors = ErrorModel.from_table2() if errors is None else errors
-    return simulate(short_sequence(), cfg, errors, load_profile("navigation"),
-                    setup_rotvec=np.radians(setup_deg), noise=noise, seed=11)
+    return simulate(
+        short_sequence(),
+        cfg,
+        errors,
+        load_profile("navigation"),
+        setup_rotvec=np.radians(setup_deg),
+        noise=noise,
+        seed=11,
+    )
 
 
 def _calibrate(path: Path, *flags: str) -> tuple[int, str, dict | None]:
-    r = CliRunner().invoke(main, ["calibrate", str(path), "-o", str(path) + ".result.toml",
-                                  "--json", *flags])
+    r = CliRunner().invoke(main, ["calibrate", str(path), "-o", str(path) + ".result.toml", "--json", *flags])
     assert "Traceback" not in r.output
     doc = json.loads(r.stdout) if r.exit_code == 0 else None
     return r.exit_code, r.output, doc
@@ -66,8 +75,9 @@ def _estimates(doc: dict) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _variant(run: Run, **arrays) -> Run:
-    fields = dict(time_s=run.time_s, dtheta_rad=run.dtheta_rad, dv_mps=run.dv_mps,
-                  meta=dict(run.meta), gimbal_deg=None)
+    fields = dict(
+        time_s=run.time_s, dtheta_rad=run.dtheta_rad, dv_mps=run.dv_mps, meta=dict(run.meta), gimbal_deg=None
+    )
     fields.update(arrays)
     return Run(**fields)
 
@@ -149,8 +159,7 @@ def dropped(noisy):
     lost = [int(20.0 * RATE), int(70.0 * RATE)]
     keep = np.ones(run.n_samples, dtype=bool)
     keep[lost] = False
-    damaged = _variant(run, time_s=run.time_s[keep], dtheta_rad=run.dtheta_rad[keep],
-                       dv_mps=run.dv_mps[keep])
+    damaged = _variant(run, time_s=run.time_s[keep], dtheta_rad=run.dtheta_rad[keep], dv_mps=run.dv_mps[keep])
     write_run(damaged, d / "dropped.csv")
     return d / "dropped.csv", run.time_s[lost]
 
@@ -182,8 +191,10 @@ def test_allow_gaps_refuses_a_sample_lost_in_a_flip(noisy, tmp_path):
     k = int(44.0 * RATE)  # inside the first flip (40-49 s)
     keep = np.ones(run.n_samples, dtype=bool)
     keep[k] = False
-    write_run(_variant(run, time_s=run.time_s[keep], dtheta_rad=run.dtheta_rad[keep],
-                       dv_mps=run.dv_mps[keep]), tmp_path / "flip.npz")
+    write_run(
+        _variant(run, time_s=run.time_s[keep], dtheta_rad=run.dtheta_rad[keep], dv_mps=run.dv_mps[keep]),
+        tmp_path / "flip.npz",
+    )
     code, out, _ = _calibrate(tmp_path / "flip.npz", "--allow-gaps")
     assert code == 2 and "while the IMU turns" in out and "t = 44" in out
     assert not (tmp_path / "flip.npz.result.toml").exists()
@@ -222,8 +233,7 @@ def _longest_run_at_extreme(x: np.ndarray) -> int:
 @pytest.mark.parametrize("case", ["simulated", "exact-table2", "exact-level"])
 def test_noise_free_run_calibrates_through_the_cli(tmp_path, suffix, case):
     if case == "exact-level":  # no mounting error, no errors: Y exactly vertical at rest
-        run, truth = _simulate(noise=False, rate=50.0, errors=ErrorModel.zero(),
-                               setup_deg=(0.0, 0.0, 0.0))
+        run, truth = _simulate(noise=False, rate=50.0, errors=ErrorModel.zero(), setup_deg=(0.0, 0.0, 0.0))
     else:
         run, truth = _simulate(noise=False, rate=50.0)
     if case != "simulated":
@@ -259,6 +269,7 @@ def test_gyro_clipped_in_a_flip_is_saturation():
     limit = 0.95 * np.max(np.abs(x))
     np.clip(x, -limit, limit, out=x)  # a range below the flip rate (plus its noise)
     from calib.errors import CalibError
+
     with pytest.raises(CalibError, match="dtheta_x is stuck at .* its extreme"):
         check_saturation(dtheta, run.dv_mps, "run")
 
@@ -268,8 +279,20 @@ def test_gyro_clipped_in_a_flip_is_saturation():
 
 
 def _psins_text(rows: list[str], header2: str = "34.2 108.9 380 0 10 9.78") -> str:
-    return "\n".join(["% PSINS-format SIMU log file.", "% comment", "",
-                      "0 0 -90.6 0 0 0", header2, "0.1 0.1 0.1 125 125 125", *rows]) + "\n"
+    return (
+        "\n".join(
+            [
+                "% PSINS-format SIMU log file.",
+                "% comment",
+                "",
+                "0 0 -90.6 0 0 0",
+                header2,
+                "0.1 0.1 0.1 125 125 125",
+                *rows,
+            ]
+        )
+        + "\n"
+    )
 
 
 def test_psins_counts_are_scaled_to_si(tmp_path):
@@ -280,18 +303,26 @@ def test_psins_counts_are_scaled_to_si(tmp_path):
     assert run.dtheta_rad[0] == pytest.approx(np.array([1.0, 0.0, -0.5]) * ARCSEC)
     assert run.dv_mps[0] == pytest.approx(np.array([3, 0, 80]) * 125e-6 * 9.78)
     assert run.time_s == pytest.approx([0.01, 0.02, 0.03])
-    assert (run.latitude_deg, run.height_m, run.sample_rate_hz, run.gravity_mps2) == \
-        pytest.approx((34.2, 380.0, 100.0, 9.78))
+    assert (run.latitude_deg, run.height_m, run.sample_rate_hz, run.gravity_mps2) == pytest.approx(
+        (34.2, 380.0, 100.0, 9.78)
+    )
 
 
-@pytest.mark.parametrize("text, parts", [
-    (_psins_text(["1 2 3 4 5 6", "1 2 3 4 5"]), ["line 8", "not six counts"]),
-    (_psins_text(["1 2 3 4 5 6", "1 2 3 4 5 6.5"]), ["line 8", "not an integer count"]),
-    (_psins_text(["1 2 3 4 5 6", "1 2 3 4 5 6"], header2="34.2 108.9 380 0 10"),
-     ["line 5", "header row", "6 numbers"]),
-    (_psins_text(["1 2 3 4 5 6", "1 2 3 4 5 6"], header2="34.2 108.9 380 0 0 9.78"),
-     ["line 5", "must be positive"]),
-])
+@pytest.mark.parametrize(
+    "text, parts",
+    [
+        (_psins_text(["1 2 3 4 5 6", "1 2 3 4 5"]), ["line 8", "not six counts"]),
+        (_psins_text(["1 2 3 4 5 6", "1 2 3 4 5 6.5"]), ["line 8", "not an integer count"]),
+        (
+            _psins_text(["1 2 3 4 5 6", "1 2 3 4 5 6"], header2="34.2 108.9 380 0 10"),
+            ["line 5", "header row", "6 numbers"],
+        ),
+        (
+            _psins_text(["1 2 3 4 5 6", "1 2 3 4 5 6"], header2="34.2 108.9 380 0 0 9.78"),
+            ["line 5", "must be positive"],
+        ),
+    ],
+)
 def test_psins_malformed_logs_are_refused_through_the_cli(tmp_path, text, parts):
     path = tmp_path / "bad.imu"
     path.write_text(text)

@@ -3,6 +3,7 @@
 Both replace scipy functions on the calibrate path (whose imports cost every
 command 0.25 s); scipy is the independent reference here.
 """
+
 import numpy as np
 import pytest
 from scipy.linalg import expm as scipy_expm

@@ -1,4 +1,5 @@
 """A MEMS unit's attitude wander (issue 14 point 4): smoothed attitude noise fed back into the fit."""
+
 from __future__ import annotations
 
 import json
@@ -25,12 +26,12 @@ def _stacked(models):
     Ms, Mz = np.zeros((K + 1, 3, 6 * K)), np.zeros((K, 3, 6 * K))
     for k, m in enumerate(models):
         Mz[k] = m.Phi[3:6, :3] @ Ms[k]
-        Mz[k][:, 6 * k + 3:6 * k + 6] += np.eye(3)
+        Mz[k][:, 6 * k + 3 : 6 * k + 6] += np.eye(3)
         Ms[k + 1] = m.Phi[:3, :3] @ Ms[k]
-        Ms[k + 1][:, 6 * k:6 * k + 3] += np.eye(3)
+        Ms[k + 1][:, 6 * k : 6 * k + 3] += np.eye(3)
     Qw = np.zeros((6 * K, 6 * K))
     for k, m in enumerate(models):
-        Qw[6 * k:6 * k + 6, 6 * k:6 * k + 6] = m.Q
+        Qw[6 * k : 6 * k + 6, 6 * k : 6 * k + 6] = m.Q
     return Ms.reshape(-1, 6 * K), Mz.reshape(-1, 6 * K), Qw
 
 
@@ -39,8 +40,9 @@ def test_smoother_is_the_conditional_mean_of_the_attitude_noise():
     # E[s | z] = S_sz S_zz^-1 z. The recursion must give it to rounding, rest and turn
     # intervals mixed, with the noise of the interval shared by s and z (the correlation the
     # smoother decorrelates).
-    models = interval_models(state_matrix(LAT, G), np.array([1.0] * 12 + [0.1] * 5 + [1.0] * 9),
-                             load_profile("mems"))
+    models = interval_models(
+        state_matrix(LAT, G), np.array([1.0] * 12 + [0.1] * 5 + [1.0] * 9), load_profile("mems")
+    )
     Ms, Mz, Qw = _stacked(models)
     rng = np.random.default_rng(7)
     w = np.linalg.cholesky(Qw + 1e-300 * np.eye(len(Qw))) @ rng.standard_normal(len(Qw))
@@ -58,16 +60,34 @@ def test_feedback_switches_on_only_where_gravity_leaks_through_the_wander(profil
     ratio = attitude_wander_ratio(load_profile(profile), 1800.0, G)
     assert (ratio > ATTITUDE_FEEDBACK_RATIO) == on
     tilt = load_profile(profile).arw * math.sqrt(1800.0)
-    assert ratio == pytest.approx(0.5 * G * tilt ** 2 / (load_profile(profile).vrw / math.sqrt(1800.0)))
+    assert ratio == pytest.approx(0.5 * G * tilt**2 / (load_profile(profile).vrw / math.sqrt(1800.0)))
 
 
 # A MEMS unit before calibration (issue 14 point 4): 1000 deg/h and 20 mg biases, scale factors
 # of 0.5 %, misalignments of a few hundred arcsec.
 MEMS_ERRORS = {
-    "bgx": 1000.0, "bgy": -800.0, "bgz": 600.0, "sgx": 5000.0, "sgy": -4000.0, "sgz": 3000.0,
-    "mgxy": 600.0, "mgxz": -500.0, "mgyx": 400.0, "mgyz": 700.0, "mgzx": -600.0, "mgzy": 300.0,
-    "bax": 20000.0, "bay": -15000.0, "baz": 10000.0, "sax": 5000.0, "say": -3000.0,
-    "saz": 4000.0, "mayx": 500.0, "mazx": -400.0, "mazy": 600.0}
+    "bgx": 1000.0,
+    "bgy": -800.0,
+    "bgz": 600.0,
+    "sgx": 5000.0,
+    "sgy": -4000.0,
+    "sgz": 3000.0,
+    "mgxy": 600.0,
+    "mgxz": -500.0,
+    "mgyx": 400.0,
+    "mgyz": 700.0,
+    "mgzx": -600.0,
+    "mgzy": 300.0,
+    "bax": 20000.0,
+    "bay": -15000.0,
+    "baz": 10000.0,
+    "sax": 5000.0,
+    "say": -3000.0,
+    "saz": 4000.0,
+    "mayx": 500.0,
+    "mazx": -400.0,
+    "mazy": 600.0,
+}
 
 
 def test_a_noisy_mems_run_calibrates_through_the_cli(tmp_path):
@@ -75,12 +95,39 @@ def test_a_noisy_mems_run_calibrates_through_the_cli(tmp_path):
     errors.write_text("[errors]\n" + "".join(f"{k} = {v}\n" for k, v in MEMS_ERRORS.items()))
     run = tmp_path / "run.npz"
     runner = CliRunner()
-    res = runner.invoke(main, ["simulate", "paper-9pos", "--profile", "mems", "--errors",
-                               str(errors), "--random-setup", "--seed", "5",
-                               "--sample-rate-hz", "50", "-o", str(run)])
+    res = runner.invoke(
+        main,
+        [
+            "simulate",
+            "paper-9pos",
+            "--profile",
+            "mems",
+            "--errors",
+            str(errors),
+            "--random-setup",
+            "--seed",
+            "5",
+            "--sample-rate-hz",
+            "50",
+            "-o",
+            str(run),
+        ],
+    )
     assert res.exit_code == 0, res.output
-    res = runner.invoke(main, ["calibrate", str(run), "--profile", "mems", "--requirements",
-                               "mems", "--json", "-o", str(tmp_path / "r.toml")])
+    res = runner.invoke(
+        main,
+        [
+            "calibrate",
+            str(run),
+            "--profile",
+            "mems",
+            "--requirements",
+            "mems",
+            "--json",
+            "-o",
+            str(tmp_path / "r.toml"),
+        ],
+    )
     assert res.exit_code == 0, res.output
     doc = json.loads(res.stdout)
     assert doc["fit"]["converged"] and doc["fit"]["sigma_scale"] == 1.0
@@ -104,14 +151,27 @@ def test_mems_monte_carlo_nees_is_in_its_band():
     from calib.sequence import load_sequence
     from calib.sim import SimConfig, simulate
 
-    half = np.array([{("gyro", "bias"): 1000.0, ("accel", "bias"): 20000.0}.get(
-        (p.sensor, p.kind), 5000.0 if p.kind == "scale" else 1000.0) for p in P.PARAMETERS])
+    half = np.array(
+        [
+            {("gyro", "bias"): 1000.0, ("accel", "bias"): 20000.0}.get(
+                (p.sensor, p.kind), 5000.0 if p.kind == "scale" else 1000.0
+            )
+            for p in P.PARAMETERS
+        ]
+    )
     prof, seq, n = load_profile("mems"), load_sequence("paper-9pos"), 10
     nees = []
     for seed in range(900, 900 + n):
         errors = ErrorModel.from_units(np.random.default_rng(seed).uniform(-1, 1, 21) * half)
-        run, truth = simulate(seq, SimConfig(latitude_rad=LAT, sample_rate_hz=50.0), errors, prof,
-                              seed=seed, flip_error_deg=0.5, random_setup_deg=3.0)
+        run, truth = simulate(
+            seq,
+            SimConfig(latitude_rad=LAT, sample_rate_hz=50.0),
+            errors,
+            prof,
+            seed=seed,
+            flip_error_deg=0.5,
+            random_setup_deg=3.0,
+        )
         res = calibrate_run(run, prof, requirements="mems")
         nees.append(res.nees(truth.errors.values))
     lo, hi = chi2.ppf([0.005, 0.995], 21 * n) / n
@@ -138,25 +198,38 @@ def test_rest_gyrocompass_finds_bias_and_heading_through_a_mems_bias():
 
     errors = ErrorModel.from_units([MEMS_ERRORS[p.name] for p in P.PARAMETERS])
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=20.0)
-    run, _ = simulate(load_sequence("paper-9pos"), cfg, errors, load_profile("mems"),
-                      noise=False, setup_rotvec=np.radians([2.0, -1.0, 40.0]))
+    run, _ = simulate(
+        load_sequence("paper-9pos"),
+        cfg,
+        errors,
+        load_profile("mems"),
+        noise=False,
+        setup_rotvec=np.radians([2.0, -1.0, 40.0]),
+    )
     dt = sample_intervals(run.time_s)
     seg = detect_motion(run.dtheta_rad, dt)
     start = start_values(run.dtheta_rad, dt, seg.moving)[P.GYRO_BIAS]
     first = slice(0, seg.first_rest_end)
-    C_lev = coarse_alignment(run.dtheta_rad[first] - start * dt[first, None], run.dv_mps[first],
-                             dt[first])
+    C_lev = coarse_alignment(run.dtheta_rad[first] - start * dt[first, None], run.dv_mps[first], dt[first])
     bias, C0 = rest_gyrocompass(run.dtheta_rad, dt, seg.moving, C_lev, LAT, start)
     deg_h = np.degrees(np.abs(bias - errors.values[P.GYRO_BIAS])) * 3600.0
     assert deg_h.max() < 1.0, deg_h
-    exact = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity,
-                      load_profile("tactical"), requirements=load_requirements("mems")).C_b_n0
+    exact = calibrate(
+        run.time_s,
+        run.dtheta_rad,
+        run.dv_mps,
+        LAT,
+        cfg.gravity,
+        load_profile("tactical"),
+        requirements=load_requirements("mems"),
+    ).C_b_n0
     assert np.degrees(np.linalg.norm(dcm_to_rotvec(C0 @ exact.T))) < 3.0
 
 
 def _held(schedule):
     """Move the feedback until it is held (the updates the loops make)."""
     from calib.estimator import FEEDBACK_UPDATES
+
     for it in range(1, FEEDBACK_UPDATES + 1):
         assert schedule.pending() and schedule.due(1.0)
         schedule.moved_at(it)
@@ -172,6 +245,7 @@ def test_held_feedback_steps_sum_their_geometric_series():
     from types import SimpleNamespace
 
     from calib.estimator import FeedbackSchedule
+
     n, u, rho = 4, np.array([1.0, -2.0, 0.5, 3.0]), -0.5
     sol, eye, ones = SimpleNamespace(covariance=np.eye(n)), np.eye(n), np.ones(n)
     schedule = FeedbackSchedule(wander=True)
@@ -207,8 +281,9 @@ def test_streamed_mems_fit_equals_renavigating_fit():
 
     errors = ErrorModel.from_units([MEMS_ERRORS[p.name] for p in P.PARAMETERS])
     cfg, prof = SimConfig(latitude_rad=LAT, sample_rate_hz=20.0), load_profile("mems")
-    run, _ = simulate(load_sequence("paper-9pos"), cfg, errors, prof, seed=5,
-                      random_setup_deg=3.0, flip_error_deg=0.5)
+    run, _ = simulate(
+        load_sequence("paper-9pos"), cfg, errors, prof, seed=5, random_setup_deg=3.0, flip_error_deg=0.5
+    )
     args = (run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, prof)
     req = load_requirements("mems")
     ref = calibrate(*args, requirements=req, renavigate="always")
@@ -222,9 +297,24 @@ def _mems_run(tmp_path, runner):
     errors = tmp_path / "errors.toml"
     errors.write_text("[errors]\n" + "".join(f"{k} = {v}\n" for k, v in MEMS_ERRORS.items()))
     run = tmp_path / "run.npz"
-    res = runner.invoke(main, ["simulate", "paper-9pos", "--profile", "mems", "--errors",
-                               str(errors), "--random-setup", "--seed", "5",
-                               "--sample-rate-hz", "20", "-o", str(run)])
+    res = runner.invoke(
+        main,
+        [
+            "simulate",
+            "paper-9pos",
+            "--profile",
+            "mems",
+            "--errors",
+            str(errors),
+            "--random-setup",
+            "--seed",
+            "5",
+            "--sample-rate-hz",
+            "20",
+            "-o",
+            str(run),
+        ],
+    )
     assert res.exit_code == 0, res.output
     return run
 
@@ -254,14 +344,22 @@ def test_calibrate_stream_gives_a_mems_run_the_calibrate_start(tmp_path):
         out[command] = json.loads(res.stdout)
         assert out[command]["fit"]["converged"]
     for name, p in out["calibrate"]["parameters"].items():
-        assert abs(out["calibrate-stream"]["parameters"][name]["value"] - p["value"]) \
-            <= 1e-3 * p["sigma"], name
+        assert abs(out["calibrate-stream"]["parameters"][name]["value"] - p["value"]) <= 1e-3 * p["sigma"], (
+            name
+        )
     log, prof = read_run(str(run)), load_profile("mems")
-    assert np.array_equal(survey(run, prof, rows=1000)[0],
-                          detect_motion(log.dtheta_rad, sample_intervals(log.time_s),
-                                        arw=prof.arw).moving)
-    fit = calibrate_file(run, LAT, out["calibrate"]["gravity"]["value_mps2"], prof,
-                         requirements=load_requirements("mems"), rows=1000)
+    assert np.array_equal(
+        survey(run, prof, rows=1000)[0],
+        detect_motion(log.dtheta_rad, sample_intervals(log.time_s), arw=prof.arw).moving,
+    )
+    fit = calibrate_file(
+        run,
+        LAT,
+        out["calibrate"]["gravity"]["value_mps2"],
+        prof,
+        requirements=load_requirements("mems"),
+        rows=1000,
+    )
     assert fit.converged
     sigma = np.array([p["sigma"] for p in out["calibrate"]["parameters"].values()])
     value = np.array([p["value"] for p in out["calibrate"]["parameters"].values()])
@@ -278,14 +376,16 @@ def test_calibrate_stream_refuses_a_run_that_starts_turning(tmp_path):
     runner = CliRunner()
     run = _mems_run(tmp_path, runner)
     with np.load(run) as z:
-        moving = detect_motion(z["dtheta_rad"], sample_intervals(z["time_s"]),
-                               arw=load_profile("mems").arw).moving
+        moving = detect_motion(
+            z["dtheta_rad"], sample_intervals(z["time_s"]), arw=load_profile("mems").arw
+        ).moving
         cut = int(np.argmax(moving)) + 10  # inside the first flip
         arrays = {k: z[k][cut:] for k in ("time_s", "dtheta_rad", "dv_mps")}
     cut_run = tmp_path / "cut.npz"
     np.savez(cut_run, **arrays, meta=np.array(json.dumps(read_meta(run))))
-    res = runner.invoke(main, ["calibrate-stream", str(cut_run), "--profile", "mems",
-                               "--requirements", "mems"])
+    res = runner.invoke(
+        main, ["calibrate-stream", str(cut_run), "--profile", "mems", "--requirements", "mems"]
+    )
     assert res.exit_code == 2
     lines = res.output.strip().splitlines()
     assert "Traceback" not in res.output and "first rest lasts 0.0 s" in lines[-1], res.output

@@ -1,4 +1,5 @@
 """The closed-form 3 x 3 inverse Cholesky factor of the noise filter (calib.noise)."""
+
 import numpy as np
 import pytest
 from scipy.linalg import solve_triangular
@@ -64,7 +65,7 @@ def test_matches_lapack_across_scales():
     kappa = np.linalg.cond(C)
     got, ref = cholesky_inverse_3(S) * d[:, None, :], _reference(S) * d[:, None, :]
     err = np.linalg.norm(got - ref, axis=(1, 2)) / np.linalg.norm(ref, axis=(1, 2))
-    assert np.all(err <= 10.0 * kappa ** 1.5 * EPS)
+    assert np.all(err <= 10.0 * kappa**1.5 * EPS)
     assert kappa.max() > 10.0 and np.linalg.cond(S).max() > 1e12  # really spread
 
 

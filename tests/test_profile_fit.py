@@ -1,4 +1,5 @@
 """``profile fit`` on a simulated static log (known noise) and on the real ADIS log."""
+
 from __future__ import annotations
 
 import math
@@ -20,9 +21,15 @@ REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
 ADIS = REALDATA / "adis16405-static-100hz.csv.gz"
 
 # The simulated unit: white noise and a first-order GM bias on every axis.
-TRUE = NoiseProfile("truth", gyro_arw_dph=0.1, accel_vrw_ug=50.0,
-                    gyro_bias_instability_dph=5.0, gyro_bias_correlation_s=10.0,
-                    accel_bias_instability_ug=50.0, accel_bias_correlation_s=10.0)
+TRUE = NoiseProfile(
+    "truth",
+    gyro_arw_dph=0.1,
+    accel_vrw_ug=50.0,
+    gyro_bias_instability_dph=5.0,
+    gyro_bias_correlation_s=10.0,
+    accel_bias_instability_ug=50.0,
+    accel_bias_correlation_s=10.0,
+)
 STATIC_S = 3000.0  # 300 GM correlation times
 
 
@@ -31,14 +38,25 @@ def static_log(path: Path, seed: int = 3) -> Path:
 
     The sequence's one flip comes after the static part, which is all we keep.
     """
-    seq = Sequence(name="static", start=("east", "south", "down"),
-                   steps=(Step("Z", 90.0, 10.0, 1.0),), initial_dwell_s=STATIC_S)
-    run, _ = simulate(seq, SimConfig(latitude_rad=math.radians(51.08), sample_rate_hz=100.0),
-                      ErrorModel.zero(), TRUE, seed=seed)
+    seq = Sequence(
+        name="static",
+        start=("east", "south", "down"),
+        steps=(Step("Z", 90.0, 10.0, 1.0),),
+        initial_dwell_s=STATIC_S,
+    )
+    run, _ = simulate(
+        seq,
+        SimConfig(latitude_rad=math.radians(51.08), sample_rate_hz=100.0),
+        ErrorModel.zero(),
+        TRUE,
+        seed=seed,
+    )
     keep = run.time_s <= STATIC_S
     meta = {k: v for k, v in run.meta.items() if k != "sequence"}
-    write_run(Run(time_s=run.time_s[keep], dtheta_rad=run.dtheta_rad[keep],
-                  dv_mps=run.dv_mps[keep], meta=meta), path)
+    write_run(
+        Run(time_s=run.time_s[keep], dtheta_rad=run.dtheta_rad[keep], dv_mps=run.dv_mps[keep], meta=meta),
+        path,
+    )
     return path
 
 
@@ -71,7 +89,7 @@ def test_simulated_static_log_recovers_the_noise(tmp_path):
 def independent_oadev(rate: np.ndarray, m: int) -> float:
     """Overlapping Allan deviation at m samples, straight from its definition (no allantools)."""
     phase = np.concatenate([[0.0], np.cumsum(rate)])
-    d = phase[2 * m:] - 2 * phase[m:-m] + phase[:-2 * m]
+    d = phase[2 * m :] - 2 * phase[m:-m] + phase[: -2 * m]
     return math.sqrt(np.mean(d**2) / 2.0) / m
 
 
@@ -79,8 +97,9 @@ def independent_oadev(rate: np.ndarray, m: int) -> float:
 @pytest.mark.skipif(not ADIS.exists(), reason="../shared/realdata is absent")
 def test_adis_log_against_an_independent_allan_deviation(tmp_path):
     out = tmp_path / "adis.toml"
-    result = CliRunner().invoke(main, ["profile", "fit", str(ADIS), "--latitude", "51.08",
-                                       "-o", str(out), "--no-plot", "--json"])
+    result = CliRunner().invoke(
+        main, ["profile", "fit", str(ADIS), "--latitude", "51.08", "-o", str(out), "--no-plot", "--json"]
+    )
     assert result.exit_code == 0, result.output
     fit = tomllib.loads(out.read_text())["fit"]
     run = read_run(ADIS, latitude_deg=51.08, height_m=1100.0)
@@ -89,8 +108,10 @@ def test_adis_log_against_an_independent_allan_deviation(tmp_path):
     # is -1/2 on every channel (checked below); the accelerometers' disturbance starts at ~0.3 s and
     # the gyros' shortest taus are bent by the sensor's filter.
     ms = np.array([4, 6, 8, 11, 16])
-    for sensor, data, key, unit in (("gyro", run.dtheta_rad, "arw_dph", math.radians(1) / 60),
-                                    ("accel", run.dv_mps, "vrw_ug", 9.80665e-6)):
+    for sensor, data, key, unit in (
+        ("gyro", run.dtheta_rad, "arw_dph", math.radians(1) / 60),
+        ("accel", run.dv_mps, "vrw_ug", 9.80665e-6),
+    ):
         for j in range(3):
             rate = data[:, j] / dt
             adev = np.array([independent_oadev(rate, m) for m in ms])
@@ -104,9 +125,10 @@ def test_adis_log_against_an_independent_allan_deviation(tmp_path):
     # deviation over octaves from 1 s to a tenth of the log (the floor is broad, so
     # octave sampling misses it by a few %; 15 %).
     octaves = 2 ** np.arange(7, 17)
-    for sensor, data, key, unit in (("gyro", run.dtheta_rad, "bias_instability_dph",
-                                     math.radians(1) / 3600),
-                                    ("accel", run.dv_mps, "bias_instability_ug", 9.80665e-6)):
+    for sensor, data, key, unit in (
+        ("gyro", run.dtheta_rad, "bias_instability_dph", math.radians(1) / 3600),
+        ("accel", run.dv_mps, "bias_instability_ug", 9.80665e-6),
+    ):
         for j in range(3):
             floor = min(independent_oadev(data[:, j] / dt, int(m)) for m in octaves)
             assert fit[sensor][key][j] * 0.6643 == pytest.approx(floor / unit, rel=0.15)
@@ -114,8 +136,10 @@ def test_adis_log_against_an_independent_allan_deviation(tmp_path):
 
 def test_refusals_through_the_cli(tmp_path):
     log = tmp_path / "logger.csv"
-    log.write_text("time_s,gyro_x_dps,gyro_y_dps,gyro_z_dps,accel_x_g,accel_y_g,accel_z_g\n"
-                   + "".join(f"{i / 100},0,0,0,0,0,-1\n" for i in range(1, 50)))
+    log.write_text(
+        "time_s,gyro_x_dps,gyro_y_dps,gyro_z_dps,accel_x_g,accel_y_g,accel_z_g\n"
+        + "".join(f"{i / 100},0,0,0,0,0,-1\n" for i in range(1, 50))
+    )
     runner = CliRunner()
     out = tmp_path / "p.toml"
     result = runner.invoke(main, ["profile", "fit", str(log), "-o", str(out)])

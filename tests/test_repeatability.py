@@ -1,4 +1,5 @@
 """``compare A.result.toml B.result.toml``: two calibrations of one unit (the paper's Table 3)."""
+
 from __future__ import annotations
 
 import json
@@ -11,8 +12,11 @@ from seqdesign.cli import main
 
 def _calibrated(folder, seed, errors_args):
     run = folder / f"run{seed}.npz"
-    res = CliRunner().invoke(main, ["simulate", "paper-9pos", "--seed", str(seed),
-                                    "--sample-rate-hz", "50", "-o", str(run)] + errors_args)
+    res = CliRunner().invoke(
+        main,
+        ["simulate", "paper-9pos", "--seed", str(seed), "--sample-rate-hz", "50", "-o", str(run)]
+        + errors_args,
+    )
     assert res.exit_code == 0, res.output
     out = folder / f"run{seed}.result.toml"
     res = CliRunner().invoke(main, ["calibrate", str(run), "-o", str(out)])
@@ -26,11 +30,16 @@ def results(tmp_path_factory):
     shifted = folder / "shifted.toml"
     # The same unit with its x gyro bias moved by 0.1 deg/h: ~30 combined sigmas.
     from conftest import SPEC_NAMES, table_column_units
+
     table2 = table_column_units("table2_simulation", "standard")
-    shifted.write_text("[errors]\n" + "".join(
-        f"{n} = {table2[n] + (0.1 if n == 'bgx' else 0.0)}\n" for n in SPEC_NAMES))
-    return (_calibrated(folder, 1, ["--table2"]), _calibrated(folder, 2, ["--table2"]),
-            _calibrated(folder, 3, ["--errors", str(shifted)]))
+    shifted.write_text(
+        "[errors]\n" + "".join(f"{n} = {table2[n] + (0.1 if n == 'bgx' else 0.0)}\n" for n in SPEC_NAMES)
+    )
+    return (
+        _calibrated(folder, 1, ["--table2"]),
+        _calibrated(folder, 2, ["--table2"]),
+        _calibrated(folder, 3, ["--errors", str(shifted)]),
+    )
 
 
 @pytest.mark.slow

@@ -1,4 +1,5 @@
 """Run logs: exact round trips, tolerant where the spec allows, precise refusals."""
+
 from __future__ import annotations
 
 import hashlib
@@ -15,8 +16,7 @@ from calib.fileio import atomic_write_bytes, atomic_write_text, sha256_file
 from calib.runlog import Run, check_run, make_meta, read_run, write_run
 
 HEADER = "time_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps"
-META = ["# format: imu-run/1", "# latitude_deg: 39.98", "# height_m: 50",
-        "# sample_rate_hz: 200"]
+META = ["# format: imu-run/1", "# latitude_deg: 39.98", "# height_m: 50", "# sample_rate_hz: 200"]
 ROW = "{t},1e-07,-2e-07,3e-07,0.001,0.049,-0.002"
 
 
@@ -24,17 +24,27 @@ def make_run(n: int = 40, gimbal: bool = False, seed: int = 1) -> Run:
     """A small valid run whose floats need all 17 digits to round-trip."""
     rng = np.random.default_rng(seed)
     time = np.arange(1, n + 1) / 200.0 + 1.0 / 3.0
-    meta = make_meta(39.98, 50.0, 200.0, gravity_mps2=9.80123, sequence="paper-9pos",
-                     operator="J. Doe", note="kept: unknown key")
-    return Run(time_s=time,
-               dtheta_rad=rng.normal(size=(n, 3)) * 1e-5,
-               dv_mps=rng.normal(size=(n, 3)) * 1e-3 + [0.0, 0.0, 0.049],
-               meta=meta,
-               gimbal_deg=rng.uniform(-400, 400, size=(n, 3)) if gimbal else None)
+    meta = make_meta(
+        39.98,
+        50.0,
+        200.0,
+        gravity_mps2=9.80123,
+        sequence="paper-9pos",
+        operator="J. Doe",
+        note="kept: unknown key",
+    )
+    return Run(
+        time_s=time,
+        dtheta_rad=rng.normal(size=(n, 3)) * 1e-5,
+        dv_mps=rng.normal(size=(n, 3)) * 1e-3 + [0.0, 0.0, 0.049],
+        meta=meta,
+        gimbal_deg=rng.uniform(-400, 400, size=(n, 3)) if gimbal else None,
+    )
 
 
-def csv_text(rows: int = 5, meta: list[str] | None = None, header: str = HEADER,
-             body: list[str] | None = None) -> str:
+def csv_text(
+    rows: int = 5, meta: list[str] | None = None, header: str = HEADER, body: list[str] | None = None
+) -> str:
     meta = META if meta is None else meta
     if body is None:
         body = [ROW.format(t=(i + 1) / 200.0) for i in range(rows)]
@@ -65,8 +75,12 @@ def save_npz(tmp_path, name: str = "run.npz", **arrays):
 
 
 def npz_arrays(run: Run) -> dict:
-    return {"time_s": run.time_s, "dtheta_rad": run.dtheta_rad, "dv_mps": run.dv_mps,
-            "meta": json.dumps(run.meta)}
+    return {
+        "time_s": run.time_s,
+        "dtheta_rad": run.dtheta_rad,
+        "dv_mps": run.dv_mps,
+        "meta": json.dumps(run.meta),
+    }
 
 
 def assert_same(a: Run, b: Run) -> None:
@@ -84,6 +98,7 @@ def assert_same(a: Run, b: Run) -> None:
 # --------------------------------------------------------------------------
 # Round trips and tolerated variations
 # --------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("suffix", [".csv", ".npz", ".CSV", ".Npz"])
 @pytest.mark.parametrize("gimbal", [False, True])
@@ -120,10 +135,15 @@ def test_properties(tmp_path):
 
 
 def test_column_order_and_extra_columns(tmp_path):
-    header = "note,dv_z_mps,dv_y_mps,dv_x_mps,inner_deg,time_s,middle_deg,dtheta_z_rad," \
-             "dtheta_y_rad,outer_deg,dtheta_x_rad,temp_c"
-    body = [f"ok {i},{0.3 + i},{0.2 + i},{0.1 + i},{i}.3,{(i + 1) / 200},{i}.2,"
-            f"{3e-7 * i},{2e-7 * i},{i}.1,{1e-7 * i},21.5" for i in range(3)]
+    header = (
+        "note,dv_z_mps,dv_y_mps,dv_x_mps,inner_deg,time_s,middle_deg,dtheta_z_rad,"
+        "dtheta_y_rad,outer_deg,dtheta_x_rad,temp_c"
+    )
+    body = [
+        f"ok {i},{0.3 + i},{0.2 + i},{0.1 + i},{i}.3,{(i + 1) / 200},{i}.2,"
+        f"{3e-7 * i},{2e-7 * i},{i}.1,{1e-7 * i},21.5"
+        for i in range(3)
+    ]
     run = read_run(write_text(tmp_path, csv_text(header=header, body=body)))
     assert np.array_equal(run.time_s, [0.005, 0.01, 0.015])
     assert np.array_equal(run.dv_mps[2], [2.1, 2.2, 2.3])
@@ -150,8 +170,9 @@ def test_blank_line_in_body_keeps_line_numbers(tmp_path):
 def test_npz_meta_numbers_and_extra_arrays_accepted(tmp_path):
     run = make_run()
     arrays = npz_arrays(run)
-    arrays["meta"] = json.dumps({"format": "imu-run/1", "latitude_deg": 39.98,
-                                 "height_m": 50, "sample_rate_hz": 200.0})
+    arrays["meta"] = json.dumps(
+        {"format": "imu-run/1", "latitude_deg": 39.98, "height_m": 50, "sample_rate_hz": 200.0}
+    )
     path = save_npz(tmp_path, temperature=np.zeros(3), **arrays)
     back = read_run(path)
     assert back.latitude_deg == 39.98 and back.height_m == 50.0
@@ -163,8 +184,13 @@ def test_npz_is_uncompressed_and_pickle_free(tmp_path):
     write_run(make_run(gimbal=True), path)
     with zipfile.ZipFile(path) as archive:
         assert {i.compress_type for i in archive.infolist()} == {zipfile.ZIP_STORED}
-        assert sorted(archive.namelist()) == ["dtheta_rad.npy", "dv_mps.npy",
-                                              "gimbal_deg.npy", "meta.npy", "time_s.npy"]
+        assert sorted(archive.namelist()) == [
+            "dtheta_rad.npy",
+            "dv_mps.npy",
+            "gimbal_deg.npy",
+            "meta.npy",
+            "time_s.npy",
+        ]
     with np.load(path, allow_pickle=False) as loaded:
         assert json.loads(str(loaded["meta"]))["format"] == "imu-run/1"
 
@@ -173,23 +199,27 @@ def test_npz_is_uncompressed_and_pickle_free(tmp_path):
 # CSV refusals
 # --------------------------------------------------------------------------
 
-@pytest.mark.parametrize("meta, parts", [
-    # A file without '# format:' is a logger's file (tests/test_columns.py) and reads.
-    (["# format: imu-run/2", *META[1:]], ["line 1", "unknown format 'imu-run/2'"]),
-    ([META[0], META[2], META[3]], ["'latitude_deg' is missing", "# latitude_deg:"]),
-    ([META[0], META[1], META[3]], ["'height_m' is missing"]),
-    (META[:3], ["'sample_rate_hz' is missing"]),
-    ([*META[:3], "# sample_rate_hz: 200 Hz"], ["line 4", "'200 Hz', not a number"]),
-    ([*META[:3], "# sample_rate_hz: 0"], ["line 4", "not positive"]),
-    ([*META[:3], "# sample_rate_hz: -100"], ["line 4", "not positive"]),
-    ([META[0], "# latitude_deg: 91", *META[2:]], ["line 2", "outside [-90, 90]"]),
-    ([META[0], "# latitude_deg: nan", *META[2:]], ["line 2", "not a finite number"]),
-    ([*META[:2], "# height_m: inf", META[3]], ["line 3", "not a finite number"]),
-    ([*META, "# gravity_mps2: -9.8"], ["line 5", "gravity_mps2", "not positive"]),
-    ([*META, "# gravity_mps2: NaN"], ["line 5", "gravity_mps2", "not a finite number"]),
-    ([*META, "# height_m: 60"], ["line 5", "appears twice", "line 3"]),
-    ([*META, "# : value"], ["line 5", "no key"]),
-])
+
+@pytest.mark.parametrize(
+    "meta, parts",
+    [
+        # A file without '# format:' is a logger's file (tests/test_columns.py) and reads.
+        (["# format: imu-run/2", *META[1:]], ["line 1", "unknown format 'imu-run/2'"]),
+        ([META[0], META[2], META[3]], ["'latitude_deg' is missing", "# latitude_deg:"]),
+        ([META[0], META[1], META[3]], ["'height_m' is missing"]),
+        (META[:3], ["'sample_rate_hz' is missing"]),
+        ([*META[:3], "# sample_rate_hz: 200 Hz"], ["line 4", "'200 Hz', not a number"]),
+        ([*META[:3], "# sample_rate_hz: 0"], ["line 4", "not positive"]),
+        ([*META[:3], "# sample_rate_hz: -100"], ["line 4", "not positive"]),
+        ([META[0], "# latitude_deg: 91", *META[2:]], ["line 2", "outside [-90, 90]"]),
+        ([META[0], "# latitude_deg: nan", *META[2:]], ["line 2", "not a finite number"]),
+        ([*META[:2], "# height_m: inf", META[3]], ["line 3", "not a finite number"]),
+        ([*META, "# gravity_mps2: -9.8"], ["line 5", "gravity_mps2", "not positive"]),
+        ([*META, "# gravity_mps2: NaN"], ["line 5", "gravity_mps2", "not a finite number"]),
+        ([*META, "# height_m: 60"], ["line 5", "appears twice", "line 3"]),
+        ([*META, "# : value"], ["line 5", "no key"]),
+    ],
+)
 def test_bad_metadata(tmp_path, meta, parts):
     refusal(write_text(tmp_path, csv_text(meta=meta)), *parts)
 
@@ -243,8 +273,13 @@ def test_wrong_number_of_fields(tmp_path, bad_row):
 def test_non_numeric_field(tmp_path):
     body = [ROW.format(t=(i + 1) / 200) for i in range(6)]
     body[4] = body[4].replace("0.049", "0.0x49")
-    refusal(write_text(tmp_path, csv_text(body=body)),
-            "line 10", "column dv_y_mps", "sample 4", "'0.0x49' is not a number")
+    refusal(
+        write_text(tmp_path, csv_text(body=body)),
+        "line 10",
+        "column dv_y_mps",
+        "sample 4",
+        "'0.0x49' is not a number",
+    )
 
 
 def test_comment_inside_data_is_a_bad_field(tmp_path):
@@ -256,8 +291,13 @@ def test_comment_inside_data_is_a_bad_field(tmp_path):
 def test_non_finite_sample(tmp_path, value):
     body = [ROW.format(t=(i + 1) / 200) for i in range(6)]
     body[3] = body[3].replace("-2e-07", value)
-    refusal(write_text(tmp_path, csv_text(body=body)),
-            "line 9", "column dtheta_y_rad", "sample 3", "not a finite number")
+    refusal(
+        write_text(tmp_path, csv_text(body=body)),
+        "line 9",
+        "column dtheta_y_rad",
+        "sample 3",
+        "not a finite number",
+    )
 
 
 def test_non_utf8_refused(tmp_path):
@@ -273,8 +313,7 @@ def test_time_must_strictly_increase(tmp_path):
     body = [ROW.format(t=t) for t in times]
     body[3] = body[3].replace("1e-07", "2e-07", 1)
     path = write_text(tmp_path, csv_text(body=body))
-    refusal(path, "line 9", "sample 3", "does not strictly increase",
-            "time_s = 0.015 follows 0.015")
+    refusal(path, "line 9", "sample 3", "does not strictly increase", "time_s = 0.015 follows 0.015")
     times = [0.005, 0.01, 0.008, 0.02]
     path = write_text(tmp_path, csv_text(body=[ROW.format(t=t) for t in times]))
     refusal(path, "line 8", "sample 2")
@@ -283,8 +322,7 @@ def test_time_must_strictly_increase(tmp_path):
 def test_exact_duplicate_rows_are_named_and_removed_when_allowed(tmp_path):
     times = [0.005, 0.01, 0.015, 0.015, 0.02]
     path = write_text(tmp_path, csv_text(body=[ROW.format(t=t) for t in times]))
-    refusal(path, "line 9", "sample 3", "1 sample(s) duplicated: 1 at t = 0.015 s",
-            "--allow-gaps")
+    refusal(path, "line 9", "sample 3", "1 sample(s) duplicated: 1 at t = 0.015 s", "--allow-gaps")
     run = read_run(path, allow_gaps=True)
     assert run.n_samples == 4 and run.clock.duplicates == [(0.015, 1)]
 
@@ -293,8 +331,15 @@ def test_dropped_samples_are_each_named(tmp_path):
     # Steps of 7 and 30 periods: 6 and 29 samples lost.
     times = [0.005, 0.01, 0.015, 0.05, 0.055, 0.205, 0.21]
     path = write_text(tmp_path, csv_text(body=[ROW.format(t=t) for t in times]))
-    refusal(path, "line 9", "sample 3", "35 sample(s) dropped", "6 at t = 0.02 s",
-            "29 at t = 0.06 s", "--allow-gaps")
+    refusal(
+        path,
+        "line 9",
+        "sample 3",
+        "35 sample(s) dropped",
+        "6 at t = 0.02 s",
+        "29 at t = 0.06 s",
+        "--allow-gaps",
+    )
     run = read_run(path, allow_gaps=True)
     assert run.n_samples == 42  # filled: the IMU's own count from 0.005 to 0.21 s
 
@@ -332,14 +377,16 @@ def test_missing_file_and_unknown_suffix(tmp_path):
 # NPZ refusals
 # --------------------------------------------------------------------------
 
+
 def test_npz_missing_arrays(tmp_path):
     arrays = npz_arrays(make_run())
     del arrays["dv_mps"], arrays["meta"]
     refusal(save_npz(tmp_path, **arrays), "lacks arrays", "'dv_mps'", "'meta'")
 
 
-@pytest.mark.parametrize("name, shape", [("time_s", (40, 1)), ("dtheta_rad", (40, 2)),
-                                         ("dv_mps", (39, 3)), ("gimbal_deg", (3,))])
+@pytest.mark.parametrize(
+    "name, shape", [("time_s", (40, 1)), ("dtheta_rad", (40, 2)), ("dv_mps", (39, 3)), ("gimbal_deg", (3,))]
+)
 def test_npz_wrong_shapes(tmp_path, name, shape):
     arrays = npz_arrays(make_run())
     arrays[name] = np.zeros(shape)
@@ -373,7 +420,7 @@ def test_npz_corrupted_member(tmp_path):
     data = bytearray(path.read_bytes())
     # Flip bytes inside dv_mps' data: the zip CRC check must catch it.
     start = data.find(b"dv_mps.npy") + 200
-    data[start:start + 8] = b"\x00" * 8
+    data[start : start + 8] = b"\x00" * 8
     path.write_bytes(bytes(data))
     refusal(path, "cannot read the archive")
 
@@ -384,10 +431,15 @@ def test_npz_refuses_pickle(tmp_path):
     refusal(save_npz(tmp_path, **arrays), "cannot read the archive", "pickle")
 
 
-@pytest.mark.parametrize("meta, part", [("{not json", "not valid JSON"),
-                                        ('["format", "imu-run/1"]', "not an object"),
-                                        ('{"format": "imu-run/1", "x": null}', "meta key 'x'"),
-                                        (np.zeros(2), "not one JSON string")])
+@pytest.mark.parametrize(
+    "meta, part",
+    [
+        ("{not json", "not valid JSON"),
+        ('["format", "imu-run/1"]', "not an object"),
+        ('{"format": "imu-run/1", "x": null}', "meta key 'x'"),
+        (np.zeros(2), "not one JSON string"),
+    ],
+)
 def test_npz_bad_meta(tmp_path, meta, part):
     arrays = npz_arrays(make_run())
     arrays["meta"] = meta
@@ -410,8 +462,7 @@ def test_npz_non_finite_names_element(tmp_path):
 def test_npz_gap_and_order(tmp_path):
     run = make_run()
     run.time_s[25:] += 1.0
-    message = refusal(save_npz(tmp_path, **npz_arrays(run)), "200 sample(s) dropped",
-                      "time_s[25]")
+    message = refusal(save_npz(tmp_path, **npz_arrays(run)), "200 sample(s) dropped", "time_s[25]")
     assert "--allow-gaps" in message
     assert read_run(tmp_path / "run.npz", allow_gaps=True).n_samples == 240
     run.time_s[30] = run.time_s[29]
@@ -421,6 +472,7 @@ def test_npz_gap_and_order(tmp_path):
 # --------------------------------------------------------------------------
 # Writing: validation and atomicity
 # --------------------------------------------------------------------------
+
 
 def test_write_refuses_invalid_runs(tmp_path):
     run = make_run()
@@ -514,8 +566,12 @@ def test_make_meta_round_trips_numbers():
 def test_big_csv_is_fast_enough(tmp_path):
     # A 20,000-sample slice; the 336,000-sample timing is in the module report.
     n = 20_000
-    run = Run(np.arange(1, n + 1) / 200.0, np.full((n, 3), 1e-7), np.full((n, 3), 0.049),
-              make_meta(40.0, 0.0, 200.0))
+    run = Run(
+        np.arange(1, n + 1) / 200.0,
+        np.full((n, 3), 1e-7),
+        np.full((n, 3), 0.049),
+        make_meta(40.0, 0.0, 200.0),
+    )
     path = tmp_path / "run.csv"
     write_run(run, path)
     assert read_run(path).n_samples == n

@@ -1,4 +1,5 @@
 """Physical sanity checks on runs and estimator guards: each gives the message a user sees."""
+
 from __future__ import annotations
 
 import math
@@ -20,13 +21,32 @@ RATE = 50.0  # Hz: enough for every check, fast to calibrate
 
 @pytest.fixture(scope="module")
 def good_run():
-    doc = {"name": "short", "start": ["east", "up", "south"], "initial_dwell_s": 40.0,
-           "step": [{"axis": a, "angle_deg": g, "dwell_s": 40.0}
-                    for a, g in [("Z", 90), ("Y", 90), ("X", -90), ("Y", -90), ("Y", -90),
-                                 ("X", -90), ("Y", -90), ("Z", 90)]]}
+    doc = {
+        "name": "short",
+        "start": ["east", "up", "south"],
+        "initial_dwell_s": 40.0,
+        "step": [
+            {"axis": a, "angle_deg": g, "dwell_s": 40.0}
+            for a, g in [
+                ("Z", 90),
+                ("Y", 90),
+                ("X", -90),
+                ("Y", -90),
+                ("Y", -90),
+                ("X", -90),
+                ("Y", -90),
+                ("Z", 90),
+            ]
+        ],
+    }
     seq = sequence_from_dict(doc, "short")
-    run, _ = simulate(seq, SimConfig(latitude_rad=LAT, sample_rate_hz=RATE),
-                      ErrorModel.from_table2(), load_profile("navigation"), seed=5)
+    run, _ = simulate(
+        seq,
+        SimConfig(latitude_rad=LAT, sample_rate_hz=RATE),
+        ErrorModel.from_table2(),
+        load_profile("navigation"),
+        seed=5,
+    )
     return run
 
 
@@ -40,8 +60,9 @@ def _calibrate(run, tmp_path, name="bad.npz"):
 
 
 def _variant(run, **arrays):
-    fields = dict(time_s=run.time_s, dtheta_rad=run.dtheta_rad, dv_mps=run.dv_mps,
-                  meta=dict(run.meta), gimbal_deg=None)
+    fields = dict(
+        time_s=run.time_s, dtheta_rad=run.dtheta_rad, dv_mps=run.dv_mps, meta=dict(run.meta), gimbal_deg=None
+    )
     fields.update(arrays)
     return Run(**fields)
 
@@ -96,18 +117,26 @@ def test_rest_that_moves_is_refused(good_run, tmp_path):
     dv = good_run.dv_mps.copy()
     n0 = int(55 * RATE)  # inside the second rest (49..89 s)
     rng = np.random.default_rng(0)
-    dv[n0:n0 + 500] += rng.normal(0, 0.05, (500, 3)) / RATE  # 0.05 m/s^2 vibration
+    dv[n0 : n0 + 500] += rng.normal(0, 0.05, (500, 3)) / RATE  # 0.05 m/s^2 vibration
     r, out = _calibrate(_variant(good_run, dv_mps=dv), tmp_path)
     assert r.exit_code == 2 and "is not at rest" in r.output and "rest 2" in r.output
 
 
 def test_fit_stopped_early_reports_not_converged(good_run):
     from calib.estimator import calibrate
+
     # One Gauss-Newton step cannot absorb the ~15 deg gyrocompassing error that Table 2's
     # 3 deg/h gyro bias causes: the fit must say it has not converged (the CLI then
     # refuses to write a result) rather than return numbers as if it had.
-    fit = calibrate(good_run.time_s, good_run.dtheta_rad, good_run.dv_mps, LAT, 9.8016969,
-                    load_profile("navigation"), max_iterations=1)
+    fit = calibrate(
+        good_run.time_s,
+        good_run.dtheta_rad,
+        good_run.dv_mps,
+        LAT,
+        9.8016969,
+        load_profile("navigation"),
+        max_iterations=1,
+    )
     assert not fit.converged
     assert fit.history[-1]["max_step_sigma"] > 1.0
 
@@ -116,11 +145,20 @@ def test_run_that_cannot_observe_parameters_is_refused_by_name(tmp_path):
     # Spinning about a vertical Z never lets X or Y see gravity: sax, say (and the
     # z accelerometer's bias vs scale factor) are unobservable. The CLI must name
     # them, not print numbers.
-    doc = {"name": "spin", "start": ["east", "north", "up"], "initial_dwell_s": 40.0,
-           "step": [{"axis": "Z", "angle_deg": 90.0, "dwell_s": 40.0} for _ in range(4)]}
+    doc = {
+        "name": "spin",
+        "start": ["east", "north", "up"],
+        "initial_dwell_s": 40.0,
+        "step": [{"axis": "Z", "angle_deg": 90.0, "dwell_s": 40.0} for _ in range(4)],
+    }
     seq = sequence_from_dict(doc, "spin")
-    run, _ = simulate(seq, SimConfig(latitude_rad=LAT, sample_rate_hz=RATE), ErrorModel.zero(),
-                      load_profile("navigation"), seed=2)
+    run, _ = simulate(
+        seq,
+        SimConfig(latitude_rad=LAT, sample_rate_hz=RATE),
+        ErrorModel.zero(),
+        load_profile("navigation"),
+        seed=2,
+    )
     r, out = _calibrate(run, tmp_path, "spin.npz")
     assert r.exit_code == 2 and "cannot observe" in r.output
     for name in ("sax", "say", "saz"):
@@ -133,20 +171,22 @@ def test_profile_too_optimistic_inflates_sigmas_and_says_so(good_run, tmp_path):
     # that noise density makes the whitened residual power ~4 per degree of freedom.
     # The tool must say so and scale every sigma by sqrt(chi2/dof) (Birge ratio).
     import json
+
     prof = tmp_path / "half.toml"
     prof.write_text('name = "half"\ngyro_arw_dph = 0.0005\naccel_vrw_ug = 5.0\n')
     path = tmp_path / "r.npz"
     write_run(good_run, path)
-    r = CliRunner().invoke(main, ["calibrate", str(path), "--profile", str(prof),
-                                  "-o", str(tmp_path / "half.toml.res"), "--json"])
+    r = CliRunner().invoke(
+        main,
+        ["calibrate", str(path), "--profile", str(prof), "-o", str(tmp_path / "half.toml.res"), "--json"],
+    )
     assert r.exit_code == 0, r.output
     assert "warning: residuals are" in r.stderr and "sigmas inflated" in r.stderr
     doc = json.loads(r.stdout)
     chi2 = doc["fit"]["chi2_per_dof"]
     assert 3.0 < chi2 < 5.0  # 4 expected; +-25 % covers the ARW/VRW mix of this short run
     assert doc["fit"]["sigma_scale"] == pytest.approx(math.sqrt(chi2))
-    r2 = CliRunner().invoke(main, ["calibrate", str(path), "-o", str(tmp_path / "nav.res"),
-                                   "--json"])
+    r2 = CliRunner().invoke(main, ["calibrate", str(path), "-o", str(tmp_path / "nav.res"), "--json"])
     nav = json.loads(r2.stdout)
     assert nav["fit"]["sigma_scale"] == 1.0
     # Halving the noise halves the raw sigmas; the Birge scaling brings them back near the
@@ -165,7 +205,11 @@ def test_polar_site_is_refused_with_the_reason(good_run, tmp_path):
 
 def test_sequence_with_flips_too_slow_to_detect_is_refused(tmp_path):
     from calib.errors import CalibError
-    doc = {"name": "slow", "start": ["east", "up", "south"],
-           "step": [{"axis": "Z", "angle_deg": 90.0, "rate_dps": 0.5}]}
+
+    doc = {
+        "name": "slow",
+        "start": ["east", "up", "south"],
+        "step": [{"axis": "Z", "angle_deg": 90.0, "rate_dps": 0.5}],
+    }
     with pytest.raises(CalibError, match="cannot be told from rest"):
         sequence_from_dict(doc, "slow.toml")

@@ -4,6 +4,7 @@
 its memory does not grow with the log; the answers must not depend on where
 the blocks end.
 """
+
 from __future__ import annotations
 
 import math
@@ -24,7 +25,7 @@ def _log(seed=3):
     n_rest, n_turn = 3000, int(round(9.0 * RATE_HZ))
     h = 1.0 / RATE_HZ
     rate = np.zeros((2 * n_rest + n_turn, 3))
-    rate[n_rest:n_rest + n_turn, 2] = FLIP_RATE
+    rate[n_rest : n_rest + n_turn, 2] = FLIP_RATE
     dtheta = rate * h + 1e-7 * rng.standard_normal(rate.shape)
     dv = np.tile([0.0, 0.0, 9.8 * h], (len(rate), 1)) + 1e-5 * rng.standard_normal(rate.shape)
     return dtheta, dv, np.full(len(rate), h)
@@ -38,8 +39,14 @@ def test_motion_diagnosis_does_not_depend_on_the_blocks(monkeypatch, block):
     cut = sanity.diagnose_motion(dtheta, dt, 0.01)
     # Sums carried across block ends in the whole-run order: the same floats; only the
     # sway RMS is summed in another order (rounding, 1e-12 of itself).
-    for name in ("has_flip", "max_rate_rad_s", "max_mean_rate_rad_s", "window_s",
-                 "mean_rate_rad_s", "sway_arcsec"):
+    for name in (
+        "has_flip",
+        "max_rate_rad_s",
+        "max_mean_rate_rad_s",
+        "window_s",
+        "mean_rate_rad_s",
+        "sway_arcsec",
+    ):
         assert np.array_equal(getattr(whole, name), getattr(cut, name)), name
     assert np.allclose(whole.sway_rate_arcsec_s, cut.sway_rate_arcsec_s, rtol=1e-12, atol=0)
     # The 1-s mean rate of a 10 deg/s turn is 10 deg/s (noise 1e-7 rad a sample: 1e-6 of it).

@@ -19,6 +19,7 @@ from what each parameter multiplies (conventions.md's sensor model):
   south, so its drift about a fixed horizontal axis is one with the Z gyro's
   misalignment terms the sequence cannot separate -> bgz not estimable.
 """
+
 from __future__ import annotations
 
 import json
@@ -34,12 +35,15 @@ ESTIMABLE = {"bgx", "bgy", "sgz", "bax", "bay", "sax", "say", "mayx"}
 Z_FLIPS = """name = "z-flips"
 start = ["east", "up", "south"]
 initial_dwell_s = 120
-""" + "".join(f"""
+""" + "".join(
+    f"""
 [[step]]
 axis = "Z"
 angle_deg = {a}
 dwell_s = 120
-""" for a in (90, 90, 90, 90, -90, -90))
+"""
+    for a in (90, 90, 90, 90, -90, -90)
+)
 
 
 @pytest.fixture(scope="module")
@@ -84,8 +88,16 @@ def test_analyze_text_names_them_and_what_motion_would_help(z_flips):
 # The paper's Table 2 values on the parameters this sequence can estimate, zero on the rest:
 # the unestimable ones are null only to first order, so Table 2's 100" misalignments left
 # unestimated would leak into sgz at second order ((4.8e-4 rad)^2 ~ 0.2 ppm).
-TABLE2_ESTIMABLE = {"bgx": 3.0, "bgy": 3.0, "sgz": 50.0, "bax": 3000.0, "bay": 3000.0,
-                    "sax": 30.0, "say": 30.0, "mayx": 50.0}
+TABLE2_ESTIMABLE = {
+    "bgx": 3.0,
+    "bgy": 3.0,
+    "sgz": 50.0,
+    "bax": 3000.0,
+    "bay": 3000.0,
+    "sax": 30.0,
+    "say": 30.0,
+    "mayx": 50.0,
+}
 
 
 @pytest.fixture(scope="module")
@@ -93,11 +105,12 @@ def z_run(z_flips, tmp_path_factory):
     folder = tmp_path_factory.mktemp("zrun")
     errors = folder / "errors.toml"
     from conftest import SPEC_NAMES
-    errors.write_text("[errors]\n" + "".join(f"{k} = {TABLE2_ESTIMABLE.get(k, 0.0)}\n"
-                                             for k in SPEC_NAMES))
+
+    errors.write_text("[errors]\n" + "".join(f"{k} = {TABLE2_ESTIMABLE.get(k, 0.0)}\n" for k in SPEC_NAMES))
     run = folder / "run.npz"
-    res = CliRunner().invoke(main, ["simulate", str(z_flips), "--errors", str(errors),
-                                    "--noise-free", "-o", str(run)])
+    res = CliRunner().invoke(
+        main, ["simulate", str(z_flips), "--errors", str(errors), "--noise-free", "-o", str(run)]
+    )
     assert res.exit_code == 0, res.output
     return run
 
@@ -109,8 +122,21 @@ def test_calibrate_refuses_naming_the_same_parameters(z_run, tmp_path):
         assert res.exit_code == 2
         assert "cannot observe" in res.stderr
         named = res.stderr.split("cannot estimate ")[1].split(" on their own")[0].split(", ")
-        assert set(named) == {"bgz", "sgx", "sgy", "mgxy", "mgxz", "mgyx", "mgyz", "mgzx",
-                              "mgzy", "baz", "saz", "mazx", "mazy"}
+        assert set(named) == {
+            "bgz",
+            "sgx",
+            "sgy",
+            "mgxy",
+            "mgxz",
+            "mgyx",
+            "mgyz",
+            "mgzx",
+            "mgzy",
+            "baz",
+            "saz",
+            "mazx",
+            "mazy",
+        }
         assert not out.exists()
 
 
@@ -131,5 +157,6 @@ def test_partial_fit_recovers_the_estimable_with_the_analysers_sigma(z_run, anal
         else:
             assert e["sigma"] is None and e["estimable"] is False
     from calib.result import CalibrationResult
+
     back = CalibrationResult.load(out)
     assert set(back.not_estimable) == set(analysis["not_estimable"])

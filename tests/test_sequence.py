@@ -1,4 +1,5 @@
 """Sequences: the paper's Table 1 from the shipped file, the flip rule, files in and out, refusals."""
+
 from __future__ import annotations
 
 import math
@@ -53,8 +54,7 @@ def test_rest_positions_gimbal_angles_match_table(paper_seq):
     for p, row in zip(pos, rows):
         want = [float(row["outer_deg"]), float(row["middle_deg"]), float(row["inner_deg"])]
         # Angles are rounded to 1e-9 deg by the code; the table is integral -> 1e-6 deg.
-        np.testing.assert_allclose(p.gimbal_deg, want, rtol=0, atol=1e-6,
-                                   err_msg=f"position {p.number}")
+        np.testing.assert_allclose(p.gimbal_deg, want, rtol=0, atol=1e-6, err_msg=f"position {p.number}")
         assert not p.gimbal_lock
 
 
@@ -66,8 +66,7 @@ def test_gimbal_table_obeys_gimbal_rule():
     for row, pos in zip(table1_gimbal(), table1_positions()):
         o, m, i = (math.radians(float(row[c])) for c in ("outer_deg", "middle_deg", "inner_deg"))
         C = C_start @ rot_about("Z", o) @ rot_about("X", m) @ rot_about("Y", i)
-        np.testing.assert_allclose(C, attitude(pos["pre_x"], pos["pre_y"], pos["pre_z"]),
-                                   atol=EXACT)
+        np.testing.assert_allclose(C, attitude(pos["pre_x"], pos["pre_y"], pos["pre_z"]), atol=EXACT)
         angles = [float(row[c]) for c in ("outer_deg", "middle_deg", "inner_deg")]
         if prev is not None:
             moved = [n for n, a, b in zip(("outer", "middle", "inner"), prev, angles) if a != b]
@@ -129,10 +128,14 @@ def test_save_load_round_trip(paper_seq, tmp_path):
 
 
 def test_round_trip_of_odd_values(tmp_path):
-    seq = Sequence(name="odd", start=("north", "east", "down"),
-                   steps=(Step("X", -37.5, 7.25, 0.0), Step("Z", 450.0, 20.0, 12.5)),
-                   initial_dwell_s=33.3, description="one\ntwo \"quoted\"",
-                   provenance={"objective": "worst ratio", "score": 1.25})
+    seq = Sequence(
+        name="odd",
+        start=("north", "east", "down"),
+        steps=(Step("X", -37.5, 7.25, 0.0), Step("Z", 450.0, 20.0, 12.5)),
+        initial_dwell_s=33.3,
+        description='one\ntwo "quoted"',
+        provenance={"objective": "worst ratio", "score": 1.25},
+    )
     path = tmp_path / "odd.toml"
     save_sequence(seq, path)
     back = load_sequence(path)
@@ -142,8 +145,11 @@ def test_round_trip_of_odd_values(tmp_path):
 
 def test_non_right_angle_loads_and_rotates(tmp_path):
     path = tmp_path / "odd.toml"
-    path.write_text('start = ["east", "up", "south"]\ninitial_dwell_s = 10\n'
-                    '[[step]]\naxis = "X"\nangle_deg = 37.5\ndwell_s = 20\n', "utf-8")
+    path.write_text(
+        'start = ["east", "up", "south"]\ninitial_dwell_s = 10\n'
+        '[[step]]\naxis = "X"\nangle_deg = 37.5\ndwell_s = 20\n',
+        "utf-8",
+    )
     seq = load_sequence(path)
     assert seq.name == "odd"  # defaults to the file stem
     assert seq.steps[0].rate_dps == 10.0  # default rate of the conventions
@@ -212,6 +218,7 @@ def test_every_shipped_sequence_starts_with_a_rest_calibrate_can_align_on():
     # end (designed-15min-gm, with a 10.0 s first rest, was once refused at a 10 s limit).
     from calib.estimator import FIRST_REST_MARGIN_S, MIN_ALIGN_S
     from calib.sequence import builtin_sequence_dir, load_sequence
+
     for path in sorted(builtin_sequence_dir().glob("*.toml")):
         seq = load_sequence(path)
         assert seq.initial_dwell_s >= MIN_ALIGN_S + FIRST_REST_MARGIN_S, path.name
@@ -221,9 +228,9 @@ def test_design_refuses_dwells_too_short_to_align_on(tmp_path):
     from click.testing import CliRunner
 
     from seqdesign.cli import main
+
     out = tmp_path / "d.toml"
-    r = CliRunner().invoke(main, ["design", "--budget-min", "5", "--min-dwell-s", "5",
-                                  "-o", str(out)])
+    r = CliRunner().invoke(main, ["design", "--budget-min", "5", "--min-dwell-s", "5", "-o", str(out)])
     assert r.exit_code == 2 and "Traceback" not in r.output
     assert "--min-dwell-s" in r.output and "align" in r.output
     assert not out.exists()

@@ -1,4 +1,5 @@
 """Simulator: rest physics, flips, injected errors, noise, flip errors, determinism, truth files."""
+
 from __future__ import annotations
 
 import math
@@ -63,15 +64,29 @@ def true_rest_physics(k):
 @pytest.fixture(scope="module")
 def table2_sim(paper_seq):
     cfg = SimConfig(latitude_rad=LAT)
-    return simulate(paper_seq, cfg, ErrorModel.from_table2(), load_profile("navigation"),
-                    setup_rotvec=np.radians(SETUP_DEG), noise=False, seed=2)
+    return simulate(
+        paper_seq,
+        cfg,
+        ErrorModel.from_table2(),
+        load_profile("navigation"),
+        setup_rotvec=np.radians(SETUP_DEG),
+        noise=False,
+        seed=2,
+    )
 
 
 @pytest.fixture(scope="module")
 def noisy_sim(paper_seq):
     cfg = SimConfig(latitude_rad=LAT)
-    return simulate(paper_seq, cfg, ErrorModel.from_table2(), load_profile("navigation"),
-                    setup_rotvec=np.radians(SETUP_DEG), noise=True, seed=7)
+    return simulate(
+        paper_seq,
+        cfg,
+        ErrorModel.from_table2(),
+        load_profile("navigation"),
+        setup_rotvec=np.radians(SETUP_DEG),
+        noise=True,
+        seed=7,
+    )
 
 
 def test_run_shape_and_time(clean_sim):
@@ -100,8 +115,9 @@ def test_rest_error_free_equals_gravity_and_earth_rate(clean_sim, k):
     # length b - a is a difference of rounded times: error <= ulp(2048 s) = 4.5e-13 s, i.e.
     # 1e-10 of a 5 ms sample -> tolerance 1e-10 of the increment.
     sel = middle(run, k)
-    np.testing.assert_allclose(run.dv_mps[sel], np.tile(f_true * DT, (sel.sum(), 1)),
-                               rtol=0, atol=1e-10 * 9.8 * DT)
+    np.testing.assert_allclose(
+        run.dv_mps[sel], np.tile(f_true * DT, (sel.sum(), 1)), rtol=0, atol=1e-10 * 9.8 * DT
+    )
 
 
 @pytest.mark.parametrize("k", range(1, N_POS + 1))
@@ -136,8 +152,8 @@ def test_noise_statistics(noisy_sim, table2_sim):
     noisy, _ = noisy_sim
     clean, _ = table2_sim
     # Same deterministic part -> the difference is the noise exactly.
-    e_t = (noisy.dtheta_rad - clean.dtheta_rad)
-    e_v = (noisy.dv_mps - clean.dv_mps)
+    e_t = noisy.dtheta_rad - clean.dtheta_rad
+    e_v = noisy.dv_mps - clean.dv_mps
     n = len(e_t)
     sd_t, sd_v = ARW_NAV * math.sqrt(DT), VRW_NAV * math.sqrt(DT)
     # Relative standard error of a sample std is 1/sqrt(2n) = 0.12 % for n = 338400:
@@ -202,8 +218,7 @@ def test_flip_integrates_to_its_angle(clean_sim, paper_seq, k):
         R = R @ rodrigues(d)
     want = C_pre.T @ rodrigues(earth_rate_enu(LAT) * FLIP_S) @ C_post
     assert np.linalg.norm(log_so3(R.T @ want)) < 1e-6
-    np.testing.assert_allclose(C_pre @ rot_about(s.axis, math.radians(s.angle_deg)), C_post,
-                               atol=1e-12)
+    np.testing.assert_allclose(C_pre @ rot_about(s.axis, math.radians(s.angle_deg)), C_post, atol=1e-12)
 
 
 def test_flip_increments_match_quadrature(clean_sim, paper_seq):
@@ -239,8 +254,9 @@ def test_flip_increments_match_quadrature(clean_sim, paper_seq):
 def test_flip_errors_realised_and_recorded(paper_seq):
     cfg = SimConfig(latitude_rad=LAT)
     A = 0.5
-    run, truth = simulate(paper_seq, cfg, ErrorModel.zero(), load_profile("navigation"),
-                          flip_error_deg=A, noise=False, seed=3)
+    run, truth = simulate(
+        paper_seq, cfg, ErrorModel.zero(), load_profile("navigation"), flip_error_deg=A, noise=False, seed=3
+    )
     e = truth.flip_errors_deg
     assert e.shape == (len(paper_seq.steps),)
     assert np.all(np.abs(e) <= A)
@@ -271,14 +287,23 @@ def test_no_flip_errors_by_default(clean_sim):
     np.testing.assert_array_equal(truth.flip_errors_deg, np.zeros(8))
 
 
-SHORT = Sequence(name="short", start=("east", "up", "south"),
-                 steps=(Step("Z", 90.0, 10.0, 5.0), Step("Y", -90.0, 10.0, 5.0)),
-                 initial_dwell_s=5.0)
+SHORT = Sequence(
+    name="short",
+    start=("east", "up", "south"),
+    steps=(Step("Z", 90.0, 10.0, 5.0), Step("Y", -90.0, 10.0, 5.0)),
+    initial_dwell_s=5.0,
+)
 
 
 def short_sim(seed, **kw):
-    return simulate(SHORT, SimConfig(latitude_rad=LAT), ErrorModel.from_table2(),
-                    load_profile("navigation"), seed=seed, **kw)
+    return simulate(
+        SHORT,
+        SimConfig(latitude_rad=LAT),
+        ErrorModel.from_table2(),
+        load_profile("navigation"),
+        seed=seed,
+        **kw,
+    )
 
 
 def test_same_seed_same_run_different_seed_different():
@@ -323,8 +348,7 @@ def test_encoder_angles_at_rest(clean_sim, k):
     sel = (run.time_s > t0 + DT / 2) & (run.time_s <= t1 - DT / 2)
     # The setup rotation must not enter (the gimbal sits on the base); grid angles are exact
     # to rounding of atan2 -> 1e-9 deg.
-    np.testing.assert_allclose(run.gimbal_deg[sel], np.tile(want, (sel.sum(), 1)),
-                               rtol=0, atol=1e-9)
+    np.testing.assert_allclose(run.gimbal_deg[sel], np.tile(want, (sel.sum(), 1)), rtol=0, atol=1e-9)
 
 
 def test_encoder_angles_continuous(clean_sim):
@@ -339,11 +363,16 @@ def test_encoder_angles_track_middle_gimbal_through_90():
     # gimbal: an encoder counts 0 -> 180 with outer and inner still at 0 (conventions: angles
     # continuous along a run, as encoders count). rest_positions must agree with the run log.
     from calib.sequence import rest_positions
-    seq = Sequence(name="mid", start=("east", "up", "south"),
-                   steps=(Step("X", 180.0, 10.0, 5.0), Step("Y", 90.0, 10.0, 5.0)),
-                   initial_dwell_s=5.0)
-    run, _ = simulate(seq, SimConfig(latitude_rad=LAT), ErrorModel.zero(),
-                      load_profile("navigation"), noise=False)
+
+    seq = Sequence(
+        name="mid",
+        start=("east", "up", "south"),
+        steps=(Step("X", 180.0, 10.0, 5.0), Step("Y", 90.0, 10.0, 5.0)),
+        initial_dwell_s=5.0,
+    )
+    run, _ = simulate(
+        seq, SimConfig(latitude_rad=LAT), ErrorModel.zero(), load_profile("navigation"), noise=False
+    )
     # Continuous: one 5 ms sample moves a gimbal by at most 10 deg/s * 5 ms = 0.05 deg.
     jumps = np.abs(np.diff(run.gimbal_deg, axis=0)).max(0)
     assert np.all(jumps <= 10.0 * DT + 1e-6), f"largest per-sample encoder step {jumps} deg"
@@ -360,10 +389,12 @@ def test_flip_not_aligned_with_samples():
     # 37.5 deg at 7 deg/s lasts 5.357 s: flip boundaries fall inside samples, which must be
     # split exactly. The axis component over the flip (with rest samples around it) is the
     # angle plus the constant axis component of the Earth rate.
-    seq = Sequence(name="odd", start=("east", "up", "south"),
-                   steps=(Step("X", 37.5, 7.0, 20.0),), initial_dwell_s=10.0)
-    run, _ = simulate(seq, SimConfig(latitude_rad=LAT), ErrorModel.zero(),
-                      load_profile("navigation"), noise=False)
+    seq = Sequence(
+        name="odd", start=("east", "up", "south"), steps=(Step("X", 37.5, 7.0, 20.0),), initial_dwell_s=10.0
+    )
+    run, _ = simulate(
+        seq, SimConfig(latitude_rad=LAT), ErrorModel.zero(), load_profile("navigation"), noise=False
+    )
     assert run.time_s.size == math.floor((10.0 + 37.5 / 7.0 + 20.0) * FS)
     C0 = attitude("east", "up", "south")
     w_n = earth_rate_enu(LAT)
@@ -376,15 +407,15 @@ def test_flip_not_aligned_with_samples():
     T = rest.sum() * DT
     g = normal_gravity(LAT, 0.0)
     np.testing.assert_allclose(run.dv_mps[rest].sum(0) / T, C1.T @ [0, 0, g], atol=1e-12 * g)
-    np.testing.assert_allclose(run.dtheta_rad[rest].sum(0) / T, C1.T @ w_n,
-                               atol=1e-12 * W_EARTH)
+    np.testing.assert_allclose(run.dtheta_rad[rest].sum(0) / T, C1.T @ w_n, atol=1e-12 * W_EARTH)
     # The samples straddling the flip's ends carry the partial rotation: no sample holds more
     # than a full sample's turn (7 deg/s * 5 ms) plus Earth rate.
     assert np.abs(run.dtheta_rad[:, 0]).max() <= math.radians(7.0) * DT + W_EARTH * DT
 
 
-@pytest.mark.parametrize("lat_deg,height,gravity", [(-30.0, 0.0, None), (60.0, 1500.0, None),
-                                                    (40.0, 0.0, 9.80123)])
+@pytest.mark.parametrize(
+    "lat_deg,height,gravity", [(-30.0, 0.0, None), (60.0, 1500.0, None), (40.0, 0.0, 9.80123)]
+)
 def test_site_latitude_height_and_measured_gravity(lat_deg, height, gravity):
     lat = math.radians(lat_deg)
     cfg = SimConfig(latitude_rad=lat, height_m=height, gravity_mps2=gravity)
@@ -395,8 +426,9 @@ def test_site_latitude_height_and_measured_gravity(lat_deg, height, gravity):
     T = sel.sum() * DT
     # Exact data: rounding only (1e-12 relative); a 1500 m height changes g by 4.6e-3 m/s^2.
     np.testing.assert_allclose(run.dv_mps[sel].sum(0) / T, C.T @ [0, 0, g], atol=1e-12 * g)
-    np.testing.assert_allclose(run.dtheta_rad[sel].sum(0) / T, C.T @ earth_rate_enu(lat),
-                               atol=1e-12 * W_EARTH)
+    np.testing.assert_allclose(
+        run.dtheta_rad[sel].sum(0) / T, C.T @ earth_rate_enu(lat), atol=1e-12 * W_EARTH
+    )
     if gravity is not None:
         assert float(run.meta["gravity_mps2"]) == gravity
     assert float(run.meta["height_m"]) == height
@@ -404,10 +436,8 @@ def test_site_latitude_height_and_measured_gravity(lat_deg, height, gravity):
 
 def test_tactical_profile_noise_level():
     prof = load_profile("tactical")
-    noisy, _ = simulate(SHORT, SimConfig(latitude_rad=LAT), ErrorModel.zero(), prof,
-                        noise=True, seed=21)
-    clean, _ = simulate(SHORT, SimConfig(latitude_rad=LAT), ErrorModel.zero(), prof,
-                        noise=False, seed=21)
+    noisy, _ = simulate(SHORT, SimConfig(latitude_rad=LAT), ErrorModel.zero(), prof, noise=True, seed=21)
+    clean, _ = simulate(SHORT, SimConfig(latitude_rad=LAT), ErrorModel.zero(), prof, noise=False, seed=21)
     n = noisy.time_s.size
     # conventions.md: tactical = 0.05 deg/sqrt(h), 50 ug/sqrt(Hz). Sample std of n = 6600:
     # relative standard error 1/sqrt(2n) = 0.9 % -> 5 % tolerance (~5.7 sigma).

@@ -1,4 +1,5 @@
 """Stationary-base strapdown: zero velocity on exact data, tilt and gyro-bias error growth, scans."""
+
 from __future__ import annotations
 
 import math
@@ -29,8 +30,15 @@ C_END = R_SETUP @ pre_attitudes()[-1]
 
 
 def nav_of(run, C0, dtheta=None, dv=None):
-    return navigate(run.dtheta_rad if dtheta is None else dtheta,
-                    run.dv_mps if dv is None else dv, run.time_s, C0, LAT, G, t0=0.0)
+    return navigate(
+        run.dtheta_rad if dtheta is None else dtheta,
+        run.dv_mps if dv is None else dv,
+        run.time_s,
+        C0,
+        LAT,
+        G,
+        t0=0.0,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -57,7 +65,7 @@ def test_exact_run_velocity_change_across_each_flip(true_nav):
     # 6e-8 m/s. A first-order-only compensation would leave |dtheta|^2 |dv| / 12 per sample,
     # ~6e-6 m/s per 90 deg flip: 1e-7 m/s separates the two.
     for k in range(1, N_POS):
-        before = int(round(rest_window(k)[1] * 200))   # index of the flip's start time
+        before = int(round(rest_window(k)[1] * 200))  # index of the flip's start time
         after = int(round((rest_window(k)[1] + 9.0) * 200))
         jump = true_nav.v_n[after] - true_nav.v_n[before]
         assert np.max(np.abs(jump)) < 1e-7, f"flip {k}: {jump}"
@@ -174,11 +182,11 @@ def test_quaternion_helpers_agree_with_rodrigues():
         np.testing.assert_allclose(quat_to_dcm(q), rodrigues(v), atol=1e-14)
     # Composition order: q(p) q(r) <-> R(p) R(r).
     p, r = rng.normal(size=3), rng.normal(size=3)
-    np.testing.assert_allclose(quat_to_dcm(quat_mult(rotvec_to_quat(p), rotvec_to_quat(r))),
-                               rodrigues(p) @ rodrigues(r), atol=1e-14)
+    np.testing.assert_allclose(
+        quat_to_dcm(quat_mult(rotvec_to_quat(p), rotvec_to_quat(r))), rodrigues(p) @ rodrigues(r), atol=1e-14
+    )
     # Zero and tiny rotations stay exact.
     np.testing.assert_allclose(rotvec_to_quat(np.zeros(3)), [1, 0, 0, 0], atol=0)
     tiny = np.array([1e-12, -2e-12, 3e-12])
     np.testing.assert_allclose(rotvec_to_quat(tiny)[1:], tiny / 2, rtol=1e-12)
-    np.testing.assert_allclose(quat_to_dcm(rotvec_to_quat(tiny)), np.eye(3) + skew(tiny),
-                               atol=1e-20)
+    np.testing.assert_allclose(quat_to_dcm(rotvec_to_quat(tiny)), np.eye(3) + skew(tiny), atol=1e-20)

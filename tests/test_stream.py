@@ -1,5 +1,6 @@
 """Long runs (issue 18): the streamed pass is the same navigation, the streamed fit the same fit,
 the streamed simulator the same simulator."""
+
 from __future__ import annotations
 
 import math
@@ -34,8 +35,16 @@ def paper():
 
 def _run(paper, rate_hz, noise, extra=None, seed=11):
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=rate_hz)
-    run, _ = simulate(paper, cfg, ErrorModel.from_table2(), load_profile("navigation"),
-                      setup_rotvec=SETUP, noise=noise, seed=seed, extra=extra)
+    run, _ = simulate(
+        paper,
+        cfg,
+        ErrorModel.from_table2(),
+        load_profile("navigation"),
+        setup_rotvec=SETUP,
+        noise=noise,
+        seed=seed,
+        extra=extra,
+    )
     return run, cfg
 
 
@@ -71,10 +80,10 @@ def test_streamed_pass_is_the_whole_run_navigation(paper):
     C_mid = 0.5 * (nav.C_b_n[1:] + nav.C_b_n[:-1])
     turn = X.earth_turn(C_mid, earth.omega_ie_n(LAT), dt)
 
-    chunks = stream.array_chunks(run.time_s, run.dtheta_rad, run.dv_mps, t0,
-                                 stream.chunk_cuts(grid, 300))
-    out = stream.navigate_pass(chunks, grid, stream.Site(LAT, cfg.gravity, t0), np.zeros(21),
-                               np.zeros(extras.n), C0, turn, extras)
+    chunks = stream.array_chunks(run.time_s, run.dtheta_rad, run.dv_mps, t0, stream.chunk_cuts(grid, 300))
+    out = stream.navigate_pass(
+        chunks, grid, stream.Site(LAT, cfg.gravity, t0), np.zeros(21), np.zeros(extras.n), C0, turn, extras
+    )
 
     def rel(a, b):
         return np.abs(a - b).max() / np.abs(b).max()
@@ -125,8 +134,9 @@ def test_streamed_simulation_is_the_simulation(paper, tmp_path, suffix):
     prof = load_profile("navigation")
     run, _ = simulate(paper, cfg, ErrorModel.from_table2(), prof, setup_rotvec=SETUP, noise=False)
     path = tmp_path / f"run{suffix}"
-    n, truth = simulate_to_file(path, paper, cfg, ErrorModel.from_table2(), prof, SETUP,
-                                noise=False, window=1000)
+    n, truth = simulate_to_file(
+        path, paper, cfg, ErrorModel.from_table2(), prof, SETUP, noise=False, window=1000
+    )
     back = read_run(path)
     assert n == len(run.time_s)
     assert np.array_equal(back.time_s, run.time_s)
@@ -142,11 +152,9 @@ def test_streamed_simulation_noise_has_the_profiles_density(paper, tmp_path):
     # ten of those.
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=20.0)
     prof = load_profile("tactical")
-    clean, _ = simulate(paper, cfg, ErrorModel.from_table2(), prof, setup_rotvec=SETUP,
-                        noise=False)
+    clean, _ = simulate(paper, cfg, ErrorModel.from_table2(), prof, setup_rotvec=SETUP, noise=False)
     path = tmp_path / "run.npz"
-    simulate_to_file(path, paper, cfg, ErrorModel.from_table2(), prof, SETUP, noise=True,
-                     seed=3, window=5000)
+    simulate_to_file(path, paper, cfg, ErrorModel.from_table2(), prof, SETUP, noise=True, seed=3, window=5000)
     run = read_run(path)
     dt = 1.0 / cfg.sample_rate_hz
     gyro = np.std(run.dtheta_rad - clean.dtheta_rad) / (prof.arw * math.sqrt(dt))
@@ -157,8 +165,7 @@ def test_streamed_simulation_noise_has_the_profiles_density(paper, tmp_path):
 def test_cli_simulate_stream_refuses_gauss_markov_and_unknown_suffix(tmp_path):
     runner = CliRunner()
     out = tmp_path / "run.npz"
-    r = runner.invoke(main, ["simulate-stream", "paper-9pos", "-o", str(out),
-                             "--profile", "navigation-gm"])
+    r = runner.invoke(main, ["simulate-stream", "paper-9pos", "-o", str(out), "--profile", "navigation-gm"])
     assert r.exit_code == 2
     assert "Gauss-Markov" in r.output and "Traceback" not in r.output
     assert not out.exists() and not list(tmp_path.iterdir())
@@ -170,8 +177,21 @@ def test_cli_simulate_stream_refuses_gauss_markov_and_unknown_suffix(tmp_path):
 
 def test_cli_simulate_stream_writes_run_and_truth(tmp_path):
     out = tmp_path / "run.npz"
-    r = CliRunner().invoke(main, ["simulate-stream", "paper-9pos", "-o", str(out), "--table2",
-                                  "--sample-rate-hz", "10", "--seed", "1", "--json"])
+    r = CliRunner().invoke(
+        main,
+        [
+            "simulate-stream",
+            "paper-9pos",
+            "-o",
+            str(out),
+            "--table2",
+            "--sample-rate-hz",
+            "10",
+            "--seed",
+            "1",
+            "--json",
+        ],
+    )
     assert r.exit_code == 0, r.output
     run = read_run(out)
     # 1692 s at 10 Hz.
@@ -184,11 +204,11 @@ def short_files(paper, tmp_path_factory):
     folder = tmp_path_factory.mktemp("chunks")
     run, cfg = _run(paper, 50.0, noise=True)
     from calib.runlog import write_run
+
     paths = [folder / "run.npz", folder / "run.csv"]
     for p in paths:
         write_run(run, p)
-    fit = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity,
-                    load_profile("navigation"))
+    fit = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, load_profile("navigation"))
     return paths, fit, cfg
 
 
@@ -197,6 +217,7 @@ def test_calibrating_from_disk_in_chunks_equals_calibrating_in_memory(short_file
     # Same samples, same chunk cuts at interval ends, same passes: the same numbers,
     # whatever the reading block (here 7777 rows, which never falls on a cut).
     from calib.chunks import calibrate_file
+
     paths, fit, cfg = short_files
     for p in paths:
         streamed = calibrate_file(p, LAT, cfg.gravity, load_profile("navigation"), rows=7777)
@@ -206,6 +227,7 @@ def test_calibrating_from_disk_in_chunks_equals_calibrating_in_memory(short_file
 
 def test_chunks_read_back_the_samples(short_files):
     from calib.chunks import read_chunks
+
     paths, _, _ = short_files
     whole = read_run(paths[0])
     for p in paths:
@@ -217,6 +239,7 @@ def test_chunks_read_back_the_samples(short_files):
 
 def test_cli_calibrate_stream_refuses_a_gap_and_a_log_without_rotation(paper, tmp_path):
     from calib.runlog import write_run
+
     run, cfg = _run(paper, 10.0, noise=False)
     keep = np.ones(run.n_samples, dtype=bool)
     keep[500:510] = False  # 1 s missing at 10 Hz
@@ -240,6 +263,7 @@ def test_cli_calibrate_stream_refuses_a_damaged_archive_and_a_missing_rate(paper
     assert r.exit_code == 2 and "not a readable NPZ run log" in r.output
     assert "Traceback" not in r.output
     from calib.runlog import write_run
+
     run, _ = _run(paper, 10.0, noise=False)
     write_run(run, tmp_path / "run.csv")
     text = (tmp_path / "run.csv").read_text().replace("# sample_rate_hz: 10.0\n", "")

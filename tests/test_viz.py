@@ -7,6 +7,7 @@ direction names (conftest.attitude). rerun keeps analytics files under the
 home directory, so HOME and XDG_* point into a temporary directory for the
 whole module.
 """
+
 from __future__ import annotations
 
 import json
@@ -29,10 +30,15 @@ from conftest import (
 
 from calib.review import review_run
 
-RATE_HZ = 40.0          # a short, fast run: 67680 samples for the 28-min sequence
+RATE_HZ = 40.0  # a short, fast run: 67680 samples for the 28-min sequence
 N_SAMPLES = int(round((N_POS * DWELL_S + (N_POS - 1) * FLIP_S) * RATE_HZ))
-GIMBAL_PATH = ["world/base", "world/base/gimbal", "world/base/gimbal/outer",
-               "world/base/gimbal/outer/middle", "world/base/gimbal/outer/middle/inner"]
+GIMBAL_PATH = [
+    "world/base",
+    "world/base/gimbal",
+    "world/base/gimbal/outer",
+    "world/base/gimbal/outer/middle",
+    "world/base/gimbal/outer/middle/inner",
+]
 REQ = {"bg": 0.03, "sg": 1.0, "mg": 15.0, "ba": 50.0, "sa": 1.0, "ma": 10.0}  # conventions.md
 
 
@@ -42,8 +48,11 @@ def private_home(tmp_path_factory):
     home = tmp_path_factory.mktemp("home")
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("HOME", str(home))
-        for var, sub in (("XDG_CONFIG_HOME", ".config"), ("XDG_DATA_HOME", ".local/share"),
-                         ("XDG_CACHE_HOME", ".cache")):
+        for var, sub in (
+            ("XDG_CONFIG_HOME", ".config"),
+            ("XDG_DATA_HOME", ".local/share"),
+            ("XDG_CACHE_HOME", ".cache"),
+        ):
             mp.setenv(var, str(home / sub))
         yield home
 
@@ -92,7 +101,7 @@ def world_attitude(rec, t: float) -> np.ndarray:
         if "time" in b.schema.names:
             k = np.searchsorted(times_of(b), t, side="right") - 1
             assert k >= 0
-            M = M[k:k + 1]
+            M = M[k : k + 1]
         C = C @ M[0]
     return C
 
@@ -123,16 +132,22 @@ def sim():
     from calib.sim import SimConfig, simulate
 
     seq = load_sequence("paper-9pos")
-    run, truth = simulate(seq, SimConfig(math.radians(40.0), sample_rate_hz=RATE_HZ),
-                          ErrorModel.from_table2(), load_profile("navigation"), seed=3)
+    run, truth = simulate(
+        seq,
+        SimConfig(math.radians(40.0), sample_rate_hz=RATE_HZ),
+        ErrorModel.from_table2(),
+        load_profile("navigation"),
+        seed=3,
+    )
     assert run.n_samples == N_SAMPLES
     return seq, run, truth
 
 
 def requirement_si(name: str) -> float:
     deg = math.pi / 180
-    si = {"bg": deg / 3600, "sg": 1e-6, "mg": deg / 3600, "ba": 9.80665e-6,
-          "sa": 1e-6, "ma": deg / 3600}[name[:2]]
+    si = {"bg": deg / 3600, "sg": 1e-6, "mg": deg / 3600, "ba": 9.80665e-6, "sa": 1e-6, "ma": deg / 3600}[
+        name[:2]
+    ]
     return REQ[name[:2]] * si
 
 
@@ -144,10 +159,17 @@ def result(sim):
     seq, run, truth = sim
     req = np.array([requirement_si(n) for n in SPEC_NAMES])
     sigma = 0.3 * req
-    return CalibrationResult(values=truth.errors.values + 0.5 * sigma, sigma=sigma,
-                             C_b_n0=attitude("east", "up", "south"), converged=True,
-                             iterations=3, residual_rms_mps=1e-4, profile="navigation",
-                             chi2_per_dof=1.0, correlation=np.eye(21))
+    return CalibrationResult(
+        values=truth.errors.values + 0.5 * sigma,
+        sigma=sigma,
+        C_b_n0=attitude("east", "up", "south"),
+        converged=True,
+        iterations=3,
+        residual_rms_mps=1e-4,
+        profile="navigation",
+        chi2_per_dof=1.0,
+        correlation=np.eye(21),
+    )
 
 
 @pytest.fixture(scope="module")
@@ -166,14 +188,29 @@ def recorded(sim, result, tmp_path_factory):
 
 def test_entities_present(recorded):
     path, summary, rec = recorded
-    for entity in ["about", "events", "world", "world/enu", "world/gravity", "world/label",
-                   *GIMBAL_PATH, "world/base/gimbal/outer/middle/inner/imu",
-                   "world/base/gimbal/outer/middle/inner/imu/axes",
-                   "signals/gyro_dps", "signals/accel_mps2", "residuals/before/velocity_mps",
-                   "residuals/after/velocity_mps", "attitude/gimbal_deg",
-                   "attitude/nav_minus_gimbal_arcsec", "sequence/position", "results/ratio",
-                   "results/error_over_requirement", "results/error_over_sigma",
-                   "results/correlation", "results/table"]:
+    for entity in [
+        "about",
+        "events",
+        "world",
+        "world/enu",
+        "world/gravity",
+        "world/label",
+        *GIMBAL_PATH,
+        "world/base/gimbal/outer/middle/inner/imu",
+        "world/base/gimbal/outer/middle/inner/imu/axes",
+        "signals/gyro_dps",
+        "signals/accel_mps2",
+        "residuals/before/velocity_mps",
+        "residuals/after/velocity_mps",
+        "attitude/gimbal_deg",
+        "attitude/nav_minus_gimbal_arcsec",
+        "sequence/position",
+        "results/ratio",
+        "results/error_over_requirement",
+        "results/error_over_sigma",
+        "results/correlation",
+        "results/table",
+    ]:
         assert entity in rec, entity
         assert entity in summary.entities, entity
     assert "encoders" in summary.scene_source and "truth" in summary.mount_source
@@ -303,8 +340,7 @@ def test_blueprint_is_stored(recorded):
 
     reader = RrdReader(str(recorded[0]))
     (blueprint,) = reader.blueprints()
-    views = {c.entity_path for c in reader.stream(store=blueprint)
-             if c.entity_path.startswith("/view/")}
+    views = {c.entity_path for c in reader.stream(store=blueprint) if c.entity_path.startswith("/view/")}
     assert len(views) >= 10  # 3D, text log, 7 time series, 2 bar charts, 3 tabs
 
 
@@ -344,8 +380,11 @@ def test_scene_from_sequence_without_encoders(sim, tmp_path):
     rec = read_back(tmp_path / "seq.rrd")
     for row in table1_positions():
         start, end = rest_window(int(row["position"]))
-        np.testing.assert_allclose(world_attitude(rec, 0.5 * (start + end)),
-                                   attitude(row["pre_x"], row["pre_y"], row["pre_z"]), atol=1e-6)
+        np.testing.assert_allclose(
+            world_attitude(rec, 0.5 * (start + end)),
+            attitude(row["pre_x"], row["pre_y"], row["pre_z"]),
+            atol=1e-6,
+        )
     assert "residuals/after/velocity_mps" not in rec and "results/ratio" not in rec
 
 
@@ -362,8 +401,11 @@ def test_scene_from_navigation(sim, result, tmp_path):
     rec = read_back(tmp_path / "nav.rrd")
     for row in table1_positions():
         start, end = rest_window(int(row["position"]))
-        np.testing.assert_allclose(world_attitude(rec, 0.5 * (start + end)),
-                                   attitude(row["pre_x"], row["pre_y"], row["pre_z"]), atol=1e-3)
+        np.testing.assert_allclose(
+            world_attitude(rec, 0.5 * (start + end)),
+            attitude(row["pre_x"], row["pre_y"], row["pre_z"]),
+            atol=1e-3,
+        )
     text = [x[0] for x in rec["events"][0].column("TextLog:text").to_pylist()]
     assert sum(x.startswith("flip") for x in text) == N_POS - 1
     assert sum(x.startswith("position") for x in text) == N_POS
@@ -393,11 +435,13 @@ def test_analysis_recording(tmp_path):
     for row in table1_positions():
         k = int(row["position"])
         M = matrices(batch_with(rec, f"positions/p{k}", "Transform3D:mat3x3"))[0]
-        np.testing.assert_allclose(M, attitude(row["pre_x"], row["pre_y"], row["pre_z"]),
-                                   atol=1e-6)
+        np.testing.assert_allclose(M, attitude(row["pre_x"], row["pre_y"], row["pre_z"]), atol=1e-6)
         start, end = rest_window(k)
-        np.testing.assert_allclose(world_attitude(rec, 0.5 * (start + end)),
-                                   attitude(row["pre_x"], row["pre_y"], row["pre_z"]), atol=1e-6)
+        np.testing.assert_allclose(
+            world_attitude(rec, 0.5 * (start + end)),
+            attitude(row["pre_x"], row["pre_y"], row["pre_z"]),
+            atol=1e-6,
+        )
     assert "sgy" in text_of(rec, "analysis/table")
 
 
@@ -434,7 +478,11 @@ def test_cli_defaults_beside_the_run(sim, result, tmp_path):
     assert doc["sequence"] == "paper-9pos"
     assert doc["entities"]["residuals/after/velocity_mps"] == N_SAMPLES
     assert sorted(p.name for p in tmp_path.iterdir()) == [
-        "run.npz", "run.result.toml", "run.rrd", "run.truth.toml"]
+        "run.npz",
+        "run.result.toml",
+        "run.rrd",
+        "run.truth.toml",
+    ]
     rec = read_back(tmp_path / "run.rrd")
     np.testing.assert_allclose(bars(rec, "results/error_over_requirement"), 0.15, rtol=1e-6)
 
@@ -448,19 +496,23 @@ def test_cli_skips_a_result_of_another_run(sim, result, tmp_path):
     assert json.loads(res.stdout)["result"] is None
     assert "different run" in res.stderr
     # Given explicitly, the same result is refused and nothing is written.
-    res = CliRunner().invoke(view, [str(run_path), "--result", str(tmp_path / "run.result.toml"),
-                                    "-o", str(tmp_path / "y.rrd")])
+    res = CliRunner().invoke(
+        view, [str(run_path), "--result", str(tmp_path / "run.result.toml"), "-o", str(tmp_path / "y.rrd")]
+    )
     assert res.exit_code == 2 and "Traceback" not in res.output
     assert not (tmp_path / "y.rrd").exists()
 
 
-@pytest.mark.parametrize("args", [
-    ["missing.npz"],
-    ["run.npz", "-o", "out.txt"],
-    ["run.npz", "--sequence", "no-such-sequence"],
-    ["run.npz", "--result", "missing.result.toml"],
-    ["run.npz", "-o", "no/such/dir/run.rrd"],
-])
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["missing.npz"],
+        ["run.npz", "-o", "out.txt"],
+        ["run.npz", "--sequence", "no-such-sequence"],
+        ["run.npz", "--result", "missing.result.toml"],
+        ["run.npz", "-o", "no/such/dir/run.rrd"],
+    ],
+)
 def test_cli_bad_input_one_line_nothing_written(sim, result, tmp_path, monkeypatch, args):
     from seqdesign.cli_view import view
 
@@ -504,8 +556,7 @@ def test_nothing_written_to_the_real_home(private_home):
 
 
 def labels_of(rec, entity, archetype):
-    return batch_with(rec, entity, f"{archetype}:labels").column(
-        f"{archetype}:labels").to_pylist()[0]
+    return batch_with(rec, entity, f"{archetype}:labels").column(f"{archetype}:labels").to_pylist()[0]
 
 
 def positions_of(rec, entity, archetype="Points2D", column="positions"):
@@ -513,8 +564,9 @@ def positions_of(rec, entity, archetype="Points2D", column="positions"):
     return b.column(f"{archetype}:{column}").to_pylist()[0]
 
 
-@pytest.mark.parametrize("entity", ["results/ratio", "results/error_over_requirement",
-                                    "results/error_over_sigma"])
+@pytest.mark.parametrize(
+    "entity", ["results/ratio", "results/error_over_requirement", "results/error_over_sigma"]
+)
 def test_result_bars_carry_the_parameter_names(recorded, entity):
     """Each bar is a 2D line in row i (spec order) labelled with parameter i's name; the names
     and the values are written beside the bars; bar lengths are proportional to the values."""
@@ -607,7 +659,7 @@ def test_noise_envelope_in_the_recording(recorded):
     g = normal_gravity(math.radians(40.0), 0.0)
     k = int(np.argmin(np.abs(t - 100.0)))
     tk = t[k]
-    horizontal = 3.0 * math.sqrt(VRW_NAV ** 2 * tk + g ** 2 * ARW_NAV ** 2 * tk ** 3 / 3.0)
+    horizontal = 3.0 * math.sqrt(VRW_NAV**2 * tk + g**2 * ARW_NAV**2 * tk**3 / 3.0)
     np.testing.assert_allclose(env[k, :2], horizontal, rtol=1e-2)
     np.testing.assert_allclose(env[k, 2], 3.0 * VRW_NAV * math.sqrt(tk), rtol=1e-2)
     assert np.all(np.diff(env[:, 0]) >= 0)  # an unbounded random walk only grows
@@ -630,8 +682,7 @@ def test_noise_sigma_matches_monte_carlo_spread():
     v = []
     for seed in range(40):
         run, truth = simulate(seq, cfg, ErrorModel(np.zeros(21)), profile, seed=seed)
-        nav = navigate(run.dtheta_rad, run.dv_mps, run.time_s, truth.R_setup @ seq.C_start,
-                       lat, cfg.gravity)
+        nav = navigate(run.dtheta_rad, run.dv_mps, run.time_s, truth.R_setup @ seq.C_start, lat, cfg.gravity)
         v.append(nav.v_n)
     v = np.array(v)
     t = nav.time_s - nav.time_s[0]
@@ -657,14 +708,20 @@ def test_calibrated_velocity_stays_inside_the_envelope():
     seq = load_sequence("paper-9pos")
     inside = []
     for seed in range(5):
-        run, _ = simulate(seq, SimConfig(math.radians(40.0), sample_rate_hz=10.0),
-                          ErrorModel.from_table2(), load_profile("navigation"), seed=seed,
-                          random_setup_deg=3.0)
+        run, _ = simulate(
+            seq,
+            SimConfig(math.radians(40.0), sample_rate_hz=10.0),
+            ErrorModel.from_table2(),
+            load_profile("navigation"),
+            seed=seed,
+            random_setup_deg=3.0,
+        )
         review = review_run(run, calibrate_run(run, "navigation", sequence=seq))
         assert review.noise_profile == "navigation"
         t = run.time_s - review.t0
-        sigma = np.column_stack([np.interp(t, review.noise_time, review.noise_sigma_v[:, i])
-                                 for i in range(3)])
+        sigma = np.column_stack(
+            [np.interp(t, review.noise_time, review.noise_sigma_v[:, i]) for i in range(3)]
+        )
         inside.append(np.abs(review.after.v_n[1:]) <= 3.0 * sigma)
     fraction = np.concatenate(inside).mean(axis=0)
     assert np.all(fraction >= 0.99), fraction
@@ -720,8 +777,10 @@ def test_rank_deficient_analysis_names_the_unobservable_bars(tmp_path):
     from viz.record import record_analysis
 
     path = tmp_path / "onez.toml"
-    path.write_text('name = "onez"\nstart = ["east", "up", "south"]\ninitial_dwell_s = 60\n'
-                    '[[step]]\naxis = "Z"\nangle_deg = 90\ndwell_s = 60\n')
+    path.write_text(
+        'name = "onez"\nstart = ["east", "up", "south"]\ninitial_dwell_s = 60\n'
+        '[[step]]\naxis = "Z"\nangle_deg = 90\ndwell_s = 60\n'
+    )
     seq = load_sequence(str(path))
     obs = analyze(seq, load_profile("navigation"), math.radians(40.0))
     assert obs.rank < 21

@@ -85,6 +85,7 @@ drawings (the BarChart and Tensor stay, for programs). TextLog rows are
 wrapped at ``EVENT_WIDTH`` characters (continuation rows indented) and the
 events view shows only time and message, so nothing is cut at 1920 px.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -105,9 +106,9 @@ from calib.fileio import default_mode, remove_quietly
 TIMELINE = "time"
 APPLICATION_ID = "seqdesign"
 
-SCENE_RATE_HZ = 20.0      # transforms at most this often at rest ...
-SCENE_STEP_DEG = 2.0      # ... and in addition every this many degrees of rotation
-SIGNAL_RATE_HZ = 20.0     # raw signals shown as block means at about this rate
+SCENE_RATE_HZ = 20.0  # transforms at most this often at rest ...
+SCENE_STEP_DEG = 2.0  # ... and in addition every this many degrees of rotation
+SIGNAL_RATE_HZ = 20.0  # raw signals shown as block means at about this rate
 
 # Entity paths.
 BASE = "world/base"
@@ -126,7 +127,7 @@ AXIS_LENGTH = 1.0
 PLATE_Z = -2.1
 GALLERY_STEP = 7.0  # between rest positions in the analysis gallery: room for their labels
 
-AXIS_COLORS = [(230, 60, 60), (60, 200, 60), (70, 110, 255)]       # X/E red, Y/N green, Z/U blue
+AXIS_COLORS = [(230, 60, 60), (60, 200, 60), (70, 110, 255)]  # X/E red, Y/N green, Z/U blue
 ENVELOPE_COLORS = [(240, 170, 170), (160, 215, 160), (170, 185, 250)]  # AXIS_COLORS, pale
 RING_COLORS = {"outer": (200, 140, 40), "middle": (150, 150, 160), "inner": (90, 170, 200)}
 
@@ -138,8 +139,8 @@ class Event:
     """A rest start or a flip start on the recording's time line."""
 
     time: float
-    kind: str          # "rest" or "flip"
-    number: int        # position number (rest) or flip number (flip), from 1
+    kind: str  # "rest" or "flip"
+    number: int  # position number (rest) or flip number (flip), from 1
     text: str
 
 
@@ -154,9 +155,13 @@ class Summary:
     mount_source: str = ""
 
     def to_dict(self) -> dict:
-        return {"rrd": self.path, "scene_source": self.scene_source,
-                "mount_source": self.mount_source, "entities": dict(self.entities),
-                "notes": list(self.notes)}
+        return {
+            "rrd": self.path,
+            "scene_source": self.scene_source,
+            "mount_source": self.mount_source,
+            "entities": dict(self.entities),
+            "notes": list(self.notes),
+        }
 
 
 # ---------------------------------------------------------------------------
@@ -176,21 +181,26 @@ class _Writer:
         self.rr = rr
         self.target = Path(path)
         if self.target.suffix.lower() != ".rrd":
-            raise CalibError(f"unknown recording format {self.target.suffix!r}", str(self.target),
-                             "name the recording .rrd")
+            raise CalibError(
+                f"unknown recording format {self.target.suffix!r}",
+                str(self.target),
+                "name the recording .rrd",
+            )
         directory = self.target.parent
         try:
             fd, tmp = tempfile.mkstemp(prefix=f".{self.target.name}.", suffix=".tmp", dir=directory)
         except OSError as exc:
-            raise CalibError(f"cannot write the file: {exc.strerror or exc}", str(self.target),
-                             "check that the directory exists and is writable") from None
+            raise CalibError(
+                f"cannot write the file: {exc.strerror or exc}",
+                str(self.target),
+                "check that the directory exists and is writable",
+            ) from None
         os.close(fd)
         self.tmp = tmp
         self.summary = Summary(path=str(self.target))
         self._static_only: set[str] = set()
         try:
-            rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id,
-                                     send_properties=False)
+            rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id, send_properties=False)
             rec.set_log_time_enabled(False)
             rec.set_log_tick_enabled(False)
             rec.save(tmp, default_blueprint=blueprint)
@@ -211,8 +221,11 @@ class _Writer:
 
     def columns(self, entity: str, times: np.ndarray, columns) -> None:
         rr = self.rr
-        self.rec.send_columns(entity, indexes=[rr.TimeColumn(TIMELINE, duration=np.asarray(
-            times, dtype=np.float64))], columns=columns)
+        self.rec.send_columns(
+            entity,
+            indexes=[rr.TimeColumn(TIMELINE, duration=np.asarray(times, dtype=np.float64))],
+            columns=columns,
+        )
         if entity in self._static_only:
             self._static_only.discard(entity)
             self.summary.entities[entity] = 0
@@ -224,8 +237,7 @@ class _Writer:
         values = np.asarray(values, dtype=np.float64)
         if values.ndim == 1:
             values = values[:, None]
-        self.static(entity, rr.SeriesLines(names=list(names), colors=colors,
-                                           widths=[1.0] * len(names)))
+        self.static(entity, rr.SeriesLines(names=list(names), colors=colors, widths=[1.0] * len(names)))
         self.columns(entity, times, rr.Scalars.columns(scalars=values))
 
     def note(self, text: str) -> None:
@@ -243,8 +255,11 @@ class _Writer:
             os.replace(self.tmp, self.target)
         except OSError as exc:
             remove_quietly(self.tmp)
-            raise CalibError(f"cannot write the file: {exc.strerror or exc}", str(self.target),
-                             "check free disk space and permissions") from None
+            raise CalibError(
+                f"cannot write the file: {exc.strerror or exc}",
+                str(self.target),
+                "check free disk space and permissions",
+            ) from None
         except BaseException:
             self.abort()
             raise
@@ -272,12 +287,14 @@ def _recording_id(*parts) -> str:
 
 def _rot(axis: int, angle_rad: np.ndarray) -> np.ndarray:
     from calib.transform import rot_axis
+
     return rot_axis(axis, angle_rad)
 
 
 def _gimbal_from_attitudes(C_start: np.ndarray, C_b_n: np.ndarray) -> np.ndarray:
     """Continuous gimbal angles (rad, ``(n, 3)``) of densely sampled attitudes."""
     from calib.transform import gimbal_from_relative, unwrap_gimbal
+
     C_rel = np.einsum("ji,njk->nik", C_start, C_b_n)
     return unwrap_gimbal(gimbal_from_relative(C_rel))
 
@@ -286,8 +303,9 @@ def _gimbal_matrix(angles_rad: np.ndarray) -> np.ndarray:
     return _rot(2, angles_rad[:, 0]) @ _rot(0, angles_rad[:, 1]) @ _rot(1, angles_rad[:, 2])
 
 
-def scene_indices(time_rel: np.ndarray, dtheta: np.ndarray, rate_hz: float = SCENE_RATE_HZ,
-                  step_deg: float = SCENE_STEP_DEG) -> np.ndarray:
+def scene_indices(
+    time_rel: np.ndarray, dtheta: np.ndarray, rate_hz: float = SCENE_RATE_HZ, step_deg: float = SCENE_STEP_DEG
+) -> np.ndarray:
     """Samples that carry a scene transform: one per ``1/rate_hz`` and one per ``step_deg`` turned.
 
     The turned angle is the gyros' accumulated ``|dtheta|``, so flips are
@@ -350,7 +368,7 @@ def wrap_event(text: str, width: int = EVENT_WIDTH) -> list[str]:
         while len(row) > width and " " in row[2:width]:
             cut = row.rindex(" ", 2, width)
             out.append(row[:cut])
-            row = "  " + row[cut + 1:]
+            row = "  " + row[cut + 1 :]
         out.append(row)
     return out
 
@@ -368,11 +386,19 @@ def sequence_events(seq, t_shift: float = 0.0) -> list[Event]:
         if tl.rate[i] == 0.0:
             p = positions[int(tl.position[i])]
             lock = "; GIMBAL LOCK" if p.gimbal_lock else ""
-            events.append(Event(t, _REST, p.number, (
-                f"position {p.number}: X {p.directions[0]}, Y {p.directions[1]}, "
-                f"Z {p.directions[2]}; gimbal outer {p.gimbal_deg[0]:.1f}, middle "
-                f"{p.gimbal_deg[1]:.1f}, inner {p.gimbal_deg[2]:.1f} deg; rest "
-                f"{tl.t1[i] - tl.t0[i]:.0f} s{lock}")))
+            events.append(
+                Event(
+                    t,
+                    _REST,
+                    p.number,
+                    (
+                        f"position {p.number}: X {p.directions[0]}, Y {p.directions[1]}, "
+                        f"Z {p.directions[2]}; gimbal outer {p.gimbal_deg[0]:.1f}, middle "
+                        f"{p.gimbal_deg[1]:.1f}, inner {p.gimbal_deg[2]:.1f} deg; rest "
+                        f"{tl.t1[i] - tl.t0[i]:.0f} s{lock}"
+                    ),
+                )
+            )
         else:
             k = int(tl.step[i])
             s = seq.steps[k]
@@ -380,31 +406,50 @@ def sequence_events(seq, t_shift: float = 0.0) -> list[Event]:
             after = [p for p in positions.values() if p.start_s >= tl.t1[i] - 1e-9]
             moved = ""
             if before and after:
-                d = np.abs(min(after, key=lambda p: p.start_s).gimbal_deg
-                           - max(before, key=lambda p: p.end_s).gimbal_deg)
+                d = np.abs(
+                    min(after, key=lambda p: p.start_s).gimbal_deg
+                    - max(before, key=lambda p: p.end_s).gimbal_deg
+                )
                 moved = f" ({gimbal_names[int(np.argmax(d))]} gimbal)"
-            events.append(Event(t, _FLIP, k + 1, f"flip {k + 1}: about body {s.axis} by "
-                                f"{s.angle_deg:+g} deg at {s.rate_dps:g} deg/s{moved}"))
+            events.append(
+                Event(
+                    t,
+                    _FLIP,
+                    k + 1,
+                    f"flip {k + 1}: about body {s.axis} by "
+                    f"{s.angle_deg:+g} deg at {s.rate_dps:g} deg/s{moved}",
+                )
+            )
     return events
 
 
-def motion_events(time_rel: np.ndarray, dt: np.ndarray, dtheta: np.ndarray,
-                  moving: np.ndarray) -> list[Event]:
+def motion_events(
+    time_rel: np.ndarray, dt: np.ndarray, dtheta: np.ndarray, moving: np.ndarray
+) -> list[Event]:
     """Rest and flip starts found from the gyros, with each flip's measured angle."""
     edges = np.flatnonzero(np.diff(np.concatenate([[0], moving.astype(np.int8), [0]])))
     starts, ends = edges[::2], edges[1::2]
-    events = [Event(0.0, _REST, 1, "position 1 (rest, from the gyros)")] if (
-        len(starts) == 0 or starts[0] > 0) else []
+    events = (
+        [Event(0.0, _REST, 1, "position 1 (rest, from the gyros)")]
+        if (len(starts) == 0 or starts[0] > 0)
+        else []
+    )
     for k, (a, b) in enumerate(zip(starts, ends)):
         rv = dtheta[a:b].sum(axis=0)
         ax = int(np.argmax(np.abs(rv)))
-        events.append(Event(float(time_rel[a] - dt[a]), _FLIP, k + 1,
-                            f"flip {k + 1}: about body {'XYZ'[ax]} by "
-                            f"{math.degrees(rv[ax]):+.2f} deg (integrated gyros)"))
+        events.append(
+            Event(
+                float(time_rel[a] - dt[a]),
+                _FLIP,
+                k + 1,
+                f"flip {k + 1}: about body {'XYZ'[ax]} by {math.degrees(rv[ax]):+.2f} deg (integrated gyros)",
+            )
+        )
         if b < len(time_rel):
             number = len([e for e in events if e.kind == _REST]) + 1
-            events.append(Event(float(time_rel[b] - dt[b]), _REST, number,
-                                f"position {number} (rest, from the gyros)"))
+            events.append(
+                Event(float(time_rel[b] - dt[b]), _REST, number, f"position {number} (rest, from the gyros)")
+            )
     return events
 
 
@@ -423,68 +468,129 @@ def _log_scene_static(w: _Writer, R_mount: np.ndarray, C_start: np.ndarray, grav
     rr = w.rr
     w.static("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP)
     corner = np.array([-1.9, -1.9, PLATE_Z + 0.02])
-    w.static("world/enu", rr.Arrows3D(origins=[corner] * 3, vectors=np.eye(3) * 0.9,
-                                      labels=["E", "N", "U"], colors=AXIS_COLORS,
-                                      radii=0.025))
-    w.static("world/gravity", rr.Arrows3D(origins=[[2.0, 2.0, 1.2]], vectors=[[0.0, 0.0, -1.2]],
-                                          labels=[f"g = {gravity:.6f} m/s^2"],
-                                          colors=[(150, 90, 210)], radii=0.03))
+    w.static(
+        "world/enu",
+        rr.Arrows3D(
+            origins=[corner] * 3,
+            vectors=np.eye(3) * 0.9,
+            labels=["E", "N", "U"],
+            colors=AXIS_COLORS,
+            radii=0.025,
+        ),
+    )
+    w.static(
+        "world/gravity",
+        rr.Arrows3D(
+            origins=[[2.0, 2.0, 1.2]],
+            vectors=[[0.0, 0.0, -1.2]],
+            labels=[f"g = {gravity:.6f} m/s^2"],
+            colors=[(150, 90, 210)],
+            radii=0.03,
+        ),
+    )
     # Base: mounting rotation, plate, and the stand holding the outer axis.
     pivot = C_start[:, 2] * RING_RADIUS["outer"]
     stand = [np.array([[p[0], p[1], PLATE_Z], p]) for p in (pivot, -pivot)]
-    w.static(BASE, rr.Transform3D(mat3x3=R_mount),
-             rr.Boxes3D(centers=[[0.0, 0.0, PLATE_Z - 0.05]], half_sizes=[[2.2, 2.2, 0.05]],
-                        colors=[(110, 110, 110)], fill_mode="solid"),
-             rr.LineStrips3D(stand, colors=[(160, 160, 160)] * 2, radii=0.04))
+    w.static(
+        BASE,
+        rr.Transform3D(mat3x3=R_mount),
+        rr.Boxes3D(
+            centers=[[0.0, 0.0, PLATE_Z - 0.05]],
+            half_sizes=[[2.2, 2.2, 0.05]],
+            colors=[(110, 110, 110)],
+            fill_mode="solid",
+        ),
+        rr.LineStrips3D(stand, colors=[(160, 160, 160)] * 2, radii=0.04),
+    )
     w.static(GIMBAL, rr.Transform3D(mat3x3=C_start))
     # Rings: each contains its own axis and the next gimbal's axis.
-    for entity, name, plane in ((OUTER, "outer", "xz"), (MIDDLE, "middle", "xy"),
-                                (INNER, "inner", "yz")):
-        w.static(entity, rr.LineStrips3D([_ring(RING_RADIUS[name], plane)],
-                                         colors=[RING_COLORS[name]], radii=0.035,
-                                         labels=[f"{name} gimbal"], show_labels=False))
-    w.static(IMU, rr.Boxes3D(half_sizes=[IMU_HALF_SIZE], colors=[(235, 200, 80)],
-                             fill_mode="solid", labels=["IMU"], show_labels=False))
-    w.static(IMU_AXES, rr.Arrows3D(vectors=np.eye(3) * AXIS_LENGTH, labels=["X", "Y", "Z"],
-                                   colors=AXIS_COLORS, radii=0.03))
+    for entity, name, plane in ((OUTER, "outer", "xz"), (MIDDLE, "middle", "xy"), (INNER, "inner", "yz")):
+        w.static(
+            entity,
+            rr.LineStrips3D(
+                [_ring(RING_RADIUS[name], plane)],
+                colors=[RING_COLORS[name]],
+                radii=0.035,
+                labels=[f"{name} gimbal"],
+                show_labels=False,
+            ),
+        )
+    w.static(
+        IMU,
+        rr.Boxes3D(
+            half_sizes=[IMU_HALF_SIZE],
+            colors=[(235, 200, 80)],
+            fill_mode="solid",
+            labels=["IMU"],
+            show_labels=False,
+        ),
+    )
+    w.static(
+        IMU_AXES,
+        rr.Arrows3D(vectors=np.eye(3) * AXIS_LENGTH, labels=["X", "Y", "Z"], colors=AXIS_COLORS, radii=0.03),
+    )
 
 
-def _log_scene(w: _Writer, times: np.ndarray, angles_rad: np.ndarray, R_mount: np.ndarray,
-               C_start: np.ndarray, gravity: float, events: list[Event]) -> None:
+def _log_scene(
+    w: _Writer,
+    times: np.ndarray,
+    angles_rad: np.ndarray,
+    R_mount: np.ndarray,
+    C_start: np.ndarray,
+    gravity: float,
+    events: list[Event],
+) -> None:
     rr = w.rr
     _log_scene_static(w, R_mount, C_start, gravity)
     for entity, axis, k in ((OUTER, 2, 0), (MIDDLE, 0, 1), (INNER, 1, 2)):
         w.columns(entity, times, rr.Transform3D.columns(mat3x3=_rot(axis, angles_rad[:, k])))
-    w.series("attitude/gimbal_deg", times, np.degrees(angles_rad), ["outer", "middle", "inner"],
-             [RING_COLORS["outer"], RING_COLORS["middle"], RING_COLORS["inner"]])
+    w.series(
+        "attitude/gimbal_deg",
+        times,
+        np.degrees(angles_rad),
+        ["outer", "middle", "inner"],
+        [RING_COLORS["outer"], RING_COLORS["middle"], RING_COLORS["inner"]],
+    )
     w.series("sequence/position", times, position_series(events, times), ["position"])
     if events:
         ev_t = np.array([e.time for e in events])
-        rows = [(e.time, line, "INFO" if e.kind == _REST else "DEBUG")
-                for e in events for line in wrap_event(e.text)]
-        w.columns("events", np.array([r[0] for r in rows]), rr.TextLog.columns(
-            text=[r[1] for r in rows], level=[r[2] for r in rows]))
+        rows = [
+            (e.time, line, "INFO" if e.kind == _REST else "DEBUG")
+            for e in events
+            for line in wrap_event(e.text)
+        ]
+        w.columns(
+            "events",
+            np.array([r[0] for r in rows]),
+            rr.TextLog.columns(text=[r[1] for r in rows], level=[r[2] for r in rows]),
+        )
         label = [e.text.split(":")[0] + (" (turning)" if e.kind == _FLIP else "") for e in events]
-        w.columns("world/label", ev_t, rr.Points3D.columns(
-            positions=np.tile([0.0, 0.0, 2.4], (len(events), 1)), labels=label,
-            colors=np.tile([60, 60, 60, 255], (len(events), 1)).astype(np.uint8)))
+        w.columns(
+            "world/label",
+            ev_t,
+            rr.Points3D.columns(
+                positions=np.tile([0.0, 0.0, 2.4], (len(events), 1)),
+                labels=label,
+                colors=np.tile([60, 60, 60, 255], (len(events), 1)).astype(np.uint8),
+            ),
+        )
 
 
 # ---------------------------------------------------------------------------
 # Labelled charts (rr.BarChart and rr.Tensor carry no category names)
 
-BAR_LENGTH = 12.0   # 2D units of the longest bar (or of the value 1, if all are shorter)
+BAR_LENGTH = 12.0  # 2D units of the longest bar (or of the value 1, if all are shorter)
 BAR_HALF_HEIGHT = 0.35  # of a row of 1 unit: bars are lines this thick (Boxes2D are not filled)
-NAME_X = -1.6       # centre of the names, left of the zero line (labels are drawn centred)
+NAME_X = -1.6  # centre of the names, left of the zero line (labels are drawn centred)
 # rerun draws a point's label centred horizontally and just BELOW the point: a label
 # point LABEL_LIFT above its row's centre puts the text on the row at the zooms
 # the views open with (rows of 13-20 px; the text's centre is ~12 px below the point).
 LABEL_LIFT = 0.7
-VALUE_GAP = 1.4     # centre of a value label, beyond the end of its bar
+VALUE_GAP = 1.4  # centre of a value label, beyond the end of its bar
 LABEL_COLOR = (40, 40, 40)
 GUIDE_COLOR = (150, 150, 150)
-COLUMN_LABEL_LEVELS = 3   # column names of a matrix on this many lines, every third on one
-COLUMN_LABEL_STEP = 1.1   # 2D units between those lines (a cell is 1)
+COLUMN_LABEL_LEVELS = 3  # column names of a matrix on this many lines, every third on one
+COLUMN_LABEL_STEP = 1.1  # 2D units between those lines (a cell is 1)
 
 
 def bar_lines(values: np.ndarray) -> tuple[np.ndarray, float]:
@@ -517,21 +623,38 @@ def _labelled_bars(w: _Writer, entity: str, values: np.ndarray, color, guide: st
     names = list(P.NAMES[:n])
     w.static(entity, rr.BarChart(v, abscissa=np.arange(n, dtype=np.float64), color=color))
     lines, scale = bar_lines(v)
-    w.static(entity, rr.LineStrips2D(lines, radii=BAR_HALF_HEIGHT, colors=[color] * n,
-                                     labels=names, show_labels=False))
+    w.static(
+        entity,
+        rr.LineStrips2D(lines, radii=BAR_HALF_HEIGHT, colors=[color] * n, labels=names, show_labels=False),
+    )
     y = lines[:, 0, 1] - LABEL_LIFT
-    w.static(f"{entity}/names", rr.Points2D(np.c_[np.full(n, NAME_X), y], radii=0.01, labels=names,
-                                            colors=[LABEL_COLOR] * n, show_labels=True))
+    w.static(
+        f"{entity}/names",
+        rr.Points2D(
+            np.c_[np.full(n, NAME_X), y], radii=0.01, labels=names, colors=[LABEL_COLOR] * n, show_labels=True
+        ),
+    )
     end = lines[:, 1, 0]
-    w.static(f"{entity}/values", rr.Points2D(
-        np.c_[end + np.where(end < 0, -VALUE_GAP, VALUE_GAP), y], radii=0.01,
-        labels=[f"{x:.2f}" if np.isfinite(x) else "unobservable" for x in v],
-        colors=[LABEL_COLOR] * n, show_labels=True))
+    w.static(
+        f"{entity}/values",
+        rr.Points2D(
+            np.c_[end + np.where(end < 0, -VALUE_GAP, VALUE_GAP), y],
+            radii=0.01,
+            labels=[f"{x:.2f}" if np.isfinite(x) else "unobservable" for x in v],
+            colors=[LABEL_COLOR] * n,
+            show_labels=True,
+        ),
+    )
     marks = [0.0, scale] + ([-scale] if np.nanmin(np.where(np.isfinite(v), v, 0.0)) < 0 else [])
-    w.static(f"{entity}/guide", rr.LineStrips2D([[[x, 0.0], [x, float(n)]] for x in marks],
-                                                colors=[GUIDE_COLOR] * len(marks), radii=0.04),
-             rr.Points2D([[scale, -0.8 - LABEL_LIFT]], radii=0.01, labels=[guide], colors=[GUIDE_COLOR],
-                         show_labels=True))
+    w.static(
+        f"{entity}/guide",
+        rr.LineStrips2D(
+            [[[x, 0.0], [x, float(n)]] for x in marks], colors=[GUIDE_COLOR] * len(marks), radii=0.04
+        ),
+        rr.Points2D(
+            [[scale, -0.8 - LABEL_LIFT]], radii=0.01, labels=[guide], colors=[GUIDE_COLOR], show_labels=True
+        ),
+    )
 
 
 def correlation_colors(corr: np.ndarray) -> np.ndarray:
@@ -557,17 +680,36 @@ def _labelled_matrix(w: _Writer, entity: str, corr: np.ndarray) -> None:
     w.static(f"{entity}/image", rr.Image(correlation_colors(corr), color_model="RGB"))
     centres = np.arange(n, dtype=float) + 0.5
     names = list(P.NAMES[:n])
-    w.static(f"{entity}/rows", rr.Points2D(np.c_[np.full(n, -1.2), centres - LABEL_LIFT],
-                                           labels=names,
-                                           radii=0.01, colors=[LABEL_COLOR] * n,
-                                           show_labels=True))
-    w.static(f"{entity}/columns", rr.Points2D(
-        np.c_[centres, -0.7 - LABEL_LIFT - COLUMN_LABEL_STEP * (np.arange(n) % COLUMN_LABEL_LEVELS)],
-        labels=names, radii=0.01, colors=[LABEL_COLOR] * n, show_labels=True))
+    w.static(
+        f"{entity}/rows",
+        rr.Points2D(
+            np.c_[np.full(n, -1.2), centres - LABEL_LIFT],
+            labels=names,
+            radii=0.01,
+            colors=[LABEL_COLOR] * n,
+            show_labels=True,
+        ),
+    )
+    w.static(
+        f"{entity}/columns",
+        rr.Points2D(
+            np.c_[centres, -0.7 - LABEL_LIFT - COLUMN_LABEL_STEP * (np.arange(n) % COLUMN_LABEL_LEVELS)],
+            labels=names,
+            radii=0.01,
+            colors=[LABEL_COLOR] * n,
+            show_labels=True,
+        ),
+    )
     i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
-    w.static(f"{entity}/cells", rr.Points2D(
-        np.c_[j.ravel() + 0.5, i.ravel() + 0.5], radii=0.01, show_labels=False,
-        labels=[f"{names[a]} / {names[b]}: {corr[a, b]:+.3f}" for a, b in zip(i.ravel(), j.ravel())]))
+    w.static(
+        f"{entity}/cells",
+        rr.Points2D(
+            np.c_[j.ravel() + 0.5, i.ravel() + 0.5],
+            radii=0.01,
+            show_labels=False,
+            labels=[f"{names[a]} / {names[b]}: {corr[a, b]:+.3f}" for a, b in zip(i.ravel(), j.ravel())],
+        ),
+    )
 
 
 # ---------------------------------------------------------------------------
@@ -583,18 +725,29 @@ def _results_table(result, truth) -> str:
         tv = truth.errors.in_units()
         head += " truth | error | error / req | error / sigma |"
         rule += "---|---|---|---|"
-    lines = [f"# Calibration result (profile {result.profile or '?'})", "",
-             f"converged: {result.converged}, iterations {result.iterations}, residual RMS "
-             f"{result.residual_rms_mps:.3g} m/s, chi2/dof {result.chi2_per_dof:.3f}", "",
-             "Bars in results/* are named and follow the # column (spec order).", "", head, rule]
+    lines = [
+        f"# Calibration result (profile {result.profile or '?'})",
+        "",
+        f"converged: {result.converged}, iterations {result.iterations}, residual RMS "
+        f"{result.residual_rms_mps:.3g} m/s, chi2/dof {result.chi2_per_dof:.3f}",
+        "",
+        "Bars in results/* are named and follow the # column (spec order).",
+        "",
+        head,
+        rule,
+    ]
     for p in P.PARAMETERS:
         i = p.index
-        row = (f"| {i} | {p.name} | {p.unit} | {vals[i]:.5g} | {sig[i]:.3g} | "
-               f"{ratio[i]:.2f}{' MISS' if ratio[i] > 1 else ''} |")
+        row = (
+            f"| {i} | {p.name} | {p.unit} | {vals[i]:.5g} | {sig[i]:.3g} | "
+            f"{ratio[i]:.2f}{' MISS' if ratio[i] > 1 else ''} |"
+        )
         if truth is not None:
             e = vals[i] - tv[i]
-            row += (f" {tv[i]:.5g} | {e:+.3g} | {abs(e) / p.requirement:.2f} | "
-                    f"{e / sig[i] if sig[i] > 0 else float('nan'):+.2f} |")
+            row += (
+                f" {tv[i]:.5g} | {e:+.3g} | {abs(e) / p.requirement:.2f} | "
+                f"{e / sig[i] if sig[i] > 0 else float('nan'):+.2f} |"
+            )
         lines.append(row)
     i = int(np.argmax(ratio))
     lines += ["", f"worst 3 sigma / requirement: {ratio[i]:.2f} ({P.NAMES[i]})"]
@@ -606,23 +759,29 @@ def _log_results(w: _Writer, result, truth) -> None:
     _labelled_bars(w, "results/ratio", P.ratio(result.sigma), (90, 170, 230), "1 = requirement")
     if truth is not None:
         err = result.values - truth.errors.values
-        _labelled_bars(w, "results/error_over_requirement", np.abs(err) / P.REQUIREMENTS_SI,
-                       (230, 150, 60), "1 = requirement")
+        _labelled_bars(
+            w,
+            "results/error_over_requirement",
+            np.abs(err) / P.REQUIREMENTS_SI,
+            (230, 150, 60),
+            "1 = requirement",
+        )
         with np.errstate(divide="ignore", invalid="ignore"):
-            _labelled_bars(w, "results/error_over_sigma", err / result.sigma, (160, 110, 220),
-                           "1 sigma")
+            _labelled_bars(w, "results/error_over_sigma", err / result.sigma, (160, 110, 220), "1 sigma")
     if result.correlation is not None:
         _labelled_matrix(w, "results/correlation", result.correlation)
-    w.static("results/table", rr.TextDocument(_results_table(result, truth),
-                                              media_type="text/markdown"))
+    w.static("results/table", rr.TextDocument(_results_table(result, truth), media_type="text/markdown"))
 
 
 def _panels():
     """Side panels folded away (the views get the room) and the time panel on ``time``, paused."""
     import rerun.blueprint as rrb
 
-    return [rrb.BlueprintPanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
-            rrb.TimePanel(timeline=TIMELINE, play_state="paused", state="collapsed")]
+    return [
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(timeline=TIMELINE, play_state="paused", state="collapsed"),
+    ]
 
 
 def _events_view():
@@ -632,46 +791,70 @@ def _events_view():
     import rerun.blueprint as rrb
     from rerun.blueprint.encodings import TextLogColumn, TextLogColumnKind, TimelineColumn
 
-    return rrb.TextLogView(origin="events", name="positions and flips", columns=rrb.archetypes.
-                           TextLogColumns(timeline_columns=[TimelineColumn(TIMELINE)],
-                                          text_log_columns=[
-                                              TextLogColumn(TextLogColumnKind.EntityPath, visible=False),
-                                              TextLogColumn(TextLogColumnKind.LogLevel, visible=False),
-                                              TextLogColumn(TextLogColumnKind.Body)]))
+    return rrb.TextLogView(
+        origin="events",
+        name="positions and flips",
+        columns=rrb.archetypes.TextLogColumns(
+            timeline_columns=[TimelineColumn(TIMELINE)],
+            text_log_columns=[
+                TextLogColumn(TextLogColumnKind.EntityPath, visible=False),
+                TextLogColumn(TextLogColumnKind.LogLevel, visible=False),
+                TextLogColumn(TextLogColumnKind.Body),
+            ],
+        ),
+    )
 
 
 def _bars_view(origin: str, name: str):
     """A 2D view of :func:`_labelled_bars`: names on the left, bars to the right."""
     import rerun.blueprint as rrb
 
-    return rrb.Spatial2DView(origin=origin, name=name, visual_bounds=rrb.VisualBounds2D(
-        x_range=(NAME_X - 1.5, BAR_LENGTH + 2.0 * VALUE_GAP), y_range=(-1.5, P.N_PARAMS + 1.5)))
+    return rrb.Spatial2DView(
+        origin=origin,
+        name=name,
+        visual_bounds=rrb.VisualBounds2D(
+            x_range=(NAME_X - 1.5, BAR_LENGTH + 2.0 * VALUE_GAP), y_range=(-1.5, P.N_PARAMS + 1.5)
+        ),
+    )
 
 
 def _matrix_view(origin: str, name: str):
     """A 2D view of :func:`_labelled_matrix`, the names around it in view."""
     import rerun.blueprint as rrb
 
-    return rrb.Spatial2DView(origin=origin, name=name, visual_bounds=rrb.VisualBounds2D(
-        x_range=(-3.0, P.N_PARAMS + 0.5),
-        y_range=(-1.5 - LABEL_LIFT - COLUMN_LABEL_STEP * COLUMN_LABEL_LEVELS, P.N_PARAMS + 1.0)))
+    return rrb.Spatial2DView(
+        origin=origin,
+        name=name,
+        visual_bounds=rrb.VisualBounds2D(
+            x_range=(-3.0, P.N_PARAMS + 0.5),
+            y_range=(-1.5 - LABEL_LIFT - COLUMN_LABEL_STEP * COLUMN_LABEL_LEVELS, P.N_PARAMS + 1.0),
+        ),
+    )
 
 
 def _scene_view(origin: str, name: str):
     """A 3D view looking at the gimbal from the south-east, a little above."""
     import rerun.blueprint as rrb
 
-    return rrb.Spatial3DView(origin=origin, name=name, eye_controls=rrb.EyeControls3D(
-        position=(5.0, -6.5, 3.5), look_target=(0.0, 0.0, -0.4), eye_up=(0.0, 0.0, 1.0)))
+    return rrb.Spatial3DView(
+        origin=origin,
+        name=name,
+        eye_controls=rrb.EyeControls3D(
+            position=(5.0, -6.5, 3.5), look_target=(0.0, 0.0, -0.4), eye_up=(0.0, 0.0, 1.0)
+        ),
+    )
 
 
 def _whole_run(duration_s: float):
     """Time axis of a time-series view showing the whole run (not just the latest seconds)."""
     import rerun.blueprint as rrb
 
-    return rrb.TimeAxis(view_range=rrb.TimeRange(
-        start=rrb.TimeRangeBoundary.absolute(seconds=0.0),
-        end=rrb.TimeRangeBoundary.absolute(seconds=float(duration_s))))
+    return rrb.TimeAxis(
+        view_range=rrb.TimeRange(
+            start=rrb.TimeRangeBoundary.absolute(seconds=0.0),
+            end=rrb.TimeRangeBoundary.absolute(seconds=float(duration_s)),
+        )
+    )
 
 
 def run_blueprint(duration_s: float, with_results: bool = True):
@@ -681,36 +864,41 @@ def run_blueprint(duration_s: float, with_results: bool = True):
     def plot(origin, name):
         return rrb.TimeSeriesView(origin=origin, name=name, axis_x=_whole_run(duration_s))
 
-    scene = rrb.Vertical(_scene_view("world", "gimbal and IMU"),
-                         _events_view(),
-                         row_shares=[3, 1])
+    scene = rrb.Vertical(_scene_view("world", "gimbal and IMU"), _events_view(), row_shares=[3, 1])
     signals = rrb.Vertical(
         plot("signals/gyro_dps", "gyro rate, deg/s"),
         plot("signals/accel_mps2", "specific force, m/s^2"),
         plot("attitude/gimbal_deg", "gimbal angles, deg"),
         plot("sequence", "rest position (0 = turning)"),
-        row_shares=[3, 3, 2, 1])
+        row_shares=[3, 3, 2, 1],
+    )
     residuals = rrb.Vertical(
         plot("residuals/before", "velocity error before calibration, m/s"),
         plot("residuals/after", "velocity error after calibration, m/s (pale: ±3σ of the noise)"),
-        plot("attitude/nav_minus_gimbal_arcsec", "navigation - gimbal attitude, arcsec"))
+        plot("attitude/nav_minus_gimbal_arcsec", "navigation - gimbal attitude, arcsec"),
+    )
     columns = [scene, signals, residuals]
     if with_results:
-        columns.append(rrb.Vertical(
-            _bars_view("results/ratio", "3 sigma / requirement"),
-            _bars_view("results/error_over_requirement", "|error| / requirement (truth)"),
-            rrb.Tabs(_matrix_view("results/correlation", "correlation (blue -1, red +1)"),
-                     rrb.TextDocumentView(origin="results/table", name="result"),
-                     rrb.TextDocumentView(origin="about", name="about")),
-            row_shares=[3, 3, 3]))
+        columns.append(
+            rrb.Vertical(
+                _bars_view("results/ratio", "3 sigma / requirement"),
+                _bars_view("results/error_over_requirement", "|error| / requirement (truth)"),
+                rrb.Tabs(
+                    _matrix_view("results/correlation", "correlation (blue -1, red +1)"),
+                    rrb.TextDocumentView(origin="results/table", name="result"),
+                    rrb.TextDocumentView(origin="about", name="about"),
+                ),
+                row_shares=[3, 3, 3],
+            )
+        )
     else:
         columns.append(rrb.TextDocumentView(origin="about", name="about"))
-    return rrb.Blueprint(rrb.Horizontal(*columns, column_shares=[3, 3, 3, 3][:len(columns)]),
-                         *_panels())
+    return rrb.Blueprint(rrb.Horizontal(*columns, column_shares=[3, 3, 3, 3][: len(columns)]), *_panels())
 
 
-def record_run(run, path: str | os.PathLike, review, sequence=None, result=None, truth=None, *,
-               name: str | None = None) -> Summary:
+def record_run(
+    run, path: str | os.PathLike, review, sequence=None, result=None, truth=None, *, name: str | None = None
+) -> Summary:
     """Write a rerun recording of one run log (see the module docstring for its entities).
 
     Parameters
@@ -741,11 +929,14 @@ def record_run(run, path: str | os.PathLike, review, sequence=None, result=None,
     lat_deg, g, dt = review.latitude_deg, review.gravity_mps2, review.dt
     t_rel = run.time_s - review.t0
     dtheta, dv = run.dtheta_rad, run.dv_mps
-    rid = _recording_id(run.time_s[:: max(1, n // 1000)], dtheta, dv,
-                        None if result is None else result.values,
-                        None if sequence is None else sequence.name)
-    w = _Writer(path, rid, name or Path(run.source).name,
-                run_blueprint(float(t_rel[-1]), result is not None))
+    rid = _recording_id(
+        run.time_s[:: max(1, n // 1000)],
+        dtheta,
+        dv,
+        None if result is None else result.values,
+        None if sequence is None else sequence.name,
+    )
+    w = _Writer(path, rid, name or Path(run.source).name, run_blueprint(float(t_rel[-1]), result is not None))
     try:
         for note in review.notes:
             w.note(note)
@@ -755,15 +946,17 @@ def record_run(run, path: str | os.PathLike, review, sequence=None, result=None,
         block = _log_signals(w, run, t_rel, dt)
 
         # Events: the sequence's nominal time line, else the gyros.
-        events = sequence_events(sequence) if sequence is not None else motion_events(
-            t_rel, dt, dtheta, moving)
+        events = (
+            sequence_events(sequence) if sequence is not None else motion_events(t_rel, dt, dtheta, moving)
+        )
 
         # The scene: gimbal angles from encoders, else the sequence, else navigation.
         keep = scene_indices(t_rel, dtheta)
         t_scene = t_rel[keep]
         nav_best = nav_after if nav_after is not None else nav_before
         angles, C_start, R_mount, scene_source, mount_source = _scene_frames(
-            run, keep, t_scene, sequence, result, truth, nav_best, nav_after is not None, w)
+            run, keep, t_scene, sequence, result, truth, nav_best, nav_after is not None, w
+        )
         _log_scene(w, t_scene, angles, R_mount, C_start, g, events)
         if nav_after is not None and scene_source.startswith(("encoders", "sequence")):
             C_scene = R_mount @ C_start @ _gimbal_matrix(angles)
@@ -771,9 +964,28 @@ def record_run(run, path: str | os.PathLike, review, sequence=None, result=None,
         if result is not None:
             _log_results(w, result, truth)
         w.summary.scene_source, w.summary.mount_source = scene_source, mount_source
-        w.static("about", w.rr.TextDocument(_about_run(
-            run, n, t_rel, block, len(keep), sequence, result, truth, scene_source,
-            mount_source, lat_deg, g, w.summary.notes, review), media_type="text/markdown"))
+        w.static(
+            "about",
+            w.rr.TextDocument(
+                _about_run(
+                    run,
+                    n,
+                    t_rel,
+                    block,
+                    len(keep),
+                    sequence,
+                    result,
+                    truth,
+                    scene_source,
+                    mount_source,
+                    lat_deg,
+                    g,
+                    w.summary.notes,
+                    review,
+                ),
+                media_type="text/markdown",
+            ),
+        )
     except BaseException:
         w.abort()
         raise
@@ -790,8 +1002,7 @@ def _log_signals(w: _Writer, run, t_rel: np.ndarray, dt: np.ndarray) -> int:
     return block
 
 
-def _log_attitude_error(w: _Writer, t_scene: np.ndarray, C_nav: np.ndarray,
-                        C_scene: np.ndarray) -> None:
+def _log_attitude_error(w: _Writer, t_scene: np.ndarray, C_nav: np.ndarray, C_scene: np.ndarray) -> None:
     """The calibrated navigation's attitude against the scene's (rotation vector, arcsec)."""
     from calib.transform import dcm_to_rotvec
 
@@ -807,8 +1018,13 @@ def _log_residuals(w: _Writer, t_rel: np.ndarray, review) -> None:
         w.series("residuals/after/velocity_mps", t_rel, review.after.v_n[1:], "ENU", AXIS_COLORS)
     if review.noise_sigma_v is not None:
         s3 = 3.0 * review.noise_sigma_v
-        w.series("residuals/after/noise_3sigma_mps", review.noise_time, np.c_[s3, -s3],
-                 [f"{sign}3σ {a}" for sign in "+-" for a in "ENU"], ENVELOPE_COLORS * 2)
+        w.series(
+            "residuals/after/noise_3sigma_mps",
+            review.noise_time,
+            np.c_[s3, -s3],
+            [f"{sign}3σ {a}" for sign in "+-" for a in "ENU"],
+            ENVELOPE_COLORS * 2,
+        )
 
 
 def _scene_frames(run, keep, t_scene, sequence, result, truth, nav, calibrated, w):
@@ -825,13 +1041,15 @@ def _scene_frames(run, keep, t_scene, sequence, result, truth, nav, calibrated, 
         angles = np.radians(run.gimbal_deg[keep])
         source = "encoders (the run's outer_deg, middle_deg, inner_deg columns)"
     elif sequence is not None:
-        angles = _gimbal_from_attitudes(sequence.C_start,
-                                        nominal_attitude(timeline(sequence), t_scene))
+        angles = _gimbal_from_attitudes(sequence.C_start, nominal_attitude(timeline(sequence), t_scene))
         source = f"sequence {sequence.name!r} (nominal attitude, decomposed and unwrapped)"
     elif nav is not None:
         angles = _gimbal_from_attitudes(nav.C_b_n[0], nav.C_b_n[keep + 1])
-        source = ("navigation attitude after calibration" if calibrated
-                  else "navigation attitude before calibration (coarse alignment)")
+        source = (
+            "navigation attitude after calibration"
+            if calibrated
+            else "navigation attitude before calibration (coarse alignment)"
+        )
     else:
         angles = np.zeros((len(keep), 3))
         source = "none (no encoders, sequence or alignment): the IMU stays at its start"
@@ -841,12 +1059,22 @@ def _scene_frames(run, keep, t_scene, sequence, result, truth, nav, calibrated, 
         if truth is not None:
             return angles, C_start, truth.R_setup, source, "truth file (setup rotation)"
         if result is not None:
-            return (angles, C_start, result.C_b_n0 @ C_start.T, source,
-                    "estimated: the result's initial attitude times C_start^T")
+            return (
+                angles,
+                C_start,
+                result.C_b_n0 @ C_start.T,
+                source,
+                "estimated: the result's initial attitude times C_start^T",
+            )
         return angles, C_start, np.eye(3), source, "nominal (identity)"
     if nav is not None:
-        return (angles, nav.C_b_n[0], np.eye(3), source,
-                "included in the measured start attitude (no sequence)")
+        return (
+            angles,
+            nav.C_b_n[0],
+            np.eye(3),
+            source,
+            "included in the measured start attitude (no sequence)",
+        )
     return angles, np.eye(3), np.eye(3), source, "unknown (identity)"
 
 
@@ -854,7 +1082,9 @@ def _about_envelope(review) -> list[str]:
     if review.noise_sigma_v is None:
         return []
     return [
-        "", "## Noise envelope", "",
+        "",
+        "## Noise envelope",
+        "",
         f"- residuals/after/noise_3sigma_mps: ±3σ of the velocity error that the noise of profile "
         f"{review.noise_profile!r} (ARW, VRW, Gauss-Markov drift) builds up at rest, propagated "
         f"with the fit's own error-state model; {len(review.noise_time)} rows (1 s at rest, "
@@ -865,33 +1095,57 @@ def _about_envelope(review) -> list[str]:
     ]
 
 
-def _about_run(run, n, t_rel, block, n_scene, sequence, result, truth, scene_source,
-               mount_source, lat_deg, g, notes, review) -> str:
+def _about_run(
+    run,
+    n,
+    t_rel,
+    block,
+    n_scene,
+    sequence,
+    result,
+    truth,
+    scene_source,
+    mount_source,
+    lat_deg,
+    g,
+    notes,
+    review,
+) -> str:
     fs = run.sample_rate_hz
-    lines = [
-        f"# Run {run.source}", "",
-        f"- {n} samples at {fs:g} Hz, {t_rel[-1]:.1f} s; latitude {lat_deg:g} deg, "
-        f"gravity {g:.6f} m/s^2",
-        f"- sequence: {sequence.name if sequence is not None else 'none (flips found from the gyros)'}",
-        f"- result: {'yes, profile ' + result.profile if result is not None else 'none'}; "
-        f"truth: {'yes' if truth is not None else 'none'}",
-        "", "## Time line", "",
-        f"`time` = seconds since the first sample starts (`time_s - {run.time_s[0] - t_rel[0]:.9g}`).",
-        "", "## Rates (what is decimated)", "",
-        f"- residuals/before, residuals/after: FULL rate, one row per sample at its end time "
-        f"({n} rows each; the navigation's initial zero at time 0 is not logged).",
-        f"- signals/*: DECIMATED for display: means over blocks of {block} samples "
-        f"({fs / block:g} Hz), i.e. sum(increments) / sum(dt), stamped at the block middle.",
-        f"- world/... transforms, attitude/*, sequence/position: DECIMATED: {n_scene} rows, one per "
-        f"1/{SCENE_RATE_HZ:g} s and one per {SCENE_STEP_DEG:g} deg turned (gyros).",
-    ] + _about_envelope(review) + [
-        "", "## Scene", "",
-        "- IMU attitude = R_mount C_start R_Z(outer) R_X(middle) R_Y(inner).",
-        f"- gimbal angles from: {scene_source}",
-        f"- R_mount from: {mount_source}",
-        "- rings: outer (orange) about start-Z, middle (grey) about X, inner (blue) about Y;"
-        " body axes X red, Y green, Z blue; ENU axes in the corner; the purple arrow is gravity.",
-    ]
+    lines = (
+        [
+            f"# Run {run.source}",
+            "",
+            f"- {n} samples at {fs:g} Hz, {t_rel[-1]:.1f} s; latitude {lat_deg:g} deg, gravity {g:.6f} m/s^2",
+            f"- sequence: {sequence.name if sequence is not None else 'none (flips found from the gyros)'}",
+            f"- result: {'yes, profile ' + result.profile if result is not None else 'none'}; "
+            f"truth: {'yes' if truth is not None else 'none'}",
+            "",
+            "## Time line",
+            "",
+            f"`time` = seconds since the first sample starts (`time_s - {run.time_s[0] - t_rel[0]:.9g}`).",
+            "",
+            "## Rates (what is decimated)",
+            "",
+            f"- residuals/before, residuals/after: FULL rate, one row per sample at its end time "
+            f"({n} rows each; the navigation's initial zero at time 0 is not logged).",
+            f"- signals/*: DECIMATED for display: means over blocks of {block} samples "
+            f"({fs / block:g} Hz), i.e. sum(increments) / sum(dt), stamped at the block middle.",
+            f"- world/... transforms, attitude/*, sequence/position: DECIMATED: {n_scene} rows, one per "
+            f"1/{SCENE_RATE_HZ:g} s and one per {SCENE_STEP_DEG:g} deg turned (gyros).",
+        ]
+        + _about_envelope(review)
+        + [
+            "",
+            "## Scene",
+            "",
+            "- IMU attitude = R_mount C_start R_Z(outer) R_X(middle) R_Y(inner).",
+            f"- gimbal angles from: {scene_source}",
+            f"- R_mount from: {mount_source}",
+            "- rings: outer (orange) about start-Z, middle (grey) about X, inner (blue) about Y;"
+            " body axes X red, Y green, Z blue; ENU axes in the corner; the purple arrow is gravity.",
+        ]
+    )
     if notes:
         lines += ["", "## Notes", ""] + [f"- {x}" for x in notes]
     return "\n".join(lines)
@@ -904,23 +1158,33 @@ def _about_run(run, n, t_rel, block, n_scene, sequence, result, truth, scene_sou
 def _analysis_table(obs, seq) -> str:
     sig = P.from_si(obs.sigma)
     ratio = obs.ratio
-    lines = [f"# Observability of {seq.name}", "",
-             f"duration {obs.duration_s:.0f} s ({obs.duration_s / 60:.1f} min), profile "
-             f"{obs.profile}, mounting rotation {np.degrees(obs.setup_rotvec).round(3).tolist()} deg, "
-             f"rank {obs.rank} of {P.N_PARAMS}", "",
-             "| # | name | unit | sigma | requirement | 3 sigma / req |", "|---|---|---|---|---|---|"]
+    lines = [
+        f"# Observability of {seq.name}",
+        "",
+        f"duration {obs.duration_s:.0f} s ({obs.duration_s / 60:.1f} min), profile "
+        f"{obs.profile}, mounting rotation {np.degrees(obs.setup_rotvec).round(3).tolist()} deg, "
+        f"rank {obs.rank} of {P.N_PARAMS}",
+        "",
+        "| # | name | unit | sigma | requirement | 3 sigma / req |",
+        "|---|---|---|---|---|---|",
+    ]
     for p in P.PARAMETERS:
         i = p.index
-        r = "unobservable" if not np.isfinite(ratio[i]) else (
-            f"{ratio[i]:.2f}{' MISS' if ratio[i] > 1 else ''}")
+        r = (
+            "unobservable"
+            if not np.isfinite(ratio[i])
+            else (f"{ratio[i]:.2f}{' MISS' if ratio[i] > 1 else ''}")
+        )
         lines.append(f"| {i} | {p.name} | {p.unit} | {sig[i]:.3g} | {p.requirement:g} | {r} |")
     if obs.rank == P.N_PARAMS:
         name, worst = obs.worst
         lines += ["", f"worst 3 sigma / requirement: {worst:.2f} ({name})"]
         pairs = obs.correlated_pairs()
         if pairs:
-            lines += ["", "correlated pairs (|rho| > 0.9): "
-                      + ", ".join(f"{a}/{b} {r:+.3f}" for a, b, r in pairs)]
+            lines += [
+                "",
+                "correlated pairs (|rho| > 0.9): " + ", ".join(f"{a}/{b} {r:+.3f}" for a, b, r in pairs),
+            ]
     else:
         lines += ["", "UNOBSERVABLE directions:"] + [f"- {u}" for u in obs.unobservable]
     return "\n".join(lines)
@@ -930,22 +1194,35 @@ def analysis_blueprint(duration_s: float):
     """The layout an analysis recording opens with."""
     import rerun.blueprint as rrb
 
-    return rrb.Blueprint(rrb.Horizontal(
-        rrb.Vertical(_scene_view("world", "sequence (nominal)"),
-                     _events_view(),
-                     row_shares=[3, 1]),
-        rrb.Spatial3DView(origin="positions", name="rest positions", eye_controls=rrb.EyeControls3D(
-            position=(GALLERY_STEP, -GALLERY_STEP - 23.0, 34.0),
-            look_target=(GALLERY_STEP, -GALLERY_STEP, 0.0), eye_up=(0.0, 0.0, 1.0))),
-        rrb.Vertical(_bars_view("analysis/ratio", "3 sigma / requirement"),
-                     _matrix_view("analysis/correlation", "correlation (blue -1, red +1)")),
-        rrb.Tabs(rrb.TextDocumentView(origin="analysis/table", name="analysis"),
-                 rrb.TextDocumentView(origin="about", name="about")),
-        column_shares=[3, 3, 3, 3]), *_panels())
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Vertical(_scene_view("world", "sequence (nominal)"), _events_view(), row_shares=[3, 1]),
+            rrb.Spatial3DView(
+                origin="positions",
+                name="rest positions",
+                eye_controls=rrb.EyeControls3D(
+                    position=(GALLERY_STEP, -GALLERY_STEP - 23.0, 34.0),
+                    look_target=(GALLERY_STEP, -GALLERY_STEP, 0.0),
+                    eye_up=(0.0, 0.0, 1.0),
+                ),
+            ),
+            rrb.Vertical(
+                _bars_view("analysis/ratio", "3 sigma / requirement"),
+                _matrix_view("analysis/correlation", "correlation (blue -1, red +1)"),
+            ),
+            rrb.Tabs(
+                rrb.TextDocumentView(origin="analysis/table", name="analysis"),
+                rrb.TextDocumentView(origin="about", name="about"),
+            ),
+            column_shares=[3, 3, 3, 3],
+        ),
+        *_panels(),
+    )
 
 
-def record_analysis(obs, seq, path: str | os.PathLike, *, gravity_mps2: float | None = None,
-                    name: str | None = None) -> Summary:
+def record_analysis(
+    obs, seq, path: str | os.PathLike, *, gravity_mps2: float | None = None, name: str | None = None
+) -> Summary:
     """Write a rerun recording of a sequence's observability analysis.
 
     Parameters
@@ -971,8 +1248,11 @@ def record_analysis(obs, seq, path: str | os.PathLike, *, gravity_mps2: float | 
     try:
         rr = w.rr
         lat = math.radians(seq.latitude_deg if seq.latitude_deg is not None else 40.0)
-        g = gravity_mps2 if gravity_mps2 is not None else earth.gravity(
-            lat, seq.height_m if seq.height_m is not None else 0.0)
+        g = (
+            gravity_mps2
+            if gravity_mps2 is not None
+            else earth.gravity(lat, seq.height_m if seq.height_m is not None else 0.0)
+        )
         tl = timeline(seq)
         t_scene = _nominal_scene_times(tl)
         angles = _gimbal_from_attitudes(seq.C_start, nominal_attitude(tl, t_scene))
@@ -984,19 +1264,24 @@ def record_analysis(obs, seq, path: str | os.PathLike, *, gravity_mps2: float | 
 
         ratio = np.where(np.isfinite(obs.ratio), obs.ratio, np.nan)
         _labelled_bars(w, "analysis/ratio", ratio, (90, 170, 230), "1 = requirement")
-        _labelled_bars(w, "analysis/sigma_over_requirement", np.where(
-            np.isfinite(obs.sigma), obs.sigma, np.nan) / obs.requirements.si, (120, 200, 120),
-            "1 = requirement")
+        _labelled_bars(
+            w,
+            "analysis/sigma_over_requirement",
+            np.where(np.isfinite(obs.sigma), obs.sigma, np.nan) / obs.requirements.si,
+            (120, 200, 120),
+            "1 = requirement",
+        )
         if obs.covariance is not None:
             _labelled_matrix(w, "analysis/correlation", obs.correlation)
         else:
             w.note("rank deficient: no covariance, no correlation matrix")
-        w.static("analysis/table", rr.TextDocument(_analysis_table(obs, seq),
-                                                   media_type="text/markdown"))
+        w.static("analysis/table", rr.TextDocument(_analysis_table(obs, seq), media_type="text/markdown"))
         w.summary.scene_source = f"sequence {seq.name!r} (nominal attitude, decomposed)"
         w.summary.mount_source = "the analysis's mounting rotation"
-        w.static("about", rr.TextDocument(_about_analysis(seq, len(t_scene), w.summary.notes),
-                                          media_type="text/markdown"))
+        w.static(
+            "about",
+            rr.TextDocument(_about_analysis(seq, len(t_scene), w.summary.notes), media_type="text/markdown"),
+        )
     except BaseException:
         w.abort()
         raise
@@ -1020,26 +1305,36 @@ def _log_gallery(w: _Writer, positions, R_mount: np.ndarray) -> None:
         k = p.number - 1
         where = [GALLERY_STEP * (k % 3), -GALLERY_STEP * (k // 3), 0.0]
         base = f"positions/p{p.number}"
-        w.static(base, rr.Transform3D(translation=where, mat3x3=R_mount @ p.C_b_n),
-                 rr.Boxes3D(half_sizes=[IMU_HALF_SIZE], colors=[(235, 200, 80)],
-                            fill_mode="solid",
-                            labels=[f"{p.number}: X {p.directions[0]}, Y {p.directions[1]}, "
-                                    f"Z {p.directions[2]}"]))
-        w.static(f"{base}/axes", rr.Arrows3D(vectors=np.eye(3) * 1.3, labels=["X", "Y", "Z"],
-                                             colors=AXIS_COLORS, radii=0.04))
+        w.static(
+            base,
+            rr.Transform3D(translation=where, mat3x3=R_mount @ p.C_b_n),
+            rr.Boxes3D(
+                half_sizes=[IMU_HALF_SIZE],
+                colors=[(235, 200, 80)],
+                fill_mode="solid",
+                labels=[f"{p.number}: X {p.directions[0]}, Y {p.directions[1]}, Z {p.directions[2]}"],
+            ),
+        )
+        w.static(
+            f"{base}/axes",
+            rr.Arrows3D(vectors=np.eye(3) * 1.3, labels=["X", "Y", "Z"], colors=AXIS_COLORS, radii=0.04),
+        )
 
 
 def _about_analysis(seq, n_scene: int, notes) -> str:
-    return "\n".join([
-        f"# Analysis of {seq.name}", "",
-        "`time` = seconds along the sequence's nominal time line.",
-        f"- world/... transforms: {n_scene} rows, {SCENE_RATE_HZ:g} Hz and every "
-        f"{SCENE_STEP_DEG:g} deg during flips.",
-        "- positions/p<k>: the IMU at rest position k (gallery, static).",
-        "- analysis/ratio: 3 sigma / requirement; bars named, in spec order (the table's #).",
-        "- analysis/correlation: 21 x 21, rows and columns named, in spec order; blue -1, "
-        "red +1.",
-    ] + [f"- note: {x}" for x in notes])
+    return "\n".join(
+        [
+            f"# Analysis of {seq.name}",
+            "",
+            "`time` = seconds along the sequence's nominal time line.",
+            f"- world/... transforms: {n_scene} rows, {SCENE_RATE_HZ:g} Hz and every "
+            f"{SCENE_STEP_DEG:g} deg during flips.",
+            "- positions/p<k>: the IMU at rest position k (gallery, static).",
+            "- analysis/ratio: 3 sigma / requirement; bars named, in spec order (the table's #).",
+            "- analysis/correlation: 21 x 21, rows and columns named, in spec order; blue -1, red +1.",
+        ]
+        + [f"- note: {x}" for x in notes]
+    )
 
 
 # ---------------------------------------------------------------------------
