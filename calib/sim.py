@@ -194,7 +194,9 @@ def encoder_angles(
     any lock counter-rotation (:mod:`calib.gimbal`); ``played`` (default
     ``seq``) is what was really played, e.g. with flip errors.
     """
-    from .gimbal import DEFAULT_GIMBAL, encoder_track, plan_sequence
+    from .encoders import encoder_track
+    from .gimbal import plan_sequence
+    from .gimbalfile import DEFAULT_GIMBAL
 
     plan = plan_sequence(seq, gimbal or DEFAULT_GIMBAL)
     angles, _ = encoder_track(plan, played if played is not None else seq, time_s)

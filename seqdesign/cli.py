@@ -61,8 +61,10 @@ def show(sequence, gimbal_file, as_json):
     file or a shipped name such as paper-9pos), its gimbal angles (outer,
     middle, inner; continuous along the run) and its start and end times.
     """
-    from calib.gimbal import load_gimbal, plan_sequence
-    from calib.sequence import load_sequence, rest_positions
+    from calib.encoders import rest_positions
+    from calib.gimbal import plan_sequence
+    from calib.gimbalfile import load_gimbal
+    from calib.sequence import load_sequence
     from seqdesign.cli_gimbal import LOCK_NOTE, gimbal_summary
 
     seq = load_sequence(sequence)
@@ -227,7 +229,8 @@ def simulate(
         )
     extra = parse_values(extra_text)
     seq = load_sequence(sequence)
-    from calib.gimbal import check_playable, load_gimbal, plan_sequence
+    from calib.gimbal import check_playable, plan_sequence
+    from calib.gimbalfile import load_gimbal
 
     gimbal = load_gimbal(gimbal_file)
     check_playable(plan_sequence(seq, gimbal), f"{sequence} on gimbal {gimbal.name!r}")

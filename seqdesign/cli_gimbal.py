@@ -70,7 +70,7 @@ def schedule_times(duration_s: float, rate_hz: float) -> np.ndarray:
 
 def schedule_csv(seq, plan, times: np.ndarray, header: dict) -> str:
     """The command schedule as CSV text."""
-    from calib.gimbal import encoder_track
+    from calib.encoders import encoder_track
 
     angles, rates = encoder_track(plan, seq, times)
     lines = [f"# {k}: {v}" for k, v in header.items()]
@@ -117,7 +117,8 @@ def export(sequence, gimbal_file, output, rate_hz, as_json):
     and the limit.
     """
     from calib.fileio import atomic_write_text
-    from calib.gimbal import check_playable, load_gimbal, plan_sequence
+    from calib.gimbal import check_playable, plan_sequence
+    from calib.gimbalfile import load_gimbal
     from calib.sequence import load_sequence, resolve_sequence_path
 
     if Path(output).suffix.lower() != ".csv":

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from calib.gimbal import check_playable, gimbal_from_dict, load_gimbal, plan_sequence
+from calib.gimbal import check_playable, plan_sequence
+from calib.gimbalfile import gimbal_from_dict, load_gimbal
 from calib.profiles import load_profile
 from calib.sequence import load_sequence
 from seqdesign.cli import main

@@ -9,7 +9,7 @@ import tomli_w
 from calib.errormodel import ErrorModel
 from calib.errors import CalibError
 from calib.fields import Fields
-from calib.gimbal import load_gimbal
+from calib.gimbalfile import load_gimbal
 from calib.sim import Truth
 from calib.truth import read_truth, truth_to_dict
 

@@ -46,12 +46,13 @@ from hypothesis import strategies as st
 from hypothesis.control import currently_in_test_context
 
 from calib import params as P
+from calib.encoders import rest_positions
 from calib.errormodel import ErrorModel
 from calib.errors import CalibError
 from calib.profiles import NoiseProfile, load_profile
 from calib.result import CalibrationResult
 from calib.runlog import Run, make_meta, read_run, write_run
-from calib.sequence import Sequence, load_sequence, rest_positions
+from calib.sequence import Sequence, load_sequence
 from calib.sim import SimConfig, Truth, simulate
 from calib.transform import DIRECTIONS, attitude_from_directions, rotvec_to_dcm
 from calib.truth import read_errors, read_truth, write_truth

@@ -11,7 +11,9 @@ import pytest
 from click.testing import CliRunner
 from conftest import attitude, rodrigues
 
-from calib.gimbal import DEFAULT_GIMBAL, encoder_track, load_gimbal, plan_move, plan_sequence
+from calib.encoders import encoder_track
+from calib.gimbal import plan_move, plan_sequence
+from calib.gimbalfile import DEFAULT_GIMBAL, load_gimbal
 from calib.rateprofile import RateProfile
 from calib.sequence import Sequence, Step, load_sequence, nominal_attitude, timeline
 from seqdesign.cli import main

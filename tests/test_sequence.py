@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 from conftest import DWELL_S, FLIP_S, N_POS, attitude, rest_window, rot_about, table1_gimbal, table1_positions
 
+from calib.encoders import rest_positions
 from calib.errors import CalibError
 from calib.sequence import (
     Sequence,
     Step,
     load_sequence,
     nominal_attitude,
-    rest_positions,
     save_sequence,
     timeline,
 )

@@ -362,7 +362,7 @@ def test_encoder_angles_track_middle_gimbal_through_90():
     # At the start body X is the middle gimbal's axis, so +180 deg about X turns only the middle
     # gimbal: an encoder counts 0 -> 180 with outer and inner still at 0 (conventions: angles
     # continuous along a run, as encoders count). rest_positions must agree with the run log.
-    from calib.sequence import rest_positions
+    from calib.encoders import rest_positions
 
     seq = Sequence(
         name="mid",
