@@ -3,8 +3,10 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 DEMO := demo-out
+# Two workers on the 2-core machine: the suite is CPU-bound, one test per core.
+PYTEST := $(BIN)/python -m pytest -q -n 2 -p no:cacheprovider
 
-.PHONY: demo test bench venv clean
+.PHONY: demo test test-all lint bench venv clean
 
 $(BIN)/seqdesign: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -22,9 +24,19 @@ demo: venv
 	$(BIN)/seqdesign calibrate $(DEMO)/run.npz -o $(DEMO)/run.result.toml
 	$(BIN)/seqdesign view $(DEMO)/run.npz -o $(DEMO)/run.rrd
 
-test: venv
+# Lint (ruff rules and format), types (mypy), then the tests.
+lint: venv
 	$(BIN)/ruff check .
-	$(BIN)/python -m pytest -q
+	$(BIN)/ruff format --check .
+	$(BIN)/mypy
+
+# The fast suite: everything but the slow statistical and end-to-end tests.
+test: lint
+	$(PYTEST) -m "not slow"
+
+# Everything, the slow tests included: what CI runs.
+test-all: lint
+	$(PYTEST)
 
 bench: venv
 	$(BIN)/python benchmarks/run_all.py
