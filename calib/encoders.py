@@ -99,7 +99,7 @@ class RestPosition:
 
     number: int
     C_b_n: np.ndarray
-    directions: tuple[str, str, str]
+    directions: tuple[str, ...]  # where body X, Y, Z point
     gimbal_deg: np.ndarray  # outer, middle, inner; continuous along the sequence
     start_s: float
     end_s: float

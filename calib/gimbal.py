@@ -403,7 +403,9 @@ class GimbalPlan:
 def plan_sequence(seq, gimbal: Gimbal = DEFAULT_GIMBAL) -> GimbalPlan:
     """Play every step of ``seq`` on ``gimbal`` from the start (every encoder at 0)."""
     state, t = np.zeros(3), seq.initial_dwell_s
-    moves, starts, viol = [], [], []
+    moves: list[Move] = []
+    starts: list[float] = []
+    viol: list[Violation] = []
     rest_before = seq.initial_dwell_s
     for k, s in enumerate(seq.steps):
         mv = plan_move(gimbal, state, s.axis, math.radians(s.angle_deg), s.profile, step=k + 1)

@@ -36,7 +36,7 @@ class Gimbal:
     """A gimbal description: three axes, the lock margin, and whether runs must end at home."""
 
     name: str
-    axes: tuple[GimbalAxis, GimbalAxis, GimbalAxis]
+    axes: tuple[GimbalAxis, ...]  # outer, middle, inner
     lock_margin: float = 0.0  # rad: the middle gimbal stays this far from +-90 deg
     end_at_home: bool = False
     description: str = ""
@@ -47,7 +47,10 @@ class Gimbal:
         return min(a.max_rate for a in self.axes)
 
 
-DEFAULT_GIMBAL = Gimbal(name="default (slip rings, no limits)", axes=tuple(GimbalAxis(n) for n in NAMES))
+DEFAULT_GIMBAL = Gimbal(
+    name="default (slip rings, no limits)",
+    axes=(GimbalAxis(NAMES[0]), GimbalAxis(NAMES[1]), GimbalAxis(NAMES[2])),
+)
 
 
 # ---------------------------------------------------------------------------

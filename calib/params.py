@@ -71,7 +71,7 @@ class Parameter:
 
 
 def _table() -> tuple[Parameter, ...]:
-    rows = []
+    rows: list[Parameter] = []
     axes = "xyz"
 
     def add(name, group, unit, si, req, paper, sensor, kind, row, col):

@@ -35,10 +35,10 @@ class ProfileFit:
     """Everything ``profile fit`` measured on one static log (SI inside)."""
 
     name: str
-    gyro_curves: tuple[AllanCurve, AllanCurve, AllanCurve]
-    accel_curves: tuple[AllanCurve, AllanCurve, AllanCurve]
-    gyro: tuple[NoiseFit, NoiseFit, NoiseFit]
-    accel: tuple[NoiseFit, NoiseFit, NoiseFit]
+    gyro_curves: tuple[AllanCurve, ...]  # x, y, z
+    accel_curves: tuple[AllanCurve, ...]  # x, y, z
+    gyro: tuple[NoiseFit, ...]  # x, y, z
+    accel: tuple[NoiseFit, ...]  # x, y, z
     level: StaticLevel
     latitude_deg: float
     height_m: float

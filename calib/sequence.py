@@ -176,7 +176,7 @@ def sequence_from_dict(doc: dict, where: str) -> Sequence:
             '\'start\' must be a list of three directions, e.g. ["east", "up", "south"]',
             f"{where}: key 'start'",
         )
-    attitude_from_directions(*start, where=f"{where}: key 'start'")
+    attitude_from_directions(start[0], start[1], start[2], where=f"{where}: key 'start'")
     name = doc.get("name", Path(where).stem)
     if not isinstance(name, str) or not name:
         raise CalibError("'name' must be a non-empty string", f"{where}: key 'name'")

@@ -88,7 +88,8 @@ def schedule_csv(seq, plan, times: np.ndarray, header: dict) -> str:
 
 def read_schedule(path: str | Path) -> tuple[dict, np.ndarray]:
     """Read a schedule back: its header and an ``(n, 7)`` array of the columns."""
-    header, rows = {}, []
+    header: dict[str, str] = {}
+    rows = []
     for line in Path(path).read_text().splitlines():
         if line.startswith("# "):
             key, _, value = line[2:].partition(": ")
