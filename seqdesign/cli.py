@@ -7,6 +7,9 @@ single JSON document on stdout; progress and logs go to stderr.
 
 from __future__ import annotations
 
+from seqdesign import blas  # noqa: F401  first: one BLAS thread before numpy loads
+
+# isort: split
 import math
 import sys
 from pathlib import Path

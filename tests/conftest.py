@@ -7,14 +7,17 @@ compare the code with an independent construction rather than with itself.
 
 from __future__ import annotations
 
+# One BLAS thread per test process, set before numpy loads, as the CLI runs: the suite runs
+# on two workers of a 2-core machine.
+from seqdesign import blas  # noqa: F401
+
+# isort: split
 import csv
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
-
-import calib  # noqa: F401  first: pins BLAS threads (calib/__init__.py) before numpy loads
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO / "calib" / "data"  # copies of the paper's tables shipped in the repo
