@@ -793,3 +793,42 @@ def test_rank_deficient_analysis_names_the_unobservable_bars(tmp_path):
     assert [x == "unobservable" for x in shown] == list(missing)
     strips = np.array(positions_of(rec, "analysis/ratio", "LineStrips2D", "strips"), dtype=float)
     np.testing.assert_allclose(strips[missing, 1, 0], 0.0)
+
+
+# ---------------------------------------------------------------------------
+# A result judged against other requirements than the paper's is drawn against its own
+
+
+def test_view_draws_a_result_against_its_own_requirements(tmp_path, monkeypatch):
+    """simulate -> calibrate --requirements mems -> view: the bars are 3 sigma / the MEMS
+    requirement and |error| / the MEMS requirement, the expected values built from the
+    result file's sigmas, the truth file and calib/requirements_files/mems.toml."""
+    import tomllib
+
+    from seqdesign.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    runner = CliRunner()
+    for args in (
+        ["simulate", "paper-9pos", "--table2", "--seed", "1", "--sample-rate-hz", "20", "-o", "run.npz"],
+        ["calibrate", "run.npz", "--requirements", "mems"],
+        ["view", "run.npz", "--result", "run.result.toml", "-o", "x.rrd"],
+    ):
+        res = runner.invoke(main, args)
+        assert res.exit_code == 0, (args, res.output)
+    mems_file = Path(__file__).parent.parent / "calib" / "requirements_files" / "mems.toml"
+    mems = tomllib.loads(mems_file.read_text())["requirements"]
+    saved = tomllib.loads((tmp_path / "run.result.toml").read_text())["parameters"]
+    truth = tomllib.loads((tmp_path / "run.truth.toml").read_text())["errors"]
+    req = np.array([mems[n] for n in SPEC_NAMES])
+    sigma = np.array([saved[n]["sigma"] for n in SPEC_NAMES])
+    error = np.array([saved[n]["value"] - truth[n] for n in SPEC_NAMES])
+    assert not np.allclose(req, [REQ[n[:2]] for n in SPEC_NAMES])  # not the paper's
+    rec = read_back(tmp_path / "x.rrd")
+    np.testing.assert_allclose(bars(rec, "results/ratio"), 3.0 * sigma / req, rtol=1e-6)
+    np.testing.assert_allclose(bars(rec, "results/error_over_requirement"), np.abs(error) / req, rtol=1e-6)
+    table = text_of(rec, "results/table")
+    assert "requirements mems" in table
+    k = SPEC_NAMES.index("bgx")
+    row = next(x for x in table.splitlines() if x.startswith(f"| {k} | bgx |"))
+    assert f"| {3.0 * sigma[k] / req[k]:.2f} |" in row
