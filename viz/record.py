@@ -718,7 +718,8 @@ def _labelled_matrix(w: _Writer, entity: str, corr: np.ndarray) -> None:
 
 def _results_table(result, truth) -> str:
     vals, sig = P.from_si(result.values), P.from_si(result.sigma)
-    ratio = P.ratio(result.sigma)
+    req = result.requirements
+    ratio = req.ratio(result.sigma)
     head = "| # | name | unit | estimate | sigma | 3 sigma / req |"
     rule = "|---|---|---|---|---|---|"
     if truth is not None:
@@ -726,7 +727,7 @@ def _results_table(result, truth) -> str:
         head += " truth | error | error / req | error / sigma |"
         rule += "---|---|---|---|"
     lines = [
-        f"# Calibration result (profile {result.profile or '?'})",
+        f"# Calibration result (profile {result.profile or '?'}, requirements {req.name})",
         "",
         f"converged: {result.converged}, iterations {result.iterations}, residual RMS "
         f"{result.residual_rms_mps:.3g} m/s, chi2/dof {result.chi2_per_dof:.3f}",
@@ -745,7 +746,7 @@ def _results_table(result, truth) -> str:
         if truth is not None:
             e = vals[i] - tv[i]
             row += (
-                f" {tv[i]:.5g} | {e:+.3g} | {abs(e) / p.requirement:.2f} | "
+                f" {tv[i]:.5g} | {e:+.3g} | {abs(e) / req.values[i]:.2f} | "
                 f"{e / sig[i] if sig[i] > 0 else float('nan'):+.2f} |"
             )
         lines.append(row)
@@ -756,13 +757,15 @@ def _results_table(result, truth) -> str:
 
 def _log_results(w: _Writer, result, truth) -> None:
     rr = w.rr
-    _labelled_bars(w, "results/ratio", P.ratio(result.sigma), (90, 170, 230), "1 = requirement")
+    # The result carries the requirements it was judged against (--requirements): draw those.
+    req = result.requirements
+    _labelled_bars(w, "results/ratio", req.ratio(result.sigma), (90, 170, 230), "1 = requirement")
     if truth is not None:
         err = result.values - truth.errors.values
         _labelled_bars(
             w,
             "results/error_over_requirement",
-            np.abs(err) / P.REQUIREMENTS_SI,
+            np.abs(err) / req.si,
             (230, 150, 60),
             "1 = requirement",
         )
