@@ -528,7 +528,7 @@ def test_cli_bad_input_one_line_nothing_written(sim, result, tmp_path, monkeypat
 
 
 def test_failure_midway_leaves_old_file_untouched(sim, tmp_path, monkeypatch):
-    import viz.record
+    import viz.run
     from viz.record import record_run
 
     seq, run, truth = sim
@@ -539,7 +539,7 @@ def test_failure_midway_leaves_old_file_untouched(sim, tmp_path, monkeypatch):
         raise KeyboardInterrupt
 
     # Interrupted half-way through logging (the estimation work is done before, in calib.review).
-    monkeypatch.setattr(viz.record, "block_means", boom)
+    monkeypatch.setattr(viz.run, "block_means", boom)
     with pytest.raises(KeyboardInterrupt):
         record_run(run, target, review_run(run), sequence=seq)
     assert target.read_bytes() == b"old"
