@@ -832,3 +832,38 @@ def test_view_draws_a_result_against_its_own_requirements(tmp_path, monkeypatch)
     k = SPEC_NAMES.index("bgx")
     row = next(x for x in table.splitlines() if x.startswith(f"| {k} | bgx |"))
     assert f"| {3.0 * sigma[k] / req[k]:.2f} |" in row
+
+
+def test_analysis_recording_shows_what_analyze_prints(tmp_path):
+    """Over a mounting box, analyze prints each parameter's worst sigma and ratio: the recording's
+    bars and table hold those figures, and say which mounting the correlation matrix, the scene
+    and the gallery are drawn at (the worst; its correlated pairs are the JSON's)."""
+    from seqdesign.cli import main
+
+    out = tmp_path / "a.rrd"
+    res = CliRunner().invoke(main, ["analyze", "paper-9pos", "--view", str(out), "--json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["tolerance_deg"] == 3.0
+    entries = [doc["parameters"][n] for n in SPEC_NAMES]
+    ratio = np.array([e["ratio"] for e in entries])
+    assert np.any(ratio > np.array([e["ratio_nominal"] for e in entries]))  # the box matters
+    rec = read_back(out)
+    np.testing.assert_allclose(bars(rec, "analysis/ratio"), ratio, rtol=1e-12)
+    np.testing.assert_allclose(
+        bars(rec, "analysis/sigma_over_requirement"),
+        [e["sigma"] / e["requirement"] for e in entries],
+        rtol=1e-12,
+    )
+    table = text_of(rec, "analysis/table")
+    for k, (name, e) in enumerate(zip(SPEC_NAMES, entries)):
+        row = next(x for x in table.splitlines() if x.startswith(f"| {k} | {name} |"))
+        assert f"| {e['sigma']:.3g} | {e['requirement']:g} | {e['ratio']:.2f}" in row
+    assert f"worst 3 sigma / requirement: {doc['worst']['ratio']:.2f} ({doc['worst']['name']})" in table
+    mounting = str(np.round(doc["worst_setup_deg"], 3).tolist())
+    assert "each parameter's worst over +-3 deg" in table
+    assert mounting in table and mounting in text_of(rec, "about")
+    cells = labels_of(rec, "analysis/correlation/cells", "Points2D")
+    for pair in doc["correlated_pairs"]:
+        i, j = SPEC_NAMES.index(pair["a"]), SPEC_NAMES.index(pair["b"])
+        assert cells[i * 21 + j] == f"{pair['a']} / {pair['b']}: {pair['rho']:+.3f}"
