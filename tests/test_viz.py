@@ -415,15 +415,21 @@ def test_scene_from_navigation(sim, result, tmp_path):
 # Analysis recording
 
 
+def nominal_analysis(seq):
+    """The analysis of ``seq`` at the nominal mounting (navigation profile, 40 deg)."""
+    from seqdesign.analysis import analyze
+
+    return analyze(seq, "navigation", latitude_deg=40.0, tolerance_deg=0.0)
+
+
 def test_analysis_recording(tmp_path):
-    from calib.profiles import load_profile
     from calib.sequence import load_sequence
-    from seqdesign.observability import analyze
     from viz.record import record_analysis
 
     seq = load_sequence("paper-9pos")
-    obs = analyze(seq, load_profile("navigation"), math.radians(40.0))
-    record_analysis(obs, seq, tmp_path / "analysis.rrd")
+    analysis = nominal_analysis(seq)
+    obs = analysis.robustness.nominal
+    record_analysis(analysis, tmp_path / "analysis.rrd")
     rec = read_back(tmp_path / "analysis.rrd")
     corr = tensor(batch_with(rec, "analysis/correlation", "Tensor:data"), "Tensor:data")
     assert corr.shape == (21, 21)
@@ -613,14 +619,12 @@ def test_correlation_matrix_carries_the_parameter_names(recorded):
 
 
 def test_analysis_bars_and_matrix_carry_the_names(tmp_path):
-    from calib.profiles import load_profile
     from calib.sequence import load_sequence
-    from seqdesign.observability import analyze
     from viz.record import record_analysis
 
     seq = load_sequence("paper-9pos")
-    obs = analyze(seq, load_profile("navigation"), math.radians(40.0))
-    record_analysis(obs, seq, tmp_path / "analysis.rrd")
+    analysis = nominal_analysis(seq)
+    record_analysis(analysis, tmp_path / "analysis.rrd")
     rec = read_back(tmp_path / "analysis.rrd")
     for entity in ("analysis/ratio", "analysis/sigma_over_requirement"):
         assert labels_of(rec, entity, "LineStrips2D") == SPEC_NAMES
@@ -771,9 +775,7 @@ def test_display_available():
 
 def test_rank_deficient_analysis_names_the_unobservable_bars(tmp_path):
     """One Z flip cannot observe all 21: their bars are empty and say so."""
-    from calib.profiles import load_profile
     from calib.sequence import load_sequence
-    from seqdesign.observability import analyze
     from viz.record import record_analysis
 
     path = tmp_path / "onez.toml"
@@ -782,9 +784,10 @@ def test_rank_deficient_analysis_names_the_unobservable_bars(tmp_path):
         '[[step]]\naxis = "Z"\nangle_deg = 90\ndwell_s = 60\n'
     )
     seq = load_sequence(str(path))
-    obs = analyze(seq, load_profile("navigation"), math.radians(40.0))
+    analysis = nominal_analysis(seq)
+    obs = analysis.robustness.nominal
     assert obs.rank < 21
-    record_analysis(obs, seq, tmp_path / "onez.rrd")
+    record_analysis(analysis, tmp_path / "onez.rrd")
     rec = read_back(tmp_path / "onez.rrd")
     assert labels_of(rec, "analysis/ratio/names", "Points2D") == SPEC_NAMES
     shown = labels_of(rec, "analysis/ratio/values", "Points2D")

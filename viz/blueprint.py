@@ -132,16 +132,20 @@ def run_blueprint(duration_s: float, with_results: bool = True):
     return rrb.Blueprint(rrb.Horizontal(*columns, column_shares=[3, 3, 3, 3][: len(columns)]), *_panels())
 
 
-def analysis_blueprint(duration_s: float):
-    """The layout an analysis recording opens with."""
+def analysis_blueprint(duration_s: float, over: str = "", drawn: str = "nominal mounting"):
+    """The layout an analysis recording opens with; the views say where their figures come from
+    (``over``: the ratios, e.g. each parameter's worst over the box) and which mounting they draw.
+    """
     import rerun.blueprint as rrb
 
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Vertical(_scene_view("world", "sequence (nominal)"), _events_view(), row_shares=[3, 1]),
+            rrb.Vertical(
+                _scene_view("world", f"sequence (nominal), {drawn}"), _events_view(), row_shares=[3, 1]
+            ),
             rrb.Spatial3DView(
                 origin="positions",
-                name="rest positions",
+                name=f"rest positions, {drawn}",
                 eye_controls=rrb.EyeControls3D(
                     position=(GALLERY_STEP, -GALLERY_STEP - 23.0, 34.0),
                     look_target=(GALLERY_STEP, -GALLERY_STEP, 0.0),
@@ -149,8 +153,10 @@ def analysis_blueprint(duration_s: float):
                 ),
             ),
             rrb.Vertical(
-                _bars_view("analysis/ratio", "3 sigma / requirement"),
-                _matrix_view("analysis/correlation", "correlation (blue -1, red +1)"),
+                _bars_view(
+                    "analysis/ratio", f"3 sigma / requirement, {over}" if over else "3 sigma / requirement"
+                ),
+                _matrix_view("analysis/correlation", f"correlation at the {drawn} (blue -1, red +1)"),
             ),
             rrb.Tabs(
                 rrb.TextDocumentView(origin="analysis/table", name="analysis"),

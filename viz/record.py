@@ -105,7 +105,7 @@ from calib import earth
 from calib.sequence import nominal_attitude, rest_positions, timeline
 from calib.transform import rotvec_to_dcm
 
-from .analysis import about_analysis, analysis_table, log_gallery, nominal_scene_times
+from .analysis import about_analysis, analysis_figures, analysis_table, log_gallery, nominal_scene_times
 from .blueprint import analysis_blueprint, run_blueprint
 from .charts import labelled_bars, labelled_matrix
 from .events import motion_events, sequence_events
@@ -212,14 +212,16 @@ def record_run(
 
 
 def record_analysis(
-    obs, seq, path: str | os.PathLike, *, gravity_mps2: float | None = None, name: str | None = None
+    analysis, path: str | os.PathLike, *, gravity_mps2: float | None = None, name: str | None = None
 ) -> Summary:
     """Write a rerun recording of a sequence's observability analysis.
 
     Parameters
     ----------
-    obs : seqdesign.observability.Observability
-    seq : calib.sequence.Sequence
+    analysis : seqdesign.analysis.Analysis
+        What ``seqdesign analyze`` prints: the recording shows its figures
+        (each parameter's worst over the mounting box, against its own
+        requirements) and draws its worst mounting.
     path : str or os.PathLike
         The ``.rrd`` to write (atomically).
     gravity_mps2 : float, optional
@@ -231,8 +233,13 @@ def record_analysis(
     -------
     Summary
     """
-    rid = recording_id("analysis", seq.name, obs.information, obs.setup_rotvec)
-    w = Writer(path, rid, name or f"analysis of {seq.name}", analysis_blueprint(seq.duration_s))
+    fig = analysis_figures(analysis)
+    seq, drawn = fig.sequence, fig.drawn
+    rid = recording_id(
+        "analysis", seq.name, drawn.information, drawn.setup_rotvec, fig.sigma, fig.requirement
+    )
+    blueprint = analysis_blueprint(seq.duration_s, fig.over, fig.drawn_name)
+    w = Writer(path, rid, name or f"analysis of {seq.name}", blueprint)
     try:
         rr = w.rr
         lat = math.radians(seq.latitude_deg if seq.latitude_deg is not None else 40.0)
@@ -244,31 +251,31 @@ def record_analysis(
         tl = timeline(seq)
         t_scene = nominal_scene_times(tl)
         angles = gimbal_from_attitudes(seq.C_start, nominal_attitude(tl, t_scene))
-        R_mount = rotvec_to_dcm(np.asarray(obs.setup_rotvec, dtype=float))
+        R_mount = rotvec_to_dcm(np.asarray(drawn.setup_rotvec, dtype=float))
         events = sequence_events(seq)
         log_scene(w, t_scene, angles, R_mount, seq.C_start, g, events)
 
         log_gallery(w, rest_positions(seq), R_mount)
 
-        ratio = np.where(np.isfinite(obs.ratio), obs.ratio, np.nan)
+        ratio = np.where(np.isfinite(fig.ratio), fig.ratio, np.nan)
         labelled_bars(w, "analysis/ratio", ratio, (90, 170, 230), "1 = requirement")
         labelled_bars(
             w,
             "analysis/sigma_over_requirement",
-            np.where(np.isfinite(obs.sigma), obs.sigma, np.nan) / obs.requirements.si,
+            np.where(np.isfinite(fig.sigma), fig.sigma, np.nan) / fig.requirement,
             (120, 200, 120),
             "1 = requirement",
         )
-        if obs.covariance is not None:
-            labelled_matrix(w, "analysis/correlation", obs.correlation)
+        if drawn.covariance is not None:
+            labelled_matrix(w, "analysis/correlation", drawn.correlation)
         else:
             w.note("rank deficient: no covariance, no correlation matrix")
-        w.static("analysis/table", rr.TextDocument(analysis_table(obs, seq), media_type="text/markdown"))
+        w.static("analysis/table", rr.TextDocument(analysis_table(fig), media_type="text/markdown"))
         w.summary.scene_source = f"sequence {seq.name!r} (nominal attitude, decomposed)"
-        w.summary.mount_source = "the analysis's mounting rotation"
+        w.summary.mount_source = fig.mounting
         w.static(
             "about",
-            rr.TextDocument(about_analysis(seq, len(t_scene), w.summary.notes), media_type="text/markdown"),
+            rr.TextDocument(about_analysis(fig, len(t_scene), w.summary.notes), media_type="text/markdown"),
         )
     except BaseException:
         w.abort()
