@@ -145,7 +145,7 @@ def record_run(
         Entities and row counts, notes, where the scene came from.
     """
     n = run.n_samples
-    lat_deg, g, dt = review.latitude_deg, review.gravity_mps2, review.dt
+    g, dt = review.gravity_mps2, review.dt
     t_rel = run.time_s - review.t0
     dtheta, dv = run.dtheta_rad, run.dv_mps
     rid = recording_id(
@@ -186,22 +186,7 @@ def record_run(
         w.static(
             "about",
             w.rr.TextDocument(
-                about_run(
-                    run,
-                    n,
-                    t_rel,
-                    block,
-                    len(keep),
-                    sequence,
-                    result,
-                    truth,
-                    scene_source,
-                    mount_source,
-                    lat_deg,
-                    g,
-                    w.summary.notes,
-                    review,
-                ),
+                about_run(run, review, t_rel, block, len(keep), sequence, result, truth, w.summary),
                 media_type="text/markdown",
             ),
         )

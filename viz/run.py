@@ -8,7 +8,7 @@ from calib import params as P
 from calib.sequence import nominal_attitude, timeline
 from calib.transform import dcm_to_rotvec
 
-from .rrd import Writer
+from .rrd import Summary, Writer
 from .scene import AXIS_COLORS, SCENE_RATE_HZ, SCENE_STEP_DEG, gimbal_from_attitudes
 
 SIGNAL_RATE_HZ = 20.0  # raw signals shown as block means at about this rate
@@ -106,24 +106,13 @@ def _about_envelope(review) -> list[str]:
     ]
 
 
-def about_run(
-    run,
-    n,
-    t_rel,
-    block,
-    n_scene,
-    sequence,
-    result,
-    truth,
-    scene_source,
-    mount_source,
-    lat_deg,
-    g,
-    notes,
-    review,
-) -> str:
-    """The ``about`` document of a run recording: sources, time line, what is decimated, the scene."""
-    fs = run.sample_rate_hz
+def about_run(run, review, t_rel, block, n_scene, sequence, result, truth, summary: Summary) -> str:
+    """The ``about`` document of a run recording: sources, time line, what is decimated, the scene
+    (``summary``: where the scene came from, and the notes).
+    """
+    fs, n = run.sample_rate_hz, run.n_samples
+    lat_deg, g = review.latitude_deg, review.gravity_mps2
+    scene_source, mount_source, notes = summary.scene_source, summary.mount_source, summary.notes
     lines = (
         [
             f"# Run {run.source}",
