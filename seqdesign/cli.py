@@ -495,7 +495,7 @@ def analyze(sequence, profile, latitude, tolerance_deg, requirements, view_path,
         from viz.record import record_analysis
 
         path = view_path or f"{result.sequence.name}-analysis.rrd"
-        record_analysis(result.robustness.worst, result.sequence, path)
+        record_analysis(result, path)
         doc["recording"] = str(path)
         info(f"wrote {path} (open it with: rerun {path})")
     if as_json:

@@ -206,7 +206,7 @@ def test_cli_analyze_view_writes_a_recording_of_the_analysis(tmp_path, monkeypat
         monkeypatch.setenv(var, str(tmp_path / "home"))
     from test_viz import bars  # rerun's BarChart values read back from the recording
 
-    from viz.record import read_recording
+    from viz.rrd import read_recording
 
     out = tmp_path / "a.rrd"
     r = CliRunner().invoke(

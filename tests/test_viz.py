@@ -415,15 +415,21 @@ def test_scene_from_navigation(sim, result, tmp_path):
 # Analysis recording
 
 
+def nominal_analysis(seq):
+    """The analysis of ``seq`` at the nominal mounting (navigation profile, 40 deg)."""
+    from seqdesign.analysis import analyze
+
+    return analyze(seq, "navigation", latitude_deg=40.0, tolerance_deg=0.0)
+
+
 def test_analysis_recording(tmp_path):
-    from calib.profiles import load_profile
     from calib.sequence import load_sequence
-    from seqdesign.observability import analyze
     from viz.record import record_analysis
 
     seq = load_sequence("paper-9pos")
-    obs = analyze(seq, load_profile("navigation"), math.radians(40.0))
-    record_analysis(obs, seq, tmp_path / "analysis.rrd")
+    analysis = nominal_analysis(seq)
+    obs = analysis.robustness.nominal
+    record_analysis(analysis, tmp_path / "analysis.rrd")
     rec = read_back(tmp_path / "analysis.rrd")
     corr = tensor(batch_with(rec, "analysis/correlation", "Tensor:data"), "Tensor:data")
     assert corr.shape == (21, 21)
@@ -528,7 +534,7 @@ def test_cli_bad_input_one_line_nothing_written(sim, result, tmp_path, monkeypat
 
 
 def test_failure_midway_leaves_old_file_untouched(sim, tmp_path, monkeypatch):
-    import viz.record
+    import viz.run
     from viz.record import record_run
 
     seq, run, truth = sim
@@ -539,7 +545,7 @@ def test_failure_midway_leaves_old_file_untouched(sim, tmp_path, monkeypatch):
         raise KeyboardInterrupt
 
     # Interrupted half-way through logging (the estimation work is done before, in calib.review).
-    monkeypatch.setattr(viz.record, "block_means", boom)
+    monkeypatch.setattr(viz.run, "block_means", boom)
     with pytest.raises(KeyboardInterrupt):
         record_run(run, target, review_run(run), sequence=seq)
     assert target.read_bytes() == b"old"
@@ -613,14 +619,12 @@ def test_correlation_matrix_carries_the_parameter_names(recorded):
 
 
 def test_analysis_bars_and_matrix_carry_the_names(tmp_path):
-    from calib.profiles import load_profile
     from calib.sequence import load_sequence
-    from seqdesign.observability import analyze
     from viz.record import record_analysis
 
     seq = load_sequence("paper-9pos")
-    obs = analyze(seq, load_profile("navigation"), math.radians(40.0))
-    record_analysis(obs, seq, tmp_path / "analysis.rrd")
+    analysis = nominal_analysis(seq)
+    record_analysis(analysis, tmp_path / "analysis.rrd")
     rec = read_back(tmp_path / "analysis.rrd")
     for entity in ("analysis/ratio", "analysis/sigma_over_requirement"):
         assert labels_of(rec, entity, "LineStrips2D") == SPEC_NAMES
@@ -771,9 +775,7 @@ def test_display_available():
 
 def test_rank_deficient_analysis_names_the_unobservable_bars(tmp_path):
     """One Z flip cannot observe all 21: their bars are empty and say so."""
-    from calib.profiles import load_profile
     from calib.sequence import load_sequence
-    from seqdesign.observability import analyze
     from viz.record import record_analysis
 
     path = tmp_path / "onez.toml"
@@ -782,9 +784,10 @@ def test_rank_deficient_analysis_names_the_unobservable_bars(tmp_path):
         '[[step]]\naxis = "Z"\nangle_deg = 90\ndwell_s = 60\n'
     )
     seq = load_sequence(str(path))
-    obs = analyze(seq, load_profile("navigation"), math.radians(40.0))
+    analysis = nominal_analysis(seq)
+    obs = analysis.robustness.nominal
     assert obs.rank < 21
-    record_analysis(obs, seq, tmp_path / "onez.rrd")
+    record_analysis(analysis, tmp_path / "onez.rrd")
     rec = read_back(tmp_path / "onez.rrd")
     assert labels_of(rec, "analysis/ratio/names", "Points2D") == SPEC_NAMES
     shown = labels_of(rec, "analysis/ratio/values", "Points2D")
@@ -793,3 +796,77 @@ def test_rank_deficient_analysis_names_the_unobservable_bars(tmp_path):
     assert [x == "unobservable" for x in shown] == list(missing)
     strips = np.array(positions_of(rec, "analysis/ratio", "LineStrips2D", "strips"), dtype=float)
     np.testing.assert_allclose(strips[missing, 1, 0], 0.0)
+
+
+# ---------------------------------------------------------------------------
+# A result judged against other requirements than the paper's is drawn against its own
+
+
+def test_view_draws_a_result_against_its_own_requirements(tmp_path, monkeypatch):
+    """simulate -> calibrate --requirements mems -> view: the bars are 3 sigma / the MEMS
+    requirement and |error| / the MEMS requirement, the expected values built from the
+    result file's sigmas, the truth file and calib/requirements_files/mems.toml."""
+    import tomllib
+
+    from seqdesign.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    runner = CliRunner()
+    for args in (
+        ["simulate", "paper-9pos", "--table2", "--seed", "1", "--sample-rate-hz", "20", "-o", "run.npz"],
+        ["calibrate", "run.npz", "--requirements", "mems"],
+        ["view", "run.npz", "--result", "run.result.toml", "-o", "x.rrd"],
+    ):
+        res = runner.invoke(main, args)
+        assert res.exit_code == 0, (args, res.output)
+    mems_file = Path(__file__).parent.parent / "calib" / "requirements_files" / "mems.toml"
+    mems = tomllib.loads(mems_file.read_text())["requirements"]
+    saved = tomllib.loads((tmp_path / "run.result.toml").read_text())["parameters"]
+    truth = tomllib.loads((tmp_path / "run.truth.toml").read_text())["errors"]
+    req = np.array([mems[n] for n in SPEC_NAMES])
+    sigma = np.array([saved[n]["sigma"] for n in SPEC_NAMES])
+    error = np.array([saved[n]["value"] - truth[n] for n in SPEC_NAMES])
+    assert not np.allclose(req, [REQ[n[:2]] for n in SPEC_NAMES])  # not the paper's
+    rec = read_back(tmp_path / "x.rrd")
+    np.testing.assert_allclose(bars(rec, "results/ratio"), 3.0 * sigma / req, rtol=1e-6)
+    np.testing.assert_allclose(bars(rec, "results/error_over_requirement"), np.abs(error) / req, rtol=1e-6)
+    table = text_of(rec, "results/table")
+    assert "requirements mems" in table
+    k = SPEC_NAMES.index("bgx")
+    row = next(x for x in table.splitlines() if x.startswith(f"| {k} | bgx |"))
+    assert f"| {3.0 * sigma[k] / req[k]:.2f} |" in row
+
+
+def test_analysis_recording_shows_what_analyze_prints(tmp_path):
+    """Over a mounting box, analyze prints each parameter's worst sigma and ratio: the recording's
+    bars and table hold those figures, and say which mounting the correlation matrix, the scene
+    and the gallery are drawn at (the worst; its correlated pairs are the JSON's)."""
+    from seqdesign.cli import main
+
+    out = tmp_path / "a.rrd"
+    res = CliRunner().invoke(main, ["analyze", "paper-9pos", "--view", str(out), "--json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["tolerance_deg"] == 3.0
+    entries = [doc["parameters"][n] for n in SPEC_NAMES]
+    ratio = np.array([e["ratio"] for e in entries])
+    assert np.any(ratio > np.array([e["ratio_nominal"] for e in entries]))  # the box matters
+    rec = read_back(out)
+    np.testing.assert_allclose(bars(rec, "analysis/ratio"), ratio, rtol=1e-12)
+    np.testing.assert_allclose(
+        bars(rec, "analysis/sigma_over_requirement"),
+        [e["sigma"] / e["requirement"] for e in entries],
+        rtol=1e-12,
+    )
+    table = text_of(rec, "analysis/table")
+    for k, (name, e) in enumerate(zip(SPEC_NAMES, entries)):
+        row = next(x for x in table.splitlines() if x.startswith(f"| {k} | {name} |"))
+        assert f"| {e['sigma']:.3g} | {e['requirement']:g} | {e['ratio']:.2f}" in row
+    assert f"worst 3 sigma / requirement: {doc['worst']['ratio']:.2f} ({doc['worst']['name']})" in table
+    mounting = str(np.round(doc["worst_setup_deg"], 3).tolist())
+    assert "each parameter's worst over +-3 deg" in table
+    assert mounting in table and mounting in text_of(rec, "about")
+    cells = labels_of(rec, "analysis/correlation/cells", "Points2D")
+    for pair in doc["correlated_pairs"]:
+        i, j = SPEC_NAMES.index(pair["a"]), SPEC_NAMES.index(pair["b"])
+        assert cells[i * 21 + j] == f"{pair['a']} / {pair['b']}: {pair['rho']:+.3f}"
