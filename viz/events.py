@@ -7,7 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.sequence import rest_positions, timeline
+from calib.encoders import rest_positions
+from calib.sequence import timeline
 
 REST, FLIP = "rest", "flip"
 

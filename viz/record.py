@@ -102,7 +102,8 @@ from pathlib import Path
 import numpy as np
 
 from calib import earth
-from calib.sequence import nominal_attitude, rest_positions, timeline
+from calib.encoders import rest_positions
+from calib.sequence import nominal_attitude, timeline
 from calib.transform import rotvec_to_dcm
 
 from .analysis import about_analysis, analysis_figures, analysis_table, log_gallery, nominal_scene_times
