@@ -416,9 +416,9 @@ def test_scene_from_navigation(sim, result, tmp_path):
 
 
 def test_analysis_recording(tmp_path):
+    from calib.mounting import analyze
     from calib.profiles import load_profile
     from calib.sequence import load_sequence
-    from seqdesign.observability import analyze
     from viz.record import record_analysis
 
     seq = load_sequence("paper-9pos")
@@ -613,9 +613,9 @@ def test_correlation_matrix_carries_the_parameter_names(recorded):
 
 
 def test_analysis_bars_and_matrix_carry_the_names(tmp_path):
+    from calib.mounting import analyze
     from calib.profiles import load_profile
     from calib.sequence import load_sequence
-    from seqdesign.observability import analyze
     from viz.record import record_analysis
 
     seq = load_sequence("paper-9pos")
@@ -771,9 +771,9 @@ def test_display_available():
 
 def test_rank_deficient_analysis_names_the_unobservable_bars(tmp_path):
     """One Z flip cannot observe all 21: their bars are empty and say so."""
+    from calib.mounting import analyze
     from calib.profiles import load_profile
     from calib.sequence import load_sequence
-    from seqdesign.observability import analyze
     from viz.record import record_analysis
 
     path = tmp_path / "onez.toml"
