@@ -25,10 +25,10 @@ from scipy.stats import chi2
 
 import calib  # noqa: F401  (BLAS threads)
 from calib import params as P
+from calib.mounting import analyze
 from calib.profiles import load_profile
 from calib.sequence import load_sequence
 from seqdesign.montecarlo import run_trials
-from seqdesign.observability import analyze
 
 
 def main() -> None:

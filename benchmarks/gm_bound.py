@@ -19,9 +19,10 @@ import time
 
 from calib import earth
 from calib import params as P
+from calib.bounds import accel_scale_bound
+from calib.mounting import analyze
 from calib.profiles import load_profile
 from calib.sequence import Sequence, Step
-from seqdesign.observability import accel_scale_bound, analyze
 
 LAT = math.radians(40.0)
 # designed-30min-gm's first six turns: +Z +Y -X -Z -Y +X (each axis both ways)

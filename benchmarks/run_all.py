@@ -121,7 +121,8 @@ def cli_rows(tmp: Path) -> list:
 
 def analysis_rows(seq, prof, lat) -> list:
     """The analyser in-process and through the CLI."""
-    from seqdesign.observability import analyze, analyze_tolerance
+    from calib.mounting import analyze
+    from calib.worstcase import analyze_tolerance
 
     analyze(seq, prof, lat)  # warm caches (casadi step model, whitening) as a search loop would
     return [
@@ -233,9 +234,9 @@ MC_SEQUENCES = ("paper-9pos", "paper-9pos-turns", "designed-15min", "designed-30
 def monte_carlo(n: int, workers: int, prof, lat, sequences=MC_SEQUENCES) -> None:
     """N simulate -> calibrate trials per shipped sequence against the predicted sigmas."""
     from calib import params as P
+    from calib.mounting import analyze
     from calib.sequence import load_sequence
     from seqdesign.montecarlo import run_trials
-    from seqdesign.observability import analyze
 
     for name in sequences:
         s = load_sequence(name)

@@ -180,16 +180,24 @@ def describe_null(null_basis: np.ndarray, names=UNKNOWN_NAMES) -> list[str]:
     forces (e.g. ``+1.00*saz -0.02*baz``: the z accelerometer only ever saw +g).
     Coefficients are in the scaling of the matrix (units of each requirement).
     """
-    null = null_basis.T  # (k, n)
-    k = null.shape[0]
-    if k == 0:
+    if null_basis.shape[1] == 0:
         return []
-    from scipy.linalg import qr  # only for a run that leaves directions unobserved
-
-    _, _, piv = qr(null, pivoting=True)
-    basis = np.linalg.solve(null[:, piv[:k]], null)
     out = []
-    for row in basis:
+    for row in row_echelon(null_basis.T):
         idx = [i for i in np.argsort(-np.abs(row)) if abs(row[i]) > 0.01][:6]
         out.append(" ".join(f"{row[i]:+.2f}*{names[i]}" for i in idx))
     return out
+
+
+def row_echelon(rows: np.ndarray) -> np.ndarray:
+    """Reduced row-echelon form of the span of ``rows`` (k, n), k independent rows.
+
+    Pivots are chosen by column-pivoted QR: each row gets one pivot column (a
+    unit there, zero in the others' pivots) and as few other terms as the span
+    forces, which is how weak directions and separable combinations are written.
+    """
+    from scipy.linalg import qr  # only for a run that leaves directions unobserved
+
+    k = rows.shape[0]
+    _, _, piv = qr(rows, pivoting=True)
+    return np.linalg.solve(rows[:, piv[:k]], rows)

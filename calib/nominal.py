@@ -1,6 +1,6 @@
 """The error-free trajectory of a sequence and the Fisher information along it.
 
-The analyser (:mod:`seqdesign.observability`) and the estimator both need
+The analyser (:mod:`calib.observability`) and the estimator both need
 what a sequence observes when nothing disturbs it: the analyser to predict,
 the estimator to decide, as the analyser does, which parameters a
 rank-deficient run can estimate (a run's own trajectory is bent by the
@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import earth
 from .extras import NONE as NO_EXTRAS
 from .extras import Extras
 from .jacobian import MOVE_STEP_S, ObservationGrid, observation_jacobian, state_matrix
@@ -113,7 +114,7 @@ def noise_along(
     White noise depends only on the interval lengths, so every mounting of a
     sequence shares one (cached) model. With Gauss-Markov bias instability the
     weights also depend on the attitude of each interval (its middle sample
-    boundary): :func:`analyze_tolerance` then evaluates every mounting along
+    boundary): :func:`calib.worstcase.analyze_tolerance` then evaluates every mounting along
     its own trajectory instead of through the mounting basis.
     """
     T = np.diff(time_nav[bounds])
@@ -217,4 +218,36 @@ def information_along_many(
     for m in range(M):
         Hw = np.ascontiguousarray(X[:, m]).reshape(-1, c)
         out[m] = Hw.T @ Hw
+    return out
+
+
+BATCH_MOUNTINGS = 9  # mountings per pass of the GM noise filter: the 27 box points in 3 passes
+
+
+def mounting_informations(
+    seq: Sequence,
+    profile: NoiseProfile,
+    latitude_rad: float,
+    height_m: float,
+    rotvecs: list,
+    extras: Extras = NO_EXTRAS,
+    batch: int = BATCH_MOUNTINGS,
+) -> list[np.ndarray]:
+    """Fisher information of each mounting, evaluated along its own nominal trajectory.
+
+    For what the mounting basis (:mod:`calib.mounting`) does not hold: Gauss-Markov
+    bias instability and the optional terms. ``batch`` mountings share a pass of the
+    noise filter (:func:`information_along_many`); ``batch=1`` evaluates each on its
+    own (:func:`information_along`), the reference the tests hold the batches to.
+    """
+    g = earth.gravity(latitude_rad, height_m)
+    rotvecs = list(rotvecs)
+    size = max(1, batch)
+    out = []
+    for part in (rotvecs[i : i + size] for i in range(0, len(rotvecs), size)):
+        noms = [nominal_run(seq, latitude_rad, height_m, rv) for rv in part]
+        if batch > 1:
+            out.extend(information_along_many(noms, profile, latitude_rad, g, extras))
+        else:
+            out.extend(information_along(n, profile, latitude_rad, g, extras) for n in noms)
     return out

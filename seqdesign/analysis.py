@@ -17,14 +17,15 @@ import numpy as np
 
 from calib import earth
 from calib import params as P
+from calib.bounds import accel_scale_bound
 from calib.errors import CalibError
 from calib.extras import Extras, as_extras
 from calib.profiles import NoiseProfile, as_profile
 from calib.report import format_table, parameter_entries, worst
 from calib.requirements import PAPER, Requirements, load_requirements
 from calib.sequence import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, Sequence, load_sequence
+from calib.worstcase import ExtrasCost, Robustness, analyze_extras, analyze_tolerance
 
-from .observability import ExtrasCost, Robustness, accel_scale_bound, analyze_extras, analyze_tolerance
 from .separability import involvement, motion_hint, separable_combinations
 
 

@@ -13,15 +13,16 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from calib import earth
+from calib.bounds import accel_scale_bound
 from calib.extras import NONE as NO_EXTRAS
 from calib.extras import Extras, parse_groups
 from calib.fileio import atomic_write_text
 from calib.profiles import NoiseProfile, as_profile
 from calib.requirements import PAPER, Requirements, load_requirements
 from calib.sequence import load_sequence, save_sequence
+from calib.worstcase import analyze_tolerance
 
 from .design import Constraints, DesignResult, check_constraints, design
-from .observability import accel_scale_bound, analyze_tolerance
 
 
 @dataclass(frozen=True)

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from calib.bounds import accel_scale_bound
 from calib.errors import CalibError
 from calib.fileio import atomic_write_bytes
-
-from .observability import accel_scale_bound
 
 
 def pyplot():

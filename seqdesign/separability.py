@@ -10,9 +10,10 @@ parameters' own units), and, per parameter, the motion that excites it.
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import null_space, qr
+from scipy.linalg import null_space
 
 from calib import params as P
+from calib.information import row_echelon
 
 AXES = "XYZ"
 INVOLVED = 0.01  # a parameter takes part in a null direction above this scaled component
@@ -22,14 +23,10 @@ def involvement(null_basis: np.ndarray) -> list[list[int]]:
     """For each parameter, the indices of the null directions (RREF basis) it takes part in."""
     if null_basis.shape[1] == 0:
         return [[] for _ in range(null_basis.shape[0])]
-    from scipy.linalg import qr
-
-    null = null_basis.T
-    k = null.shape[0]
-    _, _, piv = qr(null, pivoting=True)
-    rref = np.linalg.solve(null[:, piv[:k]], null)  # the same basis describe_null prints
+    rref = row_echelon(null_basis.T)  # the same basis describe_null prints
+    k = rref.shape[0]
     out = []
-    for i in range(null.shape[1]):
+    for i in range(rref.shape[1]):
         dirs = [d for d in range(k) if abs(rref[d, i]) > INVOLVED]
         if not dirs and np.abs(rref[:, i]).max() > 1e-6:  # a small lean still counts
             dirs = [int(np.argmax(np.abs(rref[:, i])))]
@@ -56,11 +53,8 @@ def separable_combinations(
         return []
     # Reduced row-echelon form, as the null directions are printed: each combination gets a
     # pivot parameter and as few others as the physics forces.
-    _, _, piv = qr(comp.T, pivoting=True)
-    r = comp.shape[1]
-    basis = np.linalg.solve(comp.T[:, piv[:r]], comp.T)  # (r, m), scaled
     out = []
-    for row in basis:
+    for row in row_echelon(comp.T):  # (r, m), scaled
         keep = np.abs(row) > 0.01  # as describe_null: terms above 1 % in requirement units
         own = row / np.asarray(scales)[idx]  # coefficient of each parameter in its own unit
         own = own / own[np.argmax(np.abs(row))]

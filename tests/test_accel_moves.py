@@ -197,7 +197,7 @@ def test_encoder_steps_within_the_moves_rate(noise_free_accel_fit):
 def test_analyser_models_accelerating_moves_as_the_estimator_sees_them(noise_free_accel_fit):
     # The analyser builds its model from the same timeline (with the profile's pieces); its
     # sigmas must match the estimator's on the accelerating run as on constant-rate ones (1 %).
-    from seqdesign.observability import analyze
+    from calib.mounting import analyze
 
     fit, _, _ = noise_free_accel_fit
     seq = accelerating(load_sequence("paper-9pos"), 5.0, 10.0)

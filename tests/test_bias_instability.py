@@ -13,7 +13,7 @@ from calib.estimator import calibrate
 from calib.profiles import NoiseProfile, load_profile
 from calib.sequence import load_sequence
 from calib.sim import SimConfig, simulate
-from seqdesign.observability import analyze_tolerance
+from calib.worstcase import analyze_tolerance
 
 LAT = math.radians(40.0)
 WHITE = load_profile("navigation")

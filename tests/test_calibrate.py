@@ -87,8 +87,8 @@ def test_any_heading_works(paper):
 def test_monte_carlo_statistical_honesty(name):
     """N = 50 noisy runs: mean NEES in the 99 % interval of chi2(1050)/50 and
     RMS(error)/mean(sigma) in [0.67, 1.36] for every parameter (99 % over 21 at N = 50)."""
+    from calib.mounting import analyze
     from seqdesign.montecarlo import run_trials
-    from seqdesign.observability import analyze
 
     prof = load_profile("navigation")
     paper = load_sequence(name)
@@ -234,7 +234,7 @@ def test_coarse_analysis_model_agrees_with_the_estimators_fine_one(noise_free_fi
     # with 1 s intervals. Both are the same linear model: their predicted sigmas
     # must agree. 1 % is far below what would change a verdict and far above the
     # 0.2 % the coarser rest intervals cost.
-    from seqdesign.observability import analyze
+    from calib.mounting import analyze
 
     fit, _, _ = noise_free_fit
     obs = analyze(paper, load_profile("navigation"), LAT, 0.0, SETUP)

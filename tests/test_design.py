@@ -10,14 +10,15 @@ import pytest
 from click.testing import CliRunner
 
 from calib import params as P
+from calib.mounting import analyze
 from calib.profiles import load_profile
 from calib.requirements import PAPER
 from calib.sequence import load_sequence
 from calib.transform import attitude_from_directions, rot_axis
+from calib.worstcase import analyze_tolerance
 from seqdesign.cli import main
 from seqdesign.design import Constraints, SearchModel, beam_search, brute_force, to_sequence
 from seqdesign.graph import Move, flip_graph
-from seqdesign.observability import analyze, analyze_tolerance
 
 LAT = math.radians(40.0)
 PROFILE = load_profile("navigation")
@@ -216,7 +217,7 @@ def test_sigma_gradient_matches_finite_differences():
     # basis) against central differences of the analyser's own sigma. Step 1e-5 rad:
     # truncation h^2 sigma'''/6 ~ 1e-10 of sigma, ~1e-6 of the largest gradient component;
     # tolerance 1e-5 of that component.
-    from seqdesign.observability import sequence_model
+    from calib.mounting import sequence_model
 
     model = sequence_model(load_sequence("paper-9pos"), PROFILE, LAT)
     theta = np.radians([1.0, -2.0, 2.5])
@@ -238,8 +239,8 @@ def test_sigma_gradient_matches_finite_differences():
 @pytest.mark.slow
 def test_design_with_terms_scores_the_21_with_them_fitted():
     from calib.extras import Extras
+    from calib.worstcase import analyze_extras
     from seqdesign.design import design
-    from seqdesign.observability import analyze_extras
 
     c = Constraints(budget_s=360.0, max_flips=3, max_quarters=2, min_dwell_s=10.0)
     ext = Extras(("lever-arm",))
@@ -335,7 +336,7 @@ def test_shipped_gm_designs_beat_the_white_noise_designs_on_the_real_unit(name, 
     worst over +-3 deg), <= 1.95 within 15 min and <= 1.40 within 30 min (the white-noise
     designs the issue measured, 9 moves each, reached 2.53 and 2.26 there)."""
     from calib.extras import GROUP_NAMES, Extras
-    from seqdesign.observability import analyze_extras
+    from calib.worstcase import analyze_extras
 
     seq = load_sequence(name)
     assert seq.duration_s <= budget_s + 1e-6

@@ -183,8 +183,8 @@ def test_extra_columns_match_central_finite_difference():
     """Each extra column of H equals a central difference of simulate -> navigate (1e-3 rel)."""
     from calib.jacobian import N_UNKNOWN, ObservationGrid, observation_jacobian, state_matrix
     from calib.noise import noise_model
+    from calib.nominal import nominal_run
     from calib.strapdown import navigate
-    from seqdesign.observability import nominal_run
 
     seq = load_sequence("paper-9pos")
     rate = 50.0
@@ -232,7 +232,7 @@ def test_analyser_with_extras_predicts_the_estimators_sigma(all_on_fit):
     # The analyser (coarse nominal sampling, 5 s rest intervals) and the estimator (200 Hz,
     # 1 s) evaluate the same model at the same mounting; the 21-parameter case agrees to
     # 0.2 %, so 1 % leaves room for the extra columns' coarser sampling.
-    from seqdesign.observability import information_along, nominal_run
+    from calib.nominal import information_along, nominal_run
 
     fit, _, _, setup = all_on_fit
     nom = nominal_run(load_sequence("paper-9pos"), LAT, 0.0, setup)
@@ -244,7 +244,7 @@ def test_analyser_with_extras_predicts_the_estimators_sigma(all_on_fit):
 
 def test_fitting_more_terms_never_shrinks_a_sigma():
     # Marginal variances can only grow when unknowns are added (Schur complement).
-    from seqdesign.observability import analyze_extras
+    from calib.worstcase import analyze_extras
 
     cost = analyze_extras(load_sequence("paper-9pos"), PROFILE, LAT, Extras(("k2",)), tolerance_deg=0.0)
     assert np.all(cost.sigma_with >= cost.sigma_without * (1 - 1e-9))

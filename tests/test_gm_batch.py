@@ -23,7 +23,7 @@ from calib.noise import filter_blocks, gm_interval_arrays, interval_models, whit
 from calib.nominal import information_along, information_along_many, nominal_run, same_grid
 from calib.profiles import load_profile
 from calib.sequence import load_sequence
-from seqdesign.observability import analyze_extras, analyze_tolerance
+from calib.worstcase import analyze_extras, analyze_tolerance
 
 LAT = math.radians(40.0)
 G = earth.gravity(LAT)

@@ -1,0 +1,331 @@
+"""The worst case over the mounting box: grid points, then an IPOPT search beyond them.
+
+A sequence's figures are quoted at the worst base mounting within
+``+-tolerance_deg`` (docs/conventions.md): :func:`analyze_tolerance` for the
+21 parameters, :func:`analyze_extras` for what fitting a real unit's optional
+terms costs them. Under white noise each mounting comes from the mounting
+basis (:mod:`calib.mounting`), with an exact sigma gradient; with
+Gauss-Markov bias instability or optional terms each is evaluated along its
+own nominal trajectory (:func:`calib.nominal.mounting_informations`).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import ipopt
+from . import params as P
+from .extras import Extras
+from .information import eliminate, projected_covariance, scaled_inverse
+from .jacobian import N_UNKNOWN
+from .jacobian import PHI0 as PHI0_IDX
+from .mounting import SequenceModel, sequence_model
+from .nominal import BATCH_MOUNTINGS, mounting_informations
+from .observability import Observability, from_information
+from .profiles import NoiseProfile
+from .requirements import PAPER, Requirements
+from .sequence import Sequence
+
+
+@dataclass(frozen=True)
+class Robustness:
+    """Observability over the +-tolerance box of base mountings."""
+
+    nominal: Observability
+    worst: Observability  # the mounting with the largest worst ratio
+    per_parameter_worst_sigma: np.ndarray  # (21,) SI, max over the box of each sigma
+    points: int
+    tolerance_deg: float
+    searched: bool = False  # whether IPOPT refined the worst parameter beyond the 27 points
+
+    @property
+    def per_parameter_worst_ratio(self) -> np.ndarray:
+        return self.nominal.requirements.ratio(self.per_parameter_worst_sigma)
+
+
+def search_worst_mounting(
+    model: SequenceModel,
+    index: int,
+    starts_deg: list,
+    tolerance_deg: float,
+    requirements: Requirements = PAPER,
+) -> tuple[np.ndarray, float]:
+    """Maximise one parameter's sigma over the mounting box with IPOPT, from several starts.
+
+    The gradient is exact (:meth:`SequenceModel.sigma_gradient`: the mounting basis
+    differentiated). Returns the mounting (rotation vector, rad) and that
+    parameter's sigma (SI).
+    """
+    req = requirements.si[index]
+
+    def value(theta_deg):
+        return model.analyze(np.radians(theta_deg)).sigma[index] / req
+
+    def gradient(theta_deg):
+        _, grad = model.sigma_gradient(np.radians(theta_deg), index)
+        return grad * (math.pi / 180.0) / req
+
+    f = ipopt.function(f"sigma_{P.NAMES[index]}", 3, 1, value, gradient)
+    best_x, best = ipopt.maximize_in_box(f, starts_deg, tolerance_deg)
+    return np.radians(best_x), best * req
+
+
+FD_STEP_DEG = 1e-3  # forward step of the direct search's gradient (see search_worst_direct)
+DIRECT_MAX_ITER = 8
+
+
+def search_worst_direct(
+    sigma_of, start_deg, tolerance_deg: float, max_iter: int = DIRECT_MAX_ITER, sigmas_of=None
+) -> tuple[np.ndarray, float]:
+    """Maximise ``sigma_of(rotvec)`` over the box with IPOPT where no closed form exists.
+
+    For Gauss-Markov bias instability the noise filter's gains depend on the
+    attitude of every interval (a Riccati recursion), and the optional terms'
+    sensitivities are polynomials of up to third degree in the mounting: neither
+    enters the 63-term basis. Each value is then an exact evaluation along the
+    mounting's own trajectory (as the 27 box points), and the gradient IPOPT is
+    steered by is a forward difference of those values, ``FD_STEP_DEG`` apart
+    (truncation ~ step / 2 x curvature: ~1e-4 of the gradient over a 3 deg box;
+    rounding ~1e-12 / 2e-5 rad). What is returned is the best exact evaluation
+    seen, so the search can only raise the worst case, never invent one.
+
+    ``sigmas_of(rotvecs) -> sigmas``, if given, evaluates a gradient's points (the
+    value and its three steps, those not yet seen) in one call: a batch shares one
+    pass of the noise filter (:func:`calib.nominal.information_along_many`).
+
+    Returns the mounting (rotation vector, rad) and its ``sigma_of``.
+    """
+    seen: dict[tuple, float] = {}
+
+    def key_of(theta_deg):
+        return tuple(np.round(theta_deg, 12))
+
+    def value(theta_deg):
+        key = key_of(theta_deg)
+        if key not in seen:
+            seen[key] = float(sigma_of(np.radians(theta_deg)))
+        return seen[key]
+
+    def gradient(theta_deg):
+        points = [np.asarray(theta_deg, dtype=float)] + [theta_deg + FD_STEP_DEG * e for e in np.eye(3)]
+        new = [t for t in points if key_of(t) not in seen]
+        if sigmas_of is not None and len(new) > 1:
+            for t, sigma in zip(new, sigmas_of([np.radians(t) for t in new])):
+                seen[key_of(t)] = float(sigma)
+        f0 = value(points[0])
+        return np.array([(value(t) - f0) / FD_STEP_DEG for t in points[1:]])
+
+    scale = value(np.asarray(start_deg, dtype=float))
+    f = ipopt.function("sigma", 3, 1, lambda t: value(t) / scale, lambda t: gradient(t) / scale)
+    ipopt.maximize_in_box(f, [start_deg], tolerance_deg, max_iter=max_iter, tol=1e-5)
+    # Only the box's evaluations count, not the forward-difference points outside it.
+    inside = {k: v for k, v in seen.items() if max(abs(x) for x in k) <= tolerance_deg}
+    key = max(inside, key=inside.get)
+    return np.radians(np.array(key)), inside[key]
+
+
+def _evaluator(
+    seq: Sequence,
+    profile: NoiseProfile,
+    latitude_rad: float,
+    height_m: float,
+    requirements: Requirements,
+    batch: int = BATCH_MOUNTINGS,
+):
+    """``evaluate(rotvecs, nominal=None) -> [Observability]`` and the basis model (None with GM)."""
+    if profile.has_gauss_markov:
+        # Bias-instability weights depend on the mounting (measured: up to 4.7 % on a sigma
+        # for designed-30min-9moves if the nominal weights are reused), so evaluate each directly.
+        def evaluate(rotvecs, nominal=None):
+            infos = mounting_informations(seq, profile, latitude_rad, height_m, rotvecs, batch=batch)
+            return [
+                from_information(info, seq.duration_s, profile.name, rv, nominal, requirements)
+                for info, rv in zip(infos, rotvecs)
+            ]
+
+        return evaluate, None
+    model = sequence_model(seq, profile, latitude_rad, height_m)
+
+    def evaluate(rotvecs, nominal=None):
+        return [model.analyze(rv, nominal, requirements) for rv in rotvecs]
+
+    return evaluate, model
+
+
+def analyze_tolerance(
+    seq: Sequence,
+    profile: NoiseProfile,
+    latitude_rad: float,
+    height_m: float = 0.0,
+    tolerance_deg: float = 3.0,
+    search: bool = True,
+    starts: int = 2,
+    requirements: Requirements = PAPER,
+    batch: int = BATCH_MOUNTINGS,
+) -> Robustness:
+    """Worst case over the +-tolerance box of base mountings.
+
+    The 27 corner/edge/face/centre points are evaluated; then, if ``search``,
+    IPOPT maximises the sigma of the worst parameter, since the worst mounting
+    need not be a grid point: under white noise from its ``starts`` worst grid
+    points with the exact gradient of the mounting basis
+    (:func:`search_worst_mounting`); under Gauss-Markov bias instability, whose
+    whitening the basis does not hold, from its worst grid point over direct
+    evaluations (:func:`search_worst_direct`), ``batch`` mountings at a time
+    (``batch=1``: one at a time, the unbatched reference).
+    """
+    evaluate, model = _evaluator(seq, profile, latitude_rad, height_m, requirements, batch)
+    nominal = evaluate([np.zeros(3)])[0]
+    if tolerance_deg == 0:
+        return Robustness(nominal, nominal, nominal.sigma, 1, 0.0)
+    levels = (-tolerance_deg, 0.0, tolerance_deg)
+    grid = [np.array(p) for p in itertools.product(levels, levels, levels)]
+    results = evaluate([np.radians(p) for p in grid], nominal)
+    sigmas = np.array([r.sigma for r in results])
+    per_param = sigmas.max(axis=0)
+    worst = max(results, key=lambda r: r.worst[1])
+    if not search or nominal.rank < P.N_PARAMS:
+        return Robustness(nominal, worst, per_param, len(grid), tolerance_deg)
+    index = int(np.argmax(requirements.ratio(per_param)))
+    order = np.argsort(-sigmas[:, index])
+    if model is not None:
+        rotvec, sigma = search_worst_mounting(
+            model, index, [grid[i] for i in order[:starts]], tolerance_deg, requirements
+        )
+    else:
+        rotvec, sigma = search_worst_direct(
+            lambda rv: evaluate([rv], nominal)[0].sigma[index],
+            grid[order[0]],
+            tolerance_deg,
+            sigmas_of=lambda rvs: [o.sigma[index] for o in evaluate(rvs, nominal)],
+        )
+    if sigma > per_param[index]:
+        found = evaluate([rotvec], nominal)[0]
+        per_param = np.maximum(per_param, found.sigma)
+        if found.worst[1] > worst.worst[1]:
+            worst = found
+    return Robustness(nominal, worst, per_param, len(grid), tolerance_deg, searched=True)
+
+
+@dataclass(frozen=True)
+class ExtrasCost:
+    """What fitting a real unit's optional terms costs the 21, worst over the mounting box.
+
+    Attributes
+    ----------
+    extras : Extras
+    sigma_without, sigma_with : ndarray (21,)
+        Each parameter's worst sigma over the box (SI) without and with the terms.
+    extra_sigma : ndarray (e,)
+        Each optional parameter's worst sigma (SI); inf where unobservable.
+    unobservable : list of str
+        Null directions of [21, extras] (scaled by requirements and typical sizes).
+    points : int
+    """
+
+    extras: Extras
+    sigma_without: np.ndarray
+    sigma_with: np.ndarray
+    extra_sigma: np.ndarray
+    unobservable: list[str]
+    points: int
+    tolerance_deg: float
+    searched: bool = False  # whether IPOPT searched beyond the points (analyze_extras)
+
+    def verdicts(self) -> list[str]:
+        """Per optional parameter: ``observable`` (3 sigma within its typical size),
+        ``weak`` (beyond it) or ``unobservable``.
+        """
+        out = []
+        for p, s in zip(self.extras.parameters, self.extra_sigma):
+            out.append(
+                "unobservable" if not np.isfinite(s) else "observable" if 3.0 * s <= p.scale_si else "weak"
+            )
+        return out
+
+
+def _extras_evaluator(
+    seq: Sequence,
+    profile: NoiseProfile,
+    latitude_rad: float,
+    extras: Extras,
+    height_m: float,
+    requirements: Requirements,
+    batch: int = BATCH_MOUNTINGS,
+):
+    """``evaluate(rotvecs) -> [(sigma of the 21 without, with, sigma of the extras)]`` (SI).
+
+    Each mounting is evaluated directly along its own nominal trajectory, ``batch``
+    at a time (:func:`calib.nominal.mounting_informations`); what is observed is judged at the nominal
+    mounting (the first evaluation), returned as the second value.
+    """
+    scale = np.concatenate([requirements.si, extras.scale_si])
+    names = P.NAMES + extras.names
+    nom_info = mounting_informations(seq, profile, latitude_rad, height_m, [np.zeros(3)], extras, batch)[0]
+    nominal = scaled_inverse(eliminate(nom_info, PHI0_IDX) * np.outer(scale, scale), names)
+    nominal_without = from_information(
+        nom_info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s, profile.name, np.zeros(3), None, requirements
+    )
+
+    def sigmas(rotvec, info):
+        obs = from_information(
+            info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s, profile.name, rotvec, nominal_without, requirements
+        )
+        M = eliminate(info, PHI0_IDX) * np.outer(scale, scale)
+        variance = np.diag(projected_covariance(M, nominal.null_basis))
+        s = np.where(nominal.estimable, np.sqrt(np.abs(variance)), np.inf) * scale
+        return obs.sigma, s[: P.N_PARAMS], s[P.N_PARAMS :]
+
+    def evaluate(rotvecs):
+        infos = mounting_informations(seq, profile, latitude_rad, height_m, rotvecs, extras, batch)
+        return [sigmas(rv, info) for rv, info in zip(rotvecs, infos)]
+
+    return evaluate, nominal
+
+
+def analyze_extras(
+    seq: Sequence,
+    profile: NoiseProfile,
+    latitude_rad: float,
+    extras: Extras,
+    height_m: float = 0.0,
+    tolerance_deg: float = 3.0,
+    requirements: Requirements = PAPER,
+    search: bool = False,
+    batch: int = BATCH_MOUNTINGS,
+) -> ExtrasCost:
+    """Sigma of the 21 with and without the optional terms, and theirs, worst over the box.
+
+    Both figures come from the same 27 mountings (corners, edges, faces and
+    centre of the box) evaluated directly along each nominal trajectory, so
+    their ratio is the cost of the terms alone. (The optional terms' moments
+    are not in the 63-term mounting basis, hence direct evaluation.) With
+    ``search``, IPOPT then maximises the sigma (with the terms) of the worst of
+    the 21 from its worst grid point (:func:`search_worst_direct`), and that
+    mounting counts as a 28th. ``batch`` mountings are evaluated at a time
+    (``batch=1``: one at a time, the unbatched reference).
+    """
+    levels = (-tolerance_deg, 0.0, tolerance_deg) if tolerance_deg > 0 else (0.0,)
+    points = [np.radians(p) for p in itertools.product(levels, levels, levels)]
+    evaluate, nominal = _extras_evaluator(seq, profile, latitude_rad, extras, height_m, requirements, batch)
+    results = evaluate(points)
+    searched = search and tolerance_deg > 0 and bool(nominal.estimable[: P.N_PARAMS].all())
+    if searched:
+        with_ = np.array([r[1] for r in results])
+        index = int(np.argmax(requirements.ratio(with_.max(axis=0))))
+        start = np.degrees(points[int(np.argmax(with_[:, index]))])
+        rotvec, _ = search_worst_direct(
+            lambda rv: evaluate([rv])[0][1][index],
+            start,
+            tolerance_deg,
+            sigmas_of=lambda rvs: [r[1][index] for r in evaluate(rvs)],
+        )
+        results.extend(evaluate([rotvec]))
+    without, with_, extra = (np.max([r[i] for r in results], axis=0) for i in range(3))
+    return ExtrasCost(
+        extras, without, with_, extra, nominal.null_directions(), len(points), tolerance_deg, searched
+    )
