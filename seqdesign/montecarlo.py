@@ -8,7 +8,6 @@ serial result.
 from __future__ import annotations
 
 import math
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,6 +19,8 @@ from calib.extras import Extras, ExtraValues
 from calib.profiles import NoiseProfile
 from calib.sequence import Sequence
 from calib.sim import SimConfig, simulate
+
+from .search.parallel import map_jobs
 
 
 @dataclass(frozen=True)
@@ -95,6 +96,7 @@ def run_trials(
     extras: Extras = NO_EXTRAS,
     fit_profile: NoiseProfile | None = None,
     requirements=None,
+    scheduler=None,
 ) -> Trials:
     """Simulate and calibrate ``n`` runs; trial ``i`` uses seed ``seed + i``.
 
@@ -102,7 +104,9 @@ def run_trials(
     ``extras`` names the groups the estimator fits with the 21 (the mismatch
     report: simulate with them, calibrate without or with them);
     ``fit_profile`` weights the fit when it differs from the simulated noise;
-    ``requirements`` scale the fit (and so what it calls observable).
+    ``requirements`` scale the fit (and so what it calls observable);
+    ``workers`` local processes, or ``scheduler`` a dask.distributed address or client
+    (:func:`seqdesign.search.parallel.map_jobs`, as the design search).
     """
     errors = errors if errors is not None else ErrorModel.from_table2()
     jobs = [
@@ -121,11 +125,7 @@ def run_trials(
         )
         for i in range(n)
     ]
-    if workers > 1:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            out = list(pool.map(one_trial, jobs))
-    else:
-        out = [one_trial(j) for j in jobs]
+    out = map_jobs(one_trial, jobs, workers, scheduler)
     return Trials(
         errors=np.array([o[0] for o in out]),
         covariances=np.array([o[1] for o in out]),

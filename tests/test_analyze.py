@@ -108,8 +108,8 @@ def test_gauss_markov_sequences_do_not_beat_the_rate_bound(name):
     # The coloured-noise bound (docs/gm-bound.md) is the best a gimbal turning at the
     # sequence's rate can do for the accelerometer scale factors under navigation-gm: no
     # sequence's sigma may fall below it. Nominal mounting (the bound holds for any).
-    from seqdesign.designs import design_rate_dps
     from seqdesign.observability import accel_scale_bound
+    from seqdesign.search import design_rate_dps
 
     seq = load_sequence(name)
     prof = load_profile("navigation-gm")
