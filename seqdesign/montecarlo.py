@@ -48,38 +48,45 @@ class Trials:
         return np.einsum("ni,ni->n", self.errors, np.linalg.solve(covariance, self.errors.T).T)
 
 
-def one_trial(args) -> tuple[np.ndarray, np.ndarray, bool]:
+@dataclass(frozen=True)
+class TrialJob:
+    """One trial's inputs (picklable: run on a worker or a dask cluster)."""
+
+    seq: Sequence
+    profile: NoiseProfile
+    latitude_deg: float
+    errors: ErrorModel
+    tolerance_deg: float
+    flip_error_deg: float
+    seed: int
+    extra: ExtraValues | None
+    extras: Extras
+    fit_profile: NoiseProfile | None
+    requirements: object = None
+
+
+def one_trial(job: TrialJob) -> tuple[np.ndarray, np.ndarray, bool]:
     """Simulate one run and calibrate it with the library call the CLI uses (same sigmas)."""
-    (
-        seq,
-        profile,
-        latitude_deg,
-        errors,
-        tolerance_deg,
-        flip_error_deg,
-        seed,
-        extra,
-        extras,
-        fit_profile,
-        *rest,
-    ) = args
-    requirements = rest[0] if rest else None
-    cfg = SimConfig(latitude_rad=math.radians(latitude_deg))
+    cfg = SimConfig(latitude_rad=math.radians(job.latitude_deg))
     run, truth = simulate(
-        seq,
+        job.seq,
         cfg,
-        errors,
-        profile,
-        flip_error_deg=flip_error_deg,
+        job.errors,
+        job.profile,
+        flip_error_deg=job.flip_error_deg,
         noise=True,
-        seed=seed,
-        random_setup_deg=tolerance_deg if tolerance_deg > 0 else None,
-        extra=extra,
+        seed=job.seed,
+        random_setup_deg=job.tolerance_deg if job.tolerance_deg > 0 else None,
+        extra=job.extra,
     )
     result = calibrate_run(
-        run, fit_profile or profile, extras=extras, require_convergence=False, requirements=requirements
+        run,
+        job.fit_profile or job.profile,
+        extras=job.extras,
+        require_convergence=False,
+        requirements=job.requirements,
     )
-    return result.values - errors.values, result.covariance, result.converged
+    return result.values - job.errors.values, result.covariance, result.converged
 
 
 def run_trials(
@@ -110,7 +117,7 @@ def run_trials(
     """
     errors = errors if errors is not None else ErrorModel.from_table2()
     jobs = [
-        (
+        TrialJob(
             seq,
             profile,
             latitude_deg,

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from calib.errors import CalibError
 from calib.extras import NONE as NO_EXTRAS
@@ -94,26 +94,14 @@ def _beam_widths(beam_width: int | None) -> list:
     return [NARROW_BEAM, beam_width]
 
 
-def _search(
-    c,
-    profile,
-    latitude_rad,
-    height_m,
-    objective,
-    beam_width,
-    keep,
-    requirements,
-    workers,
-    scheduler,
-    progress,
-):
-    """Run every beam; returns ``(results, evaluated, narrow)``, ``narrow`` the results of the
-    beams of 20 alone (None when that is all there is).
+def _search(base: BeamJob, workers, scheduler, progress):
+    """Run every beam (``base`` at each search dwell and beam width); returns ``(results,
+    evaluated, narrow)``, ``narrow`` the results of the beams of 20 alone (None when that is
+    all there is).
     """
+    c, beam_width = base.constraints, base.beam_width
     jobs = [
-        BeamJob(c, d, latitude_rad, height_m, profile, objective, bw, keep, requirements)
-        for d in search_dwells(c)
-        for bw in _beam_widths(beam_width)
+        replace(base, dwell_s=d, beam_width=bw) for d in search_dwells(c) for bw in _beam_widths(beam_width)
     ]
     if progress:
         progress(
@@ -161,19 +149,9 @@ def design(
     _check_design_args(c, objective)
     t0 = time.perf_counter()
     site = (math.degrees(latitude_rad), height_m)  # written into the sequence: analyse it there
-    results, evaluated, narrow = _search(
-        c,
-        profile,
-        latitude_rad,
-        height_m,
-        objective,
-        beam_width,
-        keep,
-        requirements,
-        workers,
-        scheduler,
-        progress,
-    )
+    # one beam per search dwell and width (_search sets them)
+    base = BeamJob(c, math.nan, latitude_rad, height_m, profile, objective, beam_width, keep, requirements)
+    results, evaluated, narrow = _search(base, workers, scheduler, progress)
     search_seconds = time.perf_counter() - t0
     scorer = ExactScorer(c, name, site, profile, latitude_rad, height_m, requirements, extras)
     batch = max(workers, SCHEDULER_BATCH if scheduler else 1)
