@@ -14,7 +14,7 @@ import argparse
 import sys
 import time
 
-from seqdesign.designs import design_budgets
+from seqdesign.search import design_budgets
 
 VARIANTS = {"default": {}, "--beam-width 20": {"beam_width": 20}, "--no-refine": {"refine": False}}
 

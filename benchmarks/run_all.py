@@ -151,8 +151,7 @@ def analysis_rows(seq, prof, lat) -> list:
 
 def search_rows(seq, prof, lat, tmp: Path) -> list:
     """The search loop: one candidate = a walk scored by the segment model; a whole design."""
-    from seqdesign.design import Constraints, SearchModel, beam_search
-    from seqdesign.graph import Move
+    from seqdesign.search import Constraints, Move, SearchModel, beam_search
 
     c9 = Constraints(budget_s=1800.0, max_flips=8, max_quarters=1)
     m9 = SearchModel.build(c9, 180.0, lat, 0.0, prof)

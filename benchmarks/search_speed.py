@@ -17,7 +17,7 @@ import sys
 import time
 
 from calib.profiles import load_profile
-from seqdesign.design import Constraints, SearchModel
+from seqdesign.search import Constraints, SearchModel
 
 
 def main() -> None:

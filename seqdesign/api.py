@@ -24,9 +24,9 @@ from calib.sequence import load_sequence
 from calib.sim import simulate
 
 from .analysis import Analysis, analyze, compare_text
-from .designs import DesignReport
-from .designs import design_budgets as design
 from .repeatability import compare_results
+from .search import DesignReport
+from .search import design_budgets as design
 
 __all__ = [
     "Analysis",

@@ -674,9 +674,7 @@ def design(
     write it as a sequence file with its provenance.
     """
     from calib.fileio import check_writable_dir
-    from seqdesign.design import design_steps
-    from seqdesign.designs import design_budgets
-    from seqdesign.graph import parse_node
+    from seqdesign.search import design_budgets, design_steps, parse_node
 
     constraints = dict(
         start=parse_node(start, "--start"),
@@ -693,14 +691,14 @@ def design(
         and click.get_current_context().get_parameter_source("rate_dps") is click.core.ParameterSource.DEFAULT
     ):
         constraints["rate_dps"] = None  # the gimbal's own rate
-    from seqdesign.gimbalsearch import resolve_gimbal
+    from seqdesign.search import resolve_gimbal
 
     _, constraints = resolve_gimbal(gimbal_file, constraints)  # refused before the search
     sweep = _budgets(budgets) if pareto else [budget_min]
     paths = {b: _design_path(b, output, pareto) for b in sweep}
     for path in set(paths.values()) | ({str(output or "pareto")} if pareto else set()):
         check_writable_dir(path, "-o/--output")  # before minutes of search, not after
-    from seqdesign.design import Constraints
+    from seqdesign.search import Constraints
 
     bars = {}
 

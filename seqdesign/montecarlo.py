@@ -8,7 +8,6 @@ serial result.
 from __future__ import annotations
 
 import math
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,6 +19,8 @@ from calib.extras import Extras, ExtraValues
 from calib.profiles import NoiseProfile
 from calib.sequence import Sequence
 from calib.sim import SimConfig, simulate
+
+from .search.parallel import map_jobs
 
 
 @dataclass(frozen=True)
@@ -47,38 +48,45 @@ class Trials:
         return np.einsum("ni,ni->n", self.errors, np.linalg.solve(covariance, self.errors.T).T)
 
 
-def one_trial(args) -> tuple[np.ndarray, np.ndarray, bool]:
+@dataclass(frozen=True)
+class TrialJob:
+    """One trial's inputs (picklable: run on a worker or a dask cluster)."""
+
+    seq: Sequence
+    profile: NoiseProfile
+    latitude_deg: float
+    errors: ErrorModel
+    tolerance_deg: float
+    flip_error_deg: float
+    seed: int
+    extra: ExtraValues | None
+    extras: Extras
+    fit_profile: NoiseProfile | None
+    requirements: object = None
+
+
+def one_trial(job: TrialJob) -> tuple[np.ndarray, np.ndarray, bool]:
     """Simulate one run and calibrate it with the library call the CLI uses (same sigmas)."""
-    (
-        seq,
-        profile,
-        latitude_deg,
-        errors,
-        tolerance_deg,
-        flip_error_deg,
-        seed,
-        extra,
-        extras,
-        fit_profile,
-        *rest,
-    ) = args
-    requirements = rest[0] if rest else None
-    cfg = SimConfig(latitude_rad=math.radians(latitude_deg))
+    cfg = SimConfig(latitude_rad=math.radians(job.latitude_deg))
     run, truth = simulate(
-        seq,
+        job.seq,
         cfg,
-        errors,
-        profile,
-        flip_error_deg=flip_error_deg,
+        job.errors,
+        job.profile,
+        flip_error_deg=job.flip_error_deg,
         noise=True,
-        seed=seed,
-        random_setup_deg=tolerance_deg if tolerance_deg > 0 else None,
-        extra=extra,
+        seed=job.seed,
+        random_setup_deg=job.tolerance_deg if job.tolerance_deg > 0 else None,
+        extra=job.extra,
     )
     result = calibrate_run(
-        run, fit_profile or profile, extras=extras, require_convergence=False, requirements=requirements
+        run,
+        job.fit_profile or job.profile,
+        extras=job.extras,
+        require_convergence=False,
+        requirements=job.requirements,
     )
-    return result.values - errors.values, result.covariance, result.converged
+    return result.values - job.errors.values, result.covariance, result.converged
 
 
 def run_trials(
@@ -95,6 +103,7 @@ def run_trials(
     extras: Extras = NO_EXTRAS,
     fit_profile: NoiseProfile | None = None,
     requirements=None,
+    scheduler=None,
 ) -> Trials:
     """Simulate and calibrate ``n`` runs; trial ``i`` uses seed ``seed + i``.
 
@@ -102,11 +111,13 @@ def run_trials(
     ``extras`` names the groups the estimator fits with the 21 (the mismatch
     report: simulate with them, calibrate without or with them);
     ``fit_profile`` weights the fit when it differs from the simulated noise;
-    ``requirements`` scale the fit (and so what it calls observable).
+    ``requirements`` scale the fit (and so what it calls observable);
+    ``workers`` local processes, or ``scheduler`` a dask.distributed address or client
+    (:func:`seqdesign.search.parallel.map_jobs`, as the design search).
     """
     errors = errors if errors is not None else ErrorModel.from_table2()
     jobs = [
-        (
+        TrialJob(
             seq,
             profile,
             latitude_deg,
@@ -121,11 +132,7 @@ def run_trials(
         )
         for i in range(n)
     ]
-    if workers > 1:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            out = list(pool.map(one_trial, jobs))
-    else:
-        out = [one_trial(j) for j in jobs]
+    out = map_jobs(one_trial, jobs, workers, scheduler)
     return Trials(
         errors=np.array([o[0] for o in out]),
         covariances=np.array([o[1] for o in out]),

@@ -33,10 +33,13 @@ def save_png(fig, path) -> None:
     atomic_write_bytes(path, buf.getvalue())
 
 
-def pareto_png(report, gravity_mps2: float, path) -> None:
-    """Worst ratio against total time for each design, the paper's point and the bound curve."""
-    from .designs import design_rate_dps
+def pareto_png(report, gravity_mps2: float, path, rate_dps: float | None) -> None:
+    """Worst ratio against total time for each design, the paper's point and the bound curve.
 
+    ``report`` is a :class:`seqdesign.search.DesignReport` (read, not imported: the
+    pictures sit below the search); ``rate_dps`` the designs' fastest turn, where the
+    coloured-noise bound is drawn for a Gauss-Markov profile.
+    """
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     rows = sorted(report.rows, key=lambda r: r.result.sequence.duration_s)
@@ -66,16 +69,15 @@ def pareto_png(report, gravity_mps2: float, path) -> None:
         label="accelerometer scale-factor bound (white noise)",
     )
     if report.profile.accel_gm_sigma > 0:  # the coloured-noise bound at the gimbal's rate
-        rate = max(design_rate_dps(r.result.sequence) for r in rows)
         ax.plot(
             grid,
             [
-                accel_scale_bound(x * 60, report.profile, gravity_mps2, report.requirements, rate)
+                accel_scale_bound(x * 60, report.profile, gravity_mps2, report.requirements, rate_dps)
                 for x in grid
             ],
             ":",
             color="#9467bd",
-            label=f"same with Gauss-Markov bias, turning at {rate:g} deg/s",
+            label=f"same with Gauss-Markov bias, turning at {rate_dps:g} deg/s",
         )
     ax.plot(
         [report.paper_duration_s / 60], [report.paper_worst_ratio], "s", color="#ff7f0e", label="paper-9pos"

@@ -110,7 +110,7 @@ def test_gauss_markov_sequences_do_not_beat_the_rate_bound(name):
     # sequence's rate can do for the accelerometer scale factors under navigation-gm: no
     # sequence's sigma may fall below it. Nominal mounting (the bound holds for any).
     from calib.bounds import accel_scale_bound
-    from seqdesign.designs import design_rate_dps
+    from seqdesign.search import design_rate_dps
 
     seq = load_sequence(name)
     prof = load_profile("navigation-gm")

@@ -17,8 +17,7 @@ from calib.sequence import load_sequence
 from calib.transform import attitude_from_directions, rot_axis
 from calib.worstcase import analyze_tolerance
 from seqdesign.cli import main
-from seqdesign.design import Constraints, SearchModel, beam_search, brute_force, to_sequence
-from seqdesign.graph import Move, flip_graph
+from seqdesign.search import Constraints, Move, SearchModel, beam_search, brute_force, flip_graph, to_sequence
 
 LAT = math.radians(40.0)
 PROFILE = load_profile("navigation")
@@ -70,32 +69,38 @@ def test_search_model_agrees_with_the_exact_analyser():
 
 def test_dask_local_cluster_gives_the_serial_result():
     distributed = pytest.importorskip("dask.distributed")
-    from seqdesign.design import _search_at_dwell, map_jobs
+    from seqdesign.search.beam import BeamJob, search_at_dwell
+    from seqdesign.search.parallel import map_jobs
 
     c = Constraints(budget_s=400.0, max_flips=2, max_quarters=1)
-    jobs = [(c, d, LAT, 0.0, PROFILE, "worst", 20, 2, PAPER) for d in (60.0, 90.0)]
-    serial = map_jobs(_search_at_dwell, jobs)
+    jobs = [BeamJob(c, d, LAT, 0.0, PROFILE, "worst", 20, 2, PAPER) for d in (60.0, 90.0)]
+    serial = map_jobs(search_at_dwell, jobs)
     with (
         distributed.LocalCluster(
             n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
         ) as cluster,
         distributed.Client(cluster) as client,
     ):
-        remote = map_jobs(_search_at_dwell, jobs, scheduler=client)
+        remote = map_jobs(search_at_dwell, jobs, scheduler=client)
     for a, b in zip(serial, remote):
-        assert a[0] == b[0] and a[2] == b[2]
-        assert [w for w, _ in a[1]] == [w for w, _ in b[1]]
-        assert [s for _, s in a[1]] == [s for _, s in b[1]]  # bit-identical scores
+        assert a.dwell_s == b.dwell_s and a.evaluated == b.evaluated
+        assert a.walks == b.walks
+        assert a.scores == b.scores  # bit-identical scores
 
 
 def test_local_workers_give_the_serial_result():
-    from seqdesign.design import _search_at_dwell, map_jobs
+    from seqdesign.search.beam import BeamJob, search_at_dwell
+    from seqdesign.search.parallel import map_jobs
 
     c = Constraints(budget_s=400.0, max_flips=2, max_quarters=1)
-    jobs = [(c, d, LAT, 0.0, PROFILE, "worst", 20, 2, PAPER) for d in (60.0, 90.0)]
-    serial = map_jobs(_search_at_dwell, jobs)
-    parallel = map_jobs(_search_at_dwell, jobs, workers=2)
-    assert [(r[0], r[1], r[2]) for r in serial] == [(r[0], r[1], r[2]) for r in parallel]
+    jobs = [BeamJob(c, d, LAT, 0.0, PROFILE, "worst", 20, 2, PAPER) for d in (60.0, 90.0)]
+    serial = map_jobs(search_at_dwell, jobs)
+    parallel = map_jobs(search_at_dwell, jobs, workers=2)
+
+    def figures(results):
+        return [(r.dwell_s, r.walks, r.scores, r.evaluated) for r in results]
+
+    assert figures(serial) == figures(parallel)
 
 
 @pytest.mark.parametrize(
@@ -240,7 +245,7 @@ def test_sigma_gradient_matches_finite_differences():
 def test_design_with_terms_scores_the_21_with_them_fitted():
     from calib.extras import Extras
     from calib.worstcase import analyze_extras
-    from seqdesign.design import design
+    from seqdesign.search import design
 
     c = Constraints(budget_s=360.0, max_flips=3, max_quarters=2, min_dwell_s=10.0)
     ext = Extras(("lever-arm",))
@@ -259,7 +264,7 @@ def test_more_effort_never_gives_a_worse_answer():
     # Issue 12 point 6: the answer is the best exactly re-scored candidate seen, and the
     # default beam runs a narrow beam too, so it cannot lose to --beam-width 20 or to
     # --no-refine. A 5-min budget with 3 single quarter turns keeps this short.
-    from seqdesign.design import design
+    from seqdesign.search import design
 
     c = Constraints(budget_s=300.0, max_flips=3, max_quarters=1, min_dwell_s=10.0)
     kw = dict(tolerance_deg=3.0, keep=1)
@@ -276,7 +281,7 @@ def test_whole_design_on_two_workers_equals_the_serial_one():
     # arithmetic in another process must give the same walk, dwells and figures, bit for bit.
     # (Two workers may re-score a candidate the serial run skips as unable to win, so the
     # list of finalists may be longer; its best is the same.)
-    from seqdesign.design import design
+    from seqdesign.search import design
 
     c = Constraints(budget_s=300.0, max_flips=3, max_quarters=1, min_dwell_s=10.0)
     kw = dict(tolerance_deg=3.0, keep=1, beam_width=30, refine=True)
@@ -294,7 +299,7 @@ def test_whole_design_on_a_dask_cluster_equals_the_serial_one():
     # The exact re-scoring goes to the cluster too (a picklable ExactScorer through
     # client.map): same walk, dwells and figures as the serial run, bit for bit.
     distributed = pytest.importorskip("dask.distributed")
-    from seqdesign.design import design
+    from seqdesign.search import design
 
     c = Constraints(budget_s=300.0, max_flips=3, max_quarters=1, min_dwell_s=10.0)
     kw = dict(tolerance_deg=3.0, keep=1, beam_width=30, refine=True)
@@ -312,7 +317,7 @@ def test_whole_design_on_a_dask_cluster_equals_the_serial_one():
 
 
 def test_motif_repetitions_fill_the_budget_with_short_dwells():
-    from seqdesign.design import motif_dwell
+    from seqdesign.search.pipeline import motif_dwell
 
     c = Constraints(budget_s=1800.0, min_dwell_s=10.0)
     walk = (Move("X", 1, 4), Move("Y", -1, 5))  # 81 s of turning per play
@@ -346,7 +351,7 @@ def test_shipped_gm_designs_beat_the_white_noise_designs_on_the_real_unit(name, 
 
 
 def test_dwell_groups_tie_motif_plays_and_block_long_motifs():
-    from seqdesign.design import MAX_REFINE_DWELLS, dwell_groups
+    from seqdesign.search.refine import MAX_REFINE_DWELLS, dwell_groups
 
     g = dwell_groups(18, 3)  # a 6-move motif played 3 times: one variable per motif move
     assert list(g[:1]) == [0] and list(g[1:7]) == list(range(1, 7))
@@ -358,7 +363,7 @@ def test_dwell_groups_tie_motif_plays_and_block_long_motifs():
 
 def test_default_space_holds_many_short_moves():
     # Issue 12: at least 30 moves and dwells down to 10 s in the beam itself.
-    from seqdesign.design import search_dwells
+    from seqdesign.search.design import search_dwells
 
     c = Constraints(budget_s=1800.0)
     assert c.max_flips >= 30 and min(search_dwells(c)) <= 10.0
@@ -372,17 +377,32 @@ def test_pruned_rescoring_finds_the_brute_force_best(batch):
     # Entries carry a lower bound of their score (the nominal mounting is a point of the
     # box; the search inside the box only raises the box figure). Skipping those whose
     # bound is not below the best score so far must still return the overall best.
-    from seqdesign.design import _pruned
+    from dataclasses import dataclass
+
+    from seqdesign.search.pipeline import pruned
+
+    @dataclass(frozen=True)
+    class Entry:  # a finalist: its lower bound, its label, and the score it will get
+        ratio: float
+        label: str
+        score: float
+
+    @dataclass(frozen=True)
+    class Score:
+        ratio: float
 
     rng = np.random.default_rng(7)
     for _ in range(200):
         n = int(rng.integers(1, 12))
         bounds = np.round(rng.uniform(1.0, 2.0, n), 2)  # rounded: ties happen
         scores = bounds + np.round(rng.exponential(0.2, n), 2)
-        entries = sorted((float(b), f"walk{i}", float(s)) for i, (b, s) in enumerate(zip(bounds, scores)))
-        best, scored = _pruned(entries, lambda fs: [(f[2],) for f in fs], batch)
-        brute = min(entries, key=lambda f: (f[2], f[1]))
-        assert best[-1] == brute and best[0] == brute[2]
+        entries = sorted(
+            (Entry(float(b), f"walk{i}", float(s)) for i, (b, s) in enumerate(zip(bounds, scores))),
+            key=lambda f: (f.ratio, f.label, f.score),
+        )
+        best, scored = pruned(entries, lambda fs: [Score(f.score) for f in fs], batch)
+        brute = min(entries, key=lambda f: (f.score, f.label))
+        assert best.finalist == brute and best.exact.ratio == brute.score
         assert len(scored) <= n
 
 
@@ -392,7 +412,7 @@ def test_refinement_jacobian_is_the_derivative_of_the_ratios():
     # Quadratic, so central differences are exact up to rounding (~1e-16 / 1e-4 relative).
     import casadi as ca
 
-    from seqdesign.design import _ratios_callback
+    from seqdesign.search.refine import _ratios_callback
 
     n, scale = 4, 100.0
     a = np.random.default_rng(3).uniform(0.5, 2.0, (P.N_PARAMS, n))
@@ -412,7 +432,7 @@ def test_batched_walk_information_equals_one_walk_at_a_time():
     # The GM refinement folds all finite-difference points at once; each row must be the
     # information of that dwell set alone (same arithmetic, batched: equal to rounding).
     from calib import earth
-    from seqdesign.design import _walk_information_exact, walk_informations_exact
+    from seqdesign.search.refine import _walk_information_exact, walk_informations_exact
 
     prof = load_profile("navigation-gm")
     c = Constraints(budget_s=600.0, min_dwell_s=10.0)
@@ -474,7 +494,7 @@ def test_cli_pareto_front_writes_both_bounds_for_a_gauss_markov_profile(tmp_path
 def test_refined_dwells_in_ms_never_overrun_the_budget():
     # 57 dwells that each round up by 0.4 ms overrun a budget their exact sum fits by ~23 ms;
     # the millisecond dwells must fit it again, the longest taking the excess.
-    from seqdesign.design import dwells_in_ms
+    from seqdesign.search.refine import dwells_in_ms
 
     exact = [10.0006] * 56 + [10.2864]
     available = sum(exact)

@@ -15,8 +15,8 @@ from calib.gimbalfile import gimbal_from_dict, load_gimbal
 from calib.profiles import load_profile
 from calib.sequence import load_sequence
 from seqdesign.cli import main
-from seqdesign.design import Constraints, SearchModel, beam_search, to_sequence
-from seqdesign.gimbalsearch import gimbal_limits
+from seqdesign.search import Constraints, SearchModel, beam_search, to_sequence
+from seqdesign.search.gimbal import gimbal_limits
 
 # A tight gimbal: +-180 deg wraps make most long moves and any winding unplayable,
 # and the lock margin keeps the middle gimbal still on a 90-degree grid.

@@ -57,7 +57,7 @@ from calib.sim import SimConfig, Truth, simulate
 from calib.transform import DIRECTIONS, attitude_from_directions, rotvec_to_dcm
 from calib.truth import read_errors, read_truth, write_truth
 from seqdesign.cli import main
-from seqdesign.graph import attitude_of, flip_graph, parse_node
+from seqdesign.search.graph import attitude_of, flip_graph, parse_node
 
 REPO = Path(__file__).resolve().parents[1]
 SCALE = float(os.environ.get("SEQDESIGN_FUZZ_SCALE", "1"))

@@ -46,7 +46,7 @@ class AnalysisFigures:
         Mountings evaluated over the box.
     searched : bool
         Whether IPOPT refined the worst parameter beyond those mountings.
-    drawn : seqdesign.observability.Observability
+    drawn : calib.observability.Observability
         The mounting the scene, the gallery and the correlation matrix show:
         the one with the largest worst ratio.
     """

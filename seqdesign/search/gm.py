@@ -1,7 +1,7 @@
 """Exact noise whitening along each candidate walk (Gauss-Markov profiles).
 
 With white noise the filter covariance at a segment start is close to its rest
-steady state, so :mod:`seqdesign.design` folds precomputed segment matrices.
+steady state, so :mod:`seqdesign.search.beam` folds precomputed segment matrices.
 With Gauss-Markov bias instability it is not: the filter's knowledge of the
 body-frame biases depends on the whole attitude history (a rest's steady state
 rotated into the next attitude is off by 20-30 % on a sigma). Here each

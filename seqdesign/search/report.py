@@ -1,6 +1,6 @@
 """Design sequences for one or several time budgets: the library call behind ``seqdesign design``.
 
-:func:`design_budgets` runs the search of :mod:`seqdesign.design` for each
+:func:`design_budgets` runs the search of :mod:`seqdesign.search.design` for each
 budget and returns a :class:`DesignReport` that knows its ``--json``
 document, its text table, how to save each design with its provenance and
 how to write the Pareto front (CSV, and a PNG drawn with matplotlib).
@@ -22,7 +22,8 @@ from calib.requirements import PAPER, Requirements, load_requirements
 from calib.sequence import load_sequence, save_sequence
 from calib.worstcase import analyze_tolerance
 
-from .design import Constraints, DesignResult, check_constraints, design
+from .constraints import Constraints, check_constraints
+from .design import DesignResult, design
 
 
 @dataclass(frozen=True)
@@ -133,9 +134,10 @@ class DesignReport:
             f"{paper[0]:.4f},{paper[1]:.4f}"
         )
         atomic_write_text(stem + ".csv", "\n".join(lines) + "\n")
-        from .plots import pareto_png
+        from ..plots import pareto_png
 
-        pareto_png(self, g, stem + ".png")
+        fastest = max((design_rate_dps(r.result.sequence) for r in self.rows), default=None)
+        pareto_png(self, g, stem + ".png", fastest)
         return [stem + ".csv", stem + ".png"]
 
 
@@ -233,9 +235,9 @@ def design_budgets(
     budgets_min : iterable of float
         Total time budgets, minutes.
     constraints : dict
-        The :class:`seqdesign.design.Constraints` fields other than the budget
+        The :class:`seqdesign.search.Constraints` fields other than the budget
         (start, end, max_flips, axes, max_quarters, rate_dps, min/max dwell; a gimbal
-        and its move limits from :func:`seqdesign.gimbalsearch.resolve_gimbal`).
+        and its move limits from :func:`seqdesign.search.gimbal.resolve_gimbal`).
     profile : NoiseProfile or str
         The noise the design is optimised for.
     latitude_deg : float

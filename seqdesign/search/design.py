@@ -1,0 +1,206 @@
+"""The whole design: beams at a few dwells, exact re-scoring of their walks, refinement of the best.
+
+The search model ranks walks (:mod:`.beam`); the walks it proposes are then
+re-scored with the exact analyser, worst case over the mounting tolerance, which
+is the figure reported (:mod:`.pipeline`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+
+from calib.errors import CalibError
+from calib.extras import NONE as NO_EXTRAS
+from calib.extras import Extras
+from calib.profiles import NoiseProfile
+from calib.requirements import PAPER, Requirements
+from calib.sequence import Sequence
+
+from .beam import BeamJob, search_at_dwell
+from .constraints import Constraints, check_constraints, uniform_dwell
+from .gimbal import check_sequence_plays
+from .objective import OBJECTIVES
+from .parallel import map_jobs
+from .pipeline import (
+    MOTIF_REPEATS,
+    SCHEDULER_BATCH,
+    SCREEN_KEEP,
+    ExactJob,
+    ExactScorer,
+    ExactScores,
+    Finalist,
+    Pipeline,
+    by_order,
+    refined,
+    select,
+)
+
+SHORT_WALK_FLIPS = 10  # the classic space: up to 10 moves at long dwells
+# Many short moves (issue 12): beams at these dwells walk until the budget is spent.
+# Under Gauss-Markov accelerometer bias they win: gravity must reverse on each axis
+# much faster than tau, and 450 deg turns sweep it round while turning.
+LONG_WALK_DWELLS_S = (10.0, 15.0, 20.0)
+NARROW_BEAM = 20
+
+
+@dataclass
+class DesignResult:
+    """A designed sequence and the figures that justify it."""
+
+    sequence: Sequence
+    worst_ratio: float  # exact, worst case over the tolerance box
+    worst_name: str
+    uniform_worst_ratio: float  # exact, same walk with uniform dwells
+    evaluated: int  # candidates scored by the search
+    search_seconds: float
+    finalists: list[Finalist]  # every candidate re-scored over the box, best first
+    robustness: object  # observability.Robustness of the 21 alone (None with --with)
+    extras_cost: object = None  # observability.ExtrasCost of the winner when --with was given
+    repeats: int = 1  # how many times the winner plays its motif
+
+
+def design_steps(c: Constraints, keep: int) -> int:
+    """Progress steps of :func:`design`: searches, finalists, refinement, final check."""
+    n = len(search_dwells(c))
+    return 2 * n + 2 * n * keep * (1 + len(MOTIF_REPEATS)) + 2 * SCREEN_KEEP + 4
+
+
+def search_dwells(c: Constraints) -> list[float]:
+    """Uniform dwells the search tries.
+
+    Those fitting roughly 10, 6 and 5 moves of three quarter turns (few moves, long
+    dwells), and, when ``max_flips`` allows more than 10 moves, the short dwells of
+    :data:`LONG_WALK_DWELLS_S` (many moves; each beam walks until the budget is spent).
+    """
+    n = min(c.max_flips, SHORT_WALK_FLIPS)
+    counts = sorted({n, max(1, (2 * n) // 3), max(1, n // 2)})
+    out = {round(uniform_dwell(c, k, 3.0), 1) for k in counts}
+    if c.max_flips > SHORT_WALK_FLIPS:
+        out |= {d for d in LONG_WALK_DWELLS_S if c.min_dwell_s <= d <= c.max_dwell_s}
+    return sorted(out)
+
+
+def _beam_widths(beam_width: int | None) -> list:
+    """Beams to run: the one asked for and, when wider, a beam of 20 too.
+
+    The search score is not the exact worst case over the box, so a narrow beam can
+    hand a different (sometimes better) walk to the exact re-scoring; running both
+    makes more effort never give a worse answer.
+    """
+    if beam_width is None or beam_width <= NARROW_BEAM:
+        return [beam_width]
+    return [NARROW_BEAM, beam_width]
+
+
+def _search(base: BeamJob, workers, scheduler, progress):
+    """Run every beam (``base`` at each search dwell and beam width); returns ``(results,
+    evaluated, narrow)``, ``narrow`` the results of the beams of 20 alone (None when that is
+    all there is).
+    """
+    c, beam_width = base.constraints, base.beam_width
+    jobs = [
+        replace(base, dwell_s=d, beam_width=bw) for d in search_dwells(c) for bw in _beam_widths(beam_width)
+    ]
+    if progress:
+        progress(
+            f"searching {len(jobs)} beams (widths {_beam_widths(beam_width)}, dwells "
+            f"{search_dwells(c)} s, up to {c.max_flips} moves of up to "
+            f"{c.max_quarters} quarter turns)",
+            0,
+        )
+    results = map_jobs(search_at_dwell, jobs, workers, scheduler)
+    evaluated = sum(r.evaluated for r in results)
+    if progress:
+        progress(f"searched {evaluated} candidates", len(jobs))
+    narrow = None
+    if len(_beam_widths(beam_width)) > 1:
+        narrow = [r for r, j in zip(results, jobs) if j.beam_width == NARROW_BEAM]
+    return results, evaluated, narrow
+
+
+def design(
+    c: Constraints,
+    profile: NoiseProfile,
+    latitude_rad: float,
+    height_m: float = 0.0,
+    objective: str = "worst",
+    tolerance_deg: float = 3.0,
+    beam_width: int = 200,
+    keep: int = 4,
+    refine: bool = True,
+    name: str = "designed",
+    workers: int = 1,
+    scheduler=None,
+    progress=None,
+    requirements: Requirements = PAPER,
+    extras: Extras = NO_EXTRAS,
+) -> DesignResult:
+    """Search walks, re-score every candidate exactly over the tolerance box, refine the best.
+
+    The candidates are the beams' finalists and their motif repetitions; each is
+    re-scored exactly (27 box points, ``extras`` fitted beside the 21), the best is
+    IPOPT-refined. What ``--beam-width 20`` and ``--no-refine`` would answer comes from the
+    same beams and gets the same final check; the best final figure wins
+    (:func:`seqdesign.search.pipeline.select`).
+    ``progress(message, steps)``: ``design_steps(c, keep)`` steps in all.
+    """
+    _check_design_args(c, objective)
+    t0 = time.perf_counter()
+    site = (math.degrees(latitude_rad), height_m)  # written into the sequence: analyse it there
+    # one beam per search dwell and width (_search sets them)
+    base = BeamJob(c, math.nan, latitude_rad, height_m, profile, objective, beam_width, keep, requirements)
+    results, evaluated, narrow = _search(base, workers, scheduler, progress)
+    search_seconds = time.perf_counter() - t0
+    scorer = ExactScorer(c, name, site, profile, latitude_rad, height_m, requirements, extras)
+    batch = max(workers, SCHEDULER_BATCH if scheduler else 1)
+    exact = ExactScores(scorer, workers, scheduler)
+
+    def refine_best(best: Finalist) -> list[Finalist]:
+        return refined(
+            best,
+            c,
+            latitude_rad,
+            height_m,
+            profile,
+            objective,
+            requirements,
+            lambda w, d: exact([ExactJob(w, d, False, tolerance_deg)])[0],
+            progress,
+        )
+
+    pipeline = Pipeline(c, exact, tolerance_deg, batch, progress, refine_best if refine else None)
+    unrefined, pool = pipeline.pools(results)
+    answers = [pool[0], unrefined[0]]  # the default's, and what --no-refine returns
+    if narrow is not None:  # what --beam-width 20 (with and without --no-refine) returns
+        n_unrefined, n_pool = pipeline.pools(narrow)
+        pool = by_order(pool + n_pool)
+        answers += [pool[0], n_pool[0], n_unrefined[0]]
+    best = select(answers, exact, tolerance_deg, batch)
+    winner = best.exact
+    check_sequence_plays(winner.sequence, c.gimbal)
+    if progress:
+        progress(
+            f"best of {len(pool)}: {best.finalist.label}; worst case over +-{tolerance_deg:g} deg: "
+            f"{winner.ratio:.3f} ({winner.worst_name})",
+            1,
+        )
+    return DesignResult(
+        sequence=winner.sequence,
+        worst_ratio=winner.ratio,
+        worst_name=winner.worst_name,
+        uniform_worst_ratio=unrefined[0].ratio,
+        evaluated=evaluated,
+        search_seconds=search_seconds,
+        finalists=pool,
+        robustness=winner.robustness,
+        extras_cost=winner.extras_cost,
+        repeats=best.finalist.repeats,
+    )
+
+
+def _check_design_args(c: Constraints, objective: str) -> None:
+    check_constraints(c)
+    if objective not in OBJECTIVES:
+        raise CalibError(f"unknown objective {objective!r}", "--objective", "use worst, D, A or E")

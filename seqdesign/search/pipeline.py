@@ -1,0 +1,349 @@
+"""The candidate pipeline after the beams: propose, screen, box, refine, select.
+
+The beams' finalists and their motif repetitions are *proposals*; each is scored
+exactly at the nominal mounting (the *screen*), the best :data:`SCREEN_KEEP` over the
+whole tolerance box (*boxed*), the best of those IPOPT-refined, and the answers get a
+final check with IPOPT looking inside the box (:func:`select`). Every exact score goes
+through one :class:`ExactScores`, which runs each distinct job once on the workers.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from calib import params as P
+from calib.errors import CalibError
+from calib.extras import NONE as NO_EXTRAS
+from calib.extras import Extras
+from calib.gimbal import plan_sequence
+from calib.profiles import NoiseProfile
+from calib.requirements import PAPER, Requirements
+from calib.sequence import Sequence
+from calib.worstcase import analyze_extras, analyze_tolerance
+
+from .constraints import Constraints, to_sequence, turn_seconds
+from .graph import Move
+from .parallel import map_jobs
+from .refine import refine_dwells
+
+MOTIF_REPEATS = (2, 3, 4)  # a finalist's walk also played 2-4 times, with shorter dwells
+SCHEDULER_BATCH = 4  # candidates re-scored at once on a dask cluster (its size is unknown here)
+SCREEN_KEEP = 6  # candidates re-scored over the whole box after the nominal-mounting screen
+
+
+@dataclass(frozen=True)
+class Proposal:
+    """A walk handed to the exact scoring, at one uniform dwell."""
+
+    walk: tuple[Move, ...]
+    dwell_s: float
+    repeats: int  # how many times the walk plays its motif (1: a beam's own walk)
+
+
+@dataclass(frozen=True)
+class Finalist:
+    """A walk with its dwells and its exact worst ratio: nominal mounting when screened, box after."""
+
+    ratio: float  # worst 3 sigma / requirement of the 21
+    label: str  # the walk's moves, "(refined)" after IPOPT
+    dwells: tuple[float, ...]  # initial dwell first, s
+    walk: tuple[Move, ...]
+    repeats: int
+
+    @property
+    def order(self) -> tuple[float, str]:
+        """Sort key: best ratio first, ties by label."""
+        return (self.ratio, self.label)
+
+
+@dataclass(frozen=True)
+class ExactJob:
+    """One exact re-scoring: a walk, its dwells, IPOPT inside the box or not, the box half-width."""
+
+    walk: tuple[Move, ...]
+    dwells: tuple[float, ...]
+    search: bool
+    tolerance_deg: float
+
+
+@dataclass(frozen=True)
+class ExactScore:
+    """The exact analyser's verdict on an :class:`ExactJob`."""
+
+    ratio: float  # worst 3 sigma / requirement of the 21 (with the extras fitted)
+    worst_name: str  # the parameter it belongs to
+    robustness: object  # observability.Robustness (None with extras, or kept only after a search)
+    extras_cost: object  # observability.ExtrasCost with extras
+    sequence: Sequence
+
+
+@dataclass(frozen=True)
+class Rescored:
+    """A finalist and its exact score (what :func:`pruned` and :func:`select` return)."""
+
+    exact: ExactScore
+    finalist: Finalist
+
+
+def by_order(finalists) -> list[Finalist]:
+    """Finalists best first (ratio, then label)."""
+    return sorted(finalists, key=lambda f: f.order)
+
+
+def _exact_worst(
+    seq: Sequence,
+    profile,
+    latitude_rad,
+    height_m,
+    tolerance_deg,
+    search,
+    requirements: Requirements = PAPER,
+    extras: Extras = NO_EXTRAS,
+):
+    """Worst 3 sigma/requirement of the 21 over the box, with ``extras`` fitted beside them.
+
+    The same figures as ``seqdesign analyze`` (with ``--with``): with ``search``, IPOPT
+    then looks inside the box from its worst point. Returns ``(ratio, parameter, Robustness
+    or None, ExtrasCost or None)``: with ``extras`` the ExtrasCost alone (it holds the 21's
+    sigma with and without the terms at the same mountings).
+    """
+    if extras.n:
+        cost = analyze_extras(
+            seq, profile, latitude_rad, extras, height_m, tolerance_deg, requirements, search=search
+        )
+        r = requirements.ratio(cost.sigma_with)
+        i = int(np.argmax(r))
+        return float(r[i]), P.NAMES[i], None, cost
+    rob = analyze_tolerance(
+        seq, profile, latitude_rad, height_m, tolerance_deg, search=search, requirements=requirements
+    )
+    r = rob.per_parameter_worst_ratio
+    i = int(np.argmax(r))
+    return float(r[i]), P.NAMES[i], rob, None
+
+
+@dataclass(frozen=True)
+class ExactScorer:
+    """What the exact re-scoring of a walk needs besides the walk: picklable, so that the
+    candidates can be scored on the same workers (or dask cluster) as the beams.
+    """
+
+    c: Constraints
+    name: str
+    site: tuple  # (latitude deg, height m), written into each sequence
+    profile: NoiseProfile
+    latitude_rad: float
+    height_m: float
+    requirements: Requirements
+    extras: Extras
+
+    def __call__(self, job: ExactJob) -> ExactScore:
+        seq = to_sequence(job.walk, self.c, list(job.dwells), self.name, None, *self.site)
+        worst, wname, rob, cost = _exact_worst(
+            seq,
+            self.profile,
+            self.latitude_rad,
+            self.height_m,
+            job.tolerance_deg,
+            job.search,
+            self.requirements,
+            self.extras,
+        )
+        return ExactScore(worst, wname, rob, cost, seq)
+
+
+@dataclass
+class ExactScores:
+    """Exact scores of jobs, each distinct job run once (on the workers) and remembered.
+
+    The narrow beams' candidates are mostly the wide ones': they cost nothing twice.
+    """
+
+    scorer: ExactScorer
+    workers: int = 1
+    scheduler: object = None
+    memo: dict = field(default_factory=dict)
+
+    def __call__(self, jobs: list[ExactJob]) -> list[ExactScore]:
+        todo = list(dict.fromkeys(j for j in jobs if j not in self.memo))
+        for job, out in zip(todo, map_jobs(self.scorer, todo, self.workers, self.scheduler)):
+            # without the search inside the box only the figure and the sequence are used
+            self.memo[job] = out if job.search else replace(out, robustness=None, extras_cost=None)
+        return [self.memo[j] for j in jobs]
+
+
+def motif_dwell(walk, c: Constraints, repeats: int) -> float | None:
+    """Uniform dwell that fits ``repeats`` plays of ``walk`` in the budget (None if none does).
+
+    Why repeat: a Gauss-Markov accelerometer bias looks like a scale factor unless
+    gravity changes sign on each axis much faster than its correlation time, and
+    playing a good motif several times with short dwells does exactly that.
+    """
+    n = len(walk) * repeats
+    if n > c.max_flips:
+        return None
+    turn = repeats * sum(turn_seconds(m, c) for m in walk)
+    d = math.floor(10.0 * (c.budget_s - turn) / (n + 1)) / 10.0
+    if d < c.min_dwell_s:
+        return None
+    return float(min(d, c.max_dwell_s))
+
+
+def proposals(results, c: Constraints) -> list[Proposal]:
+    """Distinct (walk, dwell) pairs from the beams' results, and each walk's motif repetitions."""
+    out, seen = [], set()
+    for res in results:
+        for walk in res.walks:
+            if (walk, res.dwell_s) not in seen:
+                seen.add((walk, res.dwell_s))
+                out.append(Proposal(walk, res.dwell_s, 1))
+    for p in list(out):
+        for r in MOTIF_REPEATS:
+            d = motif_dwell(p.walk, c, r)
+            if d is not None and (p.walk * r, d) not in seen:
+                seen.add((p.walk * r, d))
+                out.append(Proposal(p.walk * r, d, r))
+    if c.gimbal is not None:  # a motif's later plays start where the first ended: replay all
+        out = [
+            p
+            for p in out
+            if plan_sequence(to_sequence(p.walk, c, [p.dwell_s] * (len(p.walk) + 1), "x"), c.gimbal).playable
+        ]
+    return out
+
+
+def screen(candidates: list[Proposal], exact: ExactScores, progress) -> list[Finalist]:
+    """Every proposal scored exactly at the nominal mounting, best first."""
+    if not candidates:
+        raise CalibError(
+            "no walk fits the constraints",
+            "design",
+            "raise --budget-min or --max-flips, or lower --min-dwell-s",
+        )
+    jobs = [ExactJob(p.walk, (p.dwell_s,) * (len(p.walk) + 1), False, 0.0) for p in candidates]
+    screened = []
+    for p, out in zip(candidates, exact(jobs)):
+        label = " ".join(m.label() for m in p.walk)
+        screened.append(Finalist(out.ratio, label, (p.dwell_s,) * (len(p.walk) + 1), p.walk, p.repeats))
+        if progress:
+            progress(
+                f"screened {len(screened)} ({len(p.walk)} moves, {p.dwell_s:g} s dwells): "
+                f"{out.ratio:.3f} ({out.worst_name}) at the nominal mounting",
+                1,
+            )
+    return by_order(screened)
+
+
+def pruned(order, score, batch: int):
+    """Score entries (sorted by a lower bound ``f.ratio`` of their score) ``batch`` at a time,
+    skipping those whose bound is not below the best score so far.
+
+    ``score(entries)`` returns one result per entry, each with a ``ratio``. Returns
+    ``(best, scored)``: ``best`` the :class:`Rescored` of the best score (ties by
+    ``label``), ``scored`` every :class:`Rescored`, in order. Exact: ``score(f).ratio >=
+    f.ratio`` for every entry.
+    """
+    best, scored, k = None, [], 0
+    while k < len(order):
+        todo = [
+            f
+            for f in order[k : k + batch]
+            if best is None or (f.ratio, f.label) < (best.exact.ratio, best.finalist.label)
+        ]
+        k += batch
+        if not todo:
+            break  # sorted by bound: nothing later can win either
+        for f, out in zip(todo, score(todo)):
+            scored.append(Rescored(out, f))
+            if best is None or (out.ratio, f.label) < (best.exact.ratio, best.finalist.label):
+                best = Rescored(out, f)
+    return best, scored
+
+
+def boxed(screened, exact: ExactScores, tolerance_deg, progress, batch: int = 1) -> list[Finalist]:
+    """The best of the :data:`SCREEN_KEEP` screened candidates, worst over the box, best first.
+
+    The nominal mounting is one of the box's points, so a candidate's nominal figure is
+    a lower bound of its box figure: one whose nominal figure is not below the best box
+    figure so far cannot come first and is not re-scored (only the first is used).
+    """
+    top = screened[:SCREEN_KEEP]
+    _, scored = pruned(
+        top, lambda fs: exact([ExactJob(f.walk, f.dwells, False, tolerance_deg) for f in fs]), batch
+    )
+    pool = []
+    for s in scored:
+        pool.append(replace(s.finalist, ratio=s.exact.ratio))
+        if progress:
+            progress(
+                f"box worst of {s.finalist.label[:40]}...: {s.exact.ratio:.3f} ({s.exact.worst_name}); "
+                f"best so far {min(p.ratio for p in pool):.3f}",
+                1,
+            )
+    if progress and len(scored) < len(top):
+        progress(
+            f"{len(top) - len(scored)} candidates skipped: their nominal figure is "
+            f"already above the best box worst",
+            len(top) - len(scored),
+        )
+    return by_order(pool)
+
+
+def refined(best: Finalist, c, latitude_rad, height_m, profile, objective, requirements, exact, progress):
+    """The best candidate with IPOPT-refined dwells, exactly re-scored ([] if unchanged).
+
+    ``exact(walk, dwells)`` is the :class:`ExactScore` over the box.
+    """
+    if progress:
+        progress(f"refining the dwells of {best.label} with IPOPT", 0)
+    new_dwells, _, _ = refine_dwells(
+        best.walk, c, best.dwells[0], latitude_rad, height_m, profile, objective, requirements, best.repeats
+    )
+    if tuple(new_dwells) == best.dwells:
+        return []
+    out = exact(best.walk, tuple(new_dwells))
+    if progress:
+        progress(f"refined: {out.ratio:.3f} ({out.worst_name}) against {best.ratio:.3f} uniform", 1)
+    return [Finalist(out.ratio, best.label + " (refined)", tuple(new_dwells), best.walk, best.repeats)]
+
+
+@dataclass
+class Pipeline:
+    """Screen, box and refine the proposals of a set of beams, sharing the exact scores."""
+
+    c: Constraints
+    exact: ExactScores
+    tolerance_deg: float
+    batch: int
+    progress: object
+    refine: object = None  # Finalist -> [refined Finalist]; None: --no-refine
+    _refined: dict = field(default_factory=dict)
+
+    def pools(self, results) -> tuple[list[Finalist], list[Finalist]]:
+        """``(pool, with_refined)``: the box scores best first, and the same with the refined best."""
+        found = screen(proposals(results, self.c), self.exact, self.progress)
+        pool = boxed(found, self.exact, self.tolerance_deg, self.progress, self.batch)
+        key = (pool[0].walk, pool[0].dwells)
+        if self.refine is not None and key not in self._refined:
+            self._refined[key] = self.refine(pool[0])
+        extra = self._refined[key] if self.refine is not None else []
+        return pool, by_order(pool + extra)
+
+
+def select(answers, exact: ExactScores, tolerance_deg, batch: int = 1) -> Rescored:
+    """The final check (IPOPT inside the box) of each distinct answer; the best final figure.
+
+    The search inside the box can only raise an answer's box figure (``ratio``), so an
+    answer whose box figure is not below the best final figure so far cannot win and
+    is not checked; answers go best box figure first, ``batch`` at a time (the workers).
+    """
+    first = {}
+    for f in answers:
+        first.setdefault((f.walk, f.dwells), f)
+    order = by_order(first.values())
+    return pruned(
+        order, lambda fs: exact([ExactJob(f.walk, f.dwells, True, tolerance_deg) for f in fs]), batch
+    )[0]

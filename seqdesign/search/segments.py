@@ -1,0 +1,250 @@
+"""The search's segments: the linear action of one rest or turn on the lifted state.
+
+The search scores thousands of candidate walks per second with the same
+linear model and noise whitening as the analyser, cut into *segments* (a
+move from one grid attitude, or a rest at one): every segment acts on the
+lifted state ``X = [S; phi_hat]`` (9 x 24: sensitivities and the whitening
+filter's state) linearly, and adds a quadratic form in ``X`` to the
+information::
+
+    X_out = A X + B,     dN = X' M1 X + X' M2 + M2' X + M3
+
+The segment matrices depend only on the segment's attitude and move, so
+they are computed once per search; a candidate is scored by a few small
+matrix products, batched over all children of a beam. The one
+approximation is that the noise filter's covariance is at its rest steady
+state at each segment start (the first rest starts from zero exactly); the
+finalists are then re-scored with the exact analyser, worst case over the
+mounting tolerance, which is the figure reported.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from calib import earth
+from calib import params as P
+from calib.jacobian import (
+    N_UNKNOWN,
+    ObservationGrid,
+    moment_inputs,
+    observation_matrix,
+    propagate,
+    state_matrix,
+    trajectory_moments,
+)
+from calib.noise import interval_models, noise_model, whiten, whitener
+from calib.profiles import NoiseProfile
+from calib.sequence import Timeline, nominal_attitude
+from calib.sim import body_integrals
+from calib.transform import AXES
+
+from .gm import SegmentColumns, noise_blocks
+from .graph import attitude_of
+
+SEARCH_REST_INTERVALS = 12  # per rest, whatever its length: smooth in the dwell for IPOPT
+SEARCH_MOVE_STEP_S = 0.5  # observation interval while turning (0.1 s changes sigmas < 0.2 %)
+SEARCH_SUB_DEG = 2.0  # sub-samples while turning
+# With GM each interval costs a Riccati step per candidate; 2 s intervals in turns move the
+# search score of designed-30min by 0.2 % against 0.5 s (measured under navigation-gm).
+SEARCH_GM_MOVE_STEP_S = 1.0
+
+
+@dataclass(frozen=True)
+class SegmentEffect:
+    """Linear action of one segment on the lifted state and the information."""
+
+    A: np.ndarray  # (h, h); h = 6 + filter states (9, or 15 with GM)
+    B: np.ndarray  # (h, 24)
+    M1: np.ndarray  # (h, h)
+    M2: np.ndarray  # (h, 24)
+    M3: np.ndarray  # (24, 24)
+
+
+def _segment_timeline(C: np.ndarray, duration: float, rate: float = 0.0, axis: int = -1) -> Timeline:
+    return Timeline(
+        t0=np.array([0.0]),
+        t1=np.array([duration]),
+        rate=np.array([rate]),
+        axis=np.array([axis]),
+        C0=C[None],
+        position=np.array([1]),
+        step=np.array([-1]),
+        C_end=C,
+    )
+
+
+def _segment_inputs(
+    C: np.ndarray,
+    duration: float,
+    rate: float,
+    axis: int,
+    latitude_rad: float,
+    gravity_mps2: float,
+    profile: NoiseProfile,
+    n_intervals: int | None,
+):
+    """Model inputs (K, 6, 24), interval lengths and (with GM) mid-interval attitudes."""
+    tl = _segment_timeline(C, duration, rate, axis)
+    if n_intervals is None:
+        n_intervals = max(1, int(round(duration / SEARCH_MOVE_STEP_S)))
+    sub = (
+        4
+        if rate == 0.0
+        else max(1, int(math.ceil(abs(math.degrees(rate)) * duration / n_intervals / SEARCH_SUB_DEG)))
+    )
+    t_nav = np.linspace(0.0, duration, n_intervals * sub + 1)
+    flip, E = body_integrals(tl, t_nav[1:])
+    dtheta = flip + E @ earth.omega_ie_n(latitude_rad)
+    dv = E @ earth.specific_force_n(gravity_mps2)
+    grid = ObservationGrid(np.arange(0, n_intervals * sub + 1, sub))
+    moments = trajectory_moments(nominal_attitude(tl, t_nav), dtheta, dv, t_nav, grid)
+    inputs = moment_inputs(moments, latitude_rad, gravity_mps2)  # (K, 6, 24)
+    T = np.diff(t_nav[grid.bounds])
+    C_mid = None
+    if profile.has_gauss_markov:  # bias-instability weights follow each interval's attitude
+        b = grid.bounds
+        C_mid = nominal_attitude(tl, t_nav)[(b[:-1] + b[1:]) // 2]
+    return inputs, T, C_mid
+
+
+def segment_columns(
+    C: np.ndarray,
+    duration: float,
+    rate: float,
+    axis: int,
+    latitude_rad: float,
+    gravity_mps2: float,
+    profile: NoiseProfile,
+    n_intervals: int | None = None,
+) -> SegmentColumns:
+    """A segment's unwhitened observation columns and noise blocks (exact GM search)."""
+    inputs, T, C_mid = _segment_inputs(
+        C, duration, rate, axis, latitude_rad, gravity_mps2, profile, n_intervals
+    )
+    A6 = state_matrix(latitude_rad, gravity_mps2)
+    Phi_vv = np.array([m.Phi[3:6, 3:6] for m in interval_models(A6, T, profile, C_mid)])
+    S0 = np.zeros((6, 6 + N_UNKNOWN))
+    S0[:, :6] = np.eye(6)
+    all_inputs = np.zeros((len(T), 6, 6 + N_UNKNOWN))
+    all_inputs[:, :, 6:] = inputs
+    S_v, S_end = propagate(all_inputs, T, S0, latitude_rad, gravity_mps2, return_final=True)
+    H = observation_matrix(S_v, Phi_vv)
+    return SegmentColumns(H, S_end[:, :6], S_end[:, 6:], *noise_blocks(A6, T, profile, C_mid))
+
+
+def segment_effect(
+    C: np.ndarray,
+    duration: float,
+    rate: float,
+    axis: int,
+    latitude_rad: float,
+    gravity_mps2: float,
+    profile: NoiseProfile,
+    P0: np.ndarray | None,
+    n_intervals: int | None = None,
+    initial: bool = False,
+) -> SegmentEffect:
+    """The segment matrices of one rest (``rate == 0``) or turn, by running the model on basis columns."""
+    inputs, T, C_mid = _segment_inputs(
+        C, duration, rate, axis, latitude_rad, gravity_mps2, profile, n_intervals
+    )
+    noise = noise_model(state_matrix(latitude_rad, gravity_mps2), T, profile, P0, C_mid)
+    # Columns: 6 + s homogeneous (unit S, unit filter state, no input; s = 3, or 9 with
+    # Gauss-Markov biases), then the 24 unknowns' particular responses (zero start, this
+    # segment's inputs). The same recursions as the analyser (propagate, whiten) run on
+    # all of them at once.
+    n_s = noise.whitener.state_size
+    n_hom = 6 + n_s
+    c = n_hom + N_UNKNOWN
+    S0 = np.zeros((6, c))
+    phi0 = np.zeros((n_s, c))
+    if initial:  # the run's start: S = [I; 0] on phi0, filter state zero, nothing else
+        S0[:3, n_hom + P.N_PARAMS :] = np.eye(3)
+    else:
+        S0[:, :6] = np.eye(6)
+        phi0[:, 6:n_hom] = np.eye(n_s)
+    all_inputs = np.zeros((len(T), 6, c))
+    all_inputs[:, :, n_hom:] = inputs
+    S_v, S_end = propagate(all_inputs, T, S0, latitude_rad, gravity_mps2, return_final=True)
+    w, phi_end = whiten(noise.whitener, observation_matrix(S_v, noise.Phi_vv), phi0, return_final=True)
+    Wh, Wp = w[:, :, :n_hom], w[:, :, n_hom:]
+    M1 = np.einsum("kia,kib->ab", Wh, Wh)
+    M2 = np.einsum("kia,kib->ab", Wh, Wp)
+    M3 = np.einsum("kia,kib->ab", Wp, Wp)
+    X = np.vstack([S_end, phi_end])
+    return SegmentEffect(A=X[:, :n_hom], B=X[:, n_hom:], M1=M1, M2=M2, M3=M3)
+
+
+def rest_steady_state(
+    latitude_rad: float, gravity_mps2: float, profile: NoiseProfile, dwell_s: float
+) -> np.ndarray:
+    """Noise-filter covariance after a long rest observed with the search's rest intervals.
+
+    With Gauss-Markov biases the filter state is ``[phi, b_g, b_a]`` (body frame); the
+    rest is then taken at the identity attitude, which makes the result the covariance
+    with the biases in the navigation frame: :func:`start_covariance` rotates it into
+    any attitude's body frame (the model is rotation-invariant in that frame, see
+    :func:`calib.noise._gm_interval_nav`).
+    """
+    T = np.full(40 * SEARCH_REST_INTERVALS, dwell_s / SEARCH_REST_INTERVALS)
+    C = np.broadcast_to(np.eye(3), (len(T), 3, 3)) if profile.has_gauss_markov else None
+    return whitener(interval_models(state_matrix(latitude_rad, gravity_mps2), T, profile, C)).P_end
+
+
+def gm_start_covariance(profile: NoiseProfile) -> np.ndarray:
+    """Filter covariance at a run's start with GM biases: phi zero (an unknown of the fit),
+    the biases at their stationary ``sigma^2 I`` (as :func:`calib.noise.whitener`).
+    """
+    return np.diag(np.repeat([0.0, profile.gyro_gm_sigma**2, profile.accel_gm_sigma**2], 3))
+
+
+def start_covariance(P_nav: np.ndarray, C_b_n: np.ndarray) -> np.ndarray:
+    """The filter covariance a segment starts from at attitude ``C_b_n`` (body-frame biases).
+
+    ``P_nav`` is :func:`rest_steady_state`'s; the attitude error ``phi`` is in the
+    navigation frame already, the biases rotate with ``C_b_n' (.) C_b_n``.
+    """
+    if len(P_nav) == 3:
+        return P_nav
+    R = np.eye(9)
+    R[3:6, 3:6] = R[6:9, 6:9] = C_b_n
+    return R.T @ P_nav @ R
+
+
+@functools.lru_cache(maxsize=4096)
+def rest_columns(node, duration, latitude_rad, gravity_mps2, profile):
+    """A rest's observation columns at grid attitude ``node`` (cached: exact GM search)."""
+    return segment_columns(
+        attitude_of(node), duration, 0.0, -1, latitude_rad, gravity_mps2, profile, SEARCH_REST_INTERVALS
+    )
+
+
+@functools.lru_cache(maxsize=4096)
+def turn_columns(node, mv, duration, rate, latitude_rad, gravity_mps2, profile):
+    """A turn's observation columns from ``node`` (cached: exact GM search)."""
+    return segment_columns(
+        attitude_of(node),
+        duration,
+        rate,
+        AXES.index(mv.axis),
+        latitude_rad,
+        gravity_mps2,
+        profile,
+        max(1, int(round(duration / SEARCH_GM_MOVE_STEP_S))),
+    )
+
+
+@functools.lru_cache(maxsize=4096)
+def turn_effect(node, mv, duration, rate, latitude_rad, gravity_mps2, profile, P_bytes):
+    """A turn's segment matrices from ``node``, the rest steady state ``P_ss`` as bytes (cached)."""
+    n = int(round(math.sqrt(len(P_bytes) // 8)))
+    P_ss = np.frombuffer(P_bytes).reshape(n, n)
+    C = attitude_of(node)
+    return segment_effect(
+        C, duration, rate, AXES.index(mv.axis), latitude_rad, gravity_mps2, profile, start_covariance(P_ss, C)
+    )
