@@ -72,7 +72,7 @@ class SearchModel:
         height_m: float,
         profile: NoiseProfile,
         requirements: Requirements = PAPER,
-    ) -> "SearchModel":
+    ) -> SearchModel:
         g = earth.gravity(latitude_rad, height_m)
         graph = flip_graph(c.start, c.axes)
         if profile.has_gauss_markov:

@@ -23,7 +23,8 @@ import math
 import numpy as np
 
 from calib.errors import CalibError
-from calib.gimbal import Gimbal, load_gimbal, plan_move, plan_sequence
+from calib.gimbal import plan_move, plan_sequence
+from calib.gimbalfile import Gimbal, load_gimbal
 from calib.rateprofile import RateProfile
 
 HOME_TOL_RAD = 1e-6  # encoder "at 0": grid moves land on multiples of pi/2 to rounding
