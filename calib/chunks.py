@@ -20,11 +20,7 @@ chunks' median periods. Gaps are refused (no ``--allow-gaps`` here), and
 
 from __future__ import annotations
 
-import itertools
-import json
 import math
-import zipfile
-from pathlib import Path
 
 import numpy as np
 
@@ -48,139 +44,9 @@ from .gyrocompass import gyrocompass_rests
 from .jacobian import default_grid
 from .profiles import NoiseProfile
 from .requirements import PAPER, Requirements
+from .runlog import READ_ROWS, nominal_period, read_chunks, read_meta
 from .strapdown import quat_mult, quat_to_dcm, rotvec_to_quat
 from .stream import Chunk, Site, chunk_cuts, quat_scan
-
-READ_ROWS = 1 << 16
-COLUMNS = ("time_s", "dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad", "dv_x_mps", "dv_y_mps", "dv_z_mps")
-NPZ_FIX = "write the file with numpy.savez (time_s, dtheta_rad, dv_mps, meta), or use CSV"
-
-
-def read_meta(path) -> dict[str, str]:
-    """The metadata of a run log, without reading its samples."""
-    p, where = Path(path), str(path)
-    if p.suffix.lower() == ".npz":
-        try:
-            with zipfile.ZipFile(p) as archive, archive.open("meta.npy") as member:
-                text = np.lib.format.read_array(member, allow_pickle=False).reshape(()).item()
-            raw = json.loads(text)
-        except (OSError, zipfile.BadZipFile, KeyError, ValueError) as exc:
-            raise CalibError(f"not a readable NPZ run log ({exc})", where, NPZ_FIX) from None
-        if not isinstance(raw, dict):
-            raise CalibError("meta is not a JSON object", where, NPZ_FIX)
-        return {k: v if isinstance(v, str) else repr(v) for k, v in raw.items()}
-    meta = {}
-    try:
-        with open(p, encoding="utf-8") as handle:
-            for line in handle:
-                if not line.startswith("#"):
-                    break
-                key, _, value = line[1:].partition(":")
-                meta[key.strip()] = value.strip()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CalibError(f"cannot read the file ({exc})", where, "give a UTF-8 imu-run/1 CSV") from None
-    return meta
-
-
-def nominal_period(meta: dict[str, str], where: str) -> float:
-    """``1 / sample_rate_hz`` of the metadata, refusing a missing or impossible rate."""
-    try:
-        rate = float(meta["sample_rate_hz"])
-    except (KeyError, ValueError):
-        rate = math.nan
-    if not (math.isfinite(rate) and rate > 0):
-        raise CalibError(
-            f"sample_rate_hz is {meta.get('sample_rate_hz')!r}",
-            where,
-            "the log's metadata must give the IMU's output rate in Hz",
-        )
-    return 1.0 / rate
-
-
-def _npy_stream(archive: zipfile.ZipFile, name: str, where: str):
-    """An open member positioned at its data, with its shape and dtype."""
-    try:
-        member = archive.open(f"{name}.npy")
-    except KeyError:
-        raise CalibError(f"archive lacks array '{name}'", where, NPZ_FIX) from None
-    version = np.lib.format.read_magic(member)
-    read_header = (
-        np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
-    )
-    shape, fortran, dtype = read_header(member)
-    if fortran or dtype.kind not in "fiu" or len(shape) not in (1, 2):
-        raise CalibError(
-            f"array '{name}' is {dtype} of shape {shape}{' in Fortran order' if fortran else ''}",
-            where,
-            NPZ_FIX,
-        )
-    return member, shape, dtype
-
-
-def _npz_chunks(path, rows: int):
-    where = str(path)
-    try:
-        archive = zipfile.ZipFile(path)
-    except (OSError, zipfile.BadZipFile) as exc:
-        raise CalibError(f"not a readable NPZ run log ({exc})", where, NPZ_FIX) from None
-    with archive:
-        streams = [_npy_stream(archive, name, where) for name in ("time_s", "dtheta_rad", "dv_mps")]
-        n = streams[0][1][0]
-        if any(s[1] != (n,) + ((3,) if i else ()) for i, s in enumerate(streams)):
-            raise CalibError(
-                "time_s, dtheta_rad and dv_mps do not have shapes (n,), (n, 3), (n, 3)", where, NPZ_FIX
-            )
-        for a in range(0, n, rows):
-            m = min(rows, n - a)
-            out = []
-            for member, shape, dtype in streams:
-                width = 1 if len(shape) == 1 else 3
-                data = member.read(m * width * dtype.itemsize)
-                out.append(
-                    np.frombuffer(data, dtype).astype(np.float64).reshape((m,) if width == 1 else (m, 3))
-                )
-            yield tuple(out)
-        for member, _, _ in streams:
-            member.close()
-
-
-def _csv_chunks(path, rows: int):
-    where = str(path)
-    with open(path, encoding="utf-8") as handle:
-        line = next(handle, "")
-        while line.startswith("#"):
-            line = next(handle, "")
-        header = [c.strip() for c in line.strip().split(",")]
-        missing = [c for c in COLUMNS if c not in header]
-        if missing:
-            raise CalibError(
-                f"header lacks column(s) {', '.join(missing)}",
-                where,
-                "name the columns as spec/files.md (imu-run/1) does",
-            )
-        use = [header.index(c) for c in COLUMNS]
-        done = 0
-        while block := list(itertools.islice(handle, rows)):
-            try:
-                table = np.loadtxt(block, delimiter=",", usecols=use, ndmin=2)
-            except ValueError as exc:
-                raise CalibError(
-                    f"unreadable data row among rows {done + 1}-{done + len(block)} ({exc})",
-                    where,
-                    "`seqdesign calibrate` names the line",
-                ) from None
-            done += len(block)
-            yield table[:, 0], table[:, 1:4], table[:, 4:7]
-
-
-def read_chunks(path, rows: int = READ_ROWS):
-    """Yield ``(time_s, dtheta_rad, dv_mps)`` blocks of ``rows`` samples of an NPZ or CSV run log."""
-    kind = Path(path).suffix.lower()
-    if kind not in (".npz", ".csv"):
-        raise CalibError(
-            f"unknown run format {Path(path).suffix!r}", str(path), "give a .csv or .npz run log"
-        )
-    return (_npz_chunks if kind == ".npz" else _csv_chunks)(path, rows)
 
 
 def aligned(blocks, cuts: np.ndarray, t_start: float):

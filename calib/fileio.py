@@ -38,14 +38,37 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
         If the file cannot be written (missing directory, no permission,
         disk full, ...).
     """
+    atomic_write_file(path, lambda handle: handle.write(data))
 
-    def write(tmp_name: str) -> None:
-        with open(tmp_name, "wb") as handle:
-            handle.write(data)
+
+def atomic_write_file(path: str | os.PathLike, write, text: bool = False):
+    """Let ``write(handle)`` fill an open file, flushed to disk and put at ``path`` in one step.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination file. Its directory must exist.
+    write : callable
+        Called with the open temporary file; may write it a block at a time.
+    text : bool
+        Open the file for text (UTF-8, LF newlines on every platform)
+        rather than bytes.
+
+    Returns
+    -------
+    object
+        What ``write`` returned.
+    """
+
+    def produce(tmp_name: str):
+        mode = {"mode": "w", "encoding": "utf-8", "newline": "\n"} if text else {"mode": "wb"}
+        with open(tmp_name, **mode) as handle:
+            out = write(handle)
             handle.flush()
             os.fsync(handle.fileno())
+        return out
 
-    atomic_write_with(path, write)
+    return atomic_write_with(path, produce)
 
 
 def atomic_write_with(path: str | os.PathLike, write):

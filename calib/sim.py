@@ -225,18 +225,17 @@ def add_noise(
     return dtheta, dv
 
 
-def _run_meta(cfg: SimConfig, sequence_name: str) -> dict:
-    """The run log's metadata for a simulated site."""
-    meta = {
-        "format": "imu-run/1",
-        "latitude_deg": repr(math.degrees(cfg.latitude_rad)),
-        "height_m": repr(cfg.height_m),
-        "sample_rate_hz": repr(cfg.sample_rate_hz),
-    }
-    if cfg.gravity_mps2 is not None:
-        meta["gravity_mps2"] = repr(cfg.gravity_mps2)
-    meta["sequence"] = sequence_name
-    return meta
+def run_meta(cfg: SimConfig, sequence_name: str) -> dict[str, str]:
+    """The run log's metadata for a simulated site (:func:`calib.runlog.make_meta`)."""
+    from .runlog import make_meta
+
+    return make_meta(
+        math.degrees(cfg.latitude_rad),
+        cfg.height_m,
+        cfg.sample_rate_hz,
+        gravity_mps2=cfg.gravity_mps2,
+        sequence=sequence_name,
+    )
 
 
 def simulate(
@@ -309,13 +308,13 @@ def simulate(
     dtheta = dtheta_m
     if noise:
         dtheta, dv = add_noise(dtheta, dv, dt, profile, rng)
-    from . import runlog
+    from .runlog import Run
 
-    run = runlog.Run(
+    run = Run(
         time_s=time_s,
         dtheta_rad=dtheta,
         dv_mps=dv,
-        meta=_run_meta(cfg, seq.name),
+        meta=run_meta(cfg, seq.name),
         gimbal_deg=encoder_angles(seq, time_s, gimbal, played=real),
     )
     truth = Truth(

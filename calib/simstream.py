@@ -20,36 +20,19 @@ terms of :mod:`calib.extras`, flip errors and the gimbal encoder columns.
 from __future__ import annotations
 
 import math
-import tempfile
-import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from .errormodel import ErrorModel
 from .errors import CalibError
-from .fileio import atomic_write_with
 from .profiles import NoiseProfile
+from .runlog import write_windows
 from .sequence import Sequence, timeline
-from .sim import SimConfig, Truth, true_increments
+from .sim import SimConfig, Truth, run_meta, true_increments
 from .transform import rotvec_to_dcm
 
 WINDOW_SAMPLES = 1 << 18  # 2 MB per column: I/O in large blocks, memory still small
-FORMAT = "imu-run/1"
-
-
-def run_meta(seq: Sequence, cfg: SimConfig) -> dict[str, str]:
-    """The metadata :func:`calib.sim.simulate` writes, for the same site and sequence."""
-    meta = {
-        "format": FORMAT,
-        "latitude_deg": repr(math.degrees(cfg.latitude_rad)),
-        "height_m": repr(cfg.height_m),
-        "sample_rate_hz": repr(cfg.sample_rate_hz),
-    }
-    if cfg.gravity_mps2 is not None:
-        meta["gravity_mps2"] = repr(cfg.gravity_mps2)
-    meta["sequence"] = seq.name
-    return meta
 
 
 def sample_windows(
@@ -92,55 +75,6 @@ def sample_windows(
         yield time_s, dtheta_m, dv_m
 
 
-def _npy_header(shape: tuple) -> bytes:
-    import io
-
-    buffer = io.BytesIO()
-    np.lib.format.write_array_header_1_0(buffer, {"descr": "<f8", "fortran_order": False, "shape": shape})
-    return buffer.getvalue()
-
-
-def _write_npz(windows, meta: dict, target: Path) -> int:
-    """Columns go to raw scratch files as they come, then into the zip one member at a time."""
-    import json
-
-    names, widths = ("time_s", "dtheta_rad", "dv_mps"), (1, 3, 3)
-    scratch = [tempfile.TemporaryFile(dir=target.parent) for _ in names]
-    n = 0
-    try:
-        for window in windows:
-            for handle, column in zip(scratch, window):
-                handle.write(np.ascontiguousarray(column, dtype="<f8").tobytes())
-            n += len(window[0])
-        with zipfile.ZipFile(target, "w", zipfile.ZIP_STORED, allowZip64=True) as archive:
-            for name, width, handle in zip(names, widths, scratch):
-                handle.seek(0)
-                with archive.open(f"{name}.npy", "w", force_zip64=True) as member:
-                    member.write(_npy_header((n,) if width == 1 else (n, width)))
-                    while block := handle.read(1 << 24):
-                        member.write(block)
-            with archive.open("meta.npy", "w") as member:
-                np.lib.format.write_array(member, np.array(json.dumps(meta, ensure_ascii=False)))
-    finally:
-        for handle in scratch:
-            handle.close()
-    return n
-
-
-def _write_csv(windows, meta: dict, target: Path) -> int:
-    n = 0
-    with open(target, "w", encoding="utf-8", newline="\n") as out:
-        out.write(f"# format: {FORMAT}\n")
-        out.writelines(f"# {k}: {v}\n" for k, v in meta.items() if k != "format")
-        out.write("time_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps\n")
-        for time_s, dtheta, dv in windows:
-            table = np.column_stack([time_s, dtheta, dv]).tolist()
-            # repr() reads back to the same float, as calib.runlog writes its CSV.
-            out.writelines(",".join(map(repr, row)) + "\n" for row in table)
-            n += len(time_s)
-    return n
-
-
 def simulate_to_file(
     path,
     seq: Sequence,
@@ -165,10 +99,9 @@ def simulate_to_file(
     kind = target.suffix.lower()
     if kind not in (".npz", ".csv"):
         raise CalibError(f"unknown run format {target.suffix!r}", str(path), "name the file .csv or .npz")
-    meta = run_meta(seq, cfg) | (meta_extra or {})
+    meta = run_meta(cfg, seq.name) | (meta_extra or {})
     windows = sample_windows(seq, cfg, errors, profile, setup_rotvec, noise, seed, window)
-    writer = _write_npz if kind == ".npz" else _write_csv
-    n = atomic_write_with(target, lambda tmp: writer(windows, meta, Path(tmp)))
+    n = write_windows(target, meta, windows)
     truth = Truth(
         errors=errors,
         setup_rotvec=np.asarray(setup_rotvec, dtype=float),

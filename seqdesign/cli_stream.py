@@ -174,10 +174,10 @@ def calibrate_stream(run_path, profile, output, with_terms, requirements, partia
     memory stays at one chunk plus one byte per sample, whatever the length of the log.
     """
     from calib.calibration import load_requirements, result_from_fit, site_gravity
-    from calib.chunks import calibrate_file, read_meta
+    from calib.chunks import calibrate_file
     from calib.extras import as_extras
     from calib.profiles import as_profile
-    from calib.runlog import Run
+    from calib.runlog import Run, read_meta
     from calib.truth import read_truth, truth_path_for
 
     extras, prof, req = as_extras(with_terms), as_profile(profile), load_requirements(requirements)

@@ -105,7 +105,7 @@ def test_missing_site_lists_every_key(tmp_path):
         read_run(path, allow_gaps=True)
     message = info.value.message
     assert "lacks 'latitude_deg', 'height_m'" in message
-    assert "--latitude DEG" in message and "# latitude_deg: 51.08" in message
+    assert "latitude_deg (the CLI's --latitude DEG)" in message and "# latitude_deg: 51.08" in message
 
 
 def test_option_that_contradicts_the_file_is_refused(tmp_path):

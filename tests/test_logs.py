@@ -18,11 +18,11 @@ from click.testing import CliRunner
 from conftest import ARCSEC, W_EARTH
 
 from calib import params as P
-from calib.clock import sample_clock
 from calib.errormodel import ErrorModel
 from calib.estimator import sequence_motion
 from calib.profiles import load_profile
 from calib.runlog import Run, read_run, write_run
+from calib.runlog.clock import sample_clock
 from calib.sanity import check_saturation
 from calib.sequence import sequence_from_dict
 from calib.sim import SimConfig, simulate

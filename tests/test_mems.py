@@ -369,8 +369,8 @@ def test_calibrate_stream_gives_a_mems_run_the_calibrate_start(tmp_path):
 def test_calibrate_stream_refuses_a_run_that_starts_turning(tmp_path):
     # A log cut inside its first flip has no first rest to align on: one line, exit 2 (it
     # was a ValueError traceback when no sample before the first motion was read).
-    from calib.chunks import read_meta
     from calib.estimator import detect_motion
+    from calib.runlog import read_meta
     from calib.strapdown import sample_intervals
 
     runner = CliRunner()

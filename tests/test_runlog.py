@@ -463,7 +463,7 @@ def test_npz_gap_and_order(tmp_path):
     run = make_run()
     run.time_s[25:] += 1.0
     message = refusal(save_npz(tmp_path, **npz_arrays(run)), "200 sample(s) dropped", "time_s[25]")
-    assert "--allow-gaps" in message
+    assert "allow_gaps (the CLI's --allow-gaps)" in message
     assert read_run(tmp_path / "run.npz", allow_gaps=True).n_samples == 240
     run.time_s[30] = run.time_s[29]
     refusal(save_npz(tmp_path, **npz_arrays(run)), "time_s[30]", allow_gaps=True)

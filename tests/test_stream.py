@@ -226,7 +226,7 @@ def test_calibrating_from_disk_in_chunks_equals_calibrating_in_memory(short_file
 
 
 def test_chunks_read_back_the_samples(short_files):
-    from calib.chunks import read_chunks
+    from calib.runlog import read_chunks
 
     paths, _, _ = short_files
     whole = read_run(paths[0])

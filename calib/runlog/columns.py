@@ -27,10 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import CalibError
-from .params import DEG, STANDARD_GRAVITY
+from calib.errors import CalibError
+from calib.params import DEG, STANDARD_GRAVITY
+from calib.runlog.format import TIME_COLUMN
 
-TIME_COLUMN = "time_s"
 AXES = ("x", "y", "z")
 
 # quantity: (sensor, is a rate, {unit: SI per unit})

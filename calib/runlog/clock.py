@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import CalibError
+from calib.errors import CalibError
 
 # A step whose length in periods is this far from a whole number does not come
 # from one crystal: jitter of a quarter period would already be exceptional.
@@ -369,5 +369,6 @@ def refusal(clock: SampleClock, source: str) -> CalibError:
         "; ".join(parts) + " (a lost or repeated increment is a velocity "
         "step the fit would read as IMU error)",
         source,
-        "repair the log, or pass --allow-gaps to fill samples lost at rest and remove exact duplicates",
+        "repair the log, or read it with allow_gaps (the CLI's --allow-gaps) to fill samples lost "
+        "at rest and remove exact duplicates",
     )

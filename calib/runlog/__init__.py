@@ -1,0 +1,51 @@
+"""Run logs (``imu-run/1``): the raw IMU increments of one calibration run, in CSV or NPZ.
+
+The one owner of the run-log format: its name, metadata and columns
+(:mod:`~calib.runlog.format`), the `Run` and its metadata builder
+(:mod:`~calib.runlog.run`), the checks every reader applies
+(:mod:`~calib.runlog.checks`), the CSV and NPZ readers and writers
+(:mod:`~calib.runlog.csv`, :mod:`~calib.runlog.npz`), a file by its suffix
+(:mod:`~calib.runlog.runfile`), reading a chunk at a time
+(:mod:`~calib.runlog.chunks`), a logger's column names
+(:mod:`~calib.runlog.columns`), the sample clock of the time column
+(:mod:`~calib.runlog.clock`) and the PSINS ``.imu`` log (:mod:`~calib.runlog.psins`).
+
+Every refusal is a `CalibError` naming the file and where in it the problem is:
+for CSV the 1-based line number counted from the top of the file (plus the
+column and the 0-based sample index), for NPZ the array element (``dv_mps[12, 1]``)
+or the metadata key.
+"""
+
+from calib.runlog.checks import check_run
+from calib.runlog.chunks import READ_ROWS, nominal_period, read_chunks, read_meta
+from calib.runlog.format import (
+    DTHETA_COLUMNS,
+    DV_COLUMNS,
+    FORMAT,
+    GIMBAL_COLUMNS,
+    REQUIRED_COLUMNS,
+    REQUIRED_META,
+    TIME_COLUMN,
+)
+from calib.runlog.run import Run, make_meta
+from calib.runlog.runfile import read_run, write_run, write_windows
+
+__all__ = [
+    "DTHETA_COLUMNS",
+    "DV_COLUMNS",
+    "FORMAT",
+    "GIMBAL_COLUMNS",
+    "READ_ROWS",
+    "REQUIRED_COLUMNS",
+    "REQUIRED_META",
+    "TIME_COLUMN",
+    "Run",
+    "check_run",
+    "make_meta",
+    "nominal_period",
+    "read_chunks",
+    "read_meta",
+    "read_run",
+    "write_run",
+    "write_windows",
+]

@@ -1,0 +1,409 @@
+"""The CSV run log: read (``.csv``, ``.csv.gz``, a logger's columns) and write.
+
+A refusal names the file and the 1-based line number counted from the top of
+the file, plus the column and the 0-based sample index.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+from dataclasses import replace
+
+import numpy as np
+
+from calib.errors import CalibError
+from calib.runlog.checks import check_meta, check_samples
+from calib.runlog.columns import ColumnPlan, plan_columns, to_increments
+from calib.runlog.format import ARRAY_COLUMNS, FORMAT, GIMBAL_COLUMNS, REQUIRED_COLUMNS, REQUIRED_META
+from calib.runlog.paths import read_bytes
+from calib.runlog.run import Run, meta_float
+
+
+class _CsvLocator:
+    """Names places in a CSV file: 1-based line numbers, column names, sample index."""
+
+    def __init__(
+        self,
+        name: str,
+        key_lines: dict[str, int],
+        sample_lines: np.ndarray,
+        columns: dict[str, tuple[str, ...]] | None = None,
+    ):
+        self.name = name
+        self.key_lines = key_lines
+        self.sample_lines = sample_lines
+        self.columns = {**ARRAY_COLUMNS, **(columns or {})}  # the file's own column names
+
+    def key(self, key: str) -> str:
+        line = self.key_lines.get(key)
+        return self.name if line is None else f"{self.name}, line {line}"
+
+    def sample(self, array: str, index: int, component: int | None = None) -> str:
+        text = f"{self.name}, line {int(self.sample_lines[index])}"
+        if component is not None or array == "time_s":
+            text += f", column {self.columns[array][component or 0]}"
+        return text + f" (sample {index})"
+
+
+def read_csv(path: str | os.PathLike, allow_gaps: bool, options: dict | None = None) -> Run:
+    """Read a CSV run log (see module docstring for how places are named)."""
+    name = str(path)
+    lines = _decode_lines(read_bytes(path), name)
+    meta, key_lines, header_index = parse_preamble(lines, name)
+    lines = _to_commas(lines, header_index, name)
+    plan, has_gimbal, positions = _parse_header(lines[header_index], header_index + 1, name)
+    rows, row_lines = _data_rows(lines, header_index + 1)
+    if not rows:
+        raise CalibError(
+            "the header row is not followed by any data rows",
+            f"{name}, line {header_index + 1}",
+            "a run log needs one row per sample",
+        )
+    n_fields = len(lines[header_index].split(","))
+    _check_field_counts(rows, row_lines, n_fields, name)
+    wanted = [plan.time, *plan.gyro.positions, *plan.accel.positions]
+    if has_gimbal:
+        wanted += [positions[c] for c in GIMBAL_COLUMNS]
+    all_names = [c.strip() for c in lines[header_index].split(",")]
+    data = _parse_numbers(rows, row_lines, wanted, all_names, name)
+    time_s = np.ascontiguousarray(data[:, 0])
+    _fill_meta(meta, options or {}, time_s, name, header_index + 1)
+    locate = _CsvLocator(
+        name, key_lines, row_lines, {"dtheta_rad": plan.gyro.names, "dv_mps": plan.accel.names}
+    )
+    check_meta(meta, locate)
+    dt = 1.0 / meta_float(meta, "sample_rate_hz", name)
+    run = Run(
+        time_s=time_s,
+        dtheta_rad=np.ascontiguousarray(to_increments(data[:, 1:4], plan.gyro, time_s, dt)),
+        dv_mps=np.ascontiguousarray(to_increments(data[:, 4:7], plan.accel, time_s, dt)),
+        meta=meta,
+        gimbal_deg=np.ascontiguousarray(data[:, 7:10]) if has_gimbal else None,
+        source=name,
+    )
+    # The clock the checks found goes with the run: clock.settle does not find it again.
+    return replace(run, clock=check_samples(run, locate, allow_gaps))
+
+
+def _to_commas(lines: list[str], header_index: int, name: str) -> list[str]:
+    """Lines of a CSV written with ';' or tabs between fields, rewritten with commas.
+
+    A semicolon-separated file from a locale that writes decimal commas
+    (``0,25;1,5``) has its decimal commas read as points. Said on stderr, so a
+    user sees how the file was read.
+    """
+    header = lines[header_index]
+    if "," in header:
+        return lines
+    sep = next((c for c in (";", "\t") if c in header), None)
+    if sep is None:
+        return lines
+    body = lines[header_index + 1 :]
+    decimal_commas = sep == ";" and any("," in row for row in body[:100])
+    if decimal_commas:
+        body = [row.replace(",", ".") for row in body]
+    import warnings
+
+    warnings.warn(
+        f"{name}: fields separated by {'tabs' if sep == chr(9) else repr(sep)}"
+        f"{' with decimal commas' if decimal_commas else ''}; read as such",
+        stacklevel=3,
+    )
+    return lines[:header_index] + [row.replace(sep, ",") for row in [header] + body]
+
+
+def _fill_meta(meta: dict[str, str], options: dict, time_s: np.ndarray, name: str, header_line: int) -> None:
+    """Site keys from options; for a logger's file (no format line) also format and rate.
+
+    A file declaring ``imu-run/1`` keeps the contract of files.md: its sample rate
+    must be written in it. A logger's file gets the rate from the median time step
+    and a message listing every key still missing, with an example preamble.
+    """
+    for key, value in options.items():
+        if value is None:
+            continue
+        if key in meta:
+            try:
+                same = float(meta[key]) == float(value)
+            except ValueError:
+                same = False
+            if not same:
+                raise CalibError(
+                    f"the file says {key} = {meta[key]} but the option gives {value:g}",
+                    name,
+                    "drop the option, or correct the file",
+                )
+            continue
+        meta[key] = repr(float(value))
+    if "format" in meta:
+        return
+    meta["format"] = FORMAT
+    if "sample_rate_hz" not in meta and time_s.size >= 2:
+        step = float(np.median(np.diff(time_s)))
+        if step > 0:
+            # Printed time stamps carry rounding (0.01 is not exact): 9 digits of the rate.
+            meta["sample_rate_hz"] = repr(float(f"{1.0 / step:.9g}"))
+    missing = [k for k in REQUIRED_META[1:] if k not in meta]
+    if missing:
+        options_hint = {
+            "latitude_deg": "latitude_deg (the CLI's --latitude DEG)",
+            "height_m": "height_m (the CLI's --height M)",
+            "sample_rate_hz": "a time_s column that increases",
+        }
+        raise CalibError(
+            "the file lacks " + ", ".join(f"'{k}'" for k in missing),
+            f"{name}, line {header_line}",
+            "give " + ", ".join(options_hint[k] for k in missing) + ", or write them above the "
+            "header, e.g. '# latitude_deg: 51.08', '# height_m: 1100', '# sample_rate_hz: 100'",
+        )
+
+
+def _decode_lines(data: bytes, name: str) -> list[str]:
+    """UTF-8 (optional BOM) to lines split on LF; CRLF files read the same."""
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise CalibError(
+            f"byte 0x{data[exc.start]:02x} is not valid UTF-8 (byte offset {exc.start})",
+            f"{name}, line {line}",
+            "save the file as UTF-8",
+        ) from None
+    if not text.strip():
+        raise CalibError(
+            "the file is empty",
+            name,
+            f"a run log starts with '# format: {FORMAT}', metadata, a header row and one row per sample",
+        )
+    if "\r" in text:
+        text = text.replace("\r\n", "\n")
+    return text.split("\n")
+
+
+def parse_preamble(lines: list[str], name: str) -> tuple[dict[str, str], dict[str, int], int]:
+    """Collect ``# key: value`` lines up to the header row.
+
+    Returns
+    -------
+    meta : dict of str to str
+        Metadata in file order.
+    key_lines : dict of str to int
+        1-based line of each key.
+    header_index : int
+        0-based index of the header row.
+    """
+    meta: dict[str, str] = {}
+    key_lines: dict[str, int] = {}
+    for index, line in enumerate(lines):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if not stripped.startswith("#"):
+            return meta, key_lines, index
+        key, colon, value = stripped[1:].partition(":")
+        if not colon:
+            continue  # a plain comment line
+        key = key.strip()
+        if not key:
+            raise CalibError(
+                "metadata line has no key before ':'", f"{name}, line {index + 1}", "write '# key: value'"
+            )
+        if key in meta:
+            raise CalibError(
+                f"metadata key '{key}' appears twice (first on line {key_lines[key]})",
+                f"{name}, line {index + 1}",
+                "keep one of the two lines",
+            )
+        meta[key] = value.strip()
+        key_lines[key] = index + 1
+    raise CalibError(
+        "no header row after the metadata", name, "add the header row: " + ",".join(REQUIRED_COLUMNS)
+    )
+
+
+def _parse_header(line: str, line_number: int, name: str) -> tuple[ColumnPlan, bool, dict[str, int]]:
+    """The columns of the header row (grammar of :mod:`calib.runlog.columns`) and the gimbal's."""
+    names = [c.strip() for c in line.split(",")]
+    where = f"{name}, line {line_number}"
+    plan = plan_columns(names, where)
+    positions: dict[str, int] = {}
+    for position, column in enumerate(names):
+        if column in positions and column in GIMBAL_COLUMNS:
+            raise CalibError(
+                f"column '{column}' appears twice in the header", where, "keep one of the two columns"
+            )
+        positions.setdefault(column, position)
+    gimbal = [c for c in GIMBAL_COLUMNS if c in positions]
+    if gimbal and len(gimbal) < 3:
+        absent = [c for c in GIMBAL_COLUMNS if c not in positions]
+        raise CalibError(
+            f"header row has gimbal column{'s' if len(gimbal) > 1 else ''} "
+            f"{', '.join(gimbal)} but lacks {', '.join(absent)}",
+            where,
+            "give all three of " + ",".join(GIMBAL_COLUMNS) + " or none",
+        )
+    return plan, bool(gimbal), positions
+
+
+def _data_rows(lines: list[str], first: int) -> tuple[list[str], np.ndarray]:
+    """Non-blank lines after the header and their 1-based line numbers."""
+    body = lines[first:]
+    blank = [i for i, line in enumerate(body) if not line.strip()]
+    if not blank:
+        return body, np.arange(first + 1, first + 1 + len(body))
+    keep = np.ones(len(body), dtype=bool)
+    keep[blank] = False
+    numbers = np.flatnonzero(keep) + first + 1
+    return [line for line, k in zip(body, keep.tolist()) if k], numbers
+
+
+def _check_field_counts(rows: list[str], row_lines: np.ndarray, n_fields: int, name: str) -> None:
+    """Refuse rows whose field count differs from the header's."""
+    commas = np.fromiter((row.count(",") for row in rows), dtype=np.int64, count=len(rows))
+    bad = np.flatnonzero(commas != n_fields - 1)
+    if bad.size:
+        i = int(bad[0])
+        more = f" ({bad.size} such rows in all)" if bad.size > 1 else ""
+        raise CalibError(
+            f"row has {commas[i] + 1} fields, the header has {n_fields}{more}",
+            f"{name}, line {int(row_lines[i])} (sample {i})",
+            "every data row needs one value per header column",
+        )
+
+
+def _parse_numbers(
+    rows: list[str], row_lines: np.ndarray, wanted: list[int], names: list[str], name: str
+) -> np.ndarray:
+    """Parse the wanted columns as float64, fast; on failure find and name the bad field."""
+    try:
+        data = np.loadtxt(rows, delimiter=",", comments=None, dtype=np.float64, usecols=wanted, ndmin=2)
+    except ValueError:
+        data = None
+    if data is not None and data.shape == (len(rows), len(wanted)):
+        return data
+    return _parse_numbers_slowly(rows, row_lines, wanted, names, name)
+
+
+def _parse_numbers_slowly(
+    rows: list[str], row_lines: np.ndarray, wanted: list[int], names: list[str], name: str
+) -> np.ndarray:
+    """Field-by-field parse: slow, but it can say exactly which field is bad."""
+    data = np.empty((len(rows), len(wanted)))
+    for i, row in enumerate(rows):
+        fields = row.split(",")
+        for j, position in enumerate(wanted):
+            try:
+                data[i, j] = float(fields[position])
+            except ValueError:
+                raise CalibError(
+                    f"field {fields[position].strip()!r} is not a number",
+                    f"{name}, line {int(row_lines[i])}, column {names[position]} (sample {i})",
+                    "write plain decimal numbers such as 1.5e-07",
+                ) from None
+    return data
+
+
+def csv_meta(path) -> dict[str, str]:
+    """The metadata of a CSV run log, from the lines above its header row only."""
+    where = str(path)
+    lines = []
+    try:
+        with open(path, encoding="utf-8") as handle:
+            for line in handle:
+                lines.append(line.rstrip("\r\n"))
+                if line.strip() and not line.startswith("#"):
+                    break  # the header row
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CalibError(f"cannot read the file ({exc})", where, f"give a UTF-8 {FORMAT} CSV") from None
+    return parse_preamble(lines, where)[0]
+
+
+def csv_chunks(path, rows: int):
+    """Yield ``(time_s, dtheta_rad, dv_mps)`` blocks of ``rows`` samples, parsed a block at a time."""
+    where = str(path)
+    with open(path, encoding="utf-8") as handle:
+        line = next(handle, "")
+        while line.startswith("#"):
+            line = next(handle, "")
+        header = [c.strip() for c in line.strip().split(",")]
+        missing = [c for c in REQUIRED_COLUMNS if c not in header]
+        if missing:
+            raise CalibError(
+                f"header lacks column(s) {', '.join(missing)}",
+                where,
+                f"name the columns as spec/files.md ({FORMAT}) does",
+            )
+        use = [header.index(c) for c in REQUIRED_COLUMNS]
+        done = 0
+        while block := list(itertools.islice(handle, rows)):
+            try:
+                table = np.loadtxt(block, delimiter=",", usecols=use, ndmin=2)
+            except ValueError as exc:
+                raise CalibError(
+                    f"unreadable data row among rows {done + 1}-{done + len(block)} ({exc})",
+                    where,
+                    "`seqdesign calibrate` names the line",
+                ) from None
+            done += len(block)
+            yield table[:, 0], table[:, 1:4], table[:, 4:7]
+
+
+def write_csv(handle, meta: dict[str, str], windows, gimbal: bool = False) -> int:
+    """Write a CSV run log to an open text handle: metadata (format first), header, rows.
+
+    Parameters
+    ----------
+    handle : file object
+        Open for writing text (UTF-8, LF newlines).
+    meta : dict of str to str
+        Metadata; ``format`` is written first whatever its place.
+    windows : iterable of tuple of numpy.ndarray
+        Consecutive blocks ``(time_s, dtheta_rad, dv_mps)``, with ``gimbal_deg``
+        appended when ``gimbal``: the whole run in one block, or a long run a
+        block at a time.
+    gimbal : bool
+        Write the gimbal encoder columns.
+
+    Returns
+    -------
+    int
+        Number of samples written.
+    """
+    header = REQUIRED_COLUMNS + (GIMBAL_COLUMNS if gimbal else ())
+    meta_lines = [f"# format: {FORMAT}"]
+    meta_lines += [f"# {key}: {value}" for key, value in meta.items() if key != "format"]
+    handle.write("\n".join(meta_lines) + "\n" + ",".join(header) + "\n")
+    n = 0
+    for window in windows:
+        handle.write(_csv_rows(window))
+        n += len(window[0])
+    return n
+
+
+def _csv_rows(columns) -> str:
+    """Shortest-repr rows of a block of columns, one line per sample."""
+    table = np.hstack([np.asarray(c, dtype=np.float64).reshape(len(c), -1) for c in columns])
+    if not len(table):
+        return ""
+    # repr() is the shortest text that reads back to the same float, and
+    # mapping it column by column is as fast as np.savetxt('%.17g').
+    text_columns = [list(map(repr, column)) for column in table.T.tolist()]
+    return "\n".join(map(",".join, zip(*text_columns))) + "\n"
+
+
+def check_meta_writable_as_csv(meta: dict[str, str], name: str) -> None:
+    """Refuse metadata that would not read back the same from '# key: value' lines."""
+    for key, value in meta.items():
+        if not key or key != key.strip() or ":" in key or "\n" in key or "\r" in key:
+            raise CalibError(
+                f"metadata key {key!r} cannot be written as '# key: value'",
+                name,
+                "use keys without ':', line breaks or surrounding spaces",
+            )
+        if "\n" in value or "\r" in value:
+            raise CalibError(
+                f"metadata '{key}' contains a line break", name, "keep metadata values on one line"
+            )

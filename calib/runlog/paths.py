@@ -1,0 +1,46 @@
+"""Which run-log file a path is: its kind by suffix, that it exists, its bytes."""
+
+from __future__ import annotations
+
+import gzip
+import os
+import zlib
+from pathlib import Path
+
+from calib.errors import CalibError
+
+
+def run_kind(path: str | os.PathLike) -> str:
+    """Lower-case suffix, refused unless .csv, .npz or .imu."""
+    suffix = Path(path).suffix.lower()
+    if suffix == ".gz" and Path(path).name.lower().endswith(".csv.gz"):
+        return ".csv"  # read through gzip (read_bytes)
+    if suffix not in (".csv", ".npz", ".imu"):
+        raise CalibError(
+            f"unknown run log type {suffix or '(no suffix)'!r}",
+            str(path),
+            "name run logs *.csv (interchange), *.npz (fast native) or *.imu (PSINS text, read only)",
+        )
+    return suffix
+
+
+def require_file(path: str | os.PathLike) -> None:
+    """Refuse a missing path or a directory before a parser sees it."""
+    if not Path(path).exists():
+        raise CalibError("file not found", str(path), "check the path")
+    if not Path(path).is_file():
+        raise CalibError("not a regular file", str(path), "give the path of a run log file")
+
+
+def read_bytes(path: str | os.PathLike) -> bytes:
+    """Read a whole file, turning OS errors into CalibError."""
+    require_file(path)
+    try:
+        data = Path(path).read_bytes()
+        return gzip.decompress(data) if data[:2] == b"\x1f\x8b" else data
+    except (OSError, EOFError, zlib.error) as exc:  # gzip.BadGzipFile is an OSError
+        raise CalibError(
+            f"cannot read the file: {getattr(exc, 'strerror', None) or exc}",
+            str(path),
+            "check the path and permissions",
+        ) from None

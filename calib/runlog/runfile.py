@@ -1,0 +1,139 @@
+"""Run-log files: `read_run` and `write_run` pick the format by the file's suffix.
+
+``.csv`` (or ``.csv.gz``) and ``.npz`` are read and written (:mod:`calib.runlog.csv`,
+:mod:`calib.runlog.npz`); a PSINS ``.imu`` log is read only (:mod:`calib.runlog.psins`).
+Both run-log readers apply the same checks (:mod:`calib.runlog.checks`), so a run
+that loads from one format loads from the other.
+"""
+
+from __future__ import annotations
+
+import os
+
+from calib.errors import CalibError
+from calib.fileio import atomic_write_file
+from calib.filekind import expect
+from calib.runlog import clock
+from calib.runlog.checks import check_run
+from calib.runlog.csv import check_meta_writable_as_csv, read_csv, write_csv
+from calib.runlog.npz import read_npz, write_npz
+from calib.runlog.paths import run_kind
+from calib.runlog.psins import read_psins
+from calib.runlog.run import Run
+
+_NOT_WRITTEN = "the PSINS .imu format is read, not written"
+
+
+def read_run(
+    path: str | os.PathLike,
+    allow_gaps: bool = False,
+    *,
+    latitude_deg: float | None = None,
+    height_m: float | None = None,
+) -> Run:
+    """Read and check a run log, ``.csv`` (or ``.csv.gz``), ``.npz`` or PSINS ``.imu``.
+
+    The time column is mapped to sample counts (:mod:`calib.runlog.clock`): a run
+    whose clock only jitters comes back on the uniform time base
+    ``offset + count / sample_rate_hz``, with the jitter in ``run.clock``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Run log file.
+    allow_gaps : bool
+        Accept dropped and duplicated samples (the CLI's ``--allow-gaps``): duplicates
+        are removed and samples lost at rest filled (`calib.runlog.clock.settle`).
+    latitude_deg, height_m : float, optional
+        Site metadata for a CSV file that lacks it (the CLI's ``--latitude``, ``--height``);
+        a file that has the key and a different value is refused.
+
+    A CSV file may be gzip-compressed (``.csv.gz``). A CSV file without a
+    ``# format:`` line is a logger's file (``docs/logs-columns.md``): it is read as
+    ``imu-run/1``, its sample rate, when absent, comes from the time column.
+
+    Returns
+    -------
+    Run
+        Arrays in float64, ``source`` set to ``str(path)``, ``clock`` set.
+
+    Raises
+    ------
+    CalibError
+        On any unreadable or invalid content, naming the file and the line,
+        key or sample.
+    """
+    expect(path, "run")
+    kind = run_kind(path)
+    if kind == ".imu":
+        run = read_psins(path, allow_gaps)
+    elif kind == ".csv":
+        run = read_csv(path, allow_gaps, {"latitude_deg": latitude_deg, "height_m": height_m})
+    else:
+        run = read_npz(path, allow_gaps)
+    return clock.settle(run, allow_gaps)  # the IMU's own time base, gaps repaired if allowed
+
+
+def write_run(run: Run, path: str | os.PathLike) -> None:
+    """Write a run log atomically as ``.csv`` or ``.npz`` (by suffix).
+
+    The run is checked first as a reader would check it (gaps excepted), so
+    the tool never writes a file it would refuse to read. CSV numbers use
+    Python's shortest round-trip repr, so reading gives back the exact floats.
+
+    Parameters
+    ----------
+    run : Run
+        Run to write; ``meta`` must contain ``format: imu-run/1`` and the
+        required keys (see `make_meta`).
+    path : str or os.PathLike
+        Destination, ``.csv`` or ``.npz``.
+
+    Raises
+    ------
+    CalibError
+        If the suffix is unknown, the run is invalid, or the file cannot be
+        written.
+    """
+    kind = run_kind(path)
+    if kind == ".imu":
+        raise CalibError(_NOT_WRITTEN, str(path), "write the run as .csv or .npz")
+    check_run(run, allow_gaps=True)
+    if kind == ".csv":
+        check_meta_writable_as_csv(run.meta, run.source)
+    gimbal = run.gimbal_deg is not None
+    window = (run.time_s, run.dtheta_rad, run.dv_mps) + ((run.gimbal_deg,) if gimbal else ())
+    _write(path, kind, run.meta, [window], gimbal)
+
+
+def write_windows(path: str | os.PathLike, meta: dict[str, str], windows) -> int:
+    """Write a run given a block at a time atomically as ``.csv`` or ``.npz`` (by suffix).
+
+    For a run too long to hold in memory (:mod:`calib.simstream`): memory is
+    one block's. The samples are not checked, as `write_run` checks them.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination, ``.csv`` or ``.npz``.
+    meta : dict of str to str
+        Metadata (see `make_meta`).
+    windows : iterable of tuple of numpy.ndarray
+        Consecutive blocks ``(time_s, dtheta_rad, dv_mps)``.
+
+    Returns
+    -------
+    int
+        Number of samples written.
+    """
+    kind = run_kind(path)
+    if kind == ".imu":
+        raise CalibError(_NOT_WRITTEN, str(path), "write the run as .csv or .npz")
+    return _write(path, kind, meta, windows, gimbal=False)
+
+
+def _write(path: str | os.PathLike, kind: str, meta: dict[str, str], windows, gimbal: bool) -> int:
+    """The one writer of both formats: complete, flushed to disk, or nothing at ``path``."""
+    if kind == ".csv":
+        return atomic_write_file(path, lambda handle: write_csv(handle, meta, windows, gimbal), text=True)
+    return atomic_write_file(path, lambda handle: write_npz(handle, meta, windows, gimbal))
