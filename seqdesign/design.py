@@ -29,7 +29,6 @@ import numpy as np
 from calib import earth
 from calib import params as P
 from calib.errors import CalibError
-from calib.estimator import FIRST_REST_MARGIN_S, MIN_ALIGN_S
 from calib.extras import NONE as NO_EXTRAS
 from calib.extras import Extras
 from calib.information import inverse_diagonal, marginal
@@ -47,6 +46,7 @@ from calib.profiles import NoiseProfile
 from calib.requirements import PAPER, Requirements
 from calib.sequence import Sequence, Step, Timeline, nominal_attitude
 from calib.sim import body_integrals
+from calib.start import FIRST_REST_MARGIN_S, MIN_ALIGN_S
 from calib.transform import AXES
 
 from .gmsearch import SegmentColumns, fold, noise_blocks, stack, start_state

@@ -12,14 +12,18 @@ from click.testing import CliRunner
 from calib import earth, stream
 from calib import extras as X
 from calib.errormodel import ErrorModel
-from calib.estimator import calibrate, coarse_alignment, detect_motion
+from calib.estimator import calibrate
 from calib.jacobian import default_grid, extra_inputs, sample_layout, trajectory_moments
+from calib.motion import detect_motion
 from calib.profiles import load_profile
 from calib.runlog import read_run
 from calib.sequence import load_sequence
 from calib.sim import SimConfig, simulate
 from calib.simstream import simulate_to_file
-from calib.strapdown import navigate, quat_mult, sample_intervals
+from calib.site import Site
+from calib.start import coarse_alignment
+from calib.strapdown import navigate, sample_intervals
+from calib.transform import quat_mult
 from seqdesign.cli import main
 
 LAT = math.radians(40.0)
@@ -82,7 +86,7 @@ def test_streamed_pass_is_the_whole_run_navigation(paper):
 
     chunks = stream.array_chunks(run.time_s, run.dtheta_rad, run.dv_mps, t0, stream.chunk_cuts(grid, 300))
     out = stream.navigate_pass(
-        chunks, grid, stream.Site(LAT, cfg.gravity, t0), np.zeros(21), np.zeros(extras.n), C0, turn, extras
+        chunks, grid, Site(LAT, cfg.gravity), t0, np.zeros(21), np.zeros(extras.n), C0, turn, extras
     )
 
     def rel(a, b):
@@ -220,7 +224,7 @@ def test_calibrating_from_disk_in_chunks_equals_calibrating_in_memory(short_file
 
     paths, fit, cfg = short_files
     for p in paths:
-        streamed = calibrate_file(p, LAT, cfg.gravity, load_profile("navigation"), rows=7777)
+        streamed = calibrate_file(p, Site(LAT, cfg.gravity), load_profile("navigation"), rows=7777)
         assert np.array_equal(streamed.values, fit.values)
         assert np.array_equal(streamed.sigma, fit.sigma)
 
