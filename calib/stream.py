@@ -350,7 +350,7 @@ def navigate_pass(
         Skip the moments (and the optional terms' inputs) when the Jacobian is not wanted.
     gyro_correction : ndarray, shape (K, 3), optional
         A body rate (rad/s) per interval added to the compensated gyro increments:
-        the estimator's attitude feedback (:func:`calib.estimator.attitude_feedback`).
+        the estimator's attitude feedback (:func:`calib.feedback.attitude_feedback`).
     """
     b, K = grid.bounds, grid.n_intervals
     model, carry = ErrorModel(values), _Carry(C_b_n0, site.omega_ie_n)

@@ -3,6 +3,7 @@ the streamed simulator the same simulator."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -227,6 +228,38 @@ def test_calibrating_from_disk_in_chunks_equals_calibrating_in_memory(short_file
         streamed = calibrate_file(p, Site(LAT, cfg.gravity), load_profile("navigation"), rows=7777)
         assert np.array_equal(streamed.values, fit.values)
         assert np.array_equal(streamed.sigma, fit.sigma)
+
+
+@pytest.mark.slow
+def test_cli_calibrate_stream_agrees_with_calibrate_and_takes_a_sequence(short_files, tmp_path):
+    # One entry (calib.calibration.calibrate) for both readings: the same estimator on the same
+    # samples gives the same estimates, to 1e-9 sigma, with or without a sequence file (whose
+    # flips then mark where the run turns, in chunks as in memory).
+    paths, _, _ = short_files
+    runner = CliRunner()
+    for sequence in ([], ["--sequence", "paper-9pos"]):
+        out = {}
+        for mode in ("--no-stream", "--stream"):
+            r = runner.invoke(
+                main, ["calibrate", str(paths[0]), *sequence, mode, "--json", "-o", str(tmp_path / "r.toml")]
+            )
+            assert r.exit_code == 0, r.output
+            out[mode] = json.loads(r.stdout)
+        assert "clock" in out["--no-stream"] and "clock" not in out["--stream"]
+        for name, p in out["--no-stream"]["parameters"].items():
+            streamed = out["--stream"]["parameters"][name]
+            assert abs(streamed["value"] - p["value"]) <= 1e-9 * p["sigma"], name
+            assert streamed["sigma"] == pytest.approx(p["sigma"], rel=1e-9), name
+
+
+def test_cli_calibrate_stream_refuses_what_it_cannot_read_in_chunks(short_files, tmp_path):
+    # Gaps need the whole time column fitted: one line naming why, exit 2, nothing written.
+    paths, _, _ = short_files
+    r = CliRunner().invoke(
+        main, ["calibrate", str(paths[0]), "--stream", "--allow-gaps", "-o", str(tmp_path / "r.toml")]
+    )
+    assert r.exit_code == 2 and "--allow-gaps cannot be read chunk by chunk" in r.output
+    assert "Traceback" not in r.output and not (tmp_path / "r.toml").exists()
 
 
 def test_chunks_read_back_the_samples(short_files):
