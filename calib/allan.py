@@ -31,6 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .motion import runs_of
+
 # Flat floor of a flicker (bias-instability) process: sigma_A = B sqrt(2 ln 2 / pi).
 FLICKER_FLOOR_RATIO = math.sqrt(2.0 * math.log(2.0) / math.pi)  # 0.6643
 # Maximum of the GM Allan deviation: at tau = 1.893 T_c it is 0.6174 sigma.
@@ -178,8 +180,7 @@ class NoiseFit:
 
 def _runs(mask: np.ndarray) -> list[np.ndarray]:
     """Index arrays of the consecutive True stretches of ``mask``."""
-    idx = np.flatnonzero(mask)
-    return [r for r in np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1) if r.size]
+    return [np.arange(a, b) for a, b in zip(*runs_of(mask))]
 
 
 def white_region(curve: AllanCurve) -> np.ndarray:

@@ -1,29 +1,34 @@
-"""Calibrate a logged run: the library call behind ``seqdesign calibrate``.
+"""Calibrate a logged run: the one library call behind ``seqdesign calibrate``.
 
-:func:`calibrate_run` takes a :class:`calib.runlog.Run` and returns a
-:class:`calib.result.CalibrationResult` that already carries the policy a
-user relies on: the site gravity and where it came from, the convergence
-verdict, the Birge check (sigmas inflated by ``sqrt(chi2/dof)`` when the
-residuals are larger than the noise profile says), and, for a run that
-leaves directions unobserved, which parameters are not estimable. A
-notebook, the Monte Carlo and the CLI get the same sigmas from it.
+:func:`calibrate` takes one run source -- a :class:`calib.runlog.Run` in
+memory or a log file, read whole or chunk by chunk (:mod:`calib.chunks`,
+:func:`reads_in_chunks`) -- and returns a :class:`calib.result.CalibrationResult`
+that already carries the policy a user relies on, applied once for both
+readings: the site gravity and where it came from, the convergence verdict,
+the Birge check (sigmas inflated by ``sqrt(chi2/dof)`` when the residuals are
+larger than the noise profile says), and, for a run that leaves directions
+unobserved, which parameters are not estimable. A notebook, the Monte Carlo
+and the CLI get the same sigmas from it.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import os
+from pathlib import Path
 
 import numpy as np
 
-from . import earth
 from . import params as P
 from .errors import CalibError
-from .estimator import Fit, calibrate, check_sequence_matches, detect_motion, sequence_motion
+from .estimator import calibrate as fit_run
 from .extras import Extras, as_extras
+from .motion import check_sequence_matches, detect_motion, sequence_motion
 from .profiles import NoiseProfile, as_profile
 from .requirements import PAPER, Requirements, load_requirements
 from .result import CalibrationResult
+from .site import Site, site_of
+from .solution import Fit
 from .strapdown import sample_intervals
 
 # chi2/dof above this says the profile understates the noise: sigmas are inflated by
@@ -31,61 +36,88 @@ from .strapdown import sample_intervals
 # of freedom of a calibration run (its standard deviation is sqrt(2/dof) < 0.05).
 BIRGE_LIMIT = 1.2
 
-# 1 mGal = 1e-5 m/s^2 of gravity error is a common accelerometer scale-factor error of
-# 1e-5 / g: about 1.02 ppm at the Earth's surface.
-MGAL = 1e-5
+# A log file larger than this is read chunk by chunk unless told otherwise: held whole, its
+# samples and the navigation's temporaries take about ten times the file's size in memory.
+STREAM_BYTES = 256 << 20
+CHUNK_KINDS = (".npz", ".csv")  # what the chunked reader reads (imu-run/1 CSV, numpy NPZ)
 
 
-@dataclass(frozen=True)
-class SiteGravity:
-    """The gravity a fit assumes, and where it came from."""
+def reads_in_chunks(path, stream: bool | None = None, **reading) -> bool:
+    """Whether :func:`calibrate` reads the log at ``path`` chunk by chunk.
 
-    value_mps2: float
-    source: str  # "measured" (the log's gravity_mps2 or the user's) or "normal" (WGS-84 model)
-
-    @property
-    def ppm_per_mgal(self) -> float:
-        """How far 1 mGal of gravity error moves every accelerometer scale factor, ppm."""
-        return MGAL / self.value_mps2 * 1e6
-
-    def describe(self) -> str:
-        if self.source == "measured":
-            return f"{self.value_mps2:.7f} m/s^2 (measured, from the log's gravity_mps2)"
+    ``stream`` True or False decides; None (the default): an ``.npz`` or
+    ``.csv`` log over :data:`STREAM_BYTES` is read in chunks when none of the
+    in-memory reader's options (``allow_gaps``, ``latitude_deg``,
+    ``height_m``) is set. Asked to stream what the chunked reader cannot
+    read, refuses in one line (:func:`check_streamable`).
+    """
+    if stream is None:
+        p = Path(path)
         return (
-            f"{self.value_mps2:.7f} m/s^2 (WGS-84 normal gravity at the log's latitude and "
-            "height; local anomalies of tens of mGal are not in it)"
+            p.suffix.lower() in CHUNK_KINDS
+            and not any(v not in (None, False) for v in reading.values())
+            and p.is_file()
+            and p.stat().st_size > STREAM_BYTES
         )
+    if stream:
+        check_streamable(path, **reading)
+    return bool(stream)
 
 
-def site_gravity(run, gravity_mps2: float | None = None) -> SiteGravity:
-    """Gravity given by the user, else the log's measured one, else normal gravity at its site."""
-    if gravity_mps2 is not None:
-        return SiteGravity(float(gravity_mps2), "measured")
-    if run.gravity_mps2 is not None:
-        return SiteGravity(float(run.gravity_mps2), "measured")
-    return SiteGravity(earth.gravity(math.radians(run.latitude_deg), run.height_m), "normal")
+def check_streamable(path, allow_gaps: bool = False, latitude_deg=None, height_m=None) -> None:
+    """Refuse what the chunked reader cannot do in bounded memory, naming why."""
+    where = str(path)
+    if Path(path).suffix.lower() not in CHUNK_KINDS:
+        raise CalibError(
+            f"the chunked reader reads .npz and imu-run/1 .csv logs, not {''.join(Path(path).suffixes)!r}",
+            where,
+            "calibrate it without --stream (gzip, PSINS and a logger's columns are read whole)",
+        )
+    if allow_gaps:
+        raise CalibError(
+            "--allow-gaps cannot be read chunk by chunk: repairing gaps fits the whole time column",
+            where,
+            "calibrate it without --stream",
+        )
+    if latitude_deg is not None or height_m is not None:
+        raise CalibError(
+            "--latitude/--height complete a logger's CSV, which only the in-memory reader reads",
+            where,
+            "calibrate it without --stream, or write latitude_deg and height_m in the log",
+        )
+    if not Path(path).is_file():
+        raise CalibError("no such file", where, "check the path")
 
 
-def calibrate_run(
-    run,
+def calibrate(
+    source,
     profile: NoiseProfile | str = "navigation",
     *,
+    stream: bool | None = None,
     sequence=None,
     extras: Extras | str | None = None,
     partial: bool = False,
     require_convergence: bool = True,
     requirements=None,
     gravity_mps2: float | None = None,
+    allow_gaps: bool = False,
+    latitude_deg: float | None = None,
+    height_m: float | None = None,
     provenance: dict | None = None,
 ) -> CalibrationResult:
     """Fit the 21 parameters (and any optional terms) of a run log.
 
     Parameters
     ----------
-    run : calib.runlog.Run
-        The log (:func:`calib.runlog.read_run`, or :func:`calib.sim.simulate`).
+    source : calib.runlog.Run or path
+        The log in memory (:func:`calib.runlog.read_run`, or
+        :func:`calib.sim.simulate`), or its file.
     profile : NoiseProfile or str
         Weights the fit and scales the sigmas.
+    stream : bool, optional
+        For a file: read it chunk by chunk (True), whole (False), or by
+        :func:`reads_in_chunks`'s rule (None). Both readings fit the same
+        samples with the same estimator.
     sequence : calib.sequence.Sequence, optional
         The sequence the run followed: its flips mark where the log turns
         (refused if they are not where the gyros turn). Default: detected.
@@ -102,6 +134,10 @@ def calibrate_run(
         Surveyed gravity at the site; wins over the log's and over the
         normal-gravity model (a gravity error of dg/g is a common
         accelerometer scale-factor error no sequence can separate).
+    allow_gaps : bool
+        Reading a file whole: repair dropped and duplicated samples.
+    latitude_deg, height_m : float, optional
+        Reading a file whole: the site of a logger's CSV that lacks it.
     provenance : dict, optional
         Stored in the result as it is.
 
@@ -113,8 +149,31 @@ def calibrate_run(
     """
     prof, extras = as_profile(profile), as_extras(extras)
     req = load_requirements(requirements)
-    lat = math.radians(run.latitude_deg)
-    gravity = site_gravity(run, gravity_mps2)
+    model = dict(extras=extras, partial=partial, requirements=req, sequence=sequence)
+    if isinstance(source, (str, os.PathLike)):
+        reading = dict(allow_gaps=allow_gaps, latitude_deg=latitude_deg, height_m=height_m)
+        if reads_in_chunks(source, stream, **reading):
+            from .chunks import calibrate_file, run_header
+
+            site = site_of(run_header(source), gravity_mps2)
+            fit, where = calibrate_file(source, site, prof, **model), str(source)
+            return _checked_result(fit, where, require_convergence, prof, site, provenance, req)
+        from .runlog import read_run
+
+        source = read_run(source, **reading)
+    elif stream:
+        raise ValueError("a run in memory is calibrated in memory: stream applies to a file")
+    site = site_of(source, gravity_mps2)
+    fit = _fit_in_memory(source, site, prof, **model)
+    return _checked_result(fit, source.source, require_convergence, prof, site, provenance, req)
+
+
+# The in-memory name the library has always had (seqdesign.api, the Monte Carlo).
+calibrate_run = calibrate
+
+
+def _fit_in_memory(run, site: Site, profile: NoiseProfile, sequence, **model) -> Fit:
+    """The estimator on a run held whole; a sequence's flips mark where it turns."""
     moving = None
     if sequence is not None:
         dt = sample_intervals(run.time_s)
@@ -122,34 +181,36 @@ def calibrate_run(
         check_sequence_matches(
             sequence, detect_motion(run.dtheta_rad, dt, run.source).moving, moving, dt, run.source
         )
-    fit = calibrate(
+    return fit_run(
         run.time_s,
         run.dtheta_rad,
         run.dv_mps,
-        lat,
-        gravity.value_mps2,
-        prof,
+        site.latitude_rad,
+        site.gravity_mps2,
+        profile,
         moving=moving,
         where=run.source,
-        extras=extras,
-        partial=partial,
-        requirements=req,
         sequence=sequence,
+        **model,
     )
+
+
+def _checked_result(fit: Fit, where: str, require_convergence: bool, profile, site, provenance, req):
+    """The convergence refusal, then :func:`result_from_fit`."""
     if require_convergence and not fit.converged:
         raise CalibError(
             f"the fit did not converge in {fit.iterations} iterations (last step "
             f"{fit.history[-1]['max_step_sigma']:.3g} sigma)",
-            run.source,
+            where,
             "no result written; check the run and the noise profile",
         )
-    return result_from_fit(fit, prof, gravity, provenance or {}, req)
+    return result_from_fit(fit, profile, site, provenance or {}, req)
 
 
 def result_from_fit(
     fit: Fit,
     profile: NoiseProfile,
-    gravity: SiteGravity,
+    site: Site,
     provenance: dict,
     requirements: Requirements = PAPER,
 ) -> CalibrationResult:
@@ -175,7 +236,7 @@ def result_from_fit(
         not_estimable=tuple(n for n, e in zip(names, estimable) if not e),
         null_directions=tuple(fit.null_directions),
         n_observations=fit.n_observations,
-        gravity_mps2=gravity.value_mps2,
-        gravity_source=gravity.source,
+        gravity_mps2=site.gravity_mps2,
+        gravity_source=site.gravity_source,
         requirements=requirements,
     )

@@ -8,14 +8,16 @@ turns and checks the samples (a second one judges a noisy or strongly biased
 gyro on windowed rates), the first rest is read for the alignment, a MEMS
 unit's bias and heading are solved from all rests (two more passes), and
 every navigation of :func:`calib.estimator.fit_intervals` reads the file
-again. Memory: one chunk, plus one byte per sample for the motion mask.
+again. Memory: one chunk, plus one byte per sample for the motion mask (two
+with a sequence file, whose flips are checked against the gyros as in memory).
+:func:`calib.calibration.calibrate` is the entry that applies the policy.
 
 What the in-memory path (:func:`calib.runlog.read_run` then
-:func:`calib.calibration.calibrate_run`) checks that this one checks per
+:func:`calib.calibration.calibrate`) checks that this one checks per
 chunk only: a saturated channel (runs of 10 equal extreme samples) across a
 chunk end is not seen; the grid's nominal period is the median of the
-chunks' median periods. Gaps are refused (no ``--allow-gaps`` here), and
-``--sequence`` is not supported: flips are detected from the gyros.
+chunks' median periods. A sequence file's flips are checked against the
+motion judged with the profile's gyro noise (in memory: sample by sample).
 """
 
 from __future__ import annotations
@@ -24,29 +26,33 @@ import math
 
 import numpy as np
 
-from . import params as P
 from . import sanity
 from .errors import CalibError
-from .estimator import (
+from .estimator import fit_intervals
+from .extras import NONE as NO_EXTRAS
+from .extras import Extras
+from .gyrocompass import Rests
+from .jacobian import default_grid
+from .motion import (
     MOTION_THRESHOLD,
-    _grow,
-    check_first_rest,
-    coarse_alignment,
-    fit_intervals,
+    carried_cumsum,
+    check_sequence_matches,
+    grow,
     motion_window,
-    start_from_rests,
+    runs_of,
+    sample_motion,
+    sequence_mask,
     window_rate,
     windowed_motion,
 )
-from .extras import NONE as NO_EXTRAS
-from .extras import Extras
-from .gyrocompass import gyrocompass_rests
-from .jacobian import default_grid
 from .profiles import NoiseProfile
 from .requirements import PAPER, Requirements
-from .runlog import READ_ROWS, nominal_period, read_chunks, read_meta
-from .strapdown import quat_mult, quat_to_dcm, rotvec_to_quat
-from .stream import Chunk, Site, chunk_cuts, quat_scan
+from .runlog import READ_ROWS, Run, nominal_period, read_chunks, read_meta
+from .site import Site
+from .solution import nominal_judge
+from .start import check_first_rest, start_attitude
+from .stream import Chunk, chunk_cuts, quat_scan
+from .transform import quat_mult, quat_to_dcm, rotvec_to_quat
 
 
 def aligned(blocks, cuts: np.ndarray, t_start: float):
@@ -88,7 +94,7 @@ def survey(path, profile: NoiseProfile, rows: int = READ_ROWS, where: str | None
     """The motion mask, the run's start, its period; per-chunk sanity checks.
 
     Returns ``(moving, t_start, period_s)``; ``moving`` is judged and grown
-    as :func:`calib.estimator.detect_motion` judges and grows it. One reading
+    as :func:`calib.motion.detect_motion` judges and grows it. One reading
     pass, and a second one when the gyros must be judged on windowed rates
     (a noisy gyro or a large bias): their steady rate, the per-axis median of
     the whole run there, is here the median of the chunks' medians (the same
@@ -102,7 +108,7 @@ def survey(path, profile: NoiseProfile, rows: int = READ_ROWS, where: str | None
         t_start = t[0] - dt[0] if t_start is None else t_start
         sanity.check_rates(th, dt, here)
         sanity.check_saturation(th, dv, here)
-        masks.append(np.sqrt(np.einsum("ni,ni->n", th, th)) / dt > MOTION_THRESHOLD)
+        masks.append(sample_motion(th, dt))
         medians.append(float(np.median(dt)))
         steady.append(np.median(th / dt[:, None], axis=0))
     if t_start is None:
@@ -110,9 +116,9 @@ def survey(path, profile: NoiseProfile, rows: int = READ_ROWS, where: str | None
     period, steady = float(np.median(medians)), np.median(steady, axis=0)
     window = motion_window(profile.arw, period)
     if windowed_motion(window, steady):
-        moving = _grow(_windowed_mask(path, rows, where, nominal, window, steady), 2 + window)
+        moving = grow(_windowed_mask(path, rows, where, nominal, window, steady), 2 + window)
     else:
-        moving = _grow(np.concatenate(masks))
+        moving = grow(np.concatenate(masks))
     if not moving.any():
         raise CalibError(
             "no rotation found in the run (gyro rates never exceed "
@@ -124,7 +130,7 @@ def survey(path, profile: NoiseProfile, rows: int = READ_ROWS, where: str | None
 
 
 def _windowed_mask(path, rows: int, where: str, period: float, window: int, steady: np.ndarray):
-    """Windowed rate above the threshold, per sample (:func:`calib.estimator.window_rate`).
+    """Windowed rate above the threshold, per sample (:func:`calib.motion.window_rate`).
 
     The running sums carry across chunks exactly as the whole run's do; only
     the samples whose windows are still needed are kept.
@@ -151,7 +157,7 @@ def _windowed_mask(path, rows: int, where: str, period: float, window: int, stea
 def _read_rests(path, moving, rows, where, period, profile):
     """Check the rests chunk by chunk; the first rest's samples, each rest's length and mean rate."""
     end = int(np.argmax(moving))
-    starts, _ = sanity.runs_of(~moving)
+    starts, _ = runs_of(~moving)
     first, T, turned = ([], [], []), np.zeros(len(starts)), np.zeros((len(starts), 3))
     for a, t, th, dv, dt in _blocks_with_dt(path, rows, where, period):
         still = ~moving[a : a + len(t)]
@@ -169,7 +175,7 @@ def _read_rests(path, moving, rows, where, period, profile):
 
 def _rest_attitudes(path, rows, where, period, moving, bias):
     """Body attitude at each rest's middle relative to the start, integrated chunk by chunk."""
-    starts, ends = sanity.runs_of(~moving)
+    starts, ends = runs_of(~moving)
     mids, q_mid, carry = (starts + ends) // 2, np.empty((len(starts), 4)), np.array([1.0, 0, 0, 0])
     for a, t, th, _, dt in _blocks_with_dt(path, rows, where, period):
         q = quat_mult(carry, quat_scan(rotvec_to_quat(th - bias * dt[:, None])))
@@ -179,68 +185,99 @@ def _rest_attitudes(path, rows, where, period, moving, bias):
     return quat_to_dcm(q_mid)
 
 
-def start_attitude(path, moving, rows, where, period, latitude_rad, gravity_mps2, profile, requirements):
-    """Checked rests, the start values and ``C_b_n`` at the start, as the in-memory path has them.
+def run_header(path):
+    """The log's metadata as a :class:`calib.runlog.Run` without samples (its site, its rate)."""
+    return Run(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)), read_meta(path), source=str(path))
 
-    Levelling and gyrocompassing on the first rest; a gyro bias beyond the
-    Earth rate (a MEMS unit) is taken out first and then solved with the
-    heading from all rests (:func:`calib.gyrocompass.gyrocompass_rests`),
-    each of its two passes one more reading of the file.
+
+def file_start(path, moving, rows, where, period, site: Site, profile, requirements):
+    """Check the rests and the first rest; the start values and ``C_b_n`` at the start.
+
+    :func:`calib.start.start_attitude` on what the rests read chunk by chunk
+    give; a MEMS unit's bias and heading from all rests cost two more readings.
     """
     (th, dv, dt), T, turned = _read_rests(path, moving, rows, where, period, profile)
-    sanity.check_latitude(latitude_rad, where)
-    check_first_rest(th, dv, dt, slice(None), gravity_mps2, where, requirements)
-    start = start_from_rests(turned.sum(axis=0) / T.sum())
-    C0 = coarse_alignment(th - start[P.GYRO_BIAS] * dt[:, None], dv, dt)
-    if np.any(start[P.GYRO_BIAS]):
-        start[P.GYRO_BIAS], C0 = gyrocompass_rests(
-            lambda bias: _rest_attitudes(path, rows, where, period, moving, bias),
-            T,
-            turned / T[:, None],
-            C0,
-            latitude_rad,
-            start[P.GYRO_BIAS],
-        )
-    return start, C0
+    sanity.check_latitude(site.latitude_rad, where)
+    check_first_rest(th, dv, dt, slice(None), site.gravity_mps2, where, requirements)
+    return start_attitude(
+        (th, dv, dt),
+        turned.sum(axis=0) / T.sum(),
+        lambda: Rests(
+            T, turned / T[:, None], lambda bias: _rest_attitudes(path, rows, where, period, moving, bias)
+        ),
+        site.latitude_rad,
+    )
+
+
+def sequence_motion_file(path, rows, where, period, sequence, detected, t_start):
+    """Where a sequence says the run turns, read chunk by chunk, refused unless the gyros turn there.
+
+    As :func:`calib.motion.sequence_motion` and
+    :func:`calib.motion.check_sequence_matches` in memory.
+    """
+    from .sequence import timeline
+
+    tl = timeline(sequence)
+    masks = [
+        sequence_mask(tl, t, dt, t_start) for _, t, _, _, dt in _blocks_with_dt(path, rows, where, period)
+    ]
+    moving = grow(np.concatenate(masks))
+    check_sequence_matches(
+        sequence, detected, moving, None, where, lambda i: _elapsed(path, rows, where, period, i)
+    )
+    return moving
+
+
+def _elapsed(path, rows, where, period, idx: np.ndarray) -> np.ndarray:
+    """``np.cumsum(dt)[idx]`` of the whole run, summed chunk by chunk in the same order."""
+    out, carry = np.empty(len(idx)), 0.0
+    for a, t, _, _, dt in _blocks_with_dt(path, rows, where, period):
+        clock = carried_cumsum(dt, carry)
+        here = (idx >= a) & (idx < a + len(t))
+        out[here] = clock[idx[here] - a]
+        carry = float(clock[-1])
+    return out
 
 
 def calibrate_file(
     path,
-    latitude_rad: float,
-    gravity_mps2: float,
+    site: Site,
     profile: NoiseProfile,
     extras: Extras = NO_EXTRAS,
     partial: bool = False,
     requirements: Requirements = PAPER,
+    sequence=None,
     rows: int = READ_ROWS,
     max_iterations: int | None = None,
     tol_sigma: float = 1e-3,
 ):
     """:func:`calib.estimator.calibrate` of a run log read from disk chunk by chunk.
 
-    Returns the same :class:`calib.estimator.Fit`; the estimates equal those
+    Returns the same :class:`calib.solution.Fit`; the estimates equal those
     of the in-memory path to rounding (the same passes over the same samples).
+    A ``sequence`` marks where the run turns and decides, on a run that
+    leaves directions unobserved, what is estimable (none given: nothing
+    decides, as a navigation of the whole run would be needed to infer it).
     """
     where = str(path)
     moving, t_start, period = survey(path, profile, rows, where)
-    start, C0 = start_attitude(
-        path,
-        moving,
-        rows,
-        where,
-        nominal_period(read_meta(path), where),
-        latitude_rad,
-        gravity_mps2,
-        profile,
-        requirements,
-    )
+    nominal = nominal_period(read_meta(path), where)
+    if sequence is not None:
+        moving = sequence_motion_file(path, rows, where, nominal, sequence, moving, t_start)
+    start, C0 = file_start(path, moving, rows, where, nominal, site, profile, requirements)
     grid = default_grid(moving, 1.0 / period)
     del moving
-    site, cuts = Site(latitude_rad, gravity_mps2, t_start), chunk_cuts(grid)
+    cuts = chunk_cuts(grid)
+    judge = (
+        None
+        if sequence is None
+        else nominal_judge(lambda: sequence, site.latitude_rad, profile, extras, requirements)
+    )
     return fit_intervals(
         lambda: aligned(read_chunks(path, rows), cuts, t_start),
         grid,
         site,
+        t_start,
         C0,
         profile,
         extras=extras,
@@ -250,4 +287,5 @@ def calibrate_file(
         tol_sigma=tol_sigma,
         where=where,
         start=start,
+        judge=judge,
     )

@@ -25,15 +25,39 @@ inside the fit's reach; the fit then refines it with everything else.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
 
 from . import earth
-from .sanity import runs_of
-from .strapdown import quat_to_dcm, rotvec_to_quat
+from .motion import runs_of
 from .stream import quat_scan
+from .transform import quat_to_dcm, rotvec_to_quat
 
 
-def _rest_attitudes(dtheta: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+@dataclass(frozen=True)
+class Rests:
+    """What gyrocompassing needs of a run's rests.
+
+    ``T`` (r,) each rest's length (s), ``w`` (r, 3) its mean gyro rate
+    (rad/s), ``attitudes(bias)`` the body attitude at each rest's middle
+    relative to the start, ``(r, 3, 3)``, integrated with the gyros
+    compensated by ``bias`` (:func:`gyrocompass_rests`).
+    """
+
+    T: np.ndarray
+    w: np.ndarray
+    attitudes: Callable[[np.ndarray], np.ndarray]
+
+
+def rests_in_memory(dtheta_m: np.ndarray, dt: np.ndarray, moving: np.ndarray) -> Rests:
+    """The :class:`Rests` of a run held in memory."""
+    starts, ends, T, w = rest_rates(dtheta_m, dt, moving)
+    return Rests(T, w, lambda bias: rest_attitudes(dtheta_m - bias * dt[:, None], starts, ends))
+
+
+def rest_attitudes(dtheta: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
     """Body attitude at the middle of each rest relative to the body at the run's start."""
     q = quat_scan(rotvec_to_quat(dtheta))
     return quat_to_dcm(q[(starts + ends) // 2])
@@ -60,16 +84,8 @@ def rest_gyrocompass(
 
     See :func:`gyrocompass_rests`; the rests' attitudes are integrated here.
     """
-    starts, ends, T, w = rest_rates(dtheta_m, dt, moving)
-    return gyrocompass_rests(
-        lambda bias: _rest_attitudes(dtheta_m - bias * dt[:, None], starts, ends),
-        T,
-        w,
-        C_lev,
-        latitude_rad,
-        bias0,
-        passes,
-    )
+    r = rests_in_memory(dtheta_m, dt, moving)
+    return gyrocompass_rests(r.attitudes, r.T, r.w, C_lev, latitude_rad, bias0, passes)
 
 
 def gyrocompass_rests(

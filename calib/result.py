@@ -22,6 +22,7 @@ from .fields import FORMAT_VERSION, Fields, check_format_version
 from .fileio import load_toml, toml_number
 from .report import extra_entries, format_table, parameter_entries, worst
 from .requirements import PAPER, Requirements, requirements_from_dict
+from .site import ppm_per_mgal
 
 
 @dataclass(frozen=True)
@@ -117,7 +118,7 @@ class CalibrationResult:
     @property
     def ppm_per_mgal(self) -> float:
         """How far 1 mGal of gravity error moves every accelerometer scale factor, ppm."""
-        return 1e-5 / self.gravity_mps2 * 1e6
+        return ppm_per_mgal(self.gravity_mps2)
 
     def nees(self, truth_values: np.ndarray) -> float:
         """Normalised estimation error squared of the estimable 21 against a truth (SI)."""

@@ -19,22 +19,22 @@ uncertainty of that initial attitude and of the 21 parameters.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import earth
 from .errormodel import ErrorModel
 from .errors import CalibError
-from .estimator import coarse_alignment, detect_motion
 from .jacobian import default_grid, state_matrix
+from .motion import detect_motion
 from .noise import interval_models
 from .profiles import DEFAULT_PROFILE, NoiseProfile, load_profile
+from .site import site_of
+from .start import coarse_alignment
 from .strapdown import Navigation, navigate, sample_intervals, start_time
 
 # A picture of the raw errors can align on a shorter first rest than the fit needs
-# (calib.estimator.MIN_ALIGN_S): the "before" curve is for looking, not for estimates.
+# (calib.start.MIN_ALIGN_S): the "before" curve is for looking, not for estimates.
 MIN_ALIGN_S = 1.0
 
 
@@ -70,12 +70,8 @@ def review_run(
     result names (the default profile, with a note, if it cannot be loaded).
     """
     lat_deg = run.latitude_deg if latitude_deg is None else float(latitude_deg)
-    lat = math.radians(lat_deg)
-    g = (
-        gravity_mps2
-        if gravity_mps2 is not None
-        else (run.gravity_mps2 if run.gravity_mps2 is not None else earth.gravity(lat, run.height_m))
-    )
+    site = site_of(run, gravity_mps2, lat_deg)
+    lat, g = site.latitude_rad, site.gravity_mps2
     dt = sample_intervals(run.time_s)
     t0 = start_time(run.time_s)
     dtheta, dv = run.dtheta_rad, run.dv_mps

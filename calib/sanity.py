@@ -9,31 +9,19 @@ seen, where, and the likely cause.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from .earth import MAX_LATITUDE_DEG  # one source: calib.earth
 from .errors import CalibError
+from .motion import MOTION_BLOCK, row_norm, runs_of
 
 MAX_PLAUSIBLE_RATE = 5.0  # rad/s: 286 deg/s, beyond any calibration gimbal (the paper turns at 10)
 MAX_REST_RATE = 1e-3  # rad/s: 14x the Earth rate, 200 deg/h of bias: beyond a navigation IMU
 GRAVITY_TOLERANCE = 0.02  # relative: biases and scale errors stay far below 2 % of g
-MOTION_BLOCK = 1 << 16  # samples per block of the motion diagnosis (its memory, not its result)
 SATURATION_RUN = 10  # consecutive samples stuck at the same extreme value
 STILL_RELATIVE = 1e-9  # changes below this fraction of a sensor's peak reading are float rounding
 REST_NOISE_FACTOR = 20.0  # a rest whose specific force varies 20x more than the noise moved
-
-
-def row_norm(a: np.ndarray) -> np.ndarray:
-    """``|a_i|`` of each row of an ``(n, 3)`` array.
-
-    Bit-identical to ``np.linalg.norm(a, axis=1)`` (the same three squares
-    summed in the same order) and about ten times faster: numpy reduces a
-    3-wide axis one row at a time.
-    """
-    x, y, z = a[:, 0], a[:, 1], a[:, 2]
-    return np.sqrt(x * x + y * y + z * z)
 
 
 def check_latitude(latitude_rad: float, where: str) -> None:
@@ -117,12 +105,6 @@ def check_gravity(
         )
 
 
-def runs_of(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Start and end (exclusive) of each stretch of consecutive True."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
-    return edges[::2], edges[1::2]
-
-
 def _still_level(data: np.ndarray, peaks: np.ndarray) -> float | None:
     """Changes of a sensor below this are float rounding; None for a sensor without noise.
 
@@ -193,130 +175,6 @@ def check_saturation(dtheta: np.ndarray, dv: np.ndarray, where: str) -> None:
             )
 
 
-@dataclass(frozen=True)
-class MotionDiagnosis:
-    """How a log moves, from the gyro increments alone (SI unless named).
-
-    Attributes
-    ----------
-    has_flip : bool
-        Some ``window_s`` stretch turns faster on average than the flip threshold.
-    max_rate_rad_s : float
-        Largest single-sample rate (vibration and quantisation included).
-    max_mean_rate_rad_s : float
-        Largest rate averaged over ``window_s``: what a flip would show.
-    window_s : float
-        Averaging time of the mean rates.
-    mean_rate_rad_s : numpy.ndarray
-        ``(3,)`` mean rate over the whole log: the Earth rate plus bias at rest.
-    sway_arcsec : numpy.ndarray
-        ``(3,)`` half peak-to-peak of each axis's angle about its mean-rate line.
-    sway_rate_arcsec_s : numpy.ndarray
-        ``(3,)`` RMS of each axis's ``window_s`` mean rate about the whole-log mean.
-    """
-
-    has_flip: bool
-    max_rate_rad_s: float
-    max_mean_rate_rad_s: float
-    window_s: float
-    mean_rate_rad_s: np.ndarray
-    sway_arcsec: np.ndarray
-    sway_rate_arcsec_s: np.ndarray
-
-
-def diagnose_motion(
-    dtheta: np.ndarray, dt: np.ndarray, flip_rate: float, window_s: float = 1.0
-) -> MotionDiagnosis:
-    """Whether a log flips, and how much its base sways.
-
-    A flip turns the IMU by tens of degrees at degrees per second; a swaying
-    or vibrating base turns it back and forth by arcseconds, and a single
-    sample of a coarse gyro can exceed a flip's rate. Averaging the rate over
-    ``window_s`` keeps the flip and removes the rest.
-
-    Parameters
-    ----------
-    dtheta : numpy.ndarray
-        ``(n, 3)`` gyro increments, rad.
-    dt : numpy.ndarray
-        ``(n,)`` sample intervals, s.
-    flip_rate : float
-        Mean rate over ``window_s`` above which the IMU turns, rad/s.
-    window_s : float
-        Averaging time, s.
-
-    Returns
-    -------
-    MotionDiagnosis
-    """
-    n = len(dt)
-    w = max(1, min(n, int(round(window_s / float(np.median(dt))))))
-    # The run's mean rate first (the sway is measured about it), then the window means and
-    # the sway block by block: memory stays at one block, whatever the length of the log.
-    angle_end, clock_end = np.zeros(3), 0.0
-    for a in range(0, n, MOTION_BLOCK):
-        angle_end = _carried_cumsum(dtheta[a : a + MOTION_BLOCK].T, angle_end)[:, -1]
-        clock_end = float(_carried_cumsum(dt[a : a + MOTION_BLOCK], clock_end)[-1])
-    mean = angle_end / clock_end
-    max_mean, square_sum = 0.0, np.zeros(3)
-    low, high = np.zeros(3), np.zeros(3)  # sway is 0 at the start
-    tail_angle, tail_clock = np.zeros((3, 1)), np.zeros(1)  # the w samples before a block
-    for a in range(0, n, MOTION_BLOCK):
-        angle = np.hstack([tail_angle, _carried_cumsum(dtheta[a : a + MOTION_BLOCK].T, tail_angle[:, -1])])
-        clock = np.concatenate([tail_clock, _carried_cumsum(dt[a : a + MOTION_BLOCK], tail_clock[-1])])
-        new = slice(len(tail_clock), None)
-        sway = angle[:, new] - mean[:, None] * clock[new]
-        low, high = np.minimum(low, sway.min(axis=1)), np.maximum(high, sway.max(axis=1))
-        if len(clock) > w:
-            rates = (angle[:, w:] - angle[:, :-w]) / (clock[w:] - clock[:-w])
-            max_mean = max(max_mean, float(np.max(row_norm(rates.T))))
-            square_sum += np.sum((rates - mean[:, None]) ** 2, axis=1)
-        tail_angle, tail_clock = angle[:, -w:], clock[-w:]
-    arcsec = math.degrees(1.0) * 3600.0
-    return MotionDiagnosis(
-        has_flip=max_mean > flip_rate,
-        max_rate_rad_s=max(
-            float(np.max(row_norm(dtheta[a : a + MOTION_BLOCK]) / dt[a : a + MOTION_BLOCK]))
-            for a in range(0, n, MOTION_BLOCK)
-        ),
-        max_mean_rate_rad_s=max_mean,
-        window_s=_window_s(dt, w),
-        mean_rate_rad_s=mean,
-        sway_arcsec=0.5 * (high - low) * arcsec,
-        sway_rate_arcsec_s=np.sqrt(square_sum / max(1, n + 1 - w)) * arcsec,
-    )
-
-
-def _carried_cumsum(x: np.ndarray, start) -> np.ndarray:
-    """``start + x[0], start + x[0] + x[1], ...`` along the last axis, summed in that order.
-
-    Prepending ``start`` keeps the sums bit-identical to one cumulative sum over the whole run.
-    """
-    start = np.asarray(start, dtype=float)
-    return np.cumsum(np.concatenate([start[..., None], x], axis=-1), axis=-1)[..., 1:]
-
-
-def _window_s(dt: np.ndarray, w: int) -> float:
-    """The averaging time of ``w`` samples from the run's start, as the whole-run clock sums it."""
-    return float(_carried_cumsum(dt[:w], 0.0)[-1])
-
-
-def never_rotates(motion: MotionDiagnosis, flip_rate: float, where: str) -> CalibError:
-    """The refusal of a log without a flip, with its measured sway."""
-    k = int(np.argmax(motion.sway_rate_arcsec_s))
-    return CalibError(
-        f"the log never rotates (no rotation found: its rate averaged over "
-        f"{motion.window_s:.3g} s peaks at {math.degrees(motion.max_mean_rate_rad_s):.3g} deg/s, "
-        f"a flip turns faster than {math.degrees(flip_rate):.2f} deg/s); the base sways by "
-        f"+-{motion.sway_arcsec[k]:.3g} arcsec about {'xyz'[k]} ({motion.sway_rate_arcsec_s[k]:.3g} "
-        f"arcsec/s RMS over {motion.window_s:.3g} s; single samples reach "
-        f"{math.degrees(motion.max_rate_rad_s):.3g} deg/s)",
-        where,
-        "a calibration run must flip the IMU; a static log like this one serves noise "
-        "analysis (Allan deviation), not calibration",
-    )
-
-
 def _row_median(x: np.ndarray) -> np.ndarray:
     """``np.median(x, axis=-1)``, the same values; an odd count by one partition.
 
@@ -338,8 +196,7 @@ def check_rests(
     sample-to-sample differences (robust: median absolute deviation) sees
     noise and vibration but not slow drifts or the Earth's turn.
     """
-    edges = np.flatnonzero(np.diff(np.concatenate([[1], moving.astype(np.int8), [1]])))
-    starts, ends = edges[::2], edges[1::2]
+    starts, ends = runs_of(~moving)
     t = np.cumsum(dt)
     for number, (a, b) in enumerate(zip(starts, ends), start=1):
         n = (b - a) // window

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from .sanity import runs_of
+from .motion import runs_of
 from .sequence import MIN_RATE_DPS, Sequence, Step
 from .transform import AXES, directions_of, rot_axis
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import earth
-from .transform import rotvec_to_dcm
+from .transform import dcm_to_rotvec, prefix_product, quat_to_dcm, rotvec_to_dcm, rotvec_to_quat
 
 
 @dataclass(frozen=True)
@@ -42,60 +42,12 @@ class Navigation:
     v_n: np.ndarray
 
 
-def quat_mult(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Hamilton product of ``(..., 4)`` quaternions, scalar first."""
-    pw, px, py, pz = np.moveaxis(p, -1, 0)
-    qw, qx, qy, qz = np.moveaxis(q, -1, 0)
-    return np.stack(
-        [
-            pw * qw - px * qx - py * qy - pz * qz,
-            pw * qx + px * qw + py * qz - pz * qy,
-            pw * qy - px * qz + py * qw + pz * qx,
-            pw * qz + px * qy - py * qx + pz * qw,
-        ],
-        axis=-1,
-    )
-
-
 def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise ``a x b`` of ``(n, 3)`` arrays (np.cross costs 3x more on short rows)."""
     out = np.empty(np.broadcast_shapes(a.shape, b.shape))
     out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
     out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
     out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-    return out
-
-
-def rotvec_to_quat(phi: np.ndarray) -> np.ndarray:
-    """Unit quaternions ``(..., 4)``, scalar first, of rotation vectors ``(..., 3)``."""
-    angle = np.sqrt(np.einsum("...i,...i->...", phi, phi))
-    # sin(a/2)/a written with numpy's sinc to stay exact at a = 0.
-    k = 0.5 * np.sinc(angle / (2.0 * np.pi))
-    return np.concatenate([np.cos(0.5 * angle)[..., None], k[..., None] * phi], axis=-1)
-
-
-def quat_to_dcm(q: np.ndarray) -> np.ndarray:
-    """Direction cosines of quaternions ``(..., 4)`` (normalised first)."""
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        -2,
-    )
-
-
-def prefix_product(q: np.ndarray) -> np.ndarray:
-    """Inclusive prefix products ``q[0] q[1] ... q[k]`` (Hillis-Steele scan, log2 n passes)."""
-    out = q.copy()
-    d = 1
-    n = len(out)
-    while d < n:
-        out[d:] = quat_mult(out[:-d], out[d:])
-        d *= 2
     return out
 
 
@@ -172,7 +124,7 @@ def navigate(
     w_ie = earth.omega_ie_n(latitude_rad)
 
     # Attitude in the inertially fixed copy of the start frame.
-    q0 = rotvec_to_quat(_dcm_rotvec(C_b_n0))
+    q0 = rotvec_to_quat(dcm_to_rotvec(C_b_n0))
     q = prefix_product(np.vstack([q0[None], rotvec_to_quat(coning_rotvec(dtheta))]))
     C_b_i = quat_to_dcm(q)
     C_b_n = np.einsum("nij,njk->nik", _earth_rotation(w_ie, t, -1.0), C_b_i)
@@ -189,9 +141,3 @@ def navigate(
     w = np.vstack([np.zeros(3), np.cumsum(dw, axis=0)])
     v_n = np.einsum("nij,nj->ni", _earth_rotation(w_ie, t, -2.0), w)
     return Navigation(time_s=t + t0, C_b_n=C_b_n, v_n=v_n)
-
-
-def _dcm_rotvec(C: np.ndarray) -> np.ndarray:
-    from .transform import dcm_to_rotvec
-
-    return dcm_to_rotvec(C)

@@ -16,7 +16,10 @@ Chunks are cut at interval ends, so every interval is reduced inside one
 chunk. Nothing here is compiled: every per-sample step is a handful of
 numpy array operations over a chunk (the quaternion product is a blocked
 scan, two full passes instead of ``log2 n``), which keeps the tool
-installable from the package registries with no compiler.
+installable from the package registries with no compiler. Its kernels
+(:func:`quat_scan`, :func:`earth_fixed_dcm`) are written out for speed but
+keep :mod:`calib.transform`'s convention (Hamilton, scalar first) and its
+products and sums in the same order (bit-identical).
 """
 
 from __future__ import annotations
@@ -25,13 +28,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import earth
 from . import extras as X
 from .errormodel import ErrorModel
 from .extras import Extras
 from .jacobian import N_MOMENTS, ObservationGrid, step_model
-from .strapdown import cross3, rotvec_to_quat, sculling_dv
-from .transform import dcm_to_rotvec
+from .site import Site
+from .strapdown import cross3, sculling_dv
+from .transform import dcm_to_rotvec, prefix_product, rotvec_to_quat
 
 CHUNK_SAMPLES = 1 << 14  # measured: 2.5x faster per sample than 1 << 16 (a chunk's temporaries stay in cache)
 SCAN_BLOCK = 16  # quaternion scan: sequential inside blocks of 16, then one pass to join them
@@ -67,30 +70,8 @@ class PassResult:
     turn: np.ndarray | None
 
 
-def quat_mult(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Hamilton product of ``(..., 4)`` quaternions, scalar first (as :func:`calib.strapdown.quat_mult`)."""
-    pw, px, py, pz = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
-    qw, qx, qy, qz = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    out = np.empty(np.broadcast_shapes(p.shape, q.shape))
-    out[..., 0] = pw * qw - px * qx - py * qy - pz * qz
-    out[..., 1] = pw * qx + px * qw + py * qz - pz * qy
-    out[..., 2] = pw * qy - px * qz + py * qw + pz * qx
-    out[..., 3] = pw * qz + px * qy - py * qx + pz * qw
-    return out
-
-
-def _hillis_steele(q: np.ndarray) -> np.ndarray:
-    """Inclusive prefix products by doubling (log2 n passes): for the short block totals."""
-    out = q.copy()
-    d = 1
-    while d < len(out):
-        out[d:] = quat_mult(out[:-d], out[d:])
-        d *= 2
-    return out
-
-
 def _quat_mult_soa(p: np.ndarray, q: np.ndarray, out: np.ndarray) -> np.ndarray:
-    """:func:`quat_mult` of quaternions stored component first, ``(4, ...)``, into ``out``.
+    """:func:`calib.transform.quat_mult` of quaternions stored component first, ``(4, ...)``, into ``out``.
 
     The same products and sums in the same order (bit-identical), on contiguous
     component arrays instead of strided columns; ``out`` must not share memory with p, q.
@@ -127,7 +108,7 @@ def quat_scan(q: np.ndarray) -> np.ndarray:
     """
     n = len(q)
     if n <= 4 * SCAN_BLOCK:
-        return _hillis_steele(q)
+        return prefix_product(q)
     nb = -(-n // SCAN_BLOCK)
     padded = np.zeros((nb * SCAN_BLOCK, 4))
     padded[:, 0] = 1.0  # identity padding
@@ -136,7 +117,7 @@ def quat_scan(q: np.ndarray) -> np.ndarray:
     step = np.empty((4, nb))
     for k in range(1, SCAN_BLOCK):
         blocks[:, k] = _quat_mult_soa(blocks[:, k - 1], blocks[:, k], step)
-    before = _hillis_steele(np.ascontiguousarray(blocks[:, -1].T))  # product of blocks 0..b
+    before = prefix_product(np.ascontiguousarray(blocks[:, -1].T))  # product of blocks 0..b
     tail = np.empty((4, SCAN_BLOCK, nb - 1))
     _quat_mult_soa(before[:-1].T[:, None, :], blocks[:, :, 1:], tail)
     blocks[:, :, 1:] = tail
@@ -163,7 +144,7 @@ def earth_fixed_dcm(q_i: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.
     """Direction cosines of ``q(angle * axis) q_i`` for every row: the ENU attitude from the inertial one.
 
     The product with the rotation about the fixed ``axis`` and the conversion
-    to a matrix (normalised first, as :func:`calib.strapdown.quat_to_dcm`) in
+    to a matrix (normalised first, as :func:`calib.transform.quat_to_dcm`) in
     one pass over contiguous component arrays, with no ``(n, 4)`` temporaries:
     these matrices are most of a navigation pass's arithmetic.
     """
@@ -200,25 +181,12 @@ def chunk_cuts(grid: ObservationGrid, size: int = CHUNK_SAMPLES) -> np.ndarray:
     return np.unique(np.concatenate([b[keep], [b[-1]]]))
 
 
-@dataclass(frozen=True)
-class Site:
-    """The stationary base: latitude, gravity and the start of the run."""
-
-    latitude_rad: float
-    gravity_mps2: float
-    t0: float  # when the first sample began (navigation time origin)
-
-    @property
-    def omega_ie_n(self) -> np.ndarray:
-        return earth.omega_ie_n(self.latitude_rad)
-
-
 class _Carry:
     """The navigation recursion's state between chunks."""
 
     def __init__(self, C_b_n0: np.ndarray, omega_ie_n: np.ndarray):
         self.C_b_n0, self.omega_ie_n = C_b_n0, omega_ie_n
-        self.q = rotvec_to_quat(dcm_rotvec(C_b_n0))
+        self.q = rotvec_to_quat(dcm_to_rotvec(C_b_n0))
         self.w = np.zeros(3)  # Coriolis-free velocity, R(2 W t) v
         self.dtheta = None  # compensated increment of the previous sample (coning)
         self.raw = None  # (dtheta_m, dv_m, dt, turn) of the previous sample (extras' rate steps)
@@ -228,11 +196,6 @@ class _Carry:
         if self._inverses is None:
             self._inverses = (np.linalg.inv(model.gyro_matrix), np.linalg.inv(model.accel_matrix))
         return self._inverses
-
-
-def dcm_rotvec(C: np.ndarray) -> np.ndarray:
-    """Rotation vectors of direction-cosine matrices."""
-    return dcm_to_rotvec(C)
 
 
 def _compensate(ch: Chunk, dt, model: ErrorModel, extras: Extras, extra_values, turn, carry):
@@ -356,6 +319,7 @@ def navigate_pass(
     chunks,
     grid: ObservationGrid,
     site: Site,
+    t0: float,
     values: np.ndarray,
     extra_values: np.ndarray,
     C_b_n0: np.ndarray,
@@ -372,6 +336,8 @@ def navigate_pass(
         The run in order, cut at interval ends (:func:`chunk_cuts`).
     grid : ObservationGrid
     site : Site
+    t0 : float
+        When the first sample began (the navigation's time origin).
     values, extra_values : ndarray
         The current estimate (SI) that compensates the raw increments.
     C_b_n0 : ndarray, shape (3, 3)
@@ -384,16 +350,16 @@ def navigate_pass(
         Skip the moments (and the optional terms' inputs) when the Jacobian is not wanted.
     gyro_correction : ndarray, shape (K, 3), optional
         A body rate (rad/s) per interval added to the compensated gyro increments:
-        the estimator's attitude feedback (:func:`calib.estimator.attitude_feedback`).
+        the estimator's attitude feedback (:func:`calib.feedback.attitude_feedback`).
     """
     b, K = grid.bounds, grid.n_intervals
     model, carry = ErrorModel(values), _Carry(C_b_n0, site.omega_ie_n)
-    y, t_bounds, C_mid = np.zeros((K + 1, 3)), np.full(K + 1, site.t0), np.empty((K, 3, 3))
+    y, t_bounds, C_mid = np.zeros((K + 1, 3)), np.full(K + 1, t0), np.empty((K, 3, 3))
     moments, extra = np.empty((K, N_MOMENTS)) if with_moments else None, np.zeros((K, 6, extras.n))
     turn_out = np.empty((b[-1], 3)) if extras.n else None
     for ch in chunks:
         m = len(ch.time_s)
-        t = np.concatenate([[ch.t_before], ch.time_s]) - site.t0
+        t = np.concatenate([[ch.t_before], ch.time_s]) - t0
         dt = np.diff(t)
         tn = turn[ch.start : ch.start + m] if extras.n and turn is not None else None
         prev_dth = carry.dtheta
@@ -403,7 +369,7 @@ def navigate_pass(
         if gyro_correction is not None:  # the estimator's attitude feedback (a MEMS unit's wander)
             dth = dth + np.repeat(gyro_correction[k0:k1], np.diff(lb), axis=0) * dt[:, None]
         q, y[k0 + 1 : k1 + 1], axis, rate = _navigate_chunk(dth, dvv, t, lb, site, carry)
-        t_bounds[k0 + 1 : k1 + 1] = t[lb[1:]] + site.t0
+        t_bounds[k0 + 1 : k1 + 1] = t[lb[1:]] + t0
         mid = (lb[:-1] + lb[1:]) // 2
         C_mid[k0:k1] = earth_fixed_dcm(q[mid], axis, -rate * t[mid])
         if not (with_moments or extras.n):

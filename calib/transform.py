@@ -2,6 +2,11 @@
 
 Attitude is the DCM ``C_b_n`` (columns = body axes written in ENU). A flip
 about a body axis is a right-multiplication ``C_new = C_old @ rot_axis(...)``.
+
+Quaternions are Hamilton, **scalar first**, ``(w, x, y, z)``, in ``(..., 4)``
+arrays: the one convention of the package (:func:`quat_mult`,
+:func:`rotvec_to_quat`, :func:`quat_to_dcm`, :func:`prefix_product`; the
+blocked scan kernels of :mod:`calib.stream` use it too).
 """
 
 from __future__ import annotations
@@ -83,8 +88,53 @@ def rotvec_to_dcm(rotvec: np.ndarray) -> np.ndarray:
     return out
 
 
+def quat_mult(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Hamilton product of ``(..., 4)`` quaternions, scalar first."""
+    pw, px, py, pz = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
+    qw, qx, qy, qz = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    out = np.empty(np.broadcast_shapes(p.shape, q.shape))
+    out[..., 0] = pw * qw - px * qx - py * qy - pz * qz
+    out[..., 1] = pw * qx + px * qw + py * qz - pz * qy
+    out[..., 2] = pw * qy - px * qz + py * qw + pz * qx
+    out[..., 3] = pw * qz + px * qy - py * qx + pz * qw
+    return out
+
+
+def rotvec_to_quat(phi: np.ndarray) -> np.ndarray:
+    """Unit quaternions ``(..., 4)``, scalar first, of rotation vectors ``(..., 3)``."""
+    angle = np.sqrt(np.einsum("...i,...i->...", phi, phi))
+    # sin(a/2)/a written with numpy's sinc to stay exact at a = 0.
+    k = 0.5 * np.sinc(angle / (2.0 * np.pi))
+    return np.concatenate([np.cos(0.5 * angle)[..., None], k[..., None] * phi], axis=-1)
+
+
+def quat_to_dcm(q: np.ndarray) -> np.ndarray:
+    """Direction cosines of quaternions ``(..., 4)`` (normalised first)."""
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        -2,
+    )
+
+
+def prefix_product(q: np.ndarray) -> np.ndarray:
+    """Inclusive prefix products ``q[0] q[1] ... q[k]`` (Hillis-Steele scan, log2 n passes)."""
+    out = q.copy()
+    d = 1
+    n = len(out)
+    while d < n:
+        out[d:] = quat_mult(out[:-d], out[d:])
+        d *= 2
+    return out
+
+
 def _dcm_to_quat(C: np.ndarray) -> np.ndarray:
-    """Unit quaternions ``(x, y, z, w)`` of ``(n, 3, 3)`` rotation matrices.
+    """Unit quaternions ``(w, x, y, z)`` of ``(n, 3, 3)`` rotation matrices.
 
     From the largest of the trace and the diagonal (Shepperd's choice), so
     no component is found by dividing by a small one.
@@ -96,17 +146,18 @@ def _dcm_to_quat(C: np.ndarray) -> np.ndarray:
         rows = choice == i
         j, k = (i + 1) % 3, (i + 2) % 3
         M = C[rows]
-        q[rows, i] = 1.0 - trace[rows] + 2.0 * M[:, i, i]
-        q[rows, j] = M[:, j, i] + M[:, i, j]
-        q[rows, k] = M[:, k, i] + M[:, i, k]
-        q[rows, 3] = M[:, k, j] - M[:, j, k]
+        q[rows, 1 + i] = 1.0 - trace[rows] + 2.0 * M[:, i, i]
+        q[rows, 1 + j] = M[:, j, i] + M[:, i, j]
+        q[rows, 1 + k] = M[:, k, i] + M[:, i, k]
+        q[rows, 0] = M[:, k, j] - M[:, j, k]
     rows = choice == 3
     M = C[rows]
-    q[rows, 0] = M[:, 2, 1] - M[:, 1, 2]
-    q[rows, 1] = M[:, 0, 2] - M[:, 2, 0]
-    q[rows, 2] = M[:, 1, 0] - M[:, 0, 1]
-    q[rows, 3] = 1.0 + trace[rows]
-    return q / np.linalg.norm(q, axis=1)[:, None]
+    q[rows, 1] = M[:, 2, 1] - M[:, 1, 2]
+    q[rows, 2] = M[:, 0, 2] - M[:, 2, 0]
+    q[rows, 3] = M[:, 1, 0] - M[:, 0, 1]
+    q[rows, 0] = 1.0 + trace[rows]
+    # The norm sums x, y, z, then w: the order these rotation vectors were always computed in.
+    return q / np.linalg.norm(q[:, [1, 2, 3, 0]], axis=1)[:, None]
 
 
 def dcm_to_rotvec(dcm: np.ndarray) -> np.ndarray:
@@ -123,14 +174,14 @@ def dcm_to_rotvec(dcm: np.ndarray) -> np.ndarray:
         U, _, Vt = np.linalg.svd(M)
         M = U @ Vt
     q = _dcm_to_quat(M)
-    q[q[:, 3] < 0] *= -1.0  # the angle in [0, pi]
-    sin_half = np.linalg.norm(q[:, :3], axis=1)
-    angle = 2.0 * np.arctan2(sin_half, q[:, 3])
+    q[q[:, 0] < 0] *= -1.0  # the angle in [0, pi]
+    sin_half = np.linalg.norm(q[:, 1:], axis=1)
+    angle = 2.0 * np.arctan2(sin_half, q[:, 0])
     small = angle <= 1e-3
     a2 = angle * angle
     # angle / sin(angle/2) by its Taylor series near 0.
     scale = np.where(small, 2.0 + a2 / 12.0 + 7.0 * a2 * a2 / 2880.0, angle / np.where(small, 1.0, sin_half))
-    return (q[:, :3] * scale[:, None]).reshape(C.shape[:-2] + (3,))
+    return (q[:, 1:] * scale[:, None]).reshape(C.shape[:-2] + (3,))
 
 
 def direction_vector(name: str, where: str = "") -> np.ndarray:

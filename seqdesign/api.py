@@ -3,6 +3,7 @@
 >>> from seqdesign import api as sd
 >>> run = sd.read_run("demo-out/run.npz")
 >>> result = sd.calibrate(run, profile="navigation")       # a CalibrationResult
+>>> big = sd.calibrate("long.npz", stream=True)            # the same, read chunk by chunk
 >>> result.sigma_scale, result.converged, result.to_json()["worst"]
 >>> analysis = sd.analyze("paper-9pos", tolerance_deg=3.0)  # an Analysis
 >>> print(analysis.to_text())
@@ -15,7 +16,7 @@ more than parse options, call these and print.
 
 from __future__ import annotations
 
-from calib.calibration import calibrate_run as calibrate
+from calib.calibration import calibrate
 from calib.profiles import load_profile
 from calib.requirements import load_requirements
 from calib.result import CalibrationResult

@@ -301,134 +301,6 @@ def simulate(
 
 
 # ---------------------------------------------------------------------------
-# calibrate
-
-
-@main.command(short_help="Identify the 21 parameters (value and sigma) from a run log.")
-@click.argument("run_path", metavar="RUN")
-@click.option("--sequence", help="Sequence file the run followed (default: detect flips from the gyros).")
-@click.option(
-    "--profile",
-    default="navigation",
-    show_default=True,
-    help="Noise profile that weights the fit and scales the sigmas.",
-)
-@click.option("-o", "--output", help="Result TOML (default: RUN with .result.toml).")
-@click.option(
-    "--truth",
-    "truth_path",
-    type=click.Path(dir_okay=False),
-    help="Truth file to compare with (default: RUN.truth.toml if it exists).",
-)
-@click.option(
-    "--latitude",
-    type=click.FloatRange(-89.0, 89.0),
-    help="Site latitude, deg, for a logger's CSV that does not carry latitude_deg.",
-)
-@click.option(
-    "--height",
-    type=click.FloatRange(-1000.0, 10000.0),
-    help="Site height, m, for a logger's CSV that does not carry height_m.",
-)
-@click.option(
-    "--allow-gaps", is_flag=True, help="Remove duplicated samples and fill samples dropped at rest."
-)
-@click.option(
-    "--with",
-    "with_terms",
-    metavar="TERMS",
-    help="Also fit a real unit's terms beyond the 21: any of lever-arm, k2, "
-    "time-offset (comma-separated), or all.",
-)
-@click.option(
-    "--requirements",
-    "requirements",
-    default=None,
-    metavar="FILE|NAME",
-    help="Accuracy requirements: a TOML file with a [requirements] table (spec names and "
-    "units; missing ones keep the paper's) or paper, tactical, mems.",
-)
-@click.option(
-    "--gravity",
-    "gravity_mps2",
-    type=click.FloatRange(9.7, 9.9, min_open=True, max_open=True),
-    help="Surveyed site gravity, m/s^2 (default: the log's gravity_mps2, else WGS-84 normal "
-    "gravity, which misses local anomalies of tens of mGal = tens of ppm of scale).",
-)
-@click.option(
-    "--partial",
-    is_flag=True,
-    help="On a run that leaves directions unobserved, fit the estimable parameters and "
-    "report the rest as not estimable instead of refusing the run.",
-)
-@click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
-@guarded
-def calibrate(
-    run_path,
-    sequence,
-    profile,
-    output,
-    truth_path,
-    latitude,
-    height,
-    allow_gaps,
-    with_terms,
-    requirements,
-    gravity_mps2,
-    partial,
-    as_json,
-):
-    """Align, navigate on the stationary base and fit the 21 error parameters of
-    RUN (CSV, NPZ or PSINS .imu) by iterated, noise-weighted least squares.
-    """
-    from calib.calibration import calibrate_run
-    from calib.extras import as_extras
-    from calib.profiles import as_profile
-    from calib.runlog import read_run
-    from calib.sequence import load_sequence
-    from calib.truth import read_truth, truth_path_for
-
-    extras = as_extras(with_terms)
-    prof = as_profile(profile)
-    run = read_run(run_path, allow_gaps=allow_gaps, latitude_deg=latitude, height_m=height)
-    info(run.clock.summary())  # jitter, dropped and duplicated samples (calib.clock)
-    out_path = Path(output) if output else Path(run_path).with_name(Path(run_path).stem + ".result.toml")
-    if truth_path is None and truth_path_for(run_path).exists():
-        truth_path = truth_path_for(run_path)
-    truth = read_truth(truth_path) if truth_path else None
-    seq = load_sequence(sequence) if sequence else None
-    info(f"calibrating {run_path}: {run.n_samples} samples, {run.duration_s:.1f} s, profile {prof.name}")
-    result = calibrate_run(
-        run,
-        prof,
-        sequence=seq,
-        extras=extras,
-        partial=partial,
-        requirements=requirements,
-        gravity_mps2=gravity_mps2,
-        provenance=provenance(
-            {
-                "run": run_path,
-                "sequence": sequence,
-                "truth": truth_path,
-                "profile": profile if Path(profile).exists() else None,
-                "requirements": requirements if requirements and Path(requirements).exists() else None,
-            },
-            sequence=sequence,
-            profile=prof.name,
-        ),
-    )
-    result.save(out_path)
-    for warning in result.warnings():
-        info(f"warning: {warning}")
-    if as_json:
-        emit_json(result.to_json(truth) | {"result": str(out_path), "clock": run.clock.as_dict()})
-        return
-    click.echo(result.to_text(truth))
-    click.echo(f"wrote {out_path}")
-
-
-# ---------------------------------------------------------------------------
 # analyze / compare
 
 TOLERANCE = click.FloatRange(0.0, 10.0)
@@ -761,11 +633,13 @@ def _design_path(budget_min: float, output: str | None, pareto: bool) -> str:
 
 
 # Commands living in their own modules, registered here (before ``__main__`` runs them).
+from seqdesign.cli_calibrate import calibrate, calibrate_stream  # noqa: E402
 from seqdesign.cli_gimbal import export  # noqa: E402
 from seqdesign.cli_profile import profile  # noqa: E402
-from seqdesign.cli_stream import calibrate_stream, simulate_stream  # noqa: E402
+from seqdesign.cli_stream import simulate_stream  # noqa: E402
 from seqdesign.cli_view import view  # noqa: E402
 
+main.add_command(calibrate)
 main.add_command(view)
 main.add_command(profile)
 main.add_command(export)

@@ -59,7 +59,7 @@ def _load_sequence(run, explicit):
     """The sequence to show: ``--sequence`` (must match the log), else the run's ``sequence`` key
     if it names a shipped sequence that matches the log, else None.
     """
-    from calib.estimator import check_sequence_matches, detect_motion, sequence_motion
+    from calib.motion import check_sequence_matches, detect_motion, sequence_motion
     from calib.sequence import load_sequence
     from calib.strapdown import sample_intervals
 

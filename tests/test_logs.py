@@ -19,7 +19,7 @@ from conftest import ARCSEC, W_EARTH
 
 from calib import params as P
 from calib.errormodel import ErrorModel
-from calib.estimator import sequence_motion
+from calib.motion import sequence_motion
 from calib.profiles import load_profile
 from calib.runlog import Run, read_run, write_run
 from calib.runlog.clock import sample_clock

@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 from scipy.stats import chi2
 
-from calib.estimator import ATTITUDE_FEEDBACK_RATIO, attitude_wander_ratio
+from calib.feedback import ATTITUDE_FEEDBACK_RATIO, attitude_wander_ratio
 from calib.jacobian import state_matrix
 from calib.noise import interval_models, smooth
 from calib.profiles import load_profile
@@ -188,11 +188,13 @@ def test_rest_gyrocompass_finds_bias_and_heading_through_a_mems_bias():
     # the Earth rate's own average over them.
     from calib import params as P
     from calib.errormodel import ErrorModel
-    from calib.estimator import calibrate, coarse_alignment, detect_motion, start_values
+    from calib.estimator import calibrate
     from calib.gyrocompass import rest_gyrocompass
+    from calib.motion import detect_motion
     from calib.requirements import load_requirements
     from calib.sequence import load_sequence
     from calib.sim import SimConfig, simulate
+    from calib.start import coarse_alignment, start_values
     from calib.strapdown import sample_intervals
     from calib.transform import dcm_to_rotvec
 
@@ -228,7 +230,7 @@ def test_rest_gyrocompass_finds_bias_and_heading_through_a_mems_bias():
 
 def _held(schedule):
     """Move the feedback until it is held (the updates the loops make)."""
-    from calib.estimator import FEEDBACK_UPDATES
+    from calib.feedback import FEEDBACK_UPDATES
 
     for it in range(1, FEEDBACK_UPDATES + 1):
         assert schedule.pending() and schedule.due(1.0)
@@ -244,7 +246,7 @@ def test_held_feedback_steps_sum_their_geometric_series():
     # series: u + rho u / (1 - rho) = u / (1 - rho), to a few roundings.
     from types import SimpleNamespace
 
-    from calib.estimator import FeedbackSchedule
+    from calib.feedback import FeedbackSchedule
 
     n, u, rho = 4, np.array([1.0, -2.0, 0.5, 3.0]), -0.5
     sol, eye, ones = SimpleNamespace(covariance=np.eye(n)), np.eye(n), np.ones(n)
@@ -329,9 +331,10 @@ def test_calibrate_stream_gives_a_mems_run_the_calibrate_start(tmp_path):
     # the run's rests, flips and smoothing windows in 34 places.
     from calib.chunks import calibrate_file, survey
     from calib.errormodel import ErrorModel
-    from calib.estimator import detect_motion
+    from calib.motion import detect_motion
     from calib.requirements import load_requirements
     from calib.runlog import read_run
+    from calib.site import Site
     from calib.strapdown import sample_intervals
 
     runner = CliRunner()
@@ -354,8 +357,7 @@ def test_calibrate_stream_gives_a_mems_run_the_calibrate_start(tmp_path):
     )
     fit = calibrate_file(
         run,
-        LAT,
-        out["calibrate"]["gravity"]["value_mps2"],
+        Site(LAT, out["calibrate"]["gravity"]["value_mps2"]),
         prof,
         requirements=load_requirements("mems"),
         rows=1000,
@@ -369,7 +371,7 @@ def test_calibrate_stream_gives_a_mems_run_the_calibrate_start(tmp_path):
 def test_calibrate_stream_refuses_a_run_that_starts_turning(tmp_path):
     # A log cut inside its first flip has no first rest to align on: one line, exit 2 (it
     # was a ValueError traceback when no sample before the first motion was read).
-    from calib.estimator import detect_motion
+    from calib.motion import detect_motion
     from calib.runlog import read_meta
     from calib.strapdown import sample_intervals
 

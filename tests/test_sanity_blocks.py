@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from calib import sanity
+from calib import motion, sanity
 from calib.errors import CalibError
 
 RATE_HZ = 100.0
@@ -34,9 +34,9 @@ def _log(seed=3):
 @pytest.mark.parametrize("block", [7, 250, 4096])
 def test_motion_diagnosis_does_not_depend_on_the_blocks(monkeypatch, block):
     dtheta, _, dt = _log()
-    whole = sanity.diagnose_motion(dtheta, dt, 0.01)
+    whole = motion.diagnose_motion(dtheta, dt, 0.01)
     monkeypatch.setattr(sanity, "MOTION_BLOCK", block)
-    cut = sanity.diagnose_motion(dtheta, dt, 0.01)
+    cut = motion.diagnose_motion(dtheta, dt, 0.01)
     # Sums carried across block ends in the whole-run order: the same floats; only the
     # sway RMS is summed in another order (rounding, 1e-12 of itself).
     for name in (
@@ -69,4 +69,4 @@ def test_a_clipped_channel_is_found_across_block_ends(monkeypatch, block):
 
 def test_row_norm_is_numpys_norm_to_the_bit():
     a = np.random.default_rng(1).standard_normal((1000, 3)) * 10.0 ** np.arange(-3, 0)
-    assert np.array_equal(sanity.row_norm(a), np.linalg.norm(a, axis=1))
+    assert np.array_equal(motion.row_norm(a), np.linalg.norm(a, axis=1))

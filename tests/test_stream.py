@@ -3,6 +3,7 @@ the streamed simulator the same simulator."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -12,14 +13,18 @@ from click.testing import CliRunner
 from calib import earth, stream
 from calib import extras as X
 from calib.errormodel import ErrorModel
-from calib.estimator import calibrate, coarse_alignment, detect_motion
+from calib.estimator import calibrate
 from calib.jacobian import default_grid, extra_inputs, sample_layout, trajectory_moments
+from calib.motion import detect_motion
 from calib.profiles import load_profile
 from calib.runlog import read_run
 from calib.sequence import load_sequence
 from calib.sim import SimConfig, simulate
 from calib.simstream import simulate_to_file
-from calib.strapdown import navigate, quat_mult, sample_intervals
+from calib.site import Site
+from calib.start import coarse_alignment
+from calib.strapdown import navigate, sample_intervals
+from calib.transform import quat_mult
 from seqdesign.cli import main
 
 LAT = math.radians(40.0)
@@ -82,7 +87,7 @@ def test_streamed_pass_is_the_whole_run_navigation(paper):
 
     chunks = stream.array_chunks(run.time_s, run.dtheta_rad, run.dv_mps, t0, stream.chunk_cuts(grid, 300))
     out = stream.navigate_pass(
-        chunks, grid, stream.Site(LAT, cfg.gravity, t0), np.zeros(21), np.zeros(extras.n), C0, turn, extras
+        chunks, grid, Site(LAT, cfg.gravity), t0, np.zeros(21), np.zeros(extras.n), C0, turn, extras
     )
 
     def rel(a, b):
@@ -220,9 +225,41 @@ def test_calibrating_from_disk_in_chunks_equals_calibrating_in_memory(short_file
 
     paths, fit, cfg = short_files
     for p in paths:
-        streamed = calibrate_file(p, LAT, cfg.gravity, load_profile("navigation"), rows=7777)
+        streamed = calibrate_file(p, Site(LAT, cfg.gravity), load_profile("navigation"), rows=7777)
         assert np.array_equal(streamed.values, fit.values)
         assert np.array_equal(streamed.sigma, fit.sigma)
+
+
+@pytest.mark.slow
+def test_cli_calibrate_stream_agrees_with_calibrate_and_takes_a_sequence(short_files, tmp_path):
+    # One entry (calib.calibration.calibrate) for both readings: the same estimator on the same
+    # samples gives the same estimates, to 1e-9 sigma, with or without a sequence file (whose
+    # flips then mark where the run turns, in chunks as in memory).
+    paths, _, _ = short_files
+    runner = CliRunner()
+    for sequence in ([], ["--sequence", "paper-9pos"]):
+        out = {}
+        for mode in ("--no-stream", "--stream"):
+            r = runner.invoke(
+                main, ["calibrate", str(paths[0]), *sequence, mode, "--json", "-o", str(tmp_path / "r.toml")]
+            )
+            assert r.exit_code == 0, r.output
+            out[mode] = json.loads(r.stdout)
+        assert "clock" in out["--no-stream"] and "clock" not in out["--stream"]
+        for name, p in out["--no-stream"]["parameters"].items():
+            streamed = out["--stream"]["parameters"][name]
+            assert abs(streamed["value"] - p["value"]) <= 1e-9 * p["sigma"], name
+            assert streamed["sigma"] == pytest.approx(p["sigma"], rel=1e-9), name
+
+
+def test_cli_calibrate_stream_refuses_what_it_cannot_read_in_chunks(short_files, tmp_path):
+    # Gaps need the whole time column fitted: one line naming why, exit 2, nothing written.
+    paths, _, _ = short_files
+    r = CliRunner().invoke(
+        main, ["calibrate", str(paths[0]), "--stream", "--allow-gaps", "-o", str(tmp_path / "r.toml")]
+    )
+    assert r.exit_code == 2 and "--allow-gaps cannot be read chunk by chunk" in r.output
+    assert "Traceback" not in r.output and not (tmp_path / "r.toml").exists()
 
 
 def test_chunks_read_back_the_samples(short_files):

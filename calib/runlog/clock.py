@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.errors import CalibError
+from calib.motion import runs_of
 
 # A step whose length in periods is this far from a whole number does not come
 # from one crystal: jitter of a quarter period would already be exceptional.
@@ -228,8 +229,7 @@ def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarr
 
 def _runs_of(dup: np.ndarray, time_s: np.ndarray) -> list:
     """(time of the repeated sample, number of extra copies) for each run of duplicates."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], dup.astype(np.int8), [0]])))
-    return [(float(time_s[a - 1]), int(b - a)) for a, b in zip(edges[::2], edges[1::2])]
+    return [(float(time_s[a - 1]), int(b - a)) for a, b in zip(*runs_of(dup))]
 
 
 def uniform_time(clock: SampleClock, time_s: np.ndarray) -> np.ndarray:

@@ -6,8 +6,8 @@ import math
 from dataclasses import dataclass
 
 from calib.errors import CalibError
-from calib.estimator import FIRST_REST_MARGIN_S, MIN_ALIGN_S
 from calib.sequence import Sequence, Step
+from calib.start import FIRST_REST_MARGIN_S, MIN_ALIGN_S
 from calib.transform import AXES
 
 from .gimbal import move_profile

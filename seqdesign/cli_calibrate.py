@@ -1,0 +1,171 @@
+"""``seqdesign calibrate``: the 21 parameters of a run log, read whole or chunk by chunk.
+
+Both readings go through :func:`calib.calibration.calibrate`, which applies
+the policy once (site gravity, convergence refusal, Birge check).
+``calibrate-stream`` is the same command with ``--stream`` on, kept (hidden)
+for the scripts that call it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from .clitools import emit_json, guarded, info, provenance
+
+
+@click.command(short_help="Identify the 21 parameters (value and sigma) from a run log.")
+@click.argument("run_path", metavar="RUN")
+@click.option("--sequence", help="Sequence file the run followed (default: detect flips from the gyros).")
+@click.option(
+    "--profile",
+    default="navigation",
+    show_default=True,
+    help="Noise profile that weights the fit and scales the sigmas.",
+)
+@click.option("-o", "--output", help="Result TOML (default: RUN with .result.toml).")
+@click.option(
+    "--truth",
+    "truth_path",
+    type=click.Path(dir_okay=False),
+    help="Truth file to compare with (default: RUN.truth.toml if it exists).",
+)
+@click.option(
+    "--latitude",
+    type=click.FloatRange(-89.0, 89.0),
+    help="Site latitude, deg, for a logger's CSV that does not carry latitude_deg.",
+)
+@click.option(
+    "--height",
+    type=click.FloatRange(-1000.0, 10000.0),
+    help="Site height, m, for a logger's CSV that does not carry height_m.",
+)
+@click.option(
+    "--allow-gaps", is_flag=True, help="Remove duplicated samples and fill samples dropped at rest."
+)
+@click.option(
+    "--with",
+    "with_terms",
+    metavar="TERMS",
+    help="Also fit a real unit's terms beyond the 21: any of lever-arm, k2, "
+    "time-offset (comma-separated), or all.",
+)
+@click.option(
+    "--requirements",
+    "requirements",
+    default=None,
+    metavar="FILE|NAME",
+    help="Accuracy requirements: a TOML file with a [requirements] table (spec names and "
+    "units; missing ones keep the paper's) or paper, tactical, mems.",
+)
+@click.option(
+    "--gravity",
+    "gravity_mps2",
+    type=click.FloatRange(9.7, 9.9, min_open=True, max_open=True),
+    help="Surveyed site gravity, m/s^2 (default: the log's gravity_mps2, else WGS-84 normal "
+    "gravity, which misses local anomalies of tens of mGal = tens of ppm of scale).",
+)
+@click.option(
+    "--partial",
+    is_flag=True,
+    help="On a run that leaves directions unobserved, fit the estimable parameters and "
+    "report the rest as not estimable instead of refusing the run.",
+)
+@click.option(
+    "--stream/--no-stream",
+    default=None,
+    help="Read RUN (.npz or imu-run/1 .csv) chunk by chunk: memory stays at one chunk plus a "
+    "byte per sample, whatever its length. Default: only a log over 256 MB.",
+)
+@click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
+@guarded
+def calibrate(
+    run_path,
+    sequence,
+    profile,
+    output,
+    truth_path,
+    latitude,
+    height,
+    allow_gaps,
+    with_terms,
+    requirements,
+    gravity_mps2,
+    partial,
+    stream,
+    as_json,
+):
+    """Align, navigate on the stationary base and fit the 21 error parameters of
+    RUN (CSV, NPZ or PSINS .imu) by iterated, noise-weighted least squares.
+    """
+    from calib.calibration import calibrate as calibrate_source
+    from calib.calibration import reads_in_chunks
+    from calib.extras import as_extras
+    from calib.profiles import as_profile
+    from calib.sequence import load_sequence
+    from calib.truth import read_truth, truth_path_for
+
+    extras = as_extras(with_terms)
+    prof = as_profile(profile)
+    reading = dict(allow_gaps=allow_gaps, latitude_deg=latitude, height_m=height)
+    run = None
+    if reads_in_chunks(run_path, stream, **reading):
+        info(f"calibrating {run_path} chunk by chunk, profile {prof.name}")
+    else:
+        from calib.runlog import read_run
+
+        run = read_run(run_path, **reading)
+        info(run.clock.summary())  # jitter, dropped and duplicated samples (calib.clock)
+    out_path = Path(output) if output else Path(run_path).with_name(Path(run_path).stem + ".result.toml")
+    if truth_path is None and truth_path_for(run_path).exists():
+        truth_path = truth_path_for(run_path)
+    truth = read_truth(truth_path) if truth_path else None
+    seq = load_sequence(sequence) if sequence else None
+    if run is not None:
+        info(f"calibrating {run_path}: {run.n_samples} samples, {run.duration_s:.1f} s, profile {prof.name}")
+    result = calibrate_source(
+        run_path if run is None else run,
+        prof,
+        stream=run is None,
+        sequence=seq,
+        extras=extras,
+        partial=partial,
+        requirements=requirements,
+        gravity_mps2=gravity_mps2,
+        provenance=provenance(
+            {
+                "run": run_path,
+                "sequence": sequence,
+                "truth": truth_path,
+                "profile": profile if Path(profile).exists() else None,
+                "requirements": requirements if requirements and Path(requirements).exists() else None,
+            },
+            sequence=sequence,
+            profile=prof.name,
+            **({} if run is not None else {"reader": "chunks"}),
+        ),
+    )
+    result.save(out_path)
+    for warning in result.warnings():
+        info(f"warning: {warning}")
+    doc = {"result": str(out_path)} | ({} if run is None else {"clock": run.clock.as_dict()})
+    if as_json:
+        emit_json(result.to_json(truth) | doc)
+        return
+    click.echo(result.to_text(truth))
+    click.echo(f"wrote {out_path}")
+
+
+def _calibrate_streamed(**options):
+    """``calibrate --stream`` (the callback is guarded already)."""
+    return calibrate.callback(**options, stream=True)
+
+
+calibrate_stream = click.Command(
+    "calibrate-stream",
+    callback=_calibrate_streamed,
+    params=[p for p in calibrate.params if p.name != "stream"],
+    help="Same as `seqdesign calibrate --stream`.",
+    hidden=True,
+)
