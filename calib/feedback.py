@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .matexp import expm  # not scipy.linalg: its import costs 0.15 s per command
-from .noise import smooth
 from .profiles import NoiseProfile
+from .smoother import smooth
 from .solution import solve_step
 
 # The observations are linear in the attitude noise; gravity leaks through a tilt phi at second

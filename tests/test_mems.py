@@ -12,8 +12,9 @@ from scipy.stats import chi2
 
 from calib.feedback import ATTITUDE_FEEDBACK_RATIO, attitude_wander_ratio
 from calib.jacobian import state_matrix
-from calib.noise import interval_models, smooth
+from calib.noise import interval_models
 from calib.profiles import load_profile
+from calib.smoother import smooth
 from seqdesign.cli import main
 
 LAT = math.radians(40.0)
