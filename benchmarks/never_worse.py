@@ -41,7 +41,7 @@ def main() -> None:
             r = rep.rows[0].result
             worst[label] = r.worst_ratio
             if args.save_dir and label == "default":
-                from seqdesign.clitools import provenance
+                from seqdesign.cli.tools import provenance
 
                 cmd = (
                     f"PYTHONPATH=. python benchmarks/never_worse.py {' '.join(sys.argv[1:])} "

@@ -17,7 +17,7 @@ from calib.gimbalfile import DEFAULT_GIMBAL, load_gimbal
 from calib.rateprofile import RateProfile
 from calib.sequence import Sequence, Step, load_sequence, nominal_attitude, timeline
 from seqdesign.cli import main
-from seqdesign.cli_gimbal import read_schedule
+from seqdesign.cli.gimbal import read_schedule
 
 SHIPPED = ["paper-9pos", "paper-9pos-turns", "designed-15min", "designed-30min", "designed-30min-9moves"]
 D = math.radians

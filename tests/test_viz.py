@@ -472,7 +472,7 @@ def _write_run(sim, result, folder: Path, sha_of_run: bool = True) -> Path:
 
 
 def test_cli_defaults_beside_the_run(sim, result, tmp_path):
-    from seqdesign.cli_view import view
+    from seqdesign.cli.view import view
 
     run_path = _write_run(sim, result, tmp_path)
     res = CliRunner().invoke(view, [str(run_path), "--json"])
@@ -494,7 +494,7 @@ def test_cli_defaults_beside_the_run(sim, result, tmp_path):
 
 
 def test_cli_skips_a_result_of_another_run(sim, result, tmp_path):
-    from seqdesign.cli_view import view
+    from seqdesign.cli.view import view
 
     run_path = _write_run(sim, result, tmp_path, sha_of_run=False)
     res = CliRunner().invoke(view, [str(run_path), "-o", str(tmp_path / "x.rrd"), "--json"])
@@ -520,7 +520,7 @@ def test_cli_skips_a_result_of_another_run(sim, result, tmp_path):
     ],
 )
 def test_cli_bad_input_one_line_nothing_written(sim, result, tmp_path, monkeypatch, args):
-    from seqdesign.cli_view import view
+    from seqdesign.cli.view import view
 
     _write_run(sim, result, tmp_path)
     before = sorted(p.name for p in tmp_path.iterdir())
@@ -741,7 +741,7 @@ def test_envelope_falls_back_to_the_default_profile(sim, result):
 
 
 def test_spawn_without_a_display_says_so_and_exits_3(sim, result, tmp_path, monkeypatch):
-    import seqdesign.cli_view as cli_view
+    import seqdesign.cli.view as cli_view
 
     run_path = _write_run(sim, result, tmp_path)
     spawned = []
@@ -764,7 +764,7 @@ def test_spawn_without_a_display_says_so_and_exits_3(sim, result, tmp_path, monk
 
 
 def test_display_available():
-    from seqdesign.cli_view import display_available
+    from seqdesign.cli.view import display_available
 
     assert not display_available({}, "linux")
     assert not display_available({"DISPLAY": ""}, "linux")

@@ -17,8 +17,10 @@ from pathlib import Path
 import click
 
 from calib.errors import CalibError
-from seqdesign.clitools import guarded
-from seqdesign.clitools import info as _info
+
+from . import options
+from .tools import guarded
+from .tools import info as _info
 
 # Exit code of `view --spawn` when there is no display: the recording is written, the viewer
 # is not opened (2 is kept for bad input, where nothing is written).
@@ -134,7 +136,7 @@ def _load_result(run_path, explicit):
     "viewer asked for did not open; not 2, since the input was fine.",
 )
 @click.option("--allow-gaps", is_flag=True, help="Accept time gaps in the log.")
-@click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
+@options.as_json
 @guarded
 def view(run_path, sequence, result_path, truth_path, output, spawn, allow_gaps, as_json):
     """Record RUN (CSV or NPZ) for the rerun viewer: the gimbal and IMU in 3D,

@@ -16,7 +16,9 @@ import click
 import numpy as np
 
 from calib.errors import CalibError
-from seqdesign.clitools import emit_json, guarded, info, provenance
+
+from . import options
+from .tools import emit_json, guarded, info, provenance
 
 FORMAT = "gimbal-commands/1"
 COLUMNS = "time_s,outer_deg,middle_deg,inner_deg,outer_dps,middle_dps,inner_dps"
@@ -101,15 +103,10 @@ def read_schedule(path: str | Path) -> tuple[dict, np.ndarray]:
 
 @click.command(short_help="Write the time-stamped command schedule a gimbal controller plays.")
 @click.argument("sequence")
-@click.option(
-    "--gimbal",
-    "gimbal_file",
-    type=click.Path(dir_okay=False),
-    help="Gimbal description (TOML; see docs/gimbal.md). Default: slip rings, no limits.",
-)
+@options.gimbal("Gimbal description (TOML; see docs/gimbal.md). Default: slip rings, no limits.")
 @click.option("-o", "--output", required=True, help="Schedule to write (.csv).")
 @click.option("--rate-hz", type=float, default=100.0, show_default=True, help="Command rate of the schedule.")
-@click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
+@options.as_json
 @guarded
 def export(sequence, gimbal_file, output, rate_hz, as_json):
     """Write SEQUENCE as a schedule of continuous encoder angles and rates

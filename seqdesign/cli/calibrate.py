@@ -12,18 +12,14 @@ from pathlib import Path
 
 import click
 
-from .clitools import emit_json, guarded, info, provenance
+from . import options
+from .tools import emit_json, guarded, info, provenance
 
 
 @click.command(short_help="Identify the 21 parameters (value and sigma) from a run log.")
 @click.argument("run_path", metavar="RUN")
 @click.option("--sequence", help="Sequence file the run followed (default: detect flips from the gyros).")
-@click.option(
-    "--profile",
-    default="navigation",
-    show_default=True,
-    help="Noise profile that weights the fit and scales the sigmas.",
-)
+@options.profile("Noise profile that weights the fit and scales the sigmas.")
 @click.option("-o", "--output", help="Result TOML (default: RUN with .result.toml).")
 @click.option(
     "--truth",
@@ -31,40 +27,18 @@ from .clitools import emit_json, guarded, info, provenance
     type=click.Path(dir_okay=False),
     help="Truth file to compare with (default: RUN.truth.toml if it exists).",
 )
-@click.option(
-    "--latitude",
-    type=click.FloatRange(-89.0, 89.0),
-    help="Site latitude, deg, for a logger's CSV that does not carry latitude_deg.",
-)
-@click.option(
-    "--height",
-    type=click.FloatRange(-1000.0, 10000.0),
-    help="Site height, m, for a logger's CSV that does not carry height_m.",
-)
+@options.latitude("Site latitude, deg, for a logger's CSV that does not carry latitude_deg.")
+@options.height("Site height, m, for a logger's CSV that does not carry height_m.")
 @click.option(
     "--allow-gaps", is_flag=True, help="Remove duplicated samples and fill samples dropped at rest."
 )
-@click.option(
-    "--with",
-    "with_terms",
-    metavar="TERMS",
-    help="Also fit a real unit's terms beyond the 21: any of lever-arm, k2, "
-    "time-offset (comma-separated), or all.",
+@options.with_terms(
+    "Also fit a real unit's terms beyond the 21: any of lever-arm, k2, time-offset (comma-separated), or all."
 )
-@click.option(
-    "--requirements",
-    "requirements",
-    default=None,
-    metavar="FILE|NAME",
-    help="Accuracy requirements: a TOML file with a [requirements] table (spec names and "
-    "units; missing ones keep the paper's) or paper, tactical, mems.",
-)
-@click.option(
-    "--gravity",
-    "gravity_mps2",
-    type=click.FloatRange(9.7, 9.9, min_open=True, max_open=True),
-    help="Surveyed site gravity, m/s^2 (default: the log's gravity_mps2, else WGS-84 normal "
-    "gravity, which misses local anomalies of tens of mGal = tens of ppm of scale).",
+@options.requirements
+@options.gravity(
+    "Surveyed site gravity, m/s^2 (default: the log's gravity_mps2, else WGS-84 normal "
+    "gravity, which misses local anomalies of tens of mGal = tens of ppm of scale)."
 )
 @click.option(
     "--partial",
@@ -78,7 +52,7 @@ from .clitools import emit_json, guarded, info, provenance
     help="Read RUN (.npz or imu-run/1 .csv) chunk by chunk: memory stays at one chunk plus a "
     "byte per sample, whatever its length. Default: only a log over 256 MB.",
 )
-@click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
+@options.as_json
 @guarded
 def calibrate(
     run_path,

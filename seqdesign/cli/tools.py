@@ -1,7 +1,7 @@
 """Helpers every command shares: refusals without tracebacks, JSON on stdout, provenance.
 
-Kept apart from :mod:`seqdesign.cli` so that commands living elsewhere
-(``seqdesign.cli_view``) use the same ones without importing the command group.
+Every command module of :mod:`seqdesign.cli` uses the same ones.
+
 """
 
 from __future__ import annotations

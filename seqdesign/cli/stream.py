@@ -10,18 +10,14 @@ import numpy as np
 
 from calib.errors import CalibError
 
-from .clitools import emit_json, guarded, info, provenance
+from . import options
+from .tools import emit_json, guarded, info, provenance
 
 
 @click.command("simulate-stream", short_help="Simulate a long run straight to disk (bounded memory).")
 @click.argument("sequence")
 @click.option("-o", "--output", required=True, help="Run log to write: .npz or .csv.")
-@click.option(
-    "--profile",
-    default="navigation",
-    show_default=True,
-    help="White-noise profile: built-in name or TOML file (no Gauss-Markov terms).",
-)
+@options.profile("White-noise profile: built-in name or TOML file (no Gauss-Markov terms).")
 @click.option(
     "--errors",
     "errors_file",
@@ -32,18 +28,13 @@ from .clitools import emit_json, guarded, info, provenance
 @click.option(
     "--setup-deg", nargs=3, type=float, metavar="E N U", help="Base mounting rotation vector, degrees."
 )
-@click.option("--seed", type=int, default=None, help="Random seed of the noise.")
-@click.option("--latitude", type=float, help="Site latitude, deg (default: sequence, else 40).")
-@click.option("--height", type=float, help="Site height, m (default: sequence, else 0).")
-@click.option(
-    "--gravity",
-    "gravity_mps2",
-    type=float,
-    help="Measured site gravity, m/s^2 (default: WGS-84 normal gravity).",
-)
-@click.option("--sample-rate-hz", type=float, default=200.0, show_default=True)
+@options.seed("Random seed of the noise.")
+@options.latitude()
+@options.height()
+@options.gravity()
+@options.sample_rate()
 @click.option("--noise-free", is_flag=True, help="No sensor noise.")
-@click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
+@options.as_json
 @guarded
 def simulate_stream(
     sequence,

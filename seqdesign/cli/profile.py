@@ -7,7 +7,8 @@ from pathlib import Path
 
 import click
 
-from seqdesign.clitools import command_line, emit_json, guarded, info, provenance
+from . import options
+from .tools import command_line, emit_json, guarded, info, provenance
 
 
 @click.group(short_help="Noise profiles from your IMU's own data.")
@@ -22,18 +23,16 @@ def _plot_path(output: str, plot: str | None) -> Path:
 
 @profile.command("fit", short_help="Fit ARW/VRW, bias instability (GM) and RRW from a static log.")
 @click.argument("log", type=click.Path(dir_okay=False))
-@click.option("--latitude", type=float, help="Site latitude, deg (when the log lacks it).")
-@click.option(
-    "--height",
-    type=float,
-    help="Site height, m (when the log lacks it; default 0, which moves only the "
-    "accelerometer bias along the vertical, by 0.31 ug per m).",
+@options.latitude("Site latitude, deg (when the log lacks it).")
+@options.height(
+    "Site height, m (when the log lacks it; default 0, which moves only the "
+    "accelerometer bias along the vertical, by 0.31 ug per m)."
 )
 @click.option("-o", "--output", required=True, help="Profile TOML to write.")
 @click.option("--name", help="Profile name (default: the output's stem).")
 @click.option("--plot", help="Allan deviation PNG (default: OUTPUT with .allan.png).")
 @click.option("--no-plot", is_flag=True, help="Draw no PNG.")
-@click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
+@options.as_json
 @guarded
 def fit(log, latitude, height, output, name, plot, no_plot, as_json):
     """Fit the noise of a static LOG (CSV, CSV.GZ or NPZ; docs/logs-columns.md) and

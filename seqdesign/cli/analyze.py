@@ -1,0 +1,118 @@
+"""``seqdesign analyze`` and ``compare``: predicted sigma and separability of sequences."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from calib.errors import CalibError
+
+from . import options
+from .tools import emit_json, guarded, info
+
+TOLERANCE = click.FloatRange(0.0, 10.0)
+
+
+@click.command(short_help="Predict sigma and separability of the 21 parameters for a sequence.")
+@click.argument("sequence")
+@options.profile()
+@options.latitude()
+@options.tolerance()
+@options.requirements
+@click.option(
+    "--view",
+    "view_path",
+    is_flag=False,
+    flag_value="",
+    default=None,
+    metavar="[FILE.rrd]",
+    help="Also write a rerun recording (default: <sequence>-analysis.rrd).",
+)
+@options.with_terms(
+    "Also fit a real unit's terms beyond the 21 (lever-arm, k2, time-offset, "
+    "comma-separated, or all): sigma of each of the 21 with and without them, "
+    "and whether the sequence observes them."
+)
+@options.as_json
+@guarded
+def analyze(sequence, profile, latitude, tolerance_deg, requirements, view_path, with_terms, as_json):
+    """Fisher information of SEQUENCE under a noise profile: predicted sigma of
+    each parameter against its requirement (3 sigma / requirement), which
+    parameters are estimable, correlated pairs, unobservable directions,
+    worst case over the +-tolerance mounting box.
+    """
+    from seqdesign.analysis import analyze as run_analysis
+
+    if view_path and Path(view_path).suffix != ".rrd":
+        raise CalibError(f"recording {view_path!r} must end in .rrd", "--view")
+    result = run_analysis(
+        sequence,
+        profile,
+        latitude_deg=latitude,
+        tolerance_deg=tolerance_deg,
+        extras=with_terms,
+        requirements=requirements,
+    )
+    doc = result.to_json()
+    if view_path is not None:
+        from viz.record import record_analysis
+
+        path = view_path or f"{result.sequence.name}-analysis.rrd"
+        record_analysis(result, path)
+        doc["recording"] = str(path)
+        info(f"wrote {path} (open it with: rerun {path})")
+    if as_json:
+        emit_json(doc)
+        return
+    click.echo(result.to_text())
+
+
+@click.command(short_help="Compare sequences side by side, or two calibrations of one unit.")
+@click.argument("sequences", nargs=-1, required=True)
+@options.profile()
+@options.latitude("Site latitude, deg (default: each sequence's, else 40).")
+@options.tolerance()
+@options.requirements
+@options.as_json
+@guarded
+def compare(sequences, profile, latitude, tolerance_deg, requirements, as_json):
+    """Analyse several sequences and print their 3 sigma / requirement ratios side by side.
+
+    Given two calibration results (result TOML files) instead, put them side by
+    side: each difference against the combined sigma, and a chi-square
+    over all of them (the repeatability check of the paper's Table 3).
+    """
+    from calib.filekind import kind_of
+    from calib.profiles import as_profile
+    from calib.requirements import load_requirements
+    from seqdesign.analysis import analyze as run_analysis
+    from seqdesign.analysis import compare_text
+
+    kinds = {kind_of(s) for s in sequences}
+    if "result" in kinds:
+        if kinds != {"result"} or len(sequences) != 2:
+            raise CalibError(
+                "compare takes sequences, or exactly two result files",
+                "compare",
+                "give two results of calibrate (A B), or only sequences",
+            )
+        from seqdesign.repeatability import compare_results
+
+        rep = compare_results(sequences)
+        if as_json:
+            emit_json(rep.to_json())
+        else:
+            click.echo(rep.to_text())
+        return
+
+    prof = as_profile(profile)
+    req = load_requirements(requirements)
+    analyses = [
+        run_analysis(s, prof, latitude_deg=latitude, tolerance_deg=tolerance_deg, requirements=req)
+        for s in sequences
+    ]
+    if as_json:
+        emit_json({"sequences": [a.to_json() for a in analyses]})
+        return
+    click.echo(compare_text(analyses))

@@ -1,0 +1,88 @@
+"""Options several commands share, declared once: the site, noise, requirements, terms, output.
+
+Each takes the help text of its command where the meaning differs (a latitude that
+overrides a sequence's, or fills in a logger's CSV); the name, type and limits are one.
+The site limits are calib.earth's, so the CLI refuses what the library would.
+"""
+
+from __future__ import annotations
+
+import click
+
+from calib.earth import HEIGHT_RANGE_M, MAX_LATITUDE_DEG
+
+LATITUDE = click.FloatRange(-MAX_LATITUDE_DEG, MAX_LATITUDE_DEG)
+HEIGHT = click.FloatRange(*HEIGHT_RANGE_M)
+GRAVITY = click.FloatRange(9.7, 9.9, min_open=True, max_open=True)
+TOLERANCE = click.FloatRange(0.0, 10.0)
+
+as_json = click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
+
+
+def latitude(help: str = "Site latitude, deg (default: the sequence's, else 40).", default=None):
+    """``--latitude`` (deg)."""
+    return click.option(
+        "--latitude", type=LATITUDE, default=default, show_default=default is not None, help=help
+    )
+
+
+def height(help: str = "Site height, m (default: the sequence's, else 0)."):
+    """``--height`` (m)."""
+    return click.option("--height", type=HEIGHT, help=help)
+
+
+def gravity(help: str = "Measured site gravity, m/s^2 (default: WGS-84 normal gravity)."):
+    """``--gravity`` (m/s^2), into ``gravity_mps2``."""
+    return click.option("--gravity", "gravity_mps2", type=GRAVITY, help=help)
+
+
+def profile(
+    help: str = "Noise profile: built-in name (navigation, navigation-gm, tactical, mems) or TOML file.",
+):
+    """``--profile``, default navigation."""
+    return click.option("--profile", default="navigation", show_default=True, help=help)
+
+
+requirements = click.option(
+    "--requirements",
+    "requirements",
+    default=None,
+    metavar="FILE|NAME",
+    help="Accuracy requirements: a TOML file with a [requirements] table (spec names and "
+    "units; missing ones keep the paper's) or paper, tactical, mems.",
+)
+
+
+def with_terms(help: str):
+    """``--with`` terms beyond the 21 (lever-arm, k2, time-offset, all), into ``with_terms``."""
+    return click.option("--with", "with_terms", default=None, metavar="TERMS", help=help)
+
+
+def tolerance(
+    help: str = "Base mounting tolerance; the figures are the worst over the box (0: nominal only).",
+):
+    """``--tolerance-deg``, default 3 (the conventions' setup tolerance)."""
+    return click.option("--tolerance-deg", type=TOLERANCE, default=3.0, show_default=True, help=help)
+
+
+def gimbal(help: str, metavar: str | None = None):
+    """``--gimbal`` description file (or shipped name), into ``gimbal_file``."""
+    if metavar:
+        return click.option("--gimbal", "gimbal_file", default=None, metavar=metavar, help=help)
+    return click.option("--gimbal", "gimbal_file", type=click.Path(dir_okay=False), help=help)
+
+
+def seed(help: str = "Random seed (noise, setup, flip errors)."):
+    """``--seed``."""
+    return click.option("--seed", type=int, default=None, help=help)
+
+
+def sample_rate():
+    """``--sample-rate-hz`` of a simulated run."""
+    return click.option(
+        "--sample-rate-hz",
+        type=click.FloatRange(1.0, 10000.0),
+        default=200.0,
+        show_default=True,
+        help="Output rate of the simulated IMU, Hz.",
+    )
