@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from . import params as P
+from .chunks import calibrate_file, run_header
 from .errors import CalibError
 from .estimator import calibrate as fit_run
 from .extras import Extras, as_extras
@@ -27,6 +28,7 @@ from .motion import check_sequence_matches, detect_motion, sequence_motion
 from .profiles import NoiseProfile, as_profile
 from .requirements import PAPER, Requirements, load_requirements
 from .result import CalibrationResult
+from .runlog import read_run
 from .site import Site, site_of
 from .solution import Fit
 from .strapdown import sample_intervals
@@ -153,12 +155,9 @@ def calibrate(
     if isinstance(source, (str, os.PathLike)):
         reading = dict(allow_gaps=allow_gaps, latitude_deg=latitude_deg, height_m=height_m)
         if reads_in_chunks(source, stream, **reading):
-            from .chunks import calibrate_file, run_header
-
             site = site_of(run_header(source), gravity_mps2)
             fit, where = calibrate_file(source, site, prof, **model), str(source)
             return _checked_result(fit, where, require_convergence, prof, site, provenance, req)
-        from .runlog import read_run
 
         source = read_run(source, **reading)
     elif stream:

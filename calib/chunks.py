@@ -48,6 +48,7 @@ from .motion import (
 from .profiles import NoiseProfile
 from .requirements import PAPER, Requirements
 from .runlog import READ_ROWS, Run, nominal_period, read_chunks, read_meta
+from .sequence import timeline
 from .site import Site
 from .solution import nominal_judge
 from .start import check_first_rest, start_attitude
@@ -215,7 +216,6 @@ def sequence_motion_file(path, rows, where, period, sequence, detected, t_start)
     As :func:`calib.motion.sequence_motion` and
     :func:`calib.motion.check_sequence_matches` in memory.
     """
-    from .sequence import timeline
 
     tl = timeline(sequence)
     masks = [

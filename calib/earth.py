@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import CalibError
+
 RATE = 7.292115e-5  # rad/s, WGS-84
 A = 6378137.0  # m, semi-major axis
 F = 1.0 / 298.257223563
@@ -52,7 +54,6 @@ HEIGHT_RANGE_M = (-1000.0, 10000.0)
 
 def check_site(latitude_deg: float, height_m: float) -> None:
     """Refuse a site where a stationary calibration is meaningless, naming the limit."""
-    from .errors import CalibError
 
     if not -MAX_LATITUDE_DEG <= latitude_deg <= MAX_LATITUDE_DEG:
         raise CalibError(

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import CalibError
+from .sequence import timeline
 
 MOTION_THRESHOLD = 0.01  # rad/s: far above Earth rate + bias + noise, far below a flip
 MOTION_BLOCK = 1 << 16  # samples per block of the motion diagnosis (its memory, not its result)
@@ -129,7 +130,6 @@ def sequence_mask(timeline, time_s: np.ndarray, dt: np.ndarray, t_start: float) 
 
 def sequence_motion(seq, time_s: np.ndarray, dt: np.ndarray) -> np.ndarray:
     """Per sample, whether a sequence says the IMU turns (grown by two samples as detected motion is)."""
-    from .sequence import timeline
 
     return grow(sequence_mask(timeline(seq), time_s, dt, time_s[0] - dt[0]))
 

@@ -17,7 +17,7 @@ import numpy as np
 from . import earth
 from .allan import FLICKER_FLOOR_RATIO, AllanCurve, NoiseFit, allan_deviation, fit_noise
 from .errors import CalibError
-from .fileio import atomic_write_text
+from .fileio import atomic_write_bytes, atomic_write_text
 from .params import DEG, DEG_PER_HOUR, MICRO_G
 from .profiles import _from_doc
 from .runlog import Run
@@ -229,6 +229,5 @@ def plot_allan(fit: ProfileFit, path) -> None:
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=110)
     plt.close(fig)
-    from .fileio import atomic_write_bytes
 
     atomic_write_bytes(path, buffer.getvalue())

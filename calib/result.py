@@ -19,7 +19,7 @@ from .errors import CalibError
 from .extras import NONE as NO_EXTRAS
 from .extras import Extras, parse_groups
 from .fields import FORMAT_VERSION, Fields, check_format_version
-from .fileio import load_toml, toml_number
+from .fileio import atomic_write_text, load_toml, toml_number
 from .report import extra_entries, format_table, parameter_entries, worst
 from .requirements import PAPER, Requirements, requirements_from_dict
 from .site import ppm_per_mgal
@@ -266,8 +266,6 @@ class CalibrationResult:
 
     def save(self, path: str | Path) -> None:
         import tomli_w
-
-        from .fileio import atomic_write_text
 
         atomic_write_text(path, tomli_w.dumps(self.to_dict()))
 

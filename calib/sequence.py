@@ -17,7 +17,7 @@ import numpy as np
 
 from .errors import CalibError
 from .fields import FORMAT_VERSION, REQUIRED, Fields, check_format_version
-from .fileio import load_toml
+from .fileio import atomic_write_text, load_toml
 from .filekind import expect
 from .rateprofile import RateProfile
 from .transform import attitude_from_directions, axis_index, rot_axis
@@ -285,8 +285,6 @@ def load_sequence(name_or_path: str | Path) -> Sequence:
 def save_sequence(seq: Sequence, path: str | Path) -> None:
     """Write a sequence file atomically."""
     import tomli_w
-
-    from .fileio import atomic_write_text
 
     atomic_write_text(path, tomli_w.dumps(seq.to_toml_dict()))
 

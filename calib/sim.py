@@ -19,10 +19,14 @@ import numpy as np
 
 from . import earth
 from . import extras as X
+from .encoders import encoder_track
 from .errormodel import ErrorModel
 from .extras import ExtraValues
 from .gaussmarkov import gauss_markov
+from .gimbal import plan_sequence
+from .gimbalfile import DEFAULT_GIMBAL
 from .profiles import NoiseProfile
+from .runlog import Run, make_meta
 from .sequence import Sequence, Timeline, timeline
 from .transform import rotvec_to_dcm
 
@@ -194,9 +198,6 @@ def encoder_angles(
     any lock counter-rotation (:mod:`calib.gimbal`); ``played`` (default
     ``seq``) is what was really played, e.g. with flip errors.
     """
-    from .encoders import encoder_track
-    from .gimbal import plan_sequence
-    from .gimbalfile import DEFAULT_GIMBAL
 
     plan = plan_sequence(seq, gimbal or DEFAULT_GIMBAL)
     angles, _ = encoder_track(plan, played if played is not None else seq, time_s)
@@ -227,7 +228,6 @@ def add_noise(
 
 def run_meta(cfg: SimConfig, sequence_name: str) -> dict[str, str]:
     """The run log's metadata for a simulated site (:func:`calib.runlog.make_meta`)."""
-    from .runlog import make_meta
 
     return make_meta(
         math.degrees(cfg.latitude_rad),
@@ -308,7 +308,6 @@ def simulate(
     dtheta = dtheta_m
     if noise:
         dtheta, dv = add_noise(dtheta, dv, dt, profile, rng)
-    from .runlog import Run
 
     run = Run(
         time_s=time_s,

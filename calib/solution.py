@@ -22,6 +22,7 @@ from .errors import CalibError
 from .extras import Extras
 from .information import UNKNOWN_NAMES, ScaledInverse, eliminate, scaled_inverse
 from .jacobian import N_UNKNOWN, PHI0
+from .nominal import information_along, nominal_run
 from .profiles import NoiseProfile
 from .requirements import PAPER, Requirements
 
@@ -165,7 +166,6 @@ def nominal_decision(
     seq, latitude_rad: float, profile: NoiseProfile, extras: Extras, requirements: Requirements, names
 ) -> ScaledInverse:
     """What the error-free trajectory of ``seq`` observes, by :mod:`calib.information`'s rule."""
-    from .nominal import information_along, nominal_run
 
     nom = nominal_run(seq, latitude_rad, 0.0, np.zeros(3))
     info = information_along(nom, profile, latitude_rad, earth.gravity(latitude_rad), extras)

@@ -10,8 +10,9 @@ import numpy as np
 from . import params as P
 from .errormodel import ErrorModel
 from .errors import CalibError
+from .extras import ExtraValues
 from .fields import FORMAT_VERSION, Fields, check_format_version
-from .fileio import load_toml, toml_number
+from .fileio import atomic_write_text, load_toml, toml_number
 from .sim import Truth
 
 
@@ -111,7 +112,6 @@ def read_truth(path: str | Path) -> Truth:
 
 def _extra(table, where: str):
     """The optional ``[extra]`` table (calib.extras names, report units), or None."""
-    from .extras import ExtraValues
 
     if table is None:
         return None
@@ -145,8 +145,6 @@ def truth_to_dict(truth: Truth) -> dict:
 def write_truth(path: str | Path, truth: Truth, provenance: dict | None = None) -> None:
     """Write a truth file atomically, with the provenance of the simulation."""
     import tomli_w
-
-    from .fileio import atomic_write_text
 
     doc = truth_to_dict(truth)
     if provenance:

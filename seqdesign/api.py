@@ -20,9 +20,11 @@ from calib.calibration import calibrate
 from calib.profiles import load_profile
 from calib.requirements import load_requirements
 from calib.result import CalibrationResult
+from calib.review import review_run
 from calib.runlog import read_run
 from calib.sequence import load_sequence
 from calib.sim import simulate
+from viz.record import record_run
 
 from .analysis import Analysis, analyze, compare_text
 from .repeatability import compare_results
@@ -49,7 +51,5 @@ __all__ = [
 
 def record(run, path, result=None, sequence=None, truth=None):
     """Write a rerun recording of a run (what ``seqdesign view`` writes); returns its summary."""
-    from calib.review import review_run
-    from viz.record import record_run
 
     return record_run(run, path, review_run(run, result), sequence=sequence, result=result, truth=truth)

@@ -16,12 +16,13 @@ from calib import earth
 from calib.bounds import accel_scale_bound
 from calib.extras import NONE as NO_EXTRAS
 from calib.extras import Extras, parse_groups
-from calib.fileio import atomic_write_text
+from calib.fileio import atomic_write_text, sha256_file
 from calib.profiles import NoiseProfile, as_profile
 from calib.requirements import PAPER, Requirements, load_requirements
 from calib.sequence import load_sequence, save_sequence
 from calib.worstcase import analyze_tolerance
 
+from ..plots import pareto_png
 from .constraints import Constraints, check_constraints
 from .design import DesignResult, design
 
@@ -134,7 +135,6 @@ class DesignReport:
             f"{paper[0]:.4f},{paper[1]:.4f}"
         )
         atomic_write_text(stem + ".csv", "\n".join(lines) + "\n")
-        from ..plots import pareto_png
 
         fastest = max((design_rate_dps(r.result.sequence) for r in self.rows), default=None)
         pareto_png(self, g, stem + ".png", fastest)
@@ -150,7 +150,6 @@ def gimbal_provenance(gimbal) -> dict:
     """What a designed file records of the gimbal its moves were planned on."""
     if gimbal is None:
         return {"gimbal": "none (default: slip rings, no limits)"}
-    from calib.fileio import sha256_file
 
     out = {"gimbal": gimbal.name}
     if gimbal.path:
