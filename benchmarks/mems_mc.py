@@ -111,7 +111,7 @@ def main() -> None:
     out = [o for o in out if o[0] is not None]
     err = np.array([o[0] for o in out])
     cov = np.array([o[1] for o in out])
-    nees = np.array([e @ np.linalg.solve(C, e) for e, C in zip(err, cov)])
+    nees = np.array([e @ np.linalg.solve(C, e) for e, C in zip(err, cov, strict=True)])
     ratio = np.sqrt(np.mean(err**2 / np.einsum("nii->ni", cov), axis=0))
     lo, hi = band(len(out))
     iters = np.array([o[3] for o in out])
@@ -135,7 +135,7 @@ def main() -> None:
     print("| parameter | RMS(error/sigma) | mean(error/sigma) | in [0.67, 1.36] |")
     print("|---|---|---|---|")
     mean = np.mean(err / np.sqrt(np.einsum("nii->ni", cov)), axis=0)
-    for name, r, m in zip(P.NAMES, ratio, mean):
+    for name, r, m in zip(P.NAMES, ratio, mean, strict=True):
         print(f"| {name} | {r:.2f} | {m:+.2f} | {'yes' if 0.67 <= r <= 1.36 else 'NO'} |")
 
 

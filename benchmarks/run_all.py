@@ -288,7 +288,7 @@ def main() -> None:
         return
     rows = cli_rows(tmp) + analysis_rows(seq, prof, lat) + search_rows(seq, prof, lat, tmp) + view_rows(tmp)
     print(
-        f"Measured {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC on "
+        f"Measured {datetime.datetime.now(datetime.UTC):%Y-%m-%d %H:%M} UTC on "
         f"{platform.node()} ({platform.machine()}, {os.cpu_count()} cores, Python "
         f"{platform.python_version()}); command: python benchmarks/run_all.py"
         + (f" --mc {args.mc}" if args.mc else "")

@@ -97,7 +97,7 @@ def max_difference_sigma(new: Path, base: Path) -> float:
     from calib.result import CalibrationResult
 
     a, b = CalibrationResult.load(new), CalibrationResult.load(base)
-    return float(max(abs(x - y) / s for x, y, s in zip(a.values, b.values, b.sigma)))
+    return float(max(abs(x - y) / s for x, y, s in zip(a.values, b.values, b.sigma, strict=True)))
 
 
 def measure(rates, minutes, base: Path | None, base_max: int, folder: Path) -> list[dict]:

@@ -104,7 +104,7 @@ def allan_deviation(rate: np.ndarray, dt: float, taus: np.ndarray | None = None)
     tau, adev, _, _ = allantools.oadev(rate - rate.mean(), rate=1.0 / dt, data_type="freq", taus=taus)
     m = np.round(tau / dt).astype(int)
     edf = np.array([allantools.edf_simple(rate.size, int(k), 0) for k in m])
-    low, high = np.array([allantools.confidence_interval(a, e) for a, e in zip(adev, edf)]).T
+    low, high = np.array([allantools.confidence_interval(a, e) for a, e in zip(adev, edf, strict=True)]).T
     return AllanCurve(tau_s=tau, adev=adev, ci_low=low, ci_high=high)
 
 
@@ -180,7 +180,7 @@ class NoiseFit:
 
 def _runs(mask: np.ndarray) -> list[np.ndarray]:
     """Index arrays of the consecutive True stretches of ``mask``."""
-    return [np.arange(a, b) for a, b in zip(*runs_of(mask))]
+    return [np.arange(a, b) for a, b in zip(*runs_of(mask), strict=True)]
 
 
 def white_region(curve: AllanCurve) -> np.ndarray:

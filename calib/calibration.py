@@ -232,7 +232,7 @@ def result_from_fit(
         extra_values=fit.extra_values,
         extra_sigma=fit.extra_sigma * scale,
         sigma_scale=scale,
-        not_estimable=tuple(n for n, e in zip(names, estimable) if not e),
+        not_estimable=tuple(n for n, e in zip(names, estimable, strict=True) if not e),
         null_directions=tuple(fit.null_directions),
         n_observations=fit.n_observations,
         gravity_mps2=site.gravity_mps2,

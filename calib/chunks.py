@@ -164,7 +164,7 @@ def _read_rests(path, moving, rows, where, period, profile):
         still = ~moving[a : a + len(t)]
         sanity.check_rests(dv, dt, ~still, profile.vrw, f"{where}, samples {a}-{a + len(t) - 1}")
         if a < end:
-            for part, x in zip(first, (th, dv, dt)):
+            for part, x in zip(first, (th, dv, dt), strict=True):
                 part.append(x[: end - a])
         rest = np.searchsorted(starts, np.flatnonzero(still) + a, side="right") - 1
         T += np.bincount(rest, weights=dt[still], minlength=len(starts))
@@ -216,7 +216,6 @@ def sequence_motion_file(path, rows, where, period, sequence, detected, t_start)
     As :func:`calib.motion.sequence_motion` and
     :func:`calib.motion.check_sequence_matches` in memory.
     """
-
     tl = timeline(sequence)
     masks = [
         sequence_mask(tl, t, dt, t_start) for _, t, _, _, dt in _blocks_with_dt(path, rows, where, period)

@@ -54,7 +54,6 @@ HEIGHT_RANGE_M = (-1000.0, 10000.0)
 
 def check_site(latitude_deg: float, height_m: float) -> None:
     """Refuse a site where a stationary calibration is meaningless, naming the limit."""
-
     if not -MAX_LATITUDE_DEG <= latitude_deg <= MAX_LATITUDE_DEG:
         raise CalibError(
             f"latitude {latitude_deg} deg is outside [-{MAX_LATITUDE_DEG:g}, {MAX_LATITUDE_DEG:g}]",

@@ -38,7 +38,7 @@ def encoder_track(plan: GimbalPlan, seq, time_s: np.ndarray) -> tuple[np.ndarray
     t = np.asarray(time_s, dtype=float)
     angles, rates = np.zeros((len(t), 3)), np.zeros((len(t), 3))
     state, t0 = np.zeros(3), seq.initial_dwell_s
-    for k, (s, mv) in enumerate(zip(seq.steps, plan.moves)):
+    for _k, (s, mv) in enumerate(zip(seq.steps, plan.moves, strict=True)):
         if mv.unlock_s > 0:
             u = float(np.max(np.abs(mv.unlock)))
             _fill(

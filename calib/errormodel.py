@@ -49,15 +49,15 @@ class ErrorModel:
         object.__setattr__(self, "values", v)
 
     @classmethod
-    def zero(cls) -> "ErrorModel":
+    def zero(cls) -> ErrorModel:
         return cls(np.zeros(P.N_PARAMS))
 
     @classmethod
-    def from_units(cls, values_in_units) -> "ErrorModel":
+    def from_units(cls, values_in_units) -> ErrorModel:
         return cls(P.to_si(values_in_units))
 
     @classmethod
-    def from_table2(cls) -> "ErrorModel":
+    def from_table2(cls) -> ErrorModel:
         """The paper's Table 2 standard values (the ``--table2`` injection)."""
         return cls.from_units(paper_table("table2_simulation", "standard"))
 

@@ -250,7 +250,7 @@ def calibrate(
 
 
 def _fit_renavigating(
-    pb: "_Problem",
+    pb: _Problem,
     C0: np.ndarray,
     extras: Extras,
     partial: bool,

@@ -190,7 +190,7 @@ class Extras:
             start += len(GROUPS[g])
         return slice(0, 0)
 
-    def unpack(self, values: np.ndarray) -> "ExtraValues":
+    def unpack(self, values: np.ndarray) -> ExtraValues:
         """SI values of the switched-on parameters -> :class:`ExtraValues` (others zero)."""
         v = np.asarray(values, dtype=float)
         out = ExtraValues()
@@ -202,7 +202,7 @@ class Extras:
             out = out.replace(time_offset_s=float(v[self.index("time-offset")][0]))
         return out
 
-    def pack(self, values: "ExtraValues") -> np.ndarray:
+    def pack(self, values: ExtraValues) -> np.ndarray:
         parts = {
             "lever-arm": values.lever_arm_m.reshape(9),
             "k2": values.k2,
@@ -232,7 +232,7 @@ class ExtraValues:
     k2: np.ndarray = field(default_factory=lambda: np.zeros(3))
     time_offset_s: float = 0.0
 
-    def replace(self, **kw) -> "ExtraValues":
+    def replace(self, **kw) -> ExtraValues:
         d = {"lever_arm_m": self.lever_arm_m, "k2": self.k2, "time_offset_s": self.time_offset_s}
         d.update(kw)
         return ExtraValues(
@@ -257,10 +257,12 @@ class ExtraValues:
     def in_units(self) -> dict[str, float]:
         """Every parameter by name, in its report unit."""
         full = Extras(GROUP_NAMES)
-        return {p.name: float(v / p.si_per_unit) for p, v in zip(full.parameters, full.pack(self))}
+        return {
+            p.name: float(v / p.si_per_unit) for p, v in zip(full.parameters, full.pack(self), strict=True)
+        }
 
     @classmethod
-    def from_units(cls, by_name: dict[str, float], where: str = "extra terms") -> "ExtraValues":
+    def from_units(cls, by_name: dict[str, float], where: str = "extra terms") -> ExtraValues:
         full = Extras(GROUP_NAMES)
         known = {p.name: p for p in full.parameters}
         unknown = sorted(set(by_name) - set(known))
@@ -400,7 +402,7 @@ def dv_sensitivity(
     return D
 
 
-def as_extras(extras: "Extras | str | None") -> Extras:
+def as_extras(extras: Extras | str | None) -> Extras:
     """Optional terms from an :class:`Extras`, a ``--with`` string or None."""
     if isinstance(extras, Extras):
         return extras

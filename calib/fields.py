@@ -147,7 +147,7 @@ class Fields:
             raise CalibError(f"'{key}' = {raw!r} is not one of {', '.join(choices)}", self.here(key))
         return raw
 
-    def sub(self, key: str, required: bool = False) -> "Fields | None":
+    def sub(self, key: str, required: bool = False) -> Fields | None:
         """The sub-table ``[key]`` (None when absent and not required)."""
         if key not in self.table:
             if required:

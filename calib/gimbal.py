@@ -391,7 +391,7 @@ class GimbalPlan:
         """``(step number, start s, end s, encoder change)`` of every lock counter-rotation."""
         return [
             (k + 1, float(t - m.unlock_s), float(t), m.unlock)
-            for k, (m, t) in enumerate(zip(self.moves, self.move_start_s))
+            for k, (m, t) in enumerate(zip(self.moves, self.move_start_s, strict=True))
             if m.unlock_s > 0
         ]
 
@@ -427,7 +427,9 @@ def plan_sequence(seq, gimbal: Gimbal = DEFAULT_GIMBAL) -> GimbalPlan:
         rest_before = s.dwell_s
         state = mv.state_end
     if gimbal.end_at_home and np.any(np.abs(state) > 1e-6):
-        away = ", ".join(f"{n} {math.degrees(a):.1f}" for n, a in zip(NAMES, state) if abs(a) > 1e-6)
+        away = ", ".join(
+            f"{n} {math.degrees(a):.1f}" for n, a in zip(NAMES, state, strict=True) if abs(a) > 1e-6
+        )
         viol.append(
             Violation(
                 None,

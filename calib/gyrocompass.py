@@ -66,8 +66,8 @@ def rest_attitudes(dtheta: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> 
 def rest_rates(dtheta_m: np.ndarray, dt: np.ndarray, moving: np.ndarray):
     """Each rest's start and end (samples), length (s) and mean gyro rate (rad/s)."""
     starts, ends = runs_of(~moving)
-    T = np.array([dt[a:b].sum() for a, b in zip(starts, ends)])
-    w = np.array([dtheta_m[a:b].sum(axis=0) for a, b in zip(starts, ends)]) / T[:, None]
+    T = np.array([dt[a:b].sum() for a, b in zip(starts, ends, strict=True)])
+    w = np.array([dtheta_m[a:b].sum(axis=0) for a, b in zip(starts, ends, strict=True)]) / T[:, None]
     return starts, ends, T, w
 
 

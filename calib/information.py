@@ -103,7 +103,7 @@ class ScaledInverse:
         return describe_null(self.null_basis, self.names)
 
     def not_estimable(self) -> list[str]:
-        return [n for n, e in zip(self.names, self.estimable) if not e]
+        return [n for n, e in zip(self.names, self.estimable, strict=True) if not e]
 
 
 def scaled_inverse(M: np.ndarray, names=UNKNOWN_NAMES, n_weak: int | None = None) -> ScaledInverse:

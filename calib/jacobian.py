@@ -77,7 +77,7 @@ def observation_grid(moving: np.ndarray, rest_step: int, move_step: int) -> Obse
     starts = np.concatenate([[0], change])
     ends = np.concatenate([change, [n]])
     bounds = [0]
-    for a, b in zip(starts, ends):
+    for a, b in zip(starts, ends, strict=True):
         step = move_step if moving[a] else rest_step
         m = max(1, int(round((b - a) / step)))
         bounds.extend(np.round(np.linspace(a, b, m + 1)[1:]).astype(int))

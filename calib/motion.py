@@ -123,14 +123,13 @@ def sequence_mask(timeline, time_s: np.ndarray, dt: np.ndarray, t_start: float) 
     start = time_s - dt - t_start
     end = time_s - t_start
     moving = np.zeros(len(time_s), dtype=bool)
-    for a, b in zip(timeline.t0[~timeline.rest], timeline.t1[~timeline.rest]):
+    for a, b in zip(timeline.t0[~timeline.rest], timeline.t1[~timeline.rest], strict=True):
         moving |= (end > a) & (start < b)
     return moving
 
 
 def sequence_motion(seq, time_s: np.ndarray, dt: np.ndarray) -> np.ndarray:
     """Per sample, whether a sequence says the IMU turns (grown by two samples as detected motion is)."""
-
     return grow(sequence_mask(timeline(seq), time_s, dt, time_s[0] - dt[0]))
 
 

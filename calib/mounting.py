@@ -168,9 +168,9 @@ class SequenceModel:
     def analyze(
         self,
         setup_rotvec=(0.0, 0.0, 0.0),
-        nominal: "Observability | None" = None,
+        nominal: Observability | None = None,
         requirements: Requirements = PAPER,
-    ) -> "Observability":
+    ) -> Observability:
         return from_information(
             self.information(setup_rotvec), self.duration_s, self.profile, setup_rotvec, nominal, requirements
         )
@@ -318,7 +318,7 @@ def sequence_model(
 ) -> SequenceModel:
     """Build (and cache) the mounting-independent model of a sequence."""
     gram = 0.0
-    for Hw, keep in _whitened_chunks(seq, profile, latitude_rad, height_m):
+    for Hw, _keep in _whitened_chunks(seq, profile, latitude_rad, height_m):
         gram = gram + Hw.T @ Hw
     g = earth.gravity(latitude_rad, height_m)
     return SequenceModel(

@@ -143,7 +143,7 @@ def interval_models(
     if not profile.has_gauss_markov:
         return _white_models(A, T, profile)
     Phi, Q, P_bias = gm_interval_arrays(A, T, profile, C_b_n)
-    return [IntervalModel(Phi=p, Q=q, P_bias=P_bias) for p, q in zip(Phi, Q)]
+    return [IntervalModel(Phi=p, Q=q, P_bias=P_bias) for p, q in zip(Phi, Q, strict=True)]
 
 
 def gm_interval_arrays(

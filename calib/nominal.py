@@ -54,7 +54,7 @@ def nominal_samples(tl) -> tuple[np.ndarray, np.ndarray]:
     """Sample end times and observation bounds (indices into ``[0] + times``) of a timeline."""
     times, bounds = [np.zeros(1)], [0]
     n = 0
-    for k, (t0, t1, rate) in enumerate(zip(tl.t0, tl.t1, tl.rate)):
+    for k, (t0, t1, rate) in enumerate(zip(tl.t0, tl.t1, tl.rate, strict=True)):
         step = ANALYSIS_REST_STEP_S if rate == 0.0 else MOVE_STEP_S
         m = max(1, int(round((t1 - t0) / step)))
         sub = (

@@ -121,7 +121,7 @@ def from_information(
     duration_s: float,
     profile: str,
     setup_rotvec,
-    nominal: "Observability | None" = None,
+    nominal: Observability | None = None,
     requirements: Requirements = PAPER,
 ) -> Observability:
     """Observability from the information of [21, phi0].

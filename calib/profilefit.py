@@ -205,8 +205,8 @@ def plot_allan(fit: ProfileFit, path) -> None:
         ("gyro", fit.gyro_curves, fit.gyro, DEG_PER_HOUR, "deg/h"),
         ("accelerometer", fit.accel_curves, fit.accel, MICRO_G, "ug"),
     )
-    for ax, (title, curves, fits, unit, label) in zip(axes, panels):
-        for j, (c, f, colour) in enumerate(zip(curves, fits, ("C0", "C1", "C2"))):
+    for ax, (title, curves, fits, unit, label) in zip(axes, panels, strict=True):
+        for j, (c, f, colour) in enumerate(zip(curves, fits, ("C0", "C1", "C2"), strict=True)):
             ax.fill_between(c.tau_s, c.ci_low / unit, c.ci_high / unit, color=colour, alpha=0.2)
             ax.loglog(c.tau_s, c.adev / unit, "o", ms=3, color=colour, label=f"{AXES[j]} measured")
             ax.loglog(c.tau_s, f.model_adev(c.tau_s) / unit, "-", color=colour, lw=1, label=f"{AXES[j]} fit")

@@ -182,6 +182,6 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> NoiseProfile:
     return _from_doc(doc, str(path))
 
 
-def as_profile(profile: "NoiseProfile | str") -> NoiseProfile:
+def as_profile(profile: NoiseProfile | str) -> NoiseProfile:
     """A profile object from itself, a built-in name or a TOML path."""
     return profile if isinstance(profile, NoiseProfile) else load_profile(profile)

@@ -99,7 +99,7 @@ class RateProfile:
             rows = _s_curve(A, self.rate, self.accel, self.jerk)
         # A flip too small to take any time (angles that underflow) is one empty piece.
         rows = [r for r in rows if r[0] > 0.0] or [(0.0, 0.0, 0.0, 0.0, 0.0)]
-        d, th, r, a, j = (np.array(c, dtype=float) for c in zip(*rows))
+        d, th, r, a, j = (np.array(c, dtype=float) for c in zip(*rows, strict=True))
         s = 1.0 if angle_rad >= 0 else -1.0
         return Pieces(duration=d, theta0=s * th, rate0=s * r, accel0=s * a, jerk=s * j)
 

@@ -222,7 +222,7 @@ class CalibrationResult:
             if p.name in self.not_estimable:
                 entry["estimable"] = False
             params[p.name] = entry
-        for p, v, e in zip(self.extras.parameters, self.extra_values, self.extra_sigma):
+        for p, v, e in zip(self.extras.parameters, self.extra_values, self.extra_sigma, strict=True):
             params[p.name] = {
                 "value": float(v / p.si_per_unit),
                 "sigma": float(e / p.si_per_unit),
@@ -270,7 +270,7 @@ class CalibrationResult:
         atomic_write_text(path, tomli_w.dumps(self.to_dict()))
 
     @classmethod
-    def load(cls, path: str | Path) -> "CalibrationResult":
+    def load(cls, path: str | Path) -> CalibrationResult:
         """Read a result TOML; refuse it, naming the file and table, unless it is complete.
 
         ``[parameters]`` (all 21 with finite value and non-negative sigma; an

@@ -142,7 +142,7 @@ def _saturated_stretch(data: np.ndarray, axis: int, peak: float, still: float) -
     x = data[:, axis]
     others = [i for i in range(data.shape[1]) if i != axis]
     typical = None  # the median costs a sort of the channel: only when a stretch is found
-    for a, b in zip(*runs_of((x == peak) | (x == -peak))):
+    for a, b in zip(*runs_of((x == peak) | (x == -peak)), strict=True):
         if b - a < SATURATION_RUN:
             continue
         typical = float(np.median(x)) if typical is None else typical
@@ -198,7 +198,7 @@ def check_rests(
     """
     starts, ends = runs_of(~moving)
     t = np.cumsum(dt)
-    for number, (a, b) in enumerate(zip(starts, ends), start=1):
+    for number, (a, b) in enumerate(zip(starts, ends, strict=True), start=1):
         n = (b - a) // window
         if n == 0:
             continue

@@ -52,12 +52,12 @@ def infer_sequence(
     name : str
         Name of the inferred sequence.
     """
-    turns = list(zip(*runs_of(moving)))
+    turns = list(zip(*runs_of(moving), strict=True))
     if not turns:
         return None
     rests = (
         [(0, turns[0][0])]
-        + [(a[1], b[0]) for a, b in zip(turns[:-1], turns[1:])]
+        + [(a[1], b[0]) for a, b in zip(turns[:-1], turns[1:], strict=True)]
         + [(turns[-1][1], len(moving))]
     )
     # Rests relative to the first one (the alignment's heading error cancels), snapped to the

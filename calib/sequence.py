@@ -84,9 +84,11 @@ class Sequence:
     def duration_s(self) -> float:
         return self.initial_dwell_s + sum(s.duration_s + s.dwell_s for s in self.steps)
 
-    def with_flip_errors(self, errors_deg: np.ndarray) -> "Sequence":
+    def with_flip_errors(self, errors_deg: np.ndarray) -> Sequence:
         """The same sequence with each flip's angle off by ``errors_deg[i]`` (same sign convention)."""
-        steps = tuple(replace(s, angle_deg=s.angle_deg + float(e)) for s, e in zip(self.steps, errors_deg))
+        steps = tuple(
+            replace(s, angle_deg=s.angle_deg + float(e)) for s, e in zip(self.steps, errors_deg, strict=True)
+        )
         return replace(self, steps=steps)
 
     def to_toml_dict(self) -> dict:
@@ -358,7 +360,7 @@ def _move_rows(t: float, C: np.ndarray, ax: int, step: Step, k: int) -> tuple[li
         return [(t, t + step.duration_s, rate, ax, C, 0, k, rate, 0.0, 0.0)], t + step.duration_s
     pc = step.profile.pieces(math.radians(step.angle_deg))
     rows = []
-    for d, th0, r0, a0, j in zip(pc.duration, pc.theta0, pc.rate0, pc.accel0, pc.jerk):
+    for d, th0, r0, a0, j in zip(pc.duration, pc.theta0, pc.rate0, pc.accel0, pc.jerk, strict=True):
         swept = r0 * d + 0.5 * a0 * d * d + j * d**3 / 6.0
         rows.append((t, t + d, swept / d, ax, C @ rot_axis(ax, th0), 0, k, r0, a0, j))
         t += d
@@ -381,7 +383,7 @@ def timeline(seq: Sequence) -> Timeline:
             position += 1
             rows.append((t, t + s.dwell_s, 0.0, -1, C, position, k, 0.0, 0.0, 0.0))
             t += s.dwell_s
-    cols = list(zip(*rows))
+    cols = list(zip(*rows, strict=True))
     return Timeline(
         t0=np.array(cols[0]),
         t1=np.array(cols[1]),

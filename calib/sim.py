@@ -198,7 +198,6 @@ def encoder_angles(
     any lock counter-rotation (:mod:`calib.gimbal`); ``played`` (default
     ``seq``) is what was really played, e.g. with flip errors.
     """
-
     plan = plan_sequence(seq, gimbal or DEFAULT_GIMBAL)
     angles, _ = encoder_track(plan, played if played is not None else seq, time_s)
     return np.degrees(angles) + 0.0  # no negative zeros
@@ -228,7 +227,6 @@ def add_noise(
 
 def run_meta(cfg: SimConfig, sequence_name: str) -> dict[str, str]:
     """The run log's metadata for a simulated site (:func:`calib.runlog.make_meta`)."""
-
     return make_meta(
         math.degrees(cfg.latitude_rad),
         cfg.height_m,

@@ -166,7 +166,6 @@ def nominal_decision(
     seq, latitude_rad: float, profile: NoiseProfile, extras: Extras, requirements: Requirements, names
 ) -> ScaledInverse:
     """What the error-free trajectory of ``seq`` observes, by :mod:`calib.information`'s rule."""
-
     nom = nominal_run(seq, latitude_rad, 0.0, np.zeros(3))
     info = information_along(nom, profile, latitude_rad, earth.gravity(latitude_rad), extras)
     D = unknown_scale(extras, requirements)

@@ -168,7 +168,7 @@ def earth_fixed_dcm(q_i: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.
 
 def array_chunks(time_s, dtheta_m, dv_m, t_start: float, cuts: np.ndarray):
     """Chunks of in-memory arrays between consecutive sample indices ``cuts`` (views, no copies)."""
-    for a, b in zip(cuts[:-1], cuts[1:]):
+    for a, b in zip(cuts[:-1], cuts[1:], strict=True):
         yield Chunk(
             int(a), time_s[a:b], dtheta_m[a:b], dv_m[a:b], float(t_start if a == 0 else time_s[a - 1])
         )

@@ -52,7 +52,7 @@ def errors_from_table(table, where: str) -> ErrorModel:
     # 5 % for scale factors and misalignments; a gyro bias of 1 deg/s (a tenth of
     # the flip rate) and an accelerometer bias of 0.05 g.
     limits = {("gyro", "bias"): math.radians(1.0), ("accel", "bias"): 0.05 * P.STANDARD_GRAVITY}
-    for p, v in zip(P.PARAMETERS, values):
+    for p, v in zip(P.PARAMETERS, values, strict=True):
         lim = limits.get((p.sensor, p.kind), 0.05)
         if abs(v * p.si_per_unit) > lim:
             raise CalibError(
@@ -112,7 +112,6 @@ def read_truth(path: str | Path) -> Truth:
 
 def _extra(table, where: str):
     """The optional ``[extra]`` table (calib.extras names, report units), or None."""
-
     if table is None:
         return None
     here = f"{where}: [extra]"
@@ -132,7 +131,7 @@ def truth_to_dict(truth: Truth) -> dict:
         meta["seed"] = int(truth.seed)
     doc = {
         "format_version": FORMAT_VERSION,
-        "errors": {n: float(v) for n, v in zip(P.NAMES, values)},
+        "errors": {n: float(v) for n, v in zip(P.NAMES, values, strict=True)},
         "setup": {"east_deg": float(setup[0]), "north_deg": float(setup[1]), "up_deg": float(setup[2])},
         "flips": {"angle_error_deg": [float(f) for f in truth.flip_errors_deg]},
         "meta": meta,

@@ -114,7 +114,7 @@ def search_worst_direct(
         points = [np.asarray(theta_deg, dtype=float)] + [theta_deg + FD_STEP_DEG * e for e in np.eye(3)]
         new = [t for t in points if key_of(t) not in seen]
         if sigmas_of is not None and len(new) > 1:
-            for t, sigma in zip(new, sigmas_of([np.radians(t) for t in new])):
+            for t, sigma in zip(new, sigmas_of([np.radians(t) for t in new]), strict=True):
                 seen[key_of(t)] = float(sigma)
         f0 = value(points[0])
         return np.array([(value(t) - f0) / FD_STEP_DEG for t in points[1:]])
@@ -144,7 +144,7 @@ def _evaluator(
             infos = mounting_informations(seq, profile, latitude_rad, height_m, rotvecs, batch=batch)
             return [
                 from_information(info, seq.duration_s, profile.name, rv, nominal, requirements)
-                for info, rv in zip(infos, rotvecs)
+                for info, rv in zip(infos, rotvecs, strict=True)
             ]
 
         return evaluate, None
@@ -241,7 +241,7 @@ class ExtrasCost:
         ``weak`` (beyond it) or ``unobservable``.
         """
         out = []
-        for p, s in zip(self.extras.parameters, self.extra_sigma):
+        for p, s in zip(self.extras.parameters, self.extra_sigma, strict=True):
             out.append(
                 "unobservable" if not np.isfinite(s) else "observable" if 3.0 * s <= p.scale_si else "weak"
             )
@@ -282,7 +282,7 @@ def _extras_evaluator(
 
     def evaluate(rotvecs):
         infos = mounting_informations(seq, profile, latitude_rad, height_m, rotvecs, extras, batch)
-        return [sigmas(rv, info) for rv, info in zip(rotvecs, infos)]
+        return [sigmas(rv, info) for rv, info in zip(rotvecs, infos, strict=True)]
 
     return evaluate, nominal
 

@@ -275,7 +275,7 @@ def _extras_doc(cost: ExtrasCost, requirements: Requirements) -> dict:
             "verdict": v,
             "meaning": p.meaning,
         }
-        for p, s, v in zip(cost.extras.parameters, cost.extra_sigma, cost.verdicts())
+        for p, s, v in zip(cost.extras.parameters, cost.extra_sigma, cost.verdicts(), strict=True)
     }
     finite = np.where(np.isfinite(r1), r1, -np.inf)
     w = int(np.argmax(finite))

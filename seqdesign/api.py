@@ -51,5 +51,4 @@ __all__ = [
 
 def record(run, path, result=None, sequence=None, truth=None):
     """Write a rerun recording of a run (what ``seqdesign view`` writes); returns its summary."""
-
     return record_run(run, path, review_run(run, result), sequence=sequence, result=result, truth=truth)

@@ -33,7 +33,9 @@ class Trials:
 
     @property
     def nees(self) -> np.ndarray:
-        return np.array([e @ np.linalg.solve(C, e) for e, C in zip(self.errors, self.covariances)])
+        return np.array(
+            [e @ np.linalg.solve(C, e) for e, C in zip(self.errors, self.covariances, strict=True)]
+        )
 
     @property
     def rms_error(self) -> np.ndarray:

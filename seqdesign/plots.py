@@ -51,7 +51,7 @@ def pareto_png(report, gravity_mps2: float, path, rate_dps: float | None) -> Non
         color="#1f77b4",
         label=f"designs ({report.profile.name})",
     )
-    for r, x in zip(rows, t):
+    for r, x in zip(rows, t, strict=True):
         ax.annotate(
             f"{r.result.worst_ratio:.2f}",
             (x, r.result.worst_ratio),

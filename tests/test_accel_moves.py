@@ -44,7 +44,7 @@ def test_profile_turns_the_angle_within_its_limits(prof, A_deg):
         i = min(int(np.searchsorted(ends, t)), len(ends) - 1)
         return float(pc.rate(i, t - (ends[i] - pc.duration[i])))
 
-    turned = sum(quad(rate, a, b)[0] for a, b in zip(ends - pc.duration, ends))
+    turned = sum(quad(rate, a, b)[0] for a, b in zip(ends - pc.duration, ends, strict=True))
     assert turned == pytest.approx(A, rel=1e-12)
     assert rate(0.0) == 0.0 and abs(rate(ends[-1])) < 1e-12 * prof.rate
     assert pc.peak_rate <= prof.rate * (1 + 1e-12)
@@ -98,7 +98,7 @@ def test_simulated_increments_match_quadrature(jerk):
     for j in (36001, 36050, 36300, 36399, 36401, 37000):  # 180 s + 0.005 ... in the first move
         a, b = t[j - 1], t[j]
 
-        def integral(fn, c):
+        def integral(fn, c, a=a, b=b):
             return quad(lambda s: fn(s)[c], a, b, epsabs=1e-17, epsrel=1e-13)[0]
 
         Cf = [integral(lambda s: nominal_attitude(tl, np.array([s]))[0].T @ f, c) for c in range(3)]
@@ -177,7 +177,7 @@ def test_noise_free_recovery_on_accelerating_moves(noise_free_accel_fit):
     err = np.abs(fit.values - truth.values)
     bad = [
         f"{n}: {e / p.si_per_unit:.3g} {p.unit}"
-        for n, e, lim, p in zip(P.NAMES, err, P.REQUIREMENTS_SI / 20.0, P.PARAMETERS)
+        for n, e, lim, p in zip(P.NAMES, err, P.REQUIREMENTS_SI / 20.0, P.PARAMETERS, strict=True)
         if e > lim
     ]
     assert not bad, bad

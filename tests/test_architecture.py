@@ -114,4 +114,4 @@ def test_the_package_is_the_library():
     assert set(analysis.to_json()["estimable"]) == set(analysis.to_json()["parameters"])
     assert callable(sd.calibrate) and callable(sd.design) and callable(sd.record)
     with pytest.raises(AttributeError):
-        sd.no_such_thing
+        _ = sd.no_such_thing

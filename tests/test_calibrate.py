@@ -47,7 +47,7 @@ def test_noise_free_recovery_within_a_twentieth_of_requirements(noise_free_fit):
     limit = P.REQUIREMENTS_SI / 20.0
     bad = [
         f"{n}: {e / p.si_per_unit:.3g} {p.unit}"
-        for n, e, lim, p in zip(P.NAMES, err, limit, P.PARAMETERS)
+        for n, e, lim, p in zip(P.NAMES, err, limit, P.PARAMETERS, strict=True)
         if e > lim
     ]
     assert not bad, bad
@@ -96,11 +96,13 @@ def test_monte_carlo_statistical_honesty(name):
     assert trials.converged.all()
     assert 18.1 <= trials.nees.mean() <= 24.2, trials.nees.mean()
     ratio = trials.rms_error / trials.mean_sigma
-    assert np.all((ratio >= 0.67) & (ratio <= 1.36)), dict(zip(P.NAMES, np.round(ratio, 2)))
+    assert np.all((ratio >= 0.67) & (ratio <= 1.36)), dict(zip(P.NAMES, np.round(ratio, 2), strict=True))
     # The analyser's prediction (nominal mounting) must describe the same trials.
     pred = analyze(paper, prof, LAT)
     ratio_pred = trials.rms_error / pred.sigma
-    assert np.all((ratio_pred >= 0.67) & (ratio_pred <= 1.36)), dict(zip(P.NAMES, np.round(ratio_pred, 2)))
+    assert np.all((ratio_pred >= 0.67) & (ratio_pred <= 1.36)), dict(
+        zip(P.NAMES, np.round(ratio_pred, 2), strict=True)
+    )
     assert 18.1 <= trials.nees_against(pred.covariance).mean() <= 24.2
 
 

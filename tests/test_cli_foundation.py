@@ -46,7 +46,7 @@ def test_show_json_matches_table1(runner):
     doc = json.loads(res.stdout)  # stdout holds exactly one JSON document
     pos = doc["positions"]
     assert len(pos) == N_POS
-    for p, row, gim in zip(pos, table1_positions(), table1_gimbal()):
+    for p, row, gim in zip(pos, table1_positions(), table1_gimbal(), strict=True):
         assert (p["x"], p["y"], p["z"]) == (row["pre_x"], row["pre_y"], row["pre_z"])
         for key in ("outer_deg", "middle_deg", "inner_deg"):
             # integral table values; the code rounds to 1e-9 deg -> 1e-6 deg.

@@ -97,7 +97,7 @@ def test_parameter_names_and_order():
 def test_parameter_units_requirements_and_paper_names():
     assert [p.unit for p in P.PARAMETERS] == UNITS
     assert [p.requirement for p in P.PARAMETERS] == REQUIREMENTS
-    for p, paper in zip(P.PARAMETERS, PAPER_NAMES):
+    for p, paper in zip(P.PARAMETERS, PAPER_NAMES, strict=True):
         if paper is not None:
             assert p.paper_name == paper
 

@@ -82,7 +82,7 @@ def test_dask_local_cluster_gives_the_serial_result():
         distributed.Client(cluster) as client,
     ):
         remote = map_jobs(search_at_dwell, jobs, scheduler=client)
-    for a, b in zip(serial, remote):
+    for a, b in zip(serial, remote, strict=True):
         assert a.dwell_s == b.dwell_s and a.evaluated == b.evaluated
         assert a.walks == b.walks
         assert a.scores == b.scores  # bit-identical scores
@@ -397,7 +397,10 @@ def test_pruned_rescoring_finds_the_brute_force_best(batch):
         bounds = np.round(rng.uniform(1.0, 2.0, n), 2)  # rounded: ties happen
         scores = bounds + np.round(rng.exponential(0.2, n), 2)
         entries = sorted(
-            (Entry(float(b), f"walk{i}", float(s)) for i, (b, s) in enumerate(zip(bounds, scores))),
+            (
+                Entry(float(b), f"walk{i}", float(s))
+                for i, (b, s) in enumerate(zip(bounds, scores, strict=True))
+            ),
             key=lambda f: (f.ratio, f.label, f.score),
         )
         best, scored = pruned(entries, lambda fs: [Score(f.score) for f in fs], batch)
@@ -440,7 +443,7 @@ def test_batched_walk_information_equals_one_walk_at_a_time():
     g = earth.gravity(LAT)
     D = np.array([[10.0, 12.0, 15.0, 11.0], [30.0, 10.0, 10.0, 25.0], [10.0] * 4])
     batched = walk_informations_exact(walk, c, D, LAT, g, prof)
-    for d, N in zip(D, batched):
+    for d, N in zip(D, batched, strict=True):
         single = _walk_information_exact(walk, c, list(d), LAT, g, prof)
         assert np.allclose(N, single, rtol=1e-12, atol=1e-12 * np.abs(single).max())
 
@@ -502,6 +505,6 @@ def test_refined_dwells_in_ms_never_overrun_the_budget():
     out = dwells_in_ms(exact, available)
     assert sum(out) <= available
     assert all(round(d * 1000) == d * 1000 for d in out)  # whole milliseconds
-    assert max(abs(a - b) for a, b in zip(out[:56], exact[:56])) <= 0.0005
+    assert max(abs(a - b) for a, b in zip(out[:56], exact[:56], strict=True)) <= 0.0005
     assert exact[56] - 0.03 < out[56] < exact[56] - 0.02  # the ~22 ms overrun, taken off
     assert dwells_in_ms([10.0, 20.0], 30.0) == [10.0, 20.0]  # nothing to take off

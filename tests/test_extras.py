@@ -60,7 +60,7 @@ def test_k2_adds_k2_g_squared_on_the_vertical_axis_at_rest():
     # First rest: Y up (f_y = g), X and Z level (f = 0). k2 in ug/g^2 -> k2 * 1e-6 * g^2 / g0.
     k2 = np.array([100.0, 200.0, 300.0])
     base, _ = _run()
-    run, _ = _run(ExtraValues.from_units(dict(zip(["k2x", "k2y", "k2z"], k2))))
+    run, _ = _run(ExtraValues.from_units(dict(zip(["k2x", "k2y", "k2z"], k2, strict=True))))
     g = earth.gravity(LAT)
     rest = slice(10, int(170 * CFG.sample_rate_hz))
     dt = 1.0 / CFG.sample_rate_hz

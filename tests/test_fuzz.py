@@ -465,7 +465,7 @@ def _encodings(base: bytes) -> dict[str, bytes]:
 
 @pytest.mark.parametrize("kind", [k for k in READERS if k != "npz"])
 def test_encodings_and_degenerate_files(kind, bases, work):
-    for name, data in _encodings(bases[kind]).items():
+    for _name, data in _encodings(bases[kind]).items():
         fuzz_case(kind, work, data)
 
 
@@ -1289,7 +1289,7 @@ def test_npz_member_headers(data, bases, work):
 
 
 def test_npz_damaged_archives(bases, work):
-    for name, data in _fixed_npz_cases(bases["npz"]).items():
+    for _name, data in _fixed_npz_cases(bases["npz"]).items():
         fuzz_case("npz", work, data)
 
 
@@ -1350,7 +1350,7 @@ def test_any_angle_loads_and_expands(angles, axes, work):
         "initial_dwell_s": 10.0,
         "step": [
             {"axis": ax, "angle_deg": float(a), "rate_dps": 100.0, "dwell_s": 1.0}
-            for a, ax in zip(angles, axes)
+            for a, ax in zip(angles, axes, strict=True)
         ],
     }
     path = case_file(work, ".toml", tomli_w.dumps(doc).encode())

@@ -196,7 +196,10 @@ def _exact_model(T, C, prof):
             A[6 + 3 * i : 9 + 3 * i, 6 + 3 * i : 9 + 3 * i] = -np.eye(3) / tau if s else 0.0
             qc += [2 * s**2 / tau if s else 0.0] * 3
     x, wts = np.polynomial.legendre.leggauss(24)
-    Q = sum(0.5 * T * wi * (E := expm(A * 0.5 * T * (xi + 1))) @ np.diag(qc) @ E.T for xi, wi in zip(x, wts))
+    Q = sum(
+        0.5 * T * wi * (E := expm(A * 0.5 * T * (xi + 1))) @ np.diag(qc) @ E.T
+        for xi, wi in zip(x, wts, strict=True)
+    )
     return expm(A * T), 0.5 * (Q + Q.T)
 
 
@@ -225,7 +228,7 @@ def test_whitener_is_the_exact_gls_weight(prof):
     K = 40
     T = rng.choice([1.0, 0.1, 0.37], size=K)
     C = _random_rotations(rng, K)
-    models = [_exact_model(t, c, prof) for t, c in zip(T, C)]
+    models = [_exact_model(t, c, prof) for t, c in zip(T, C, strict=True)]
     n = models[0][0].shape[0]
     P0 = _P0(prof)
     P0[:3, :3] = (2e-7) ** 2 * np.eye(3)  # and a non-zero start for phi, given to the module

@@ -90,7 +90,7 @@ def test_information_along_many_falls_back_when_grids_differ():
         for name in ("paper-9pos", "paper-9pos-turns")
     ]
     many = information_along_many(noms, GM, LAT, G)
-    for N, nom in zip(many, noms):
+    for N, nom in zip(many, noms, strict=True):
         assert np.array_equal(N, information_along(nom, GM, LAT, G))
 
 

@@ -39,6 +39,7 @@ MEMS_ERRORS = dict(
             -400.0,
             600.0,
         ],
+        strict=True,
     )
 )
 

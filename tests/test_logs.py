@@ -217,7 +217,7 @@ def _exact_simulator_log(run: Run) -> Run:
     dtheta = np.array([float(f"{v:.10g}") for v in run.dtheta_rad.ravel()]).reshape(-1, 3)
     dv = np.array([float(f"{v:.10g}") for v in run.dv_mps.ravel()]).reshape(-1, 3)
     edges = np.flatnonzero(np.diff(np.concatenate([[1], moving.astype(np.int8), [1]])))
-    for a, b in zip(edges[::2], edges[1::2]):
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
         dtheta[a:b] = dtheta[a]
         dv[a:b] = dv[a]
     return _variant(run, dtheta_rad=dtheta, dv_mps=dv)

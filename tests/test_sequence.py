@@ -28,7 +28,7 @@ def test_paper_sequence_steps_match_table1(paper_seq):
     rows = table1_positions()
     assert len(paper_seq.steps) == N_POS - 1
     assert paper_seq.start == (rows[0]["pre_x"], rows[0]["pre_y"], rows[0]["pre_z"])
-    for step, row in zip(paper_seq.steps, rows[:-1]):
+    for step, row in zip(paper_seq.steps, rows[:-1], strict=True):
         assert step.axis == row["axis"]
         assert step.angle_deg == float(row["angle_deg"])
 
@@ -51,7 +51,7 @@ def test_rest_positions_gimbal_angles_match_table(paper_seq):
     pos = rest_positions(paper_seq)
     rows = table1_gimbal()
     assert len(rows) == len(pos)
-    for p, row in zip(pos, rows):
+    for p, row in zip(pos, rows, strict=True):
         want = [float(row["outer_deg"]), float(row["middle_deg"]), float(row["inner_deg"])]
         # Angles are rounded to 1e-9 deg by the code; the table is integral -> 1e-6 deg.
         np.testing.assert_allclose(p.gimbal_deg, want, rtol=0, atol=1e-6, err_msg=f"position {p.number}")
@@ -63,15 +63,15 @@ def test_gimbal_table_obeys_gimbal_rule():
     # and every flip moves exactly the gimbal named in 'moved'.
     C_start = attitude("east", "up", "south")
     prev = None
-    for row, pos in zip(table1_gimbal(), table1_positions()):
+    for row, pos in zip(table1_gimbal(), table1_positions(), strict=True):
         o, m, i = (math.radians(float(row[c])) for c in ("outer_deg", "middle_deg", "inner_deg"))
         C = C_start @ rot_about("Z", o) @ rot_about("X", m) @ rot_about("Y", i)
         np.testing.assert_allclose(C, attitude(pos["pre_x"], pos["pre_y"], pos["pre_z"]), atol=EXACT)
         angles = [float(row[c]) for c in ("outer_deg", "middle_deg", "inner_deg")]
         if prev is not None:
-            moved = [n for n, a, b in zip(("outer", "middle", "inner"), prev, angles) if a != b]
+            moved = [n for n, a, b in zip(("outer", "middle", "inner"), prev, angles, strict=True) if a != b]
             assert moved == [row["moved"]]
-            assert abs(sum(b - a for a, b in zip(prev, angles))) == 90.0
+            assert abs(sum(b - a for a, b in zip(prev, angles, strict=True))) == 90.0
         prev = angles
 
 
@@ -122,7 +122,7 @@ def test_save_load_round_trip(paper_seq, tmp_path):
     assert back.latitude_deg == 40.0 and back.height_m == 0.0
     a = rest_positions(paper_seq)
     b = rest_positions(back)
-    for p, q in zip(a, b):
+    for p, q in zip(a, b, strict=True):
         np.testing.assert_array_equal(p.C_b_n, q.C_b_n)
         np.testing.assert_array_equal(p.gimbal_deg, q.gimbal_deg)
 

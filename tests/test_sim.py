@@ -239,7 +239,7 @@ def test_flip_increments_match_quadrature(clean_sim, paper_seq):
         a, b = run.time_s[i] - DT, run.time_s[i]
         ts = 0.5 * (b - a) * x + 0.5 * (a + b)
         dth, dv = np.zeros(3), np.zeros(3)
-        for t, wgt in zip(ts, wq):
+        for t, wgt in zip(ts, wq, strict=True):
             C = C_pre @ rot_about(s.axis, rate * (t - t_flip))
             dth += 0.5 * (b - a) * wgt * (C.T @ w_n + rate * e)
             dv += 0.5 * (b - a) * wgt * (C.T @ f_n)
@@ -269,7 +269,7 @@ def test_flip_errors_realised_and_recorded(paper_seq):
     ends = np.nonzero(moving & ~np.r_[moving[1:], False])[0]
     assert len(starts) == len(ends) == len(paper_seq.steps)
     C = attitude(*paper_seq.start)
-    for s, err, i0, i1 in zip(paper_seq.steps, e, starts, ends):
+    for s, err, i0, i1 in zip(paper_seq.steps, e, starts, ends, strict=True):
         ax = "XYZ".index(s.axis)
         window = slice(i0 - 5, i1 + 6)
         T = (i1 - i0 + 11) * DT

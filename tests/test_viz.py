@@ -294,12 +294,12 @@ def test_positions_and_flips_as_text(recorded):
     # Long events are wrapped into continuation rows (indented, at the same time): one
     # first row per rest and per flip.
     first = [not x.startswith("  ") for x in rows]
-    t, text = times_of(b)[first], [x for x, f in zip(rows, first) if f]
+    t, text = times_of(b)[first], [x for x, f in zip(rows, first, strict=True) if f]
     assert len(text) == 2 * N_POS - 1
     k = text.index(next(x for x in text if x.startswith("position 3:")))
     assert t[k] == pytest.approx(rest_window(3)[0], abs=1e-9)
     assert "X north, Y west, Z up" in text[k]
-    flips = [(ti, x) for ti, x in zip(t, text) if x.startswith("flip")]
+    flips = [(ti, x) for ti, x in zip(t, text, strict=True) if x.startswith("flip")]
     assert [ti for ti, _ in flips] == pytest.approx([rest_window(i)[1] for i in range(1, N_POS)])
     assert "about body Y by +90 deg" in flips[1][1]
     # The position marker series steps through 1..9 and is 0 while turning.
@@ -327,7 +327,7 @@ def test_no_wall_clock_timeline(recorded):
     """Only the explicit 'time' timeline: nothing logged per sample with log()."""
     _, _, rec = recorded
     indexes = set()
-    for entity, batches in rec.items():
+    for _entity, batches in rec.items():
         for b in batches:
             for f in b.schema:
                 if (f.metadata or {}).get(b"rerun:kind") == b"index":
@@ -859,7 +859,7 @@ def test_analysis_recording_shows_what_analyze_prints(tmp_path):
         rtol=1e-12,
     )
     table = text_of(rec, "analysis/table")
-    for k, (name, e) in enumerate(zip(SPEC_NAMES, entries)):
+    for k, (name, e) in enumerate(zip(SPEC_NAMES, entries, strict=True)):
         row = next(x for x in table.splitlines() if x.startswith(f"| {k} | {name} |"))
         assert f"| {e['sigma']:.3g} | {e['requirement']:g} | {e['ratio']:.2f}" in row
     assert f"worst 3 sigma / requirement: {doc['worst']['ratio']:.2f} ({doc['worst']['name']})" in table

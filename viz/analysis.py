@@ -156,7 +156,7 @@ def analysis_table(fig: AnalysisFigures) -> str:
 def nominal_scene_times(tl) -> np.ndarray:
     """Nominal time line: SCENE_RATE_HZ, plus every SCENE_STEP_DEG during flips."""
     times = [np.arange(0.0, tl.duration_s, 1.0 / SCENE_RATE_HZ), [tl.duration_s]]
-    for a, b, rate in zip(tl.t0, tl.t1, tl.rate):
+    for a, b, rate in zip(tl.t0, tl.t1, tl.rate, strict=True):
         if rate != 0.0:
             m = int(math.ceil(abs(math.degrees(rate)) * (b - a) / SCENE_STEP_DEG))
             times.append(np.linspace(a, b, m + 1))

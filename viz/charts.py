@@ -138,6 +138,9 @@ def labelled_matrix(w: Writer, entity: str, corr: np.ndarray) -> None:
             np.c_[j.ravel() + 0.5, i.ravel() + 0.5],
             radii=0.01,
             show_labels=False,
-            labels=[f"{names[a]} / {names[b]}: {corr[a, b]:+.3f}" for a, b in zip(i.ravel(), j.ravel())],
+            labels=[
+                f"{names[a]} / {names[b]}: {corr[a, b]:+.3f}"
+                for a, b in zip(i.ravel(), j.ravel(), strict=True)
+            ],
         ),
     )

@@ -120,7 +120,7 @@ def motion_events(
         if (len(starts) == 0 or starts[0] > 0)
         else []
     )
-    for k, (a, b) in enumerate(zip(starts, ends)):
+    for k, (a, b) in enumerate(zip(starts, ends, strict=True)):
         rv = dtheta[a:b].sum(axis=0)
         ax = int(np.argmax(np.abs(rv)))
         events.append(

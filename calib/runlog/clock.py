@@ -229,7 +229,7 @@ def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarr
 
 def _runs_of(dup: np.ndarray, time_s: np.ndarray) -> list:
     """(time of the repeated sample, number of extra copies) for each run of duplicates."""
-    return [(float(time_s[a - 1]), int(b - a)) for a, b in zip(*runs_of(dup))]
+    return [(float(time_s[a - 1]), int(b - a)) for a, b in zip(*runs_of(dup), strict=True)]
 
 
 def uniform_time(clock: SampleClock, time_s: np.ndarray) -> np.ndarray:

@@ -257,7 +257,7 @@ def _data_rows(lines: list[str], first: int) -> tuple[list[str], np.ndarray]:
     keep = np.ones(len(body), dtype=bool)
     keep[blank] = False
     numbers = np.flatnonzero(keep) + first + 1
-    return [line for line, k in zip(body, keep.tolist()) if k], numbers
+    return [line for line, k in zip(body, keep.tolist(), strict=True) if k], numbers
 
 
 def _check_field_counts(rows: list[str], row_lines: np.ndarray, n_fields: int, name: str) -> None:
@@ -391,7 +391,7 @@ def _csv_rows(columns) -> str:
     # repr() is the shortest text that reads back to the same float, and
     # mapping it column by column is as fast as np.savetxt('%.17g').
     text_columns = [list(map(repr, column)) for column in table.T.tolist()]
-    return "\n".join(map(",".join, zip(*text_columns))) + "\n"
+    return "\n".join(map(",".join, zip(*text_columns, strict=True))) + "\n"
 
 
 def check_meta_writable_as_csv(meta: dict[str, str], name: str) -> None:

@@ -272,7 +272,7 @@ def write_npz(handle, meta: dict[str, str], windows, gimbal: bool = False) -> in
     n = 0
     try:
         for window in windows:
-            for spool, column in zip(scratch, window):
+            for spool, column in zip(scratch, window, strict=True):
                 spool.write(np.ascontiguousarray(column, dtype="<f8").tobytes())
             n += len(window[0])
         for spool in scratch:
@@ -291,7 +291,7 @@ def _write_members(handle, meta: dict[str, str], n: int, names, blocks) -> None:
     version 1.0 headers.
     """
     with zipfile.ZipFile(handle, "w", zipfile.ZIP_STORED, allowZip64=True) as archive:
-        for name, column in zip(names, blocks):
+        for name, column in zip(names, blocks, strict=True):
             shape = (n,) if name == "time_s" else (n, 3)
             with archive.open(f"{name}.npy", "w", force_zip64=True) as member:
                 np.lib.format.write_array_header_1_0(

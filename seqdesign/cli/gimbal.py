@@ -83,7 +83,7 @@ def schedule_csv(seq, plan, times: np.ndarray, header: dict) -> str:
         )
     lines.append(COLUMNS)
     A, W = np.degrees(angles) + 0.0, np.degrees(rates) + 0.0
-    for t, a, w in zip(times, A, W):
+    for t, a, w in zip(times, A, W, strict=True):
         lines.append(f"{t:.6f},{a[0]:.10f},{a[1]:.10f},{a[2]:.10f},{w[0]:.9f},{w[1]:.9f},{w[2]:.9f}")
     return "\n".join(lines) + "\n"
 

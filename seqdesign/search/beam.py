@@ -236,7 +236,7 @@ class SearchModel:
             N = N + np.swapaxes(X, 1, 2) @ M1 @ X + XM2 + np.swapaxes(XM2, 1, 2) + M3
             X = A @ X + B
         s = score(N, objective, prior, self.requirements)
-        for k, x, n, v in zip(kids, X, N, s):
+        for k, x, n, v in zip(kids, X, N, s, strict=True):
             k.X, k.N, k.score = x, n, float(v)
         return kids
 
@@ -251,7 +251,7 @@ class SearchModel:
         P = np.stack([k.P for k in kids])
         stacks = self._stacks()
         by_move: dict = {}
-        for i, (node, mv) in enumerate(keys):
+        for i, (_node, mv) in enumerate(keys):
             by_move.setdefault(mv, []).append(i)
         for mv, idx in by_move.items():
             nodes = np.array([stacks["index"][keys[i][0]] for i in idx])
@@ -259,7 +259,7 @@ class SearchModel:
         nodes = np.array([stacks["index"][k.node] for k in kids])
         X, N, P = fold(stacks["rest"], X, N, P, nodes)
         s = score(N, objective, prior, self.requirements)
-        for k, x, n, p, v in zip(kids, X, N, P, s):
+        for k, x, n, p, v in zip(kids, X, N, P, s, strict=True):
             k.X, k.N, k.P, k.score = x, n, p, float(v)
         return kids
 

@@ -60,7 +60,7 @@ def to_sequence(
     """A sequence file's content for a walk and its dwells (initial first), with its site."""
     steps = tuple(
         Step(mv.axis, mv.angle_deg, c.rate_dps, float(d), c.accel_dps2, c.jerk_dps3)
-        for mv, d in zip(walk, dwells[1:])
+        for mv, d in zip(walk, dwells[1:], strict=True)
     )
     return Sequence(
         name=name,

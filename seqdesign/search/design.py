@@ -116,7 +116,7 @@ def _search(base: BeamJob, workers, scheduler, progress):
         progress(f"searched {evaluated} candidates", len(jobs))
     narrow = None
     if len(_beam_widths(beam_width)) > 1:
-        narrow = [r for r, j in zip(results, jobs) if j.beam_width == NARROW_BEAM]
+        narrow = [r for r, j in zip(results, jobs, strict=True) if j.beam_width == NARROW_BEAM]
     return results, evaluated, narrow
 
 

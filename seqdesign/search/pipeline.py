@@ -169,7 +169,7 @@ class ExactScores:
 
     def __call__(self, jobs: list[ExactJob]) -> list[ExactScore]:
         todo = list(dict.fromkeys(j for j in jobs if j not in self.memo))
-        for job, out in zip(todo, map_jobs(self.scorer, todo, self.workers, self.scheduler)):
+        for job, out in zip(todo, map_jobs(self.scorer, todo, self.workers, self.scheduler), strict=True):
             # without the search inside the box only the figure and the sequence are used
             self.memo[job] = out if job.search else replace(out, robustness=None, extras_cost=None)
         return [self.memo[j] for j in jobs]
@@ -225,7 +225,7 @@ def screen(candidates: list[Proposal], exact: ExactScores, progress) -> list[Fin
         )
     jobs = [ExactJob(p.walk, (p.dwell_s,) * (len(p.walk) + 1), False, 0.0) for p in candidates]
     screened = []
-    for p, out in zip(candidates, exact(jobs)):
+    for p, out in zip(candidates, exact(jobs), strict=True):
         label = " ".join(m.label() for m in p.walk)
         screened.append(Finalist(out.ratio, label, (p.dwell_s,) * (len(p.walk) + 1), p.walk, p.repeats))
         if progress:
@@ -256,7 +256,7 @@ def pruned(order, score, batch: int):
         k += batch
         if not todo:
             break  # sorted by bound: nothing later can win either
-        for f, out in zip(todo, score(todo)):
+        for f, out in zip(todo, score(todo), strict=True):
             scored.append(Rescored(out, f))
             if best is None or (out.ratio, f.label) < (best.exact.ratio, best.finalist.label):
                 best = Rescored(out, f)

@@ -56,7 +56,7 @@ def walk_information(
         initial=True,
     )
     X, N = e.B, e.M3
-    for mv, d in zip(walk, dwells[1:]):
+    for mv, d in zip(walk, dwells[1:], strict=True):
         parts = [
             turn_effect(
                 node,

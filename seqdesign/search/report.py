@@ -182,7 +182,7 @@ def extras_doc(r: DesignResult) -> list[dict]:
         return []
     return [
         {"name": p.name, "unit": p.unit, "sigma": float(s / p.si_per_unit), "typical": p.scale, "verdict": v}
-        for p, s, v in zip(cost.extras.parameters, cost.extra_sigma, cost.verdicts())
+        for p, s, v in zip(cost.extras.parameters, cost.extra_sigma, cost.verdicts(), strict=True)
     ]
 
 
