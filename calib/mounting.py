@@ -318,7 +318,7 @@ def sequence_model(
 ) -> SequenceModel:
     """Build (and cache) the mounting-independent model of a sequence."""
     gram = 0.0
-    for Hw, _keep in _whitened_chunks(seq, profile, latitude_rad, height_m):
+    for Hw, keep in _whitened_chunks(seq, profile, latitude_rad, height_m):  # noqa: B007  keep: the same columns in every chunk, used below
         gram = gram + Hw.T @ Hw
     g = earth.gravity(latitude_rad, height_m)
     return SequenceModel(
