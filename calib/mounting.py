@@ -318,7 +318,8 @@ def sequence_model(
 ) -> SequenceModel:
     """Build (and cache) the mounting-independent model of a sequence."""
     gram = 0.0
-    for Hw, keep in _whitened_chunks(seq, profile, latitude_rad, height_m):  # noqa: B007  keep: the same columns in every chunk, used below
+    # every chunk keeps the same columns: the last chunk's `keep` is used below
+    for Hw, keep in _whitened_chunks(seq, profile, latitude_rad, height_m):  # noqa: B007
         gram = gram + Hw.T @ Hw
     g = earth.gravity(latitude_rad, height_m)
     return SequenceModel(
