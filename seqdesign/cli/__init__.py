@@ -17,7 +17,7 @@ from seqdesign import blas  # noqa: F401  first: one BLAS thread before numpy lo
 # isort: split
 import click
 
-from . import analyze, calibrate, design, gimbal, profile, show, simulate, stream, view
+from . import analyze, calibrate, design, gimbal, profile, show, simulate, view
 from .tools import emit_json, tool_version
 
 
@@ -55,7 +55,7 @@ for _command in (
     gimbal.export,
     profile.profile,
     view.view,
-    stream.simulate_stream,
+    simulate.simulate_stream,
     calibrate.calibrate_stream,
 ):
     main.add_command(_command)

@@ -3,20 +3,120 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 import numpy as np
 
+from calib.errormodel import ErrorModel
 from calib.errors import CalibError
+from calib.profiles import NoiseProfile, load_profile
+from calib.runlog import write_run
+from calib.sequence import Sequence, load_sequence
+from calib.sim import SimConfig
+from calib.sim import simulate as run_simulation
+from calib.simstream import simulate_to_file
+from calib.truth import read_errors, truth_path_for, write_truth
+from seqdesign.analysis import resolve_site
 
 from . import options
-from .tools import emit_json, guarded, provenance
+from .tools import emit_json, guarded, info, provenance
+
+if TYPE_CHECKING:  # the machinery loads when a command runs, not for --help
+    from calib.errormodel import ErrorModel
+    from calib.profiles import NoiseProfile
+    from calib.sequence import Sequence
 
 
-def _run_suffix(path: str, option: str) -> None:
-    if Path(path).suffix.lower() not in (".csv", ".npz"):
-        raise CalibError(f"unknown run format {Path(path).suffix!r}", option, "name the file .csv or .npz")
+@dataclass(frozen=True)
+class _Setup:
+    """What both ways of simulating read and check the same way: sequence, profile, errors."""
+
+    sequence_arg: str
+    seq: Sequence
+    profile_arg: str
+    profile: NoiseProfile
+    errors_file: str | None
+    errors: ErrorModel
+
+    @classmethod
+    def read(cls, sequence, output, profile, errors_file, table2, setup_deg, random_setup) -> _Setup:
+        if Path(output).suffix.lower() not in (".csv", ".npz"):
+            raise CalibError(
+                f"unknown run format {Path(output).suffix!r}", "-o/--output", "name the file .csv or .npz"
+            )
+        if errors_file and table2:
+            raise CalibError("--errors and --table2 both given", None, "choose one")
+        if setup_deg and random_setup:
+            raise CalibError("--setup-deg and --random-setup both given", None, "choose one")
+        if setup_deg and any(abs(a) > 10 or not math.isfinite(a) for a in setup_deg):
+            raise CalibError(
+                f"--setup-deg {setup_deg} beyond 10 deg",
+                "--setup-deg",
+                "the mounting tolerance of the conventions is +-3 deg",
+            )
+        from calib.errormodel import ErrorModel
+
+        seq = load_sequence(sequence)
+        prof = load_profile(profile)
+        errors = (
+            read_errors(errors_file)
+            if errors_file
+            else ErrorModel.from_table2()
+            if table2
+            else ErrorModel.zero()
+        )
+        return cls(sequence, seq, profile, prof, errors_file, errors)
+
+    def provenance(self, **inputs) -> dict:
+        """The truth file's provenance: tool, command, and the inputs' hashes."""
+        files = {
+            "sequence": self.sequence_arg,
+            "errors": self.errors_file,
+            **inputs,
+            "profile": self.profile_arg if Path(self.profile_arg).exists() else None,
+        }
+        return provenance(files, sequence=self.seq.name, profile=self.profile.name)
+
+
+def _run_meta(prov: dict, profile_name: str) -> dict:
+    """What the run log records of how it was made."""
+    keys = ("tool_version", "command", "sequence_sha256")
+    return {k: prov[k] for k in keys} | {"profile": profile_name}
+
+
+def _simulate_streamed(setup: _Setup, cfg, output, setup_deg, seed, noise_free, as_json) -> None:
+    """``simulate --stream``: the run log written window by window (calib.simstream)."""
+    prov = setup.provenance()
+    n, truth = simulate_to_file(
+        output,
+        setup.seq,
+        cfg,
+        setup.errors,
+        setup.profile,
+        np.radians(setup_deg) if setup_deg else (0.0, 0.0, 0.0),
+        noise=not noise_free,
+        seed=seed,
+        meta_extra=_run_meta(prov, setup.profile.name),
+    )
+    truth_path = truth_path_for(output)
+    write_truth(truth_path, truth, prov)
+    rate = cfg.sample_rate_hz
+    summary = {
+        "run": str(output),
+        "truth": str(truth_path),
+        "sequence": setup.seq.name,
+        "samples": n,
+        "duration_s": n / rate,
+        "profile": setup.profile.name,
+        "noise": not noise_free,
+    }
+    if as_json:
+        emit_json(summary)
+        return
+    info(f"wrote {output} ({n} samples, {n / rate:.1f} s, profile {setup.profile.name}) and {truth_path}")
 
 
 @click.command(short_help="Simulate a calibration run of a sequence to a run log + truth file.")
@@ -61,6 +161,12 @@ def _run_suffix(path: str, option: str) -> None:
     "Gimbal description (TOML): refuse moves it cannot play; its limits pace "
     "the lock counter-rotations in the encoder channels."
 )
+@click.option(
+    "--stream",
+    is_flag=True,
+    help="Write the log a time window at a time, so that hours at kHz rates fit in memory "
+    "(white-noise profiles; no --random-setup, --flip-error-deg, --extra or --gimbal).",
+)
 @options.as_json
 @guarded
 def simulate(
@@ -81,47 +187,42 @@ def simulate(
     extra_text,
     as_json,
     gimbal_file=None,
+    stream=False,
 ):
     """Simulate the IMU increments of SEQUENCE on a stationary base with exact
     kinematics, the 21 errors and white noise; write the run log (-o) and its
     truth file beside it (run.truth.toml).
     """
-    from calib.errormodel import ErrorModel
     from calib.extras import parse_values
-    from calib.profiles import load_profile
-    from calib.runlog import write_run
-    from calib.sequence import load_sequence
-    from calib.sim import SimConfig
-    from calib.sim import simulate as run_simulation
-    from calib.truth import read_errors, truth_path_for, write_truth
-    from seqdesign.analysis import resolve_site
-
-    _run_suffix(output, "-o/--output")
-    if errors_file and table2:
-        raise CalibError("--errors and --table2 both given", None, "choose one")
-    if setup_deg and random_setup:
-        raise CalibError("--setup-deg and --random-setup both given", None, "choose one")
-    if setup_deg and any(abs(a) > 10 or not math.isfinite(a) for a in setup_deg):
-        raise CalibError(
-            f"--setup-deg {setup_deg} beyond 10 deg",
-            "--setup-deg",
-            "the mounting tolerance of the conventions is +-3 deg",
-        )
-    extra = parse_values(extra_text)
-    seq = load_sequence(sequence)
     from calib.gimbal import check_playable, plan_sequence
     from calib.gimbalfile import load_gimbal
+    from calib.truth import truth_path_for, write_truth
 
+    if stream:
+        unsupported = {
+            "--random-setup": random_setup,
+            "--flip-error-deg": flip_error_deg,
+            "--extra": extra_text,
+            "--gimbal": gimbal_file,
+        }
+        if given := [name for name, value in unsupported.items() if value]:
+            raise CalibError(
+                f"{', '.join(given)} cannot be written a window at a time",
+                "--stream",
+                "simulate in memory (without --stream), or drop " + ", ".join(given),
+            )
+    setup = _Setup.read(sequence, output, profile, errors_file, table2, setup_deg, random_setup)
+    extra = parse_values(extra_text)
     gimbal = load_gimbal(gimbal_file)
-    check_playable(plan_sequence(seq, gimbal), f"{sequence} on gimbal {gimbal.name!r}")
-    prof = load_profile(profile)
-    errors = (
-        read_errors(errors_file) if errors_file else ErrorModel.from_table2() if table2 else ErrorModel.zero()
-    )
+    check_playable(plan_sequence(setup.seq, gimbal), f"{sequence} on gimbal {gimbal.name!r}")
+    seq, prof, errors = setup.seq, setup.profile, setup.errors
     lat, h = resolve_site(seq, latitude, height)
     cfg = SimConfig(
         latitude_rad=math.radians(lat), height_m=h, sample_rate_hz=sample_rate_hz, gravity_mps2=gravity_mps2
     )
+    if stream:
+        _simulate_streamed(setup, cfg, output, setup_deg, seed, noise_free, as_json)
+        return
     run, truth = run_simulation(
         seq,
         cfg,
@@ -136,24 +237,8 @@ def simulate(
         gimbal=gimbal,
     )
     truth_path = truth_path_for(output)
-    prov = provenance(
-        {
-            "sequence": sequence,
-            "errors": errors_file,
-            "gimbal": gimbal.path,
-            "profile": profile if Path(profile).exists() else None,
-        },
-        sequence=seq.name,
-        profile=prof.name,
-    )
-    run.meta.update(
-        {
-            "tool_version": prov["tool_version"],
-            "command": prov["command"],
-            "sequence_sha256": prov["sequence_sha256"],
-            "profile": prof.name,
-        }
-    )
+    prov = setup.provenance(gimbal=gimbal.path)
+    run.meta.update(_run_meta(prov, prof.name))
     write_run(run, output)
     write_truth(truth_path, truth, prov)
     summary = {
@@ -175,3 +260,17 @@ def simulate(
             f"wrote {output} ({summary['samples']} samples, {summary['duration_s']:.1f} s, "
             f"{'noise-free' if noise_free else 'profile ' + prof.name}) and {truth_path}"
         )
+
+
+def _simulate_streamed_alias(**options_given):
+    """``simulate --stream`` (the callback is guarded already)."""
+    return simulate.callback(**options_given, stream=True)
+
+
+simulate_stream = click.Command(
+    "simulate-stream",
+    callback=_simulate_streamed_alias,
+    params=[p for p in simulate.params if p.name != "stream"],
+    help="Same as `seqdesign simulate --stream`.",
+    hidden=True,
+)
