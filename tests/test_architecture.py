@@ -1,39 +1,154 @@
-"""The library under the CLI (issue 16): layers run one way, and the CLI adds no policy."""
+"""The library under the CLI: the import map holds, and the CLI adds no policy.
+
+calib is the core (it imports no other package of ours), viz draws what calib
+computes, seqdesign holds the search, the report objects and, on top, the CLI.
+"""
 
 from __future__ import annotations
 
 import ast
 import json
+import os
+import subprocess
+import sys
 from pathlib import Path
 
+import networkx as nx
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
 REPO = Path(__file__).resolve().parents[1]
+PACKAGES = ("calib", "seqdesign", "viz", "sequences")
+LIBRARY = ("calib", "seqdesign", "viz")
+# What each package may import of ours (its own modules always).
+ALLOWED = {"calib": set(), "viz": {"calib"}, "seqdesign": {"calib", "viz", "sequences"}, "sequences": set()}
+MAX_LINES = 500
+# The CLI imports its commands' machinery when a command runs, so that `seqdesign --help` and
+# a one-line refusal do not pay for casadi, scipy and rerun; nothing else may hide imports.
+LAZY_ALLOWED = ("seqdesign/cli",)
 
-# calib <- seqdesign, calib <- viz; the CLI (in seqdesign) on top of both.
-FORBIDDEN = {"calib": {"seqdesign", "viz"}, "viz": {"seqdesign"}}
 
-
-def _imports(path: Path) -> set[str]:
-    """Top-level packages a module imports, at module level or inside functions."""
-    out = set()
-    for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.Import):
-            out |= {a.name.split(".")[0] for a in node.names}
-        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            out.add(node.module.split(".")[0])
+def _modules() -> dict[str, Path]:
+    out = {}
+    for package in PACKAGES:
+        for path in (REPO / package).rglob("*.py"):
+            parts = path.relative_to(REPO).with_suffix("").parts
+            name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+            out[name] = path
     return out
 
 
-@pytest.mark.parametrize("package", sorted(FORBIDDEN))
-def test_layers_run_one_way(package):
-    offenders = {
-        str(p.relative_to(REPO)): sorted(_imports(p) & FORBIDDEN[package])
-        for p in (REPO / package).rglob("*.py")
+MODULES = _modules()
+
+
+def _resolve(name: str) -> str | None:
+    """The module of ours that an import name lands in (a package's __init__ or a module)."""
+    while name and name not in MODULES:
+        name = name.rpartition(".")[0]
+    return name or None
+
+
+def _imports(module: str, path: Path, lazy: bool | None = None) -> set[str]:
+    """Modules of ours that ``module`` imports (lazy=True: only inside functions; None: all)."""
+    tree = ast.parse(path.read_text())
+    inside = {
+        id(n)
+        for f in ast.walk(tree)
+        if isinstance(f, ast.FunctionDef | ast.AsyncFunctionDef)
+        for n in ast.walk(f)
+        if isinstance(n, ast.Import | ast.ImportFrom)
     }
-    assert {k: v for k, v in offenders.items() if v} == {}
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    out = set()
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.Import | ast.ImportFrom):
+            continue
+        if lazy is not None and (id(node) in inside) != lazy:
+            continue
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        else:
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")
+                anchor = anchor[: len(anchor) - node.level + 1]
+                base = ".".join([*anchor, base] if base else anchor)
+            # `from pkg import sub` imports the submodule where there is one
+            names = [f"{base}.{a.name}" if f"{base}.{a.name}" in MODULES else base for a in node.names]
+        out |= {r for r in map(_resolve, names) if r and r != module}
+    return out
+
+
+def _graph() -> nx.DiGraph:
+    g = nx.DiGraph()
+    for module, path in MODULES.items():
+        g.add_node(module)
+        g.add_edges_from((module, target) for target in _imports(module, path))
+    return g
+
+
+def test_layers_run_one_way():
+    bad = sorted(
+        (a, b)
+        for a, b in _graph().edges
+        if b.split(".")[0] != a.split(".")[0] and b.split(".")[0] not in ALLOWED[a.split(".")[0]]
+    )
+    assert bad == []
+
+
+def test_no_import_cycles():
+    # A package's __init__ re-exporting its modules is not a cycle unless a module imports the
+    # package back (then the order of imports decides whether a name exists yet).
+    cycles = list(nx.simple_cycles(_graph()))
+    assert cycles == []
+
+
+@pytest.mark.parametrize("package", LIBRARY)
+def test_no_module_over_500_lines(package):
+    long = {
+        str(p.relative_to(REPO)): n
+        for p in (REPO / package).rglob("*.py")
+        if (n := len(p.read_text().splitlines())) > MAX_LINES
+    }
+    assert long == {}
+
+
+def test_no_hidden_first_party_imports():
+    hidden = {
+        m: sorted(targets)
+        for m, p in MODULES.items()
+        if not str(p.relative_to(REPO)).startswith(LAZY_ALLOWED) and (targets := _imports(m, p, lazy=True))
+    }
+    assert hidden == {}
+
+
+def test_importing_the_library_leaves_the_process_alone():
+    """``import calib, seqdesign, viz`` sets no environment variable (BLAS threads are the CLI's choice)."""
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+    }
+    code = (
+        "import os; before = dict(os.environ); import calib, seqdesign, viz, seqdesign.api; "
+        "print(sorted(set(os.environ.items()) ^ set(before.items())))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=REPO, check=True
+    )
+    assert out.stdout.strip() == "[]"
+
+
+def test_one_quaternion_product():
+    """One quaternion convention: the product is defined once in the library."""
+    defs = [
+        str(p.relative_to(REPO))
+        for p in MODULES.values()
+        for n in ast.walk(ast.parse(p.read_text()))
+        if isinstance(n, ast.FunctionDef) and n.name in ("quat_mult", "quat_product")
+    ]
+    assert len(defs) == 1, defs
 
 
 @pytest.fixture(scope="module")

@@ -334,7 +334,7 @@ def csv_chunks(path, rows: int):
             raise CalibError(
                 f"header lacks column(s) {', '.join(missing)}",
                 where,
-                f"name the columns as spec/files.md ({FORMAT}) does",
+                f"name the columns as docs/formats.md ({FORMAT}) does",
             )
         use = [header.index(c) for c in REQUIRED_COLUMNS]
         done = 0

@@ -2,7 +2,7 @@
 
 One definition of each, for the readers and writers of :mod:`calib.runlog`
 and everything that writes a run (the simulators). The formats are specified
-in ``spec/files.md`` ("Run log, CSV" and "Run log, NPZ").
+in docs/formats.md ("Run log, CSV" and "Run log, NPZ").
 """
 
 from __future__ import annotations
