@@ -54,7 +54,8 @@ def flip_graph(start: Node, axes: str = AXES) -> nx.MultiDiGraph:
     one edge per (axis, sign).
     """
     g = nx.MultiDiGraph()
-    todo = [tuple(start)]
+    x, y, z = start
+    todo: list[Node] = [(x, y, z)]
     g.add_node(todo[0])
     while todo:
         node = todo.pop()
@@ -95,8 +96,9 @@ def parse_node(text: str, where: str = "--start") -> Node:
         raise CalibError(
             f"{text!r} is not three directions", where, 'write where X, Y, Z point, e.g. "east,up,south"'
         )
-    attitude_from_directions(*parts, where=where)
-    return tuple(parts)
+    x, y, z = parts
+    attitude_from_directions(x, y, z, where=where)
+    return x, y, z
 
 
 def moves(axes: str = AXES, max_quarters: int = 1) -> list[Move]:
