@@ -266,6 +266,7 @@ def _fit_gm(curve: AllanCurve, start: int, white: float, quantisation: float) ->
         fit = least_squares(residual, x0, bounds=bounds, loss="soft_l1", f_scale=2.0)
         if best is None or fit.cost < best.cost:
             best = fit
+    assert best is not None  # six starts
     fit = best
     sigma, correlation, k = np.exp(fit.x)
     # A K whose ramp stays below a tenth of the curve everywhere is not in the data.

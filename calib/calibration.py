@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -153,7 +154,7 @@ def calibrate(
     req = load_requirements(requirements)
     model = dict(extras=extras, partial=partial, requirements=req, sequence=sequence)
     if isinstance(source, (str, os.PathLike)):
-        reading = dict(allow_gaps=allow_gaps, latitude_deg=latitude_deg, height_m=height_m)
+        reading: dict[str, Any] = dict(allow_gaps=allow_gaps, latitude_deg=latitude_deg, height_m=height_m)
         if reads_in_chunks(source, stream, **reading):
             site = site_of(run_header(source), gravity_mps2)
             fit, where = calibrate_file(source, site, prof, **model), str(source)

@@ -40,6 +40,7 @@ def encoder_track(plan: GimbalPlan, seq, time_s: np.ndarray) -> tuple[np.ndarray
     state, t0 = np.zeros(3), seq.initial_dwell_s
     for _k, (s, mv) in enumerate(zip(seq.steps, plan.moves, strict=True)):
         if mv.unlock_s > 0:
+            assert mv.unlock_profile is not None  # plan_move sets it with any unlock time
             u = float(np.max(np.abs(mv.unlock)))
             _fill(
                 angles,
@@ -80,6 +81,7 @@ def _fill(
         angles[after] = state + np.outer(th, direction)
         rates[after] = np.outer(np.where(t[after] <= t_b, w, 0.0), direction)
         return state + direction * abs(float(pieces.theta0[-1]) + _last_sweep(pieces))
+    assert combined.path is not None and combined.path_theta is not None  # a combined move's path
     p, theta = combined.path - combined.path[0] + state, combined.path_theta
     slope = np.gradient(p, theta, axis=0)
     for g in range(3):

@@ -34,6 +34,7 @@ from .gyrocompass import rests_in_memory
 from .information import UNKNOWN_NAMES
 from .jacobian import (
     PHI0,
+    ObservationGrid,
     default_grid,
     observation_jacobian,
     observation_matrix,
@@ -104,7 +105,7 @@ class _Problem:
     gravity_mps2: float
     profile: NoiseProfile
     extras: Extras
-    grid: object
+    grid: ObservationGrid
     where: str
 
     @property
@@ -283,7 +284,8 @@ def _fit_renavigating(
     omega_ie_n = earth.omega_ie_n(latitude_rad)
     # Until the first navigation, the Earth's turn as seen at the start attitude.
     turn = X.earth_turn(np.broadcast_to(C0, (len(dt), 3, 3)), omega_ie_n, dt)
-    noise, sol, history, converged, feedback = None, None, [], False, None
+    history: list[dict] = []
+    noise, sol, converged, feedback = None, None, False, None
     schedule = FeedbackSchedule.for_run(profile, float(T.sum()), gravity_mps2)
     for it in range(1, schedule.limit(max_iterations) + 1):
         dth, dvv, nav = pb.compensate_and_navigate(values, extra_values, C0, turn, feedback)
@@ -351,7 +353,8 @@ def fit_intervals(
     A, names = state_matrix(site.latitude_rad, site.gravity_mps2), UNKNOWN_NAMES + extras.names
     values = np.zeros(P.N_PARAMS) if start is None else start.copy()
     extra_values = np.zeros(extras.n)
-    noise, sol, history, turn, feedback, schedule = None, None, [], None, None, None
+    history: list[dict] = []
+    noise, sol, turn, feedback, schedule = None, None, None, None, None
     it, limit = 0, max_iterations or MAX_ITERATIONS
     while it < limit:
         it += 1

@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -233,7 +234,11 @@ class ExtraValues:
     time_offset_s: float = 0.0
 
     def replace(self, **kw) -> ExtraValues:
-        d = {"lever_arm_m": self.lever_arm_m, "k2": self.k2, "time_offset_s": self.time_offset_s}
+        d: dict[str, Any] = {
+            "lever_arm_m": self.lever_arm_m,
+            "k2": self.k2,
+            "time_offset_s": self.time_offset_s,
+        }
         d.update(kw)
         return ExtraValues(
             np.asarray(d["lever_arm_m"], dtype=float).reshape(3, 3),

@@ -14,6 +14,7 @@ import difflib
 import math
 import reprlib
 from collections.abc import Iterable
+from typing import Literal, overload
 
 from .errors import CalibError
 from .fileio import toml_number
@@ -146,6 +147,12 @@ class Fields:
         if choices is not None and raw not in choices:
             raise CalibError(f"'{key}' = {raw!r} is not one of {', '.join(choices)}", self.here(key))
         return raw
+
+    @overload
+    def sub(self, key: str, required: Literal[True]) -> Fields: ...
+
+    @overload
+    def sub(self, key: str, required: bool = False) -> Fields | None: ...
 
     def sub(self, key: str, required: bool = False) -> Fields | None:
         """The sub-table ``[key]`` (None when absent and not required)."""

@@ -12,6 +12,7 @@ import math
 import os
 import tempfile
 from pathlib import Path
+from typing import IO
 
 from calib.errors import CalibError
 
@@ -61,8 +62,9 @@ def atomic_write_file(path: str | os.PathLike, write, text: bool = False):
     """
 
     def produce(tmp_name: str):
-        mode = {"mode": "w", "encoding": "utf-8", "newline": "\n"} if text else {"mode": "wb"}
-        with open(tmp_name, **mode) as handle:
+        handle: IO
+        handle = open(tmp_name, "w", encoding="utf-8", newline="\n") if text else open(tmp_name, "wb")
+        with handle:
             out = write(handle)
             handle.flush()
             os.fsync(handle.fileno())

@@ -8,6 +8,7 @@ tables and keys that only one kind of file has.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from .errors import CalibError
@@ -40,7 +41,7 @@ _FIX = {
 }
 
 
-def kind_of(path: str | Path) -> str:
+def kind_of(path: str | os.PathLike) -> str:
     """``run``, ``psins``, ``result``, ``truth``, ``sequence``, ``requirements``, ``profile``,
     ``gimbal`` or ``unknown``, from the suffix and, for TOML, the top-level keys.
     """
@@ -63,7 +64,7 @@ def kind_of(path: str | Path) -> str:
     return "unknown"
 
 
-def expect(path: str | Path, wanted: str) -> None:
+def expect(path: str | os.PathLike, wanted: str) -> None:
     """Refuse a file that is recognisably of another kind than ``wanted``, naming it."""
     if not Path(path).is_file():
         return

@@ -171,6 +171,7 @@ def plan_move(
             v = _unlock_violations(gimbal, state, cand, u_prof, step)
             if best is None or (not v and best[3]):
                 best = (cand, g2, s2, v)
+        assert best is not None  # _unlock_candidates always offers two
         unlock, g, sign, u_viol = best
         u_s = u_prof.duration_s(float(np.max(np.abs(unlock))))
     else:

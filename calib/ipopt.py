@@ -83,14 +83,16 @@ def options(max_iter: int, tol: float) -> dict:
 
 def maximize_in_box(
     f: Function, starts: list, bound: float, max_iter: int = 25, tol: float = 1e-6
-) -> tuple[np.ndarray, float]:
+) -> tuple[np.ndarray | None, float]:
     """Maximise a scalar function over the box ``|x_i| <= bound`` with IPOPT, from each start.
 
-    Returns the best point found over the starts and its value.
+    Returns the best point found over the starts and its value; the point is None
+    (and the value -inf) when no start ends above -inf (no starts, or only NaN values).
     """
     x = ca.MX.sym("x", f.size1_in(0))
     solver = ca.nlpsol("maximum", "ipopt", {"x": x, "f": -f(x)}, options(max_iter, tol))
-    best_x, best = None, -np.inf
+    best_x: np.ndarray | None = None
+    best = -np.inf
     for x0 in starts:
         sol = solver(x0=x0, lbx=-bound, ubx=bound)
         value = -float(sol["f"])

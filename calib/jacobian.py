@@ -220,8 +220,8 @@ def step_model(latitude_rad: float, gravity_mps2: float) -> StepModel:
     g0, g1, g2 = (_sensor_terms(m, p, "gyro", 36 * w) for w in range(3))
     a0, a1 = (_sensor_terms(m, p, "accel", 36 * (3 + w)) for w in range(2))
     AT = ca.DM(A) * T
-    Phi = ca.DM.eye(6)
-    term = ca.DM.eye(6)
+    Phi: ca.DM | ca.SX = ca.DM.eye(6)
+    term: ca.DM | ca.SX = ca.DM.eye(6)
     for k in range(1, 6):  # (omega_ie T)^5 terms are far below rounding
         term = ca.mtimes(term, AT) / k
         Phi = Phi + term

@@ -150,6 +150,7 @@ def check_sequence_matches(
             "give the sequence the run was made with, or omit --sequence",
         )
     if elapsed is None:
+        assert dt is not None  # only a chunked run, which gives elapsed(), has no dt
         t = np.cumsum(dt)
         t_d, t_s = t[d0], t[s0]
     else:

@@ -261,8 +261,8 @@ def _basis_blocks(
     rot = np.concatenate([kflip, bias, bias], axis=4)[..., None]  # (K, w, b, i, 5, 1)
     G_rot = np.concatenate([GK[:3], GB], axis=3)
     t4 = interval_sum(np.einsum("nbi,nmc->nbimc", C_mid, E))  # (K, w, b, i, m, c)
-    blocks = [(rot, G_rot, 0), (t4, GK[:3], 9), (t4[:, :2], GK[3:], 36)]
-    blocks = [(prim, Gb, _fed(Gb), term) for prim, Gb, term in blocks]
+    parts = [(rot, G_rot, 0), (t4, GK[:3], 9), (t4[:, :2], GK[3:], 36)]
+    blocks = [(prim, Gb, _fed(Gb), term) for prim, Gb, term in parts]
     keep = np.concatenate(
         [_block_columns(term, prim.shape[2], prim.shape[5], params) for prim, _, params, term in blocks]
     )
@@ -317,13 +317,13 @@ def sequence_model(
     seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float = 0.0
 ) -> SequenceModel:
     """Build (and cache) the mounting-independent model of a sequence."""
-    gram = 0.0
+    gram: np.ndarray | float = 0.0
     # every chunk keeps the same columns: the last chunk's `keep` is used below
     for Hw, keep in _whitened_chunks(seq, profile, latitude_rad, height_m):  # noqa: B007
         gram = gram + Hw.T @ Hw
     g = earth.gravity(latitude_rad, height_m)
     return SequenceModel(
-        gram=0.5 * (gram + gram.T),
+        gram=0.5 * (gram + np.transpose(gram)),
         column_basis=keep // P.N_PARAMS,
         column_param=keep % P.N_PARAMS,
         omega_ie_n=earth.omega_ie_n(latitude_rad),

@@ -210,6 +210,7 @@ def information_along_many(
         blocks = filter_blocks(
             np.stack([m[0] for m in models], axis=1), np.stack([m[1] for m in models], axis=1)
         )
+        assert state is not None  # allocated with P
         _, P, state = whiten_batch(blocks, X[part], P, state, out=X[part])
     # Each mounting's Gram matrix as information_along forms it (one product over the
     # whole run, not summed block by block): the direct search's forward differences
@@ -243,7 +244,7 @@ def mounting_informations(
     g = earth.gravity(latitude_rad, height_m)
     rotvecs = list(rotvecs)
     size = max(1, batch)
-    out = []
+    out: list[np.ndarray] = []
     for part in (rotvecs[i : i + size] for i in range(0, len(rotvecs), size)):
         noms = [nominal_run(seq, latitude_rad, height_m, rv) for rv in part]
         if batch > 1:

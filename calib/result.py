@@ -168,7 +168,7 @@ class CalibrationResult:
     def to_json(self, truth=None) -> dict:
         """The ``calibrate --json`` document (``docs/formats.md``), with truth comparisons if given."""
         entries = self.entries(truth)
-        doc = {
+        doc: dict[str, object] = {
             "parameters": entries,
             "worst": worst(entries),
             "profile": self.profile,
@@ -222,14 +222,14 @@ class CalibrationResult:
             if p.name in self.not_estimable:
                 entry["estimable"] = False
             params[p.name] = entry
-        for p, v, e in zip(self.extras.parameters, self.extra_values, self.extra_sigma, strict=True):
-            params[p.name] = {
-                "value": float(v / p.si_per_unit),
-                "sigma": float(e / p.si_per_unit),
-                "unit": p.unit,
+        for xp, v, e in zip(self.extras.parameters, self.extra_values, self.extra_sigma, strict=True):
+            params[xp.name] = {
+                "value": float(v / xp.si_per_unit),
+                "sigma": float(e / xp.si_per_unit),
+                "unit": xp.unit,
             }
-            if p.name in self.not_estimable:
-                params[p.name]["estimable"] = False
+            if xp.name in self.not_estimable:
+                params[xp.name]["estimable"] = False
         fit = {
             "converged": bool(self.converged),
             "iterations": int(self.iterations),

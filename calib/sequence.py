@@ -336,12 +336,14 @@ class Timeline:
         """Angle turned (rad) ``tau`` seconds into segments ``seg``."""
         if self.rate0 is None:
             return self.rate[seg] * tau
+        assert self.accel is not None and self.jerk is not None  # set together with rate0
         return self.rate0[seg] * tau + 0.5 * self.accel[seg] * tau**2 + self.jerk[seg] * tau**3 / 6.0
 
     def angular_rate(self, seg: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Rate (rad/s) ``tau`` seconds into segments ``seg``."""
         if self.rate0 is None:
             return self.rate[seg] + 0.0 * tau
+        assert self.accel is not None and self.jerk is not None  # set together with rate0
         return self.rate0[seg] + self.accel[seg] * tau + 0.5 * self.jerk[seg] * tau**2
 
     @property

@@ -188,9 +188,11 @@ class _Carry:
         self.C_b_n0, self.omega_ie_n = C_b_n0, omega_ie_n
         self.q = rotvec_to_quat(dcm_to_rotvec(C_b_n0))
         self.w = np.zeros(3)  # Coriolis-free velocity, R(2 W t) v
-        self.dtheta = None  # compensated increment of the previous sample (coning)
-        self.raw = None  # (dtheta_m, dv_m, dt, turn) of the previous sample (extras' rate steps)
-        self._inverses = None
+        self.dtheta: np.ndarray | None = None  # compensated increment of the previous sample (coning)
+        self.raw: tuple | None = (
+            None  # (dtheta_m, dv_m, dt, turn) of the previous sample (extras' rate steps)
+        )
+        self._inverses: tuple[np.ndarray, np.ndarray] | None = None
 
     def inverses(self, model: ErrorModel):
         if self._inverses is None:
@@ -377,16 +379,19 @@ def navigate_pass(
         C_b_n = earth_fixed_dcm(q, axis, -rate * t)
         Cm = 0.5 * (C_b_n[1:] + C_b_n[:-1])
         if extras.n:
+            assert turn_out is not None  # allocated when extras.n
             turn_out[ch.start : ch.start + m] = X.earth_turn(Cm, site.omega_ie_n, dt)
         if not with_moments:
             continue
+        assert moments is not None  # allocated when with_moments
         moments[k0:k1] = _moments(Cm, dth, dvv, dt, lb, t)
         if extras.n:
+            assert turn_out is not None  # allocated when extras.n
             S3 = _interval_sums(lb, t, 3)
             ctx = prev_dth is not None
             extra[k0:k1] = _extra_moments(
                 Cm,
-                np.vstack([prev_dth, dth]) if ctx else dth,
+                np.vstack([prev_dth, dth]) if prev_dth is not None else dth,
                 np.vstack([dvv[:1], dvv]) if ctx else dvv,
                 np.concatenate([[dt[0]], dt]) if ctx else dt,
                 turn_out[ch.start : ch.start + m],

@@ -213,7 +213,7 @@ def nearest_direction(v: np.ndarray) -> str:
 
 def directions_of(C_b_n: np.ndarray) -> tuple[str, str, str]:
     """Where body X, Y, Z point (nearest grid directions) for an attitude."""
-    return tuple(nearest_direction(C_b_n[:, i]) for i in range(3))
+    return nearest_direction(C_b_n[:, 0]), nearest_direction(C_b_n[:, 1]), nearest_direction(C_b_n[:, 2])
 
 
 def describe_axis(v: np.ndarray, tol: float = 1e-6) -> str:

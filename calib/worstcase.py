@@ -19,6 +19,7 @@ import numpy as np
 
 from . import ipopt
 from . import params as P
+from .errors import CalibError
 from .extras import Extras
 from .information import eliminate, projected_covariance, scaled_inverse
 from .jacobian import N_UNKNOWN
@@ -71,6 +72,11 @@ def search_worst_mounting(
 
     f = ipopt.function(f"sigma_{P.NAMES[index]}", 3, 1, value, gradient)
     best_x, best = ipopt.maximize_in_box(f, starts_deg, tolerance_deg)
+    if best_x is None:
+        raise CalibError(
+            f"no start gave a finite sigma of {P.NAMES[index]} in the mounting box",
+            "worst-case search",
+        )
     return np.radians(best_x), best * req
 
 
@@ -124,7 +130,7 @@ def search_worst_direct(
     ipopt.maximize_in_box(f, [start_deg], tolerance_deg, max_iter=max_iter, tol=1e-5)
     # Only the box's evaluations count, not the forward-difference points outside it.
     inside = {k: v for k, v in seen.items() if max(abs(x) for x in k) <= tolerance_deg}
-    key = max(inside, key=inside.get)
+    key = max(inside, key=inside.__getitem__)
     return np.radians(np.array(key)), inside[key]
 
 
@@ -140,14 +146,14 @@ def _evaluator(
     if profile.has_gauss_markov:
         # Bias-instability weights depend on the mounting (measured: up to 4.7 % on a sigma
         # for designed-30min-9moves if the nominal weights are reused), so evaluate each directly.
-        def evaluate(rotvecs, nominal=None):
+        def evaluate_each(rotvecs, nominal=None):
             infos = mounting_informations(seq, profile, latitude_rad, height_m, rotvecs, batch=batch)
             return [
                 from_information(info, seq.duration_s, profile.name, rv, nominal, requirements)
                 for info, rv in zip(infos, rotvecs, strict=True)
             ]
 
-        return evaluate, None
+        return evaluate_each, None
     model = sequence_model(seq, profile, latitude_rad, height_m)
 
     def evaluate(rotvecs, nominal=None):

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -20,6 +21,10 @@ from calib.report import worst
 
 from .rrd import Writer
 from .scene import AXIS_COLORS, GALLERY_STEP, IMU_HALF_SIZE, SCENE_RATE_HZ, SCENE_STEP_DEG
+
+if TYPE_CHECKING:
+    from calib.observability import Observability
+    from calib.sequence import Sequence
 
 
 @dataclass(frozen=True)
@@ -51,7 +56,7 @@ class AnalysisFigures:
         the one with the largest worst ratio.
     """
 
-    sequence: object
+    sequence: Sequence
     profile: str
     requirements: str
     sigma: np.ndarray
@@ -63,7 +68,7 @@ class AnalysisFigures:
     tolerance_deg: float
     mountings: int
     searched: bool
-    drawn: object
+    drawn: Observability
 
     @property
     def over(self) -> str:
@@ -155,7 +160,10 @@ def analysis_table(fig: AnalysisFigures) -> str:
 
 def nominal_scene_times(tl) -> np.ndarray:
     """Nominal time line: SCENE_RATE_HZ, plus every SCENE_STEP_DEG during flips."""
-    times = [np.arange(0.0, tl.duration_s, 1.0 / SCENE_RATE_HZ), [tl.duration_s]]
+    times: list[np.ndarray | list[float]] = [
+        np.arange(0.0, tl.duration_s, 1.0 / SCENE_RATE_HZ),
+        [tl.duration_s],
+    ]
     for a, b, rate in zip(tl.t0, tl.t1, tl.rate, strict=True):
         if rate != 0.0:
             m = int(math.ceil(abs(math.degrees(rate)) * (b - a) / SCENE_STEP_DEG))

@@ -113,7 +113,7 @@ def run_blueprint(duration_s: float, with_results: bool = True):
         plot("residuals/after", "velocity error after calibration, m/s (pale: ±3σ of the noise)"),
         plot("attitude/nav_minus_gimbal_arcsec", "navigation - gimbal attitude, arcsec"),
     )
-    columns = [scene, signals, residuals]
+    columns: list[rrb.Container | rrb.View] = [scene, signals, residuals]
     if with_results:
         columns.append(
             rrb.Vertical(

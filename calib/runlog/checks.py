@@ -166,6 +166,7 @@ def check_samples(run: Run, locate, allow_gaps: bool) -> clock.SampleClock:
     try:
         found = clock.sample_clock(time, run.sample_rate_hz, duplicate)
     except CalibError as exc:
+        assert exc.where is not None  # sample_clock names the row of each refusal
         raise CalibError(exc.what, locate.sample("time_s", int(exc.where)), exc.fix) from None
     if not allow_gaps and (found.dropped or found.duplicates):
         first = np.flatnonzero(np.diff(found.index) != 1)[0] + 1

@@ -288,7 +288,7 @@ def fill_dropped(clock: SampleClock, dtheta: np.ndarray, dv: np.ndarray, gimbal:
     return out_th, out_dv, out_g, full
 
 
-def _check_fillable(clock: SampleClock, row: int, neighbours: np.ndarray) -> None:
+def _check_fillable(clock: SampleClock, row: int | np.integer, neighbours: np.ndarray) -> None:
     """Refuse a hole after ``row`` that is too long, or whose neighbours are not at rest."""
     index = clock.index
     lost = int(index[row + 1] - index[row] - 1)

@@ -6,6 +6,7 @@ metadata key. Pickled content is never loaded.
 
 from __future__ import annotations
 
+import functools
 import json
 import lzma
 import os
@@ -265,7 +266,7 @@ def write_npz(handle, meta: dict[str, str], windows, gimbal: bool = False) -> in
     if isinstance(windows, (list, tuple)) and len(windows) == 1:
         columns = [np.ascontiguousarray(c, dtype="<f8") for c in windows[0]]
         n = len(columns[0])
-        _write_members(handle, meta, n, names, [[memoryview(c).cast("B")] for c in columns])
+        _write_members(handle, meta, n, names, [[c.data.cast("B")] for c in columns])
         return n
     folder = os.path.dirname(os.path.abspath(handle.name)) if hasattr(handle, "name") else None
     scratch = [tempfile.TemporaryFile(dir=folder) for _ in names]
@@ -277,7 +278,9 @@ def write_npz(handle, meta: dict[str, str], windows, gimbal: bool = False) -> in
             n += len(window[0])
         for spool in scratch:
             spool.seek(0)
-        _write_members(handle, meta, n, names, [iter(lambda s=s: s.read(1 << 24), b"") for s in scratch])
+        _write_members(
+            handle, meta, n, names, [iter(functools.partial(s.read, 1 << 24), b"") for s in scratch]
+        )
     finally:
         for spool in scratch:
             spool.close()

@@ -83,6 +83,8 @@ def _counts(body: list[tuple[int, str]], name: str) -> np.ndarray:
                     f"{name}, line {number}",
                     "each sample row holds dtheta_x..z dv_x..z as integer counts",
                 )
+        # The caller passes at least two rows, so one of them was refused above.
+        assert data is not None
     bad = np.flatnonzero(~np.all(np.isfinite(data) & (data == np.rint(data)), axis=1))
     if bad.size:
         number, ln = body[int(bad[0])]

@@ -35,6 +35,7 @@ def command_line() -> str:
     ctx = click.get_current_context(silent=True)
     if ctx is None:
         return "seqdesign " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+    assert ctx.info_name is not None  # click names the context of every command it invokes
     parts = ["seqdesign", ctx.info_name]
     for param in ctx.command.params:
         if ctx.get_parameter_source(param.name) is click.core.ParameterSource.DEFAULT:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -16,8 +17,8 @@ from calib.transform import AXES
 
 from .constraints import Constraints, turn_rate, turn_seconds
 from .gimbal import at_home, home_reachable, next_encoders
-from .gm import fold, stack, start_state
-from .graph import Move, Node, apply_move, attitude_of, flip_graph
+from .gm import SegmentColumns, fold, stack, start_state
+from .graph import Move, Node, apply_move, as_node, attitude_of, flip_graph
 from .graph import moves as all_moves
 from .objective import score
 from .segments import (
@@ -57,7 +58,7 @@ class SearchModel:
     profile: NoiseProfile
     graph: object
     moves: list[Move]
-    initial: SegmentEffect
+    initial: SegmentEffect | SegmentColumns  # SegmentColumns with exact_noise
     rest: dict
     turn: dict = field(default_factory=dict)
     requirements: Requirements = PAPER
@@ -147,7 +148,7 @@ class SearchModel:
             profile,
             graph,
             all_moves(c.axes, c.max_quarters),
-            rest[tuple(c.start)],
+            rest[as_node(c.start)],
             rest,
             requirements=requirements,
             exact_noise=True,
@@ -166,10 +167,11 @@ class SearchModel:
         """After the initial rest (its effect already holds the run's start state)."""
         if self.exact_noise:
             X, N, P0 = start_state(gm_start_covariance(self.profile), N_UNKNOWN)
+            assert isinstance(self.initial, SegmentColumns)  # as _build_exact makes it
             X, N, P0 = fold(self.initial, X[None], N[None], P0[None])
             return Candidate(
                 walk=(),
-                node=tuple(self.constraints.start),
+                node=as_node(self.constraints.start),
                 X=X[0],
                 N=N[0],
                 time_s=self.dwell_s,
@@ -177,9 +179,10 @@ class SearchModel:
                 enc=self._enc0(),
             )
         e = self.initial
+        assert isinstance(e, SegmentEffect)  # as build makes it without exact_noise
         return Candidate(
             walk=(),
-            node=tuple(self.constraints.start),
+            node=as_node(self.constraints.start),
             X=e.B.copy(),
             N=e.M3.copy(),
             time_s=self.dwell_s,
@@ -194,6 +197,7 @@ class SearchModel:
         c = self.constraints
         if c.gimbal is None:
             return True, None
+        assert par.enc is not None  # _enc0 starts every walk with encoders when there is a gimbal
         enc = next_encoders(c, par.enc, mv)
         if "_min_turn" not in self.__dict__:
             self.__dict__["_min_turn"] = min(self.turn_time(m) for m in self.moves)
@@ -267,7 +271,10 @@ class SearchModel:
         """Per move, and for the rests, every node's columns stacked (built once)."""
         if "_stacked" not in self.__dict__:
             nodes = list(self.rest)
-            st = {"index": {n: i for i, n in enumerate(nodes)}, "rest": stack([self.rest[n] for n in nodes])}
+            st: dict[object, Any] = {
+                "index": {n: i for i, n in enumerate(nodes)},
+                "rest": stack([self.rest[n] for n in nodes]),
+            }
             for mv in self.moves:
                 st[mv] = stack([self.turn[(n, mv)] for n in nodes])
             self.__dict__["_stacked"] = st
@@ -311,7 +318,7 @@ def beam_search(
     return finals, evaluated
 
 
-def brute_force(model: SearchModel, depth: int, objective: str = "worst") -> Candidate:
+def brute_force(model: SearchModel, depth: int, objective: str = "worst") -> Candidate | None:
     """Every walk of up to ``depth`` moves, each folded from scratch (for tests)."""
     import itertools
 

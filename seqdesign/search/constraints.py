@@ -6,12 +6,13 @@ import math
 from dataclasses import dataclass
 
 from calib.errors import CalibError
+from calib.gimbalfile import Gimbal
 from calib.sequence import Sequence, Step
 from calib.start import FIRST_REST_MARGIN_S, MIN_ALIGN_S
 from calib.transform import AXES
 
 from .gimbal import move_profile
-from .graph import Move, Node
+from .graph import Move, Node, as_node
 
 MAX_FLIPS = 60
 
@@ -31,7 +32,7 @@ class Constraints:
     budget_s: float = 900.0
     accel_dps2: float | None = None  # every move a trapezoid (None: constant rate)
     jerk_dps3: float | None = None  # and an S-curve
-    gimbal: object = None  # calib.gimbal.Gimbal: only moves it plays (seqdesign.search.gimbal)
+    gimbal: Gimbal | None = None  # only moves it plays (seqdesign.search.gimbal)
 
 
 def turn_seconds(mv: Move, c: Constraints) -> float:
@@ -64,7 +65,7 @@ def to_sequence(
     )
     return Sequence(
         name=name,
-        start=tuple(c.start),
+        start=as_node(c.start),
         steps=steps,
         initial_dwell_s=float(dwells[0]),
         description=f"designed: {' '.join(m.label() for m in walk)}",

@@ -17,6 +17,7 @@ from calib.extras import Extras
 from calib.profiles import NoiseProfile
 from calib.requirements import PAPER, Requirements
 from calib.sequence import Sequence
+from calib.worstcase import ExtrasCost, Robustness
 
 from .beam import BeamJob, search_at_dwell
 from .constraints import Constraints, check_constraints, uniform_dwell
@@ -56,8 +57,8 @@ class DesignResult:
     evaluated: int  # candidates scored by the search
     search_seconds: float
     finalists: list[Finalist]  # every candidate re-scored over the box, best first
-    robustness: object  # observability.Robustness of the 21 alone (None with --with)
-    extras_cost: object = None  # observability.ExtrasCost of the winner when --with was given
+    robustness: Robustness | None  # of the 21 alone (None with --with)
+    extras_cost: ExtrasCost | None = None  # of the winner when --with was given
     repeats: int = 1  # how many times the winner plays its motif
 
 

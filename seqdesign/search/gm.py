@@ -117,7 +117,7 @@ def fold(cols: SegmentColumns, X: np.ndarray, N: np.ndarray, P: np.ndarray, inde
     s = P.shape[-1]
     S, ph = X[:, :6], X[:, 6:]
     K = cols.H.shape[0]
-    W = np.empty((len(X), K, 3, X.shape[-1]))
+    W: np.ndarray = np.empty((len(X), K, 3, X.shape[-1]))
     for k in range(K):
         F, Hk = at(cols.F, k), at(cols.H, k)
         M = F @ P @ _tr(F) + at(cols.Q, k)  # predicted [state; velocity] covariance

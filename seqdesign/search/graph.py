@@ -42,6 +42,12 @@ def node_of(C: np.ndarray) -> Node:
     return directions_of(np.round(C))
 
 
+def as_node(start: Node) -> Node:
+    """``start`` as a tuple (the hashable key the graph uses), also when a caller gives a list."""
+    x, y, z = start
+    return x, y, z
+
+
 def attitude_of(node: Node) -> np.ndarray:
     """``C_b_n`` of a grid node."""
     return attitude_from_directions(*node)
@@ -54,7 +60,7 @@ def flip_graph(start: Node, axes: str = AXES) -> nx.MultiDiGraph:
     one edge per (axis, sign).
     """
     g = nx.MultiDiGraph()
-    todo = [tuple(start)]
+    todo = [as_node(start)]
     g.add_node(todo[0])
     while todo:
         node = todo.pop()
@@ -95,8 +101,9 @@ def parse_node(text: str, where: str = "--start") -> Node:
         raise CalibError(
             f"{text!r} is not three directions", where, 'write where X, Y, Z point, e.g. "east,up,south"'
         )
-    attitude_from_directions(*parts, where=where)
-    return tuple(parts)
+    x, y, z = parts
+    attitude_from_directions(x, y, z, where=where)
+    return x, y, z
 
 
 def moves(axes: str = AXES, max_quarters: int = 1) -> list[Move]:

@@ -10,6 +10,7 @@ through one :class:`ExactScores`, which runs each distinct job once on the worke
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -22,7 +23,7 @@ from calib.gimbal import plan_sequence
 from calib.profiles import NoiseProfile
 from calib.requirements import PAPER, Requirements
 from calib.sequence import Sequence
-from calib.worstcase import analyze_extras, analyze_tolerance
+from calib.worstcase import ExtrasCost, Robustness, analyze_extras, analyze_tolerance
 
 from .constraints import Constraints, to_sequence, turn_seconds
 from .graph import Move
@@ -75,8 +76,8 @@ class ExactScore:
 
     ratio: float  # worst 3 sigma / requirement of the 21 (with the extras fitted)
     worst_name: str  # the parameter it belongs to
-    robustness: object  # observability.Robustness (None with extras, or kept only after a search)
-    extras_cost: object  # observability.ExtrasCost with extras
+    robustness: Robustness | None  # None with extras, or kept only after a search
+    extras_cost: ExtrasCost | None  # with extras
     sequence: Sequence
 
 
@@ -164,7 +165,7 @@ class ExactScores:
 
     scorer: ExactScorer
     workers: int = 1
-    scheduler: object = None
+    scheduler: str | None = None
     memo: dict = field(default_factory=dict)
 
     def __call__(self, jobs: list[ExactJob]) -> list[ExactScore]:
@@ -319,7 +320,7 @@ class Pipeline:
     tolerance_deg: float
     batch: int
     progress: object
-    refine: object = None  # Finalist -> [refined Finalist]; None: --no-refine
+    refine: Callable[[Finalist], list[Finalist]] | None = None  # None: --no-refine
     _refined: dict = field(default_factory=dict)
 
     def pools(self, results) -> tuple[list[Finalist], list[Finalist]]:
@@ -340,7 +341,7 @@ def select(answers, exact: ExactScores, tolerance_deg, batch: int = 1) -> Rescor
     answer whose box figure is not below the best final figure so far cannot win and
     is not checked; answers go best box figure first, ``batch`` at a time (the workers).
     """
-    first = {}
+    first: dict[tuple, Finalist] = {}
     for f in answers:
         first.setdefault((f.walk, f.dwells), f)
     order = by_order(first.values())

@@ -15,7 +15,7 @@ from calib.requirements import PAPER, Requirements
 
 from .constraints import Constraints, turn_rate, turn_seconds
 from .gm import fold, stack, start_state
-from .graph import apply_move, attitude_of, flip_graph
+from .graph import apply_move, as_node, attitude_of, flip_graph
 from .objective import scaled_marginal
 from .segments import (
     SEARCH_REST_INTERVALS,
@@ -40,7 +40,7 @@ def walk_information(
 ) -> np.ndarray:
     """Search-model information of a walk with individual dwells (smooth in the dwells)."""
     graph = flip_graph(c.start, c.axes)
-    node = tuple(c.start)
+    node = as_node(c.start)
     if profile.has_gauss_markov:
         return _walk_information_exact(walk, c, dwells, latitude_rad, gravity_mps2, profile)
     e = segment_effect(
@@ -107,7 +107,7 @@ def walk_informations_exact(
     carries them all (what IPOPT's finite differences need at once).
     """
     graph = flip_graph(c.start, c.axes)
-    node = tuple(c.start)
+    node = as_node(c.start)
     B = len(dwell_sets)
     X, N, Pc = (np.repeat(a[None], B, axis=0) for a in start_state(gm_start_covariance(profile), N_UNKNOWN))
     dwell_sets = np.asarray(dwell_sets, dtype=float)

@@ -17,6 +17,7 @@ from calib.bounds import accel_scale_bound
 from calib.extras import NONE as NO_EXTRAS
 from calib.extras import Extras, parse_groups
 from calib.fileio import atomic_write_text, sha256_file
+from calib.gimbalfile import Gimbal
 from calib.profiles import NoiseProfile, as_profile
 from calib.requirements import PAPER, Requirements, load_requirements
 from calib.sequence import load_sequence, save_sequence
@@ -50,7 +51,7 @@ class DesignReport:
     paper_worst_ratio: float
     requirements: Requirements = PAPER
     extras: Extras = NO_EXTRAS
-    gimbal: object = None  # calib.gimbal.Gimbal the moves were planned on (design --gimbal)
+    gimbal: Gimbal | None = None  # the moves were planned on (design --gimbal)
 
     def to_json(self) -> dict:
         """The ``design --json`` document."""
