@@ -34,15 +34,8 @@ from calib.errors import CalibError
 from calib.profiles import load_profile
 from calib.sequence import load_sequence
 from calib.sim import SimConfig, simulate
+from seqdesign.verify import error_half_range
 
-# Issue 14 point 4: the sizes of a MEMS unit's errors before calibration, spec units.
-HALF_RANGE = {
-    ("gyro", "bias"): 1000.0,
-    ("accel", "bias"): 20000.0,
-    ("gyro", "scale"): 5000.0,
-    ("accel", "scale"): 5000.0,
-}
-MISALIGNMENT_ARCSEC = 1000.0  # 0.28 deg: MEMS data sheets give 0.1-0.5 deg
 SAMPLE_RATE_HZ = 100.0  # the rate of the ADIS16405 log in the shared realdata folder
 LATITUDE_DEG = 40.0
 SETUP_DEG = 3.0
@@ -50,9 +43,8 @@ FLIP_ERROR_DEG = 0.5
 
 
 def draw_errors(rng: np.random.Generator) -> ErrorModel:
-    """One MEMS unit's 21 errors, uniform within the sizes of issue 14 point 4."""
-    half = [HALF_RANGE.get((p.sensor, p.kind), MISALIGNMENT_ARCSEC) for p in P.PARAMETERS]
-    return ErrorModel.from_units(rng.uniform(-1.0, 1.0, P.N_PARAMS) * np.array(half))
+    """One MEMS unit's 21 errors, uniform within the MEMS sizes `seqdesign verify` draws."""
+    return ErrorModel.from_units(rng.uniform(-1.0, 1.0, P.N_PARAMS) * error_half_range("mems"))
 
 
 def one_run(args):

@@ -88,3 +88,30 @@ def pareto_png(report, gravity_mps2: float, path, rate_dps: float | None) -> Non
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
     save_png(fig, path)
+
+
+def verify_png(verification, path) -> None:
+    """Per parameter, RMS error over the reported and over the predicted sigma; the mean NEES.
+
+    ``verification`` is a :class:`seqdesign.verify.Verification` (read, not imported).
+    The band drawn, [0.67, 1.36], is where the RMS of 50 honest runs' z-scores falls for
+    each parameter with high probability (chi-square of 50 dof: sqrt(28/50) .. sqrt(92/50)).
+    """
+    plt = pyplot()
+    names = list(verification.to_json().get("parameters", {}))
+    fig, ax = plt.subplots(figsize=(11, 4.2))
+    if names:
+        x = np.arange(len(names))
+        ax.axhspan(0.67, 1.36, color="0.9", label="[0.67, 1.36]")
+        ax.bar(x - 0.2, verification.rms_over_reported(), 0.4, label="RMS error / sigma each run reported")
+        ax.bar(x + 0.2, verification.rms_over_predicted(), 0.4, label="RMS error / analyze's sigma")
+        ax.axhline(1.0, color="k", lw=0.8)
+        ax.set_xticks(x, names, rotation=60)
+        doc = verification.to_json()["nees"]
+        ax.set_title(
+            f"{verification.sequence.name}, {len(verification.fitted)} runs: mean NEES {doc['mean']:.2f} "
+            f"(99 % band {doc['band_99'][0]:.2f}-{doc['band_99'][1]:.2f})"
+        )
+        ax.legend(loc="upper right", fontsize=8)
+    ax.set_ylabel("ratio")
+    save_png(fig, path)

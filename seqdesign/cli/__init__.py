@@ -17,7 +17,7 @@ from seqdesign import blas  # noqa: F401  first: one BLAS thread before numpy lo
 # isort: split
 import click
 
-from . import analyze, calibrate, design, gimbal, profile, show, simulate, view
+from . import analyze, calibrate, design, gimbal, profile, show, simulate, verify, view
 from .tools import emit_json, tool_version
 
 
@@ -55,6 +55,7 @@ for _command in (
     gimbal.export,
     profile.profile,
     view.view,
+    verify.verify,
     simulate.simulate_stream,
     calibrate.calibrate_stream,
 ):

@@ -1,0 +1,142 @@
+"""``seqdesign verify``: the user's proof before the hardware turns (a Monte Carlo of the sequence)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import click
+
+from calib.errors import CalibError
+
+from . import options
+from .tools import emit_json, guarded, info
+
+
+@click.command(
+    short_help="Simulate and calibrate N runs of a sequence: are the sigmas honest and as predicted?"
+)
+@click.argument("sequence")
+@options.profile()
+@options.requirements
+@options.with_terms(
+    "Fit these beside the 21 in every run: lever-arm, k2, time-offset (comma-separated) or all."
+)
+@click.option("--runs", type=click.IntRange(min=2), default=50, show_default=True, help="Simulated runs.")
+@click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True, help="Local processes.")
+@click.option("--scheduler", default=None, help="dask.distributed scheduler address (instead of --workers).")
+@options.latitude()
+@options.height()
+@options.gravity()
+@options.sample_rate()
+@options.seed("Seed of run 0; run i uses seed + i (noise, errors, mounting, flip errors).")
+@options.tolerance("Each run's base mounting is drawn uniformly within this box (deg).")
+@click.option(
+    "--flip-error-deg",
+    type=click.FloatRange(0.0, 10.0),
+    default=0.5,
+    show_default=True,
+    help="Each flip misses its angle by up to this much (uniform).",
+)
+@click.option(
+    "--errors",
+    "errors_file",
+    type=click.Path(dir_okay=False),
+    help="TOML file with an [errors] table: every run has these errors (default: each run draws a "
+    "unit of the profile's grade, see docs/verify.md).",
+)
+@click.option("--table2", is_flag=True, help="Every run has the paper's Table 2 standard errors.")
+@options.gimbal(
+    "Gimbal description (TOML) or shipped name: refuse a sequence it cannot play.", metavar="FILE|NAME"
+)
+@click.option("--plot", "plot_path", metavar="FILE.png", help="Also draw the RMS ratios per parameter (PNG).")
+@options.as_json
+@guarded
+def verify(
+    sequence,
+    profile,
+    requirements,
+    with_terms,
+    runs,
+    workers,
+    scheduler,
+    latitude,
+    height,
+    gravity_mps2,
+    sample_rate_hz,
+    seed,
+    tolerance_deg,
+    flip_error_deg,
+    errors_file,
+    table2,
+    gimbal_file,
+    plot_path,
+    as_json,
+):
+    """Simulate RUNS runs of SEQUENCE (each its own unit of the profile's grade, mounting within the
+    tolerance, flip errors and noise), calibrate each as `calibrate` does, and report: the mean NEES
+    against its 99 % band (are the sigmas honest?), per parameter the RMS error over the sigma each
+    run reported and over `analyze`'s sigma (is the prediction right?), refusals and runs that did
+    not converge. Identical with any --workers or --scheduler.
+    """
+    from calib.errormodel import ErrorModel
+    from calib.extras import as_extras
+    from calib.gimbal import check_playable, plan_sequence
+    from calib.gimbalfile import load_gimbal
+    from calib.profiles import as_profile
+    from calib.requirements import load_requirements
+    from calib.sequence import load_sequence
+    from calib.sim import SimConfig
+    from calib.truth import read_errors
+    from seqdesign.analysis import analyze, resolve_site
+    from seqdesign.plots import verify_png
+    from seqdesign.verify import verify as run_verify
+
+    if errors_file and table2:
+        raise CalibError("--errors and --table2 both given", None, "choose one")
+    if workers > 1 and scheduler:
+        raise CalibError("--workers and --scheduler both given", None, "choose one")
+    if plot_path and Path(plot_path).suffix.lower() != ".png":
+        raise CalibError(f"plot {plot_path!r} must end in .png", "--plot")
+    seq, prof, req = load_sequence(sequence), as_profile(profile), load_requirements(requirements)
+    gimbal = load_gimbal(gimbal_file)
+    check_playable(plan_sequence(seq, gimbal), f"{sequence} on gimbal {gimbal.name!r}")
+    errors = read_errors(errors_file) if errors_file else ErrorModel.from_table2() if table2 else None
+    lat, h = resolve_site(seq, latitude, height)
+    prediction = analyze(
+        seq,
+        prof,
+        latitude_deg=lat,
+        height_m=h,
+        tolerance_deg=tolerance_deg,
+        extras=with_terms,
+        requirements=req,
+    )
+    config = SimConfig(
+        latitude_rad=math.radians(lat), height_m=h, sample_rate_hz=sample_rate_hz, gravity_mps2=gravity_mps2
+    )
+    info(f"verifying {seq.name}: {runs} runs, profile {prof.name}")
+    result = run_verify(
+        seq,
+        prof,
+        runs,
+        config=config,
+        predicted_sigma=prediction.robustness.per_parameter_worst_sigma,
+        errors=errors,
+        tolerance_deg=tolerance_deg,
+        flip_error_deg=flip_error_deg,
+        seed=seed or 0,
+        extras=as_extras(with_terms),
+        requirements=req,
+        workers=workers,
+        scheduler=scheduler,
+    )
+    doc = result.to_json()
+    if plot_path:
+        verify_png(result, plot_path)
+        doc["plot"] = str(plot_path)
+        info(f"wrote {plot_path}")
+    if as_json:
+        emit_json(doc)
+        return
+    click.echo(result.to_text())

@@ -1,0 +1,273 @@
+"""Prove a sequence before the hardware turns: N simulated runs, each calibrated, against the prediction.
+
+Each run draws its own unit (the 21 errors of the profile's grade, uniform within the sizes of
+:data:`ERROR_HALF_RANGE`, or the fixed errors a user gives), its base mounting within the
+tolerance, its flip errors and its noise, from ``seed + run``; it is simulated and calibrated
+exactly as ``simulate`` and ``calibrate`` do. The report says whether the sigmas the estimator
+reports are honest (mean NEES against its chi-square band), whether the errors it makes are the
+ones ``analyze`` predicts (RMS error over the predicted sigma), and which runs were refused or
+did not converge. The runs are independent: N workers or a dask cluster give the serial answer.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from calib import params as P
+from calib.calibration import calibrate
+from calib.errormodel import ErrorModel, paper_table
+from calib.errors import CalibError
+from calib.extras import NONE as NO_EXTRAS
+from calib.extras import Extras
+from calib.profiles import NoiseProfile
+from calib.requirements import PAPER, Requirements
+from calib.sequence import Sequence
+from calib.sim import SimConfig, simulate
+
+from .search.parallel import map_jobs
+
+# The unit's errors before calibration, half-ranges in spec units, by grade (the profile's ARW
+# decides the grade: GRADE_ARW_DPH). Navigation and tactical: twice the paper's Table 2
+# standard values, which are a navigation unit's; MEMS: the sizes of an ADIS16405-class data
+# sheet (gyro bias 1000 deg/h, accelerometer bias 20 mg, scale factors 0.5 %, misalignments
+# 1000 arcsec = 0.28 deg).
+_MEMS = {("gyro", "bias"): 1000.0, ("accel", "bias"): 20000.0, ("gyro", "scale"): 5000.0}
+_MEMS |= {("accel", "scale"): 5000.0}
+MEMS_MISALIGNMENT_ARCSEC = 1000.0
+GRADE_ARW_DPH = {"navigation": 0.01, "tactical": 0.5}  # at most this ARW, deg/sqrt(h)
+
+
+def grade_of(profile: NoiseProfile) -> str:
+    """``navigation``, ``tactical`` or ``mems``, from the gyro's angle random walk."""
+    arw_dph = math.degrees(profile.arw) * 60.0
+    for grade, limit in GRADE_ARW_DPH.items():
+        if arw_dph <= limit:
+            return grade
+    return "mems"
+
+
+def error_half_range(grade: str) -> np.ndarray:
+    """Half-range of each of the 21 errors of a unit of ``grade``, spec units."""
+    if grade == "mems":
+        return np.array([_MEMS.get((p.sensor, p.kind), MEMS_MISALIGNMENT_ARCSEC) for p in P.PARAMETERS])
+    return 2.0 * np.abs(paper_table("table2_simulation", "standard"))
+
+
+def chi2_band(n_runs: int, dof: int = P.N_PARAMS, probability: float = 0.99) -> tuple[float, float]:
+    """The band the mean NEES of ``n_runs`` honest runs falls in with ``probability``."""
+    from scipy.stats import chi2  # scipy.stats costs 0.3 s to import: only when a report is made
+
+    tail = (1.0 - probability) / 2.0
+    lo, hi = chi2.ppf([tail, 1.0 - tail], n_runs * dof)
+    return float(lo / n_runs), float(hi / n_runs)
+
+
+@dataclass(frozen=True)
+class VerifyJob:
+    """One run's inputs (picklable: a worker or a dask cluster runs it)."""
+
+    seq: Sequence
+    profile: NoiseProfile
+    config: SimConfig
+    errors: ErrorModel | None  # None: drawn from the grade's half-ranges
+    half_range: np.ndarray = field(repr=False)
+    tolerance_deg: float
+    flip_error_deg: float
+    seed: int
+    extras: Extras
+    requirements: Requirements
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    """What one run gave: its errors and covariance (SI), or why it was refused."""
+
+    seed: int
+    error: np.ndarray | None
+    covariance: np.ndarray | None
+    converged: bool
+    refusal: str | None = None
+
+
+def one_run(job: VerifyJob) -> RunOutcome:
+    """Simulate one run and calibrate it as the CLI does; a refusal is an outcome, not a crash."""
+    rng = np.random.default_rng(job.seed)
+    errors = job.errors or ErrorModel.from_units(rng.uniform(-1.0, 1.0, P.N_PARAMS) * job.half_range)
+    run, truth = simulate(
+        job.seq,
+        job.config,
+        errors,
+        job.profile,
+        flip_error_deg=job.flip_error_deg,
+        noise=True,
+        seed=job.seed,
+        random_setup_deg=job.tolerance_deg if job.tolerance_deg > 0 else None,
+    )
+    try:
+        result = calibrate(
+            run, job.profile, extras=job.extras, require_convergence=False, requirements=job.requirements
+        )
+    except CalibError as exc:
+        return RunOutcome(job.seed, None, None, False, str(exc))
+    return RunOutcome(job.seed, result.values - truth.errors.values, result.covariance, result.converged)
+
+
+@dataclass(frozen=True)
+class Verification:
+    """N runs of one sequence under one profile, against the analyser's prediction."""
+
+    sequence: Sequence
+    profile: NoiseProfile
+    requirements: Requirements
+    grade: str
+    predicted_sigma: np.ndarray  # (21,) SI, analyze's worst case over the mounting box
+    outcomes: tuple[RunOutcome, ...]
+
+    @property
+    def fitted(self) -> list[RunOutcome]:
+        """The runs that converged (the statistics are over these)."""
+        return [o for o in self.outcomes if o.error is not None and o.converged]
+
+    @property
+    def refused(self) -> list[RunOutcome]:
+        return [o for o in self.outcomes if o.error is None]
+
+    @property
+    def unconverged(self) -> list[RunOutcome]:
+        return [o for o in self.outcomes if o.error is not None and not o.converged]
+
+    def _stack(self) -> tuple[np.ndarray, np.ndarray]:
+        runs = self.fitted
+        return np.array([o.error for o in runs]), np.array([o.covariance for o in runs])
+
+    def nees(self) -> np.ndarray:
+        """Each converged run's normalised estimation error squared (21 dof if honest)."""
+        err, cov = self._stack()
+        return np.einsum("ni,ni->n", err, np.linalg.solve(cov, err[..., None])[..., 0])
+
+    def z_scores(self) -> np.ndarray:
+        """(runs, 21) error over the sigma each run reported."""
+        err, cov = self._stack()
+        return err / np.sqrt(np.einsum("nii->ni", cov))
+
+    def rms_over_reported(self) -> np.ndarray:
+        """RMS over the runs of error / reported sigma, per parameter (1 if honest)."""
+        return np.sqrt(np.mean(self.z_scores() ** 2, axis=0))
+
+    def rms_over_predicted(self) -> np.ndarray:
+        """RMS error over analyze's sigma, per parameter (about 1 if the prediction holds)."""
+        err, _ = self._stack()
+        return np.sqrt(np.mean(err**2, axis=0)) / self.predicted_sigma
+
+    def to_json(self) -> dict:
+        n = len(self.fitted)
+        doc: dict = {
+            "sequence": self.sequence.name,
+            "profile": self.profile.name,
+            "requirements": self.requirements.name,
+            "grade": self.grade,
+            "runs": len(self.outcomes),
+            "converged": n,
+            "unconverged_seeds": [o.seed for o in self.unconverged],
+            "refused": [{"seed": o.seed, "why": o.refusal} for o in self.refused],
+        }
+        if n == 0:
+            return doc
+        lo, hi = chi2_band(n)
+        nees = self.nees()
+        z = self.z_scores()
+        worst = np.abs(z).max(axis=0)
+        doc["nees"] = {
+            "mean": float(nees.mean()),
+            "band_99": [lo, hi],
+            "in_band": bool(lo <= nees.mean() <= hi),
+        }
+        doc["parameters"] = {
+            p.name: {
+                "unit": p.unit,
+                "predicted_sigma": float(self.predicted_sigma[i] / p.si_per_unit),
+                "rms_error": float(np.sqrt(np.mean(self._stack()[0][:, i] ** 2)) / p.si_per_unit),
+                "rms_over_reported_sigma": float(self.rms_over_reported()[i]),
+                "rms_over_predicted_sigma": float(self.rms_over_predicted()[i]),
+                "mean_error_over_sigma": float(z[:, i].mean()),
+                "worst_error_over_sigma": float(worst[i]),
+            }
+            for i, p in enumerate(P.PARAMETERS)
+        }
+        return doc
+
+    def to_text(self) -> str:
+        doc = self.to_json()
+        lines = [
+            f"verify {self.sequence.name}: {doc['runs']} runs, profile {self.profile.name} "
+            f"({self.grade} errors), requirements {self.requirements.name}",
+            f"converged {doc['converged']}, did not converge {len(doc['unconverged_seeds'])}, "
+            f"refused {len(doc['refused'])}",
+        ]
+        lines += [f"  refused seed {r['seed']}: {r['why']}" for r in doc["refused"]]
+        if "nees" not in doc:
+            return "\n".join(lines)
+        nees = doc["nees"]
+        lo, hi = nees["band_99"]
+        verdict = "honest" if nees["in_band"] else "NOT honest: the reported sigmas are wrong"
+        lines.append(f"mean NEES {nees['mean']:.2f} (99 % band [{lo:.2f}, {hi:.2f}] for 21 dof): {verdict}")
+        head = ("param", "unit", "analyze σ", "RMS error", "RMS/σ run", "RMS/σ pred")
+        lines.append("{:>6} {:>8} {:>11} {:>11} {:>10} {:>10}".format(*head))
+        for name, e in doc["parameters"].items():
+            lines.append(
+                f"{name:>6} {e['unit']:>8} {e['predicted_sigma']:11.4g} {e['rms_error']:11.4g} "
+                f"{e['rms_over_reported_sigma']:10.2f} {e['rms_over_predicted_sigma']:10.2f}"
+            )
+        return "\n".join(lines)
+
+
+def verify(
+    seq: Sequence,
+    profile: NoiseProfile,
+    runs: int,
+    *,
+    config: SimConfig,
+    predicted_sigma: np.ndarray,
+    errors: ErrorModel | None = None,
+    tolerance_deg: float = 3.0,
+    flip_error_deg: float = 0.5,
+    seed: int = 0,
+    extras: Extras = NO_EXTRAS,
+    requirements: Requirements = PAPER,
+    workers: int = 1,
+    scheduler=None,
+) -> Verification:
+    """Simulate and calibrate ``runs`` runs of ``seq`` (run ``i`` from seed ``seed + i``).
+
+    Parameters
+    ----------
+    seq, profile : Sequence, NoiseProfile
+        What is played and the noise it is simulated and calibrated with.
+    runs : int
+        How many runs.
+    config : SimConfig
+        Site, gravity and sample rate of the simulated runs.
+    predicted_sigma : ndarray, shape (21,)
+        The analyser's sigma (SI) the runs are held against.
+    errors : ErrorModel, optional
+        Fixed errors of every run; default: drawn per run within the profile's grade.
+    tolerance_deg, flip_error_deg : float
+        Base mounting drawn within this box; flips missing their angle by up to this much.
+    extras, requirements : Extras, Requirements
+        What the fit estimates beside the 21, and the scale it judges observability in.
+    workers, scheduler : int, str (optional)
+        Local processes, or a dask.distributed scheduler address (:func:`map_jobs`).
+    """
+    grade = grade_of(profile)
+    half = error_half_range(grade)
+    jobs = [
+        VerifyJob(
+            seq, profile, config, errors, half, tolerance_deg, flip_error_deg, seed + i, extras, requirements
+        )
+        for i in range(runs)
+    ]
+    outcomes = tuple(map_jobs(one_run, jobs, workers, scheduler))
+    return Verification(seq, profile, requirements, grade, np.asarray(predicted_sigma, float), outcomes)
