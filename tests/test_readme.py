@@ -95,6 +95,15 @@ def test_readme_is_a_short_guide_without_issue_numbers():
     assert not re.search(r"\bissue\s+\d+|the issue's", text, re.I)
 
 
+def test_no_issue_numbers_where_a_user_reads():
+    root = README.parent
+    pages = [README, root / "CHANGELOG.md", root / "BENCHMARKS.md", *sorted((root / "docs").glob("*.md"))]
+    pages.append(root / "docs" / "analysis" / "README.md")
+    for page in pages:
+        hits = re.findall(r".{0,30}\b(?:issues?\s+\d+|the issue's).{0,30}", page.read_text(), re.I)
+        assert hits == [], f"{page.name}: {hits}"
+
+
 def test_every_command_the_readme_names_exists():
     """Runnable and template lines alike: unmarked lines name only commands and options that exist."""
     lines = [c for b in blocks() if b.lang in ("sh", "text") for c in commands(b)]
