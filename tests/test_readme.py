@@ -70,7 +70,7 @@ def resolve(args: tuple[str, ...]) -> tuple[click.Command | None, list[str]]:
     """The click command the arguments name and its options' spellings (None: no such command)."""
     command: click.Command = main
     for word in args:
-        if not isinstance(command, click.Group):
+        if not isinstance(command, click.Group) or word.startswith("-"):
             break
         sub = command.commands.get(word)
         if sub is None:
