@@ -1,4 +1,4 @@
-"""Errors of a real unit beyond the paper's 21: the optional terms (issue 8).
+"""Errors of a real unit beyond the paper's 21: the optional terms.
 
 Each group is off by default and switched on by name (``--with
 lever-arm,k2,time-offset``). This module is the single source of truth for

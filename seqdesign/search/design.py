@@ -39,7 +39,7 @@ from .pipeline import (
 )
 
 SHORT_WALK_FLIPS = 10  # the classic space: up to 10 moves at long dwells
-# Many short moves (issue 12): beams at these dwells walk until the budget is spent.
+# Many short moves: beams at these dwells walk until the budget is spent.
 # Under Gauss-Markov accelerometer bias they win: gravity must reverse on each axis
 # much faster than tau, and 450 deg turns sweep it round while turning.
 LONG_WALK_DWELLS_S = (10.0, 15.0, 20.0)
