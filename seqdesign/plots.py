@@ -112,6 +112,6 @@ def verify_png(verification, path) -> None:
             f"{verification.sequence.name}, {len(verification.fitted)} runs: mean NEES {doc['mean']:.2f} "
             f"(99 % band {doc['band_99'][0]:.2f}-{doc['band_99'][1]:.2f})"
         )
-        ax.legend(loc="upper right", fontsize=8)
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=3, fontsize=8)
     ax.set_ylabel("ratio")
     save_png(fig, path)
