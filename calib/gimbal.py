@@ -35,11 +35,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from .errors import CalibError
-from .gimbalfile import DEFAULT_GIMBAL, NAMES, Gimbal
+from .gimbalfile import DEFAULT_GIMBAL, NAMES, Gimbal, builtin_gimbal_dir
 from .rateprofile import Pieces, RateProfile
 from .transform import axis_index, gimbal_from_relative, gimbal_to_relative, rot_axis, unwrap_gimbal
 
@@ -442,14 +443,27 @@ def plan_sequence(seq, gimbal: Gimbal = DEFAULT_GIMBAL) -> GimbalPlan:
     return GimbalPlan(gimbal, tuple(moves), np.array(starts), tuple(viol))
 
 
-def check_playable(plan: GimbalPlan, where: str) -> None:
-    """Refuse a sequence the gimbal cannot play: one line naming the first violation."""
+def check_playable(plan: GimbalPlan, where: str, sequence: str | None = None) -> None:
+    """Refuse a sequence the gimbal cannot play: one line naming the first violation.
+
+    The fix names both ways out: design a sequence for this gimbal (``design --gimbal``,
+    whose moves are planned on it) or see every violation (``show --gimbal``).
+    """
     if plan.violations:
         v = plan.violations[0]
         more = f" (and {len(plan.violations) - 1} more)" if len(plan.violations) > 1 else ""
+        g = _gimbal_argument(plan.gimbal)
         raise CalibError(
             f"{v}{more}",
             where,
-            f"change the sequence or the gimbal; 'seqdesign show SEQ --gimbal "
-            f"{plan.gimbal.path or 'FILE'}' lists every violation",
+            f"design a sequence for this gimbal: 'seqdesign design --gimbal {g} -o SEQ.toml' "
+            f"(its moves are planned on the gimbal), or change the gimbal; "
+            f"'seqdesign show {sequence or 'SEQ'} --gimbal {g}' lists every violation",
         )
+
+
+def _gimbal_argument(gimbal: Gimbal) -> str:
+    """How a user names the gimbal on the command line: a shipped one by name, else its file."""
+    if gimbal.path and Path(gimbal.path).parent.resolve() == builtin_gimbal_dir().resolve():
+        return Path(gimbal.path).stem
+    return gimbal.path or "FILE"

@@ -170,6 +170,30 @@ def analyze(
     return Analysis(seq, prof, lat, h, rob, bound, cost, req)
 
 
+def site_warnings(analyses: list[Analysis]) -> list[str]:
+    """A warning when the analyses were made at different sites (each sequence's own).
+
+    Gravity and Earth rate differ with latitude and height, so the ratios of sequences
+    analysed at different sites are not comparable; the fix is one site for all.
+    """
+    sites = {(a.latitude_deg, a.height_m) for a in analyses}
+    if len(sites) < 2:
+        return []
+    each = "; ".join(f"{a.sequence.name} at {a.latitude_deg:g} deg, {a.height_m:g} m" for a in analyses)
+    give = " and ".join(
+        opt
+        for opt, values in (
+            ("--latitude DEG", {a.latitude_deg for a in analyses}),
+            ("--height M", {a.height_m for a in analyses}),
+        )
+        if len(values) > 1
+    )
+    return [
+        f"the sequences are analysed at different sites, each at its own ({each}): their ratios "
+        f"are not comparable; give {give} to compare them at one site"
+    ]
+
+
 def compare_text(analyses: list[Analysis]) -> str:
     """Several analyses side by side: time, worst ratio, each parameter's ratio."""
     docs = [a.to_json() for a in analyses]

@@ -71,12 +71,13 @@ def analyze(sequence, profile, latitude, tolerance_deg, requirements, view_path,
 @click.command(short_help="Compare sequences side by side, or two calibrations of one unit.")
 @click.argument("sequences", nargs=-1, required=True)
 @options.profile()
-@options.latitude("Site latitude, deg (default: each sequence's, else 40).")
+@options.latitude("Site latitude, deg, for every sequence (default: each sequence's, else 40).")
+@options.height("Site height, m, for every sequence (default: each sequence's, else 0).")
 @options.tolerance()
 @options.requirements
 @options.as_json
 @guarded
-def compare(sequences, profile, latitude, tolerance_deg, requirements, as_json):
+def compare(sequences, profile, latitude, height, tolerance_deg, requirements, as_json):
     """Analyse several sequences and print their 3 sigma / requirement ratios side by side.
 
     Given two calibration results (result TOML files) instead, put them side by
@@ -87,7 +88,7 @@ def compare(sequences, profile, latitude, tolerance_deg, requirements, as_json):
     from calib.profiles import as_profile
     from calib.requirements import load_requirements
     from seqdesign.analysis import analyze as run_analysis
-    from seqdesign.analysis import compare_text
+    from seqdesign.analysis import compare_text, site_warnings
 
     kinds = {kind_of(s) for s in sequences}
     if "result" in kinds:
@@ -109,10 +110,17 @@ def compare(sequences, profile, latitude, tolerance_deg, requirements, as_json):
     prof = as_profile(profile)
     req = load_requirements(requirements)
     analyses = [
-        run_analysis(s, prof, latitude_deg=latitude, tolerance_deg=tolerance_deg, requirements=req)
+        run_analysis(
+            s, prof, latitude_deg=latitude, height_m=height, tolerance_deg=tolerance_deg, requirements=req
+        )
         for s in sequences
     ]
-    if as_json:
-        emit_json({"sequences": [a.to_json() for a in analyses]})
+    warnings = site_warnings(analyses)
+    for w in warnings:
+        info(f"warning: {w}")
+    if as_json:  # "warnings" only when there are some (the document of one site is unchanged)
+        emit_json(
+            {"sequences": [a.to_json() for a in analyses]} | ({"warnings": warnings} if warnings else {})
+        )
         return
     click.echo(compare_text(analyses))

@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
-import sys
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
@@ -11,6 +15,11 @@ from calib.errors import CalibError
 
 from . import options
 from .tools import emit_json, guarded, info, provenance
+
+if TYPE_CHECKING:  # the search is imported when a design runs, not for --help
+    from seqdesign.search import Progress
+
+PROGRESS_EVERY_S = 2.0  # at most one progress line this often, besides each phase's first
 
 
 @click.command(short_help="Search for a sequence that beats the paper's, robust to the mounting tolerance.")
@@ -39,8 +48,20 @@ from .tools import emit_json, guarded, info, provenance
 @click.option("--end", default=None, help='Required final attitude (optional), e.g. "east,up,south".')
 @click.option("--axes", default="XYZ", show_default=True, help="Body axes the gimbal may turn about.")
 @click.option("--rate-dps", type=float, default=10.0, show_default=True, help="Rotation rate, deg/s.")
-@click.option("--min-dwell-s", type=float, default=10.0, show_default=True)
-@click.option("--max-dwell-s", type=float, default=300.0, show_default=True)
+@click.option(
+    "--min-dwell-s",
+    type=float,
+    default=10.0,
+    show_default=True,
+    help="Shortest rest between moves, s: the floor of every dwell the search and the refinement use.",
+)
+@click.option(
+    "--max-dwell-s",
+    type=float,
+    default=300.0,
+    show_default=True,
+    help="Longest rest between moves, s: the ceiling of every dwell.",
+)
 @options.with_terms("Fit these beside the 21 in the objective: lever-arm,k2,time-offset or all.")
 @click.option(
     "--objective",
@@ -51,11 +72,32 @@ from .tools import emit_json, guarded, info, provenance
 )
 @options.profile()
 @options.latitude("Site latitude, deg.", default=40.0)
-@options.tolerance()
+@options.tolerance(
+    "Mounting tolerance, deg: the finalists are re-scored at the worst mounting within +-this "
+    "on each axis (0: the nominal mounting only)."
+)
 @options.requirements
-@click.option("--beam-width", type=click.IntRange(min=1), default=200, show_default=True)
+@click.option(
+    "--beam-width",
+    type=click.IntRange(min=1),
+    default=200,
+    show_default=True,
+    help="Partial walks the beam search keeps at each depth; wider searches more and takes longer "
+    "(a beam of 20 runs beside it, so more never answers worse).",
+)
 @click.option("--no-refine", is_flag=True, help="Keep uniform dwells (skip the IPOPT refinement).")
-@click.option("-o", "--output", help="Sequence file to write (default: designed-<budget>min.toml).")
+@click.option(
+    "-o",
+    "--output",
+    help="Sequence file to write (default: <name>.toml); its stem names the design. With --pareto: "
+    "the stem of the front's CSV and PNG, the designs beside it as <stem>-<budget>min.toml.",
+)
+@click.option(
+    "--name",
+    default=None,
+    help="The design's sequence name (default: the stem of -o, else designed-<budget>min); "
+    "with --pareto each is <name>-<budget>min.",
+)
 @click.option("--pareto", is_flag=True, help="Sweep budgets and print/save the time vs worst-ratio front.")
 @click.option(
     "--budgets", default="10,15,20,25,30", show_default=True, help="Budgets (min) of the --pareto sweep."
@@ -85,6 +127,7 @@ def design(
     beam_width,
     no_refine,
     output,
+    name,
     pareto,
     budgets,
     workers,
@@ -99,7 +142,8 @@ def design(
     write it as a sequence file with its provenance.
     """
     from calib.fileio import check_writable_dir
-    from seqdesign.search import design_budgets, design_steps, parse_node
+    from seqdesign.search import design_budgets, parse_node
+    from seqdesign.search.report import design_names
 
     constraints = dict(
         start=parse_node(start, "--start"),
@@ -120,46 +164,36 @@ def design(
 
     _, constraints = resolve_gimbal(gimbal_file, constraints)  # refused before the search
     sweep = _budgets(budgets) if pareto else [budget_min]
-    paths = {b: _design_path(b, output, pareto) for b in sweep}
+    base = name if name is not None else (_stem(output) if output else None)
+    names = design_names(sweep, base)
+    paths = {b: _design_path(names[b], output, pareto) for b in sweep}
     for path in set(paths.values()) | ({str(output or "pareto")} if pareto else set()):
         check_writable_dir(path, "-o/--output")  # before minutes of search, not after
-    from seqdesign.search import Constraints
+    started = set()
+    lines = ProgressLines()
 
-    bars = {}
+    def progress(b, report):
+        if b not in started:
+            started.add(b)
+            info(f"designing {names[b]} for {b:g} min (objective {objective}) ...")
+        lines(b, report)
 
-    def progress(b, msg, n):
-        if b not in bars:
-            info(f"designing for {b:g} min (objective {objective}) ...")
-            c = Constraints(budget_s=b * 60.0, **constraints)
-            bars[b] = click.progressbar(
-                length=design_steps(c, 4),
-                label=f"{b:g} min",
-                file=sys.stderr,
-                item_show_func=lambda m: m,
-                show_pos=True,
-            )
-            bars[b].__enter__()
-        bars[b].update(n, msg)
-
-    try:
-        report = design_budgets(
-            sweep,
-            constraints,
-            profile,
-            latitude_deg=latitude,
-            objective=objective,
-            tolerance_deg=tolerance_deg,
-            beam_width=beam_width,
-            refine=not no_refine,
-            workers=workers,
-            scheduler=scheduler,
-            progress=progress,
-            requirements=requirements,
-            extras=with_terms,
-        )
-    finally:
-        for bar in bars.values():
-            bar.__exit__(None, None, None)
+    report = design_budgets(
+        sweep,
+        constraints,
+        profile,
+        latitude_deg=latitude,
+        objective=objective,
+        tolerance_deg=tolerance_deg,
+        beam_width=beam_width,
+        refine=not no_refine,
+        workers=workers,
+        scheduler=scheduler,
+        progress=progress,
+        requirements=requirements,
+        extras=with_terms,
+        name=base,
+    )
     for row in report.rows:
         report.save_design(row, paths[row.budget_min], provenance())
         info(f"wrote {paths[row.budget_min]}")
@@ -178,8 +212,69 @@ def _budgets(text: str) -> list[float]:
         raise CalibError(f"--budgets {text!r} is not a list of minutes", "--budgets") from None
 
 
-def _design_path(budget_min: float, output: str | None, pareto: bool) -> str:
-    default = f"designed-{budget_min:g}min.toml"
+def _stem(output: str) -> str:
+    """The name an output file gives a design: ``mine.toml`` -> ``mine``."""
+    return Path(output).name.removesuffix(".toml")
+
+
+def _design_path(name: str, output: str | None, pareto: bool) -> str:
+    """Where a design goes: ``-o`` itself, else ``<name>.toml`` (with --pareto, beside -o)."""
     if pareto:  # every budget's design goes beside the front's files
-        return str(Path(output).parent / default) if output else default
-    return output or default
+        return str(Path(output).parent / f"{name}.toml") if output else f"{name}.toml"
+    return output or f"{name}.toml"
+
+
+def _duration(seconds: float) -> str:
+    """``95`` -> ``1 min 35 s``: a duration a user reads at a glance."""
+    s = int(round(seconds))
+    return f"{s // 60} min {s % 60:02d} s" if s >= 60 else f"{s} s"
+
+
+@dataclass
+class ProgressLines:
+    """A design's progress as lines on stderr: each phase's start, and between, at most one line
+    every ``every_s`` seconds with the candidates scored per second, the best figure so far and
+    the time left in the phase.
+
+    The time left is the phase's pace so far times the work it has left (candidates; for the
+    search, the beams' width x depth, since a beam's work grows with both); the phases to come
+    are named, not timed, because their work is known only when they start.
+    """
+
+    clock: Callable[[], float] = time.monotonic
+    every_s: float = PROGRESS_EVERY_S
+    _phase: tuple | None = None
+    _phase_t0: float = 0.0
+    _t0: dict = field(default_factory=dict)  # when each budget's design started
+    _last: float = -math.inf
+
+    def __call__(self, budget_min: float, r: Progress) -> None:
+        now = self.clock()
+        t0 = self._t0.setdefault(budget_min, now)
+        if (budget_min, r.phase) != self._phase:  # a new phase: always said
+            self._phase, self._phase_t0, self._last = (budget_min, r.phase), now, now
+            info(f"[{budget_min:g} min] {r.message} (at {_duration(now - t0)})")
+            return
+        if now - self._last < self.every_s:
+            return
+        self._last = now
+        info(f"[{budget_min:g} min] " + "; ".join(self.status(r, now - self._phase_t0)))
+
+    def status(self, r: Progress, elapsed: float) -> list[str]:
+        """The parts of a progress line: what was done, pace, best so far, time left."""
+        from seqdesign.search.pipeline import PHASES
+
+        parts = [r.message]
+        if r.scored and elapsed > 0:
+            rate = r.scored / elapsed
+            parts.append(f"{rate:.0f} candidates/s" if rate >= 1 else f"{1 / rate:.1f} s per candidate")
+        if r.best is not None:
+            parts.append(f"best so far {r.best:.3f} ({PHASES[r.phase][1]})")
+        if 0 < r.done < r.total:
+            left = elapsed * (r.total - r.done) / r.done
+            later = [title for title, _ in list(PHASES.values())[list(PHASES).index(r.phase) + 1 : -1]]
+            parts.append(
+                f"about {_duration(left)} left in this phase (its pace so far)"
+                + (f", then {', '.join(later)}" if later else "")
+            )
+        return parts

@@ -105,7 +105,13 @@ def read_schedule(path: str | Path) -> tuple[dict, np.ndarray]:
 @click.argument("sequence")
 @options.gimbal("Gimbal description (TOML; see docs/gimbal.md). Default: slip rings, no limits.")
 @click.option("-o", "--output", required=True, help="Schedule to write (.csv).")
-@click.option("--rate-hz", type=float, default=100.0, show_default=True, help="Command rate of the schedule.")
+@click.option(
+    "--rate-hz",
+    type=float,
+    default=100.0,
+    show_default=True,
+    help="Command rate of the schedule, Hz (rows per second of the CSV).",
+)
 @options.as_json
 @guarded
 def export(sequence, gimbal_file, output, rate_hz, as_json):
@@ -128,7 +134,7 @@ def export(sequence, gimbal_file, output, rate_hz, as_json):
     seq = load_sequence(sequence)
     gimbal = load_gimbal(gimbal_file)
     plan = plan_sequence(seq, gimbal)
-    check_playable(plan, f"{resolve_sequence_path(sequence)} on gimbal {gimbal.name!r}")
+    check_playable(plan, f"{resolve_sequence_path(sequence)} on gimbal {gimbal.name!r}", sequence)
     prov = provenance({"sequence": sequence, "gimbal": gimbal.path}, sequence=seq.name, gimbal=gimbal.name)
     header = {
         "format": FORMAT,

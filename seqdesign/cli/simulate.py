@@ -214,7 +214,7 @@ def simulate(
     setup = _Setup.read(sequence, output, profile, errors_file, table2, setup_deg, random_setup)
     extra = parse_values(extra_text)
     gimbal = load_gimbal(gimbal_file)
-    check_playable(plan_sequence(setup.seq, gimbal), f"{sequence} on gimbal {gimbal.name!r}")
+    check_playable(plan_sequence(setup.seq, gimbal), f"{sequence} on gimbal {gimbal.name!r}", sequence)
     seq, prof, errors = setup.seq, setup.profile, setup.errors
     lat, h = resolve_site(seq, latitude, height)
     cfg = SimConfig(

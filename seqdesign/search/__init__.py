@@ -10,10 +10,11 @@ whitening per candidate), :mod:`.gimbal` (what a real gimbal allows),
 
 from .beam import SearchModel, beam_search, brute_force
 from .constraints import Constraints, check_constraints, to_sequence
-from .design import DesignResult, design, design_steps
+from .design import DesignResult, design
 from .gimbal import resolve_gimbal
 from .graph import Move, flip_graph, parse_node
 from .parallel import map_jobs
+from .pipeline import Progress
 from .report import DesignReport, design_budgets, design_rate_dps
 
 __all__ = [
@@ -21,6 +22,7 @@ __all__ = [
     "DesignReport",
     "DesignResult",
     "Move",
+    "Progress",
     "SearchModel",
     "beam_search",
     "brute_force",
@@ -28,7 +30,6 @@ __all__ = [
     "design",
     "design_budgets",
     "design_rate_dps",
-    "design_steps",
     "flip_graph",
     "map_jobs",
     "parse_node",

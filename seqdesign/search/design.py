@@ -25,14 +25,13 @@ from .gimbal import check_sequence_plays
 from .objective import OBJECTIVES
 from .parallel import map_jobs
 from .pipeline import (
-    MOTIF_REPEATS,
     SCHEDULER_BATCH,
-    SCREEN_KEEP,
     ExactJob,
     ExactScorer,
     ExactScores,
     Finalist,
     Pipeline,
+    Progress,
     by_order,
     refined,
     select,
@@ -62,12 +61,6 @@ class DesignResult:
     repeats: int = 1  # how many times the winner plays its motif
 
 
-def design_steps(c: Constraints, keep: int) -> int:
-    """Progress steps of :func:`design`: searches, finalists, refinement, final check."""
-    n = len(search_dwells(c))
-    return 2 * n + 2 * n * keep * (1 + len(MOTIF_REPEATS)) + 2 * SCREEN_KEEP + 4
-
-
 def search_dwells(c: Constraints) -> list[float]:
     """Uniform dwells the search tries.
 
@@ -95,6 +88,41 @@ def _beam_widths(beam_width: int | None) -> list:
     return [NARROW_BEAM, beam_width]
 
 
+def beam_effort(job: BeamJob) -> int:
+    """Rough work of a beam, for the time left of the search: its width times the moves that fit.
+
+    Candidates scored grow as width x depth; the time per candidate is measured as the
+    search goes (the progress report), so only the proportions between beams matter here.
+    """
+    c = job.constraints
+    depth = min(c.max_flips, max(1, int(c.budget_s // max(job.dwell_s, 1.0))))
+    return depth * (job.beam_width if job.beam_width is not None else 1000)
+
+
+def _best_score(results) -> float | None:
+    """The best search score of the beams run so far (None before any walk)."""
+    best = [r.scores[0] for r in results if r.scores]
+    return min(best) if best else None
+
+
+def _serial_search(jobs: list[BeamJob], efforts: list[int], progress) -> list:
+    """The beams one at a time (what :func:`map_jobs` does serially), each reported as it ends."""
+    results: list = []
+    for k, job in enumerate(jobs):
+        results.append(search_at_dwell(job))
+        progress(
+            Progress(
+                "search",
+                f"search at dwell {job.dwell_s:g} s, width {job.beam_width}: beam {k + 1} of {len(jobs)}",
+                sum(efforts[: k + 1]),
+                sum(efforts),
+                sum(r.evaluated for r in results),
+                _best_score(results),
+            )
+        )
+    return results
+
+
 def _search(base: BeamJob, workers, scheduler, progress):
     """Run every beam (``base`` at each search dwell and beam width); returns ``(results,
     evaluated, narrow)``, ``narrow`` the results of the beams of 20 alone (None when that is
@@ -104,17 +132,25 @@ def _search(base: BeamJob, workers, scheduler, progress):
     jobs = [
         replace(base, dwell_s=d, beam_width=bw) for d in search_dwells(c) for bw in _beam_widths(beam_width)
     ]
+    efforts = [beam_effort(j) for j in jobs]
     if progress:
+        where = f" on {workers} workers" if workers > 1 else (" on the dask cluster" if scheduler else "")
         progress(
-            f"searching {len(jobs)} beams (widths {_beam_widths(beam_width)}, dwells "
-            f"{search_dwells(c)} s, up to {c.max_flips} moves of up to "
-            f"{c.max_quarters} quarter turns)",
-            0,
+            Progress(
+                "search",
+                f"searching {len(jobs)} beams{where} (widths {_beam_widths(beam_width)}, dwells "
+                f"{search_dwells(c)} s, up to {c.max_flips} moves of up to {c.max_quarters} quarter turns)",
+                0,
+                sum(efforts),
+            )
         )
-    results = map_jobs(search_at_dwell, jobs, workers, scheduler)
+    if workers > 1 or scheduler or not progress:
+        results = map_jobs(search_at_dwell, jobs, workers, scheduler)
+    else:  # one beam at a time (what map_jobs does serially), each reported
+        results = _serial_search(jobs, efforts, progress)
     evaluated = sum(r.evaluated for r in results)
-    if progress:
-        progress(f"searched {evaluated} candidates", len(jobs))
+    if progress and (workers > 1 or scheduler):
+        progress(Progress("search", f"searched {len(jobs)} beams", 1, 1, evaluated, _best_score(results)))
     narrow = None
     if len(_beam_widths(beam_width)) > 1:
         narrow = [r for r, j in zip(results, jobs, strict=True) if j.beam_width == NARROW_BEAM]
@@ -145,7 +181,8 @@ def design(
     IPOPT-refined. What ``--beam-width 20`` and ``--no-refine`` would answer comes from the
     same beams and gets the same final check; the best final figure wins
     (:func:`seqdesign.search.pipeline.select`).
-    ``progress(message, steps)``: ``design_steps(c, keep)`` steps in all.
+    ``progress(report)``: a :class:`~seqdesign.search.pipeline.Progress` at each phase's
+    start and as it goes (search, screen, box, refine, check, done).
     """
     _check_design_args(c, objective)
     t0 = time.perf_counter()
@@ -178,14 +215,20 @@ def design(
         n_unrefined, n_pool = pipeline.pools(narrow)
         pool = by_order(pool + n_pool)
         answers += [pool[0], n_pool[0], n_unrefined[0]]
-    best = select(answers, exact, tolerance_deg, batch)
+    best = select(answers, exact, tolerance_deg, batch, progress)
     winner = best.exact
     check_sequence_plays(winner.sequence, c.gimbal)
     if progress:
         progress(
-            f"best of {len(pool)}: {best.finalist.label}; worst case over +-{tolerance_deg:g} deg: "
-            f"{winner.ratio:.3f} ({winner.worst_name})",
-            1,
+            Progress(
+                "done",
+                f"best of {len(pool)}: {best.finalist.label}; worst case over +-{tolerance_deg:g} deg: "
+                f"{winner.ratio:.3f} ({winner.worst_name})",
+                1,
+                1,
+                0,
+                winner.ratio,
+            )
         )
     return DesignResult(
         sequence=winner.sequence,

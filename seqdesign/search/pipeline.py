@@ -34,6 +34,34 @@ MOTIF_REPEATS = (2, 3, 4)  # a finalist's walk also played 2-4 times, with short
 SCHEDULER_BATCH = 4  # candidates re-scored at once on a dask cluster (its size is unknown here)
 SCREEN_KEEP = 6  # candidates re-scored over the whole box after the nominal-mounting screen
 
+# The phases of a design, in order: what each is called and what its best figure is.
+PHASES = {
+    "search": ("search", "search score"),  # the beams' own model of the objective
+    "screen": ("screening", "worst ratio at the nominal mounting"),
+    "box": ("worst-case re-scoring", "worst ratio over the tolerance box"),
+    "refine": ("refinement", "worst ratio over the box, refined dwells"),
+    "check": ("final check", "worst ratio, IPOPT inside the box"),
+    "done": ("done", "worst ratio, IPOPT inside the box"),
+}
+
+
+@dataclass(frozen=True)
+class Progress:
+    """One report of a running design, handed to its ``progress`` callback.
+
+    ``done`` of ``total`` units of the phase's work are finished (candidates, or for the
+    search the beams' width x depth); ``scored`` candidates were scored in the phase so
+    far; ``best`` is the best figure so far, in the phase's sense (:data:`PHASES`).
+    A report with ``done == 0`` starts its phase.
+    """
+
+    phase: str
+    message: str
+    done: int = 0
+    total: int = 0
+    scored: int = 0
+    best: float | None = None
+
 
 @dataclass(frozen=True)
 class Proposal:
@@ -216,8 +244,12 @@ def proposals(results, c: Constraints) -> list[Proposal]:
     return out
 
 
-def screen(candidates: list[Proposal], exact: ExactScores, progress) -> list[Finalist]:
-    """Every proposal scored exactly at the nominal mounting, best first."""
+def screen(candidates: list[Proposal], exact: ExactScores, progress, chunk: int = 1) -> list[Finalist]:
+    """Every proposal scored exactly at the nominal mounting, best first.
+
+    Scored ``chunk`` at a time (the workers' batch) so that progress is reported as it goes;
+    each job is computed alone, so the chunks do not change the figures.
+    """
     if not candidates:
         raise CalibError(
             "no walk fits the constraints",
@@ -225,15 +257,24 @@ def screen(candidates: list[Proposal], exact: ExactScores, progress) -> list[Fin
             "raise --budget-min or --max-flips, or lower --min-dwell-s",
         )
     jobs = [ExactJob(p.walk, (p.dwell_s,) * (len(p.walk) + 1), False, 0.0) for p in candidates]
-    screened = []
-    for p, out in zip(candidates, exact(jobs), strict=True):
-        label = " ".join(m.label() for m in p.walk)
-        screened.append(Finalist(out.ratio, label, (p.dwell_s,) * (len(p.walk) + 1), p.walk, p.repeats))
+    n = len(jobs)
+    if progress:
+        progress(Progress("screen", f"screening {n} candidates at the nominal mounting", 0, n))
+    screened: list[Finalist] = []
+    for k in range(0, n, max(1, chunk)):
+        for p, out in zip(candidates[k : k + chunk], exact(jobs[k : k + chunk]), strict=True):
+            label = " ".join(m.label() for m in p.walk)
+            screened.append(Finalist(out.ratio, label, (p.dwell_s,) * (len(p.walk) + 1), p.walk, p.repeats))
         if progress:
             progress(
-                f"screened {len(screened)} ({len(p.walk)} moves, {p.dwell_s:g} s dwells): "
-                f"{out.ratio:.3f} ({out.worst_name}) at the nominal mounting",
-                1,
+                Progress(
+                    "screen",
+                    f"screened {len(screened)} of {n} ({len(p.walk)} moves, {p.dwell_s:g} s dwells)",
+                    len(screened),
+                    n,
+                    len(screened),
+                    min(f.ratio for f in screened),
+                )
             )
     return by_order(screened)
 
@@ -272,23 +313,39 @@ def boxed(screened, exact: ExactScores, tolerance_deg, progress, batch: int = 1)
     figure so far cannot come first and is not re-scored (only the first is used).
     """
     top = screened[:SCREEN_KEEP]
-    _, scored = pruned(
-        top, lambda fs: exact([ExactJob(f.walk, f.dwells, False, tolerance_deg) for f in fs]), batch
-    )
-    pool = []
-    for s in scored:
-        pool.append(replace(s.finalist, ratio=s.exact.ratio))
+    n = len(top)
+    if progress:
+        progress(Progress("box", f"worst-case re-scoring of the best {n} over +-{tolerance_deg:g} deg", 0, n))
+    pool: list[Finalist] = []
+
+    def score(fs):
+        out = exact([ExactJob(f.walk, f.dwells, False, tolerance_deg) for f in fs])
+        pool.extend(replace(f, ratio=o.ratio) for f, o in zip(fs, out, strict=True))
         if progress:
             progress(
-                f"box worst of {s.finalist.label[:40]}...: {s.exact.ratio:.3f} ({s.exact.worst_name}); "
-                f"best so far {min(p.ratio for p in pool):.3f}",
-                1,
+                Progress(
+                    "box",
+                    f"re-scored {len(pool)} of {n} over the box",
+                    len(pool),
+                    n,
+                    len(pool),
+                    min(p.ratio for p in pool),
+                )
             )
-    if progress and len(scored) < len(top):
+        return out
+
+    _, scored = pruned(top, score, batch)
+    if progress and len(scored) < n:
         progress(
-            f"{len(top) - len(scored)} candidates skipped: their nominal figure is "
-            f"already above the best box worst",
-            len(top) - len(scored),
+            Progress(
+                "box",
+                f"{n - len(scored)} candidates skipped: their nominal figure is "
+                f"already above the best box worst",
+                n,
+                n,
+                len(pool),
+                min(p.ratio for p in pool),
+            )
         )
     return by_order(pool)
 
@@ -299,15 +356,26 @@ def refined(best: Finalist, c, latitude_rad, height_m, profile, objective, requi
     ``exact(walk, dwells)`` is the :class:`ExactScore` over the box.
     """
     if progress:
-        progress(f"refining the dwells of {best.label} with IPOPT", 0)
+        progress(Progress("refine", f"refining the dwells of {best.label} with IPOPT", 0, 1, 0, best.ratio))
     new_dwells, _, _ = refine_dwells(
         best.walk, c, best.dwells[0], latitude_rad, height_m, profile, objective, requirements, best.repeats
     )
     if tuple(new_dwells) == best.dwells:
+        if progress:
+            progress(Progress("refine", "refinement kept the uniform dwells", 1, 1, 1, best.ratio))
         return []
     out = exact(best.walk, tuple(new_dwells))
     if progress:
-        progress(f"refined: {out.ratio:.3f} ({out.worst_name}) against {best.ratio:.3f} uniform", 1)
+        progress(
+            Progress(
+                "refine",
+                f"refined: {out.ratio:.3f} ({out.worst_name}) against {best.ratio:.3f} uniform",
+                1,
+                1,
+                1,
+                min(out.ratio, best.ratio),
+            )
+        )
     return [Finalist(out.ratio, best.label + " (refined)", tuple(new_dwells), best.walk, best.repeats)]
 
 
@@ -325,7 +393,9 @@ class Pipeline:
 
     def pools(self, results) -> tuple[list[Finalist], list[Finalist]]:
         """``(pool, with_refined)``: the box scores best first, and the same with the refined best."""
-        found = screen(proposals(results, self.c), self.exact, self.progress)
+        # chunks of the batch, several per map on processes (each map starts its pool)
+        chunk = self.batch if self.batch == 1 else 4 * self.batch
+        found = screen(proposals(results, self.c), self.exact, self.progress, chunk)
         pool = boxed(found, self.exact, self.tolerance_deg, self.progress, self.batch)
         key = (pool[0].walk, pool[0].dwells)
         if self.refine is not None and key not in self._refined:
@@ -334,7 +404,7 @@ class Pipeline:
         return pool, by_order(pool + extra)
 
 
-def select(answers, exact: ExactScores, tolerance_deg, batch: int = 1) -> Rescored:
+def select(answers, exact: ExactScores, tolerance_deg, batch: int = 1, progress=None) -> Rescored:
     """The final check (IPOPT inside the box) of each distinct answer; the best final figure.
 
     The search inside the box can only raise an answer's box figure (``ratio``), so an
@@ -345,6 +415,17 @@ def select(answers, exact: ExactScores, tolerance_deg, batch: int = 1) -> Rescor
     for f in answers:
         first.setdefault((f.walk, f.dwells), f)
     order = by_order(first.values())
-    return pruned(
-        order, lambda fs: exact([ExactJob(f.walk, f.dwells, True, tolerance_deg) for f in fs]), batch
-    )[0]
+    n, finals = len(order), []
+    if progress:
+        progress(Progress("check", f"final check of {n} answers (IPOPT inside the box)", 0, n))
+
+    def score(fs):
+        out = exact([ExactJob(f.walk, f.dwells, True, tolerance_deg) for f in fs])
+        finals.extend(o.ratio for o in out)
+        if progress:
+            progress(
+                Progress("check", f"checked {len(finals)} of {n}", len(finals), n, len(finals), min(finals))
+            )
+        return out
+
+    return pruned(order, score, batch)[0]

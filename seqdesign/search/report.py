@@ -14,6 +14,7 @@ from pathlib import Path
 
 from calib import earth
 from calib.bounds import accel_scale_bound
+from calib.errors import CalibError
 from calib.extras import NONE as NO_EXTRAS
 from calib.extras import Extras, parse_groups
 from calib.fileio import atomic_write_text, sha256_file
@@ -201,6 +202,20 @@ def extras_lines(r: DesignResult) -> list[str]:
     return out
 
 
+def design_names(budgets_min, name: str | None = None) -> dict[float, str]:
+    """Each budget's sequence name: ``name`` for one budget, ``<name>-<budget>min`` for several,
+    ``designed-<budget>min`` without a name (so that several designs never share a name).
+    """
+    budgets_min = list(budgets_min)
+    if name is not None and not name.strip():
+        raise CalibError("the design's name is empty", "--name", "give a name, e.g. --name mine")
+    if name is None:
+        return {b: f"designed-{b:g}min" for b in budgets_min}
+    if len(budgets_min) == 1:
+        return {budgets_min[0]: name}
+    return {b: f"{name}-{b:g}min" for b in budgets_min}
+
+
 def paper_point(
     profile: NoiseProfile, latitude_rad: float, tolerance_deg: float, requirements: Requirements = PAPER
 ):
@@ -227,6 +242,7 @@ def design_budgets(
     progress=None,
     requirements=None,
     extras=None,
+    name: str | None = None,
 ) -> DesignReport:
     """Design one sequence per budget.
 
@@ -253,12 +269,17 @@ def design_budgets(
     workers, scheduler : int, str (optional)
         Local processes; or a dask.distributed scheduler address.
     progress : callable, optional
-        ``progress(budget_min, message, steps)`` as the search advances.
+        ``progress(budget_min, report)`` as the search advances, ``report`` a
+        :class:`seqdesign.search.Progress` (phase, work done of the phase's total,
+        candidates scored, best figure so far).
     requirements : Requirements or str, optional
         The objective's requirements (default: the paper's).
     extras : Extras or str, optional
         Terms fitted beside the 21 (``--with``: ``lever-arm,k2,time-offset`` or
         ``all``); the objective is then the worst ratio of the 21 with them fitted.
+    name : str, optional
+        The designs' sequence name (:func:`design_names`: ``<name>-<budget>min`` each
+        when there are several budgets; default ``designed-<budget>min``).
 
     Returns
     -------
@@ -270,6 +291,8 @@ def design_budgets(
     earth.check_site(latitude_deg, 0.0)
     lat = math.radians(latitude_deg)
     g = earth.gravity(lat)
+    budgets_min = list(budgets_min)
+    names = design_names(budgets_min, name)
     rows = []
     for b in budgets_min:
         c = Constraints(budget_s=b * 60.0, **constraints)
@@ -284,10 +307,10 @@ def design_budgets(
             beam_width,
             keep=4,
             refine=refine,
-            name=f"designed-{b:g}min",
+            name=names[b],
             workers=workers,
             scheduler=scheduler,
-            progress=None if progress is None else (lambda m, n, b=b: progress(b, m, n)),
+            progress=None if progress is None else (lambda r, b=b: progress(b, r)),
             requirements=req,
             extras=ext,
         )
