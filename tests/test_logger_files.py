@@ -275,17 +275,27 @@ def test_columns_refuse_what_has_no_header(run, tmp_path):
     assert "read whole" in _refusal(path, *SITE, "--columns", MAP, "--stream")
 
 
-@pytest.mark.parametrize("command", [["view"], ["profile", "fit"]])
-def test_view_and_profile_fit_take_columns(command):
+@pytest.mark.parametrize("command", [["calibrate"], ["view"], ["profile", "fit"]])
+def test_columns_are_documented_on_each_command(command):
     result = _invoke(*command, "--help")
     assert result.exit_code == 0 and "--columns MAP" in result.output and "t=time_ms" in result.output
+
+
+def test_view_takes_columns(run, tmp_path):
+    pytest.importorskip("rerun")
+    preamble = f"# latitude_deg: {LAT_DEG}\n# height_m: 0\n"
+    path = write_logger(tmp_path / "log.csv", run, header="t,gx,gy,gz,ax,ay,az", preamble=preamble)
+    assert "lacks column 'time_s'" in _invoke("view", path, "-o", tmp_path / "log.rrd").output
+    result = _invoke("view", path, "-o", tmp_path / "log.rrd", "--columns", MAP)
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "log.rrd").stat().st_size > 0
 
 
 # --------------------------------------------------------------------------
 # A static log
 
 
-def static_mems_log(path: Path, bias_dps=(0.4, -0.4, -0.3), taps_s=(6.3,), seconds=120.0) -> Path:
+def static_mems_run(bias_dps=(0.4, -0.4, -0.3), taps_s=(6.3,), seconds=120.0) -> Run:
     """A MEMS unit on a bench: Earth rate, a large bias, white noise; a bench tap or two.
 
     The bias (0.66 deg/s, an ADIS16405's) is above the flip threshold of 0.57 deg/s, as
@@ -304,8 +314,12 @@ def static_mems_log(path: Path, bias_dps=(0.4, -0.4, -0.3), taps_s=(6.3,), secon
         rate[k + 20 : k + 40, 0] -= math.radians(2.0)
     force = np.array([0.0, 0.0, 9.81]) + profile.vrw / math.sqrt(dt) * rng.standard_normal((n, 3))
     time_s = (np.arange(n) + 1) * dt
-    meta = make_meta(LAT_DEG, 0.0, RATE_HZ)
-    write_run(Run(time_s=time_s, dtheta_rad=rate * dt, dv_mps=force * dt, meta=meta), path)
+    return Run(time_s=time_s, dtheta_rad=rate * dt, dv_mps=force * dt, meta=make_meta(LAT_DEG, 0.0, RATE_HZ))
+
+
+def static_mems_log(path: Path, taps_s=(6.3,)) -> Path:
+    """The static MEMS run through the run-log writer (imu-run/1 CSV)."""
+    write_run(static_mems_run(taps_s=taps_s), path)
     return path
 
 
@@ -321,11 +335,15 @@ def test_a_static_mems_log_is_named_static(tmp_path, taps_s):
         assert "too short to align" not in line
 
 
-def test_a_static_log_serves_profile_fit(tmp_path):
-    path = static_mems_log(tmp_path / "static.csv", taps_s=())
-    result = _invoke("profile", "fit", path, "-o", tmp_path / "mine.toml", "--no-plot", "--json")
+def test_a_static_log_serves_profile_fit_with_its_own_header(tmp_path):
+    # What the refusal above sends the user to, with a logger's header and a column map.
+    path = write_logger(tmp_path / "static.csv", static_mems_run(taps_s=()), header="t,gx,gy,gz,ax,ay,az")
+    fit = ["profile", "fit", path, "-o", tmp_path / "mine.toml", "--no-plot", "--json", *SITE]
+    result = _invoke(*fit, "--columns", MAP)
     assert result.exit_code == 0, result.output
-    assert (tmp_path / "mine.toml").exists()
+    # The white noise simulated is the mems profile's: the fit finds its ARW.
+    arw = json.loads(result.stdout)["profile"]["gyro_arw_dph"]
+    assert arw == pytest.approx(load_profile("mems").gyro_arw_dph, rel=0.2)
 
 
 # --------------------------------------------------------------------------
