@@ -21,6 +21,9 @@ from .errors import CalibError
 from .sequence import timeline
 
 MOTION_THRESHOLD = 0.01  # rad/s: far above Earth rate + bias + noise, far below a flip
+# A flip turns the IMU by tens of degrees; the spurious "turns" of a noisy static log (a MEMS
+# gyro's noise and bias drift over the few seconds a window flags) by tenths of a degree.
+MIN_TURN_DEG = 5.0
 MOTION_BLOCK = 1 << 16  # samples per block of the motion diagnosis (its memory, not its result)
 
 
@@ -108,10 +111,27 @@ def detect_motion(dtheta: np.ndarray, dt: np.ndarray, where: str = "run", arw: f
     else:
         grown = grow(sample_motion(dtheta, dt))
     motion = diagnose_motion(dtheta, dt, MOTION_THRESHOLD)
-    if not motion.has_flip:  # vibration or quantisation spikes alone are no flip
-        raise never_rotates(motion, MOTION_THRESHOLD, where)
+    turn = largest_turn(dtheta, dt, grown, steady)
+    # Vibration or quantisation spikes alone are no flip, nor is a MEMS bias (a steady rate
+    # beyond the threshold) with noise that a window flags here and there.
+    if not motion.has_flip or turn < math.radians(MIN_TURN_DEG):
+        raise never_rotates(motion, where, turn)
     first = int(np.argmax(grown))
     return Segmentation(moving=grown, first_rest_end=first)
+
+
+def largest_turn(dtheta: np.ndarray, dt: np.ndarray, moving: np.ndarray, steady: np.ndarray) -> float:
+    """The largest angle (rad) the IMU turns through within one stretch between rests.
+
+    The rate less the ``steady`` one (Earth rate and bias, rad/s) is integrated
+    from the start of each turning stretch; the largest angle reached counts, so a
+    turn there and back within one stretch counts too.
+    """
+    largest = 0.0
+    for a, b in zip(*runs_of(moving), strict=True):
+        angle = np.cumsum(dtheta[a:b] - steady * dt[a:b, None], axis=0)
+        largest = max(largest, float(np.max(row_norm(angle))))
+    return largest
 
 
 def sequence_mask(timeline, time_s: np.ndarray, dt: np.ndarray, t_start: float) -> np.ndarray:
@@ -147,7 +167,7 @@ def check_sequence_matches(
         raise CalibError(
             f"the sequence {seq.name!r} has {len(s0)} flips where the log turns {len(d0)} times",
             where,
-            "give the sequence the run was made with, or omit --sequence",
+            "give the sequence the run was made with, or none (then the flips are found in the gyros)",
         )
     if elapsed is None:
         assert dt is not None  # only a chunked run, which gives elapsed(), has no dt
@@ -162,7 +182,7 @@ def check_sequence_matches(
             f"flip {k + 1} of sequence {seq.name!r} starts at {t_s[k]:.2f} s but the "
             f"log turns at {t_d[k]:.2f} s",
             where,
-            "give the sequence the run was made with, or omit --sequence",
+            "give the sequence the run was made with, or none (then the flips are found in the gyros)",
         )
 
 
@@ -274,17 +294,21 @@ def _window_s(dt: np.ndarray, w: int) -> float:
     return float(carried_cumsum(dt[:w], 0.0)[-1])
 
 
-def never_rotates(motion: MotionDiagnosis, flip_rate: float, where: str) -> CalibError:
-    """The refusal of a log without a flip, with its measured sway."""
+def never_rotates(motion: MotionDiagnosis, where: str, turn_rad: float = 0.0) -> CalibError:
+    """The refusal of a log without a flip: how far it turns at most, and its measured sway.
+
+    ``turn_rad`` is the largest rotation between rests (:func:`largest_turn`).
+    """
     k = int(np.argmax(motion.sway_rate_arcsec_s))
     return CalibError(
-        f"the log never rotates (no rotation found: its rate averaged over "
-        f"{motion.window_s:.3g} s peaks at {math.degrees(motion.max_mean_rate_rad_s):.3g} deg/s, "
-        f"a flip turns faster than {math.degrees(flip_rate):.2f} deg/s); the base sways by "
-        f"+-{motion.sway_arcsec[k]:.3g} arcsec about {'xyz'[k]} ({motion.sway_rate_arcsec_s[k]:.3g} "
-        f"arcsec/s RMS over {motion.window_s:.3g} s; single samples reach "
-        f"{math.degrees(motion.max_rate_rad_s):.3g} deg/s)",
+        f"the log never rotates (largest rotation between rests is {math.degrees(turn_rad):.2g} deg, "
+        f"a flip turns by tens): it is a static log; use it with `seqdesign profile fit` "
+        f"(profile_fit in a notebook) for a noise profile",
         where,
-        "a calibration run must flip the IMU; a static log like this one serves noise "
-        "analysis (Allan deviation), not calibration",
+        f"a calibration run must flip the IMU; about its mean rate, this one sways by "
+        f"+-{motion.sway_arcsec[k]:.3g} arcsec about {'xyz'[k]} "
+        f"({motion.sway_rate_arcsec_s[k]:.3g} arcsec/s RMS over {motion.window_s:.3g} s; "
+        f"its rate averaged over {motion.window_s:.3g} s peaks at "
+        f"{math.degrees(motion.max_mean_rate_rad_s):.3g} deg/s, single samples at "
+        f"{math.degrees(motion.max_rate_rad_s):.3g} deg/s)",
     )

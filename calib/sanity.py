@@ -36,17 +36,66 @@ def check_latitude(latitude_rad: float, where: str) -> None:
         )
 
 
+class GyroUnitError(CalibError):
+    """A gyro reading beyond what the unit can show: most often a unit in degrees read as radians.
+
+    ``rate`` is what the gyros read (rad/s) and ``limit`` the most that is
+    plausible there, so that :func:`explain_gyro_unit` can tell, for a log whose
+    gyro came from rate columns, whether the same numbers in deg/s would fit.
+    """
+
+    def __init__(
+        self,
+        what: str,
+        where: str | None = None,
+        fix: str | None = None,
+        rate: float = 0.0,
+        limit: float = 0.0,
+    ):  # defaults: an error pickled to another process comes back from its message alone
+        super().__init__(what, where, fix)
+        self.rate, self.limit = rate, limit
+
+
+def explain_gyro_unit(error: GyroUnitError, gyro_columns) -> CalibError:
+    """``error`` told in the terms of the file's gyro columns, when they were rates.
+
+    ``gyro_columns`` is a run's ``gyro_columns``: ``(file's name, read as)`` of
+    x, y, z, or None. A refusal about increments (``dtheta`` columns) means
+    nothing to a file of rates: for rate columns read as rad/s, numbers that
+    would be plausible in deg/s are named as such, with the names to give.
+    """
+    if not gyro_columns or not all(read.startswith("gyro_") for _, read in gyro_columns):
+        return error
+    files = ", ".join(name for name, _ in gyro_columns)
+    radps = all(read.endswith("_radps") for _, read in gyro_columns)
+    if radps and error.rate * math.radians(1.0) <= error.limit:
+        renamed = [(name, read.removesuffix("_radps") + "_dps") for name, read in gyro_columns]
+        if any(name != read for name, read in gyro_columns):  # a column map renamed them
+            to = "map " + ",".join(f"{name}={new}" for name, new in renamed)
+        else:
+            to = "name them " + ", ".join(new for _, new in renamed)
+        fix = f"the gyro columns {files} look like deg/s (57x rad/s): {to}"
+    else:
+        fix = (
+            f"check the unit of the gyro columns {files} (gyro_<axis>_radps for rad/s, _dps for "
+            "deg/s) and that the IMU was at rest"
+        )
+    return CalibError(error.what, error.where, fix)
+
+
 def check_rates(dtheta: np.ndarray, dt: np.ndarray, where: str) -> None:
     """Refuse gyro data in degrees, or rates for increments (from magnitudes)."""
     rate = row_norm(dtheta) / dt
     peak = float(rate.max())
     if peak > MAX_PLAUSIBLE_RATE:
         k = int(np.argmax(rate))
-        raise CalibError(
+        raise GyroUnitError(
             f"gyro increments imply {peak:.3g} rad/s at sample {k}, beyond any gimbal",
             where,
             "dtheta columns must be angle increments in rad: degrees (x57) or rates "
             f"instead of increments (x{1 / np.median(dt):.0f}) give this",
+            peak,
+            MAX_PLAUSIBLE_RATE,
         )
 
 
@@ -65,12 +114,15 @@ def check_rest_rate(
     gyro bias requirement (rad/s), and at least ``MAX_REST_RATE``.
     """
     w = float(np.linalg.norm(dtheta[rest].sum(axis=0)) / dt[rest].sum())
-    if w > max(MAX_REST_RATE, CLASS_FACTOR * gyro_bias_requirement):
-        raise CalibError(
+    limit = max(MAX_REST_RATE, CLASS_FACTOR * gyro_bias_requirement)
+    if w > limit:
+        raise GyroUnitError(
             f"the gyros read {w:.3g} rad/s at the first rest, {w / 7.292115e-5:.0f}x the Earth rate",
             where,
             "dtheta must be in rad: degrees (x57) give this, as do rates logged "
             "as increments or a base that turns",
+            w,
+            limit,
         )
 
 

@@ -84,7 +84,8 @@ def test_increments_in_degrees(tmp_path):
         (("accel_x_g", "accel_x_ms2"), ["column 'accel_x_ms2' has unknown unit 'ms2'", "mps2, g"]),
         (("gyro_z_dps", "speed"), ["lacks column 'gyro_z_dps'"]),
         (("temp_c", "dtheta_x_rad"), ["gyro is given twice", "dtheta_x_rad", "gyro_x_dps"]),
-        (("time_s", "time_ms"), ["'time_ms'", "must be s"]),
+        (("time_s", "time_min"), ["'time_min'", "unknown time unit 'min'", "time_ms"]),
+        (("temp_c", "time_ms"), ["the time is given twice", "'time_s'", "'time_ms'"]),
     ],
 )
 def test_bad_columns_are_named(tmp_path, change, parts):

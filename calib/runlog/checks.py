@@ -11,6 +11,7 @@ import numpy as np
 from calib.earth import HEIGHT_RANGE_M  # one source: the site limits of calib.earth
 from calib.errors import CalibError
 from calib.runlog import clock
+from calib.runlog.columns import time_unit_suspect
 from calib.runlog.format import ARRAY_COLUMNS, FORMAT, REQUIRED_META
 from calib.runlog.run import Run, meta_float
 
@@ -125,10 +126,12 @@ def check_array_shape(array: np.ndarray, name: str, n: int, where: str) -> None:
         )
 
 
-def check_samples(run: Run, locate, allow_gaps: bool) -> clock.SampleClock:
+def check_samples(run: Run, locate, allow_gaps: bool, time_name: str | None = None) -> clock.SampleClock:
     """Refuse too few samples, non-finite values, non-increasing time and (unless allowed) gaps.
 
-    Returns the sample clock of the time column (:func:`calib.runlog.clock.sample_clock`).
+    ``time_name`` is the name a CSV's time column was read as (``time_ms``...),
+    None for arrays. Returns the sample clock of the time column
+    (:func:`calib.runlog.clock.sample_clock`).
     """
     time = np.asarray(run.time_s)
     n = time.shape[0]
@@ -157,6 +160,10 @@ def check_samples(run: Run, locate, allow_gaps: bool) -> clock.SampleClock:
     # gap detection, durations and the first sample's interval are all wrong.
     typical = float(np.median(step))
     if not 0.5 * period <= typical <= GAP_PERIODS * period:
+        file_name = getattr(locate, "columns", {}).get("time_s", (None,))[0] if time_name else None
+        suspect = time_unit_suspect(typical, time_name, n, run.sample_rate_hz, file_name)
+        if suspect is not None:  # the rate is right and the time column's unit is not its name's
+            raise CalibError(suspect.what, locate.sample("time_s", 1), suspect.fix)
         raise CalibError(
             f"sample_rate_hz = {run.sample_rate_hz:g} (a period of {period:g} s) does not match "
             f"the time stamps, which are typically {typical:.6g} s apart",

@@ -2,7 +2,7 @@
 
 A header names each column by quantity, axis and unit, in any order::
 
-    time_s                                  sample time, s (end of the sample interval)
+    time_{s,ms,us,ns}                       sample time (end of the sample interval)
     dtheta_{x,y,z}_{rad,deg}                gyro angle increments
     gyro_{x,y,z}_{radps,dps}                gyro rates, rad/s or deg/s
     dv_{x,y,z}_mps                          velocity increments, m/s
@@ -19,6 +19,10 @@ nominal period). A logger's rate sample is the sensor's mean rate over its
 output interval (the decimation filter averages), so this is exact for that
 reading; a trapezoid would mix neighbouring samples and correlate their noise,
 which bends the Allan deviation at the shortest averaging times.
+
+A header whose names are the logger's own (``t,gx,gy,gz,ax,ay,az``) is read
+through a column map (:func:`parse_column_map`): ``t=time_ms,gx=gyro_x_dps,...``
+renames the file's columns to names of this grammar.
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ import numpy as np
 
 from calib.errors import CalibError
 from calib.params import DEG, STANDARD_GRAVITY
-from calib.runlog.format import TIME_COLUMN
+from calib.runlog.format import GIMBAL_COLUMNS, TIME_COLUMN
 
 AXES = ("x", "y", "z")
 
@@ -43,6 +47,9 @@ QUANTITIES = {
 _CLASSIC = {"gyro": "dtheta", "accel": "dv"}  # the quantity docs/formats.md names
 _CLASSIC_UNIT = {"dtheta": "rad", "dv": "mps"}
 EXAMPLE_HEADER = "time_s,gyro_x_dps,gyro_y_dps,gyro_z_dps,accel_x_g,accel_y_g,accel_z_g"
+# Time units: ticks per second, exact integers (an integer stamp converts without rounding twice).
+TIME_UNITS = {"s": 1, "ms": 1_000, "us": 1_000_000, "ns": 1_000_000_000}
+TIME_NAMES = tuple(f"time_{unit}" for unit in TIME_UNITS)
 
 
 @dataclass(frozen=True)
@@ -66,6 +73,12 @@ class ColumnPlan:
     time: int
     gyro: SensorColumns
     accel: SensorColumns
+    time_name: str = TIME_COLUMN  # time_s, time_ms, time_us or time_ns
+
+    @property
+    def ticks_per_second(self) -> int:
+        """What one second is in the time column's unit (1 for seconds)."""
+        return TIME_UNITS[self.time_name.removeprefix("time_")]
 
 
 def _split(name: str) -> tuple[str, str, str] | None:
@@ -100,16 +113,16 @@ def plan_columns(names: list[str], where: str) -> ColumnPlan:
     found: dict[str, dict[str, tuple[str, int, float]]] = {}
     seen: dict[str, int] = {}
     for position, column in enumerate(names):
-        if column in seen and (column == TIME_COLUMN or _split(column)):
+        if column in seen and (column in TIME_NAMES or _split(column)):
             raise CalibError(
                 f"column '{column}' appears twice in the header", where, "keep one of the two columns"
             )
         seen.setdefault(column, position)
-        if column.startswith("time_") and column != TIME_COLUMN:
+        if column.startswith("time_") and column not in TIME_NAMES:
             raise CalibError(
-                f"column '{column}': the time unit must be s",
+                f"column '{column}' has unknown time unit '{column.removeprefix('time_')}'",
                 where,
-                f"name the time column '{TIME_COLUMN}', in seconds",
+                "name the time column by its unit: " + ", ".join(TIME_NAMES),
             )
         split = _split(column)
         if split is None:
@@ -126,12 +139,18 @@ def plan_columns(names: list[str], where: str) -> ColumnPlan:
                 + f", e.g. {EXAMPLE_HEADER}",
             )
         found.setdefault(quantity, {})[axis] = (column, position, units[unit])
-    if TIME_COLUMN not in seen:
+    times = [c for c in TIME_NAMES if c in seen]
+    if not times:
         _missing([TIME_COLUMN], names, where)
+    if len(times) > 1:
+        raise CalibError(
+            f"the time is given twice, as '{times[0]}' and as '{times[1]}'", where, "keep one time column"
+        )
     return ColumnPlan(
-        time=seen[TIME_COLUMN],
+        time=seen[times[0]],
         gyro=_sensor("gyro", found, names, where),
         accel=_sensor("accel", found, names, where),
+        time_name=times[0],
     )
 
 
@@ -167,10 +186,92 @@ def _missing(missing: list[str], names: list[str], where: str) -> None:
         f"header row lacks column{'s' if len(missing) > 1 else ''} "
         f"{', '.join(repr(c) for c in missing)}{hint}",
         where,
-        "the header row (first line not starting with '#') names time_s and "
-        "the gyro and accelerometer on x, y, z as quantity_axis_unit, e.g. "
-        f"{EXAMPLE_HEADER} (see docs/logs-columns.md)",
+        "the header row (first line not starting with '#') names the time (time_s, time_ms, time_us or "
+        "time_ns) and the gyro and accelerometer on x, y, z as quantity_axis_unit, e.g. "
+        f"{EXAMPLE_HEADER}; a file that names them its own way is read with a column map, e.g. "
+        "columns='t=time_s,gx=gyro_x_dps,...' (the CLI's --columns; see docs/logs-columns.md)",
     )
+
+
+def accepted_names() -> str:
+    """The names a column map may give, for messages."""
+    sensors = "; ".join(
+        f"{quantity}_{{x,y,z}}_{{{','.join(units)}}}" for quantity, (_, _, units) in QUANTITIES.items()
+    )
+    return ", ".join(TIME_NAMES) + "; " + sensors + "; " + ", ".join(GIMBAL_COLUMNS)
+
+
+def _known_name(name: str) -> bool:
+    """Whether ``name`` is a column this grammar reads (time, a sensor axis with its unit, an encoder)."""
+    if name in TIME_NAMES or name in GIMBAL_COLUMNS:
+        return True
+    split = _split(name)
+    return split is not None and split[2] in QUANTITIES[split[0]][2]
+
+
+def parse_column_map(columns: str | dict[str, str] | None, where: str) -> dict[str, str]:
+    """A column map, ``{file's name: our name}``, from ``'t=time_ms,gx=gyro_x_dps,...'`` or a dict.
+
+    Parameters
+    ----------
+    columns : str or dict or None
+        Comma-separated ``FILE_NAME=OUR_NAME`` pairs, or the same pairs as a dict;
+        None or empty maps nothing.
+    where : str
+        Place to name in messages.
+
+    Raises
+    ------
+    CalibError
+        On a pair without ``=``, a file name given twice, or an unknown name to map to
+        (the message lists the accepted ones).
+    """
+    if not columns:
+        return {}
+    if isinstance(columns, str):
+        pairs = []
+        for item in columns.split(","):
+            if not item.strip():
+                continue
+            source, equals, target = item.partition("=")
+            if not equals or not source.strip() or not target.strip():
+                raise CalibError(
+                    f"column map item {item.strip()!r} is not FILE_NAME=OUR_NAME",
+                    where,
+                    "write pairs like t=time_ms,gx=gyro_x_dps,gy=gyro_y_dps,gz=gyro_z_dps,"
+                    "ax=accel_x_mps2,ay=accel_y_mps2,az=accel_z_mps2",
+                )
+            pairs.append((source.strip(), target.strip()))
+    else:
+        pairs = [(str(k).strip(), str(v).strip()) for k, v in columns.items()]
+    mapping: dict[str, str] = {}
+    for source, target in pairs:
+        if source in mapping:
+            raise CalibError(
+                f"column map names the file's column '{source}' twice", where, "map each column once"
+            )
+        if not _known_name(target):
+            raise CalibError(
+                f"column map: '{source}={target}' maps to an unknown name '{target}'",
+                where,
+                "map to one of " + accepted_names() + " (docs/logs-columns.md)",
+            )
+        mapping[source] = target
+    return mapping
+
+
+def apply_column_map(names: list[str], mapping: dict[str, str], where: str) -> list[str]:
+    """The header's names with the map applied; refuse a mapped name the header lacks."""
+    absent = [source for source in mapping if source not in names]
+    if absent:
+        raise CalibError(
+            "column map names "
+            + ", ".join(f"'{a}'" for a in absent)
+            + f", which the header row does not have (it has {', '.join(names)})",
+            where,
+            "map the names the header row gives (column names are case-sensitive)",
+        )
+    return [mapping.get(name, name) for name in names]
 
 
 def to_increments(
@@ -188,3 +289,68 @@ def to_increments(
     dt[0] = nominal_dt
     dt[1:] = np.diff(time_s)
     return si * dt[:, None]
+
+
+# The output rates of IMUs, Hz: a factor 1000 wide, so at most one time unit puts a log in it.
+IMU_RATES_HZ = (5.0, 5000.0)
+# Without a stated rate, a log this slow or this fast in its stated unit is no IMU's ...
+IMPLAUSIBLE_RATES_HZ = (1.0, 20000.0)
+# ... when it has at least this many samples (a handful of rows says nothing).
+IMU_LIKE_COUNT = 1000
+_UNIT_WORDS = {"s": "seconds", "ms": "milliseconds", "us": "microseconds", "ns": "nanoseconds"}
+
+
+def time_unit_suspect(
+    step_s: float,
+    column: str | None,
+    n_samples: int,
+    sample_rate_hz: float | None = None,
+    file_name: str | None = None,
+) -> CalibError | None:
+    """The refusal of a time column whose steps say it is in another unit than its name's, or None.
+
+    With a stated rate, the typical step must be one period: a step 1000 (or
+    1e6, 1e9, 1/1000...) periods long says the unit. Without one, a log of
+    IMU-like length whose steps give a rate no IMU has is judged by the unit
+    that gives an IMU's rate.
+
+    Parameters
+    ----------
+    step_s : float
+        Typical time step (median), s as the column's name converts it.
+    column : str or None
+        The time column's name (``time_ms``...); None for a time stored in s
+        without a name to change (an NPZ's ``time_s``).
+    n_samples : int
+    sample_rate_hz : float, optional
+        The stated rate.
+    file_name : str, optional
+        The file's own name of the column, when a column map renamed it.
+    """
+    unit = (column or TIME_COLUMN).removeprefix("time_")
+    written = step_s * TIME_UNITS[unit]  # the step as the file writes it
+    if not step_s > 0.0:
+        return None
+    if sample_rate_hz is not None:
+        fits = [u for u, k in TIME_UNITS.items() if u != unit and abs(written / k * sample_rate_hz - 1) < 0.1]
+        said = f"at {sample_rate_hz:g} Hz"
+    else:
+        low, high = IMPLAUSIBLE_RATES_HZ
+        if n_samples < IMU_LIKE_COUNT or low <= 1.0 / step_s <= high:
+            return None
+        fits = [u for u, k in TIME_UNITS.items() if IMU_RATES_HZ[0] <= k / written < IMU_RATES_HZ[1]]
+        said = f"over {n_samples} samples ({1.0 / step_s:.3g} Hz: no IMU samples at that rate)"
+    if not fits:
+        return None
+    if column is None:
+        fix = f"store the time in seconds (x{1 / TIME_UNITS[fits[0]]:g})"
+    elif file_name and file_name != column:
+        fix = f"map {file_name}=time_{fits[0]} in the column map"
+    else:
+        fix = f"name it time_{fits[0]}"
+    return CalibError(
+        f"time steps of {written:.6g} '{_UNIT_WORDS[unit]}' {said}: the column "
+        f"'{file_name or column or TIME_COLUMN}' looks like {_UNIT_WORDS[fits[0]]}",
+        None,
+        fix + ", or correct sample_rate_hz" if sample_rate_hz is not None else fix,
+    )

@@ -14,7 +14,14 @@ import numpy as np
 
 from calib.errors import CalibError
 from calib.runlog.checks import check_meta, check_samples
-from calib.runlog.columns import ColumnPlan, plan_columns, to_increments
+from calib.runlog.columns import (
+    ColumnPlan,
+    apply_column_map,
+    parse_column_map,
+    plan_columns,
+    time_unit_suspect,
+    to_increments,
+)
 from calib.runlog.format import ARRAY_COLUMNS, FORMAT, GIMBAL_COLUMNS, REQUIRED_COLUMNS, REQUIRED_META
 from calib.runlog.paths import read_bytes
 from calib.runlog.run import Run, meta_float
@@ -46,13 +53,18 @@ class _CsvLocator:
         return text + f" (sample {index})"
 
 
-def read_csv(path: str | os.PathLike, allow_gaps: bool, options: dict | None = None) -> Run:
-    """Read a CSV run log (see module docstring for how places are named)."""
+def read_csv(path: str | os.PathLike, allow_gaps: bool, options: dict | None = None, columns=None) -> Run:
+    """Read a CSV run log (see module docstring for how places are named).
+
+    ``columns`` maps the file's column names to the grammar's
+    (:func:`calib.runlog.columns.parse_column_map`).
+    """
     name = str(path)
+    mapping = parse_column_map(columns, name)
     lines = _decode_lines(read_bytes(path), name)
     meta, key_lines, header_index = parse_preamble(lines, name)
     lines = _to_commas(lines, header_index, name)
-    plan, has_gimbal, positions = _parse_header(lines[header_index], header_index + 1, name)
+    plan, has_gimbal, positions = _parse_header(lines[header_index], header_index + 1, name, mapping)
     rows, row_lines = _data_rows(lines, header_index + 1)
     if not rows:
         raise CalibError(
@@ -67,11 +79,14 @@ def read_csv(path: str | os.PathLike, allow_gaps: bool, options: dict | None = N
         wanted += [positions[c] for c in GIMBAL_COLUMNS]
     all_names = [c.strip() for c in lines[header_index].split(",")]
     data = _parse_numbers(rows, row_lines, wanted, all_names, name)
-    time_s = np.ascontiguousarray(data[:, 0])
-    _fill_meta(meta, options or {}, time_s, name, header_index + 1)
-    locate = _CsvLocator(
-        name, key_lines, row_lines, {"dtheta_rad": plan.gyro.names, "dv_mps": plan.accel.names}
-    )
+    time_s = time_in_seconds(data[:, 0], rows, plan.time, plan.ticks_per_second)
+    _fill_meta(meta, options or {}, time_s, name, header_index + 1, (plan.time_name, all_names[plan.time]))
+    own: dict[str, tuple[str, ...]] = {  # the file's own names, as messages name columns
+        "time_s": (all_names[plan.time],),
+        "dtheta_rad": tuple(all_names[i] for i in plan.gyro.positions),
+        "dv_mps": tuple(all_names[i] for i in plan.accel.positions),
+    }
+    locate = _CsvLocator(name, key_lines, row_lines, own)
     check_meta(meta, locate)
     dt = 1.0 / meta_float(meta, "sample_rate_hz", name)
     run = Run(
@@ -81,9 +96,29 @@ def read_csv(path: str | os.PathLike, allow_gaps: bool, options: dict | None = N
         meta=meta,
         gimbal_deg=np.ascontiguousarray(data[:, 7:10]) if has_gimbal else None,
         source=name,
+        gyro_columns=tuple(zip(own["dtheta_rad"], plan.gyro.names, strict=True)),
     )
     # The clock the checks found goes with the run: clock.settle does not find it again.
-    return replace(run, clock=check_samples(run, locate, allow_gaps))
+    return replace(run, clock=check_samples(run, locate, allow_gaps, plan.time_name))
+
+
+def time_in_seconds(parsed: np.ndarray, rows: list[str], position: int, ticks: int) -> np.ndarray:
+    """The time column in seconds.
+
+    ``parsed`` is the column as floats, ``rows`` the data rows, ``position`` the
+    column's and ``ticks`` its unit's ticks per second. Seconds stay as parsed.
+    Integer stamps in ms, us or ns are split into whole seconds and the rest in
+    integers first, so an epoch-sized stamp is not rounded as a float of ticks
+    (to 256 ns) before the division rounds it again.
+    """
+    if ticks == 1:
+        return np.ascontiguousarray(parsed)
+    try:
+        stamps = np.loadtxt(rows, delimiter=",", comments=None, dtype=np.int64, usecols=[position], ndmin=1)
+    except (ValueError, OverflowError):
+        return parsed / ticks  # decimals: one division, correctly rounded
+    whole, rest = np.divmod(stamps, ticks)
+    return whole.astype(np.float64) + rest / ticks
 
 
 def _to_commas(lines: list[str], header_index: int, name: str) -> list[str]:
@@ -113,12 +148,21 @@ def _to_commas(lines: list[str], header_index: int, name: str) -> list[str]:
     return lines[:header_index] + [row.replace(sep, ",") for row in [header] + body]
 
 
-def _fill_meta(meta: dict[str, str], options: dict, time_s: np.ndarray, name: str, header_line: int) -> None:
+def _fill_meta(
+    meta: dict[str, str],
+    options: dict,
+    time_s: np.ndarray,
+    name: str,
+    header_line: int,
+    time_column: tuple[str, str],
+) -> None:
     """Site keys from options; for a logger's file (no format line) also format and rate.
 
     A file declaring ``imu-run/1`` keeps the contract of files.md: its sample rate
     must be written in it. A logger's file gets the rate from the median time step
-    and a message listing every key still missing, with an example preamble.
+    (refused when that step says the time column's unit is not its name's) and a
+    message listing every key still missing, with an example preamble.
+    ``time_column`` is the time column's name as read and the file's own name.
     """
     for key, value in options.items():
         if value is None:
@@ -141,6 +185,9 @@ def _fill_meta(meta: dict[str, str], options: dict, time_s: np.ndarray, name: st
     meta["format"] = FORMAT
     if "sample_rate_hz" not in meta and time_s.size >= 2:
         step = float(np.median(np.diff(time_s)))
+        suspect = time_unit_suspect(step, time_column[0], time_s.size, file_name=time_column[1])
+        if suspect is not None:
+            raise CalibError(suspect.what, f"{name}, line {header_line}", suspect.fix)
         if step > 0:
             # Printed time stamps carry rounding (0.01 is not exact): 9 digits of the rate.
             meta["sample_rate_hz"] = repr(float(f"{1.0 / step:.9g}"))
@@ -149,7 +196,7 @@ def _fill_meta(meta: dict[str, str], options: dict, time_s: np.ndarray, name: st
         options_hint = {
             "latitude_deg": "latitude_deg (the CLI's --latitude DEG)",
             "height_m": "height_m (the CLI's --height M)",
-            "sample_rate_hz": "a time_s column that increases",
+            "sample_rate_hz": "a time column that increases",
         }
         raise CalibError(
             "the file lacks " + ", ".join(f"'{k}'" for k in missing),
@@ -224,10 +271,12 @@ def parse_preamble(lines: list[str], name: str) -> tuple[dict[str, str], dict[st
     )
 
 
-def _parse_header(line: str, line_number: int, name: str) -> tuple[ColumnPlan, bool, dict[str, int]]:
-    """The columns of the header row (grammar of :mod:`calib.runlog.columns`) and the gimbal's."""
-    names = [c.strip() for c in line.split(",")]
+def _parse_header(
+    line: str, line_number: int, name: str, mapping: dict[str, str]
+) -> tuple[ColumnPlan, bool, dict[str, int]]:
+    """The columns of the header row (:mod:`calib.runlog.columns`, column map applied) and the gimbal's."""
     where = f"{name}, line {line_number}"
+    names = apply_column_map([c.strip() for c in line.split(",")], mapping, where)
     plan = plan_columns(names, where)
     positions: dict[str, int] = {}
     for position, column in enumerate(names):

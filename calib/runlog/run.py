@@ -33,6 +33,10 @@ class Run:
         Path the run was read from, used to name it in messages.
     clock : calib.runlog.clock.SampleClock or None
         Jitter, dropped and duplicated samples found by `read_run`.
+    gyro_columns : tuple of (str, str) or None
+        For a CSV file, the gyro's columns x, y, z as ``(the file's name, the name
+        it was read as)`` (they differ under a column map): messages about the
+        gyro's unit name these. None for a run whose increments were given as such.
     """
 
     time_s: np.ndarray
@@ -42,6 +46,7 @@ class Run:
     gimbal_deg: np.ndarray | None = None
     source: str = "<memory>"
     clock: SampleClock | None = None  # what read_run found in the time column
+    gyro_columns: tuple[tuple[str, str], ...] | None = None  # (file's name, read as), x y z
 
     @property
     def latitude_deg(self) -> float:

@@ -30,6 +30,7 @@ def read_run(
     *,
     latitude_deg: float | None = None,
     height_m: float | None = None,
+    columns: str | dict[str, str] | None = None,
 ) -> Run:
     """Read and check a run log, ``.csv`` (or ``.csv.gz``), ``.npz`` or PSINS ``.imu``.
 
@@ -47,10 +48,16 @@ def read_run(
     latitude_deg, height_m : float, optional
         Site metadata for a CSV file that lacks it (the CLI's ``--latitude``, ``--height``);
         a file that has the key and a different value is refused.
+    columns : str or dict, optional
+        For a CSV file, the file's column names mapped to the names of
+        ``docs/logs-columns.md`` (the CLI's ``--columns``):
+        ``"t=time_ms,gx=gyro_x_dps,gy=gyro_y_dps,gz=gyro_z_dps,ax=accel_x_g,ay=accel_y_g,az=accel_z_g"``
+        or the same pairs as a dict; columns it does not name keep their names.
 
     A CSV file may be gzip-compressed (``.csv.gz``). A CSV file without a
     ``# format:`` line is a logger's file (``docs/logs-columns.md``): it is read as
-    ``imu-run/1``, its sample rate, when absent, comes from the time column.
+    ``imu-run/1``, its sample rate, when absent, comes from the time column, whose
+    unit (s, ms, us or ns) its name gives.
 
     Returns
     -------
@@ -65,10 +72,17 @@ def read_run(
     """
     expect(path, "run")
     kind = run_kind(path)
+    if columns and kind != ".csv":
+        raise CalibError(
+            f"a column map renames a CSV file's header, and {kind} files have no header to rename",
+            str(path),
+            "leave out the column map (columns) for this file",
+        )
     if kind == ".imu":
         run = read_psins(path, allow_gaps)
     elif kind == ".csv":
-        run = read_csv(path, allow_gaps, {"latitude_deg": latitude_deg, "height_m": height_m})
+        site = {"latitude_deg": latitude_deg, "height_m": height_m}
+        run = read_csv(path, allow_gaps, site, columns)
     else:
         run = read_npz(path, allow_gaps)
     return clock.settle(run, allow_gaps)  # the IMU's own time base, gaps repaired if allowed

@@ -29,6 +29,7 @@ from .tools import emit_json, guarded, info, provenance
 )
 @options.latitude("Site latitude, deg, for a logger's CSV that does not carry latitude_deg.")
 @options.height("Site height, m, for a logger's CSV that does not carry height_m.")
+@options.columns
 @click.option(
     "--allow-gaps", is_flag=True, help="Remove duplicated samples and fill samples dropped at rest."
 )
@@ -62,6 +63,7 @@ def calibrate(
     truth_path,
     latitude,
     height,
+    columns,
     allow_gaps,
     with_terms,
     requirements,
@@ -71,25 +73,31 @@ def calibrate(
     as_json,
 ):
     """Align, navigate on the stationary base and fit the 21 error parameters of
-    RUN (CSV, NPZ or PSINS .imu) by iterated, noise-weighted least squares.
+    RUN (CSV, CSV.GZ, NPZ or PSINS .imu) by iterated, noise-weighted least squares.
     """
     from calib.calibration import calibrate as calibrate_source
     from calib.calibration import reads_in_chunks
+    from calib.errors import CalibError
     from calib.extras import as_extras
     from calib.profiles import as_profile
+    from calib.sanity import GyroUnitError, explain_gyro_unit
     from calib.sequence import load_sequence
     from calib.truth import read_truth, truth_path_for
 
     extras = as_extras(with_terms)
     prof = as_profile(profile)
     reading = dict(allow_gaps=allow_gaps, latitude_deg=latitude, height_m=height)
+    if columns and stream:
+        raise CalibError(
+            "--columns maps a logger's CSV, which is read whole", run_path, "calibrate it without --stream"
+        )
     run = None
-    if reads_in_chunks(run_path, stream, **reading):
+    if not columns and reads_in_chunks(run_path, stream, **reading):
         info(f"calibrating {run_path} chunk by chunk, profile {prof.name}")
     else:
         from calib.runlog import read_run
 
-        run = read_run(run_path, **reading)
+        run = read_run(run_path, **reading, columns=columns)
         info(run.clock.summary())  # jitter, dropped and duplicated samples (calib.clock)
     out_path = Path(output) if output else Path(run_path).with_name(Path(run_path).stem + ".result.toml")
     if truth_path is None and truth_path_for(run_path).exists():
@@ -98,28 +106,31 @@ def calibrate(
     seq = load_sequence(sequence) if sequence else None
     if run is not None:
         info(f"calibrating {run_path}: {run.n_samples} samples, {run.duration_s:.1f} s, profile {prof.name}")
-    result = calibrate_source(
-        run_path if run is None else run,
-        prof,
-        stream=run is None,
-        sequence=seq,
-        extras=extras,
-        partial=partial,
-        requirements=requirements,
-        gravity_mps2=gravity_mps2,
-        provenance=provenance(
-            {
-                "run": run_path,
-                "sequence": sequence,
-                "truth": truth_path,
-                "profile": profile if Path(profile).exists() else None,
-                "requirements": requirements if requirements and Path(requirements).exists() else None,
-            },
-            sequence=sequence,
-            profile=prof.name,
-            **({} if run is not None else {"reader": "chunks"}),
-        ),
-    )
+    try:
+        result = calibrate_source(
+            run_path if run is None else run,
+            prof,
+            stream=run is None,
+            sequence=seq,
+            extras=extras,
+            partial=partial,
+            requirements=requirements,
+            gravity_mps2=gravity_mps2,
+            provenance=provenance(
+                {
+                    "run": run_path,
+                    "sequence": sequence,
+                    "truth": truth_path,
+                    "profile": profile if Path(profile).exists() else None,
+                    "requirements": requirements if requirements and Path(requirements).exists() else None,
+                },
+                sequence=sequence,
+                profile=prof.name,
+                **({} if run is not None else {"reader": "chunks"}),
+            ),
+        )
+    except GyroUnitError as exc:  # told in the terms of the file's gyro columns (rates, not dtheta)
+        raise explain_gyro_unit(exc, None if run is None else run.gyro_columns) from None
     result.save(out_path)
     for warning in result.warnings():
         info(f"warning: {warning}")

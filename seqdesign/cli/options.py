@@ -1,4 +1,4 @@
-"""Options several commands share, declared once: the site, noise, requirements, terms, output.
+"""Options several commands share, declared once: the site, noise, requirements, terms, output, columns.
 
 Each takes the help text of its command where the meaning differs (a latitude that
 overrides a sequence's, or fills in a logger's CSV); the name, type and limits are one.
@@ -86,3 +86,15 @@ def sample_rate():
         show_default=True,
         help="Output rate of the simulated IMU, Hz.",
     )
+
+
+columns = click.option(
+    "--columns",
+    "columns",
+    default=None,
+    metavar="MAP",
+    help="Map a logger CSV's own column names to ours (docs/logs-columns.md): comma-separated "
+    "FILE_NAME=OUR_NAME pairs, e.g. t=time_ms,gx=gyro_x_dps,gy=gyro_y_dps,gz=gyro_z_dps,"
+    "ax=accel_x_mps2,ay=accel_y_mps2,az=accel_z_mps2; our name's suffix gives the unit "
+    "(time_s, time_ms, time_us, time_ns; radps, dps; mps2, g).",
+)

@@ -28,13 +28,14 @@ def _plot_path(output: str, plot: str | None) -> Path:
     "Site height, m (when the log lacks it; default 0, which moves only the "
     "accelerometer bias along the vertical, by 0.31 ug per m)."
 )
+@options.columns
 @click.option("-o", "--output", required=True, help="Profile TOML to write.")
 @click.option("--name", help="Profile name (default: the output's stem).")
 @click.option("--plot", help="Allan deviation PNG (default: OUTPUT with .allan.png).")
 @click.option("--no-plot", is_flag=True, help="Draw no PNG.")
 @options.as_json
 @guarded
-def fit(log, latitude, height, output, name, plot, no_plot, as_json):
+def fit(log, latitude, height, columns, output, name, plot, no_plot, as_json):
     """Fit the noise of a static LOG (CSV, CSV.GZ or NPZ; docs/logs-columns.md) and
     write a profile the other commands accept (--profile OUTPUT).
     """
@@ -45,7 +46,7 @@ def fit(log, latitude, height, output, name, plot, no_plot, as_json):
     if not output.lower().endswith(".toml"):
         raise CalibError("the profile must be a .toml file", output, "name it e.g. myimu.toml")
     start = time.perf_counter()
-    run = _read(read_run, log, latitude, height)
+    run = _read(read_run, log, latitude, height, columns)
     result = fit_profile(run, name or Path(output).stem)
     # command_line() knows the subcommand, not its group: put "profile" back.
     command = "seqdesign profile " + command_line().removeprefix("seqdesign ")
@@ -81,12 +82,12 @@ _METHOD = (
 )
 
 
-def _read(read_run, log, latitude, height):
+def _read(read_run, log, latitude, height, columns):
     """The run, with the site from the options; height 0 when neither gives it."""
     from calib.errors import CalibError
 
     try:
-        return read_run(log, latitude_deg=latitude, height_m=height)
+        return read_run(log, latitude_deg=latitude, height_m=height, columns=columns)
     except CalibError as exc:
         if (
             height is None
@@ -95,7 +96,7 @@ def _read(read_run, log, latitude, height):
             and "'latitude_deg'" not in exc.message
         ):
             info("the log gives no height and --height is not given: using 0 m")
-            return read_run(log, latitude_deg=latitude, height_m=0.0)
+            return read_run(log, latitude_deg=latitude, height_m=0.0, columns=columns)
         raise
 
 

@@ -136,10 +136,11 @@ def _load_result(run_path, explicit):
     "viewer asked for did not open; not 2, since the input was fine.",
 )
 @click.option("--allow-gaps", is_flag=True, help="Accept time gaps in the log.")
+@options.columns
 @options.as_json
 @guarded
-def view(run_path, sequence, result_path, truth_path, output, spawn, allow_gaps, as_json):
-    """Record RUN (CSV or NPZ) for the rerun viewer: the gimbal and IMU in 3D,
+def view(run_path, sequence, result_path, truth_path, output, spawn, allow_gaps, columns, as_json):
+    """Record RUN (CSV, CSV.GZ, NPZ or PSINS .imu) for the rerun viewer: the gimbal and IMU in 3D,
     raw gyro and accelerometer signals, navigation velocity errors before and
     after calibration, the positions and flips, and the result against its
     requirements (and against the truth of a simulated run).
@@ -149,7 +150,7 @@ def view(run_path, sequence, result_path, truth_path, output, spawn, allow_gaps,
 
     out = Path(output) if output else _beside(run_path, ".rrd")
     _check_output(out)
-    run = read_run(run_path, allow_gaps=allow_gaps)
+    run = read_run(run_path, allow_gaps=allow_gaps, columns=columns)
     seq, seq_note = _load_sequence(run, sequence)
     result, used_result, result_note = _load_result(run_path, result_path)
     if truth_path is None and truth_path_for(run_path).exists():
