@@ -36,7 +36,7 @@ def _plot_path(output: str, plot: str | None) -> Path:
 @options.as_json
 @guarded
 def fit(log, latitude, height, columns, output, name, plot, no_plot, as_json):
-    """Fit the noise of a static LOG (CSV, CSV.GZ or NPZ; docs/logs-columns.md) and
+    """Fit the noise of a static LOG (CSV, CSV.GZ, NPZ or PSINS .imu; docs/logs-columns.md) and
     write a profile the other commands accept (--profile OUTPUT).
     """
     from calib.errors import CalibError
