@@ -74,19 +74,23 @@ def check_streamable(path, allow_gaps: bool = False, latitude_deg=None, height_m
         raise CalibError(
             f"the chunked reader reads .npz and imu-run/1 .csv logs, not {''.join(Path(path).suffixes)!r}",
             where,
-            "calibrate it without --stream (gzip, PSINS and a logger's columns are read whole)",
+            "read it whole (stream=False; the CLI without --stream): gzip, PSINS and a logger's "
+            "columns are read whole",
         )
     if allow_gaps:
         raise CalibError(
-            "--allow-gaps cannot be read chunk by chunk: repairing gaps fits the whole time column",
+            "allow_gaps (the CLI's --allow-gaps) cannot be read chunk by chunk: repairing gaps "
+            "fits the whole time column",
             where,
-            "calibrate it without --stream",
+            "read it whole (stream=False; the CLI without --stream)",
         )
     if latitude_deg is not None or height_m is not None:
         raise CalibError(
-            "--latitude/--height complete a logger's CSV, which only the in-memory reader reads",
+            "latitude_deg/height_m (the CLI's --latitude/--height) complete a logger's CSV, "
+            "which only the in-memory reader reads",
             where,
-            "calibrate it without --stream, or write latitude_deg and height_m in the log",
+            "read it whole (stream=False; the CLI without --stream), or write latitude_deg and "
+            "height_m in the log",
         )
     if not Path(path).is_file():
         raise CalibError("no such file", where, "check the path")

@@ -85,7 +85,7 @@ def _blocks_with_dt(path, rows: int, where: str, period: float):
                 f"time steps by {dt[k]:.6g} s at sample {start + k} (nominal period {period:.6g} s)",
                 where,
                 "time must strictly increase without gaps; `seqdesign calibrate "
-                "--allow-gaps` reads logs with gaps",
+                "--allow-gaps` (allow_gaps=True) reads logs with gaps in memory",
             )
         yield start, t, th, dv, dt
         prev, start = t[-1], start + len(t)

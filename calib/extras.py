@@ -140,7 +140,7 @@ GROUPS: dict[str, tuple[ExtraParameter, ...]] = _table()
 GROUP_NAMES: tuple[str, ...] = tuple(GROUPS)
 
 
-def parse_groups(text: str | None, where: str = "--with") -> tuple[str, ...]:
+def parse_groups(text: str | None, where: str = "extras (the CLI's --with)") -> tuple[str, ...]:
     """``"k2,lever-arm"`` -> the groups in canonical order; ``""``/None -> none; ``all`` -> all."""
     if not text:
         return ()
@@ -267,7 +267,9 @@ class ExtraValues:
         }
 
     @classmethod
-    def from_units(cls, by_name: dict[str, float], where: str = "extra terms") -> ExtraValues:
+    def from_units(
+        cls, by_name: dict[str, float], where: str = "extra terms (the CLI's --extra)"
+    ) -> ExtraValues:
         full = Extras(GROUP_NAMES)
         known = {p.name: p for p in full.parameters}
         unknown = sorted(set(by_name) - set(known))
@@ -287,7 +289,7 @@ class ExtraValues:
         return full.unpack(v)
 
 
-def parse_values(text: str | None, where: str = "--extra") -> ExtraValues:
+def parse_values(text: str | None, where: str = "extra terms (the CLI's --extra)") -> ExtraValues:
     """``"rxx=3,k2y=20,dt_ga=0.5"`` (report units) -> :class:`ExtraValues`."""
     if not text:
         return ExtraValues()
@@ -302,7 +304,7 @@ def parse_values(text: str | None, where: str = "--extra") -> ExtraValues:
             number = math.nan
         if not sep or not math.isfinite(number):
             raise CalibError(
-                f"{item!r} is not name=number", where, "e.g. --extra rxx=3,k2y=20,dt_ga=0.5 (cm, ug/g^2, ms)"
+                f"{item!r} is not name=number", where, "e.g. rxx=3,k2y=20,dt_ga=0.5 (cm, ug/g^2, ms)"
             )
         values[name.strip()] = number
     return ExtraValues.from_units(values, where)

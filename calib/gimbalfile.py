@@ -174,7 +174,7 @@ def load_gimbal(name_or_path: str | Path | None) -> Gimbal:
             names = ", ".join(sorted(f.stem for f in builtin_gimbal_dir().glob("*.toml")))
             raise CalibError(
                 f"no gimbal file {str(name_or_path)!r}",
-                "--gimbal",
+                "gimbal",
                 f"give a path to a .toml file or a shipped name: {names}",
             )
     return gimbal_from_dict(load_toml(p), str(p))

@@ -193,7 +193,9 @@ def plot_allan(fit: ProfileFit, path) -> None:
         import matplotlib
     except ImportError:
         raise CalibError(
-            "matplotlib is not installed", str(path), "pip install '.[plot]', or leave out --plot"
+            "matplotlib is not installed",
+            str(path),
+            "pip install '.[plot]', or write no plot (the CLI's --plot)",
         ) from None
     matplotlib.use("Agg")
     import io

@@ -79,7 +79,7 @@ def load_requirements(name_or_path: str | Path | Requirements | None = None) -> 
             names = sorted(p.stem for p in builtin_dir().glob("*.toml"))
             raise CalibError(
                 f"no requirements file or shipped set named {text!r}",
-                "--requirements",
+                "requirements",
                 f"give a TOML file or one of: paper, {', '.join(names)}",
             )
         path = builtin

@@ -50,7 +50,7 @@ def sample_windows(
         raise CalibError(
             f"profile {profile.name!r} has Gauss-Markov bias instability, which the "
             "streamed simulator does not draw",
-            "--profile",
+            "profile",
             "use a white-noise profile, or `seqdesign simulate` for this run",
         )
     rng = np.random.default_rng(seed)

@@ -152,7 +152,7 @@ def solve_information(
             "(in units of each requirement): " + "; ".join(dirs),
             where,
             "use a sequence that excites them (`seqdesign analyze` shows which), or fit the "
-            "estimable part with --partial",
+            "estimable part with partial=True (the CLI's --partial)",
         )
     null_full = np.zeros((N.shape[0], inv.null_basis.shape[1]))
     null_full[param_index(N.shape[0])] = inv.null_basis

@@ -227,7 +227,12 @@ def test_cli_refuses_run_without_rotation(tmp_path):
     )
     write_run(run, tmp_path / "still.npz")
     r = CliRunner().invoke(main, ["calibrate", str(tmp_path / "still.npz")])
-    assert r.exit_code != 0 and "no rotation" in r.output and "Traceback" not in r.output
+    assert (
+        r.exit_code != 0
+        and "never rotates" in r.output
+        and "profile fit" in r.output
+        and "Traceback" not in r.output
+    )
 
 
 def test_coarse_analysis_model_agrees_with_the_estimators_fine_one(noise_free_fit, paper):

@@ -258,7 +258,7 @@ def test_cli_calibrate_stream_refuses_what_it_cannot_read_in_chunks(short_files,
     r = CliRunner().invoke(
         main, ["calibrate", str(paths[0]), "--stream", "--allow-gaps", "-o", str(tmp_path / "r.toml")]
     )
-    assert r.exit_code == 2 and "--allow-gaps cannot be read chunk by chunk" in r.output
+    assert r.exit_code == 2 and "(the CLI's --allow-gaps) cannot be read chunk by chunk" in r.output
     assert "Traceback" not in r.output and not (tmp_path / "r.toml").exists()
 
 
