@@ -8,6 +8,8 @@
 >>> shown = sd.show(seq, gimbal="cable-wrap")              # rest positions     (seqdesign show)
 >>> schedule = sd.export(seq, gimbal="cable-wrap")         # encoder commands   (seqdesign export)
 >>> schedule.save("commands.csv")
+>>> run, truth = sd.simulate(seq, sd.SimConfig(latitude_rad=0.7), sd.ErrorModel.from_table2(),
+...                          sd.load_profile("navigation"))   # a run and its truth (seqdesign simulate)
 >>> run = sd.read_run("demo-out/run.npz")
 >>> result = sd.calibrate(run, profile="navigation")       # a CalibrationResult (seqdesign calibrate)
 >>> big = sd.calibrate("long.npz", stream=True)            # the same, read chunk by chunk
@@ -26,7 +28,9 @@ import warnings
 from pathlib import Path
 
 from calib.calibration import calibrate
+from calib.errormodel import ErrorModel
 from calib.gimbalfile import Gimbal
+from calib.params import PARAMETERS
 from calib.profilefit import METHOD, FittedProfile, fit_log
 from calib.profiles import NoiseProfile, load_profile
 from calib.requirements import load_requirements
@@ -34,7 +38,7 @@ from calib.result import CalibrationResult
 from calib.review import review_run
 from calib.runlog import read_run
 from calib.sequence import Sequence, load_sequence
-from calib.sim import simulate
+from calib.sim import SimConfig, simulate
 from viz.record import record_run
 
 from .analysis import Analysis, analyze, compare_text
@@ -51,10 +55,13 @@ __all__ = [
     "CalibrationResult",
     "Constraints",
     "DesignReport",
+    "ErrorModel",
     "FittedProfile",
+    "PARAMETERS",
     "Positions",
     "Schedule",
     "Sequence",
+    "SimConfig",
     "analyze",
     "calibrate",
     "compare_results",
