@@ -19,11 +19,16 @@ from .allan import FLICKER_FLOOR_RATIO, AllanCurve, NoiseFit, allan_deviation, f
 from .errors import CalibError
 from .fileio import atomic_write_bytes, atomic_write_text
 from .params import DEG, DEG_PER_HOUR, MICRO_G
-from .profiles import _from_doc
-from .runlog import Run
+from .profiles import NoiseProfile, _from_doc
+from .runlog import Run, read_run
 from .static import StaticLevel, static_level
 
 AXES = ("x", "y", "z")
+METHOD = (
+    "overlapping Allan deviation (allantools.oadev, 4 taus per octave, 68 % CI from "
+    "edf_simple); N from the slope -1/2 region; B = floor / 0.664; GM sigma, tau and "
+    "RRW by weighted least squares in log deviation with N held"
+)
 # Units at the edge: SI per unit of each reported figure.
 ARW_UNIT = DEG / 60.0  # deg/sqrt(h) in rad/sqrt(s)
 RRW_GYRO_UNIT = DEG_PER_HOUR / 60.0  # deg/h/sqrt(h) in rad/s/sqrt(s)
@@ -45,6 +50,81 @@ class ProfileFit:
     sample_rate_hz: float
     duration_s: float
     n_samples: int
+
+
+@dataclass(frozen=True)
+class FittedProfile:
+    """A fitted profile and its file's document: what ``profile fit`` prints, saves and reports.
+
+    Attributes
+    ----------
+    fit : ProfileFit
+        The Allan deviations and the fitted terms, per axis (SI).
+    doc : dict
+        The profile TOML document (worst-axis scalars, ``[fit]``, ``[provenance]``).
+    height_assumed : bool
+        True when neither the log nor the caller gave the site's height and 0 m was used.
+    """
+
+    fit: ProfileFit
+    doc: dict
+    height_assumed: bool = False
+
+    @property
+    def profile(self) -> NoiseProfile:
+        """The profile as the other calls take it (``profile=``)."""
+        return _from_doc(tomllib.loads(_toml(self.doc)), self.fit.name)
+
+    def to_json(self) -> dict:
+        """The figures of ``profile fit --json`` (without the files written and the time taken)."""
+        doc = self.doc
+        return plain(
+            {
+                "profile": {k: v for k, v in doc.items() if k not in ("fit", "provenance")},
+                **per_axis_tables(self.fit),
+                "site": doc["fit"]["site"],
+                "log": doc["fit"]["log"],
+            }
+        )
+
+    def to_text(self) -> str:
+        """The table ``profile fit`` prints."""
+        return profile_text(self.doc)
+
+    def save(self, path, plot=None) -> list[str]:
+        """Write the profile (``.toml``) and, if ``plot`` names a PNG, the Allan deviations; the files."""
+        if not str(path).lower().endswith(".toml"):
+            raise CalibError("the profile must be a .toml file", str(path), "name it e.g. myimu.toml")
+        save_profile(self.doc, path)
+        if plot is not None:
+            plot_allan(self.fit, plot)
+        return [str(path)] + ([str(plot)] if plot is not None else [])
+
+
+def read_static_log(path, latitude_deg=None, height_m=None, **read_options) -> tuple[Run, bool]:
+    """A static log and whether its height was assumed: 0 m when neither the log nor ``height_m`` gives it.
+
+    The height moves only the accelerometer bias along the vertical (0.31 ug per m), so
+    a fit without it is still a fit. ``read_options`` go to :func:`calib.runlog.read_run`.
+    """
+    try:
+        return read_run(path, latitude_deg=latitude_deg, height_m=height_m, **read_options), False
+    except CalibError as first:
+        if height_m is not None:
+            raise
+        try:  # the height alone was missing exactly when the log reads with one
+            return read_run(path, latitude_deg=latitude_deg, height_m=0.0, **read_options), True
+        except CalibError:
+            raise first from None
+
+
+def fit_log(
+    path, name: str, provenance: dict, latitude_deg=None, height_m=None, **read_options
+) -> FittedProfile:
+    """Read a static log (:func:`read_static_log`) and fit its profile (:func:`fit_profile`)."""
+    run, assumed = read_static_log(path, latitude_deg, height_m, **read_options)
+    fit = fit_profile(run, name)
+    return FittedProfile(fit, profile_doc(fit, provenance), assumed)
 
 
 def fit_profile(run: Run, name: str) -> ProfileFit:
@@ -171,11 +251,59 @@ def plain(x):
     return x
 
 
-def save_profile(doc: dict, path) -> None:
-    """Write the profile atomically, after checking that `load_profile` accepts it."""
+def profile_text(doc: dict) -> str:
+    """The table ``profile fit`` prints: per-axis figures, the profile, what the fit removed."""
+    g, a, site = doc["fit"]["gyro"], doc["fit"]["accel"], doc["fit"]["site"]
+    rows = [
+        ("ARW, deg/sqrt(h)", g["arw_dph"]),
+        ("  white region, s", g["white_tau_s"]),
+        ("bias instability B, deg/h", g["bias_instability_dph"]),
+        ("  floor at tau, s", g["floor_tau_s"]),
+        ("GM sigma, deg/h", g["gm_sigma_dph"]),
+        ("GM correlation, s", g["gm_correlation_s"]),
+        ("RRW, deg/h/sqrt(h)", g["rrw_dph_per_sqrt_h"]),
+        ("quantisation, urad", g["quantisation_urad"]),
+        ("gyro bias, deg/h", g["bias_dph"]),
+        ("VRW, ug/sqrt(Hz)", a["vrw_ug"]),
+        ("  white region, s", a["white_tau_s"]),
+        ("bias instability B, ug", a["bias_instability_ug"]),
+        ("  floor at tau, s", a["floor_tau_s"]),
+        ("GM sigma, ug", a["gm_sigma_ug"]),
+        ("GM correlation, s", a["gm_correlation_s"]),
+        ("RRW, ug/sqrt(h)", a["rrw_ug_per_sqrt_h"]),
+        ("quantisation, mm/s", a["quantisation_mmps"]),
+        ("accel bias, ug", a["bias_ug"]),
+    ]
+    lines = [f"{'':28s}{'x':>16s}{'y':>16s}{'z':>16s}"]
+    for label, values in rows:
+        cells = [f"{v[0]:.3g}-{v[1]:.3g}" if isinstance(v, list) else f"{v:.4g}" for v in values]
+        lines.append(f"{label:28s}" + "".join(f"{c:>16s}" for c in cells))
+    lines.append(
+        f"profile {doc['name']}: gyro_arw_dph {doc['gyro_arw_dph']:.4g}, accel_vrw_ug "
+        f"{doc['accel_vrw_ug']:.4g}, GM gyro {doc['gyro_bias_instability_dph']:.4g} deg/h "
+        f"/ {doc['gyro_bias_correlation_s']:.4g} s, GM accel "
+        f"{doc['accel_bias_instability_ug']:.4g} ug / {doc['accel_bias_correlation_s']:.4g} s"
+        " (worst axis)"
+    )
+    lines.append(
+        f"removed: gravity {site['gravity_removed_mps2']:.6g} m/s^2 along the measured up "
+        f"{[round(float(u), 4) for u in site['up_body']]} (body), Earth rate "
+        f"{site['earth_rate_removed_dph']:.3g} deg/h along it; the horizontal Earth rate "
+        f"({site['earth_rate_left_in_bias_dph']:.3g} deg/h) is left in the gyro bias: "
+        "a MEMS gyro cannot find north. The Allan deviations do not change; the biases do."
+    )
+    return "\n".join(lines)
+
+
+def _toml(doc: dict) -> str:
     import tomli_w
 
-    text = tomli_w.dumps(plain(doc))
+    return tomli_w.dumps(plain(doc))
+
+
+def save_profile(doc: dict, path) -> None:
+    """Write the profile atomically, after checking that `load_profile` accepts it."""
+    text = _toml(doc)
     try:
         _from_doc(tomllib.loads(text), str(path))
     except CalibError as exc:

@@ -9,7 +9,7 @@ how to write the Pareto front (CSV, and a PNG drawn with matplotlib).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 from calib import earth
@@ -229,7 +229,7 @@ def paper_point(
 
 def design_budgets(
     budgets_min,
-    constraints: dict,
+    constraints: Constraints | dict | None = None,
     profile: NoiseProfile | str = "navigation",
     *,
     latitude_deg: float = 40.0,
@@ -250,10 +250,12 @@ def design_budgets(
     ----------
     budgets_min : iterable of float
         Total time budgets, minutes.
-    constraints : dict
-        The :class:`seqdesign.search.Constraints` fields other than the budget
-        (start, end, max_flips, axes, max_quarters, rate_dps, min/max dwell; a gimbal
-        and its move limits from :func:`seqdesign.search.gimbal.resolve_gimbal`).
+    constraints : Constraints or dict, optional
+        A :class:`seqdesign.search.Constraints` (its ``budget_s`` is replaced by each
+        budget), or a dict of its fields other than the budget (start, end, max_flips,
+        axes, max_quarters, rate_dps, min/max dwell; a gimbal and its move limits from
+        :func:`seqdesign.search.gimbal.resolve_gimbal`). Default: ``Constraints()``'s.
+        ``seqdesign.api.design`` also takes them as keywords and resolves a gimbal's name.
     profile : NoiseProfile or str
         The noise the design is optimised for.
     latitude_deg : float
@@ -285,6 +287,11 @@ def design_budgets(
     -------
     DesignReport
     """
+    if isinstance(constraints, Constraints):
+        constraints = {
+            f.name: getattr(constraints, f.name) for f in fields(Constraints) if f.name != "budget_s"
+        }
+    constraints = dict(constraints or {})
     prof = as_profile(profile)
     req = load_requirements(requirements)
     ext = extras if isinstance(extras, Extras) else Extras(parse_groups(extras))
