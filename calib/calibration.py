@@ -30,6 +30,7 @@ from .profiles import NoiseProfile, as_profile
 from .requirements import PAPER, Requirements, load_requirements
 from .result import CalibrationResult
 from .runlog import read_run
+from .sanity import GyroUnitError, explain_gyro_unit
 from .site import Site, site_of
 from .solution import Fit
 from .strapdown import sample_intervals
@@ -185,18 +186,21 @@ def _fit_in_memory(run, site: Site, profile: NoiseProfile, sequence, **model) ->
         check_sequence_matches(
             sequence, detect_motion(run.dtheta_rad, dt, run.source).moving, moving, dt, run.source
         )
-    return fit_run(
-        run.time_s,
-        run.dtheta_rad,
-        run.dv_mps,
-        site.latitude_rad,
-        site.gravity_mps2,
-        profile,
-        moving=moving,
-        where=run.source,
-        sequence=sequence,
-        **model,
-    )
+    try:
+        return fit_run(
+            run.time_s,
+            run.dtheta_rad,
+            run.dv_mps,
+            site.latitude_rad,
+            site.gravity_mps2,
+            profile,
+            moving=moving,
+            where=run.source,
+            sequence=sequence,
+            **model,
+        )
+    except GyroUnitError as exc:  # told in the terms of the file's gyro columns (rates, not dtheta)
+        raise explain_gyro_unit(exc, run.gyro_columns) from None
 
 
 def _checked_result(fit: Fit, where: str, require_convergence: bool, profile, site, provenance, req):

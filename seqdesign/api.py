@@ -90,6 +90,7 @@ def profile_fit(
     latitude_deg: float | None = None,
     height_m: float | None = None,
     name: str | None = None,
+    columns: str | dict | None = None,
 ) -> FittedProfile:
     """Fit a noise profile to a static log: what ``seqdesign profile fit`` writes.
 
@@ -104,6 +105,9 @@ def profile_fit(
         only the accelerometer bias along the vertical, by 0.31 ug per m.
     name : str, optional
         The profile's name; default: the log's file name without its suffixes.
+    columns : str or dict, optional
+        The file's column names mapped to ours (``"t=time_ms,gx=gyro_x_dps,..."``), as
+        :func:`calib.runlog.read_run` takes them (docs/logs-columns.md).
 
     Returns
     -------
@@ -113,7 +117,9 @@ def profile_fit(
     """
     call = f"seqdesign.api.profile_fit({str(path)!r}, latitude_deg={latitude_deg}, height_m={height_m})"
     prov = call_provenance(call, {"log": path}, method=METHOD)
-    fitted = fit_log(path, name or Path(path).name.split(".")[0], prov, latitude_deg, height_m)
+    fitted = fit_log(
+        path, name or Path(path).name.split(".")[0], prov, latitude_deg, height_m, columns=columns
+    )
     if fitted.height_assumed:
         warnings.warn("the log gives no height and height_m is not given: using 0 m", stacklevel=2)
     return fitted

@@ -80,7 +80,6 @@ def calibrate(
     from calib.errors import CalibError
     from calib.extras import as_extras
     from calib.profiles import as_profile
-    from calib.sanity import GyroUnitError, explain_gyro_unit
     from calib.sequence import load_sequence
     from calib.truth import read_truth, truth_path_for
 
@@ -106,31 +105,28 @@ def calibrate(
     seq = load_sequence(sequence) if sequence else None
     if run is not None:
         info(f"calibrating {run_path}: {run.n_samples} samples, {run.duration_s:.1f} s, profile {prof.name}")
-    try:
-        result = calibrate_source(
-            run_path if run is None else run,
-            prof,
-            stream=run is None,
-            sequence=seq,
-            extras=extras,
-            partial=partial,
-            requirements=requirements,
-            gravity_mps2=gravity_mps2,
-            provenance=provenance(
-                {
-                    "run": run_path,
-                    "sequence": sequence,
-                    "truth": truth_path,
-                    "profile": profile if Path(profile).exists() else None,
-                    "requirements": requirements if requirements and Path(requirements).exists() else None,
-                },
-                sequence=sequence,
-                profile=prof.name,
-                **({} if run is not None else {"reader": "chunks"}),
-            ),
-        )
-    except GyroUnitError as exc:  # told in the terms of the file's gyro columns (rates, not dtheta)
-        raise explain_gyro_unit(exc, None if run is None else run.gyro_columns) from None
+    result = calibrate_source(
+        run_path if run is None else run,
+        prof,
+        stream=run is None,
+        sequence=seq,
+        extras=extras,
+        partial=partial,
+        requirements=requirements,
+        gravity_mps2=gravity_mps2,
+        provenance=provenance(
+            {
+                "run": run_path,
+                "sequence": sequence,
+                "truth": truth_path,
+                "profile": profile if Path(profile).exists() else None,
+                "requirements": requirements if requirements and Path(requirements).exists() else None,
+            },
+            sequence=sequence,
+            profile=prof.name,
+            **({} if run is not None else {"reader": "chunks"}),
+        ),
+    )
     result.save(out_path)
     for warning in result.warnings():
         info(f"warning: {warning}")
