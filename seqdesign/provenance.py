@@ -9,6 +9,7 @@ from __future__ import annotations
 from importlib.metadata import PackageNotFoundError, version
 
 from calib.fileio import sha256_file
+from calib.sequence import resolve_sequence_path
 
 
 def tool_version() -> str:
@@ -23,7 +24,10 @@ def call_provenance(call: str, inputs: dict | None = None, **extra) -> dict:
     """Tool version, the call (e.g. ``seqdesign.api.export('paper-9pos')``), SHA-256 of each input file."""
     out = {"tool_version": tool_version(), "command": call}
     for key, path in (inputs or {}).items():
-        if path is not None:
-            out[f"{key}_sha256"] = sha256_file(path)
+        if path is None:
+            continue
+        if key == "sequence":  # a shipped name (paper-9pos) hashes its file
+            path = resolve_sequence_path(path)
+        out[f"{key}_sha256"] = sha256_file(path)
     out.update({k: v for k, v in extra.items() if v is not None})
     return out

@@ -17,8 +17,10 @@ from seqdesign import blas  # noqa: F401  first: one BLAS thread before numpy lo
 # isort: split
 import click
 
+from seqdesign.provenance import tool_version
+
 from . import analyze, calibrate, design, gimbal, profile, show, simulate, verify, view
-from .tools import emit_json, tool_version
+from .tools import emit_json
 
 
 class _Group(click.Group):

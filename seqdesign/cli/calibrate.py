@@ -13,7 +13,7 @@ from pathlib import Path
 import click
 
 from . import options
-from .tools import emit_json, guarded, info, provenance
+from .tools import emit_json, guarded, hidden_alias, info, provenance
 
 
 @click.command(short_help="Identify the 21 parameters (value and sigma) from a run log.")
@@ -138,15 +138,4 @@ def calibrate(
     click.echo(f"wrote {out_path}")
 
 
-def _calibrate_streamed(**options):
-    """``calibrate --stream`` (the callback is guarded already)."""
-    return calibrate.callback(**options, stream=True)
-
-
-calibrate_stream = click.Command(
-    "calibrate-stream",
-    callback=_calibrate_streamed,
-    params=[p for p in calibrate.params if p.name != "stream"],
-    help="Same as `seqdesign calibrate --stream`.",
-    hidden=True,
-)
+calibrate_stream = hidden_alias(calibrate, "calibrate-stream", "stream")

@@ -22,7 +22,7 @@ from calib.truth import read_errors, truth_path_for, write_truth
 from seqdesign.analysis import resolve_site
 
 from . import options
-from .tools import emit_json, guarded, info, provenance
+from .tools import emit_json, guarded, hidden_alias, info, provenance
 
 if TYPE_CHECKING:  # the machinery loads when a command runs, not for --help
     from calib.errormodel import ErrorModel
@@ -262,15 +262,4 @@ def simulate(
         )
 
 
-def _simulate_streamed_alias(**options_given):
-    """``simulate --stream`` (the callback is guarded already)."""
-    return simulate.callback(**options_given, stream=True)
-
-
-simulate_stream = click.Command(
-    "simulate-stream",
-    callback=_simulate_streamed_alias,
-    params=[p for p in simulate.params if p.name != "stream"],
-    help="Same as `seqdesign simulate --stream`.",
-    hidden=True,
-)
+simulate_stream = hidden_alias(simulate, "simulate-stream", "stream")

@@ -16,18 +16,9 @@ import warnings
 import click
 
 from calib.errors import CalibError
+from seqdesign.provenance import call_provenance
 
 EXIT_BAD_INPUT = 2
-
-
-def tool_version() -> str:
-    """The installed package's version."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("seqdesign")
-    except PackageNotFoundError:
-        return "0+unknown"
 
 
 def command_line() -> str:
@@ -52,19 +43,23 @@ def command_line() -> str:
 
 
 def provenance(inputs: dict | None = None, **extra) -> dict:
-    """Tool version, command line, SHA-256 of every input file, and ``extra`` facts."""
-    from calib.fileio import sha256_file
-    from calib.sequence import resolve_sequence_path
+    """Tool version, the command line as typed, SHA-256 of every input file, and ``extra`` facts."""
+    return call_provenance(command_line(), inputs, **extra)
 
-    out = {"tool_version": tool_version(), "command": command_line()}
-    for key, path in (inputs or {}).items():
-        if path is None:
-            continue
-        if key == "sequence":
-            path = resolve_sequence_path(path)
-        out[f"{key}_sha256"] = sha256_file(path)
-    out.update({k: v for k, v in extra.items() if v is not None})
-    return out
+
+def hidden_alias(command: click.Command, name: str, flag: str) -> click.Command:
+    """``name``: ``command`` with its ``flag`` on, kept (hidden) for scripts that call the old name."""
+
+    def callback(**given):
+        return command.callback(**given, **{flag: True})  # the callback is guarded already
+
+    return click.Command(
+        name,
+        callback=callback,
+        params=[p for p in command.params if p.name != flag],
+        help=f"Same as `seqdesign {command.name} --{flag}`.",
+        hidden=True,
+    )
 
 
 def guarded(fn):
