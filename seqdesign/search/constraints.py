@@ -83,32 +83,39 @@ def uniform_dwell(c: Constraints, n_moves_guess: int, quarters_guess: float = 2.
 
 
 def check_constraints(c: Constraints) -> None:
-    """Refuse constraints no walk can meet, naming the option."""
+    """Refuse constraints no walk can meet, naming the field (and the CLI's option)."""
+
+    def field(name: str, option: str) -> str:
+        return f"{name} (the CLI's {option})"
+
     if c.budget_s <= 0 or not math.isfinite(c.budget_s):
-        raise CalibError(f"budget {c.budget_s} s must be positive", "--budget-min")
+        raise CalibError(f"budget {c.budget_s} s must be positive", field("budget_s", "--budget-min"))
     if not 1 <= c.max_flips <= MAX_FLIPS:
-        raise CalibError(f"--max-flips {c.max_flips} outside [1, {MAX_FLIPS}]", "--max-flips")
-    if not 1 <= c.max_quarters <= 12:
-        raise CalibError(f"--max-quarters {c.max_quarters} outside [1, 12]", "--max-quarters")
-    if not c.axes or any(a not in AXES for a in c.axes):
-        raise CalibError(f"--axes {c.axes!r} must be letters from XYZ", "--axes")
-    if not 0 < c.min_dwell_s <= c.max_dwell_s:
         raise CalibError(
-            f"dwell range [{c.min_dwell_s}, {c.max_dwell_s}] s is empty", "--min-dwell-s/--max-dwell-s"
+            f"max_flips {c.max_flips} outside [1, {MAX_FLIPS}]", field("max_flips", "--max-flips")
         )
+    if not 1 <= c.max_quarters <= 12:
+        raise CalibError(
+            f"max_quarters {c.max_quarters} outside [1, 12]", field("max_quarters", "--max-quarters")
+        )
+    if not c.axes or any(a not in AXES for a in c.axes):
+        raise CalibError(f"axes {c.axes!r} must be letters from XYZ", field("axes", "--axes"))
+    dwells = field("min_dwell_s/max_dwell_s", "--min-dwell-s/--max-dwell-s")
+    if not 0 < c.min_dwell_s <= c.max_dwell_s:
+        raise CalibError(f"dwell range [{c.min_dwell_s}, {c.max_dwell_s}] s is empty", dwells)
     shortest = MIN_ALIGN_S + FIRST_REST_MARGIN_S
     if c.min_dwell_s < shortest:
         raise CalibError(
-            f"--min-dwell-s {c.min_dwell_s:g} s is too short: the first rest of a "
+            f"min_dwell_s {c.min_dwell_s:g} s is too short: the first rest of a "
             f"run must last {shortest:g} s for calibrate to align on it",
-            "--min-dwell-s",
-            f"give --min-dwell-s {shortest:g} or more",
+            field("min_dwell_s", "--min-dwell-s"),
+            f"give {shortest:g} s or more",
         )
     if not 0.1 <= c.rate_dps <= 100:
-        raise CalibError(f"--rate-dps {c.rate_dps} outside [0.1, 100]", "--rate-dps")
+        raise CalibError(f"rate_dps {c.rate_dps} outside [0.1, 100]", field("rate_dps", "--rate-dps"))
     if c.min_dwell_s * 2 + 90.0 / c.rate_dps > c.budget_s:
         raise CalibError(
             f"a budget of {c.budget_s:.0f} s cannot hold two dwells of {c.min_dwell_s:.0f} s and one flip",
-            "--budget-min",
-            "raise the budget or lower --min-dwell-s",
+            field("budget_s", "--budget-min"),
+            "raise the budget or lower the shortest dwell",
         )

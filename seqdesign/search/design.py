@@ -247,4 +247,6 @@ def design(
 def _check_design_args(c: Constraints, objective: str) -> None:
     check_constraints(c)
     if objective not in OBJECTIVES:
-        raise CalibError(f"unknown objective {objective!r}", "--objective", "use worst, D, A or E")
+        raise CalibError(
+            f"unknown objective {objective!r}", "objective (the CLI's --objective)", "use worst, D, A or E"
+        )

@@ -42,14 +42,14 @@ def gimbal_limits(gimbal: Gimbal, rate_dps: float | None, default_rate_dps: floa
     when the gimbal sets none); an explicit rate above it is refused.
     """
     top = math.degrees(_slowest(gimbal, "max_rate"))
-    where = f"--gimbal {gimbal.path or gimbal.name}"
+    where = f"gimbal {gimbal.path or gimbal.name}"
     if rate_dps is None:
         rate_dps = min(top, MAX_DESIGN_RATE_DPS) if math.isfinite(top) else default_rate_dps
     elif rate_dps > top * (1 + 1e-9):
         raise CalibError(
-            f"--rate-dps {rate_dps:g} is above the {top:g} deg/s gimbal {gimbal.name!r} turns at most",
+            f"rate_dps {rate_dps:g} is above the {top:g} deg/s gimbal {gimbal.name!r} turns at most",
             where,
-            f"give --rate-dps <= {top:g}, or leave it out to use the gimbal's rate",
+            f"give a rate <= {top:g} deg/s (the CLI's --rate-dps), or none to use the gimbal's rate",
         )
     accel = math.degrees(_slowest(gimbal, "max_accel"))
     jerk = math.degrees(_slowest(gimbal, "max_jerk"))

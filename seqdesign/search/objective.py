@@ -44,4 +44,6 @@ def score(
         return np.where(ev[..., 0] > 0, -np.sum(np.log(np.abs(ev)), axis=-1), np.inf)
     if objective == "E":
         return -ev[..., 0]
-    raise CalibError(f"unknown objective {objective!r}", "--objective", "use worst, D, A or E")
+    raise CalibError(
+        f"unknown objective {objective!r}", "objective (the CLI's --objective)", "use worst, D, A or E"
+    )

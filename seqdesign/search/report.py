@@ -208,7 +208,7 @@ def design_names(budgets_min, name: str | None = None) -> dict[float, str]:
     """
     budgets_min = list(budgets_min)
     if name is not None and not name.strip():
-        raise CalibError("the design's name is empty", "--name", "give a name, e.g. --name mine")
+        raise CalibError("the design's name is empty", "name (the CLI's --name)", "give a name, e.g. mine")
     if name is None:
         return {b: f"designed-{b:g}min" for b in budgets_min}
     if len(budgets_min) == 1:
