@@ -12,6 +12,7 @@ over arrays; :mod:`calib.runlog` applies them when it reads a run.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,6 +28,10 @@ MAX_STEP_PERIODS = 1e9
 # Below this (relative to the period) the time column is uniform up to float rounding
 # and is kept exactly as written.
 ROUNDING_JITTER = 1e-9
+# A time column whose first stamp is beyond this (s; 28 hours) counts from an epoch (UNIX or ROS
+# time, 1.7e9 s): there a float64 resolves 2.4e-7 s, 24 ppm of a 100 Hz period, so the run's time
+# base is re-based to its first stamp. A log that counts from its start (up to a day) keeps its times.
+EPOCH_S = 1e5
 # Samples each side of a lost one whose mean increment fills it (at rest).
 FILL_NEIGHBOURS = 100
 # The longest hole filled: beyond this the fill would be mostly invented, not measured.
@@ -50,7 +55,7 @@ class SampleClock:
     period_s : float
         Nominal sample period, s.
     offset_s : float
-        Time of sample index 0 on the uniform time base, s.
+        Time of sample index 0 on the uniform time base, s (from ``origin_s``).
     rate_error_ppm : float
         How much longer the time column's period is than the nominal one
         (a logger clock running fast or slow against the IMU's), ppm.
@@ -62,6 +67,11 @@ class SampleClock:
         sample (one period after the row before the hole) and how many are missing.
     duplicates : list of (float, int)
         Each repeated sample: its time and how many extra copies follow it.
+    origin_s : float
+        The time column's first stamp when it counts from an epoch
+        (``|t0| > EPOCH_S``), else 0: every time here (offset, dropped,
+        duplicates, the run's time base) counts from it, so per-sample
+        intervals stay exact.
     """
 
     index: np.ndarray
@@ -72,6 +82,7 @@ class SampleClock:
     jitter_max_s: float
     dropped: list
     duplicates: list
+    origin_s: float = 0.0
 
     @property
     def uniform(self) -> bool:
@@ -96,11 +107,13 @@ class SampleClock:
             text += f"; {sum(c for _, c in self.duplicates)} duplicated sample(s): " + describe(
                 self.duplicates
             )
+        if self.origin_s:
+            text += f"; epoch stamps re-based: t = 0 at the first stamp, {self.origin_s:.6f} s"
         return text
 
     def as_dict(self) -> dict:
         """JSON-ready figures (SI)."""
-        return {
+        figures = {
             "period_s": self.period_s,
             "rate_error_ppm": self.rate_error_ppm,
             "jitter_rms_s": self.jitter_rms_s,
@@ -108,6 +121,9 @@ class SampleClock:
             "dropped": [{"time_s": t, "count": c} for t, c in self.dropped],
             "duplicates": [{"time_s": t, "count": c} for t, c in self.duplicates],
         }
+        if self.origin_s:  # only for epoch stamps: the times above count from it
+            figures["origin_s"] = self.origin_s
+        return figures
 
 
 def describe(events: list) -> str:
@@ -166,13 +182,18 @@ def sample_clock(
     period = 1.0 / sample_rate_hz
     dup = np.zeros(len(time_s), dtype=bool) if duplicate is None else duplicate
     steps = _whole_steps(time_s, period, dup)
-    dropped = [(float(time_s[i] + period), int(steps[i] - 1)) for i in np.flatnonzero(steps > 1)]
+    origin = epoch_origin(time_s)
+    dropped = [(float(time_s[i] - origin + period), int(steps[i] - 1)) for i in np.flatnonzero(steps > 1)]
     index = np.zeros(len(time_s), dtype=np.int64)
     np.cumsum(steps, out=index[1:])
     del steps
     # In place below: the same arithmetic with three whole-run arrays alive instead of seven.
     residual = index * period
-    np.subtract(time_s, residual, out=residual)
+    if origin:  # t - t0 is exact at epoch magnitude, where t - k T would be rounded to 2.4e-7 s
+        residual -= time_s - origin
+        np.negative(residual, out=residual)
+    else:
+        np.subtract(time_s, residual, out=residual)
     offset = float(np.mean(residual))
     # A logger clock running at another rate than the IMU's is a trend, not jitter.
     centred = index - index.mean()
@@ -190,8 +211,49 @@ def sample_clock(
         jitter_rms_s=float(np.sqrt(np.mean(np.square(jitter, out=jitter)))),
         jitter_max_s=jitter_max,
         dropped=dropped,
-        duplicates=_runs_of(dup, time_s),
+        duplicates=_runs_of(dup, time_s, origin),
+        origin_s=origin,
     )
+
+
+def epoch_origin(time_s: np.ndarray) -> float:
+    """The first stamp of a time column that counts from an epoch (``|t0| > EPOCH_S``), else 0."""
+    first = float(time_s[0]) if len(time_s) else 0.0
+    return first if abs(first) > EPOCH_S else 0.0
+
+
+def stamps_rate(time_s: np.ndarray) -> float:
+    """The sample rate of a time column: the least-squares slope of the stamps in sample count.
+
+    A first guess of the period (the median step) counts each step in whole
+    periods (a dropped sample is a step of 2); the period is then the slope
+    of ``t - t[0]`` against that count, fitted over the whole run, so neither
+    the rounding of printed stamps nor that of a float64 at epoch magnitude
+    (2.4e-7 s at 1.7e9 s) moves it: both average out over the run.
+
+    Parameters
+    ----------
+    time_s : numpy.ndarray
+        ``(n,)`` time column, s, n >= 2.
+
+    Returns
+    -------
+    float
+        Samples per second; NaN when the median step is not positive.
+    """
+    rel = time_s - time_s[0]  # exact: the stamps are within a factor 2 of each other or small
+    step = np.diff(rel)
+    first = float(np.median(step))
+    if not first > 0:
+        return math.nan
+    counts = np.rint(np.maximum(step, 0.0) / first)
+    index = np.zeros(len(rel))
+    np.cumsum(counts, out=index[1:])
+    if index[-1] == 0:
+        return 1.0 / first
+    index -= index.mean()
+    rel -= rel.mean()
+    return float((index @ index) / (index @ rel))
 
 
 def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarray:
@@ -227,14 +289,19 @@ def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarr
     return steps
 
 
-def _runs_of(dup: np.ndarray, time_s: np.ndarray) -> list:
+def _runs_of(dup: np.ndarray, time_s: np.ndarray, origin: float = 0.0) -> list:
     """(time of the repeated sample, number of extra copies) for each run of duplicates."""
-    return [(float(time_s[a - 1]), int(b - a)) for a, b in zip(*runs_of(dup), strict=True)]
+    return [(float(time_s[a - 1] - origin), int(b - a)) for a, b in zip(*runs_of(dup), strict=True)]
 
 
 def uniform_time(clock: SampleClock, time_s: np.ndarray) -> np.ndarray:
-    """The time base of the IMU: ``offset + index * period``; the column itself if already uniform."""
-    if clock.uniform and not clock.dropped and not clock.duplicates:
+    """The time base of the IMU: ``offset + index * period``; the column itself if already uniform.
+
+    Epoch stamps (``clock.origin_s`` set) are always rebuilt, from their first
+    stamp: at 1.7e9 s a float64 rounds each time to 2.4e-7 s, which would put
+    24 ppm of noise in every 100 Hz interval.
+    """
+    if clock.uniform and not clock.dropped and not clock.duplicates and not clock.origin_s:
         return time_s
     return clock.offset_s + clock.index * clock.period_s
 
@@ -314,7 +381,8 @@ def _check_fillable(clock: SampleClock, row: int | np.integer, neighbours: np.nd
 def settle(run, allow_gaps: bool):
     """The run on the IMU's own time base, with its clock report attached.
 
-    Jitter only: the time column is replaced by ``offset + index / rate``.
+    Jitter only: the time column is replaced by ``offset + index / rate``
+    (from the first stamp when the column counts from an epoch, `uniform_time`).
     Duplicates and lost samples are refused unless ``allow_gaps``; then the
     extra copies are removed and the lost samples filled (`fill_dropped`).
 

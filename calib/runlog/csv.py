@@ -14,6 +14,7 @@ import numpy as np
 
 from calib.errors import CalibError
 from calib.runlog.checks import check_meta, check_samples
+from calib.runlog.clock import stamps_rate
 from calib.runlog.columns import (
     ColumnPlan,
     apply_column_map,
@@ -159,8 +160,9 @@ def _fill_meta(
     """Site keys from options; for a logger's file (no format line) also format and rate.
 
     A file declaring ``imu-run/1`` keeps the contract of files.md: its sample rate
-    must be written in it. A logger's file gets the rate from the median time step
-    (refused when that step says the time column's unit is not its name's) and a
+    must be written in it. A logger's file gets the rate from its time stamps
+    (:func:`calib.runlog.clock.stamps_rate`; refused when the median step says the
+    time column's unit is not its name's) and a
     message listing every key still missing, with an example preamble.
     ``time_column`` is the time column's name as read and the file's own name.
     """
@@ -188,9 +190,11 @@ def _fill_meta(
         suspect = time_unit_suspect(step, time_column[0], time_s.size, file_name=time_column[1])
         if suspect is not None:
             raise CalibError(suspect.what, f"{name}, line {header_line}", suspect.fix)
-        if step > 0:
-            # Printed time stamps carry rounding (0.01 is not exact): 9 digits of the rate.
-            meta["sample_rate_hz"] = repr(float(f"{1.0 / step:.9g}"))
+        rate = stamps_rate(time_s)
+        if rate > 0:
+            # The stamps' own rate is the nominal one (docs/logs.md, the clock). Fitted over the run
+            # it is good to ~1e-12; 12 digits keep its ppm and write a clean 100 Hz as 100.0.
+            meta["sample_rate_hz"] = repr(float(f"{rate:.12g}"))
     missing = [k for k in REQUIRED_META[1:] if k not in meta]
     if missing:
         options_hint = {
