@@ -95,7 +95,9 @@ class RunOutcome:
 def one_run(job: VerifyJob) -> RunOutcome:
     """Simulate one run and calibrate it as the CLI does; a refusal is an outcome, not a crash."""
     rng = np.random.default_rng(job.seed)
-    errors = job.errors or ErrorModel.from_units(rng.uniform(-1.0, 1.0, P.N_PARAMS) * job.half_range)
+    errors = job.errors
+    if errors is None:
+        errors = ErrorModel.from_units(rng.uniform(-1.0, 1.0, P.N_PARAMS) * job.half_range)
     run, truth = simulate(
         job.seq,
         job.config,
@@ -180,6 +182,8 @@ class Verification:
         nees = self.nees()
         z = self.z_scores()
         worst = np.abs(z).max(axis=0)
+        rms_error = np.sqrt(np.mean(self._stack()[0] ** 2, axis=0))
+        over_reported, over_predicted = self.rms_over_reported(), self.rms_over_predicted()
         doc["nees"] = {
             "mean": float(nees.mean()),
             "band_99": [lo, hi],
@@ -189,9 +193,9 @@ class Verification:
             p.name: {
                 "unit": p.unit,
                 "predicted_sigma": float(self.predicted_sigma[i] / p.si_per_unit),
-                "rms_error": float(np.sqrt(np.mean(self._stack()[0][:, i] ** 2)) / p.si_per_unit),
-                "rms_over_reported_sigma": float(self.rms_over_reported()[i]),
-                "rms_over_predicted_sigma": float(self.rms_over_predicted()[i]),
+                "rms_error": float(rms_error[i] / p.si_per_unit),
+                "rms_over_reported_sigma": float(over_reported[i]),
+                "rms_over_predicted_sigma": float(over_predicted[i]),
                 "mean_error_over_sigma": float(z[:, i].mean()),
                 "worst_error_over_sigma": float(worst[i]),
             }
