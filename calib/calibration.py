@@ -25,7 +25,7 @@ from .chunks import calibrate_file, run_header
 from .errors import CalibError
 from .estimator import calibrate as fit_run
 from .extras import Extras, as_extras
-from .motion import check_sequence_matches, detect_motion, sequence_motion
+from .motion import check_sequence_matches, log_turns, sequence_motion
 from .profiles import NoiseProfile, as_profile
 from .requirements import PAPER, Requirements, load_requirements
 from .result import CalibrationResult
@@ -184,7 +184,7 @@ def _fit_in_memory(run, site: Site, profile: NoiseProfile, sequence, **model) ->
         dt = sample_intervals(run.time_s)
         moving = sequence_motion(sequence, run.time_s, dt)
         check_sequence_matches(
-            sequence, detect_motion(run.dtheta_rad, dt, run.source).moving, moving, dt, run.source
+            sequence, log_turns(run.dtheta_rad, dt, profile.arw, run.source), moving, dt, run.source
         )
     try:
         return fit_run(

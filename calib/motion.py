@@ -101,7 +101,7 @@ def detect_motion(dtheta: np.ndarray, dt: np.ndarray, where: str = "run", arw: f
     """
     window = motion_window(arw, float(np.median(dt)))
     # Rests dominate a calibration run. Column by column: one whole-run temporary, not four.
-    steady = np.array([np.median(dtheta[:, i] / dt) for i in range(3)])
+    steady = steady_rate(dtheta, dt)
     if windowed_motion(window, steady):
         rate_vec = dtheta / dt[:, None]
         angle = np.cumsum(np.vstack([np.zeros((1, 3)), (rate_vec - steady) * dt[:, None]]), axis=0)
@@ -120,18 +120,42 @@ def detect_motion(dtheta: np.ndarray, dt: np.ndarray, where: str = "run", arw: f
     return Segmentation(moving=grown, first_rest_end=first)
 
 
-def largest_turn(dtheta: np.ndarray, dt: np.ndarray, moving: np.ndarray, steady: np.ndarray) -> float:
-    """The largest angle (rad) the IMU turns through within one stretch between rests.
+def turn_angles(dtheta: np.ndarray, dt: np.ndarray, moving: np.ndarray, steady: np.ndarray) -> np.ndarray:
+    """The largest angle (rad) the IMU turns through within each stretch between rests.
 
     The rate less the ``steady`` one (Earth rate and bias, rad/s) is integrated
     from the start of each turning stretch; the largest angle reached counts, so a
     turn there and back within one stretch counts too.
     """
-    largest = 0.0
-    for a, b in zip(*runs_of(moving), strict=True):
-        angle = np.cumsum(dtheta[a:b] - steady * dt[a:b, None], axis=0)
-        largest = max(largest, float(np.max(row_norm(angle))))
-    return largest
+    out = [
+        float(np.max(row_norm(np.cumsum(dtheta[a:b] - steady * dt[a:b, None], axis=0))))
+        for a, b in zip(*runs_of(moving), strict=True)
+    ]
+    return np.array(out)
+
+
+def largest_turn(dtheta: np.ndarray, dt: np.ndarray, moving: np.ndarray, steady: np.ndarray) -> float:
+    """The largest of :func:`turn_angles` (0 when nothing turns)."""
+    angles = turn_angles(dtheta, dt, moving, steady)
+    return float(angles.max()) if angles.size else 0.0
+
+
+def steady_rate(dtheta: np.ndarray, dt: np.ndarray) -> np.ndarray:
+    """Per axis, the median rate (rad/s): at rest, where a calibration run spends most of its time."""
+    return np.array([np.median(dtheta[:, i] / dt) for i in range(3)])
+
+
+def log_turns(dtheta: np.ndarray, dt: np.ndarray, arw: float, where: str) -> np.ndarray:
+    """Where the log turns, judged as the fit judges it (the profile's ``arw``), without the
+    stretches that turn by less than :data:`MIN_TURN_DEG` (a noise burst within a rest):
+    what a sequence's flips are held against.
+    """
+    moving = detect_motion(dtheta, dt, where, arw=arw).moving
+    angles = turn_angles(dtheta, dt, moving, steady_rate(dtheta, dt))
+    for (a, b), angle in zip(zip(*runs_of(moving), strict=True), angles, strict=True):
+        if angle < math.radians(MIN_TURN_DEG):
+            moving[a:b] = False
+    return moving
 
 
 def sequence_mask(timeline, time_s: np.ndarray, dt: np.ndarray, t_start: float) -> np.ndarray:

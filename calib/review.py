@@ -60,10 +60,33 @@ class RunReview:
         return np.cumsum(self.dt)
 
 
+def motion_profile(run, result=None, profile: NoiseProfile | str | None = None) -> NoiseProfile:
+    """The noise a run's motion is judged with, as ``calibrate`` judges it (one rule).
+
+    The profile given, else the one the result was fitted with, else the one the run log
+    names (a simulated run records it), else the default profile.
+    """
+    if profile is not None:
+        return profile if isinstance(profile, NoiseProfile) else load_profile(profile)
+    if result is not None:
+        return result_profile(result)[0]
+    try:
+        return load_profile(run.meta.get("profile") or DEFAULT_PROFILE)
+    except CalibError:  # a name only its writer knew: judge as the default profile does
+        return load_profile(DEFAULT_PROFILE)
+
+
 def review_run(
-    run, result=None, latitude_deg: float | None = None, gravity_mps2: float | None = None
+    run,
+    result=None,
+    latitude_deg: float | None = None,
+    gravity_mps2: float | None = None,
+    profile: NoiseProfile | str | None = None,
 ) -> RunReview:
     """Motion, coarse alignment and the navigation velocity errors before/after calibration.
+
+    The motion is judged with the noise of :func:`motion_profile` (``profile``, else the
+    result's, else the run's own), as ``calibrate`` judges it.
 
     With a result, also the predicted 1-sigma of the velocity error after
     calibration (:func:`velocity_noise_sigma`) with the noise profile the
@@ -77,7 +100,7 @@ def review_run(
     dtheta, dv = run.dtheta_rad, run.dv_mps
     notes = []
     try:
-        seg = detect_motion(dtheta, dt, run.source)
+        seg = detect_motion(dtheta, dt, run.source, arw=motion_profile(run, result, profile).arw)
         moving, first_rest_end = seg.moving, seg.first_rest_end
     except CalibError:
         moving, first_rest_end = np.zeros(run.n_samples, dtype=bool), run.n_samples

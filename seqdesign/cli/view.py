@@ -57,11 +57,12 @@ def _check_output(path: Path) -> None:
         )
 
 
-def _load_sequence(run, explicit):
-    """The sequence to show: ``--sequence`` (must match the log), else the run's ``sequence`` key
-    if it names a shipped sequence that matches the log, else None.
+def _load_sequence(run, explicit, profile):
+    """``--sequence`` (must match the log), else the run's ``sequence`` key
+    if it names a shipped sequence that matches the log, else None. The log's turns are
+    judged with ``profile``'s noise, as ``calibrate`` judges them.
     """
-    from calib.motion import check_sequence_matches, detect_motion, sequence_motion
+    from calib.motion import check_sequence_matches, log_turns, sequence_motion
     from calib.sequence import load_sequence
     from calib.strapdown import sample_intervals
 
@@ -73,7 +74,7 @@ def _load_sequence(run, explicit):
         dt = sample_intervals(run.time_s)
         check_sequence_matches(
             seq,
-            detect_motion(run.dtheta_rad, dt, run.source).moving,
+            log_turns(run.dtheta_rad, dt, profile.arw, run.source),
             sequence_motion(seq, run.time_s, dt),
             dt,
             run.source,
@@ -137,9 +138,15 @@ def _load_result(run_path, explicit):
 )
 @click.option("--allow-gaps", is_flag=True, help="Accept time gaps in the log.")
 @options.columns
+@click.option(
+    "--profile",
+    default=None,
+    help="Noise profile the log's motion is judged with, as calibrate judges it (default: the "
+    "result's, else the one the run names, else navigation).",
+)
 @options.as_json
 @guarded
-def view(run_path, sequence, result_path, truth_path, output, spawn, allow_gaps, columns, as_json):
+def view(run_path, sequence, result_path, truth_path, output, spawn, allow_gaps, columns, profile, as_json):
     """Record RUN (CSV, CSV.GZ, NPZ or PSINS .imu) for the rerun viewer: the gimbal and IMU in 3D,
     raw gyro and accelerometer signals, navigation velocity errors before and
     after calibration, the positions and flips, and the result against its
@@ -150,9 +157,12 @@ def view(run_path, sequence, result_path, truth_path, output, spawn, allow_gaps,
 
     out = Path(output) if output else _beside(run_path, ".rrd")
     _check_output(out)
+    from calib.review import motion_profile, review_run
+
     run = read_run(run_path, allow_gaps=allow_gaps, columns=columns)
-    seq, seq_note = _load_sequence(run, sequence)
     result, used_result, result_note = _load_result(run_path, result_path)
+    noise = motion_profile(run, result, profile)
+    seq, seq_note = _load_sequence(run, sequence, noise)
     if truth_path is None and truth_path_for(run_path).exists():
         truth_path = truth_path_for(run_path)
     truth = read_truth(truth_path) if truth_path else None
@@ -163,10 +173,10 @@ def view(run_path, sequence, result_path, truth_path, output, spawn, allow_gaps,
         import rerun  # noqa: F401  (a clear message if the optional viewer SDK is missing)
     except ImportError:
         raise CalibError("rerun-sdk is not installed", None, "pip install 'rerun-sdk>=0.41'") from None
-    from calib.review import review_run
     from viz.record import record_run
 
-    summary = record_run(run, out, review_run(run, result), sequence=seq, result=result, truth=truth)
+    review = review_run(run, result, profile=noise)
+    summary = record_run(run, out, review, sequence=seq, result=result, truth=truth)
     no_display = spawn and not display_available()
     if no_display:
         _info(
