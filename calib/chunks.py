@@ -34,11 +34,13 @@ from .extras import Extras
 from .gyrocompass import Rests
 from .jacobian import default_grid
 from .motion import (
+    MIN_TURN_DEG,
     MOTION_THRESHOLD,
     carried_cumsum,
     check_sequence_matches,
     grow,
     motion_window,
+    row_norm,
     runs_of,
     sample_motion,
     sequence_mask,
@@ -221,10 +223,40 @@ def sequence_motion_file(path, rows, where, period, sequence, detected, t_start)
         sequence_mask(tl, t, dt, t_start) for _, t, _, _, dt in _blocks_with_dt(path, rows, where, period)
     ]
     moving = grow(np.concatenate(masks))
+    turns = detected.copy()  # as calib.motion.log_turns: noise bursts within a rest do not count
+    angles = _turn_angles(path, rows, where, period, detected, _steady_rate(path, rows, where, period))
+    for a, b, angle in zip(*runs_of(detected), angles, strict=True):
+        if angle < math.radians(MIN_TURN_DEG):
+            turns[a:b] = False
     check_sequence_matches(
-        sequence, detected, moving, None, where, lambda i: _elapsed(path, rows, where, period, i)
+        sequence, turns, moving, None, where, lambda i: _elapsed(path, rows, where, period, i)
     )
     return moving
+
+
+def _steady_rate(path, rows, where, period) -> np.ndarray:
+    """Per axis, the median of the chunks' median rates (rad/s): the run's rate at rest, as
+    :func:`survey` takes it (:func:`calib.motion.steady_rate` in memory).
+    """
+    medians = [
+        np.median(th / dt[:, None], axis=0) for _, _, th, _, dt in _blocks_with_dt(path, rows, where, period)
+    ]
+    return np.median(medians, axis=0)
+
+
+def _turn_angles(path, rows, where, period, moving: np.ndarray, steady: np.ndarray) -> np.ndarray:
+    """:func:`calib.motion.turn_angles` of the whole run, integrated chunk by chunk."""
+    starts, _ = runs_of(moving)
+    largest, carry = np.zeros(len(starts)), np.zeros((len(starts), 3))
+    for a, _, th, _, dt in _blocks_with_dt(path, rows, where, period):
+        here = np.flatnonzero(moving[a : a + len(dt)])
+        which = np.searchsorted(starts, here + a, side="right") - 1
+        for k in np.unique(which):
+            rows_k = here[which == k]
+            angle = carry[k] + np.cumsum(th[rows_k] - steady * dt[rows_k, None], axis=0)
+            largest[k] = max(largest[k], float(np.max(row_norm(angle))))
+            carry[k] = angle[-1]
+    return largest
 
 
 def _elapsed(path, rows, where, period, idx: np.ndarray) -> np.ndarray:

@@ -54,13 +54,15 @@ def test_the_log_turns_where_the_sequence_flips(mems_run):
     assert MIN_TURN_DEG < 90.0 / 2  # a real flip is never taken for a noise burst
 
 
-def test_calibrate_and_view_accept_the_sequence_of_a_mems_run(mems_run, tmp_path):
+@pytest.mark.parametrize("reading", [[], ["--stream"]])
+def test_calibrate_and_view_accept_the_sequence_of_a_mems_run(mems_run, tmp_path, reading):
     runner = CliRunner()
     res = runner.invoke(
         main,
         [
             "calibrate",
             str(mems_run),
+            *reading,
             "--profile",
             "mems",
             "--requirements",
