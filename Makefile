@@ -6,7 +6,7 @@ DEMO := demo-out
 # Two workers on the 2-core machine: the suite is CPU-bound, one test per core.
 PYTEST := $(BIN)/python -m pytest -q -n 2 -p no:cacheprovider
 
-.PHONY: demo test test-all lint bench venv clean
+.PHONY: demo test test-slow test-all lint bench venv clean
 
 $(BIN)/seqdesign: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -34,9 +34,12 @@ lint: venv
 test: lint
 	$(PYTEST) -m "not slow"
 
-# Everything, the slow tests included: what CI runs.
-test-all: lint
-	$(PYTEST)
+# The slow statistical and end-to-end tests only.
+test-slow: venv
+	$(PYTEST) -m slow
+
+# Everything: the fast suite, then the slow tests (what CI runs).
+test-all: test test-slow
 
 bench: venv
 	$(BIN)/python benchmarks/run_all.py
