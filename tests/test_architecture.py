@@ -230,3 +230,15 @@ def test_the_package_is_the_library():
     assert callable(sd.calibrate) and callable(sd.design) and callable(sd.record)
     with pytest.raises(AttributeError):
         _ = sd.no_such_thing
+
+
+def test_the_command_line_starts_without_the_heavy_libraries():
+    """`seqdesign --help` and a one-line refusal load no solver, viewer or plotting library: each
+    command imports its machinery when it runs (casadi alone costs ~0.3 s of every start)."""
+    code = (
+        "import sys, seqdesign.cli; "
+        "print(sorted(m for m in ('casadi', 'scipy', 'rerun', 'matplotlib', 'networkx', 'dask') "
+        "if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, check=True)
+    assert out.stdout.strip() == "[]"

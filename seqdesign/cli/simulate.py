@@ -10,16 +10,7 @@ from typing import TYPE_CHECKING
 import click
 import numpy as np
 
-from calib.errormodel import ErrorModel
 from calib.errors import CalibError
-from calib.profiles import NoiseProfile, load_profile
-from calib.runlog import write_run
-from calib.sequence import Sequence, load_sequence
-from calib.sim import SimConfig
-from calib.sim import simulate as run_simulation
-from calib.simstream import simulate_to_file
-from calib.truth import read_errors, truth_path_for, write_truth
-from seqdesign.analysis import resolve_site
 
 from . import options
 from .tools import emit_json, guarded, hidden_alias, info, provenance
@@ -58,6 +49,9 @@ class _Setup:
                 "the mounting tolerance of the conventions is +-3 deg",
             )
         from calib.errormodel import ErrorModel
+        from calib.profiles import load_profile
+        from calib.sequence import load_sequence
+        from calib.truth import read_errors
 
         seq = load_sequence(sequence)
         prof = load_profile(profile)
@@ -89,6 +83,9 @@ def _run_meta(prov: dict, profile_name: str) -> dict:
 
 def _simulate_streamed(setup: _Setup, cfg, output, setup_deg, seed, noise_free, as_json) -> None:
     """``simulate --stream``: the run log written window by window (calib.simstream)."""
+    from calib.simstream import simulate_to_file
+    from calib.truth import truth_path_for, write_truth
+
     prov = setup.provenance()
     n, truth = simulate_to_file(
         output,
@@ -196,7 +193,11 @@ def simulate(
     from calib.extras import parse_values
     from calib.gimbal import check_playable, plan_sequence
     from calib.gimbalfile import load_gimbal
+    from calib.runlog import write_run
+    from calib.sim import SimConfig
+    from calib.sim import simulate as run_simulation
     from calib.truth import truth_path_for, write_truth
+    from seqdesign.analysis import resolve_site
 
     if stream:
         unsupported = {
