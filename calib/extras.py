@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 
 from .errors import CalibError
-from .params import MICRO_G, STANDARD_GRAVITY
+from .params import DEG_PER_HOUR, MICRO_G, STANDARD_GRAVITY
 
 
 @dataclass(frozen=True)
@@ -89,6 +89,7 @@ class ExtraParameter:
 
 
 K2_SI_PER_UG_PER_G2 = MICRO_G / STANDARD_GRAVITY**2  # 1 ug/g^2 in 1/(m/s^2)
+G_SENSITIVITY_SI_PER_UNIT = DEG_PER_HOUR / STANDARD_GRAVITY  # 1 deg/h/g in (rad/s)/(m/s^2)
 
 
 def _table() -> dict[str, tuple[ExtraParameter, ...]]:
@@ -133,28 +134,51 @@ def _table() -> dict[str, tuple[ExtraParameter, ...]]:
             100.0,
         ),
     )
-    return {"lever-arm": lever, "k2": k2, "time-offset": offset}
+    g_sensitivity = tuple(
+        ExtraParameter(
+            f"gs{axes[i]}{axes[m]}",
+            "g-sensitivity",
+            "deg/h/g",
+            G_SENSITIVITY_SI_PER_UNIT,
+            10.0,
+            f"rate the {axes[i]}-gyro reads per g of specific force along body {axes[m]}",
+            1e4,
+            i,
+            m,
+        )
+        for i in range(3)
+        for m in range(3)
+    )
+    return {"lever-arm": lever, "k2": k2, "time-offset": offset, "g-sensitivity": g_sensitivity}
 
 
 GROUPS: dict[str, tuple[ExtraParameter, ...]] = _table()
-GROUP_NAMES: tuple[str, ...] = tuple(GROUPS)
+# The groups of a gimbal run (simulated, analysed, designed and fitted alike; ``all``).
+GROUP_NAMES: tuple[str, ...] = ("lever-arm", "k2", "time-offset")
+# Fitted on runs placed by hand only: a MEMS gyro's rate per g of specific force
+# (``w_meas = A_g w + b_g + G f``), which real hand-placed logs show at hundreds of deg/h.
+HAND_GROUP_NAMES: tuple[str, ...] = ("g-sensitivity",)
 
 
-def parse_groups(text: str | None, where: str = "extras (the CLI's --with)") -> tuple[str, ...]:
-    """``"k2,lever-arm"`` -> the groups in canonical order; ``""``/None -> none; ``all`` -> all."""
+def parse_groups(
+    text: str | None, where: str = "extras (the CLI's --with)", allowed: tuple[str, ...] = GROUP_NAMES
+) -> tuple[str, ...]:
+    """``"k2,lever-arm"`` -> the groups in canonical order; ``""``/None -> none; ``all`` -> ``allowed``."""
     if not text:
         return ()
     names = [t.strip() for t in text.split(",") if t.strip()]
     if names == ["all"]:
-        return GROUP_NAMES
-    unknown = [n for n in names if n not in GROUPS]
+        return allowed
+    unknown = [n for n in names if n not in allowed]
     if unknown:
+        hand = [n for n in unknown if n in HAND_GROUP_NAMES]
         raise CalibError(
-            f"unknown extra term(s) {', '.join(map(repr, unknown))}",
+            f"unknown extra term(s) {', '.join(map(repr, unknown))}"
+            + (f" here ({', '.join(hand)}: runs placed by hand, calibrate --by-hand)" if hand else ""),
             where,
-            "choose from " + ", ".join(GROUP_NAMES) + " (or 'all')",
+            "choose from " + ", ".join(allowed) + " (or 'all')",
         )
-    return tuple(g for g in GROUP_NAMES if g in names)
+    return tuple(g for g in GROUPS if g in names)
 
 
 @dataclass(frozen=True)
@@ -209,7 +233,12 @@ class Extras:
             "k2": values.k2,
             "time-offset": np.array([values.time_offset_s]),
         }
-        return np.concatenate([parts[g] for g in self.groups]) if self.groups else np.zeros(0)
+        # A hand run's g-sensitivity has no simulated value here: a truth holds it as zero.
+        return (
+            np.concatenate([parts.get(g, np.zeros(len(GROUPS[g]))) for g in self.groups])
+            if self.groups
+            else np.zeros(0)
+        )
 
 
 NONE = Extras()
@@ -409,8 +438,10 @@ def dv_sensitivity(
     return D
 
 
-def as_extras(extras: Extras | str | None) -> Extras:
-    """Optional terms from an :class:`Extras`, a ``--with`` string or None."""
+def as_extras(extras: Extras | str | None, by_hand: bool = False) -> Extras:
+    """Optional terms from an :class:`Extras`, a ``--with`` string or None (``by_hand``: a hand run's)."""
+    allowed = HAND_GROUP_NAMES if by_hand else GROUP_NAMES
     if isinstance(extras, Extras):
+        parse_groups(",".join(extras.groups), allowed=allowed)  # refuses a group this run cannot fit
         return extras
-    return Extras(parse_groups(extras)) if extras else NONE
+    return Extras(parse_groups(extras, allowed=allowed)) if extras else NONE

@@ -16,8 +16,8 @@ import numpy as np
 from . import params as P
 from .errormodel import ErrorModel
 from .errors import CalibError
+from .extras import GROUPS, Extras, parse_groups
 from .extras import NONE as NO_EXTRAS
-from .extras import Extras, parse_groups
 from .fields import FORMAT_VERSION, Fields, check_format_version
 from .fileio import atomic_write_text, load_toml, toml_number
 from .report import extra_entries, format_table, parameter_entries, worst
@@ -397,7 +397,7 @@ def _read_extras(fit: Fields, where: str) -> Extras:
     groups = fit.table.get("extras", [])
     if not isinstance(groups, list) or not all(isinstance(g, str) for g in groups):
         raise CalibError("must be a list of names", f"{where}: [fit] extras")
-    return Extras(parse_groups(",".join(groups), f"{where}: [fit] extras"))
+    return Extras(parse_groups(",".join(groups), f"{where}: [fit] extras", allowed=tuple(GROUPS)))
 
 
 def _matrix(rows, n: int) -> np.ndarray | None:
