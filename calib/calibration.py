@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +26,7 @@ from .chunks import calibrate_file, run_header
 from .errors import CalibError
 from .estimator import calibrate as fit_run
 from .extras import Extras, as_extras
+from .handrun import as_fit, hand_fit_of, summary_of
 from .motion import check_sequence_matches, log_turns, sequence_motion
 from .profiles import NoiseProfile, as_profile
 from .requirements import PAPER, Requirements, load_requirements
@@ -112,6 +114,7 @@ def calibrate(
     latitude_deg: float | None = None,
     height_m: float | None = None,
     provenance: dict | None = None,
+    by_hand: bool = False,
 ) -> CalibrationResult:
     """Fit the 21 parameters (and any optional terms) of a run log.
 
@@ -148,6 +151,9 @@ def calibrate(
         Reading a file whole: the site of a logger's CSV that lacks it.
     provenance : dict, optional
         Stored in the result as it is.
+    by_hand : bool
+        The run was placed by hand (no gimbal, no sequence): fitted from its
+        rests and the moves between them (:mod:`calib.handfit`); read whole.
 
     Returns
     -------
@@ -155,8 +161,22 @@ def calibrate(
         With the Birge-checked sigmas, the correlation of the 21, the site
         gravity and the fit's health.
     """
-    prof, extras = as_profile(profile), as_extras(extras)
+    prof, extras = as_profile(profile), as_extras(extras, by_hand=by_hand)
     req = load_requirements(requirements)
+    if by_hand:
+        return _by_hand(
+            source,
+            prof,
+            extras,
+            partial,
+            require_convergence,
+            req,
+            gravity_mps2,
+            provenance,
+            stream,
+            dict(allow_gaps=allow_gaps, latitude_deg=latitude_deg, height_m=height_m),
+            sequence,
+        )
     model = dict(extras=extras, partial=partial, requirements=req, sequence=sequence)
     if isinstance(source, (str, os.PathLike)):
         reading: dict[str, Any] = dict(allow_gaps=allow_gaps, latitude_deg=latitude_deg, height_m=height_m)
@@ -201,6 +221,37 @@ def _fit_in_memory(run, site: Site, profile: NoiseProfile, sequence, **model) ->
         )
     except GyroUnitError as exc:  # told in the terms of the file's gyro columns (rates, not dtheta)
         raise explain_gyro_unit(exc, run.gyro_columns) from None
+
+
+def _by_hand(
+    source,
+    prof,
+    extras,
+    partial,
+    require_convergence,
+    req,
+    gravity_mps2,
+    provenance,
+    stream,
+    reading,
+    sequence,
+) -> CalibrationResult:
+    """A run placed by hand, read whole: its fit, checked as a gimbal run's."""
+    if sequence is not None:
+        raise CalibError(
+            "a run placed by hand follows no sequence file",
+            str(getattr(source, "source", source)),
+            "leave out --sequence, or calibrate without --by-hand",
+        )
+    if isinstance(source, (str, os.PathLike)):
+        if stream:
+            raise CalibError("a run placed by hand is read whole", str(source), "leave out --stream")
+        source = read_run(source, **reading)
+    site = site_of(source, gravity_mps2)
+    hand = hand_fit_of(source, site, prof, extras, partial, req)
+    fit = as_fit(hand, extras)
+    result = _checked_result(fit, source.source, require_convergence, prof, site, provenance, req)
+    return replace(result, by_hand=summary_of(hand, source))
 
 
 def _checked_result(fit: Fit, where: str, require_convergence: bool, profile, site, provenance, req):

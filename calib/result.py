@@ -20,6 +20,7 @@ from .extras import GROUPS, Extras, parse_groups
 from .extras import NONE as NO_EXTRAS
 from .fields import FORMAT_VERSION, Fields, check_format_version
 from .fileio import atomic_write_text, load_toml, toml_number
+from .handsummary import HandSummary
 from .report import extra_entries, format_table, parameter_entries, worst
 from .requirements import PAPER, Requirements, requirements_from_dict
 from .site import ppm_per_mgal
@@ -71,6 +72,8 @@ class CalibrationResult:
         ``measured`` (the log's) or ``normal`` (WGS-84 model); empty if unknown.
     requirements : Requirements
         What the ratios are judged against.
+    by_hand : HandSummary or None
+        For a run placed by hand, the rests and moves the fit used.
     """
 
     values: np.ndarray
@@ -93,6 +96,7 @@ class CalibrationResult:
     gravity_mps2: float = float("nan")
     gravity_source: str = ""
     requirements: Requirements = PAPER
+    by_hand: HandSummary | None = None  # a run placed by hand: its rests and moves
 
     @property
     def error_model(self) -> ErrorModel:
@@ -192,6 +196,8 @@ class CalibrationResult:
         }
         if truth is not None:
             doc["nees"] = self.nees(truth.errors.values)
+        if self.by_hand is not None:
+            doc["by_hand"] = self.by_hand.to_json()
         return doc
 
     def to_text(self, truth=None) -> str:
@@ -202,7 +208,7 @@ class CalibrationResult:
             format_table(entries),
             f"profile {self.profile}; requirements {self.requirements.name}; "
             f"{'converged' if self.converged else 'NOT converged'} "
-            f"in {self.iterations} iterations; residual RMS {self.residual_rms_mps:.3g} m/s; "
+            f"in {self.iterations} iterations; {self._residual_text()}; "
             f"chi2/dof {self.chi2_per_dof:.3f}; worst 3 sigma/requirement "
             f"{w['ratio']:.2f} ({w['name']})",
         ]
@@ -211,7 +217,14 @@ class CalibrationResult:
                 f"gravity {self.gravity_mps2:.7f} m/s^2 ({self.gravity_source}); "
                 f"1 mGal = {self.ppm_per_mgal:.2f} ppm on each accelerometer scale factor"
             )
+        if self.by_hand is not None:
+            lines += self.by_hand.lines()
         return "\n".join(lines)
+
+    def _residual_text(self) -> str:
+        if self.by_hand is not None:  # a hand fit's residuals are the rests' mean specific force
+            return f"rest specific-force residual RMS {self.residual_rms_mps:.3g} m/s^2"
+        return f"residual RMS {self.residual_rms_mps:.3g} m/s"
 
     def to_dict(self) -> dict:
         """The result TOML document."""

@@ -53,6 +53,12 @@ from .tools import emit_json, guarded, hidden_alias, info, provenance
     help="Read RUN (.npz or imu-run/1 .csv) chunk by chunk: memory stays at one chunk plus a "
     "byte per sample, whatever its length. Default: only a log over 256 MB.",
 )
+@click.option(
+    "--by-hand",
+    is_flag=True,
+    help="RUN was placed by hand (no gimbal, no sequence): fit it from its rests, found with the "
+    "profile's noise, and the gyros across the moves between them (any axis, fast, carried).",
+)
 @options.as_json
 @guarded
 def calibrate(
@@ -70,6 +76,7 @@ def calibrate(
     gravity_mps2,
     partial,
     stream,
+    by_hand,
     as_json,
 ):
     """Align, navigate on the stationary base and fit the 21 error parameters of
@@ -83,7 +90,7 @@ def calibrate(
     from calib.sequence import load_sequence
     from calib.truth import read_truth, truth_path_for
 
-    extras = as_extras(with_terms)
+    extras = as_extras(with_terms, by_hand=by_hand)
     prof = as_profile(profile)
     reading = dict(allow_gaps=allow_gaps, latitude_deg=latitude, height_m=height)
     if columns and stream:
@@ -91,7 +98,9 @@ def calibrate(
             "--columns maps a logger's CSV, which is read whole", run_path, "calibrate it without --stream"
         )
     run = None
-    if not columns and reads_in_chunks(run_path, stream, **reading):
+    if by_hand and stream:
+        raise CalibError("a run placed by hand is read whole", run_path, "leave out --stream")
+    if not columns and not by_hand and reads_in_chunks(run_path, stream, **reading):
         info(f"calibrating {run_path} chunk by chunk, profile {prof.name}")
     else:
         from calib.runlog import read_run
@@ -114,6 +123,7 @@ def calibrate(
         partial=partial,
         requirements=requirements,
         gravity_mps2=gravity_mps2,
+        by_hand=by_hand,
         provenance=provenance(
             {
                 "run": run_path,
