@@ -34,7 +34,7 @@ from . import params as P
 from .errormodel import ErrorModel, error_matrix_jacobian
 from .errors import CalibError
 from .extras import G_SENSITIVITY_SI_PER_UNIT
-from .handmoves import move_rotation, move_sensitivity
+from .handmoves import move_rotation, move_sensitivity, right_jacobian_inverse
 from .information import scaled_inverse
 from .profiles import NoiseProfile
 from .requirements import PAPER, Requirements
@@ -218,7 +218,18 @@ class _State:
             self.C[r] = rotvec_to_dcm(Smap @ step[cols]) @ self.C[r]
 
 
-def _linearise(data: HandData, dtheta, dv, dt, state: _State, layout: Layout, latitude_rad, g, profile):
+def _linearise(
+    data: HandData,
+    dtheta,
+    dv,
+    dt,
+    state: _State,
+    layout: Layout,
+    latitude_rad,
+    g,
+    profile,
+    heading_prior=True,
+):
     """Residuals, their sigmas, the Jacobian of the predictions, and each row's group."""
     model = ErrorModel(state.values)
     A_g, A_a, G, C = model.gyro_matrix, model.accel_matrix, state.G, state.C
@@ -269,11 +280,13 @@ def _linearise(data: HandData, dtheta, dv, dt, state: _State, layout: Layout, la
         c1, S1 = layout.columns(r + 1)
         J[:, c0] = -(C[r + 1].T @ R_E) @ S0
         J[:, c1] = C[r + 1].T @ S1
-        add(J, -dcm_to_rotvec(E), profile.arw * math.sqrt(T), ("move", r))
-    # The prior of an unknown heading on the horizontal Earth rate.
-    J = np.zeros((2, layout.n))
-    J[:, layout.h] = np.eye(2)
-    add(J, -state.h, earth.RATE * math.cos(latitude_rad) / math.sqrt(2.0), ("prior", 0))
+        e0 = dcm_to_rotvec(E)
+        # Each unknown turns E on its right (E exp(x)): the residual moves by J_r^-1(e0) x.
+        add(right_jacobian_inverse(e0) @ J, -e0, profile.arw * math.sqrt(T), ("move", r))
+    if heading_prior:  # the prior of an unknown heading on the horizontal Earth rate
+        J = np.zeros((2, layout.n))
+        J[:, layout.h] = np.eye(2)
+        add(J, -state.h, earth.RATE * math.cos(latitude_rad) / math.sqrt(2.0), ("prior", 0))
     jac = np.vstack(rows)
     e = np.concatenate(res)
     s = np.concatenate([np.full(len(x), sg) for x, sg in zip(res, sig, strict=True)])
@@ -303,6 +316,7 @@ def fit_by_hand(
     clipped=None,
     requirements: Requirements = PAPER,
     partial: bool = False,
+    heading_prior: bool = True,
     where: str = "run",
 ) -> HandFit:
     """Fit the 21 parameters of a run placed by hand (see the module's model).
@@ -325,6 +339,9 @@ def fit_by_hand(
         Scales the observability rule.
     partial : bool
         Fit the estimable parameters of a run that leaves some unobserved instead of refusing it.
+    heading_prior : bool
+        Weight the horizontal Earth rate by the prior of an unknown heading (off: only the
+        gyros tell it, as for a noise-free run whose exact recovery a test checks).
     where : str
         The run's name in messages.
     """
@@ -345,7 +362,7 @@ def fit_by_hand(
     scale = _scales(layout, requirements, latitude_rad)
     names = layout.names()
     args = (data, dtheta, dv, dt)
-    site = (latitude_rad, gravity_mps2, profile)
+    site = (latitude_rad, gravity_mps2, profile, heading_prior)
     history: list = []
     converged = False
     for iteration in range(1, MAX_ITERATIONS + 1):

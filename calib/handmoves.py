@@ -18,6 +18,8 @@ order: a change ``d phi_i`` of sample ``i`` turns the move's end by
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .strapdown import coning_rotvec
@@ -35,6 +37,19 @@ def right_jacobian(phi: np.ndarray) -> np.ndarray:
     c2 = np.where(small, 1.0 / 6.0 - a2 / 120.0, (safe - np.sin(safe)) / (safe * safe * safe))
     K = skew(phi)
     return np.eye(3) - c1[:, None, None] * K + c2[:, None, None] * (K @ K)
+
+
+def right_jacobian_inverse(phi: np.ndarray) -> np.ndarray:
+    """``J_r(phi)^-1`` of one rotation vector: ``Log(exp(phi) exp(d)) ~ phi + J_r^-1 d``."""
+    a = float(np.linalg.norm(phi))
+    K = skew(phi)
+    # Taylor series near 0, where the quotient loses digits.
+    c = (
+        1.0 / 12.0 + a * a / 720.0
+        if a < 1e-4
+        else 1.0 / (a * a) - (1.0 + math.cos(a)) / (2.0 * a * math.sin(a))
+    )
+    return np.eye(3) + 0.5 * K + c * (K @ K)
 
 
 def move_rotation(dtheta_c: np.ndarray, previous: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
