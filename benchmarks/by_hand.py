@@ -274,9 +274,46 @@ def move_lines(label: str, rests, pairs) -> list[str]:
     return out
 
 
+def _brief(s: HandScore) -> str:
+    return f"|f| std {1e3 * s.spread.std:.2f} mm/s², pose-to-pose RMS {s.poses.rms_deg:.3f}°"
+
+
+def why_lines(x, rx, c_ours, c_tk, f, rf, c_fo, c_ic) -> list[str]:
+    """The g-sensitivity's share on the Xsens; both tools on imucal's own six faces."""
+    out = ["", "### Checks behind the findings", ""]
+    no_g = calibrate(x.run, "mems", by_hand=True, requirements="mems", gravity_mps2=x.gravity)
+    c_no_g = correction_from_parameters(
+        no_g.values, no_g.covariance, None, None, x.gyro_conversion, x.accel_conversion
+    )
+    cases = [
+        ("ours", c_ours),
+        ("ours, its G set to zero", replace(c_ours, g_sensitivity=None)),
+        ("ours fitted without g-sensitivity", c_no_g),
+        ("imu_tk", c_tk),
+        (
+            "imu_tk with our G and our gyro bias",
+            replace(c_tk, g_sensitivity=c_ours.g_sensitivity, gyro=replace(c_tk.gyro, b=c_ours.gyro.b)),
+        ),
+    ]
+    out += [f"- Xsens, {name}: {_brief(scored(c, x, rx.start, rx.end))}" for name, c in cases]
+    sec = json.loads((DATA / "imucal-ferraris" / "example_ferraris_session_list.json").read_text())
+    faces = ("x_p", "x_a", "y_p", "y_a", "z_p", "z_a")
+    st, en = np.array([sec[k]["start"] for k in faces]), np.array([sec[k]["end"] for k in faces])
+    for name, c in (("ours", c_fo), ("imucal", c_ic)):
+        out.append(f"- Ferraris on imucal's six faces, {name}: {_brief(scored(c, f, st, en))}")
+    for name, c in (("ours", c_fo), ("imucal", c_ic)):
+        m = scored(c, f, rf.start, rf.end).spread.magnitude
+        out.append(
+            f"- Ferraris |f| − g per rest, {name}, mm/s²: "
+            + " ".join(f"{1e3 * (v - f.gravity):+.1f}" for v in m)
+        )
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--moves", action="store_true", help="also print each move's angle")
+    ap.add_argument("--why", action="store_true", help="also the checks behind the findings")
     args = ap.parse_args()
     if not DATA.is_dir():
         sys.exit(f"no real data at {DATA}")
@@ -321,6 +358,8 @@ def main() -> None:
     print("\n".join([*lines, "", *goals, "", "### Axes", "", *axes]))
     print("### Ferraris: our rests against imucal's faces\n")
     print("\n".join(section_lines(f, rf.start, rf.end)))
+    if args.why:
+        extra += why_lines(x, rx, c_ours, c_tk, f, rf, c_fo, c_ic)
     if extra:
         print("\n".join(extra))
 
