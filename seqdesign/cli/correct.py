@@ -1,0 +1,62 @@
+"""``seqdesign correct``: apply a calibration to a log, ``calibrated = M (raw - b)`` per sensor.
+
+The correction file is what ``calibrate --correction`` writes (or any file of
+that format: see ``docs/by-hand.md``). The log is read as ``calibrate`` reads it
+(a logger's columns, raw counts with their conversion, imu_tk's two files, a
+sample counter); the output is a CSV of calibrated rates and specific force
+that every command of the tool reads back (``time_s,gyro_x_radps,...``).
+"""
+
+from __future__ import annotations
+
+import click
+
+from . import options
+from .tools import emit_json, guarded, info
+
+
+@click.command(short_help="Apply a calibration (calibrated = M (raw - b)) to a log.")
+@click.argument("run_path", metavar="LOG")
+@click.option(
+    "--correction",
+    "correction_path",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="Correction TOML (calibrate --correction writes it).",
+)
+@click.option("-o", "--output", required=True, help="Calibrated log to write (CSV).")
+@options.latitude("Site latitude, deg, for a logger's CSV that does not carry latitude_deg.")
+@options.height("Site height, m, for a logger's CSV that does not carry height_m.")
+@options.columns
+@options.gyro_file
+@options.conversion
+@options.log_sample_rate()
+@options.as_json
+@guarded
+def correct(run_path, correction_path, output, latitude, height, columns, gyro_file, conversion, sample_rate_hz, as_json):
+    """Apply the correction to every sample of LOG and write the calibrated log."""
+    import numpy as np
+
+    from calib.correction import Correction, raw_samples
+    from calib.runlog import read_run
+    from calib.runlog.csvwrite import write_rates_csv
+
+    from .reading import hand_reading
+
+    correction = Correction.load(correction_path)
+    reading = dict(latitude_deg=latitude, height_m=height, columns=columns)
+    run = read_run(run_path, **reading, **hand_reading(gyro_file, conversion, sample_rate_hz))
+    raw_gyro, raw_accel = raw_samples(run, correction, run_path)
+    rate, force = correction.apply(raw_gyro, raw_accel)
+    write_rates_csv(output, run, rate, force, note=f"calibrated with {correction_path}")
+    info(f"applied {correction_path} to {run.n_samples} samples of {run_path}")
+    doc = {
+        "output": output,
+        "samples": run.n_samples,
+        "mean_rate_radps": np.mean(rate, axis=0).tolist(),
+        "mean_specific_force_mps2": np.mean(force, axis=0).tolist(),
+    }
+    if as_json:
+        emit_json(doc)
+        return
+    click.echo(f"wrote {output}")
