@@ -103,6 +103,11 @@ class Conversion:
         zero, scale = self.zero_counts[sensor], np.abs(self.counts_per_unit[sensor])
         return np.minimum(high - zero, zero - low) / scale
 
+    @property
+    def max_rate_rad_s(self) -> float:
+        """The fastest turn the gyro can show (all axes at the end of their range), rad/s."""
+        return float(np.linalg.norm(self.range_si("gyro")))
+
     def meta(self) -> dict[str, str]:
         """Metadata keys recording the conversion in a run (so results can go back to counts)."""
         out = {"conversion": self.source}
