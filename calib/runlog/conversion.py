@@ -190,10 +190,12 @@ def _from_toml(text: str, name: str) -> Conversion:
     top.check_keys(_KEYS, "conversion")  # near misses refused; other extra keys allowed (ignored)
     zero, scale, misal = {}, {}, {}
     for sensor in SENSORS:
-        table = top.sub(sensor, required=True)
+        table = top.sub(sensor)
+        if table is None:
+            raise CalibError(f"missing table [{sensor}]", name, f"write it, e.g. {EXAMPLE}")
         table.check_keys(_SENSOR_KEYS, f"conversion [{sensor}]")
         unit = table.string("unit", SI_UNITS[sensor], choices=tuple(UNITS[sensor]))
-        zero[sensor] = np.array(table.numbers("zero_counts", length=3, unit=" counts"))
+        zero[sensor] = np.array(table.numbers("zero_counts", length=3, fix="the counts at zero, x y z"))
         per_unit = table.numbers("counts_per_unit", length=3, fix=f"counts per {unit}, not zero")
         if not all(v != 0.0 for v in per_unit):
             raise CalibError(
