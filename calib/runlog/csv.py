@@ -95,7 +95,8 @@ def read_csv(
     options = options or {}
     tname = all_names[plan.time]
     place = lambda i: f"{name}, line {int(row_lines[i])}, column {tname} (sample {i})"  # noqa: E731
-    time_s = _time_column(data[:, 0], rows, plan, tname, (meta, options), allow_gaps, place)
+    rate_line = f"{name}, line {key_lines.get('sample_rate_hz')}"
+    time_s = _time_column(data[:, 0], rows, plan, tname, (meta, options, rate_line), allow_gaps, place)
     _fill_meta(meta, options, time_s, name, header_index + 1, (plan.time_name, all_names[plan.time]))
     own: dict[str, tuple[str, ...]] = {  # the file's own names, as messages name columns
         "time_s": (all_names[plan.time],),
@@ -146,15 +147,20 @@ def _time_column(
 ) -> np.ndarray:
     """The time in seconds of the time column, or of a sample counter at the stated rate.
 
-    ``given`` is the file's metadata and the reader's options (``sample_rate_hz``
-    from either), ``place(i)`` names row ``i``. A column in seconds that is a
-    counter (steps of exactly 1 at a rate that is not 1 Hz) is refused
+    ``given`` is the file's metadata, the reader's options (``sample_rate_hz``
+    from either) and the place of the metadata's rate; ``place(i)`` names row ``i``.
+    A column in seconds that is a counter (steps of exactly 1 at a rate that is not
+    1 Hz) is refused
     (:func:`calib.runlog.counter.counter_suspect`).
     """
-    meta, options = given
+    meta, options, key_place = given
     rate = options.get("sample_rate_hz")
     if rate is None and "sample_rate_hz" in meta:
-        rate = meta_float(meta, "sample_rate_hz", place(0))
+        try:
+            rate = float(meta["sample_rate_hz"])
+        except ValueError:  # refused below naming its line (check_meta); a counter needs it now
+            if plan.time_name == COUNTER:
+                rate = meta_float(meta, "sample_rate_hz", key_place)
     if plan.time_name == COUNTER:
         return counter_time(column, rate, allow_gaps, place, file_name)
     time_s = time_in_seconds(column, rows, plan.time, plan.ticks_per_second)
