@@ -32,7 +32,7 @@ from .profiles import NoiseProfile, as_profile
 from .requirements import PAPER, Requirements, load_requirements
 from .result import CalibrationResult
 from .runlog import read_run
-from .sanity import GyroUnitError, explain_gyro_unit
+from .sanity import MAX_PLAUSIBLE_RATE, GyroUnitError, explain_gyro_unit
 from .site import Site, site_of
 from .solution import Fit
 from .strapdown import sample_intervals
@@ -217,6 +217,7 @@ def _fit_in_memory(run, site: Site, profile: NoiseProfile, sequence, **model) ->
             moving=moving,
             where=run.source,
             sequence=sequence,
+            max_rate_rad_s=rate_limit(run),
             **model,
         )
     except GyroUnitError as exc:  # told in the terms of the file's gyro columns (rates, not dtheta)
@@ -252,6 +253,19 @@ def _by_hand(
     fit = as_fit(hand, extras)
     result = _checked_result(fit, source.source, require_convergence, prof, site, provenance, req)
     return replace(result, by_hand=summary_of(hand, source))
+
+
+def rate_limit(run) -> float:
+    """The fastest plausible turn of ``run``, rad/s (:func:`calib.sanity.check_rates`).
+
+    A gimbal's (``MAX_PLAUSIBLE_RATE``) for a run in physical units; for one
+    read from raw counts, at least the range of its gyro (``run.conversion``):
+    a hand turns it that fast, and a sample within the range is no unit error.
+    """
+    conversion = getattr(run, "conversion", None)
+    if conversion is None:
+        return MAX_PLAUSIBLE_RATE
+    return max(MAX_PLAUSIBLE_RATE, conversion.max_rate_rad_s)
 
 
 def _checked_result(fit: Fit, where: str, require_convergence: bool, profile, site, provenance, req):

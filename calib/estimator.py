@@ -76,14 +76,17 @@ def check_run(
     moving: np.ndarray | None,
     where: str,
     requirements: Requirements = PAPER,
+    max_rate_rad_s: float | None = sanity.MAX_PLAUSIBLE_RATE,
 ) -> Segmentation:
     """Refuse a log the fit cannot use, naming why; return where it turns.
 
     What is plausible follows the unit's class (its profile and requirements):
     a MEMS unit's biases of 1000 deg/h and 20 mg are not a log in wrong units.
+    ``max_rate_rad_s`` is the fastest plausible turn (`calib.sanity.check_rates`):
+    a gimbal's by default; a run turned by hand gives its sensor's range, or None.
     """
     sanity.check_latitude(latitude_rad, where)
-    sanity.check_rates(dtheta_m, dt, where)
+    sanity.check_rates(dtheta_m, dt, where, max_rate_rad_s)
     seg = detect_motion(dtheta_m, dt, where, arw=profile.arw)
     if moving is not None:
         seg = Segmentation(moving=moving, first_rest_end=int(np.argmax(moving)))
@@ -153,6 +156,7 @@ def calibrate(
     requirements: Requirements = PAPER,
     sequence=None,
     renavigate: str = "when-needed",
+    max_rate_rad_s: float | None = sanity.MAX_PLAUSIBLE_RATE,
 ) -> Fit:
     """Identify the 21 parameters, the initial attitude and any optional terms from raw increments.
 
@@ -193,6 +197,9 @@ def calibrate(
         which navigates only while a step could still move the estimate by
         ``tol_sigma``; "always": the reference loop that re-navigates the
         whole run in memory at every iteration (for tests and benchmarks).
+    max_rate_rad_s : float or None
+        The fastest plausible turn (:func:`calib.sanity.check_rates`): a gimbal's by
+        default; a run turned by hand gives its sensor's range, or None for no check.
 
     Returns
     -------
@@ -201,7 +208,9 @@ def calibrate(
     if renavigate not in ("when-needed", "always"):
         raise ValueError(f"renavigate must be 'when-needed' or 'always', not {renavigate!r}")
     dt = sample_intervals(time_s)
-    seg = check_run(dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, moving, where, requirements)
+    seg = check_run(
+        dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, moving, where, requirements, max_rate_rad_s
+    )
     grid = default_grid(seg.moving, 1.0 / np.median(dt))
     first = slice(0, seg.first_rest_end)
     start, C0 = start_attitude(

@@ -83,11 +83,21 @@ def explain_gyro_unit(error: GyroUnitError, gyro_columns) -> CalibError:
     return CalibError(error.what, error.where, fix)
 
 
-def check_rates(dtheta: np.ndarray, dt: np.ndarray, where: str) -> None:
-    """Refuse gyro data in degrees, or rates for increments (from magnitudes)."""
+def check_rates(
+    dtheta: np.ndarray, dt: np.ndarray, where: str, max_rate_rad_s: float | None = MAX_PLAUSIBLE_RATE
+) -> None:
+    """Refuse gyro data in degrees, or rates for increments (from magnitudes).
+
+    ``max_rate_rad_s`` is the fastest plausible turn: a gimbal's by default
+    (``MAX_PLAUSIBLE_RATE``); a run turned by hand reaches 1000-2000 deg/s
+    within its sensor's range, so its caller gives that range (e.g.
+    ``run.conversion.range_si("gyro")``'s norm) or None to switch the check off.
+    """
+    if max_rate_rad_s is None:
+        return
     rate = row_norm(dtheta) / dt
     peak = float(rate.max())
-    if peak > MAX_PLAUSIBLE_RATE:
+    if peak > max_rate_rad_s:
         k = int(np.argmax(rate))
         raise GyroUnitError(
             f"gyro increments imply {peak:.3g} rad/s at sample {k}, beyond any gimbal",
@@ -95,7 +105,7 @@ def check_rates(dtheta: np.ndarray, dt: np.ndarray, where: str) -> None:
             "dtheta columns must be angle increments in rad: degrees (x57) or rates "
             f"instead of increments (x{1 / np.median(dt):.0f}) give this",
             peak,
-            MAX_PLAUSIBLE_RATE,
+            max_rate_rad_s,
         )
 
 

@@ -8,7 +8,12 @@ The one owner of the run-log format: its name, metadata and columns
 (:mod:`~calib.runlog.runfile`), reading a chunk at a time
 (:mod:`~calib.runlog.chunks`), a logger's column names
 (:mod:`~calib.runlog.columns`), the sample clock of the time column
-(:mod:`~calib.runlog.clock`) and the PSINS ``.imu`` log (:mod:`~calib.runlog.psins`).
+(:mod:`~calib.runlog.clock`), the PSINS ``.imu`` log (:mod:`~calib.runlog.psins`);
+for hand recordings, a sample counter in place of the time
+(:mod:`~calib.runlog.counter`), raw counts and their nominal conversion
+(:mod:`~calib.runlog.conversion`), imu_tk's two files (:mod:`~calib.runlog.imutk`)
+and clipped stretches (:mod:`~calib.runlog.clipping`). CSV writing is
+:mod:`~calib.runlog.csvwrite`.
 
 Every refusal is a `CalibError` naming the file and where in it the problem is:
 for CSV the 1-based line number counted from the top of the file (plus the
@@ -18,6 +23,8 @@ or the metadata key.
 
 from calib.runlog.checks import check_run
 from calib.runlog.chunks import READ_ROWS, nominal_period, read_chunks, read_meta
+from calib.runlog.clipping import describe_clipping
+from calib.runlog.conversion import Conversion, read_conversion
 from calib.runlog.format import (
     DTHETA_COLUMNS,
     DV_COLUMNS,
@@ -39,11 +46,14 @@ __all__ = [
     "REQUIRED_COLUMNS",
     "REQUIRED_META",
     "TIME_COLUMN",
+    "Conversion",
     "Run",
     "check_run",
+    "describe_clipping",
     "make_meta",
     "nominal_period",
     "read_chunks",
+    "read_conversion",
     "read_meta",
     "read_run",
     "write_run",

@@ -418,8 +418,12 @@ def settle(run, allow_gaps: bool):
         except CalibError as exc:
             raise CalibError(exc.what, f"{run.source}, {exc.where}", exc.fix) from None
         time = clock.offset_s + index * period
+        clipped = run.clipped  # the mask follows its samples; a filled sample is not clipped
+        if clipped is not None:
+            clipped = np.zeros((len(index), clipped.shape[1]), dtype=bool)
+            clipped[clean.index - clean.index[0]] = run.clipped[keep]
         return dataclasses.replace(
-            run, time_s=time, dtheta_rad=dtheta, dv_mps=dv, gimbal_deg=gimbal, clock=clock
+            run, time_s=time, dtheta_rad=dtheta, dv_mps=dv, gimbal_deg=gimbal, clock=clock, clipped=clipped
         )
     return dataclasses.replace(run, time_s=uniform_time(clock, run.time_s), clock=clock)
 

@@ -4,9 +4,13 @@ A header names each column by quantity, axis and unit, in any order::
 
     time_{s,ms,us,ns}                       sample time (end of the sample interval)
     dtheta_{x,y,z}_{rad,deg}                gyro angle increments
-    gyro_{x,y,z}_{radps,dps}                gyro rates, rad/s or deg/s
+    counter                                 a sample counter instead of a time (needs the rate)
+    gyro_{x,y,z}_{radps,dps,counts}         gyro rates, rad/s, deg/s or raw counts
     dv_{x,y,z}_mps                          velocity increments, m/s
-    accel_{x,y,z}_{mps2,g}                  specific force, m/s^2 or g (9.80665 m/s^2)
+    accel_{x,y,z}_{mps2,g,counts}           specific force, m/s^2, g (9.80665 m/s^2) or raw counts
+
+Raw counts are turned into SI by a conversion file (:mod:`calib.runlog.conversion`), a
+counter into time by the stated rate (:mod:`calib.runlog.counter`).
 
 Each sensor (gyro, accelerometer) is given once, as increments or as rates, on all
 three axes. Other columns (temperature, gimbal encoders, ...) are ignored here.
@@ -40,10 +44,12 @@ AXES = ("x", "y", "z")
 # quantity: (sensor, is a rate, {unit: SI per unit})
 QUANTITIES = {
     "dtheta": ("gyro", False, {"rad": 1.0, "deg": DEG}),
-    "gyro": ("gyro", True, {"radps": 1.0, "dps": DEG}),
+    "gyro": ("gyro", True, {"radps": 1.0, "dps": DEG, "counts": 1.0}),
     "dv": ("accel", False, {"mps": 1.0}),
-    "accel": ("accel", True, {"mps2": 1.0, "g": STANDARD_GRAVITY}),
+    "accel": ("accel", True, {"mps2": 1.0, "g": STANDARD_GRAVITY, "counts": 1.0}),
 }
+COUNTS = "counts"  # the unit of raw converter counts: SI through a conversion file, not a factor
+COUNTER = "counter"  # a sample counter in place of the time column
 _CLASSIC = {"gyro": "dtheta", "accel": "dv"}  # the quantity docs/formats.md names
 _CLASSIC_UNIT = {"dtheta": "rad", "dv": "mps"}
 EXAMPLE_HEADER = "time_s,gyro_x_dps,gyro_y_dps,gyro_z_dps,accel_x_g,accel_y_g,accel_z_g"
@@ -65,6 +71,11 @@ class SensorColumns:
     def is_rate(self) -> bool:
         return QUANTITIES[self.quantity][1]
 
+    @property
+    def is_counts(self) -> bool:
+        """Raw converter counts (``gyro_x_counts``...), SI only through a conversion."""
+        return self.names[0].endswith("_" + COUNTS)
+
 
 @dataclass(frozen=True)
 class ColumnPlan:
@@ -73,12 +84,12 @@ class ColumnPlan:
     time: int
     gyro: SensorColumns
     accel: SensorColumns
-    time_name: str = TIME_COLUMN  # time_s, time_ms, time_us or time_ns
+    time_name: str = TIME_COLUMN  # time_s, time_ms, time_us, time_ns or counter
 
     @property
     def ticks_per_second(self) -> int:
-        """What one second is in the time column's unit (1 for seconds)."""
-        return TIME_UNITS[self.time_name.removeprefix("time_")]
+        """What one second is in the time column's unit (1 for seconds and for a counter)."""
+        return TIME_UNITS.get(self.time_name.removeprefix("time_"), 1)
 
 
 def _split(name: str) -> tuple[str, str, str] | None:
@@ -139,7 +150,7 @@ def plan_columns(names: list[str], where: str) -> ColumnPlan:
                 + f", e.g. {EXAMPLE_HEADER}",
             )
         found.setdefault(quantity, {})[axis] = (column, position, units[unit])
-    times = [c for c in TIME_NAMES if c in seen]
+    times = [c for c in (*TIME_NAMES, COUNTER) if c in seen]
     if not times:
         _missing([TIME_COLUMN], names, where)
     if len(times) > 1:
@@ -170,6 +181,13 @@ def _sensor(sensor: str, found: dict, names: list[str], where: str) -> SensorCol
         unit = next(iter(axes.values()))[0].split("_", 2)[2] if axes else _CLASSIC_UNIT[quantity]
         _missing([f"{quantity}_{a}_{unit}" for a in AXES if a not in axes], names, where)
     columns = [axes[a] for a in AXES]
+    counts = [c[0].endswith("_" + COUNTS) for c in columns]
+    if any(counts) and not all(counts):
+        raise CalibError(
+            f"the {sensor} mixes raw counts and SI units: " + ", ".join(c[0] for c in columns),
+            where,
+            "give the three axes of a sensor all in counts or all in a physical unit",
+        )
     return SensorColumns(
         quantity=quantity,
         names=tuple(c[0] for c in columns),
@@ -196,14 +214,22 @@ def _missing(missing: list[str], names: list[str], where: str) -> None:
 def accepted_names() -> str:
     """The names a column map may give, for messages."""
     sensors = "; ".join(
-        f"{quantity}_{{x,y,z}}_{{{','.join(units)}}}" for quantity, (_, _, units) in QUANTITIES.items()
+        f"{quantity}_{{x,y,z}}_{{{','.join(u for u in units if u != COUNTS)}}}"
+        for quantity, (_, _, units) in QUANTITIES.items()
     )
-    return ", ".join(TIME_NAMES) + "; " + sensors + "; " + ", ".join(GIMBAL_COLUMNS)
+    return (
+        ", ".join(TIME_NAMES)
+        + "; "
+        + sensors
+        + "; "
+        + ", ".join(GIMBAL_COLUMNS)
+        + f"; a sample counter: {COUNTER}; raw counts: gyro_{{x,y,z}}_{COUNTS}, accel_{{x,y,z}}_{COUNTS}"
+    )
 
 
 def _known_name(name: str) -> bool:
     """Whether ``name`` is a column this grammar reads (time, a sensor axis with its unit, an encoder)."""
-    if name in TIME_NAMES or name in GIMBAL_COLUMNS:
+    if name in TIME_NAMES or name in GIMBAL_COLUMNS or name == COUNTER:
         return True
     split = _split(name)
     return split is not None and split[2] in QUANTITIES[split[0]][2]

@@ -14,8 +14,10 @@ import numpy as np
 
 from calib.errors import CalibError
 from calib.runlog.checks import check_meta, check_samples
+from calib.runlog.clipping import clip_mask, sensor_clipping
 from calib.runlog.clock import stamps_rate
 from calib.runlog.columns import (
+    COUNTER,
     ColumnPlan,
     apply_column_map,
     parse_column_map,
@@ -23,6 +25,8 @@ from calib.runlog.columns import (
     time_unit_suspect,
     to_increments,
 )
+from calib.runlog.conversion import Conversion, sensor_si
+from calib.runlog.counter import counter_suspect, counter_time
 from calib.runlog.format import ARRAY_COLUMNS, FORMAT, GIMBAL_COLUMNS, REQUIRED_COLUMNS, REQUIRED_META
 from calib.runlog.paths import read_bytes
 from calib.runlog.run import Run, meta_float
@@ -54,11 +58,19 @@ class _CsvLocator:
         return text + f" (sample {index})"
 
 
-def read_csv(path: str | os.PathLike, allow_gaps: bool, options: dict | None = None, columns=None) -> Run:
+def read_csv(
+    path: str | os.PathLike,
+    allow_gaps: bool,
+    options: dict | None = None,
+    columns=None,
+    conversion: Conversion | None = None,
+) -> Run:
     """Read a CSV run log (see module docstring for how places are named).
 
     ``columns`` maps the file's column names to the grammar's
-    (:func:`calib.runlog.columns.parse_column_map`).
+    (:func:`calib.runlog.columns.parse_column_map`); ``options`` holds
+    ``latitude_deg``, ``height_m`` and ``sample_rate_hz`` for a file without
+    them; ``conversion`` turns columns in raw counts into SI.
     """
     name = str(path)
     mapping = parse_column_map(columns, name)
@@ -80,8 +92,12 @@ def read_csv(path: str | os.PathLike, allow_gaps: bool, options: dict | None = N
         wanted += [positions[c] for c in GIMBAL_COLUMNS]
     all_names = [c.strip() for c in lines[header_index].split(",")]
     data = _parse_numbers(rows, row_lines, wanted, all_names, name)
-    time_s = time_in_seconds(data[:, 0], rows, plan.time, plan.ticks_per_second)
-    _fill_meta(meta, options or {}, time_s, name, header_index + 1, (plan.time_name, all_names[plan.time]))
+    options = options or {}
+    tname = all_names[plan.time]
+    place = lambda i: f"{name}, line {int(row_lines[i])}, column {tname} (sample {i})"  # noqa: E731
+    rate_line = f"{name}, line {key_lines.get('sample_rate_hz')}"
+    time_s = _time_column(data[:, 0], rows, plan, tname, (meta, options, rate_line), allow_gaps, place)
+    _fill_meta(meta, options, time_s, name, header_index + 1, (plan.time_name, all_names[plan.time]))
     own: dict[str, tuple[str, ...]] = {  # the file's own names, as messages name columns
         "time_s": (all_names[plan.time],),
         "dtheta_rad": tuple(all_names[i] for i in plan.gyro.positions),
@@ -90,17 +106,68 @@ def read_csv(path: str | os.PathLike, allow_gaps: bool, options: dict | None = N
     locate = _CsvLocator(name, key_lines, row_lines, own)
     check_meta(meta, locate)
     dt = 1.0 / meta_float(meta, "sample_rate_hz", name)
+    counts = plan.gyro.is_counts or plan.accel.is_counts
+    where = f"{name}, line {header_index + 1}"
+    gyro, accel = (
+        sensor_si(data[:, c], s, conversion, where) for c, s in ((_G, plan.gyro), (_A, plan.accel))
+    )
+    if conversion is not None and not counts:
+        raise CalibError(
+            "a conversion file is given, and no column is in raw counts",
+            where,
+            "leave out the conversion, or name the columns in counts (gyro_x_counts, accel_x_counts, ...)",
+        )
+    if counts and conversion is not None:  # sensor_si refused counts without one
+        meta.update(conversion.meta())
     run = Run(
         time_s=time_s,
-        dtheta_rad=np.ascontiguousarray(to_increments(data[:, 1:4], plan.gyro, time_s, dt)),
-        dv_mps=np.ascontiguousarray(to_increments(data[:, 4:7], plan.accel, time_s, dt)),
+        dtheta_rad=np.ascontiguousarray(to_increments(gyro, plan.gyro, time_s, dt)),
+        dv_mps=np.ascontiguousarray(to_increments(accel, plan.accel, time_s, dt)),
         meta=meta,
         gimbal_deg=np.ascontiguousarray(data[:, 7:10]) if has_gimbal else None,
         source=name,
         gyro_columns=tuple(zip(own["dtheta_rad"], plan.gyro.names, strict=True)),
+        conversion=conversion if counts else None,
+        clipped=clip_mask(
+            sensor_clipping(data[:, _G], plan.gyro, conversion, dt),
+            sensor_clipping(data[:, _A], plan.accel, conversion, dt),
+            len(time_s),
+        ),
     )
     # The clock the checks found goes with the run: clock.settle does not find it again.
-    return replace(run, clock=check_samples(run, locate, allow_gaps, plan.time_name))
+    time_name = None if plan.time_name == COUNTER else plan.time_name
+    return replace(run, clock=check_samples(run, locate, allow_gaps, time_name))
+
+
+_G, _A = slice(1, 4), slice(4, 7)  # the gyro's and the accelerometer's columns in the parsed table
+
+
+def _time_column(
+    column, rows, plan: ColumnPlan, file_name: str, given, allow_gaps: bool, place
+) -> np.ndarray:
+    """The time in seconds of the time column, or of a sample counter at the stated rate.
+
+    ``given`` is the file's metadata, the reader's options (``sample_rate_hz``
+    from either) and the place of the metadata's rate; ``place(i)`` names row ``i``.
+    A column in seconds that is a counter (steps of exactly 1 at a rate that is not
+    1 Hz) is refused
+    (:func:`calib.runlog.counter.counter_suspect`).
+    """
+    meta, options, key_place = given
+    rate = options.get("sample_rate_hz")
+    if rate is None and "sample_rate_hz" in meta:
+        try:
+            rate = float(meta["sample_rate_hz"])
+        except ValueError:  # refused below naming its line (check_meta); a counter needs it now
+            if plan.time_name == COUNTER:
+                rate = meta_float(meta, "sample_rate_hz", key_place)
+    if plan.time_name == COUNTER:
+        return counter_time(column, rate, allow_gaps, place, file_name)
+    time_s = time_in_seconds(column, rows, plan.time, plan.ticks_per_second)
+    suspect = counter_suspect(time_s, rate, file_name) if plan.time_name == "time_s" else None
+    if suspect is not None:
+        raise CalibError(suspect.what, place(1), suspect.fix)
+    return time_s
 
 
 def time_in_seconds(parsed: np.ndarray, rows: list[str], position: int, ticks: int) -> np.ndarray:
@@ -402,61 +469,3 @@ def csv_chunks(path, rows: int):
                 ) from None
             done += len(block)
             yield table[:, 0], table[:, 1:4], table[:, 4:7]
-
-
-def write_csv(handle, meta: dict[str, str], windows, gimbal: bool = False) -> int:
-    """Write a CSV run log to an open text handle: metadata (format first), header, rows.
-
-    Parameters
-    ----------
-    handle : file object
-        Open for writing text (UTF-8, LF newlines).
-    meta : dict of str to str
-        Metadata; ``format`` is written first whatever its place.
-    windows : iterable of tuple of numpy.ndarray
-        Consecutive blocks ``(time_s, dtheta_rad, dv_mps)``, with ``gimbal_deg``
-        appended when ``gimbal``: the whole run in one block, or a long run a
-        block at a time.
-    gimbal : bool
-        Write the gimbal encoder columns.
-
-    Returns
-    -------
-    int
-        Number of samples written.
-    """
-    header = REQUIRED_COLUMNS + (GIMBAL_COLUMNS if gimbal else ())
-    meta_lines = [f"# format: {FORMAT}"]
-    meta_lines += [f"# {key}: {value}" for key, value in meta.items() if key != "format"]
-    handle.write("\n".join(meta_lines) + "\n" + ",".join(header) + "\n")
-    n = 0
-    for window in windows:
-        handle.write(_csv_rows(window))
-        n += len(window[0])
-    return n
-
-
-def _csv_rows(columns) -> str:
-    """Shortest-repr rows of a block of columns, one line per sample."""
-    table = np.hstack([np.asarray(c, dtype=np.float64).reshape(len(c), -1) for c in columns])
-    if not len(table):
-        return ""
-    # repr() is the shortest text that reads back to the same float, and
-    # mapping it column by column is as fast as np.savetxt('%.17g').
-    text_columns = [list(map(repr, column)) for column in table.T.tolist()]
-    return "\n".join(map(",".join, zip(*text_columns, strict=True))) + "\n"
-
-
-def check_meta_writable_as_csv(meta: dict[str, str], name: str) -> None:
-    """Refuse metadata that would not read back the same from '# key: value' lines."""
-    for key, value in meta.items():
-        if not key or key != key.strip() or ":" in key or "\n" in key or "\r" in key:
-            raise CalibError(
-                f"metadata key {key!r} cannot be written as '# key: value'",
-                name,
-                "use keys without ':', line breaks or surrounding spaces",
-            )
-        if "\n" in value or "\r" in value:
-            raise CalibError(
-                f"metadata '{key}' contains a line break", name, "keep metadata values on one line"
-            )

@@ -9,6 +9,7 @@ import numpy as np
 
 from calib.errors import CalibError
 from calib.runlog.clock import SampleClock
+from calib.runlog.conversion import Conversion
 from calib.runlog.format import FORMAT
 
 
@@ -37,6 +38,15 @@ class Run:
         For a CSV file, the gyro's columns x, y, z as ``(the file's name, the name
         it was read as)`` (they differ under a column map): messages about the
         gyro's unit name these. None for a run whose increments were given as such.
+    conversion : calib.runlog.conversion.Conversion or None
+        The nominal conversion its raw counts were read with (zero and counts per SI
+        unit per axis), so that a result can be told back in counts; None for a
+        log in physical units.
+    clipped : numpy.ndarray or None
+        ``(n, 6)`` bool, per sample and channel (gyro x, y, z, accel x, y, z): the
+        samples read at or next to the end of the sensor's range
+        (:mod:`calib.runlog.clipping`; ``clipped.any(axis=1)`` per sample); None
+        when nothing is clipped.
     """
 
     time_s: np.ndarray
@@ -47,6 +57,8 @@ class Run:
     source: str = "<memory>"
     clock: SampleClock | None = None  # what read_run found in the time column
     gyro_columns: tuple[tuple[str, str], ...] | None = None  # (file's name, read as), x y z
+    conversion: Conversion | None = None  # raw counts to SI, when the log was in counts
+    clipped: np.ndarray | None = None  # (n, 6) bool: gyro x y z, accel x y z at the range's end
 
     @property
     def latitude_deg(self) -> float:

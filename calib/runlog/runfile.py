@@ -15,7 +15,10 @@ from calib.fileio import atomic_write_file
 from calib.filekind import expect
 from calib.runlog import clock
 from calib.runlog.checks import check_run
-from calib.runlog.csv import check_meta_writable_as_csv, read_csv, write_csv
+from calib.runlog.conversion import Conversion, as_conversion
+from calib.runlog.csv import read_csv
+from calib.runlog.csvwrite import check_meta_writable_as_csv, write_csv
+from calib.runlog.imutk import read_imutk
 from calib.runlog.npz import read_npz, write_npz
 from calib.runlog.paths import run_kind
 from calib.runlog.psins import read_psins
@@ -31,6 +34,9 @@ def read_run(
     latitude_deg: float | None = None,
     height_m: float | None = None,
     columns: str | dict[str, str] | None = None,
+    gyro_path: str | os.PathLike | None = None,
+    conversion: Conversion | str | os.PathLike | None = None,
+    sample_rate_hz: float | None = None,
 ) -> Run:
     """Read and check a run log, ``.csv`` (or ``.csv.gz``), ``.npz`` or PSINS ``.imu``.
 
@@ -53,6 +59,17 @@ def read_run(
         ``docs/logs-columns.md`` (the CLI's ``--columns``):
         ``"t=time_ms,gx=gyro_x_dps,gy=gyro_y_dps,gz=gyro_z_dps,ax=accel_x_g,ay=accel_y_g,az=accel_z_g"``
         or the same pairs as a dict; columns it does not name keep their names.
+    gyro_path : str or os.PathLike, optional
+        imu_tk's gyro file (the CLI's ``--gyro-file``): ``path`` is then its
+        accelerometer file, both ``t x y z`` in raw counts (:mod:`calib.runlog.imutk`).
+    conversion : Conversion or str or os.PathLike, optional
+        The nominal conversion of raw counts to SI, or its file (the CLI's
+        ``--conversion``; :mod:`calib.runlog.conversion`): needed by columns in
+        ``counts`` and by imu_tk's files; kept as ``run.conversion``.
+    sample_rate_hz : float, optional
+        The IMU's rate (the CLI's ``--sample-rate-hz``) for a file that does not
+        state it: needed by a sample counter (``counter`` column); a file that
+        states another is refused.
 
     A CSV file may be gzip-compressed (``.csv.gz``). A CSV file without a
     ``# format:`` line is a logger's file (``docs/logs-columns.md``): it is read as
@@ -71,7 +88,23 @@ def read_run(
         key or sample.
     """
     expect(path, "run")
+    conversion = as_conversion(conversion)
+    site = {"latitude_deg": latitude_deg, "height_m": height_m, "sample_rate_hz": sample_rate_hz}
+    if gyro_path is not None:
+        if columns:
+            raise CalibError(
+                "imu_tk's files have no header for a column map to rename", str(path), "leave out columns"
+            )
+        run = read_imutk(path, gyro_path, allow_gaps, site, conversion)
+        return clock.settle(run, allow_gaps)
     kind = run_kind(path)
+    if kind != ".csv" and (conversion is not None or sample_rate_hz is not None):
+        raise CalibError(
+            f"{kind} files state their own units and rate",
+            str(path),
+            "leave out conversion (the CLI's --conversion) and sample_rate_hz "
+            "(the CLI's --sample-rate-hz) for this file",
+        )
     if columns and kind != ".csv":
         raise CalibError(
             f"a column map renames a CSV file's header, and {kind} files have no header to rename",
@@ -81,8 +114,7 @@ def read_run(
     if kind == ".imu":
         run = read_psins(path, allow_gaps)
     elif kind == ".csv":
-        site = {"latitude_deg": latitude_deg, "height_m": height_m}
-        run = read_csv(path, allow_gaps, site, columns)
+        run = read_csv(path, allow_gaps, site, columns, conversion)
     else:
         run = read_npz(path, allow_gaps)
     return clock.settle(run, allow_gaps)  # the IMU's own time base, gaps repaired if allowed

@@ -30,6 +30,9 @@ from .tools import emit_json, guarded, hidden_alias, info, provenance
 @options.latitude("Site latitude, deg, for a logger's CSV that does not carry latitude_deg.")
 @options.height("Site height, m, for a logger's CSV that does not carry height_m.")
 @options.columns
+@options.gyro_file
+@options.conversion
+@options.log_sample_rate()
 @click.option(
     "--allow-gaps", is_flag=True, help="Remove duplicated samples and fill samples dropped at rest."
 )
@@ -70,6 +73,9 @@ def calibrate(
     latitude,
     height,
     columns,
+    gyro_file,
+    conversion,
+    sample_rate_hz,
     allow_gaps,
     with_terms,
     requirements,
@@ -93,20 +99,29 @@ def calibrate(
     extras = as_extras(with_terms, by_hand=by_hand)
     prof = as_profile(profile)
     reading = dict(allow_gaps=allow_gaps, latitude_deg=latitude, height_m=height)
-    if columns and stream:
+    from .reading import hand_reading, run_notes
+
+    hand = hand_reading(gyro_file, conversion, sample_rate_hz)  # --gyro-file, --conversion, --sample-rate-hz
+    if (columns or hand) and stream:
         raise CalibError(
-            "--columns maps a logger's CSV, which is read whole", run_path, "calibrate it without --stream"
+            "--columns, --gyro-file, --conversion and --sample-rate-hz read a logger's file, which is "
+            "read whole",
+            run_path,
+            "calibrate it without --stream",
         )
     run = None
     if by_hand and stream:
         raise CalibError("a run placed by hand is read whole", run_path, "leave out --stream")
-    if not columns and not by_hand and reads_in_chunks(run_path, stream, **reading):
+    if not columns and not hand and not by_hand and reads_in_chunks(run_path, stream, **reading):
         info(f"calibrating {run_path} chunk by chunk, profile {prof.name}")
     else:
         from calib.runlog import read_run
 
-        run = read_run(run_path, **reading, columns=columns)
+        run = read_run(run_path, **reading, columns=columns, **hand)
         info(run.clock.summary())  # jitter, dropped and duplicated samples (calib.clock)
+        gravity_mps2, notes = run_notes(run, gravity_mps2)  # a conversion file's gravity, clipping
+        for note in notes:
+            info(note)
     out_path = Path(output) if output else Path(run_path).with_name(Path(run_path).stem + ".result.toml")
     if truth_path is None and truth_path_for(run_path).exists():
         truth_path = truth_path_for(run_path)

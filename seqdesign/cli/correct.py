@@ -33,7 +33,18 @@ from .tools import emit_json, guarded, info
 @options.log_sample_rate()
 @options.as_json
 @guarded
-def correct(run_path, correction_path, output, latitude, height, columns, gyro_file, conversion, sample_rate_hz, as_json):
+def correct(
+    run_path,
+    correction_path,
+    output,
+    latitude,
+    height,
+    columns,
+    gyro_file,
+    conversion,
+    sample_rate_hz,
+    as_json,
+):
     """Apply the correction to every sample of LOG and write the calibrated log."""
     import numpy as np
 

@@ -98,3 +98,39 @@ columns = click.option(
     "ax=accel_x_mps2,ay=accel_y_mps2,az=accel_z_mps2; our name's suffix gives the unit "
     "(time_s, time_ms, time_us, time_ns; radps, dps; mps2, g).",
 )
+
+
+gyro_file = click.option(
+    "--gyro-file",
+    "gyro_file",
+    type=click.Path(dir_okay=False),
+    default=None,
+    metavar="FILE",
+    help="imu_tk's gyro file: RUN is then its accelerometer file, both 't x y z' rows in raw "
+    "counts without a header (give --conversion; docs/logs-columns.md).",
+)
+
+conversion = click.option(
+    "--conversion",
+    "conversion",
+    type=click.Path(dir_okay=False),
+    default=None,
+    metavar="FILE",
+    help="Nominal conversion of raw counts to SI (zero and counts per unit, per sensor and axis): "
+    "a TOML with [gyro] and [accel], or imu_tk's nominal-values text. Needed by columns in "
+    "counts (gyro_x_counts, accel_x_counts) and by --gyro-file.",
+)
+
+
+def log_sample_rate(
+    help: str = "The IMU's sample rate, Hz, for a log that does not state it: needed by a "
+    "sample counter column (n_samples=counter).",
+):
+    """``--sample-rate-hz`` of a log that does not state it (None when not given)."""
+    return click.option(
+        "--sample-rate-hz",
+        "sample_rate_hz",
+        type=click.FloatRange(0.0, min_open=True),
+        default=None,
+        help=help,
+    )

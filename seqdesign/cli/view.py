@@ -138,6 +138,11 @@ def _load_result(run_path, explicit):
 )
 @click.option("--allow-gaps", is_flag=True, help="Accept time gaps in the log.")
 @options.columns
+@options.gyro_file
+@options.conversion
+@options.log_sample_rate()
+@options.latitude("Site latitude, deg, for a logger's file that does not carry latitude_deg.")
+@options.height("Site height, m, for a logger's file that does not carry height_m.")
 @click.option(
     "--profile",
     default=None,
@@ -146,7 +151,23 @@ def _load_result(run_path, explicit):
 )
 @options.as_json
 @guarded
-def view(run_path, sequence, result_path, truth_path, output, spawn, allow_gaps, columns, profile, as_json):
+def view(
+    run_path,
+    sequence,
+    result_path,
+    truth_path,
+    output,
+    spawn,
+    allow_gaps,
+    columns,
+    gyro_file,
+    conversion,
+    sample_rate_hz,
+    latitude,
+    height,
+    profile,
+    as_json,
+):
     """Record RUN (CSV, CSV.GZ, NPZ or PSINS .imu) for the rerun viewer: the gimbal and IMU in 3D,
     raw gyro and accelerometer signals, navigation velocity errors before and
     after calibration, the positions and flips, and the result against its
@@ -159,7 +180,14 @@ def view(run_path, sequence, result_path, truth_path, output, spawn, allow_gaps,
     _check_output(out)
     from calib.review import motion_profile, review_run
 
-    run = read_run(run_path, allow_gaps=allow_gaps, columns=columns)
+    from .reading import hand_reading, run_notes
+
+    hand = hand_reading(gyro_file, conversion, sample_rate_hz)
+    run = read_run(
+        run_path, allow_gaps=allow_gaps, columns=columns, latitude_deg=latitude, height_m=height, **hand
+    )
+    for note in run_notes(run, None)[1]:  # clipped stretches (gravity: the review uses the run's)
+        _info(note)
     result, used_result, result_note = _load_result(run_path, result_path)
     noise = motion_profile(run, result, profile)
     seq, seq_note = _load_sequence(run, sequence, noise)

@@ -1,0 +1,156 @@
+"""Clipping: samples a sensor gave at (or next to) the end of its range, named by stretch.
+
+A hand-turned IMU can turn faster than its gyro measures. The reading then
+sits at the range's end while the true rate goes on: the increments there
+are wrong by an unknown amount. Three signs, each per axis:
+
+- **the converter's limits**: a raw count at the lowest or highest count the
+  converter has (0 or 65535 for unsigned 16 bits, or the conversion's
+  ``range_counts``);
+- **a flat top**: two or more consecutive gyro samples exactly at the axis's
+  largest value (each sign apart), when that is at least ``FLAT_TOP_RAD_S`` (no gimbal
+  turns that fast; a hand does);
+- **a plateau**: ``PLATEAU_RUN`` or more consecutive gyro samples within
+  ``PLATEAU_BAND`` of that largest magnitude (a sensor saturating before its
+  converter does, with its noise on top), under the same condition.
+
+The mask (``Run.clipped``, ``(n, 6)``: gyro x, y, z, accel x, y, z) says
+which samples; :func:`describe_clipping` names each stretch
+("gyro x clipped from 511.08 s to 511.70 s (33 samples)").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from calib.motion import runs_of
+from calib.runlog.columns import QUANTITIES, SensorColumns
+from calib.runlog.conversion import Conversion
+
+FLAT_TOP_RAD_S = 5.0  # rad/s (286 deg/s): beyond a calibration gimbal, within a hand's turn
+FLAT_TOP_RUN = 2  # consecutive samples exactly at the largest magnitude
+PLATEAU_BAND = 0.01  # relative to the largest magnitude
+PLATEAU_RUN = 5  # consecutive samples within the band: a smooth peak passes through it faster
+MERGE_S = 0.5  # clipped samples this close are one stretch
+CHANNELS = tuple(f"{sensor} {axis}" for sensor in ("gyro", "accel") for axis in "xyz")
+
+
+@dataclass(frozen=True)
+class ClipStretch:
+    """One stretch of clipped samples on one channel.
+
+    Attributes
+    ----------
+    channel : str
+        ``"gyro x"`` ... ``"accel z"``.
+    start, stop : int
+        First sample and one past the last.
+    start_s, end_s : float
+        ``time_s`` of the first and the last clipped sample.
+    samples : int
+        How many samples in the stretch are clipped.
+    """
+
+    channel: str
+    start: int
+    stop: int
+    start_s: float
+    end_s: float
+    samples: int
+
+    def describe(self) -> str:
+        """``"gyro x clipped from 511.08 s to 511.70 s (33 samples)"``."""
+        return (
+            f"{self.channel} clipped from {self.start_s:.2f} s to {self.end_s:.2f} s "
+            f"({self.samples} sample{'s' if self.samples != 1 else ''})"
+        )
+
+
+def at_limits(counts: np.ndarray, range_counts: tuple[float, float]) -> np.ndarray:
+    """``(n, 3)`` bool: raw counts at or beyond the converter's lowest or highest count."""
+    low, high = range_counts
+    return (counts <= low) | (counts >= high)
+
+
+def flat_top(rate: np.ndarray, threshold: float = FLAT_TOP_RAD_S) -> np.ndarray:
+    """``(n, 3)`` bool: gyro samples at a flat top or plateau of their axis (module docstring).
+
+    Parameters
+    ----------
+    rate : numpy.ndarray
+        ``(n, 3)`` rates, rad/s (or any values with the same zero: only
+        magnitudes relative to the axis's largest and ``threshold`` matter).
+    threshold : float
+        The largest magnitude below which an axis is not judged, rad/s.
+    """
+    mask = np.zeros(rate.shape, dtype=bool)
+    for axis in range(rate.shape[1]):
+        for sign in (1.0, -1.0):  # each end of the range on its own: they need not be symmetric
+            size = sign * rate[:, axis]
+            peak = float(size.max()) if len(size) else 0.0
+            if not peak >= threshold:
+                continue
+            for near, run in (
+                (size == peak, FLAT_TOP_RUN),
+                (size >= (1.0 - PLATEAU_BAND) * peak, PLATEAU_RUN),
+            ):
+                for a, b in zip(*runs_of(near), strict=True):
+                    if b - a >= run:
+                        mask[a:b, axis] = True
+    return mask
+
+
+def sensor_clipping(
+    raw: np.ndarray, sensor: SensorColumns, conversion: Conversion | None, dt: float
+) -> np.ndarray:
+    """``(n, 3)`` bool: a sensor's samples clipped, from its columns as the file gives them.
+
+    Raw counts are judged at the converter's limits (``conversion.range_counts``);
+    the gyro, in any unit, also by its flat tops and plateaus (`flat_top`) in rad/s
+    (increments over the nominal period ``dt``).
+    """
+    kind = QUANTITIES[sensor.quantity][0]
+    mask = np.zeros(raw.shape, dtype=bool)
+    if sensor.is_counts and conversion is not None:
+        mask |= at_limits(raw, conversion.range_counts)
+        si = conversion.to_si(raw, kind)
+    else:
+        si = raw * np.asarray(sensor.si_per_unit) / (1.0 if sensor.is_rate else dt)
+    if kind == "gyro":
+        mask |= flat_top(si)
+    return mask
+
+
+def clip_mask(gyro: np.ndarray | None, accel: np.ndarray | None, n: int) -> np.ndarray | None:
+    """The ``(n, 6)`` mask of a run from its sensors' ``(n, 3)`` masks; None when nothing is clipped."""
+    mask = np.zeros((n, 6), dtype=bool)
+    if gyro is not None:
+        mask[:, :3] = gyro
+    if accel is not None:
+        mask[:, 3:] = accel
+    return mask if mask.any() else None
+
+
+def clipped_stretches(clipped: np.ndarray | None, time_s: np.ndarray) -> list[ClipStretch]:
+    """Each stretch of clipped samples per channel, samples under ``MERGE_S`` apart joined."""
+    if clipped is None:
+        return []
+    out = []
+    for channel in range(clipped.shape[1]):
+        rows = np.flatnonzero(clipped[:, channel])
+        if not rows.size:
+            continue
+        cuts = np.flatnonzero(np.diff(time_s[rows]) > MERGE_S) + 1
+        for group in np.split(rows, cuts):
+            a, b = int(group[0]), int(group[-1])
+            out.append(
+                ClipStretch(CHANNELS[channel], a, b + 1, float(time_s[a]), float(time_s[b]), len(group))
+            )
+    return sorted(out, key=lambda s: (s.start, s.channel))
+
+
+def describe_clipping(run) -> list[str]:
+    """One line per clipped stretch of ``run`` (a `calib.runlog.Run`), in time order; [] for none."""
+    return [s.describe() for s in clipped_stretches(run.clipped, run.time_s)]

@@ -1,0 +1,193 @@
+"""imu_tk's two files: the accelerometer and the gyro apart, ``t x y z`` in raw counts.
+
+imu_tk (Tedaldi, Pretto, Menegatti, ICRA 2014) records a hand calibration as
+two whitespace-separated text files without a header, one row per sample::
+
+    2.9840000e-02   3.3108000e+04   3.3329000e+04   3.6429000e+04
+
+time in seconds, then the three axes in raw converter counts. The files
+share their time stamps (checked to half a period, row by row). The counts
+become SI through a nominal conversion (:mod:`calib.runlog.conversion`), the
+time stamps go through the sample clock (:mod:`calib.runlog.clock`) as a
+CSV's do. Each row is one IMU sample over one nominal period, so its
+increment is its rate (or force) times that period: the host clock's jitter
+in the stamps does not enter the increments. ``#`` and ``%`` lines are comments.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from calib.errors import CalibError
+from calib.runlog.checks import check_meta, check_samples
+from calib.runlog.clipping import at_limits, clip_mask, flat_top
+from calib.runlog.clock import stamps_rate
+from calib.runlog.conversion import Conversion
+from calib.runlog.format import FORMAT
+from calib.runlog.paths import read_bytes
+from calib.runlog.run import Run
+
+ROW = "t x y z"
+
+
+class _TwoFiles:
+    """Names places in the two files: the gyro's rows in its file, the rest in the accelerometer's."""
+
+    def __init__(self, acc: str, gyro: str, acc_lines: np.ndarray, gyro_lines: np.ndarray):
+        self.name, self.gyro = acc, gyro
+        self.lines = {"acc": acc_lines, "gyro": gyro_lines}
+
+    def key(self, key: str) -> str:
+        return f"{self.name} (metadata '{key}')"
+
+    def sample(self, array: str, index: int, component: int | None = None) -> str:
+        file, kind = (self.gyro, "gyro") if array == "dtheta_rad" else (self.name, "acc")
+        column = "t" if component is None else "xyz"[component]
+        return f"{file}, line {int(self.lines[kind][index])}, column {column} (sample {index})"
+
+
+def read_imutk(
+    acc_path: str | os.PathLike,
+    gyro_path: str | os.PathLike,
+    allow_gaps: bool,
+    options: dict,
+    conversion: Conversion | None,
+) -> Run:
+    """Read imu_tk's accelerometer and gyro files into one run.
+
+    Parameters
+    ----------
+    acc_path, gyro_path : str or os.PathLike
+        The two files, ``t x y z`` in counts (gzip-compressed or not).
+    allow_gaps : bool
+        Accept dropped and duplicated samples (repaired later by `calib.runlog.clock.settle`).
+    options : dict
+        ``latitude_deg``, ``height_m`` (required) and ``sample_rate_hz`` (default: the
+        stamps' own rate, :func:`calib.runlog.clock.stamps_rate`).
+    conversion : Conversion or None
+        The nominal conversion of the counts; None is refused.
+
+    Returns
+    -------
+    Run
+        With ``conversion``, ``clock`` and ``clipped`` set; ``meta`` records the conversion.
+
+    Raises
+    ------
+    CalibError
+        On a missing conversion or site, a row that is not four numbers, files of
+        different lengths or whose stamps differ by more than half a period.
+    """
+    acc_name, gyro_name = str(acc_path), str(gyro_path)
+    if conversion is None:
+        raise CalibError(
+            "imu_tk's files are raw counts, and counts say no rate or force without the sensor's "
+            "zero and scale",
+            acc_name,
+            "give the conversion file: conversion=FILE (the CLI's --conversion FILE), e.g. imu_tk's "
+            "nominal-values text or a TOML (docs/logs-columns.md)",
+        )
+    acc, acc_lines = _table(acc_name)
+    gyro, gyro_lines = _table(gyro_name)
+    if len(acc) != len(gyro):
+        short, n = (acc_name, len(acc)) if len(acc) < len(gyro) else (gyro_name, len(gyro))
+        raise CalibError(
+            f"the accelerometer file has {len(acc)} rows and the gyro file {len(gyro)}",
+            f"{short}, after line {int((acc_lines if short == acc_name else gyro_lines)[n - 1])}",
+            "give the two files of one recording (they share their time stamps)",
+        )
+    meta = _meta(options, acc[:, 0], acc_name, conversion)
+    locate = _TwoFiles(acc_name, gyro_name, acc_lines, gyro_lines)
+    check_meta(meta, locate)
+    period = 1.0 / float(meta["sample_rate_hz"])
+    apart = np.flatnonzero(np.abs(acc[:, 0] - gyro[:, 0]) > 0.5 * period)
+    if apart.size:
+        i = int(apart[0])
+        raise CalibError(
+            f"the time stamps differ: {acc[i, 0]!r} s in the accelerometer file, {gyro[i, 0]!r} s in the "
+            f"gyro file, more than half a period ({0.5 * period:g} s)"
+            + (f" ({apart.size} such rows in all)" if apart.size > 1 else ""),
+            f"{acc_name}, line {int(acc_lines[i])}; {gyro_name}, line {int(gyro_lines[i])} (sample {i})",
+            "give the two files of one recording, row for row",
+        )
+    rate = conversion.to_si(gyro[:, 1:], "gyro")
+    clipped = clip_mask(
+        at_limits(gyro[:, 1:], conversion.range_counts) | flat_top(rate),
+        at_limits(acc[:, 1:], conversion.range_counts),
+        len(acc),
+    )
+    run = Run(
+        time_s=np.ascontiguousarray(acc[:, 0]),
+        dtheta_rad=rate * period,
+        dv_mps=conversion.to_si(acc[:, 1:], "accel") * period,
+        meta=meta,
+        source=acc_name,
+        conversion=conversion,
+        clipped=clipped,
+    )
+    run.clock = check_samples(run, locate, allow_gaps, "time_s")
+    return run
+
+
+def _table(name: str) -> tuple[np.ndarray, np.ndarray]:
+    """A file's rows of four numbers and their 1-based line numbers."""
+    data = read_bytes(name)
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise CalibError(
+            "the file is not text", name, f"give imu_tk's text file, one row '{ROW}' per sample"
+        ) from None
+    lines = text.splitlines()
+    keep = [i for i, line in enumerate(lines) if line.strip() and line.lstrip()[0] not in "#%"]
+    numbers = np.array(keep, dtype=np.int64) + 1
+    if not keep:
+        raise CalibError("the file has no data rows", name, f"one row '{ROW}' per sample")
+    rows = [lines[i] for i in keep]
+    try:
+        table = np.loadtxt(rows, dtype=np.float64, ndmin=2, comments=None)
+    except ValueError:
+        table = None
+    if table is None or table.shape != (len(rows), 4) or not np.isfinite(table).all():
+        for row, line in zip(rows, numbers.tolist(), strict=True):
+            fields = row.split()
+            try:
+                ok = len(fields) == 4 and all(np.isfinite(float(f)) for f in fields)
+            except ValueError:
+                ok = False
+            if not ok:
+                raise CalibError(
+                    f"row {row.strip()[:60]!r} is not four numbers '{ROW}'",
+                    f"{name}, line {line}",
+                    "each row is the time in s and the three axes in counts, separated by spaces",
+                )
+    assert table is not None
+    return table, numbers
+
+
+def _meta(options: dict, time_s: np.ndarray, name: str, conversion: Conversion) -> dict[str, str]:
+    """The run's metadata: the site from the options, the rate stated or the stamps', the conversion."""
+    missing = [k for k in ("latitude_deg", "height_m") if options.get(k) is None]
+    if missing:
+        hint = {
+            "latitude_deg": "latitude_deg (the CLI's --latitude DEG)",
+            "height_m": "height_m (the CLI's --height M)",
+        }
+        raise CalibError(
+            "imu_tk's files do not say the site: " + ", ".join(f"'{k}'" for k in missing) + " missing",
+            name,
+            "give " + ", ".join(hint[k] for k in missing),
+        )
+    rate = options.get("sample_rate_hz")
+    if rate is None:
+        rate = float(f"{stamps_rate(time_s):.12g}") if len(time_s) >= 2 else float("nan")
+    meta = {
+        "format": FORMAT,
+        "latitude_deg": repr(float(options["latitude_deg"])),
+        "height_m": repr(float(options["height_m"])),
+        "sample_rate_hz": repr(float(rate)),
+        "source_format": "imu_tk",
+    }
+    return meta | conversion.meta()
