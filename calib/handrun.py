@@ -16,21 +16,10 @@ from .handfit import HandFit, fit_by_hand
 from .handsummary import HandSummary
 from .profiles import NoiseProfile
 from .runlog import Run
+from .runlog.clipping import describe_clipping
 from .site import Site
 from .solution import Fit
 from .strapdown import sample_intervals
-
-
-def clipped_stretches(run: Run) -> tuple[str, ...]:
-    """The run's clipped stretches, described (none when the reader found none)."""
-    mask = getattr(run, "clipped", None)
-    if mask is None or not np.any(mask):
-        return ()
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
-    t = run.time_s
-    return tuple(
-        f"{t[a]:.2f}-{t[b - 1]:.2f} s ({b - a} samples)" for a, b in zip(edges[::2], edges[1::2], strict=True)
-    )
 
 
 def hand_fit_of(run: Run, site: Site, profile: NoiseProfile, extras: Extras, partial: bool, req) -> HandFit:
@@ -52,7 +41,7 @@ def hand_fit_of(run: Run, site: Site, profile: NoiseProfile, extras: Extras, par
         site.gravity_mps2,
         profile,
         g_sensitivity="g-sensitivity" in extras.groups,
-        clipped=getattr(run, "clipped", None),
+        clipped=None if run.clipped is None else run.clipped.any(axis=1),
         requirements=req,
         partial=partial,
         where=run.source,
@@ -102,6 +91,6 @@ def summary_of(hand: HandFit, run: Run) -> HandSummary:
         move_used=hand.data.move_used,
         rest_chi2=hand.rest_chi2,
         move_chi2=hand.move_chi2,
-        clipped=clipped_stretches(run),
+        clipped=tuple(describe_clipping(run)),
         chi2_per_dof=hand.chi2_per_dof,
     )

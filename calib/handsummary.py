@@ -59,7 +59,7 @@ class HandSummary:
         ]
         for k in np.flatnonzero(~self.move_used):
             out.append(f"move {k + 1} ({self.move_s[k, 0]:.2f}-{self.move_s[k, 1]:.2f} s) left out: clipped")
-        out += [f"clipped: {c}" for c in self.clipped]
+        out += list(self.clipped)
         if self.chi2_per_dof > CHI2_NAMED:
             rests, moves = self.worst()
             out.append(
