@@ -255,10 +255,12 @@ def random_hand_plan(
     wobble_deg : float
         Each move's wobble peaks at an angle drawn uniformly in ``[0.5, 1] * wobble_deg``.
     peak_rate_dps : float, optional
-        None: each turn lasts its whole move. Given: each move's peak rate is
-        drawn uniformly in ``[0.25, 1] * peak_rate_dps``, the highest draw is set to
-        exactly ``peak_rate_dps``, and the turn lasts what its angle and wobble
-        need at that rate (a move is lengthened to hold a turn slower than it).
+        None: each turn lasts its whole move. Given: the largest turn of the
+        plan peaks at exactly ``peak_rate_dps``, and a turn of angle ``theta``
+        at ``u theta / theta_max`` of it, ``u`` uniform in ``[0.5, 1]`` (a hand
+        turns small and large angles in about the same time, 1 to 2 times the
+        largest turn's); each turn lasts what its angle and wobble need at its
+        rate, and a move is lengthened to hold a turn longer than it.
 
     Returns
     -------
@@ -278,10 +280,11 @@ def random_hand_plan(
     translation = direction * (translation_m * rng.uniform(0.5, 1.0, m))[:, None]
     turns = moves.copy()
     if peak_rate_dps is not None and m:
-        fraction = rng.uniform(0.25, 1.0, m)
-        fraction[np.argmax(fraction)] = 1.0
-        rate = np.radians(peak_rate_dps) * fraction
-        turns = peak_factor(np.linalg.norm(phi, axis=1), wobble) / rate
+        theta = np.linalg.norm(phi, axis=1)
+        u = rng.uniform(0.5, 1.0, m)
+        u[np.argmax(theta)] = 1.0
+        rate = np.radians(peak_rate_dps) * u * theta / theta.max()
+        turns = peak_factor(theta, wobble) / rate
         moves = np.maximum(moves, turns)
     return HandPlan(C, rests, moves, turns, translation, wobble, axes)
 
