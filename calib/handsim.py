@@ -252,6 +252,7 @@ def plan_to_table(plan: HandPlan) -> dict:
         "motion": MOTION,
         "rest_start_s": rows(plan.rest_start_s),
         "rest_end_s": rows(plan.rest_end_s),
+        "rest_s": rows(plan.rest_s),
         "C_b_n": rows(plan.C_b_n),
         "move_s": rows(plan.move_s),
         "turn_s": rows(plan.turn_s),
@@ -263,11 +264,13 @@ def plan_to_table(plan: HandPlan) -> dict:
 
 def plan_from_table(table: dict) -> HandPlan:
     """The plan of a ``[hand]`` table written by :func:`plan_to_table`."""
-    start = np.asarray(table["rest_start_s"], dtype=float)
-    end = np.asarray(table["rest_end_s"], dtype=float)
+    if "rest_s" in table:
+        rest = np.asarray(table["rest_s"], dtype=float)
+    else:  # the rests from their ends (to rounding)
+        rest = np.asarray(table["rest_end_s"], dtype=float) - np.asarray(table["rest_start_s"], dtype=float)
     return HandPlan(
         C_b_n=np.asarray(table["C_b_n"], dtype=float),
-        rest_s=end - start,
+        rest_s=rest,
         move_s=np.asarray(table["move_s"], dtype=float),
         turn_s=np.asarray(table["turn_s"], dtype=float),
         translation_m=np.asarray(table["translation_m"], dtype=float).reshape(-1, 3),

@@ -341,7 +341,9 @@ def test_run_and_truth_files_round_trip(tmp_path):
     assert np.allclose(common.errors.values, errors.values, rtol=1e-12)
     again = plan_from_table(load_toml(truth_path)["hand"])
     assert np.array_equal(again.C_b_n, plan.C_b_n) and np.array_equal(again.turn_s, plan.turn_s)
-    assert np.allclose(again.rest_start_s, plan.rest_start_s, rtol=0, atol=1e-12)
+    for name in ("rest_s", "move_s", "translation_m", "wobble_axis"):
+        assert np.array_equal(getattr(again, name), getattr(plan, name)), name
+    assert np.allclose(again.wobble_rad, plan.wobble_rad, rtol=1e-15, atol=0)
 
 
 def test_cli_simulate_by_hand(tmp_path):
