@@ -13,6 +13,7 @@ import numpy as np
 from calib.errors import CalibError
 
 from . import options
+from .byhand import by_hand_refusals, simulate_by_hand
 from .tools import emit_json, guarded, hidden_alias, info, provenance
 
 if TYPE_CHECKING:  # the machinery loads when a command runs, not for --help
@@ -116,8 +117,22 @@ def _simulate_streamed(setup: _Setup, cfg, output, setup_deg, seed, noise_free, 
     info(f"wrote {output} ({n} samples, {n / rate:.1f} s, profile {setup.profile.name}) and {truth_path}")
 
 
-@click.command(short_help="Simulate a calibration run of a sequence to a run log + truth file.")
-@click.argument("sequence")
+# The --by-hand options and their defaults (given without --by-hand, they are refused).
+HAND_DEFAULTS = {
+    "poses": None,
+    "like": None,
+    "peak_rate_dps": None,
+    "translation_m": 0.3,
+    "wobble_deg": 10.0,
+    "oversample": 10,
+    "random_errors": None,
+}
+
+
+@click.command(
+    short_help="Simulate a calibration run of a sequence (or placed by hand) to a run log + truth file."
+)
+@click.argument("sequence", required=False)
 @click.option("-o", "--output", required=True, help="Run log to write: .csv or .npz.")
 @options.profile()
 @click.option(
@@ -164,6 +179,55 @@ def _simulate_streamed(setup: _Setup, cfg, output, setup_deg, seed, noise_free, 
     help="Write the log a time window at a time, so that hours at kHz rates fit in memory "
     "(white-noise profiles; no --random-setup, --flip-error-deg, --extra or --gimbal).",
 )
+@click.option(
+    "--by-hand",
+    is_flag=True,
+    help="Simulate a run placed by hand on a table instead of a sequence (no SEQUENCE): poses "
+    "random on SO(3), fast turns with a wobbling axis, carried out and back (docs/by-hand-sim.md); "
+    "100 Hz unless --sample-rate-hz is given.",
+)
+@click.option(
+    "--poses", type=click.IntRange(1, 1000), default=None, help="--by-hand: number of rests (default 20)."
+)
+@click.option(
+    "--like",
+    type=click.Choice(["xsens"]),
+    default=None,
+    help="--by-hand: the shape of imu_tk's Xsens recording (52 s static, 37 poses, 512 s).",
+)
+@click.option(
+    "--peak-rate-dps",
+    type=click.FloatRange(1.0, 5000.0),
+    default=None,
+    help="--by-hand: the fastest turn peaks at this rate, deg/s (default: each turn lasts its move).",
+)
+@click.option(
+    "--translation-m",
+    type=click.FloatRange(0.0, 2.0),
+    default=0.3,
+    show_default=True,
+    help="--by-hand: each move carries the unit out and back by up to this distance (0: none).",
+)
+@click.option(
+    "--wobble-deg",
+    type=click.FloatRange(0.0, 45.0),
+    default=10.0,
+    show_default=True,
+    help="--by-hand: peak wobble of a turn's axis, deg (0: fixed-axis turns).",
+)
+@click.option(
+    "--oversample",
+    type=click.IntRange(1, 1000),
+    default=10,
+    show_default=True,
+    help="--by-hand: pieces per sample of the increments' quadrature.",
+)
+@click.option(
+    "--random-errors",
+    type=click.Choice(["mems", "tactical", "navigation"]),
+    default=None,
+    help="--by-hand: draw the 21 errors uniformly within the sizes of a unit of this grade.",
+)
 @options.as_json
 @guarded
 def simulate(
@@ -185,11 +249,48 @@ def simulate(
     as_json,
     gimbal_file=None,
     stream=False,
+    by_hand=False,
+    poses=None,
+    like=None,
+    peak_rate_dps=None,
+    translation_m=0.3,
+    wobble_deg=10.0,
+    oversample=10,
+    random_errors=None,
 ):
     """Simulate the IMU increments of SEQUENCE on a stationary base with exact
     kinematics, the 21 errors and white noise; write the run log (-o) and its
-    truth file beside it (run.truth.toml).
+    truth file beside it (run.truth.toml). With --by-hand, a run placed by hand
+    on a table instead (no SEQUENCE).
     """
+    hand = {
+        "poses": poses,
+        "like": like,
+        "peak_rate_dps": peak_rate_dps,
+        "translation_m": translation_m,
+        "wobble_deg": wobble_deg,
+        "oversample": oversample,
+        "random_errors": random_errors,
+    }
+    if by_hand:
+        gimbal_run = {
+            "--setup-deg": setup_deg,
+            "--random-setup": random_setup,
+            "--flip-error-deg": flip_error_deg,
+            "--extra": extra_text,
+            "--gimbal": gimbal_file,
+            "--stream": stream,
+        }
+        by_hand_refusals(sequence, gimbal_run)
+        site = (latitude, height, gravity_mps2, sample_rate_hz)
+        simulate_by_hand(output, profile, errors_file, table2, seed, site, noise_free, as_json, hand)
+        return
+    if names := ["--" + k.replace("_", "-") for k, v in hand.items() if v != HAND_DEFAULTS[k]]:
+        raise CalibError(
+            f"{', '.join(names)} describe a run placed by hand", "--by-hand", "add --by-hand, or drop them"
+        )
+    if sequence is None:
+        raise click.UsageError("Missing argument 'SEQUENCE' (or give --by-hand).")
     from calib.extras import parse_values
     from calib.gimbal import check_playable, plan_sequence
     from calib.gimbalfile import load_gimbal

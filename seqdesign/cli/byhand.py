@@ -1,0 +1,129 @@
+"""``seqdesign simulate --by-hand``: a calibration run placed by hand on a table (calib.handsim)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import click
+import numpy as np
+
+from calib.errors import CalibError
+
+from .tools import emit_json, provenance
+
+DEFAULT_POSES = 20
+HAND_RATE_HZ = 100.0  # the rate of the hand-placed recordings (imu_tk's Xsens, imucal's)
+
+
+def by_hand_refusals(sequence, given: dict) -> None:
+    """What ``--by-hand`` cannot combine with: a sequence, and the gimbal run's options."""
+    if sequence is not None:
+        raise CalibError(
+            f"a sequence ({sequence}) and --by-hand both given",
+            "--by-hand",
+            "a run placed by hand follows no sequence: drop SEQUENCE, or drop --by-hand",
+        )
+    if names := [name for name, value in given.items() if value]:
+        raise CalibError(
+            f"{', '.join(names)} cannot be used with --by-hand",
+            "--by-hand",
+            "drop " + ", ".join(names) + " (they describe a gimbal run)",
+        )
+
+
+def _errors(errors_file, table2, random_errors, rng):
+    """The injected errors: a file's, the paper's Table 2, drawn for a grade, or none."""
+    from calib.errormodel import ErrorModel
+    from calib.handsim import draw_errors
+    from calib.truth import read_errors
+
+    if sum(bool(x) for x in (errors_file, table2, random_errors)) > 1:
+        raise CalibError("more than one of --errors, --table2, --random-errors given", None, "choose one")
+    if errors_file:
+        return read_errors(errors_file)
+    if table2:
+        return ErrorModel.from_table2()
+    if random_errors:
+        from seqdesign.verify import error_half_range
+
+        return draw_errors(error_half_range(random_errors), rng)
+    return ErrorModel.zero()
+
+
+def simulate_by_hand(output, profile, errors_file, table2, seed, site, noise_free, as_json, hand) -> None:
+    """Simulate a run placed by hand and write the run log and its truth file (with the plan).
+
+    ``site`` is ``(latitude, height, gravity_mps2, sample_rate_hz)`` as given; ``hand`` the
+    ``--by-hand`` options by name.
+    """
+    latitude, height, gravity_mps2, sample_rate_hz = site
+    from calib import earth
+    from calib.handplan import random_hand_plan, xsens_like_plan
+    from calib.handsim import simulate_by_hand as run_simulation
+    from calib.handsim import write_hand_run
+    from calib.profiles import load_profile
+    from calib.sequence import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
+    from calib.sim import SimConfig
+
+    if Path(output).suffix.lower() not in (".csv", ".npz"):
+        raise CalibError(
+            f"unknown run format {Path(output).suffix!r}", "-o/--output", "name the file .csv or .npz"
+        )
+    if hand["poses"] is not None and hand["like"]:
+        raise CalibError("--poses and --like both given", "--poses", "choose one")
+    lat = latitude if latitude is not None else DEFAULT_LATITUDE_DEG
+    h = height if height is not None else DEFAULT_HEIGHT_M
+    earth.check_site(lat, h)
+    source = click.get_current_context().get_parameter_source("sample_rate_hz")
+    if source is click.core.ParameterSource.DEFAULT:
+        sample_rate_hz = HAND_RATE_HZ
+    prof = load_profile(profile)
+    streams = np.random.SeedSequence(seed).spawn(3)  # the plan, the errors, the noise
+    plan_rng, errors_rng, noise_rng = (np.random.default_rng(s) for s in streams)
+    shape = {k: hand[k] for k in ("translation_m", "wobble_deg", "peak_rate_dps")}
+    if hand["like"] == "xsens":
+        plan = xsens_like_plan(plan_rng, **shape)
+    else:
+        n_poses = hand["poses"] if hand["poses"] is not None else DEFAULT_POSES
+        plan = random_hand_plan(n_poses, plan_rng, **shape)
+    errors = _errors(errors_file, table2, hand["random_errors"], errors_rng)
+    cfg = SimConfig(
+        latitude_rad=math.radians(lat), height_m=h, sample_rate_hz=sample_rate_hz, gravity_mps2=gravity_mps2
+    )
+    run, truth = run_simulation(
+        plan,
+        cfg,
+        errors,
+        None if noise_free else prof,
+        seed=seed,
+        oversample=hand["oversample"],
+        rng=noise_rng,
+    )
+    files = {"errors": errors_file, "profile": profile if Path(profile).exists() else None}
+    prov = provenance(files, motion="by-hand", profile=prof.name)
+    run.meta.update({k: prov[k] for k in ("tool_version", "command")} | {"profile": prof.name})
+    truth_path = write_hand_run(output, run, truth, prov)
+    peak = float(np.degrees(plan.peak_rate_rad_s.max())) if plan.n_poses > 1 else 0.0
+    summary = {
+        "run": str(output),
+        "truth": str(truth_path),
+        "motion": "by-hand",
+        "poses": plan.n_poses,
+        "samples": int(run.time_s.size),
+        "duration_s": float(run.time_s[-1]),
+        "sample_rate_hz": sample_rate_hz,
+        "peak_rate_dps": peak,
+        "profile": prof.name,
+        "noise": not noise_free,
+        "latitude_deg": lat,
+        "height_m": h,
+    }
+    if as_json:
+        emit_json(summary)
+        return
+    click.echo(
+        f"wrote {output} ({plan.n_poses} poses placed by hand, {summary['samples']} samples, "
+        f"{summary['duration_s']:.1f} s, peak {peak:.0f} deg/s, "
+        f"{'noise-free' if noise_free else 'profile ' + prof.name}) and {truth_path}"
+    )
