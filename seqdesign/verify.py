@@ -22,6 +22,8 @@ from calib.errormodel import ErrorModel, paper_table
 from calib.errors import CalibError
 from calib.extras import NONE as NO_EXTRAS
 from calib.extras import Extras
+from calib.handplan import random_hand_plan, xsens_like_plan
+from calib.handsim import simulate_by_hand
 from calib.profiles import NoiseProfile
 from calib.requirements import PAPER, Requirements
 from calib.sequence import Sequence
@@ -66,10 +68,34 @@ def chi2_band(n_runs: int, dof: int = P.N_PARAMS, probability: float = 0.99) -> 
 
 
 @dataclass(frozen=True)
+class HandShape:
+    """The runs placed by hand a by-hand verification draws (:mod:`calib.handplan`)."""
+
+    like: str | None = None  # "xsens": the shape of imu_tk's Xsens recording; None: random
+    poses: int = 20
+    peak_rate_dps: float | None = None
+    translation_m: float = 0.3
+    wobble_deg: float = 10.0
+    g_sensitivity: bool = False  # fit the gyro g-sensitivity too (the truth has none)
+
+    @property
+    def name(self) -> str:
+        return f"by hand ({self.like}-like)" if self.like else f"by hand ({self.poses} random poses)"
+
+    def plan(self, rng: np.random.Generator):
+        shape = dict(
+            translation_m=self.translation_m, wobble_deg=self.wobble_deg, peak_rate_dps=self.peak_rate_dps
+        )
+        if self.like == "xsens":
+            return xsens_like_plan(rng, **shape)
+        return random_hand_plan(self.poses, rng, **shape)
+
+
+@dataclass(frozen=True)
 class VerifyJob:
     """One run's inputs (picklable: a worker or a dask cluster runs it)."""
 
-    seq: Sequence
+    seq: Sequence | None
     profile: NoiseProfile
     config: SimConfig
     errors: ErrorModel | None  # None: drawn from the grade's half-ranges
@@ -79,6 +105,7 @@ class VerifyJob:
     seed: int
     extras: Extras
     requirements: Requirements
+    hand: HandShape | None = None  # runs placed by hand instead of the sequence
 
 
 @dataclass(frozen=True)
@@ -98,6 +125,9 @@ def one_run(job: VerifyJob) -> RunOutcome:
     errors = job.errors
     if errors is None:
         errors = ErrorModel.from_units(rng.uniform(-1.0, 1.0, P.N_PARAMS) * job.half_range)
+    if job.hand is not None:
+        return _one_hand_run(job, errors, rng)
+    assert job.seq is not None
     run, truth = simulate(
         job.seq,
         job.config,
@@ -117,16 +147,39 @@ def one_run(job: VerifyJob) -> RunOutcome:
     return RunOutcome(job.seed, result.values - truth.errors.values, result.covariance, result.converged)
 
 
+def _one_hand_run(job: VerifyJob, errors: ErrorModel, rng: np.random.Generator) -> RunOutcome:
+    """One run placed by hand: its poses, moves and noise drawn from the run's generator."""
+    assert job.hand is not None
+    run, truth = simulate_by_hand(job.hand.plan(rng), job.config, errors, job.profile, rng=rng)
+    try:
+        result = calibrate(
+            run,
+            job.profile,
+            by_hand=True,
+            extras="g-sensitivity" if job.hand.g_sensitivity else None,
+            require_convergence=False,
+            requirements=job.requirements,
+        )
+    except CalibError as exc:
+        return RunOutcome(job.seed, None, None, False, str(exc))
+    return RunOutcome(job.seed, result.values - truth.errors.values, result.covariance, result.converged)
+
+
 @dataclass(frozen=True)
 class Verification:
     """N runs of one sequence under one profile, against the analyser's prediction."""
 
-    sequence: Sequence
+    sequence: Sequence | None
     profile: NoiseProfile
     requirements: Requirements
     grade: str
-    predicted_sigma: np.ndarray  # (21,) SI, analyze's worst case over the mounting box
+    predicted_sigma: np.ndarray  # (21,) SI, analyze's worst case over the mounting box (nan: none)
     outcomes: tuple[RunOutcome, ...]
+    hand: HandShape | None = None
+
+    @property
+    def name(self) -> str:
+        return self.hand.name if self.hand is not None else self.sequence.name if self.sequence else "?"
 
     @property
     def fitted(self) -> list[RunOutcome]:
@@ -167,7 +220,7 @@ class Verification:
     def to_json(self) -> dict:
         n = len(self.fitted)
         doc: dict = {
-            "sequence": self.sequence.name,
+            "sequence": self.name,
             "profile": self.profile.name,
             "requirements": self.requirements.name,
             "grade": self.grade,
@@ -192,10 +245,10 @@ class Verification:
         doc["parameters"] = {
             p.name: {
                 "unit": p.unit,
-                "predicted_sigma": float(self.predicted_sigma[i] / p.si_per_unit),
+                "predicted_sigma": _finite_or_none(self.predicted_sigma[i] / p.si_per_unit),
                 "rms_error": float(rms_error[i] / p.si_per_unit),
                 "rms_over_reported_sigma": float(over_reported[i]),
-                "rms_over_predicted_sigma": float(over_predicted[i]),
+                "rms_over_predicted_sigma": _finite_or_none(over_predicted[i]),
                 "mean_error_over_sigma": float(z[:, i].mean()),
                 "worst_error_over_sigma": float(worst[i]),
             }
@@ -206,7 +259,7 @@ class Verification:
     def to_text(self) -> str:
         doc = self.to_json()
         lines = [
-            f"verify {self.sequence.name}: {doc['runs']} runs, profile {self.profile.name} "
+            f"verify {self.name}: {doc['runs']} runs, profile {self.profile.name} "
             f"({self.grade} errors), requirements {self.requirements.name}",
             f"converged {doc['converged']}, did not converge {len(doc['unconverged_seeds'])}, "
             f"refused {len(doc['refused'])}",
@@ -222,14 +275,23 @@ class Verification:
         lines.append("{:>6} {:>8} {:>11} {:>11} {:>10} {:>10}".format(*head))
         for name, e in doc["parameters"].items():
             lines.append(
-                f"{name:>6} {e['unit']:>8} {e['predicted_sigma']:11.4g} {e['rms_error']:11.4g} "
-                f"{e['rms_over_reported_sigma']:10.2f} {e['rms_over_predicted_sigma']:10.2f}"
+                f"{name:>6} {e['unit']:>8} {_figure(e['predicted_sigma'], 11, '.4g')} {e['rms_error']:11.4g} "
+                f"{e['rms_over_reported_sigma']:10.2f} {_figure(e['rms_over_predicted_sigma'], 10, '.2f')}"
             )
         return "\n".join(lines)
 
 
+def _finite_or_none(x) -> float | None:
+    """A figure for JSON: None where there is none (a by-hand run has no analyser's prediction)."""
+    return float(x) if math.isfinite(float(x)) else None
+
+
+def _figure(x: float | None, width: int, spec: str) -> str:
+    return f"{'-':>{width}}" if x is None else f"{x:{width}{spec}}"
+
+
 def verify(
-    seq: Sequence,
+    seq: Sequence | None,
     profile: NoiseProfile,
     runs: int,
     *,
@@ -243,6 +305,7 @@ def verify(
     requirements: Requirements = PAPER,
     workers: int = 1,
     scheduler=None,
+    hand: HandShape | None = None,
 ) -> Verification:
     """Simulate and calibrate ``runs`` runs of ``seq`` (run ``i`` from seed ``seed + i``).
 
@@ -264,14 +327,27 @@ def verify(
         What the fit estimates beside the 21, and the scale it judges observability in.
     workers, scheduler : int, str (optional)
         Local processes, or a dask.distributed scheduler address (:func:`map_jobs`).
+    hand : HandShape, optional
+        Runs placed by hand of this shape instead of ``seq`` (then None): each run draws its
+        own poses, moves and noise; there is no analyser's prediction (``predicted_sigma`` nan).
     """
     grade = grade_of(profile)
     half = error_half_range(grade)
     jobs = [
         VerifyJob(
-            seq, profile, config, errors, half, tolerance_deg, flip_error_deg, seed + i, extras, requirements
+            seq,
+            profile,
+            config,
+            errors,
+            half,
+            tolerance_deg,
+            flip_error_deg,
+            seed + i,
+            extras,
+            requirements,
+            hand,
         )
         for i in range(runs)
     ]
     outcomes = tuple(map_jobs(one_run, jobs, workers, scheduler))
-    return Verification(seq, profile, requirements, grade, np.asarray(predicted_sigma, float), outcomes)
+    return Verification(seq, profile, requirements, grade, np.asarray(predicted_sigma, float), outcomes, hand)

@@ -16,7 +16,7 @@ from .tools import emit_json, guarded, info
 @click.command(
     short_help="Simulate and calibrate N runs of a sequence: are the sigmas honest and as predicted?"
 )
-@click.argument("sequence")
+@click.argument("sequence", required=False)
 @options.profile()
 @options.requirements
 @options.with_terms(
@@ -49,6 +49,23 @@ from .tools import emit_json, guarded, info
 @options.gimbal(
     "Gimbal description (TOML) or shipped name: refuse a sequence it cannot play.", metavar="FILE|NAME"
 )
+@click.option(
+    "--by-hand",
+    is_flag=True,
+    help="Runs placed by hand on a table instead of SEQUENCE (no SEQUENCE): each run draws its own "
+    "poses, fast carried moves and noise (docs/by-hand-sim.md) and is calibrated with --by-hand.",
+)
+@click.option(
+    "--like", type=click.Choice(["xsens"]), help="--by-hand: the shape of imu_tk's Xsens recording."
+)
+@click.option(
+    "--poses", type=click.IntRange(3, 1000), default=20, show_default=True, help="--by-hand: rests per run."
+)
+@click.option(
+    "--peak-rate-dps",
+    type=click.FloatRange(1.0, 5000.0),
+    help="--by-hand: the fastest turn of a run peaks at this rate, deg/s.",
+)
 @click.option("--plot", "plot_path", metavar="FILE.png", help="Also draw the RMS ratios per parameter (PNG).")
 @options.as_json
 @guarded
@@ -70,6 +87,10 @@ def verify(
     errors_file,
     table2,
     gimbal_file,
+    by_hand,
+    like,
+    poses,
+    peak_rate_dps,
     plot_path,
     as_json,
 ):
@@ -98,7 +119,28 @@ def verify(
         raise CalibError("--workers and --scheduler both given", None, "choose one")
     if plot_path and Path(plot_path).suffix.lower() != ".png":
         raise CalibError(f"plot {plot_path!r} must end in .png", "--plot")
-    seq, prof, req = load_sequence(sequence), as_profile(profile), load_requirements(requirements)
+    prof, req = as_profile(profile), load_requirements(requirements)
+    if by_hand or sequence is None:
+        from .verifyhand import verify_by_hand
+
+        return verify_by_hand(
+            sequence,
+            prof,
+            req,
+            with_terms,
+            runs,
+            workers,
+            scheduler,
+            (latitude, height, gravity_mps2),
+            sample_rate_hz,
+            seed,
+            errors_file,
+            table2,
+            (like, poses, peak_rate_dps, by_hand),
+            plot_path,
+            as_json,
+        )
+    seq = load_sequence(sequence)
     gimbal = load_gimbal(gimbal_file)
     check_playable(plan_sequence(seq, gimbal), f"{sequence} on gimbal {gimbal.name!r}")
     errors = read_errors(errors_file) if errors_file else ErrorModel.from_table2() if table2 else None

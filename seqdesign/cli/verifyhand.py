@@ -1,0 +1,99 @@
+"""``seqdesign verify --by-hand``: the Monte Carlo of runs placed by hand (no sequence, no gimbal)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import click
+
+from calib.errors import CalibError
+
+from .tools import emit_json, info
+
+
+def verify_by_hand(
+    sequence,
+    prof,
+    req,
+    with_terms,
+    runs,
+    workers,
+    scheduler,
+    site,
+    sample_rate_hz,
+    seed,
+    errors_file,
+    table2,
+    shape,
+    plot_path,
+    as_json,
+) -> None:
+    """Simulate and calibrate ``runs`` runs placed by hand; report as ``verify`` does.
+
+    ``site`` is ``(latitude, height, gravity_mps2)`` as given, ``shape`` ``(like, poses,
+    peak_rate_dps, by_hand)``.
+    """
+    import numpy as np
+
+    from calib.errormodel import ErrorModel
+    from calib.extras import as_extras
+    from calib.sim import SimConfig
+    from calib.truth import read_errors
+    from seqdesign.plots import verify_png
+    from seqdesign.verify import HandShape
+    from seqdesign.verify import verify as run_verify
+
+    like, poses, peak_rate_dps, by_hand = shape
+    if sequence is not None:
+        raise CalibError(
+            f"a sequence ({sequence}) and --by-hand both given",
+            "--by-hand",
+            "a run placed by hand follows no sequence: drop SEQUENCE, or drop --by-hand",
+        )
+    if not by_hand:
+        raise CalibError(
+            "no SEQUENCE given", "verify", "give a sequence, or --by-hand for runs placed by hand"
+        )
+    if errors_file and table2:
+        raise CalibError("--errors and --table2 both given", None, "choose one")
+    if workers > 1 and scheduler:
+        raise CalibError("--workers and --scheduler both given", None, "choose one")
+    if plot_path and Path(plot_path).suffix.lower() != ".png":
+        raise CalibError(f"plot {plot_path!r} must end in .png", "--plot")
+    extras = as_extras(with_terms, by_hand=True)
+    latitude, height, gravity_mps2 = site
+    lat = 45.0 if latitude is None else latitude
+    config = SimConfig(
+        latitude_rad=math.radians(lat),
+        height_m=0.0 if height is None else height,
+        sample_rate_hz=sample_rate_hz,
+        gravity_mps2=gravity_mps2,
+    )
+    hand = HandShape(like=like, poses=poses, peak_rate_dps=peak_rate_dps, g_sensitivity=bool(extras.groups))
+    errors = read_errors(errors_file) if errors_file else ErrorModel.from_table2() if table2 else None
+    info(f"verifying {hand.name}: {runs} runs, profile {prof.name}")
+    result = run_verify(
+        None,
+        prof,
+        runs,
+        config=config,
+        predicted_sigma=np.full(21, np.nan),
+        errors=errors,
+        tolerance_deg=0.0,
+        flip_error_deg=0.0,
+        seed=seed or 0,
+        requirements=req,
+        workers=workers,
+        scheduler=scheduler,
+        hand=hand,
+    )
+    doc = result.to_json()
+    if plot_path:
+        verify_png(result, plot_path)
+        doc["plot"] = str(plot_path)
+        info(f"wrote {plot_path}")
+    if as_json:
+        emit_json(doc)
+        return
+    click.echo(result.to_text())
