@@ -25,6 +25,7 @@ from .errormodel import ErrorModel
 from .errors import CalibError
 from .fields import FORMAT_VERSION, Fields, check_format_version
 from .fileio import atomic_write_text, load_toml
+from .strapdown import sample_intervals
 
 SENSORS = ("gyro", "accel")
 SI_UNIT = {"gyro": "rad/s", "accel": "m/s^2"}
@@ -187,6 +188,36 @@ def correction_from_parameters(
         if sigma_g_sensitivity is not None:
             sG = k[:, None] * np.asarray(sigma_g_sensitivity, dtype=float)
     return Correction(parts[0], parts[1], G, sG, source)
+
+
+def correction_of_result(result, conversion=None, source: str = "") -> Correction:
+    """The correction of a :class:`calib.result.CalibrationResult`; in counts when the log was read
+    through a nominal ``conversion`` (:class:`calib.runlog.conversion.Conversion`).
+    """
+    G = sG = None
+    if "g-sensitivity" in result.extras.groups:
+        part = result.extras.index("g-sensitivity")
+        G = np.asarray(result.extra_values)[part].reshape(3, 3)
+        sG = np.asarray(result.extra_sigma)[part].reshape(3, 3)
+    convs = [None, None]
+    if conversion is not None:
+        convs = [(conversion.zero_counts[s], conversion.counts_per_unit[s]) for s in SENSORS]
+    return correction_from_parameters(result.values, result.covariance, G, sG, convs[0], convs[1], source)
+
+
+def raw_samples(run, correction: Correction, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """The log's samples in the units ``correction`` takes: counts, or rad/s and m/s^2."""
+    dt = sample_intervals(run.time_s)[:, None]
+    rate, force = run.dtheta_rad / dt, run.dv_mps / dt
+    if "counts" not in (correction.gyro.raw_unit, correction.accel.raw_unit):
+        return rate, force
+    if run.conversion is None:
+        raise CalibError(
+            "the correction takes raw counts (it was made from a log in counts), but this log was read in SI",
+            where,
+            "read the log with the --conversion file it was calibrated with",
+        )
+    return run.conversion.to_counts(rate, "gyro"), run.conversion.to_counts(force, "accel")
 
 
 def _matrix(table: dict, key: str, where: str, name: str, allow_nan: bool = False) -> np.ndarray:

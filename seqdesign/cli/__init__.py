@@ -1,6 +1,6 @@
 """The ``seqdesign`` command line: the group and its commands, one module each.
 
-show, simulate (and simulate-stream), calibrate, analyze and compare, design,
+show, simulate (and simulate-stream), calibrate, correct, analyze and compare, design,
 export (gimbal schedules), profile fit, view. Options shared by several commands
 are declared once (:mod:`seqdesign.cli.options`), as are the refusal and JSON
 helpers (:mod:`seqdesign.cli.tools`).
@@ -19,7 +19,7 @@ import click
 
 from seqdesign.provenance import tool_version
 
-from . import analyze, calibrate, design, gimbal, profile, show, simulate, verify, view
+from . import analyze, calibrate, correct, design, gimbal, profile, show, simulate, verify, view
 from .tools import emit_json
 
 
@@ -51,6 +51,7 @@ for _command in (
     show.show,
     simulate.simulate,
     calibrate.calibrate,
+    correct.correct,
     analyze.analyze,
     analyze.compare,
     design.design,

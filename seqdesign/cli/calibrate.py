@@ -62,6 +62,13 @@ from .tools import emit_json, guarded, hidden_alias, info, provenance
     help="RUN was placed by hand (no gimbal, no sequence): fit it from its rests, found with the "
     "profile's noise, and the gyros across the moves between them (any axis, fast, carried).",
 )
+@click.option(
+    "--correction",
+    "correction_path",
+    type=click.Path(dir_okay=False),
+    help="Also write the result as the correction a user applies, calibrated = M (raw - b) per "
+    "sensor with its sigmas, in the log's units (counts for a log read through --conversion).",
+)
 @options.as_json
 @guarded
 def calibrate(
@@ -83,6 +90,7 @@ def calibrate(
     partial,
     stream,
     by_hand,
+    correction_path,
     as_json,
 ):
     """Align, navigate on the stationary base and fit the 21 error parameters of
@@ -153,6 +161,13 @@ def calibrate(
         ),
     )
     result.save(out_path)
+    if correction_path:
+        from calib.correction import correction_of_result
+
+        correction_of_result(result, run.conversion if run is not None else None, run_path).save(
+            correction_path
+        )
+        info(f"wrote {correction_path}")
     for warning in result.warnings():
         info(f"warning: {warning}")
     doc = {"result": str(out_path)} | ({} if run is None else {"clock": run.clock.as_dict()})

@@ -4,7 +4,8 @@ The correction file is what ``calibrate --correction`` writes (or any file of
 that format: see ``docs/by-hand.md``). The log is read as ``calibrate`` reads it
 (a logger's columns, raw counts with their conversion, imu_tk's two files, a
 sample counter); the output is a CSV of calibrated rates and specific force
-that every command of the tool reads back (``time_s,gyro_x_radps,...``).
+in the tool's own run format (``imu-run/1``, CSV or NPZ by the suffix), which every
+command reads back.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from .tools import emit_json, guarded, info
     type=click.Path(dir_okay=False),
     help="Correction TOML (calibrate --correction writes it).",
 )
-@click.option("-o", "--output", required=True, help="Calibrated log to write (CSV).")
+@click.option("-o", "--output", required=True, help="Calibrated log to write (imu-run/1, .csv or .npz).")
 @options.latitude("Site latitude, deg, for a logger's CSV that does not carry latitude_deg.")
 @options.height("Site height, m, for a logger's CSV that does not carry height_m.")
 @options.columns
@@ -49,8 +50,8 @@ def correct(
     import numpy as np
 
     from calib.correction import Correction, raw_samples
-    from calib.runlog import read_run
-    from calib.runlog.csvwrite import write_rates_csv
+    from calib.runlog import Run, read_run, write_run
+    from calib.strapdown import sample_intervals
 
     from .reading import hand_reading
 
@@ -59,7 +60,11 @@ def correct(
     run = read_run(run_path, **reading, **hand_reading(gyro_file, conversion, sample_rate_hz))
     raw_gyro, raw_accel = raw_samples(run, correction, run_path)
     rate, force = correction.apply(raw_gyro, raw_accel)
-    write_rates_csv(output, run, rate, force, note=f"calibrated with {correction_path}")
+    dt = sample_intervals(run.time_s)[:, None]
+    # The calibrated log is in SI: the raw reading's keys (its conversion, its source format) go.
+    meta = {k: v for k, v in run.meta.items() if not k.startswith(("conversion", "source_format"))}
+    meta["calibrated_with"] = str(correction_path)
+    write_run(Run(run.time_s, rate * dt, force * dt, meta, source=output), output)
     info(f"applied {correction_path} to {run.n_samples} samples of {run_path}")
     doc = {
         "output": output,
