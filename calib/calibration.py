@@ -140,7 +140,7 @@ def calibrate(
     require_convergence : bool
         Refuse a fit that did not converge (the CLI writes no result then).
     requirements : Requirements or str, optional
-        What the ratios are judged against (default: the paper's).
+        What the ratios are judged against (default: the paper's; ``mems`` for a run placed by hand).
     gravity_mps2 : float, optional
         Surveyed gravity at the site; wins over the log's and over the
         normal-gravity model (a gravity error of dg/g is a common
@@ -162,7 +162,9 @@ def calibrate(
         gravity and the fit's health.
     """
     prof, extras = as_profile(profile), as_extras(extras, by_hand=by_hand)
-    req = load_requirements(requirements)
+    # A unit calibrated by hand is a MEMS unit: judged by the paper's navigation-grade requirements,
+    # every sigma would be "weak" (beyond 1000 requirements) and nothing estimable.
+    req = load_requirements(requirements if requirements is not None or not by_hand else "mems")
     if by_hand:
         return _by_hand(
             source,

@@ -9,7 +9,10 @@ A sample is still when, over a short window about it, both
   under the profile's ARW, and
 * every accelerometer axis' spread stays below four times the profile's
   per-sample noise (VRW), with a floor of :data:`ACCEL_FLOOR` that a unit set
-  down on a table never reaches but a hand holding it does.
+  down on a table never reaches but a hand holding it does, and
+* the mean specific force over the window before and the window after agree to
+  five times the noise of their difference: a carried unit's acceleration may
+  rise too smoothly for the spread within one window to show it.
 
 Still stretches shorter than :data:`MIN_REST_S` (a pause mid-move) are part of
 the move; a bump while placing splits a rest into two, the shorter of which
@@ -28,8 +31,9 @@ from .errors import CalibError
 from .motion import MOTION_THRESHOLD, grow, runs_of, steady_rate
 
 WINDOW_S = 0.25  # long enough to average a MEMS gyro's noise, short against a 3 s pose
-MIN_REST_S = 1.0  # a shorter still stretch is a pause within a move
+MIN_REST_S = 0.5  # a shorter still stretch is a pause within a move
 ACCEL_FLOOR = 0.02  # m/s^2: a hand's tremor is several times this, a table's vibration far less
+DRIFT_FLOOR = 0.002  # m/s^2: a change of the mean a still unit on a table does not show
 MARGIN_S = 0.05  # trimmed from each end of a rest beyond the window: the placing's last settling
 
 
@@ -78,10 +82,18 @@ def still_samples(
     gyro_threshold = max(MOTION_THRESHOLD, 5.0 * arw / math.sqrt(window * period))
     gyro_moving = np.linalg.norm(moving_mean(rate, window), axis=1) > gyro_threshold
     force = dv / dt[:, None]
-    spread = np.sqrt(np.maximum(moving_mean(force**2, window) - moving_mean(force, window) ** 2, 0.0))
+    mean = moving_mean(force, window)
+    spread = np.sqrt(np.maximum(moving_mean(force**2, window) - mean**2, 0.0))
     accel_threshold = max(ACCEL_FLOOR, 4.0 * vrw / math.sqrt(period))
-    accel_moving = np.max(spread, axis=1) > accel_threshold
-    moving = grow(gyro_moving | accel_moving, window // 2 + int(round(MARGIN_S / period)))
+    # A carried unit's acceleration can rise too smoothly for the spread within a window to
+    # show it: the windows either side (not overlapping) then disagree on the mean.
+    # (The windows centred a window either side of each sample: a change of the mean within
+    # 1.5 windows is seen, and a slow rise of acceleration is seen early.)
+    drift = np.zeros(len(force))
+    drift[window:-window] = np.max(np.abs(mean[2 * window :] - mean[: -2 * window]), axis=1)
+    drift_threshold = max(DRIFT_FLOOR, 5.0 * vrw / math.sqrt(period) * math.sqrt(2.0 / window))
+    accel_moving = (np.max(spread, axis=1) > accel_threshold) | (drift > drift_threshold)
+    moving = grow(gyro_moving | accel_moving, window + int(round(MARGIN_S / period)))
     return ~moving, gyro_threshold, accel_threshold
 
 
