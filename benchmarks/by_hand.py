@@ -70,7 +70,7 @@ class Recording:
             self.run.meta,
             source=f"{self.run.source}[:{stop}]",
         )
-        run.clipped = self.clipped[:stop]
+        run.clipped = _per_channel(self.clipped[:stop])
         return replace(self, run=run, clipped=self.clipped[:stop])
 
 
@@ -83,8 +83,13 @@ def _run(time_s, rate_si, force_si, rate_hz, latitude, gravity, clipped, source)
         make_meta(latitude, 0.0, rate_hz, gravity),
         source=source,
     )
-    run.clipped = clipped  # read by the hand fit: a move holding a clipped sample is left out
+    run.clipped = _per_channel(clipped)  # read by the hand fit: a move holding a clipped sample is left out
     return run
+
+
+def _per_channel(clipped: np.ndarray) -> np.ndarray:
+    """The Run's (n, 6) mask (gyro x y z, accel x y z) of a per-sample gyro mask."""
+    return np.column_stack([clipped] * 3 + [np.zeros_like(clipped)] * 3)
 
 
 def xsens() -> Recording:
