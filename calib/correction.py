@@ -199,7 +199,7 @@ def correction_of_result(result, conversion=None, source: str = "") -> Correctio
         part = result.extras.index("g-sensitivity")
         G = np.asarray(result.extra_values)[part].reshape(3, 3)
         sG = np.asarray(result.extra_sigma)[part].reshape(3, 3)
-    convs = [None, None]
+    convs: list[tuple[np.ndarray, np.ndarray] | None] = [None, None]
     if conversion is not None:
         convs = [(conversion.zero_counts[s], conversion.counts_per_unit[s]) for s in SENSORS]
     return correction_from_parameters(result.values, result.covariance, G, sG, convs[0], convs[1], source)

@@ -50,13 +50,14 @@ def imu_tk_triad(numbers, raw_unit: str = "counts") -> SensorCorrection:
 def parse_imu_tk(text: str, where: str = "imu_tk result") -> Correction:
     """imu_tk's two triads from the text of a result file (``## acc`` and ``## gyro`` sections)."""
     sections: dict[str, list[float]] = {}
-    current = None
+    current: str | None = None
     for line in text.splitlines():
         s = line.strip()
         if s.startswith("##"):
             words = s[2:].split()
             current = words[0].lower() if words else None
-            sections[current] = []
+            if current is not None:
+                sections[current] = []
         elif s and not s.startswith("#") and current is not None:
             try:
                 sections[current] += [float(x) for x in s.split()]

@@ -83,12 +83,20 @@ class HandShape:
         return f"by hand ({self.like}-like)" if self.like else f"by hand ({self.poses} random poses)"
 
     def plan(self, rng: np.random.Generator):
-        shape = dict(
-            translation_m=self.translation_m, wobble_deg=self.wobble_deg, peak_rate_dps=self.peak_rate_dps
-        )
         if self.like == "xsens":
-            return xsens_like_plan(rng, **shape)
-        return random_hand_plan(self.poses, rng, **shape)
+            return xsens_like_plan(
+                rng,
+                translation_m=self.translation_m,
+                wobble_deg=self.wobble_deg,
+                peak_rate_dps=self.peak_rate_dps,
+            )
+        return random_hand_plan(
+            self.poses,
+            rng,
+            translation_m=self.translation_m,
+            wobble_deg=self.wobble_deg,
+            peak_rate_dps=self.peak_rate_dps,
+        )
 
 
 @dataclass(frozen=True)
