@@ -34,14 +34,58 @@ TOLERANCE = click.FloatRange(0.0, 10.0)
     "comma-separated, or all): sigma of each of the 21 with and without them, "
     "and whether the sequence observes them."
 )
+@click.option(
+    "--by-hand",
+    is_flag=True,
+    help="SEQUENCE is a pose list for a run placed by hand (docs/by-hand.md): the sigmas its "
+    "recording will give, the worst over --placement-deg, and the face that helps most.",
+)
+@click.option(
+    "--placement-deg",
+    type=click.FloatRange(0.0, 45.0),
+    default=15.0,
+    show_default=True,
+    help="--by-hand: each pose is placed within this of where it was meant (each axis).",
+)
+@click.option(
+    "--placements",
+    type=click.IntRange(0, 1000),
+    default=10,
+    show_default=True,
+    help="--by-hand: perturbed placements drawn for the worst case (0: as planned only).",
+)
 @options.as_json
 @guarded
-def analyze(sequence, profile, latitude, tolerance_deg, requirements, view_path, with_terms, as_json):
+def analyze(
+    sequence,
+    profile,
+    latitude,
+    tolerance_deg,
+    requirements,
+    view_path,
+    with_terms,
+    by_hand,
+    placement_deg,
+    placements,
+    as_json,
+):
     """Fisher information of SEQUENCE under a noise profile: predicted sigma of
     each parameter against its requirement (3 sigma / requirement), which
     parameters are estimable, correlated pairs, unobservable directions,
     worst case over the +-tolerance mounting box.
     """
+    if by_hand:
+        return _analyze_by_hand(
+            sequence,
+            profile,
+            latitude,
+            requirements,
+            with_terms,
+            placement_deg,
+            placements,
+            view_path,
+            as_json,
+        )
     from seqdesign.analysis import analyze as run_analysis
 
     if view_path and Path(view_path).suffix != ".rrd":
@@ -64,6 +108,36 @@ def analyze(sequence, profile, latitude, tolerance_deg, requirements, view_path,
         info(f"wrote {path} (open it with: rerun {path})")
     if as_json:
         emit_json(doc)
+        return
+    click.echo(result.to_text())
+
+
+def _analyze_by_hand(
+    path, profile, latitude, requirements, with_terms, placement_deg, placements, view_path, as_json
+):
+    """``analyze --by-hand POSES``: the prediction of :mod:`seqdesign.handanalysis`."""
+    from calib.extras import as_extras
+    from calib.handposes import load_poses
+    from calib.profiles import as_profile
+    from calib.requirements import load_requirements
+    from seqdesign.handanalysis import analyze_hand
+
+    if view_path is not None:
+        raise CalibError(
+            "--view is not recorded for a pose list", "--view", "leave out --view with --by-hand"
+        )
+    poses = load_poses(path)
+    result = analyze_hand(
+        poses,
+        as_profile(profile),
+        load_requirements(requirements or "mems"),
+        latitude_deg=45.0 if latitude is None else latitude,
+        tolerance_deg=placement_deg,
+        samples=placements,
+        extras=as_extras(with_terms, by_hand=True),
+    )
+    if as_json:
+        emit_json(result.to_json())
         return
     click.echo(result.to_text())
 

@@ -1,0 +1,226 @@
+"""Predicted sigma of a run placed by hand, from its pose list, before anyone records it.
+
+The prediction is the fit's own covariance (:mod:`calib.handfit`) on the noise-free run the
+simulator makes of the poses (:mod:`calib.handsim`): the same rests, moves, weights and unknowns
+the fit of the recording will have, so ``analyze`` and ``calibrate`` cannot disagree by
+construction, only by the recording differing from the plan. A hand places a pose within tens
+of degrees of where it was meant: the placement tolerance draws that many perturbed runs and
+keeps each parameter's worst sigma (a sampled worst case, not a bound). The weakest parameter's
+cure is the face which, added as one more pose, lowers the worst ratio most.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from calib import params as P
+from calib.errors import CalibError
+from calib.extras import Extras
+from calib.handfit import fit_by_hand
+from calib.handplan import HandPlan
+from calib.handposes import AXES, PoseList
+from calib.handsim import simulate_by_hand
+from calib.profiles import NoiseProfile
+from calib.report import format_table, parameter_entries, worst
+from calib.requirements import Requirements
+from calib.sim import SimConfig
+from calib.strapdown import sample_intervals
+from calib.transform import dcm_to_rotvec, rotvec_to_dcm
+
+ANALYSIS_RATE_HZ = 50.0  # noise-free: the information does not depend on it beyond rounding
+OVERSAMPLE = 2
+
+
+@dataclass(frozen=True)
+class HandPrediction:
+    """One plan's predicted sigma (SI) and what it leaves unobserved."""
+
+    sigma: np.ndarray  # (21,)
+    correlation: np.ndarray  # (21, 21)
+    estimable: np.ndarray  # (21,)
+    null_directions: tuple
+
+
+def predict(
+    plan, profile: NoiseProfile, requirements: Requirements, latitude_rad: float, g_sensitivity: bool
+):
+    """The fit's covariance on the noise-free run of ``plan``."""
+    config = SimConfig(latitude_rad=latitude_rad, height_m=0.0, sample_rate_hz=ANALYSIS_RATE_HZ)
+    run, _ = simulate_by_hand(plan, config, oversample=OVERSAMPLE)
+    fit = fit_by_hand(
+        run.time_s,
+        run.dtheta_rad,
+        run.dv_mps,
+        sample_intervals(run.time_s),
+        latitude_rad,
+        config.gravity,
+        profile,
+        g_sensitivity=g_sensitivity,
+        requirements=requirements,
+        partial=True,
+        where=plan_name(plan),
+    )
+    cov = fit.covariance[: P.N_PARAMS, : P.N_PARAMS]
+    sigma = np.sqrt(np.diag(cov))
+    sigma = np.where(fit.estimable[: P.N_PARAMS], sigma, np.inf)
+    d = np.where(np.isfinite(sigma) & (sigma > 0), sigma, 1.0)
+    return HandPrediction(
+        sigma, cov / np.outer(d, d), fit.estimable[: P.N_PARAMS], tuple(fit.null_directions)
+    )
+
+
+def plan_name(plan) -> str:
+    """How a plan is named in messages."""
+    return f"a plan of {len(plan.C_b_n)} poses"
+
+
+def perturbed(poses: PoseList, tolerance_deg: float, rng: np.random.Generator):
+    """The plan with each pose placed within +-tolerance (each axis of a rotation, uniform)."""
+    plan = poses.plan()
+    tilt = rng.uniform(-1.0, 1.0, (len(plan.C_b_n), 3)) * math.radians(tolerance_deg)
+    C = rotvec_to_dcm(tilt) @ plan.C_b_n
+    return HandPlan(C, plan.rest_s, plan.move_s, plan.turn_s, plan.translation_m, plan.wobble_rad, _axes(C))
+
+
+def _axes(C: np.ndarray) -> np.ndarray:
+    """A wobble axis perpendicular to each move's rotation (the plan requires one; no wobble)."""
+    v = dcm_to_rotvec(np.einsum("kji,kjl->kil", C[:-1], C[1:])).reshape(-1, 3)
+    a = np.eye(3)[np.argmin(np.abs(v), axis=1)]
+    p = np.cross(v, a)
+    return p / np.linalg.norm(p, axis=1, keepdims=True)
+
+
+@dataclass(frozen=True)
+class HandAnalysis:
+    """The report of ``analyze --by-hand``."""
+
+    poses: PoseList
+    profile: NoiseProfile
+    requirements: Requirements
+    nominal: HandPrediction
+    worst_sigma: np.ndarray  # (21,) over the placement samples (== nominal without tolerance)
+    tolerance_deg: float
+    samples: int
+    g_sensitivity: bool
+    cure: tuple[str, float, int] | None  # (the face to add, the worst ratio with it, how many unobserved)
+
+    def entries(self) -> dict:
+        return parameter_entries(self.worst_sigma, requirements=self.requirements)
+
+    def to_json(self) -> dict:
+        entries = self.entries()
+        nominal = P.from_si(self.nominal.sigma)
+        for p in P.PARAMETERS:
+            entries[p.name]["sigma_as_planned"] = float(nominal[p.index])
+        pairs = [
+            {"a": P.NAMES[i], "b": P.NAMES[j], "correlation": float(self.nominal.correlation[i, j])}
+            for i in range(P.N_PARAMS)
+            for j in range(i + 1, P.N_PARAMS)
+            if abs(self.nominal.correlation[i, j]) > 0.9
+        ]
+        return {
+            "poses": self.poses.name,
+            "n_poses": len(self.poses.up),
+            "duration_s": self.poses.duration_s,
+            "profile": self.profile.name,
+            "requirements": self.requirements.name,
+            "placement_tolerance_deg": self.tolerance_deg,
+            "placement_samples": self.samples,
+            "g_sensitivity": self.g_sensitivity,
+            "parameters": entries,
+            "worst": worst(entries),
+            "not_estimable": [n for n, ok in zip(P.NAMES, self.nominal.estimable, strict=True) if not ok],
+            "unobserved_directions": list(self.nominal.null_directions),
+            "correlated_pairs": pairs,
+            "cure": None
+            if self.cure is None
+            else {"add_pose_up": self.cure[0], "worst_ratio": self.cure[1], "not_estimable": self.cure[2]},
+        }
+
+    def to_text(self) -> str:
+        doc = self.to_json()
+        w = doc["worst"]
+        lines = [
+            format_table(self.entries()),
+            f"{doc['n_poses']} poses, {doc['duration_s']:.0f} s, profile {self.profile.name}, requirements "
+            f"{self.requirements.name}; "
+            + (
+                f"worst over {self.samples} placements within +-{self.tolerance_deg:g} deg"
+                if self.samples
+                else "as planned"
+            )
+            + (f"; worst 3 sigma/requirement {w['ratio']:.2f} ({w['name']})" if w["name"] else ""),
+        ]
+        if doc["not_estimable"]:
+            lines.append(
+                "not estimable: "
+                + ", ".join(doc["not_estimable"])
+                + "; unobserved: "
+                + "; ".join(doc["unobserved_directions"])
+            )
+        for pair in doc["correlated_pairs"]:
+            lines.append(f"correlated: {pair['a']} and {pair['b']} ({pair['correlation']:+.2f})")
+        if self.cure is not None:
+            lines.append(
+                f"one more pose with {self.cure[0]} up would make the worst ratio {self.cure[1]:.2f}"
+            )
+        return "\n".join(lines)
+
+
+def analyze_hand(
+    poses: PoseList,
+    profile: NoiseProfile,
+    requirements: Requirements,
+    *,
+    latitude_deg: float = 45.0,
+    tolerance_deg: float = 0.0,
+    samples: int = 10,
+    seed: int = 0,
+    extras: Extras | None = None,
+    cure: bool = True,
+) -> HandAnalysis:
+    """Predict the sigmas a recording of ``poses`` will give (see the module)."""
+    if profile.has_gauss_markov:
+        raise CalibError(
+            f"profile {profile.name!r} has a Gauss-Markov bias; runs placed by hand are analysed with "
+            "white noise only",
+            poses.name,
+            "give a profile of white noise (ARW, VRW)",
+        )
+    g_sens = extras is not None and "g-sensitivity" in extras.groups
+    lat = math.radians(latitude_deg)
+    nominal = predict(poses.plan(), profile, requirements, lat, g_sens)
+    worst_sigma = nominal.sigma.copy()
+    n = samples if tolerance_deg > 0 else 0
+    rng = np.random.default_rng(seed)
+    for _ in range(n):
+        worst_sigma = np.maximum(
+            worst_sigma,
+            predict(perturbed(poses, tolerance_deg, rng), profile, requirements, lat, g_sens).sigma,
+        )
+    best = None
+    if cure:
+        # The face that, added as one more pose, leaves fewest parameters unobserved, then the
+        # smallest worst ratio of those it estimates.
+        ranked = []
+        for name, up in AXES.items():
+            extra = PoseList(
+                poses.name,
+                np.vstack([poses.up, up]),
+                np.append(
+                    poses.hold_s, np.median(poses.hold_s[1:]) if len(poses.hold_s) > 1 else poses.hold_s[0]
+                ),
+                np.append(poses.move_s, poses.move_s[-1]),
+            )
+            sigma = predict(extra.plan(), profile, requirements, lat, g_sens).sigma
+            ratio = requirements.ratio(sigma)
+            finite = np.isfinite(ratio)
+            ranked.append(
+                (int((~finite).sum()), float(ratio[finite].max()) if finite.any() else math.inf, name)
+            )
+        missing, ratio, name = min(ranked)
+        best = (name, ratio, missing)
+    return HandAnalysis(poses, profile, requirements, nominal, worst_sigma, tolerance_deg, n, g_sens, best)
