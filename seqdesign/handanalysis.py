@@ -201,7 +201,7 @@ def analyze_hand(
             worst_sigma,
             predict(perturbed(poses, tolerance_deg, rng), profile, requirements, lat, g_sens).sigma,
         )
-    best = None
+    best: tuple[str, float, int] | None = None
     if cure:
         # The face that, added as one more pose, leaves fewest parameters unobserved, then the
         # smallest worst ratio of those it estimates.
@@ -216,11 +216,11 @@ def analyze_hand(
                 np.append(poses.move_s, poses.move_s[-1]),
             )
             sigma = predict(extra.plan(), profile, requirements, lat, g_sens).sigma
-            ratio = requirements.ratio(sigma)
-            finite = np.isfinite(ratio)
+            ratios = requirements.ratio(sigma)
+            finite = np.isfinite(ratios)
             ranked.append(
-                (int((~finite).sum()), float(ratio[finite].max()) if finite.any() else math.inf, name)
+                (int((~finite).sum()), float(ratios[finite].max()) if finite.any() else math.inf, name)
             )
-        missing, ratio, name = min(ranked)
-        best = (name, ratio, missing)
+        missing, worst_ratio, face = min(ranked)
+        best = (face, worst_ratio, missing)
     return HandAnalysis(poses, profile, requirements, nominal, worst_sigma, tolerance_deg, n, g_sens, best)
