@@ -183,7 +183,7 @@ def _api_design() -> dict:
     return scrub(report.to_json())
 
 
-def compare(got, want, where: str = "", rel: float = 1e-9) -> list[str]:
+def compare(got, want, where: str = "", rel: float = 1e-8) -> list[str]:
     """Differences between two documents: numbers beyond ``rel`` relative, anything else unequal."""
     if isinstance(want, dict):
         if not isinstance(got, dict) or set(got) != set(want):
