@@ -50,8 +50,8 @@ def candidate_ups(kind: str) -> dict[str, np.ndarray]:
         # Face normals of an icosahedron: the vertices of a dodecahedron, normalised.
         g = (1 + math.sqrt(5)) / 2
         verts = [np.array(v, float) for v in itertools.product((-1, 1), repeat=3)]
-        for a, b in itertools.product((-1, 1), repeat=2):
-            verts += [np.array([0, a / g, b * g]), np.array([a / g, b * g, 0]), np.array([a * g, 0, b / g])]
+        for p, q in itertools.product((-1.0, 1.0), repeat=2):
+            verts += [np.array([0, p / g, q * g]), np.array([p / g, q * g, 0]), np.array([p * g, 0, q / g])]
         return {f"ico{k + 1}": v / np.linalg.norm(v) for k, v in enumerate(verts)}
     raise CalibError(f"unknown pose set {kind!r}", "--pose-set", "choose cube, grid or icosahedron")
 

@@ -104,6 +104,39 @@ PROGRESS_EVERY_S = 2.0  # at most one progress line this often, besides each pha
 )
 @click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True, help="Local processes.")
 @click.option("--scheduler", default=None, help="dask.distributed scheduler address.")
+@click.option(
+    "--by-hand",
+    is_flag=True,
+    help="Design a run placed by hand instead (docs/by-hand.md): the poses, their order and holds "
+    "within --budget-min, written as a pose list (-o) and a printable protocol (--protocol).",
+)
+@click.option(
+    "--move-s", type=click.FloatRange(0.5, 60.0), default=3.0, show_default=True, help="--by-hand: a move, s."
+)
+@click.option(
+    "--min-hold-s",
+    type=click.FloatRange(1.0, 600.0),
+    default=5.0,
+    show_default=True,
+    help="--by-hand: shortest hold, s.",
+)
+@click.option(
+    "--first-rest-s",
+    type=click.FloatRange(1.0, 3600.0),
+    default=30.0,
+    show_default=True,
+    help="--by-hand: the static start, s.",
+)
+@click.option(
+    "--pose-set",
+    type=click.Choice(["grid", "cube", "icosahedron"]),
+    default="grid",
+    show_default=True,
+    help="--by-hand: candidate poses (grid: faces, edges and corners of a box).",
+)
+@click.option(
+    "--protocol", "protocol_path", metavar="FILE.md", help="--by-hand: also write the protocol (and its PNG)."
+)
 @options.as_json
 @options.gimbal(
     "Only moves this gimbal plays (docs/gimbal.md); --rate-dps defaults to its rate.", metavar="FILE|NAME"
@@ -133,6 +166,12 @@ def design(
     workers,
     scheduler,
     as_json,
+    by_hand=False,
+    move_s=3.0,
+    min_hold_s=5.0,
+    first_rest_s=30.0,
+    pose_set="grid",
+    protocol_path=None,
     with_terms=None,
     gimbal_file=None,
 ):
@@ -141,6 +180,24 @@ def design(
     case of the mounting tolerance, refine the best's dwells with IPOPT, and
     write it as a sequence file with its provenance.
     """
+    if by_hand:
+        from .designhand import design_by_hand
+
+        return design_by_hand(
+            budget_min,
+            move_s,
+            min_hold_s,
+            first_rest_s,
+            pose_set,
+            profile,
+            latitude,
+            requirements,
+            with_terms,
+            output,
+            name,
+            protocol_path,
+            as_json,
+        )
     from calib.fileio import check_writable_dir
     from seqdesign.search import design_budgets, parse_node
     from seqdesign.search.report import design_names
