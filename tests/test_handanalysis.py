@@ -13,8 +13,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from calib import params as P
 from calib.calibration import calibrate
 from calib.errors import CalibError
+from calib.handinfo import plan_sigma
 from calib.handposes import load_poses, tip_to
 from calib.handsim import draw_errors, simulate_by_hand
 from calib.profiles import load_profile
@@ -22,6 +24,8 @@ from calib.requirements import load_requirements
 from calib.sim import SimConfig
 from seqdesign.cli import main
 from seqdesign.handanalysis import analyze_hand
+from seqdesign.handdesign import design_hand
+from seqdesign.handprotocol import pose_toml, protocol_markdown
 from seqdesign.verify import error_half_range
 
 MEMS = load_profile("mems")
@@ -137,3 +141,40 @@ def test_cli_analyze_by_hand_json(tmp_path):
     # The worst over the placements is never better than the plan as drawn.
     for e in doc["parameters"].values():
         assert e["sigma"] >= e["sigma_as_planned"] * (1 - 1e-12)
+
+
+def test_the_fast_information_is_the_simulated_prediction(tmp_path):
+    # The design search's fast path (the fit's rows at the truth, no simulated run) against the
+    # prediction through the simulator and the rest finder: 1.5 % (the rests' trimmed ends).
+    poses = load_poses(_write(tmp_path, TWELVE))
+    slow = analyze_hand(poses, MEMS, REQ, cure=False).nominal.sigma
+    fast, estimable = plan_sigma(poses.attitudes(), poses.hold_s, poses.move_s, MEMS, REQ, math.radians(45.0))
+    assert estimable.all()
+    assert np.allclose(fast, slow, rtol=0.015)
+
+
+def test_a_hand_design_observes_all_and_respects_the_bias_bound(tmp_path):
+    # A 3.5 min plan with a 20 s start: every parameter estimable, no worse than its seed alone,
+    # and no gyro bias better than ARW / sqrt(duration) (every second tells the bias through the
+    # ARW alone: the bound no plan beats).
+    design = design_hand(210.0, MEMS, REQ, first_rest_s=20.0, counts=(13,))
+    assert np.all(np.isfinite(design.sigma))
+    bound = MEMS.arw / math.sqrt(design.poses.duration_s)
+    assert np.all(design.sigma[P.GYRO_BIAS] >= bound * (1 - 1e-9))
+    assert design.bias_bound_ratio <= design.worst_ratio
+    seed_only = design_hand(210.0, MEMS, REQ, first_rest_s=20.0, counts=(12,))
+    assert design.worst_ratio <= seed_only.worst_ratio * 1.05
+    # The pose list it writes reads back as the same plan, and the protocol numbers every pose.
+    path = _write(tmp_path, pose_toml(design.poses, "a test"), "design.toml")
+    again = load_poses(path)
+    assert np.allclose(again.up, design.poses.up) and np.allclose(again.hold_s, design.poses.hold_s)
+    text = protocol_markdown(design.poses, "summary")
+    assert all(f"\n{k}. " in text for k in range(1, len(design.poses.up) + 1))
+
+
+def test_cli_design_by_hand_refuses_a_budget_too_short(tmp_path):
+    res = CliRunner().invoke(
+        main, ["design", "--by-hand", "--budget-min", "1", "-o", str(tmp_path / "h.toml")]
+    )
+    assert res.exit_code != 0 and "Traceback" not in res.output and "fewer than" in res.output
+    assert not (tmp_path / "h.toml").exists()
