@@ -56,6 +56,7 @@ def candidate_ups(kind: str) -> dict[str, np.ndarray]:
     raise CalibError(f"unknown pose set {kind!r}", "--pose-set", "choose cube, grid or icosahedron")
 
 
+MAX_POSES = 45
 # Twelve poses around all three axes (faces and edges, tipped from one to the next) whose plan
 # observes all 21: what the greedy search grows from.
 SEED = [
@@ -132,9 +133,10 @@ def design_hand(
             "--budget-min",
             "give more time, shorter holds or a shorter static start",
         )
-    counts = counts or tuple(
-        sorted({n for n in (6, 9, 12, 16, 20, 25, 30, 36, 45, n_max) if 6 <= n <= n_max})
-    )
+    # Four pose counts from the seed's to the most the budget holds (at most 45: beyond, holds shrink
+    # to the floor and a person loses count).
+    top = min(n_max, MAX_POSES)
+    counts = counts or tuple(sorted({int(round(x)) for x in np.linspace(len(SEED), top, 4)}))
     best: HandDesign | None = None
     for n in counts:
         hold = room / n - move_s
