@@ -105,9 +105,8 @@ def main() -> None:
             f"| {w1['ratio']:.3f} ({w1['name']}) | {mc:.3f} |"
         )
     print()
-    print(
-        f"own / design, placed: {rows[0][4]['ratio'] / rows[1][4]['ratio']:.2f}x; Monte Carlo: {rows[0][5] / rows[1][5]:.2f}x"
-    )
+    placed = rows[0][4]["ratio"] / rows[1][4]["ratio"]
+    print(f"own / design, placed: {placed:.2f}x; Monte Carlo: {rows[0][5] / rows[1][5]:.2f}x")
 
 
 if __name__ == "__main__":
