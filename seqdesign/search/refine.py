@@ -262,6 +262,10 @@ def _ratios_callback(ratios_many, n: int, scale: float):
     def jacobian(x):
         steps = REFINE_FD_STEP * np.eye(n)
         r = ratios_many(np.vstack([x + steps, x - steps]) * scale)
-        return (r[:n] - r[n:]).T / (2.0 * REFINE_FD_STEP)
+        # A ratio that is infinite on both sides (a parameter not estimable there) has no slope to
+        # give: zero, rather than the nan of inf - inf.
+        with np.errstate(invalid="ignore"):
+            slope = (r[:n] - r[n:]).T / (2.0 * REFINE_FD_STEP)
+        return np.where(np.isfinite(slope), slope, 0.0)
 
     return ipopt.function("ratios", n, P.N_PARAMS, value, jacobian)
