@@ -199,7 +199,9 @@ def _start(data: HandData, dtheta, dv, dt, values, G, omega_n) -> np.ndarray:
 
 
 @dataclass
-class _State:
+class FitState:
+    """The unknowns of one iteration (SI): the 21, the g-sensitivity, the Earth rate, the attitudes."""
+
     values: np.ndarray  # (21,)
     G: np.ndarray  # (3, 3) gyro g-sensitivity, (rad/s)/(m/s^2)
     h: np.ndarray  # (2,)
@@ -218,12 +220,12 @@ class _State:
             self.C[r] = rotvec_to_dcm(Smap @ step[cols]) @ self.C[r]
 
 
-def _linearise(
+def linearise(
     data: HandData,
     dtheta,
     dv,
     dt,
-    state: _State,
+    state: FitState,
     layout: Layout,
     latitude_rad,
     g,
@@ -294,7 +296,7 @@ def _linearise(
     return e, s, jac, groups
 
 
-def _scales(layout: Layout, req: Requirements, latitude_rad: float) -> np.ndarray:
+def unknown_scales(layout: Layout, req: Requirements, latitude_rad: float) -> np.ndarray:
     """The size each unknown is judged at: requirements, 10 deg/h/g, the Earth rate, a milliradian."""
     scale = np.full(layout.n, ATTITUDE_SCALE)
     scale[:N] = req.si
@@ -358,15 +360,15 @@ def fit_by_hand(
     values[P.GYRO_BIAS] = np.average(data.rest_rate, axis=0, weights=data.rest_time_s)
     G = np.zeros((3, 3))
     omega_n = np.array([0.0, 0.0, earth.RATE * math.sin(latitude_rad)])
-    state = _State(values, G, np.zeros(2), _start(data, dtheta, dv, dt, values, G, omega_n))
-    scale = _scales(layout, requirements, latitude_rad)
+    state = FitState(values, G, np.zeros(2), _start(data, dtheta, dv, dt, values, G, omega_n))
+    scale = unknown_scales(layout, requirements, latitude_rad)
     names = layout.names()
     args = (data, dtheta, dv, dt)
     site = (latitude_rad, gravity_mps2, profile, heading_prior)
     history: list = []
     converged = False
     for iteration in range(1, MAX_ITERATIONS + 1):
-        e, s, jac, _ = _linearise(*args, state, layout, *site)
+        e, s, jac, _ = linearise(*args, state, layout, *site)
         Jw = jac / s[:, None] * scale
         inv = scaled_inverse(Jw.T @ Jw, names=names)
         step = scale * (inv.covariance @ (Jw.T @ (e / s)))
@@ -377,7 +379,7 @@ def fit_by_hand(
         if max_step < STEP_TOL_SIGMA:
             converged = True
             break
-    e, s, jac, groups = _linearise(*args, state, layout, *site)
+    e, s, jac, groups = linearise(*args, state, layout, *site)
     Jw = jac / s[:, None] * scale
     inv = scaled_inverse(Jw.T @ Jw, names=names)
     estimable = inv.estimable[: layout.h.start]

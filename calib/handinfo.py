@@ -18,7 +18,7 @@ import numpy as np
 
 from . import earth
 from . import params as P
-from .handfit import HandData, Layout, _linearise, _scales, _State
+from .handfit import FitState, HandData, Layout, linearise, unknown_scales
 from .handplan import min_jerk
 from .handposes import TURN_FRACTION
 from .information import scaled_inverse
@@ -86,11 +86,11 @@ def plan_sigma(
         np.ones(K - 1, dtype=bool),
     )
     layout = Layout(K, g_sensitivity)
-    state = _State(np.zeros(P.N_PARAMS), np.zeros((3, 3)), omega_n[:2].copy(), np.array(C_b_n, dtype=float))
-    _, s, jac, _ = _linearise(
+    state = FitState(np.zeros(P.N_PARAMS), np.zeros((3, 3)), omega_n[:2].copy(), np.array(C_b_n, dtype=float))
+    _, s, jac, _ = linearise(
         data, np.array(dtheta), np.array(dv), np.array(dt), state, layout, latitude_rad, g, profile
     )
-    scale = _scales(layout, requirements, latitude_rad)
+    scale = unknown_scales(layout, requirements, latitude_rad)
     Jw = jac / s[:, None] * scale
     M = Jw.T @ Jw
     # The rests' attitudes and the Earth rate eliminated first (Schur complement): the observability

@@ -19,7 +19,7 @@ from calib import earth
 from calib import params as P
 from calib.errormodel import ErrorModel
 from calib.errors import CalibError
-from calib.handfit import Layout, _linearise, _State, fit_by_hand, hand_data
+from calib.handfit import FitState, Layout, fit_by_hand, hand_data, linearise
 from calib.handmoves import move_rotation, move_sensitivity
 from calib.profiles import NoiseProfile
 from calib.requirements import load_requirements
@@ -145,18 +145,18 @@ def test_the_fit_jacobian_matches_finite_differences():
     layout = Layout(data.count, True)
     # Near the truth, as a Gauss-Newton iterate is (the moves' rows are linearised about a small residual).
     C0 = np.array([rotvec_to_dcm(rng.normal(size=3) * 0.01) @ C for C in C_true])
-    state = _State(errors.values * 0.9, rng.normal(size=(3, 3)) * 1e-4, np.array([1e-5, 2e-5]), C0)
-    e, s, J, _ = _linearise(data, dtheta, dv, dt, state, layout, LAT, G, PROFILE)
+    state = FitState(errors.values * 0.9, rng.normal(size=(3, 3)) * 1e-4, np.array([1e-5, 2e-5]), C0)
+    e, s, J, _ = linearise(data, dtheta, dv, dt, state, layout, LAT, G, PROFILE)
     scale = np.concatenate([np.abs(errors.values) + 1e-6, np.full(layout.n - 21, 1e-4)])
     for i in rng.choice(layout.n, 25, replace=False):
         step = np.zeros(layout.n)
         step[i] = 1e-4 * scale[i]
-        plus = _State(state.values.copy(), state.G.copy(), state.h.copy(), state.C.copy())
-        minus = _State(state.values.copy(), state.G.copy(), state.h.copy(), state.C.copy())
+        plus = FitState(state.values.copy(), state.G.copy(), state.h.copy(), state.C.copy())
+        minus = FitState(state.values.copy(), state.G.copy(), state.h.copy(), state.C.copy())
         plus.update(step, layout)
         minus.update(-step, layout)
-        ep = _linearise(data, dtheta, dv, dt, plus, layout, LAT, G, PROFILE)[0]
-        em = _linearise(data, dtheta, dv, dt, minus, layout, LAT, G, PROFILE)[0]
+        ep = linearise(data, dtheta, dv, dt, plus, layout, LAT, G, PROFILE)[0]
+        em = linearise(data, dtheta, dv, dt, minus, layout, LAT, G, PROFILE)[0]
         numeric = -(ep - em) / (2 * step[i])
         # The Jacobian is the prediction's (residual = data - prediction); the moves' rows drop the
         # coning term's derivative and the residual's own rotation (both second order): 1 %.
