@@ -50,7 +50,8 @@ def _rows(path: str | os.PathLike) -> tuple[list[tuple[int, str]], str]:
     """Non-comment, non-blank lines with their 1-based numbers."""
     name = str(path)
     try:
-        text = open(path, "rb").read().decode("utf-8", errors="strict")
+        with open(path, "rb") as handle:
+            text = handle.read().decode("utf-8", errors="strict")
     except FileNotFoundError:
         raise CalibError("file not found", name, "check the path") from None
     except (OSError, UnicodeDecodeError) as exc:
