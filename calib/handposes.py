@@ -55,13 +55,7 @@ class PoseList:
 
     def plan(self) -> HandPlan:
         """The simulator's plan of these poses: fixed-axis turns, no translation."""
-        C = self.attitudes()
-        n = len(C) - 1
-        rotvec = np.array([dcm_to_rotvec(C[k].T @ C[k + 1]) for k in range(n)]).reshape(n, 3)
-        axis = np.array([_perpendicular(v) for v in rotvec]).reshape(n, 3)
-        return HandPlan(
-            C, self.hold_s, self.move_s, TURN_FRACTION * self.move_s, np.zeros((n, 3)), np.zeros(n), axis
-        )
+        return tipping_plan(self.attitudes(), self.hold_s, self.move_s)
 
     @property
     def duration_s(self) -> float:
@@ -81,10 +75,20 @@ def tip_to(C: np.ndarray, up_body: np.ndarray) -> np.ndarray:
     return rotvec_to_dcm(axis / s * angle) @ C
 
 
-def _perpendicular(v: np.ndarray) -> np.ndarray:
-    a = np.eye(3)[int(np.argmin(np.abs(v)))]
-    p = np.cross(v, a) if np.linalg.norm(v) > 0 else np.array([1.0, 0.0, 0.0])
-    return p / np.linalg.norm(p)
+def tipping_plan(C_b_n: np.ndarray, hold_s: np.ndarray, move_s: np.ndarray) -> HandPlan:
+    """The simulator's plan of rests at ``C_b_n``: each move the smallest turn to the next rest,
+    fixed-axis (no wobble) over :data:`TURN_FRACTION` of it, no translation.
+    """
+    n = len(C_b_n) - 1
+    rotvec = dcm_to_rotvec(np.einsum("kji,kjl->kil", C_b_n[:-1], C_b_n[1:])).reshape(n, 3)
+    # The plan asks for a wobble axis perpendicular to each turn, even without a wobble.
+    helper = np.eye(3)[np.argmin(np.abs(rotvec), axis=1)]
+    axis = np.cross(rotvec, helper)
+    axis[np.linalg.norm(axis, axis=1) < 1e-12] = [1.0, 0.0, 0.0]
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    return HandPlan(
+        C_b_n, hold_s, move_s, TURN_FRACTION * np.asarray(move_s), np.zeros((n, 3)), np.zeros(n), axis
+    )
 
 
 def load_poses(path: str | Path) -> PoseList:

@@ -20,15 +20,14 @@ from calib import params as P
 from calib.errors import CalibError
 from calib.extras import Extras
 from calib.handfit import fit_by_hand
-from calib.handplan import HandPlan
-from calib.handposes import AXES, PoseList
+from calib.handposes import AXES, PoseList, tipping_plan
 from calib.handsim import simulate_by_hand
 from calib.profiles import NoiseProfile
 from calib.report import format_table, parameter_entries, worst
 from calib.requirements import Requirements
 from calib.sim import SimConfig
 from calib.strapdown import sample_intervals
-from calib.transform import dcm_to_rotvec, rotvec_to_dcm
+from calib.transform import rotvec_to_dcm
 
 ANALYSIS_RATE_HZ = 50.0  # noise-free: the information does not depend on it beyond rounding
 OVERSAMPLE = 2
@@ -82,15 +81,7 @@ def perturbed(poses: PoseList, tolerance_deg: float, rng: np.random.Generator):
     plan = poses.plan()
     tilt = rng.uniform(-1.0, 1.0, (len(plan.C_b_n), 3)) * math.radians(tolerance_deg)
     C = rotvec_to_dcm(tilt) @ plan.C_b_n
-    return HandPlan(C, plan.rest_s, plan.move_s, plan.turn_s, plan.translation_m, plan.wobble_rad, _axes(C))
-
-
-def _axes(C: np.ndarray) -> np.ndarray:
-    """A wobble axis perpendicular to each move's rotation (the plan requires one; no wobble)."""
-    v = dcm_to_rotvec(np.einsum("kji,kjl->kil", C[:-1], C[1:])).reshape(-1, 3)
-    a = np.eye(3)[np.argmin(np.abs(v), axis=1)]
-    p = np.cross(v, a)
-    return p / np.linalg.norm(p, axis=1, keepdims=True)
+    return tipping_plan(C, plan.rest_s, plan.move_s)
 
 
 @dataclass(frozen=True)
