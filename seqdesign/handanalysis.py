@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -21,6 +22,7 @@ from calib.errors import CalibError
 from calib.extras import Extras
 from calib.handfit import fit_by_hand
 from calib.handposes import AXES, PoseList, tipping_plan
+from calib.handrun import hand_fit_of
 from calib.handsim import simulate_by_hand
 from calib.profiles import NoiseProfile
 from calib.report import format_table, parameter_entries, worst
@@ -97,6 +99,7 @@ class HandAnalysis:
     samples: int
     g_sensitivity: bool
     cure: tuple[str, float, int] | None  # (the face to add, the worst ratio with it, how many unobserved)
+    recorded: bool = False  # from a recorded log's own rests and moves, not a pose list
 
     def entries(self) -> dict:
         return parameter_entries(self.worst_sigma, requirements=self.requirements)
@@ -120,6 +123,7 @@ class HandAnalysis:
             "requirements": self.requirements.name,
             "placement_tolerance_deg": self.tolerance_deg,
             "placement_samples": self.samples,
+            "recorded": self.recorded,
             "g_sensitivity": self.g_sensitivity,
             "parameters": entries,
             "worst": worst(entries),
@@ -139,7 +143,9 @@ class HandAnalysis:
             f"{doc['n_poses']} poses, {doc['duration_s']:.0f} s, profile {self.profile.name}, requirements "
             f"{self.requirements.name}; "
             + (
-                f"worst over {self.samples} placements within +-{self.tolerance_deg:g} deg"
+                "as recorded (the log's own rests and moves)"
+                if self.recorded
+                else f"worst over {self.samples} placements within +-{self.tolerance_deg:g} deg"
                 if self.samples
                 else "as planned"
             )
@@ -215,3 +221,31 @@ def analyze_hand(
         missing, worst_ratio, face = min(ranked)
         best = (face, worst_ratio, missing)
     return HandAnalysis(poses, profile, requirements, nominal, worst_sigma, tolerance_deg, n, g_sens, best)
+
+
+def analyze_recording(
+    run, site, profile: NoiseProfile, requirements: Requirements, extras=None
+) -> HandAnalysis:
+    """The prediction of a recorded hand run from its own rests and moves (as the fit finds them).
+
+    The sigmas are the fit's covariance before any Birge inflation: what the recording's
+    geometry and the profile's noise allow, whatever its residuals.
+    """
+    ext = extras if extras is not None else Extras()
+    hand = hand_fit_of(run, site, profile, ext, True, requirements)
+    rests = hand.data.rests
+    period = float(np.median(sample_intervals(run.time_s)))
+    poses = PoseList(
+        Path(run.source).name,
+        np.einsum("kji,j->ki", hand.C_rest, [0.0, 0.0, 1.0]),
+        (rests.end - rests.start) * period,
+        (rests.start[1:] - rests.end[:-1]) * period,
+    )
+    cov = hand.covariance[: P.N_PARAMS, : P.N_PARAMS]
+    sigma = np.where(hand.estimable[: P.N_PARAMS], np.sqrt(np.diag(cov)), np.inf)
+    d = np.where(np.isfinite(sigma) & (sigma > 0), sigma, 1.0)
+    nominal = HandPrediction(
+        sigma, cov / np.outer(d, d), hand.estimable[: P.N_PARAMS], tuple(hand.null_directions)
+    )
+    g_sens = "g-sensitivity" in ext.groups
+    return HandAnalysis(poses, profile, requirements, nominal, sigma, 0.0, 0, g_sens, None, recorded=True)

@@ -207,3 +207,41 @@ def test_imucal_recording_calibrates_by_its_sample_counter(tmp_path):
         assert any(lo <= a and b <= hi for lo, hi in rests), name
     # chi2/dof above 2: the worst rests and moves are named with their times.
     assert doc["fit"]["chi2_per_dof"] > 2 and doc["by_hand"]["worst_moves"]
+
+
+@needs_realdata
+def test_analyze_of_a_recording_is_the_sigma_calibrating_it_reports(tmp_path):
+    # From the recording's own rests and moves: the prediction is the fit's covariance, so it is
+    # what calibrate reports (its chi2/dof 1.03 is below the Birge limit: no inflation either side).
+    d = REALDATA / "imu_tk-xsens"
+    reading = [
+        "--gyro-file",
+        str(d / "xsens_gyro.mat.gz"),
+        "--conversion",
+        str(d / "xsens-nominal-values.txt"),
+    ]
+    reading += [
+        "--profile",
+        "mems",
+        "--latitude",
+        "45.4",
+        "--height",
+        "0",
+        "--with",
+        "g-sensitivity",
+        "--json",
+    ]
+    runner = CliRunner()
+    res = runner.invoke(main, ["analyze", str(d / "xsens_acc.mat.gz"), "--by-hand", *reading])
+    assert res.exit_code == 0, res.output
+    predicted = json.loads(res.stdout)
+    res = runner.invoke(
+        main,
+        ["calibrate", str(d / "xsens_acc.mat.gz"), "--by-hand", *reading, "-o", str(tmp_path / "r.toml")],
+    )
+    achieved = json.loads(res.stdout)
+    assert predicted["recorded"] and predicted["n_poses"] == 38
+    for name in P.NAMES:
+        assert predicted["parameters"][name]["sigma"] == pytest.approx(
+            achieved["parameters"][name]["sigma"], rel=0.1
+        )

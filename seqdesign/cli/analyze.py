@@ -54,6 +54,12 @@ TOLERANCE = click.FloatRange(0.0, 10.0)
     show_default=True,
     help="--by-hand: perturbed placements drawn for the worst case (0: as planned only).",
 )
+@options.height("--by-hand LOG: site height, m, for a logger's file that does not carry it.")
+@options.gravity("--by-hand LOG: surveyed site gravity, m/s^2.")
+@options.columns
+@options.gyro_file
+@options.conversion
+@options.log_sample_rate()
 @options.as_json
 @guarded
 def analyze(
@@ -67,6 +73,12 @@ def analyze(
     by_hand,
     placement_deg,
     placements,
+    height,
+    gravity_mps2,
+    columns,
+    gyro_file,
+    conversion,
+    sample_rate_hz,
     as_json,
 ):
     """Fisher information of SEQUENCE under a noise profile: predicted sigma of
@@ -75,6 +87,8 @@ def analyze(
     worst case over the +-tolerance mounting box.
     """
     if by_hand:
+        reading = dict(latitude_deg=latitude, height_m=height, columns=columns, gyro_file=gyro_file)
+        reading |= dict(conversion=conversion, sample_rate_hz=sample_rate_hz, gravity_mps2=gravity_mps2)
         return _analyze_by_hand(
             sequence,
             profile,
@@ -85,6 +99,7 @@ def analyze(
             placements,
             view_path,
             as_json,
+            reading,
         )
     from seqdesign.analysis import analyze as run_analysis
 
@@ -113,9 +128,9 @@ def analyze(
 
 
 def _analyze_by_hand(
-    path, profile, latitude, requirements, with_terms, placement_deg, placements, view_path, as_json
+    path, profile, latitude, requirements, with_terms, placement_deg, placements, view_path, as_json, reading
 ):
-    """``analyze --by-hand POSES``: the prediction of :mod:`seqdesign.handanalysis`."""
+    """``analyze --by-hand POSES`` (or a recorded LOG): the prediction of :mod:`seqdesign.handanalysis`."""
     from calib.extras import as_extras
     from calib.handposes import load_poses
     from calib.profiles import as_profile
@@ -126,16 +141,41 @@ def _analyze_by_hand(
         raise CalibError(
             "--view is not recorded for a pose list", "--view", "leave out --view with --by-hand"
         )
-    poses = load_poses(path)
-    result = analyze_hand(
-        poses,
-        as_profile(profile),
-        load_requirements(requirements or "mems"),
-        latitude_deg=45.0 if latitude is None else latitude,
-        tolerance_deg=placement_deg,
-        samples=placements,
-        extras=as_extras(with_terms, by_hand=True),
-    )
+    if not str(path).lower().endswith(".toml"):  # a recorded log: its own rests and moves
+        from calib.runlog import read_run
+        from calib.site import site_of
+        from seqdesign.handanalysis import analyze_recording
+
+        from .reading import hand_reading, run_notes
+
+        hand = hand_reading(reading["gyro_file"], reading["conversion"], reading["sample_rate_hz"])
+        run = read_run(
+            path,
+            latitude_deg=reading["latitude_deg"],
+            height_m=reading["height_m"],
+            columns=reading["columns"],
+            **hand,
+        )
+        gravity, notes = run_notes(run, reading["gravity_mps2"])
+        for note in notes:
+            info(note)
+        result = analyze_recording(
+            run,
+            site_of(run, gravity),
+            as_profile(profile),
+            load_requirements(requirements or "mems"),
+            as_extras(with_terms, by_hand=True),
+        )
+    else:
+        result = analyze_hand(
+            load_poses(path),
+            as_profile(profile),
+            load_requirements(requirements or "mems"),
+            latitude_deg=45.0 if latitude is None else latitude,
+            tolerance_deg=placement_deg,
+            samples=placements,
+            extras=as_extras(with_terms, by_hand=True),
+        )
     if as_json:
         emit_json(result.to_json())
         return
