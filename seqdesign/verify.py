@@ -23,11 +23,13 @@ from calib.errors import CalibError
 from calib.extras import NONE as NO_EXTRAS
 from calib.extras import Extras
 from calib.handplan import random_hand_plan, xsens_like_plan
+from calib.handposes import PoseList, tipping_plan
 from calib.handsim import simulate_by_hand
 from calib.profiles import NoiseProfile
 from calib.requirements import PAPER, Requirements
 from calib.sequence import Sequence
 from calib.sim import SimConfig, simulate
+from calib.transform import rotvec_to_dcm
 
 from .search.parallel import map_jobs
 
@@ -77,12 +79,20 @@ class HandShape:
     translation_m: float = 0.3
     wobble_deg: float = 10.0
     g_sensitivity: bool = False  # fit the gyro g-sensitivity too (the truth has none)
+    pose_list: PoseList | None = None  # a user's poses instead of random ones
+    placement_deg: float = 0.0  # each pose of the pose list placed within this (each axis)
 
     @property
     def name(self) -> str:
+        if self.pose_list is not None:
+            return f"by hand ({self.pose_list.name})"
         return f"by hand ({self.like}-like)" if self.like else f"by hand ({self.poses} random poses)"
 
     def plan(self, rng: np.random.Generator):
+        if self.pose_list is not None:
+            C = self.pose_list.attitudes()
+            tilt = rng.uniform(-1.0, 1.0, (len(C), 3)) * np.radians(self.placement_deg)
+            return tipping_plan(rotvec_to_dcm(tilt) @ C, self.pose_list.hold_s, self.pose_list.move_s)
         if self.like == "xsens":
             return xsens_like_plan(
                 rng,

@@ -245,3 +245,24 @@ def test_analyze_of_a_recording_is_the_sigma_calibrating_it_reports(tmp_path):
         assert predicted["parameters"][name]["sigma"] == pytest.approx(
             achieved["parameters"][name]["sigma"], rel=0.1
         )
+
+
+def test_verify_a_pose_list_against_its_prediction(tmp_path):
+    # The Monte Carlo of a pose list is held against analyze --by-hand's prediction: the column
+    # the random-pose verification leaves empty is filled, and a few runs stay honest.
+    poses = tmp_path / "poses.toml"
+    ups = ["+z", "+x", "[1, 1, 0]", "+y", "[0, 1, 1]", "-z", "[-1, 0, -1]", "-x", "[-1, -1, 0]", "-y"]
+    ups += ["[0, -1, 1]", "[1, 0, 1]", "+z"]
+    poses.write_text(
+        'name = "twelve"\nfirst_rest_s = 30\n'
+        + "".join(
+            f"[[pose]]\nup = {u if u.startswith('[') else repr(u).replace(chr(39), chr(34))}\n" for u in ups
+        )
+    )
+    res = CliRunner().invoke(
+        main, ["verify", str(poses), "--by-hand", "--profile", "mems", "--runs", "3", "--seed", "2", "--json"]
+    )
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["requirements"] == "mems" and doc["converged"] == 3
+    assert all(e["predicted_sigma"] is not None for e in doc["parameters"].values())

@@ -62,6 +62,13 @@ from .tools import emit_json, guarded, info
     "--poses", type=click.IntRange(3, 1000), default=20, show_default=True, help="--by-hand: rests per run."
 )
 @click.option(
+    "--placement-deg",
+    type=click.FloatRange(0.0, 45.0),
+    default=0.0,
+    show_default=True,
+    help="--by-hand with a pose list: each run places each pose within this of the plan (each axis).",
+)
+@click.option(
     "--peak-rate-dps",
     type=click.FloatRange(1.0, 5000.0),
     help="--by-hand: the fastest turn of a run peaks at this rate, deg/s.",
@@ -91,6 +98,7 @@ def verify(
     like,
     poses,
     peak_rate_dps,
+    placement_deg,
     plot_path,
     as_json,
 ):
@@ -119,7 +127,8 @@ def verify(
         raise CalibError("--workers and --scheduler both given", None, "choose one")
     if plot_path and Path(plot_path).suffix.lower() != ".png":
         raise CalibError(f"plot {plot_path!r} must end in .png", "--plot")
-    prof, req = as_profile(profile), load_requirements(requirements)
+    # A unit placed by hand is judged by the mems requirements unless told otherwise, as calibrate does.
+    prof, req = as_profile(profile), load_requirements(requirements or ("mems" if by_hand else None))
     if by_hand or sequence is None:
         from .verifyhand import verify_by_hand
 
@@ -136,7 +145,7 @@ def verify(
             seed,
             errors_file,
             table2,
-            (like, poses, peak_rate_dps, by_hand),
+            (like, poses, peak_rate_dps, by_hand, placement_deg),
             plot_path,
             as_json,
         )

@@ -32,7 +32,8 @@ def verify_by_hand(
     """Simulate and calibrate ``runs`` runs placed by hand; report as ``verify`` does.
 
     ``site`` is ``(latitude, height, gravity_mps2)`` as given, ``shape`` ``(like, poses,
-    peak_rate_dps, by_hand)``.
+    peak_rate_dps, by_hand, placement_deg)``; a SEQUENCE given with ``--by-hand`` is a pose list,
+    whose runs are held against ``analyze --by-hand``'s prediction.
     """
     import numpy as np
 
@@ -44,13 +45,18 @@ def verify_by_hand(
     from seqdesign.verify import HandShape
     from seqdesign.verify import verify as run_verify
 
-    like, poses, peak_rate_dps, by_hand = shape
+    like, poses, peak_rate_dps, by_hand, placement_deg = shape
+    pose_list = None
     if sequence is not None:
-        raise CalibError(
-            f"a sequence ({sequence}) and --by-hand both given",
-            "--by-hand",
-            "a run placed by hand follows no sequence: drop SEQUENCE, or drop --by-hand",
-        )
+        if not by_hand or not str(sequence).lower().endswith(".toml"):
+            raise CalibError(
+                f"{sequence} given with --by-hand",
+                "--by-hand",
+                "give a pose list (docs/by-hand.md) with --by-hand, or a sequence without it",
+            )
+        from calib.handposes import load_poses
+
+        pose_list = load_poses(sequence)
     if not by_hand:
         raise CalibError(
             "no SEQUENCE given", "verify", "give a sequence, or --by-hand for runs placed by hand"
@@ -70,7 +76,21 @@ def verify_by_hand(
         sample_rate_hz=sample_rate_hz,
         gravity_mps2=gravity_mps2,
     )
-    hand = HandShape(like=like, poses=poses, peak_rate_dps=peak_rate_dps, g_sensitivity=bool(extras.groups))
+    hand = HandShape(
+        like=like,
+        poses=poses,
+        peak_rate_dps=peak_rate_dps,
+        g_sensitivity=bool(extras.groups),
+        pose_list=pose_list,
+        placement_deg=placement_deg,
+    )
+    predicted = np.full(21, np.nan)
+    if pose_list is not None:  # the analyser's prediction the runs are held against
+        from seqdesign.handanalysis import analyze_hand
+
+        predicted = analyze_hand(
+            pose_list, prof, req, latitude_deg=lat, tolerance_deg=placement_deg, extras=extras, cure=False
+        ).worst_sigma
     errors = read_errors(errors_file) if errors_file else ErrorModel.from_table2() if table2 else None
     info(f"verifying {hand.name}: {runs} runs, profile {prof.name}")
     result = run_verify(
@@ -78,7 +98,7 @@ def verify_by_hand(
         prof,
         runs,
         config=config,
-        predicted_sigma=np.full(21, np.nan),
+        predicted_sigma=predicted,
         errors=errors,
         tolerance_deg=0.0,
         flip_error_deg=0.0,
