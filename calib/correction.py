@@ -115,9 +115,9 @@ class Correction:
             raw_unit = f.string("raw_unit", "counts")
             parts[name] = SensorCorrection(
                 _matrix(table, "M", where, name),
-                _vector(table, "b", where, name),
+                np.array(f.numbers("b", length=3, fix="give x, y, z")),
                 _matrix(table, "sigma_M", where, name, allow_nan=True),
-                _vector(table, "sigma_b", where, name, allow_nan=True),
+                np.array(f.numbers("sigma_b", length=3, finite=False, fix="give x, y, z")),
                 raw_unit,
             )
         G = _matrix(doc["gyro"], "G", where, "gyro") if "G" in doc["gyro"] else None
@@ -231,16 +231,6 @@ def _matrix(table: dict, key: str, where: str, name: str, allow_nan: bool = Fals
             f"{key} must be 3 rows of 3 numbers", f"{where} [{name}]", "give the matrix row by row"
         )
     return M
-
-
-def _vector(table: dict, key: str, where: str, name: str, allow_nan: bool = False) -> np.ndarray:
-    try:
-        v = np.array(table.get(key), dtype=float)
-    except (TypeError, ValueError):
-        v = np.zeros(0)
-    if v.shape != (3,) or (not allow_nan and not np.all(np.isfinite(v))):
-        raise CalibError(f"{key} must be 3 numbers", f"{where} [{name}]", "give x, y, z")
-    return v
 
 
 def _to_toml(doc: dict) -> str:

@@ -35,6 +35,7 @@ from .errormodel import ErrorModel, error_matrix_jacobian
 from .errors import CalibError
 from .extras import G_SENSITIVITY_SI_PER_UNIT
 from .handmoves import move_rotation, move_sensitivity, right_jacobian_inverse
+from .handposes import tip_to
 from .information import scaled_inverse
 from .profiles import NoiseProfile
 from .requirements import PAPER, Requirements
@@ -125,17 +126,6 @@ class HandFit:
         return self.dof + len(self.covariance)
 
 
-def _level(C_pred: np.ndarray, up_body: np.ndarray) -> np.ndarray:
-    """``C_pred`` turned about a horizontal axis until its up is ``up_body`` (heading kept)."""
-    u = C_pred @ (up_body / np.linalg.norm(up_body))
-    axis = np.cross(u, [0.0, 0.0, 1.0])
-    s = np.linalg.norm(axis)
-    if s < 1e-15:
-        return C_pred
-    angle = math.atan2(s, u[2])
-    return rotvec_to_dcm(axis / s * angle) @ C_pred
-
-
 @dataclass(frozen=True)
 class Layout:
     """Where each unknown sits: ``[21, g-sensitivity (9 or none), h_E, h_N, rest 0's two tilts,
@@ -187,14 +177,14 @@ def _start(data: HandData, dtheta, dv, dt, values, G, omega_n) -> np.ndarray:
     """Rest attitudes chained through the moves, each levelled on its accelerometers."""
     model = ErrorModel(values)
     C = np.empty((data.count, 3, 3))
-    C[0] = _level(np.eye(3), data.rest_force[0])
+    C[0] = tip_to(np.eye(3), data.rest_force[0])
     for r, sl in enumerate(data.move_slices):
         prev = C[r]
         if data.move_used[r]:
             dth, _, before, _ = _compensated(dtheta, dv, dt, sl, model, G)
             R, _, _ = move_rotation(dth, before)
             prev = rotvec_to_dcm(-omega_n * dt[sl].sum()) @ C[r] @ R
-        C[r + 1] = _level(prev, data.rest_force[r + 1])
+        C[r + 1] = tip_to(prev, data.rest_force[r + 1])
     return C
 
 

@@ -26,8 +26,8 @@ from .fileio import atomic_write_text
 from .handmotion import hand_state, segment_of, sensed
 from .handplan import HandPlan
 from .profiles import NoiseProfile
-from .runlog import Run, make_meta, write_run
-from .sim import SimConfig, Truth, add_noise
+from .runlog import Run, write_run
+from .sim import SimConfig, Truth, add_noise, run_meta
 from .truth import truth_path_for, truth_to_dict
 
 GAUSS_NODES = 4  # per piece of a move
@@ -178,15 +178,8 @@ class HandTruth:
 
 
 def hand_meta(cfg: SimConfig, plan: HandPlan) -> dict[str, str]:
-    """The run log's metadata: the site (as :func:`calib.sim.run_meta`), ``motion: by-hand``, poses."""
-    return make_meta(
-        math.degrees(cfg.latitude_rad),
-        cfg.height_m,
-        cfg.sample_rate_hz,
-        gravity_mps2=cfg.gravity_mps2,
-        motion=MOTION,
-        poses=str(plan.n_poses),
-    )
+    """The run log's metadata: the site (:func:`calib.sim.run_meta`), ``motion: by-hand``, poses."""
+    return run_meta(cfg, None, motion=MOTION, poses=str(plan.n_poses))
 
 
 def simulate_by_hand(

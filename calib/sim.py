@@ -225,14 +225,17 @@ def add_noise(
     return dtheta, dv
 
 
-def run_meta(cfg: SimConfig, sequence_name: str) -> dict[str, str]:
-    """The run log's metadata for a simulated site (:func:`calib.runlog.make_meta`)."""
+def run_meta(cfg: SimConfig, sequence_name: str | None, **extra: str) -> dict[str, str]:
+    """The run log's metadata for a simulated site (:func:`calib.runlog.make_meta`): the sequence it
+    played (None for a run placed by hand) and any ``extra`` keys.
+    """
     return make_meta(
         math.degrees(cfg.latitude_rad),
         cfg.height_m,
         cfg.sample_rate_hz,
         gravity_mps2=cfg.gravity_mps2,
         sequence=sequence_name,
+        **extra,
     )
 
 

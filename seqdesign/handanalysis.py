@@ -64,9 +64,13 @@ def predict(
         partial=True,
         where=plan_name(plan),
     )
+    return prediction_of(fit)
+
+
+def prediction_of(fit) -> HandPrediction:
+    """The 21's sigma (inf where not estimable) and correlation of a hand fit's covariance."""
     cov = fit.covariance[: P.N_PARAMS, : P.N_PARAMS]
-    sigma = np.sqrt(np.diag(cov))
-    sigma = np.where(fit.estimable[: P.N_PARAMS], sigma, np.inf)
+    sigma = np.where(fit.estimable[: P.N_PARAMS], np.sqrt(np.diag(cov)), np.inf)
     d = np.where(np.isfinite(sigma) & (sigma > 0), sigma, 1.0)
     return HandPrediction(
         sigma, cov / np.outer(d, d), fit.estimable[: P.N_PARAMS], tuple(fit.null_directions)
@@ -241,11 +245,8 @@ def analyze_recording(
         (rests.end - rests.start) * period,
         (rests.start[1:] - rests.end[:-1]) * period,
     )
-    cov = hand.covariance[: P.N_PARAMS, : P.N_PARAMS]
-    sigma = np.where(hand.estimable[: P.N_PARAMS], np.sqrt(np.diag(cov)), np.inf)
-    d = np.where(np.isfinite(sigma) & (sigma > 0), sigma, 1.0)
-    nominal = HandPrediction(
-        sigma, cov / np.outer(d, d), hand.estimable[: P.N_PARAMS], tuple(hand.null_directions)
-    )
+    nominal = prediction_of(hand)
+    sigma = nominal.sigma
+
     g_sens = "g-sensitivity" in ext.groups
     return HandAnalysis(poses, profile, requirements, nominal, sigma, 0.0, 0, g_sens, None, recorded=True)

@@ -109,17 +109,10 @@ def verify(
     not converge. Identical with any --workers or --scheduler.
     """
     from calib.errormodel import ErrorModel
-    from calib.extras import as_extras
-    from calib.gimbal import check_playable, plan_sequence
-    from calib.gimbalfile import load_gimbal
     from calib.profiles import as_profile
     from calib.requirements import load_requirements
-    from calib.sequence import load_sequence
-    from calib.sim import SimConfig
     from calib.truth import read_errors
-    from seqdesign.analysis import analyze, resolve_site
     from seqdesign.plots import verify_png
-    from seqdesign.verify import verify as run_verify
 
     if errors_file and table2:
         raise CalibError("--errors and --table2 both given", None, "choose one")
@@ -129,10 +122,11 @@ def verify(
         raise CalibError(f"plot {plot_path!r} must end in .png", "--plot")
     # A unit placed by hand is judged by the mems requirements unless told otherwise, as calibrate does.
     prof, req = as_profile(profile), load_requirements(requirements or ("mems" if by_hand else None))
+    errors = read_errors(errors_file) if errors_file else ErrorModel.from_table2() if table2 else None
     if by_hand or sequence is None:
         from .verifyhand import verify_by_hand
 
-        return verify_by_hand(
+        result = verify_by_hand(
             sequence,
             prof,
             req,
@@ -143,16 +137,66 @@ def verify(
             (latitude, height, gravity_mps2),
             sample_rate_hz,
             seed,
-            errors_file,
-            table2,
+            errors,
             (like, poses, peak_rate_dps, by_hand, placement_deg),
-            plot_path,
-            as_json,
         )
+    else:
+        result = _verify_sequence(
+            sequence,
+            prof,
+            req,
+            with_terms,
+            runs,
+            workers,
+            scheduler,
+            (latitude, height, gravity_mps2),
+            sample_rate_hz,
+            seed,
+            tolerance_deg,
+            flip_error_deg,
+            errors,
+            gimbal_file,
+        )
+    doc = result.to_json()
+    if plot_path:
+        verify_png(result, plot_path)
+        doc["plot"] = str(plot_path)
+        info(f"wrote {plot_path}")
+    if as_json:
+        emit_json(doc)
+        return
+    click.echo(result.to_text())
+
+
+def _verify_sequence(
+    sequence,
+    prof,
+    req,
+    with_terms,
+    runs,
+    workers,
+    scheduler,
+    site,
+    sample_rate_hz,
+    seed,
+    tolerance_deg,
+    flip_error_deg,
+    errors,
+    gimbal_file,
+):
+    """The Monte Carlo of a gimbal sequence, held against ``analyze``'s worst-case sigma."""
+    from calib.extras import as_extras
+    from calib.gimbal import check_playable, plan_sequence
+    from calib.gimbalfile import load_gimbal
+    from calib.sequence import load_sequence
+    from calib.sim import SimConfig
+    from seqdesign.analysis import analyze, resolve_site
+    from seqdesign.verify import verify as run_verify
+
+    latitude, height, gravity_mps2 = site
     seq = load_sequence(sequence)
     gimbal = load_gimbal(gimbal_file)
     check_playable(plan_sequence(seq, gimbal), f"{sequence} on gimbal {gimbal.name!r}")
-    errors = read_errors(errors_file) if errors_file else ErrorModel.from_table2() if table2 else None
     lat, h = resolve_site(seq, latitude, height)
     prediction = analyze(
         seq,
@@ -167,7 +211,7 @@ def verify(
         latitude_rad=math.radians(lat), height_m=h, sample_rate_hz=sample_rate_hz, gravity_mps2=gravity_mps2
     )
     info(f"verifying {seq.name}: {runs} runs, profile {prof.name}")
-    result = run_verify(
+    return run_verify(
         seq,
         prof,
         runs,
@@ -182,12 +226,3 @@ def verify(
         workers=workers,
         scheduler=scheduler,
     )
-    doc = result.to_json()
-    if plot_path:
-        verify_png(result, plot_path)
-        doc["plot"] = str(plot_path)
-        info(f"wrote {plot_path}")
-    if as_json:
-        emit_json(doc)
-        return
-    click.echo(result.to_text())

@@ -3,13 +3,10 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
-
-import click
 
 from calib.errors import CalibError
 
-from .tools import emit_json, info
+from .tools import info
 
 
 def verify_by_hand(
@@ -23,13 +20,10 @@ def verify_by_hand(
     site,
     sample_rate_hz,
     seed,
-    errors_file,
-    table2,
+    errors,
     shape,
-    plot_path,
-    as_json,
-) -> None:
-    """Simulate and calibrate ``runs`` runs placed by hand; report as ``verify`` does.
+):
+    """Simulate and calibrate ``runs`` runs placed by hand (``verify`` reports them).
 
     ``site`` is ``(latitude, height, gravity_mps2)`` as given, ``shape`` ``(like, poses,
     peak_rate_dps, by_hand, placement_deg)``; a SEQUENCE given with ``--by-hand`` is a pose list,
@@ -37,11 +31,8 @@ def verify_by_hand(
     """
     import numpy as np
 
-    from calib.errormodel import ErrorModel
     from calib.extras import as_extras
     from calib.sim import SimConfig
-    from calib.truth import read_errors
-    from seqdesign.plots import verify_png
     from seqdesign.verify import HandShape
     from seqdesign.verify import verify as run_verify
 
@@ -61,12 +52,6 @@ def verify_by_hand(
         raise CalibError(
             "no SEQUENCE given", "verify", "give a sequence, or --by-hand for runs placed by hand"
         )
-    if errors_file and table2:
-        raise CalibError("--errors and --table2 both given", None, "choose one")
-    if workers > 1 and scheduler:
-        raise CalibError("--workers and --scheduler both given", None, "choose one")
-    if plot_path and Path(plot_path).suffix.lower() != ".png":
-        raise CalibError(f"plot {plot_path!r} must end in .png", "--plot")
     extras = as_extras(with_terms, by_hand=True)
     latitude, height, gravity_mps2 = site
     lat = 45.0 if latitude is None else latitude
@@ -91,9 +76,8 @@ def verify_by_hand(
         predicted = analyze_hand(
             pose_list, prof, req, latitude_deg=lat, tolerance_deg=placement_deg, extras=extras, cure=False
         ).worst_sigma
-    errors = read_errors(errors_file) if errors_file else ErrorModel.from_table2() if table2 else None
     info(f"verifying {hand.name}: {runs} runs, profile {prof.name}")
-    result = run_verify(
+    return run_verify(
         None,
         prof,
         runs,
@@ -108,12 +92,3 @@ def verify_by_hand(
         scheduler=scheduler,
         hand=hand,
     )
-    doc = result.to_json()
-    if plot_path:
-        verify_png(result, plot_path)
-        doc["plot"] = str(plot_path)
-        info(f"wrote {plot_path}")
-    if as_json:
-        emit_json(doc)
-        return
-    click.echo(result.to_text())
