@@ -16,6 +16,9 @@ import json
 import pytest
 from golden_cases import GOLDEN, compare, figures
 
+# End to end through the CLI (about 100 s of CPU): in `make test-slow`, which CI runs too.
+pytestmark = pytest.mark.slow
+
 WANT = json.loads(GOLDEN.read_text())
 
 

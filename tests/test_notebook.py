@@ -9,9 +9,13 @@ import sys
 from pathlib import Path
 
 import nbformat
+import pytest
 from jupyter_client.kernelspec import KernelSpecManager
 from jupyter_client.manager import KernelManager
 from nbclient import NotebookClient
+
+# A Jupyter kernel runs the whole notebook (about 25 s): in `make test-slow`, which CI runs too.
+pytestmark = pytest.mark.slow
 
 REPO = Path(__file__).resolve().parents[1]
 NOTEBOOK = REPO / "examples" / "five-jobs.ipynb"
