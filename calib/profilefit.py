@@ -15,9 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import earth
-from .allan import FLICKER_FLOOR_RATIO, AllanCurve, NoiseFit, allan_deviation, fit_noise
+from .allan import AllanCurve, allan_deviation
+from .allanfit import CALIBRATION_TAU_S, TRUSTED_CI, NoiseFit, ProfileGM, fit_noise, not_modelled, profile_gm
+from .allanplot import plot_allan
 from .errors import CalibError
-from .fileio import atomic_write_bytes, atomic_write_text
+from .fileio import atomic_write_text
 from .params import DEG, DEG_PER_HOUR, MICRO_G
 from .profiles import NoiseProfile, _from_doc
 from .runlog import Run, read_run
@@ -26,9 +28,17 @@ from .static import StaticLevel, static_level
 AXES = ("x", "y", "z")
 METHOD = (
     "overlapping Allan deviation (allantools.oadev, 4 taus per octave, 68 % CI from "
-    "edf_simple); N from the slope -1/2 region; B = floor / 0.664; GM sigma, tau and "
-    "RRW by weighted least squares in log deviation with N held"
+    "edf_greenhall); per axis, the terms the curve shows (N, Q, one or two GMs, RRW, a "
+    "sinusoid; least BIC, none on a bound) by weighted least squares in log deviation; "
+    "B = floor / 0.664; the profile's GM by minimax against the worst axis over 10 s to 1 h"
 )
+PROFILE_RULE = (
+    "white noise: the largest axis'; GM: with that white noise held, the one sigma and "
+    "correlation time whose worst ratio to the largest of the three axes' Allan deviations, "
+    f"from {CALIBRATION_TAU_S[0]:g} s to {CALIBRATION_TAU_S[1]:g} s (or the last tau known to "
+    f"{TRUSTED_CI:.0%}), is closest to 1 (minimax); none when it lands on a bound"
+)
+MODELLED_BY = "white noise and one GM bias, what analyze, design, simulate and calibrate use"
 # Units at the edge: SI per unit of each reported figure.
 ARW_UNIT = DEG / 60.0  # deg/sqrt(h) in rad/sqrt(s)
 RRW_GYRO_UNIT = DEG_PER_HOUR / 60.0  # deg/h/sqrt(h) in rad/s/sqrt(s)
@@ -44,6 +54,8 @@ class ProfileFit:
     accel_curves: tuple[AllanCurve, ...]  # x, y, z
     gyro: tuple[NoiseFit, ...]  # x, y, z
     accel: tuple[NoiseFit, ...]  # x, y, z
+    gyro_profile: ProfileGM  # the profile's white noise and GM (profile_gm)
+    accel_profile: ProfileGM
     level: StaticLevel
     latitude_deg: float
     height_m: float
@@ -159,6 +171,8 @@ def fit_profile(run: Run, name: str) -> ProfileFit:
         accel_curves=curves["accel"],
         gyro=fits["gyro"],
         accel=fits["accel"],
+        gyro_profile=profile_gm(curves["gyro"], fits["gyro"]),
+        accel_profile=profile_gm(curves["accel"], fits["accel"]),
         level=level,
         latitude_deg=run.latitude_deg,
         height_m=run.height_m,
@@ -177,7 +191,14 @@ def _per_axis(fits, white_unit, bias_unit, rrw_unit, q_unit) -> dict:
         "floor_tau_s": [f.floor_tau_s for f in fits],
         "gm_sigma": [f.gm_sigma / bias_unit for f in fits],
         "gm_correlation_s": [f.gm_correlation_s for f in fits],
+        "gm2_sigma": [f.gm2_sigma / bias_unit for f in fits],
+        "gm2_correlation_s": [f.gm2_correlation_s for f in fits],
         "rate_random_walk": [f.rate_random_walk / rrw_unit for f in fits],
+        "sinusoid": [f.sinusoid / bias_unit for f in fits],
+        "sinusoid_hz": [f.sinusoid_hz for f in fits],
+        "fit_tau_s": [list(f.fit_tau_s) for f in fits],
+        "fit_ratio": [list(f.fit_ratio) for f in fits],
+        "notes": ["; ".join(f.notes) for f in fits],
     }
 
 
@@ -191,14 +212,18 @@ def per_axis_tables(fit: ProfileFit) -> dict:
             "quantisation": "quantisation_urad",
             "bias_instability": "bias_instability_dph",
             "gm_sigma": "gm_sigma_dph",
+            "gm2_sigma": "gm2_sigma_dph",
             "rate_random_walk": "rrw_dph_per_sqrt_h",
+            "sinusoid": "sinusoid_dph",
         },
         "accel": {
             "white": "vrw_ug",
             "quantisation": "quantisation_mmps",
             "bias_instability": "bias_instability_ug",
             "gm_sigma": "gm_sigma_ug",
+            "gm2_sigma": "gm2_sigma_ug",
             "rate_random_walk": "rrw_ug_per_sqrt_h",
+            "sinusoid": "sinusoid_ug",
         },
     }
     out = {s: {rename[s].get(k, k): v for k, v in d.items()} for s, d in (("gyro", g), ("accel", a))}
@@ -207,21 +232,32 @@ def per_axis_tables(fit: ProfileFit) -> dict:
     return out
 
 
+def profile_table(fit: ProfileFit) -> dict:
+    """The ``[fit.profile]`` table: how the scalars were chosen, how well they follow, what they leave out."""
+    out: dict = {"rule": PROFILE_RULE, "modelled": MODELLED_BY}
+    for sensor, prof, fits in (("gyro", fit.gyro_profile, fit.gyro), ("accel", fit.accel_profile, fit.accel)):
+        out[f"{sensor}_tau_s"] = list(prof.tau_s)
+        out[f"{sensor}_ratio"] = list(prof.ratio)
+        out[f"{sensor}_note"] = prof.note
+        out[f"{sensor}_not_modelled"] = not_modelled(fits)
+    return out
+
+
 def profile_doc(fit: ProfileFit, provenance: dict) -> dict:
-    """The profile TOML document: worst-axis scalars, ``[fit]`` tables, ``[provenance]``."""
-    worst_g = max(range(3), key=lambda j: fit.gyro[j].gm_sigma)
-    worst_a = max(range(3), key=lambda j: fit.accel[j].gm_sigma)
+    """The profile TOML document: the scalars (`profile_gm`), ``[fit]`` tables, ``[provenance]``."""
+    g, a = fit.gyro_profile, fit.accel_profile
     lv = fit.level
     return {
         "name": fit.name,
-        "gyro_arw_dph": max(f.white for f in fit.gyro) / ARW_UNIT,
-        "accel_vrw_ug": max(f.white for f in fit.accel) / MICRO_G,
-        "gyro_bias_instability_dph": fit.gyro[worst_g].gm_sigma / DEG_PER_HOUR,
-        "gyro_bias_correlation_s": fit.gyro[worst_g].gm_correlation_s,
-        "accel_bias_instability_ug": fit.accel[worst_a].gm_sigma / MICRO_G,
-        "accel_bias_correlation_s": fit.accel[worst_a].gm_correlation_s,
+        "gyro_arw_dph": g.white / ARW_UNIT,
+        "accel_vrw_ug": a.white / MICRO_G,
+        "gyro_bias_instability_dph": g.sigma / DEG_PER_HOUR,
+        "gyro_bias_correlation_s": g.correlation_s,
+        "accel_bias_instability_ug": a.sigma / MICRO_G,
+        "accel_bias_correlation_s": a.correlation_s,
         "fit": {
             **per_axis_tables(fit),
+            "profile": profile_table(fit),
             "site": {
                 "latitude_deg": fit.latitude_deg,
                 "height_m": fit.height_m,
@@ -251,40 +287,60 @@ def plain(x):
     return x
 
 
-def profile_text(doc: dict) -> str:
-    """The table ``profile fit`` prints: per-axis figures, the profile, what the fit removed."""
-    g, a, site = doc["fit"]["gyro"], doc["fit"]["accel"], doc["fit"]["site"]
+def _rows(d: dict, sensor: str) -> list[tuple[str, list]]:
+    """The per-axis rows of one sensor's table: label, values."""
+    if sensor == "gyro":
+        unit, white, rrw, q = (
+            "deg/h",
+            ("ARW, deg/sqrt(h)", "arw_dph"),
+            "RRW, deg/h/sqrt(h)",
+            "quantisation, urad",
+        )
+        keys = {"rrw": "rrw_dph_per_sqrt_h", "q": "quantisation_urad", "sfx": "dph"}
+    else:
+        unit, white, rrw, q = "ug", ("VRW, ug/sqrt(Hz)", "vrw_ug"), "RRW, ug/sqrt(h)", "quantisation, mm/s"
+        keys = {"rrw": "rrw_ug_per_sqrt_h", "q": "quantisation_mmps", "sfx": "ug"}
+    sfx = keys["sfx"]
     rows = [
-        ("ARW, deg/sqrt(h)", g["arw_dph"]),
-        ("  white region, s", g["white_tau_s"]),
-        ("bias instability B, deg/h", g["bias_instability_dph"]),
-        ("  floor at tau, s", g["floor_tau_s"]),
-        ("GM sigma, deg/h", g["gm_sigma_dph"]),
-        ("GM correlation, s", g["gm_correlation_s"]),
-        ("RRW, deg/h/sqrt(h)", g["rrw_dph_per_sqrt_h"]),
-        ("quantisation, urad", g["quantisation_urad"]),
-        ("gyro bias, deg/h", g["bias_dph"]),
-        ("VRW, ug/sqrt(Hz)", a["vrw_ug"]),
-        ("  white region, s", a["white_tau_s"]),
-        ("bias instability B, ug", a["bias_instability_ug"]),
-        ("  floor at tau, s", a["floor_tau_s"]),
-        ("GM sigma, ug", a["gm_sigma_ug"]),
-        ("GM correlation, s", a["gm_correlation_s"]),
-        ("RRW, ug/sqrt(h)", a["rrw_ug_per_sqrt_h"]),
-        ("quantisation, mm/s", a["quantisation_mmps"]),
-        ("accel bias, ug", a["bias_ug"]),
+        (white[0], d[white[1]]),
+        ("  white region, s", d["white_tau_s"]),
+        (f"bias instability B, {unit}", d[f"bias_instability_{sfx}"]),
+        ("  floor at tau, s", d["floor_tau_s"]),
+        (f"GM sigma, {unit}", d[f"gm_sigma_{sfx}"]),
+        ("GM correlation, s", d["gm_correlation_s"]),
+        (f"GM2 sigma, {unit}", d.get(f"gm2_sigma_{sfx}", [0.0] * 3)),
+        ("GM2 correlation, s", d.get("gm2_correlation_s", [0.0] * 3)),
+        (rrw, d[keys["rrw"]]),
+        (f"sinusoid, {unit}", d.get(f"sinusoid_{sfx}", [0.0] * 3)),
+        ("sinusoid, Hz", d.get("sinusoid_hz", [0.0] * 3)),
+        (q, d[keys["q"]]),
+        (f"{'gyro' if sensor == 'gyro' else 'accel'} bias, {unit}", d[f"bias_{sfx}"]),
     ]
+    if "fit_tau_s" in d:
+        rows += [("  fitted tau, s", d["fit_tau_s"]), ("  fit/measured, min-max", d["fit_ratio"])]
+    return rows
+
+
+def profile_text(doc: dict) -> str:
+    """The table ``profile fit`` prints: per axis, the profile and what it leaves out, what was removed."""
+    g, a, site = doc["fit"]["gyro"], doc["fit"]["accel"], doc["fit"]["site"]
     lines = [f"{'':28s}{'x':>16s}{'y':>16s}{'z':>16s}"]
-    for label, values in rows:
+    for label, values in _rows(g, "gyro") + _rows(a, "accel"):
         cells = [f"{v[0]:.3g}-{v[1]:.3g}" if isinstance(v, list) else f"{v:.4g}" for v in values]
         lines.append(f"{label:28s}" + "".join(f"{c:>16s}" for c in cells))
+    for sensor, d in (("gyro", g), ("accel", a)):
+        lines += [
+            f"{sensor} {axis}: {note}"
+            for axis, note in zip(AXES, d.get("notes", [""] * 3), strict=True)
+            if note
+        ]
     lines.append(
         f"profile {doc['name']}: gyro_arw_dph {doc['gyro_arw_dph']:.4g}, accel_vrw_ug "
         f"{doc['accel_vrw_ug']:.4g}, GM gyro {doc['gyro_bias_instability_dph']:.4g} deg/h "
         f"/ {doc['gyro_bias_correlation_s']:.4g} s, GM accel "
         f"{doc['accel_bias_instability_ug']:.4g} ug / {doc['accel_bias_correlation_s']:.4g} s"
-        " (worst axis)"
     )
+    lines += _profile_lines(doc["fit"].get("profile"))
     lines.append(
         f"removed: gravity {site['gravity_removed_mps2']:.6g} m/s^2 along the measured up "
         f"{[round(float(u), 4) for u in site['up_body']]} (body), Earth rate "
@@ -295,6 +351,46 @@ def profile_text(doc: dict) -> str:
     return "\n".join(lines)
 
 
+def _profile_lines(table: dict | None) -> list[str]:
+    """How the profile's scalars follow the worst axis, and what they leave out."""
+    if not table:
+        return []
+    lines = [f"  rule: {table['rule']}"]
+    for sensor in ("gyro", "accel"):
+        lo, hi = table[f"{sensor}_tau_s"]
+        r0, r1 = table[f"{sensor}_ratio"]
+        line = f"  {sensor}: profile / worst axis {r0:.2f}-{r1:.2f} over {lo:.3g}-{hi:.3g} s"
+        if table[f"{sensor}_note"]:
+            line += f"; {table[f'{sensor}_note']}"
+        lines.append(line)
+        if table[f"{sensor}_not_modelled"]:
+            lines.append(
+                f"  {sensor}: NOT MODELLED by the profile ({table['modelled']}): "
+                + "; ".join(table[f"{sensor}_not_modelled"])
+            )
+    return lines
+
+
+def header(doc: dict) -> str:
+    """The comment a profile file opens with: what its scalars leave out (``[fit.profile]``)."""
+    table = doc.get("fit", {}).get("profile")
+    if not table:
+        return ""
+    lines = ["# Noise profile fitted by seqdesign profile fit; the scalars are " + table["modelled"] + "."]
+    for sensor in ("gyro", "accel"):
+        if table[f"{sensor}_not_modelled"]:
+            lines.append(
+                f"# {sensor}: not modelled by the scalars: " + "; ".join(table[f"{sensor}_not_modelled"])
+            )
+        if table[f"{sensor}_note"]:
+            lines.append(f"# {sensor}: {table[f'{sensor}_note']}")
+    lines.append(
+        "# How they were chosen and how well they follow the data: [fit.profile]; "
+        "per axis: [fit.gyro], [fit.accel]."
+    )
+    return "\n".join(lines) + "\n\n"
+
+
 def _toml(doc: dict) -> str:
     import tomli_w
 
@@ -302,8 +398,8 @@ def _toml(doc: dict) -> str:
 
 
 def save_profile(doc: dict, path) -> None:
-    """Write the profile atomically, after checking that `load_profile` accepts it."""
-    text = _toml(doc)
+    """Write the profile atomically (with its `header`), after checking that `load_profile` accepts it."""
+    text = header(doc) + _toml(doc)
     try:
         _from_doc(tomllib.loads(text), str(path))
     except CalibError as exc:
@@ -313,51 +409,3 @@ def save_profile(doc: dict, path) -> None:
             "the log's noise is outside what calib.profiles accepts; check the units of its columns",
         ) from None
     atomic_write_text(path, text)
-
-
-def plot_allan(fit: ProfileFit, path) -> None:
-    """PNG of the six Allan deviations with the fitted model, white region and floor."""
-    try:
-        import matplotlib
-    except ImportError:
-        raise CalibError(
-            "matplotlib is not installed",
-            str(path),
-            "pip install '.[plot]', or write no plot (the CLI's --plot)",
-        ) from None
-    matplotlib.use("Agg")
-    import io
-
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
-    panels = (
-        ("gyro", fit.gyro_curves, fit.gyro, DEG_PER_HOUR, "deg/h"),
-        ("accelerometer", fit.accel_curves, fit.accel, MICRO_G, "ug"),
-    )
-    for ax, (title, curves, fits, unit, label) in zip(axes, panels, strict=True):
-        for j, (c, f, colour) in enumerate(zip(curves, fits, ("C0", "C1", "C2"), strict=True)):
-            ax.fill_between(c.tau_s, c.ci_low / unit, c.ci_high / unit, color=colour, alpha=0.2)
-            ax.loglog(c.tau_s, c.adev / unit, "o", ms=3, color=colour, label=f"{AXES[j]} measured")
-            ax.loglog(c.tau_s, f.model_adev(c.tau_s) / unit, "-", color=colour, lw=1, label=f"{AXES[j]} fit")
-            lo, hi = f.white_tau_s
-            ax.loglog(
-                [lo, hi],
-                [f.white / math.sqrt(lo) / unit, f.white / math.sqrt(hi) / unit],
-                "--",
-                color="k",
-                lw=1.5,
-            )
-            ax.axhline(f.bias_instability * FLICKER_FLOOR_RATIO / unit, color=colour, ls=":", lw=0.8)
-        ax.set(
-            title=f"{title}: Allan deviation, {fit.name}", xlabel="tau, s", ylabel=f"Allan deviation, {label}"
-        )
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(
-            fontsize=7, ncol=2, title="dashed: white (slope -1/2) region; dotted: floor", title_fontsize=7
-        )
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=110)
-    plt.close(fig)
-
-    atomic_write_bytes(path, buffer.getvalue())

@@ -1,0 +1,491 @@
+"""The noise terms an Allan deviation shows: which, how large, and how well they follow it.
+
+IEEE Std 952 style: the Allan variance of independent noise terms adds, so a model
+is a sum of the terms of :mod:`calib.allan` (white noise N always; quantisation Q,
+one or two first-order Gauss-Markov biases, a rate random walk K and a sinusoid
+where the curve shows them), fitted by weighted least squares in log deviation,
+each tau weighted by its 68 % confidence interval widened by `MODEL_FLOOR`.
+
+Which terms: every candidate set is fitted, and the one of least BIC (chi-squared
+plus ln(n) per parameter) among those with no correlation time or frequency on
+its bound wins. A term on a bound is the fit leaning on the edge of what it may
+say (a GM of T_c = 1 s standing in for a 1 Hz disturbance, say), not a fact:
+that set is refused and the reason kept in ``notes``. Quantisation and the
+sinusoid are candidates only where the curve shows them (`_shows_quantisation`,
+`_bump`), so that neither is reported on a curve without it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .allan import (
+    FLICKER_FLOOR_RATIO,
+    GM_PEAK_ADEV_RATIO,
+    MIN_CORRELATION_S,
+    SINUSOID_PEAK_ADEV_RATIO,
+    SINUSOID_PEAK_X,
+    SLOPE_TOLERANCE,
+    AllanCurve,
+    avar_gauss_markov,
+    avar_quantisation,
+    avar_rate_random_walk,
+    avar_sinusoid,
+    avar_white,
+    white_region,
+)
+from .motion import runs_of
+
+# No sum of a few terms follows a real curve to better than a few %: without this
+# floor the short taus' 0.3 % intervals would own the fit and the long taus, where
+# a calibration run lives, would count for nothing.
+MODEL_FLOOR = 0.03
+# Taus before the white region still count as white when within this of its line;
+# further off, shorter taus are the sensor's output filter (below the line) or a
+# disturbance near the Nyquist frequency (above it), which no noise term models.
+WHITE_AGREEMENT = 0.10
+# A bump: at least BUMP_TAUS consecutive taus whose measured deviation exceeds the
+# best fit without a sinusoid by BUMP_EXCESS or more.
+BUMP_EXCESS = 0.15
+BUMP_TAUS = 3
+# A point known to no better than this (68 % interval) can neither pin a term nor
+# test a fit held to the same: the fitted range ends before the first such tau.
+TRUSTED_CI = 0.25
+BOUND_MARGIN = 0.01  # log units: a correlation time or frequency within 1 % of its bound is on it
+
+# Each term: its parameters (SI) and its Allan variance.
+TERMS = {
+    "N": (("white",), avar_white),
+    "Q": (("quantisation",), avar_quantisation),
+    "GM": (("gm_sigma", "gm_correlation_s"), avar_gauss_markov),
+    "GM2": (("gm2_sigma", "gm2_correlation_s"), avar_gauss_markov),
+    "K": (("rate_random_walk",), avar_rate_random_walk),
+    "SIN": (("sinusoid", "sinusoid_hz"), avar_sinusoid),
+}
+# The sets of slow terms tried; Q and the sinusoid are added to each where the curve shows them.
+SLOW_SETS = (("N",), ("N", "K"), ("N", "GM"), ("N", "GM", "K"), ("N", "GM", "GM2"), ("N", "GM", "GM2", "K"))
+
+
+@dataclass(frozen=True)
+class NoiseFit:
+    """The noise terms of one channel, SI (units in :mod:`calib.allan`); 0 for a term not in the curve.
+
+    Attributes
+    ----------
+    white : float
+        N: angle (rad/sqrt(s)) or velocity (m/s/sqrt(s)) random walk, fitted with the
+        other terms, started from the slope -1/2 region ``white_tau_s``.
+    white_tau_s : tuple of float
+        First and last tau of that region, s.
+    quantisation : float
+        Q, rad or m/s.
+    bias_instability : float
+        B = floor / 0.664 (IEEE flicker convention), rad/s or m/s^2.
+    floor_tau_s : float
+        Where the floor (the minimum deviation) is, s.
+    gm_sigma, gm_correlation_s : float
+        The first-order Gauss-Markov bias (the shorter correlation time of two).
+    gm2_sigma, gm2_correlation_s : float
+        A second, slower one, where the floor is broader than one GM's.
+    rate_random_walk : float
+        K, rad/s/sqrt(s) or m/s^2/sqrt(s).
+    sinusoid, sinusoid_hz : float
+        Amplitude (rad/s or m/s^2) and frequency of a periodic disturbance.
+    fit_tau_s : tuple of float
+        The fitted range, s.
+    fit_ratio : tuple of float
+        Least and greatest model / measured deviation over the fitted range.
+    notes : tuple of str
+        What the fit refused or left out, and why.
+    """
+
+    white: float
+    white_tau_s: tuple[float, float]
+    quantisation: float
+    bias_instability: float
+    floor_tau_s: float
+    gm_sigma: float
+    gm_correlation_s: float
+    rate_random_walk: float
+    gm2_sigma: float = 0.0
+    gm2_correlation_s: float = 0.0
+    sinusoid: float = 0.0
+    sinusoid_hz: float = 0.0
+    fit_tau_s: tuple[float, float] = (0.0, 0.0)
+    fit_ratio: tuple[float, float] = (1.0, 1.0)
+    notes: tuple[str, ...] = ()
+
+    def terms(self) -> dict[str, tuple[float, ...]]:
+        """The terms present, name: parameters (SI)."""
+        out = {}
+        for name, (keys, _) in TERMS.items():
+            values = tuple(float(getattr(self, k)) for k in keys)
+            if values[0] > 0:
+                out[name] = values
+        return out
+
+    def model_adev(self, tau) -> np.ndarray:
+        """Allan deviation of the fitted terms."""
+        return np.sqrt(model_avar(tau, self.terms()))
+
+
+def model_avar(tau, terms: dict[str, tuple[float, ...]]) -> np.ndarray:
+    """Allan variance of a sum of terms (``TERMS`` names and their SI parameters)."""
+    tau = np.asarray(tau, dtype=float)
+    return sum((TERMS[name][1](tau, *p) for name, p in terms.items()), np.zeros_like(tau))
+
+
+@dataclass(frozen=True)
+class _Candidate:
+    terms: dict[str, tuple[float, ...]]
+    chi2: float
+    on_bound: str  # why the set is refused ("" if it is not)
+
+    @property
+    def n_params(self) -> int:
+        return sum(len(p) for p in self.terms.values())
+
+
+def fitted_range(curve: AllanCurve, region: np.ndarray, white: float, quantised: bool) -> slice:
+    """The taus fitted: from the white region on, extended to shorter taus on its line,
+    up to the last trusted tau (`trusted_end`).
+
+    With quantisation shown, from the shortest tau: its slope -1 taus are what measure Q.
+    """
+    if quantised:
+        return slice(0, trusted_end(curve))
+    start = int(region[0])
+    while (
+        start > 0
+        and abs(curve.adev[start - 1] * math.sqrt(curve.tau_s[start - 1]) / white - 1) <= WHITE_AGREEMENT
+    ):
+        start -= 1
+    return slice(start, trusted_end(curve))
+
+
+def trusted_end(curve: AllanCurve) -> int:
+    """One past the last tau before the first whose 68 % interval is wider than `TRUSTED_CI`."""
+    wide = np.flatnonzero(curve.ci_high / curve.adev - 1.0 > TRUSTED_CI)
+    return int(wide[0]) if wide.size else curve.tau_s.size
+
+
+def _shows_quantisation(curve: AllanCurve, region: np.ndarray, white: float) -> bool:
+    """Whether the taus before the white region rise above its line as 1/tau down to the shortest.
+
+    Quantisation is 3 Q^2 / tau^2: steeper than white noise all the way to the
+    shortest tau. A flat or falling start (an output filter) is not it.
+    """
+    early = np.arange(int(region[0]))
+    if early.size < 2:
+        return False
+    steep = curve.slope[early] <= -1.0 + 2 * SLOPE_TOLERANCE
+    above = curve.adev[early] * np.sqrt(curve.tau_s[early]) > white * (1 + WHITE_AGREEMENT)
+    return bool(np.all(steep) and np.all(above))
+
+
+def _bump(tau: np.ndarray, adev: np.ndarray, model_adev: np.ndarray) -> int | None:
+    """Index of the peak excess of a bump the model misses, or None."""
+    above = adev * (1.0 - BUMP_EXCESS) > model_adev
+    best = None
+    for a, b in zip(*runs_of(above), strict=True):
+        if b - a >= BUMP_TAUS:
+            k = int(a + np.argmax(adev[a:b] ** 2 - model_adev[a:b] ** 2))
+            if best is None or adev[k] / model_adev[k] > adev[best] / model_adev[best]:
+                best = k
+    return best
+
+
+def _log_bounds(name: str, tau: np.ndarray) -> list[tuple[float, float]]:
+    """Bounds of a term's parameters in log units; amplitudes are free (wide finite bounds)."""
+    free = (math.log(1e-30), math.log(1e10))
+    if name in ("GM", "GM2"):
+        # From MIN_CORRELATION_S (shorter is white noise to a calibration run) to ten times
+        # the longest tau (longer cannot be told from a rate random walk).
+        return [free, (math.log(MIN_CORRELATION_S), math.log(10.0 * tau[-1]))]
+    if name == "SIN":  # its first peak within the fitted taus
+        return [
+            free,
+            (math.log(SINUSOID_PEAK_X / (math.pi * tau[-1])), math.log(SINUSOID_PEAK_X / (math.pi * tau[0]))),
+        ]
+    return [free]
+
+
+def _fit_set(tau, adev, scale, starts: list[dict[str, tuple[float, ...]]], held=None) -> _Candidate:
+    """Least squares of one set of terms in log deviation, from several starts; the best.
+
+    ``held`` terms are in the model but not fitted.
+    """
+    held = held or {}
+    from scipy.optimize import least_squares  # lazy: scipy.optimize is slow to import
+
+    names = tuple(starts[0])
+    bounds = [b for n in names for b in _log_bounds(n, tau)]
+    lo, hi = np.array(bounds).T
+
+    def unpack(x) -> dict[str, tuple[float, ...]]:
+        out, i = {}, 0
+        for n in names:
+            k = len(TERMS[n][0])
+            out[n] = tuple(float(v) for v in np.exp(x[i : i + k]))
+            i += k
+        return out
+
+    def residual(x):
+        return 0.5 * np.log(model_avar(tau, {**held, **unpack(x)}) / adev**2) / scale
+
+    best = None
+    for start in starts:
+        x0 = np.clip(np.log([v for n in names for v in start[n]]), lo + 1e-6, hi - 1e-6)
+        fit = least_squares(residual, x0, bounds=(lo, hi), ftol=1e-6, xtol=1e-6)
+        if best is None or fit.cost < best.cost:
+            best = fit
+    assert best is not None
+    on = [
+        f"its {_what(n)} went to its bound ({math.exp(_nearer(best.x[i], a, b)):.3g} {_unit(n)})"
+        for n, (i, (a, b)) in zip(names, _slow_parameter_bounds(names, lo, hi), strict=True)
+        if i is not None and min(best.x[i] - a, b - best.x[i]) < BOUND_MARGIN
+    ]
+    return _Candidate(unpack(best.x), float(2.0 * best.cost), "; ".join(on))
+
+
+def _nearer(x: float, a: float, b: float) -> float:
+    return a if x - a < b - x else b
+
+
+def _what(name: str) -> str:
+    return {"GM": "GM's correlation time", "GM2": "second GM's correlation time"}.get(
+        name, "sinusoid's frequency"
+    )
+
+
+def _unit(name: str) -> str:
+    return "Hz" if name == "SIN" else "s"
+
+
+def _slow_parameter_bounds(names, lo, hi):
+    """For each term, the index of its time or frequency parameter (None for none) and its bounds."""
+    out, i = [], 0
+    for n in names:
+        k = len(TERMS[n][0])
+        j = i + 1 if k == 2 else None
+        out.append((j, (lo[j], hi[j]) if j is not None else (0.0, 0.0)))
+        i += k
+    return out
+
+
+def _starts(names, tau, adev, white, extra, fitted) -> list[dict[str, tuple[float, ...]]]:
+    """Starting points of a set: its nested sets' best fits (the new term at a default), and
+    for the GM sets a spread of correlation times (the cost has a valley per feature of the curve).
+    """
+    floor = float(adev.min()) / GM_PEAK_ADEV_RATIO
+    k0 = float(adev[-1]) * math.sqrt(3.0 / tau[-1]) * 0.5
+    tcs = np.geomspace(MIN_CORRELATION_S * 1.5, 5.0 * tau[-1], 4)
+    base = {"N": (white,), "K": (k0,), "GM": (floor, float(tcs[1])), **extra}
+    starts = []
+    if "GM2" in names:
+        starts += [{**base, "GM": (floor, tcs[i]), "GM2": (floor, tcs[i + 2])} for i in (0, 1)]
+    elif "GM" in names:
+        starts += [{**base, "GM": (floor, tc)} for tc in tcs]
+    for prev in fitted:
+        if set(prev.terms) < set(names):
+            gm = prev.terms.get("GM", base["GM"])
+            starts.append({**base, "GM2": (floor, min(gm[1] * 10.0, float(tau[-1]))), **prev.terms})
+    starts = starts or [base]
+    return [{n: s[n] for n in names} for s in starts]
+
+
+def _select(candidates: list[_Candidate], n: int) -> tuple[_Candidate, list[str]]:
+    """The least BIC among the sets not on a bound, and a note when a better one was refused."""
+
+    def bic(c):
+        return c.chi2 + math.log(n) * c.n_params
+
+    valid = [c for c in candidates if not c.on_bound]
+    best = min(valid, key=bic)
+    notes = []
+    better = [c for c in candidates if c.on_bound and bic(c) < bic(best)]
+    if better:
+        c = min(better, key=bic)
+        notes.append(
+            f"refused the better-scoring {'+'.join(c.terms)}: {c.on_bound}, "
+            "so the curve there is not that term"
+        )
+    return best, notes
+
+
+def fit_noise(curve: AllanCurve) -> NoiseFit:
+    """The terms the curve shows, fitted (module docstring), with their fit quality.
+
+    Raises
+    ------
+    ValueError
+        When the curve has no slope -1/2 region (`calib.allan.white_region`).
+    """
+    region = white_region(curve)
+    white0 = float(np.exp(np.mean(np.log(curve.adev[region] * np.sqrt(curve.tau_s[region])))))
+    quantised = _shows_quantisation(curve, region, white0)
+    sl = fitted_range(curve, region, white0, quantised)
+    tau, adev = curve.tau_s[sl], curve.adev[sl]
+    scale = np.hypot(0.5 * np.log(curve.ci_high[sl] / curve.ci_low[sl]), MODEL_FLOOR)
+    # Q where the curve shows it, and then only if it earns its parameter (BIC).
+    extra_sets: list[dict[str, tuple[float, ...]]] = [{}]
+    if quantised:
+        extra_sets.append({"Q": (float(adev[0] * tau[0] / math.sqrt(3.0)),)})
+    candidates = [c for extras in extra_sets for c in _fit_sets(tau, adev, scale, white0, extras)]
+    best, notes = _select(candidates, tau.size)
+    k = _bump(tau, adev, np.sqrt(model_avar(tau, best.terms)))
+    if k is not None:  # a periodic disturbance: the sinusoid joins every set
+        excess = math.sqrt(max(adev[k] ** 2 - float(model_avar(tau[k], best.terms)), 0.0))
+        sine = (excess / SINUSOID_PEAK_ADEV_RATIO, SINUSOID_PEAK_X / (math.pi * tau[k]))
+        for extras in extra_sets:
+            candidates += _fit_sets(tau, adev, scale, white0, {**extras, "SIN": sine})
+        best, notes = _select(candidates, tau.size)
+    ratio = np.sqrt(model_avar(tau, best.terms)) / adev
+    return _noise_fit(curve, region, best.terms, (float(tau[0]), float(tau[-1])), ratio, notes)
+
+
+def _fit_sets(tau, adev, scale, white, extras) -> list[_Candidate]:
+    """Every slow set with the given extra terms (Q, sinusoid), nested sets first."""
+    fitted: list[_Candidate] = []
+    for names in SLOW_SETS:
+        full = names[:1] + tuple(extras) + names[1:]
+        fitted.append(_fit_set(tau, adev, scale, _starts(full, tau, adev, white, extras, fitted)))
+    return fitted
+
+
+def _noise_fit(curve, region, terms, fit_tau, ratio, notes) -> NoiseFit:
+    """The NoiseFit of the chosen terms, the two GMs ordered by correlation time."""
+    gms = sorted((terms[g] for g in ("GM", "GM2") if g in terms), key=lambda p: p[1])
+    gms += [(0.0, 0.0)] * (2 - len(gms))
+    floor = int(np.argmin(curve.adev))
+    return NoiseFit(
+        white=terms["N"][0],
+        white_tau_s=(float(curve.tau_s[region[0]]), float(curve.tau_s[region[-1]])),
+        quantisation=terms.get("Q", (0.0,))[0],
+        bias_instability=float(curve.adev[floor] / FLICKER_FLOOR_RATIO),
+        floor_tau_s=float(curve.tau_s[floor]),
+        gm_sigma=gms[0][0],
+        gm_correlation_s=gms[0][1],
+        gm2_sigma=gms[1][0],
+        gm2_correlation_s=gms[1][1],
+        rate_random_walk=terms.get("K", (0.0,))[0],
+        sinusoid=terms.get("SIN", (0.0, 0.0))[0],
+        sinusoid_hz=terms.get("SIN", (0.0, 0.0))[1],
+        fit_tau_s=fit_tau,
+        fit_ratio=(float(ratio.min()), float(ratio.max())),
+        notes=tuple(notes),
+    )
+
+
+# What matters to a calibration run: its intervals and rests (tens of seconds) up to
+# its length (about an hour).
+CALIBRATION_TAU_S = (10.0, 3600.0)
+PROFILE_TAU_RANGE = (1.0, 1e6)  # calib.profiles' bounds of a GM correlation time, s
+
+
+@dataclass(frozen=True)
+class ProfileGM:
+    """The one GM bias a profile carries for a sensor (`profile_gm`), SI.
+
+    Attributes
+    ----------
+    white : float
+        The profile's N: the largest of the axes'.
+    sigma, correlation_s : float
+        The GM; both 0 when refused (``note`` says why).
+    tau_s : tuple of float
+        The range it was fitted over, s.
+    ratio : tuple of float
+        Least and greatest (white + GM) / worst axis' deviation over that range.
+    note : str
+    """
+
+    white: float
+    sigma: float
+    correlation_s: float
+    tau_s: tuple[float, float]
+    ratio: tuple[float, float]
+    note: str = ""
+
+
+def profile_gm(curves: tuple[AllanCurve, ...], fits: tuple[NoiseFit, ...]) -> ProfileGM:
+    """The single GM that, with the largest white noise held, follows the worst axis over a run's taus.
+
+    The rule: at each tau from `CALIBRATION_TAU_S` on (up to the last trusted tau of
+    every axis) take the largest of the axes' measured deviations; with the
+    profile's N (the largest axis') held, the GM sigma and correlation time whose
+    worst ratio to it over that range is closest to 1 (minimax in log, `_minimax_gm`).
+    A GM on a correlation-time bound of the profiles is refused (sigma 0). What the
+    axes show beyond white noise and one GM (a rate random walk, a second GM, a
+    sinusoid) is carried only as far as this GM follows the curve.
+    """
+    tau = curves[0].tau_s
+    adev = np.max([c.adev for c in curves], axis=0)
+    end = min(trusted_end(c) for c in curves)
+    keep = np.flatnonzero((tau >= CALIBRATION_TAU_S[0]) & (tau <= CALIBRATION_TAU_S[1]))
+    keep = keep[keep < end]
+    white = max(f.white for f in fits)
+    if keep.size < 3:
+        return ProfileGM(white, 0.0, 0.0, (0.0, 0.0), (1.0, 1.0), "the log is too short for a GM")
+    tau, adev = tau[keep], adev[keep]
+    span = (float(tau[0]), float(tau[-1]))
+    sigma, tc, _ = _minimax_gm(tau, adev, white)
+    bound = min(abs(math.log(tc / PROFILE_TAU_RANGE[0])), abs(math.log(tc / PROFILE_TAU_RANGE[1])))
+    if bound < BOUND_MARGIN:
+        ratio = np.sqrt(avar_white(tau, white)) / adev
+        note = (
+            f"no GM: its correlation time went to its bound ({tc:.3g} s), so no single GM "
+            f"follows the curve over {span[0]:.3g}-{span[1]:.3g} s"
+        )
+        return ProfileGM(white, 0.0, 0.0, span, (float(ratio.min()), float(ratio.max())), note)
+    ratio = np.sqrt(model_avar(tau, {"N": (white,), "GM": (sigma, tc)})) / adev
+    return ProfileGM(white, sigma, tc, span, (float(ratio.min()), float(ratio.max())))
+
+
+def _minimax_gm(tau, adev, white) -> tuple[float, float, float]:
+    """The GM sigma and correlation time whose worst |log(model / measured)| is least, and that worst.
+
+    Minimax rather than least squares: the profile is held to a stated +-% over the
+    whole range, and no single GM can follow a floor and a rise alike, so the
+    least-squares compromise would put its whole error at one end.
+    """
+    from scipy.optimize import minimize  # lazy: scipy.optimize is slow to import
+
+    def worst(x):
+        sigma, tc = np.exp(x)
+        return float(
+            np.max(np.abs(0.5 * np.log(model_avar(tau, {"N": (white,), "GM": (sigma, tc)}) / adev**2)))
+        )
+
+    bounds = [(math.log(adev.min() * 1e-3), math.log(adev.max() * 1e3)), tuple(np.log(PROFILE_TAU_RANGE))]
+    best = None
+    for tc in np.geomspace(2.0 * PROFILE_TAU_RANGE[0], 20.0 * tau[-1], 5):
+        x0 = [math.log(float(adev.min()) / GM_PEAK_ADEV_RATIO), math.log(tc)]
+        fit = minimize(worst, x0, method="Nelder-Mead", bounds=bounds, options={"xatol": 1e-4, "fatol": 1e-5})
+        if best is None or fit.fun < best.fun:
+            best = fit
+    assert best is not None
+    sigma, tc = np.exp(best.x)
+    return float(sigma), float(tc), float(best.fun)
+
+
+def not_modelled(fits: tuple[NoiseFit, ...]) -> list[str]:
+    """The terms the axes show that a profile (white noise and one GM) cannot carry, with their axes."""
+    labels = {
+        "K": "rate random walk",
+        "GM2": "a second GM",
+        "SIN": "a sinusoid",
+        "Q": "quantisation",
+    }
+    out = []
+    for name, label in labels.items():
+        axes = [a for a, f in zip("xyz", fits, strict=True) if name in f.terms()]
+        if axes:
+            if name == "SIN":
+                hz = ", ".join(f"{f.sinusoid_hz:.3g}" for f in fits if f.sinusoid > 0)
+                label += f" ({hz} Hz)"
+            out.append(f"{label} on {', '.join(axes)}")
+    return out
