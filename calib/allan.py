@@ -50,7 +50,11 @@ SINUSOID_PEAK_X = 1.16556
 SINUSOID_PEAK_ADEV_RATIO = 0.72461
 
 SLOPE_TOLERANCE = 0.15  # a log-log slope within this of -1/2 (or +1/2) is "on the line"
-MIN_CORRELATION_S = 1.0  # calib.profiles' lower bound of a GM correlation time
+# calib.profiles' lower bound of a GM correlation time: a faster GM is white noise to a
+# calibration run's 1 s intervals.
+MIN_CORRELATION_S = 1.0
+# Two stretches of the white line whose levels differ by less than this are one line.
+WHITE_TIE = 0.05
 
 
 @dataclass(frozen=True)
@@ -92,14 +96,26 @@ def octave_taus(n: int, dt: float, per_octave: int = 4) -> np.ndarray:
 
 
 def noise_alpha(slope: np.ndarray) -> np.ndarray:
-    """The power-law noise type (PSD of the rate ~ f^alpha) of each local log-log slope.
+    """The power-law noise type (PSD of the rate ~ f^alpha) of each log-log slope.
 
     An Allan deviation of slope mu/2 comes from alpha = -mu - 1 (white rate 0,
-    flicker -1, random walk -2; slope -1 is phase noise, 1 or 2): rounded to the
-    nearest, which is what the degrees of freedom need (they change by a few tens
-    of % from one type to the next).
+    flicker -1, random walk -2), rounded to the nearest: what the degrees of freedom
+    need (they change by a few tens of % from one type to the next). Steeper slopes
+    (phase noise, quantisation) are taken as white rate noise, whose interval is the
+    wider: they are at the shortest taus, where every interval is under 1 %.
     """
-    return np.clip(np.rint(-2.0 * np.asarray(slope) - 1.0), -2, 2).astype(int)
+    return np.clip(np.rint(-2.0 * np.asarray(slope) - 1.0), -2, 0).astype(int)
+
+
+def _smooth_slope(tau: np.ndarray, adev: np.ndarray) -> np.ndarray:
+    """Log-log slope over about an octave (two taus either side): the local one wanders
+    with the scatter of the long taus and would flip the noise type from tau to tau.
+    """
+    logt, loga = np.log(tau), np.log(adev)
+    i = np.arange(tau.size)
+    lo, hi = np.maximum(i - 2, 0), np.minimum(i + 2, tau.size - 1)
+    span = np.where(hi > lo, logt[hi] - logt[lo], 1.0)
+    return np.where(hi > lo, (loga[hi] - loga[lo]) / span, -0.5)
 
 
 def allan_deviation(rate: np.ndarray, dt: float, taus: np.ndarray | None = None) -> AllanCurve:
@@ -125,7 +141,7 @@ def allan_deviation(rate: np.ndarray, dt: float, taus: np.ndarray | None = None)
     # Removing the mean changes no Allan deviation; it keeps the sums well conditioned.
     tau, adev, _, _ = allantools.oadev(rate - rate.mean(), rate=1.0 / dt, data_type="freq", taus=taus)
     m = np.round(tau / dt).astype(int)
-    alphas = noise_alpha(np.gradient(np.log(adev), np.log(tau)))
+    alphas = noise_alpha(_smooth_slope(tau, adev))
     edf = np.array(
         [
             allantools.edf_greenhall(alpha=int(a), d=2, m=int(k), N=rate.size, overlapping=True)
@@ -181,7 +197,9 @@ def white_region(curve: AllanCurve) -> np.ndarray:
     slope is within ``SLOPE_TOLERANCE`` of -1/2. Of several, the one with the
     lowest ``adev sqrt(tau)`` wins: a disturbance (a vibration bump, a filter
     resonance) adds variance and never removes it, so the lowest stretch is the
-    sensor's own white noise.
+    sensor's own white noise. Levels within `WHITE_TIE` and the lowest stretch's own
+    68 % interval of it are the same line broken by the scatter of the long taus: of
+    those, the longest stretch.
     """
     floor = int(np.argmin(curve.adev))
     on_line = np.abs(curve.slope + 0.5) <= SLOPE_TOLERANCE
@@ -192,5 +210,8 @@ def white_region(curve: AllanCurve) -> np.ndarray:
             "no slope -1/2 region before the floor: the log is too short "
             "or too coarsely sampled to show white noise"
         )
-    level = [np.median(curve.adev[r] * np.sqrt(curve.tau_s[r])) for r in runs]
-    return runs[int(np.argmin(level))]
+    level = np.array([np.median(curve.adev[r] * np.sqrt(curve.tau_s[r])) for r in runs])
+    low = int(np.argmin(level))
+    spread = float(np.median(curve.ci_high[runs[low]] / curve.adev[runs[low]])) - 1.0
+    ties = np.flatnonzero(level <= level[low] * (1.0 + WHITE_TIE + spread))
+    return runs[int(max(ties, key=lambda i: runs[i].size))]

@@ -55,6 +55,7 @@ BUMP_TAUS = 3
 # test a fit held to the same: the fitted range ends before the first such tau.
 TRUSTED_CI = 0.25
 BOUND_MARGIN = 0.01  # log units: a correlation time or frequency within 1 % of its bound is on it
+WHITE_FREEDOM = 1.25  # the joint fit's N stays within this factor of the white region's
 
 # Each term: its parameters (SI) and its Allan variance.
 TERMS = {
@@ -149,21 +150,20 @@ class _Candidate:
         return sum(len(p) for p in self.terms.values())
 
 
-def fitted_range(curve: AllanCurve, region: np.ndarray, white: float, quantised: bool) -> slice:
-    """The taus fitted: from the white region on, extended to shorter taus on its line,
-    up to the last trusted tau (`trusted_end`).
+def fitted_range(curve: AllanCurve, region: np.ndarray, white: float) -> tuple[slice, bool]:
+    """The taus fitted, and whether they show quantisation.
 
-    With quantisation shown, from the shortest tau: its slope -1 taus are what measure Q.
+    From the white region on, extended to shorter taus while they stay on its line
+    (`WHITE_AGREEMENT`), up to the last trusted tau (`trusted_end`). When the
+    shorter taus left out rise above the line as 1/tau down to the shortest
+    (`_shows_quantisation`), from the shortest tau: those taus are what measure Q.
     """
-    if quantised:
-        return slice(0, trusted_end(curve))
+    on_line = np.abs(curve.adev * np.sqrt(curve.tau_s) / white - 1.0) <= WHITE_AGREEMENT
     start = int(region[0])
-    while (
-        start > 0
-        and abs(curve.adev[start - 1] * math.sqrt(curve.tau_s[start - 1]) / white - 1) <= WHITE_AGREEMENT
-    ):
+    while start > 0 and on_line[start - 1]:
         start -= 1
-    return slice(start, trusted_end(curve))
+    quantised = _shows_quantisation(curve, start, white)
+    return slice(0 if quantised else start, trusted_end(curve)), quantised
 
 
 def trusted_end(curve: AllanCurve) -> int:
@@ -172,18 +172,19 @@ def trusted_end(curve: AllanCurve) -> int:
     return int(wide[0]) if wide.size else curve.tau_s.size
 
 
-def _shows_quantisation(curve: AllanCurve, region: np.ndarray, white: float) -> bool:
-    """Whether the taus before the white region rise above its line as 1/tau down to the shortest.
+def _shows_quantisation(curve: AllanCurve, start: int, white: float) -> bool:
+    """Whether the taus before ``start`` rise above the white line, as 1/tau at the shortest.
 
-    Quantisation is 3 Q^2 / tau^2: steeper than white noise all the way to the
-    shortest tau. A flat or falling start (an output filter) is not it.
+    Quantisation is 3 Q^2 / tau^2: above the white line and steepest at the
+    shortest taus. A flat start (an output filter, a disturbance near the Nyquist
+    frequency, as on the ADIS16405's z gyro) or one below the line is not it.
     """
-    early = np.arange(int(region[0]))
-    if early.size < 2:
+    if start < 2:
         return False
-    steep = curve.slope[early] <= -1.0 + 2 * SLOPE_TOLERANCE
+    early = slice(0, start)
     above = curve.adev[early] * np.sqrt(curve.tau_s[early]) > white * (1 + WHITE_AGREEMENT)
-    return bool(np.all(steep) and np.all(above))
+    steep = math.log(curve.adev[1] / curve.adev[0]) / math.log(curve.tau_s[1] / curve.tau_s[0])
+    return bool(np.all(above) and steep <= -1.0 + 2 * SLOPE_TOLERANCE)
 
 
 def _bump(tau: np.ndarray, adev: np.ndarray, model_adev: np.ndarray) -> int | None:
@@ -198,13 +199,19 @@ def _bump(tau: np.ndarray, adev: np.ndarray, model_adev: np.ndarray) -> int | No
     return best
 
 
-def _log_bounds(name: str, tau: np.ndarray) -> list[tuple[float, float]]:
-    """Bounds of a term's parameters in log units; amplitudes are free (wide finite bounds)."""
+def _log_bounds(name: str, tau: np.ndarray, white: float) -> list[tuple[float, float]]:
+    """Bounds of a term's parameters in log units; other amplitudes are free (wide finite bounds)."""
     free = (math.log(1e-30), math.log(1e10))
+    if name == "N":
+        # Near the white region's level: free, a fast GM and a small N trade places
+        # (a GM far shorter than tau is white noise) and the fit wanders off.
+        return [(math.log(white / WHITE_FREEDOM), math.log(white * WHITE_FREEDOM))]
     if name in ("GM", "GM2"):
-        # From MIN_CORRELATION_S (shorter is white noise to a calibration run) to ten times
-        # the longest tau (longer cannot be told from a rate random walk).
-        return [free, (math.log(MIN_CORRELATION_S), math.log(10.0 * tau[-1]))]
+        # From MIN_CORRELATION_S (a faster GM is white noise to a calibration run; what the
+        # curve shows there above the white line is a disturbance or the sensor's filter)
+        # or the shortest fitted tau, to ten times the longest (a slower GM cannot be
+        # told from a rate random walk).
+        return [free, (math.log(max(MIN_CORRELATION_S, tau[0])), math.log(10.0 * tau[-1]))]
     if name == "SIN":  # its first peak within the fitted taus
         return [
             free,
@@ -216,13 +223,14 @@ def _log_bounds(name: str, tau: np.ndarray) -> list[tuple[float, float]]:
 def _fit_set(tau, adev, scale, starts: list[dict[str, tuple[float, ...]]], held=None) -> _Candidate:
     """Least squares of one set of terms in log deviation, from several starts; the best.
 
-    ``held`` terms are in the model but not fitted.
+    ``held`` terms are in the model but not fitted. N is bounded about its first start.
     """
-    held = held or {}
     from scipy.optimize import least_squares  # lazy: scipy.optimize is slow to import
 
+    held = held or {}
     names = tuple(starts[0])
-    bounds = [b for n in names for b in _log_bounds(n, tau)]
+    white = starts[0]["N"][0] if "N" in names else 0.0
+    bounds = [b for n in names for b in _log_bounds(n, tau, white)]
     lo, hi = np.array(bounds).T
 
     def unpack(x) -> dict[str, tuple[float, ...]]:
@@ -282,18 +290,19 @@ def _starts(names, tau, adev, white, extra, fitted) -> list[dict[str, tuple[floa
     """
     floor = float(adev.min()) / GM_PEAK_ADEV_RATIO
     k0 = float(adev[-1]) * math.sqrt(3.0 / tau[-1]) * 0.5
-    tcs = np.geomspace(MIN_CORRELATION_S * 1.5, 5.0 * tau[-1], 4)
+    tcs = np.geomspace(max(MIN_CORRELATION_S, tau[0]) * 1.5, 5.0 * tau[-1], 4)
     base = {"N": (white,), "K": (k0,), "GM": (floor, float(tcs[1])), **extra}
     starts = []
     if "GM2" in names:
         starts += [{**base, "GM": (floor, tcs[i]), "GM2": (floor, tcs[i + 2])} for i in (0, 1)]
     elif "GM" in names:
         starts += [{**base, "GM": (floor, tc)} for tc in tcs]
+    else:
+        starts.append(base)  # first: N's bounds are about its start (_fit_set)
     for prev in fitted:
         if set(prev.terms) < set(names):
             gm = prev.terms.get("GM", base["GM"])
             starts.append({**base, "GM2": (floor, min(gm[1] * 10.0, float(tau[-1]))), **prev.terms})
-    starts = starts or [base]
     return [{n: s[n] for n in names} for s in starts]
 
 
@@ -326,8 +335,7 @@ def fit_noise(curve: AllanCurve) -> NoiseFit:
     """
     region = white_region(curve)
     white0 = float(np.exp(np.mean(np.log(curve.adev[region] * np.sqrt(curve.tau_s[region])))))
-    quantised = _shows_quantisation(curve, region, white0)
-    sl = fitted_range(curve, region, white0, quantised)
+    sl, quantised = fitted_range(curve, region, white0)
     tau, adev = curve.tau_s[sl], curve.adev[sl]
     scale = np.hypot(0.5 * np.log(curve.ci_high[sl] / curve.ci_low[sl]), MODEL_FLOOR)
     # Q where the curve shows it, and then only if it earns its parameter (BIC).
