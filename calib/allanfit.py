@@ -55,7 +55,7 @@ BUMP_TAUS = 3
 # test a fit held to the same: the fitted range ends before the first such tau.
 TRUSTED_CI = 0.25
 BOUND_MARGIN = 0.01  # log units: a correlation time or frequency within 1 % of its bound is on it
-WHITE_FREEDOM = 1.25  # the joint fit's N stays within this factor of the white region's
+WHITE_FREEDOM = 4.0  # the joint fit's N stays within this factor of the white region's
 
 # Each term: its parameters (SI) and its Allan variance.
 TERMS = {
@@ -426,7 +426,9 @@ def profile_gm(curves: tuple[AllanCurve, ...], fits: tuple[NoiseFit, ...]) -> Pr
     every axis) take the largest of the axes' measured deviations; with the
     profile's N (the largest axis') held, the GM sigma and correlation time whose
     worst ratio to it over that range is closest to 1 (minimax in log, `_minimax_gm`).
-    A GM on a correlation-time bound of the profiles is refused (sigma 0). What the
+    A GM on a correlation-time bound of the profiles is refused (sigma 0), and so is
+    one that brings the worst ratio closer to 1 by less than `MODEL_FLOOR` than white
+    noise alone (the curve shows none). What the
     axes show beyond white noise and one GM (a rate random walk, a second GM, a
     sinusoid) is carried only as far as this GM follows the curve.
     """
@@ -440,15 +442,19 @@ def profile_gm(curves: tuple[AllanCurve, ...], fits: tuple[NoiseFit, ...]) -> Pr
         return ProfileGM(white, 0.0, 0.0, (0.0, 0.0), (1.0, 1.0), "the log is too short for a GM")
     tau, adev = tau[keep], adev[keep]
     span = (float(tau[0]), float(tau[-1]))
-    sigma, tc, _ = _minimax_gm(tau, adev, white)
+    sigma, tc, worst = _minimax_gm(tau, adev, white)
+    white_only = np.sqrt(avar_white(tau, white)) / adev
     bound = min(abs(math.log(tc / PROFILE_TAU_RANGE[0])), abs(math.log(tc / PROFILE_TAU_RANGE[1])))
+    note = ""
     if bound < BOUND_MARGIN:
-        ratio = np.sqrt(avar_white(tau, white)) / adev
         note = (
             f"no GM: its correlation time went to its bound ({tc:.3g} s), so no single GM "
             f"follows the curve over {span[0]:.3g}-{span[1]:.3g} s"
         )
-        return ProfileGM(white, 0.0, 0.0, span, (float(ratio.min()), float(ratio.max())), note)
+    elif np.max(np.abs(np.log(white_only))) - worst < MODEL_FLOOR:
+        note = f"no GM: white noise alone follows the curve over {span[0]:.3g}-{span[1]:.3g} s as well"
+    if note:
+        return ProfileGM(white, 0.0, 0.0, span, (float(white_only.min()), float(white_only.max())), note)
     ratio = np.sqrt(model_avar(tau, {"N": (white,), "GM": (sigma, tc)})) / adev
     return ProfileGM(white, sigma, tc, span, (float(ratio.min()), float(ratio.max())))
 

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 
-from calib.allan import GM_PEAK_ADEV_RATIO, GM_PEAK_TAU_RATIO, allan_deviation, avar_gauss_markov, fit_noise
+from calib.allan import GM_PEAK_ADEV_RATIO, GM_PEAK_TAU_RATIO, allan_deviation, avar_gauss_markov
+from calib.allanfit import fit_noise
 from calib.gaussmarkov import gauss_markov
 
 
