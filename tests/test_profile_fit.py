@@ -101,7 +101,30 @@ def test_adis_log_against_an_independent_allan_deviation(tmp_path):
         main, ["profile", "fit", str(ADIS), "--latitude", "51.08", "-o", str(out), "--no-plot", "--json"]
     )
     assert result.exit_code == 0, result.output
-    fit = tomllib.loads(out.read_text())["fit"]
+    text = out.read_text()
+    fit = tomllib.loads(text)["fit"]
+    # The fit follows the curve: every axis within +-25 % over its stated range, which
+    # runs from the shortest taus (0.02 s; 0.04 s on the z gyro, whose 0.02-0.03 s
+    # disturbance is not quantisation) to beyond 500 s; no quantisation, no GM on a
+    # bound (the accelerometers' 0.56 Hz disturbance is a sinusoid, not a 1 s GM).
+    for sensor in ("gyro", "accel"):
+        for j in range(3):
+            lo, hi = fit[sensor]["fit_ratio"][j]
+            assert 0.75 <= lo <= hi <= 1.25, (sensor, j, lo, hi)
+            start, end = fit[sensor]["fit_tau_s"][j]
+            assert start < 0.045 and end >= 500.0, (sensor, j, start, end)
+            tc = fit[sensor]["gm_correlation_s"][j]
+            assert tc == 0.0 or tc > 1.01, (sensor, j, tc)
+    assert fit["gyro"]["quantisation_urad"] == [0.0, 0.0, 0.0]
+    assert all(0.5 < f < 0.6 for f in fit["accel"]["sinusoid_hz"])
+    # The profile's single GM follows the worst axis over 10 s on, and says how well
+    # and what it leaves out, in the file's opening comment too.
+    table = fit["profile"]
+    assert table["gyro_tau_s"][0] >= 10.0 and table["accel_tau_s"][0] >= 10.0
+    assert 0.8 <= table["gyro_ratio"][0] and table["gyro_ratio"][1] <= 1.2
+    assert 0.7 <= table["accel_ratio"][0] and table["accel_ratio"][1] <= 1.35
+    assert "rate random walk" in " ".join(table["gyro_not_modelled"])
+    assert "not modelled" in text.splitlines()[1]
     run = read_run(ADIS, latitude_deg=51.08, height_m=1100.0)
     dt = run.dt_nominal
     # The independent white region: 0.04-0.16 s (m = 4..16), where this curve's slope
