@@ -60,7 +60,7 @@ def plot_allan(fit, path) -> None:
                 label=f"{AXES[j]} fit ({lo:.2f}-{hi:.2f})",
             )
         if prof.sigma > 0 or prof.tau_s[1] > 0:
-            tau = np.geomspace(*prof.tau_s, 50)
+            tau = np.geomspace(prof.tau_s[0], prof.tau_s[1], 50)
             terms = {
                 "N": (prof.white,),
                 **({"GM": (prof.sigma, prof.correlation_s)} if prof.sigma > 0 else {}),

@@ -16,11 +16,12 @@ import numpy as np
 
 from . import earth
 from .allan import AllanCurve, allan_deviation
-from .allanfit import CALIBRATION_TAU_S, TRUSTED_CI, NoiseFit, ProfileGM, fit_noise, not_modelled, profile_gm
+from .allanfit import TRUSTED_CI, NoiseFit, fit_noise
 from .allanplot import plot_allan
 from .errors import CalibError
 from .fileio import atomic_write_text
 from .params import DEG, DEG_PER_HOUR, MICRO_G
+from .profilegm import CALIBRATION_TAU_S, ProfileGM, not_modelled, profile_gm
 from .profiles import NoiseProfile, _from_doc
 from .runlog import Run, read_run
 from .static import StaticLevel, static_level
@@ -94,6 +95,7 @@ class FittedProfile:
             {
                 "profile": {k: v for k, v in doc.items() if k not in ("fit", "provenance")},
                 **per_axis_tables(self.fit),
+                "profile_fit": doc["fit"]["profile"],
                 "site": doc["fit"]["site"],
                 "log": doc["fit"]["log"],
             }

@@ -24,9 +24,10 @@ from calib.allan import (
     avar_sinusoid,
     avar_white,
 )
-from calib.allanfit import TRUSTED_CI, fit_noise, not_modelled, profile_gm
+from calib.allanfit import TRUSTED_CI, fit_noise
 from calib.allanplot import plot_allan
 from calib.gaussmarkov import gauss_markov
+from calib.profilegm import not_modelled, profile_gm
 
 
 def series(n, dt, seed, white=0.0, gm=(0.0, 1.0), rrw=0.0, q=0.0, sine=(0.0, 1.0)) -> np.ndarray:
