@@ -379,6 +379,9 @@ def header(doc: dict) -> str:
     if not table:
         return ""
     lines = ["# Noise profile fitted by seqdesign profile fit; the scalars are " + table["modelled"] + "."]
+    command = doc.get("provenance", {}).get("command")
+    if command:
+        lines.append(f"# Made by: {command}")
     for sensor in ("gyro", "accel"):
         if table[f"{sensor}_not_modelled"]:
             lines.append(
