@@ -56,6 +56,7 @@ BUMP_TAUS = 3
 # test a fit held to the same: the fitted range ends before the first such tau.
 TRUSTED_CI = 0.25
 BOUND_MARGIN = 0.01  # log units: a correlation time or frequency within 1 % of its bound is on it
+PRUNE_SHARE = 0.01  # a term under this share of the measured variance at every tau is not shown
 WHITE_FREEDOM = 4.0  # the joint fit's N stays within this factor of the white region's
 
 # Each term: its parameters (SI) and its Allan variance.
@@ -356,8 +357,22 @@ def fit_noise(curve: AllanCurve) -> NoiseFit:
         for extras in extra_sets:
             candidates += _fit_sets(tau, adev, scale, white0, {**extras, "SIN": sine})
         best, notes = _select(candidates, tau.size)
-    ratio = np.sqrt(model_avar(tau, best.terms)) / adev
-    return _noise_fit(curve, region, best.terms, (float(tau[0]), float(tau[-1])), ratio, notes)
+    terms = _prune(best.terms, tau, adev)
+    ratio = np.sqrt(model_avar(tau, terms)) / adev
+    return _noise_fit(curve, region, terms, (float(tau[0]), float(tau[-1])), ratio, notes)
+
+
+def _prune(terms: dict[str, tuple[float, ...]], tau, adev) -> dict[str, tuple[float, ...]]:
+    """The terms without those under 1 % of the measured variance at every fitted tau.
+
+    Such a term is the optimiser parking an amplitude at nothing, not a term the
+    curve shows: it would be reported as a value the data cannot tell from 0.
+    """
+    return {
+        name: p
+        for name, p in terms.items()
+        if name == "N" or np.any(TERMS[name][1](tau, *p) >= PRUNE_SHARE * adev**2)
+    }
 
 
 def _fit_sets(tau, adev, scale, white, extras) -> list[_Candidate]:

@@ -1,9 +1,11 @@
 """A noise profile from a static log: Allan deviation per axis, fitted terms, the file.
 
 The profile's scalars (``gyro_arw_dph``, ``accel_vrw_ug`` and the Gauss-Markov
-keys of :mod:`calib.profiles`) are the worst axis; the per-axis values, the
-biases and the fit's provenance go in a ``[fit]`` table that `load_profile`
-ignores (``docs/profiles.md``).
+keys of :mod:`calib.profiles`) follow the worst axis (:mod:`calib.profilegm`);
+the per-axis terms and fit quality (:mod:`calib.allanfit`), what the scalars do
+not model, the biases and the fit's provenance go in a ``[fit]`` table that
+`load_profile` ignores (``docs/profiles.md``), and what they do not model also in
+the comment the file opens with.
 """
 
 from __future__ import annotations
