@@ -57,6 +57,7 @@ BUMP_TAUS = 3
 TRUSTED_CI = 0.25
 BOUND_MARGIN = 0.01  # log units: a correlation time or frequency within 1 % of its bound is on it
 PRUNE_SHARE = 0.01  # a term under this share of the measured variance at every tau is not shown
+JAC_STEP = 1e-6  # forward step in a log time or frequency, for the Jacobian
 WHITE_FREEDOM = 4.0  # the joint fit's N stays within this factor of the white region's
 
 # Each term: its parameters (SI) and its Allan variance.
@@ -247,13 +248,31 @@ def _fit_set(tau, adev, scale, starts: list[dict[str, tuple[float, ...]]], held=
             i += k
         return out
 
+    base = model_avar(tau, held)
+
     def residual(x):
-        return 0.5 * np.log(model_avar(tau, {**held, **unpack(x)}) / adev**2) / scale
+        return 0.5 * np.log((base + model_avar(tau, unpack(x))) / adev**2) / scale
+
+    def jacobian(x):
+        # Every term's variance is its first parameter squared times a shape: the
+        # derivative in that log parameter is twice the term; the time or frequency
+        # (second parameter) by a forward difference of the term alone.
+        terms = unpack(x)
+        parts = [TERMS[n][1](tau, *terms[n]) for n in names]
+        weight = 0.5 / ((base + sum(parts)) * scale)
+        columns = []
+        for n, part in zip(names, parts, strict=True):
+            columns.append(2.0 * part * weight)
+            if len(terms[n]) == 2:
+                amp, slow = terms[n]
+                shifted = TERMS[n][1](tau, amp, slow * math.exp(JAC_STEP))
+                columns.append((shifted - part) / JAC_STEP * weight)
+        return np.column_stack(columns)
 
     best = None
     for start in starts:
         x0 = np.clip(np.log([v for n in names for v in start[n]]), lo + 1e-6, hi - 1e-6)
-        fit = least_squares(residual, x0, bounds=(lo, hi), ftol=1e-6, xtol=1e-6)
+        fit = least_squares(residual, x0, jac=jacobian, bounds=(lo, hi), ftol=1e-6, xtol=1e-6)
         if best is None or fit.cost < best.cost:
             best = fit
     assert best is not None
