@@ -21,7 +21,7 @@ def _plot_path(output: str, plot: str | None) -> Path:
     return Path(plot) if plot else out.with_name(out.stem + ".allan.png")
 
 
-@profile.command("fit", short_help="Fit ARW/VRW, bias instability (GM) and RRW from a static log.")
+@profile.command("fit", short_help="Fit a static log's noise terms per axis and write a profile.")
 @click.argument("log", type=click.Path(dir_okay=False))
 @options.latitude("Site latitude, deg (when the log lacks it).")
 @options.height(
@@ -38,6 +38,11 @@ def _plot_path(output: str, plot: str | None) -> Path:
 def fit(log, latitude, height, columns, output, name, plot, no_plot, as_json):
     """Fit the noise of a static LOG (CSV, CSV.GZ, NPZ or PSINS .imu; docs/logs-columns.md) and
     write a profile the other commands accept (--profile OUTPUT).
+
+    Per axis: the terms its Allan deviation shows (ARW/VRW, quantisation, Gauss-Markov biases,
+    rate random walk, a sinusoid) and how well they follow it (fit/measured over the fitted
+    range). The profile carries white noise and one GM; what it cannot carry is named
+    (docs/profiles.md).
     """
     from calib.errors import CalibError
     from calib.profilefit import METHOD, FittedProfile, fit_profile, profile_doc, read_static_log
