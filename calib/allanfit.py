@@ -361,6 +361,10 @@ def fit_noise(curve: AllanCurve) -> NoiseFit:
     region = white_region(curve)
     white0 = float(np.exp(np.mean(np.log(curve.adev[region] * np.sqrt(curve.tau_s[region])))))
     sl, quantised = fitted_range(curve, region, white0)
+    if sl.stop - sl.start < 4:
+        raise ValueError(
+            "fewer than four taus are known to 25 % from the white region on: the log is too short to fit"
+        )
     tau, adev = curve.tau_s[sl], curve.adev[sl]
     scale = np.hypot(0.5 * np.log(curve.ci_high[sl] / curve.ci_low[sl]), MODEL_FLOOR)
     # Q where the curve shows it, and then only if it earns its parameter (BIC).
