@@ -158,12 +158,13 @@ class _Candidate:
 
 
 def fitted_range(curve: AllanCurve, region: np.ndarray, white: float) -> tuple[slice, bool]:
-    """The taus fitted, and whether they show quantisation.
+    """The taus the fit is held to (and reported over), and whether they show quantisation.
 
     From the white region on, extended to shorter taus while they stay on its line
     (`WHITE_AGREEMENT`), up to the last trusted tau (`trusted_end`). When the
     shorter taus left out rise above the line as 1/tau down to the shortest
     (`_shows_quantisation`), from the shortest tau: those taus are what measure Q.
+    The fit itself also takes the untrusted taus beyond, at their weight.
     """
     on_line = np.abs(curve.adev * np.sqrt(curve.tau_s) / white - 1.0) <= WHITE_AGREEMENT
     start = int(region[0])
@@ -331,11 +332,19 @@ def _starts(names, tau, adev, white, extra, fitted) -> list[dict[str, tuple[floa
     return [{n: s[n] for n in names} for s in starts]
 
 
-def _select(candidates: list[_Candidate], n: int) -> tuple[_Candidate, list[str]]:
-    """The least BIC among the sets not on a bound, and a note when a better one was refused."""
+def _select(candidates: list[_Candidate], tau: np.ndarray) -> tuple[_Candidate, list[str]]:
+    """The least BIC among the sets not on a bound, and a note when a better one was refused.
+
+    Neighbouring taus share most of their data (four per octave, overlapping), so
+    their misfits are not independent: chi-squared and the count of points are
+    taken per octave, one independent point each. Counted per tau, the scatter of
+    a short log's long taus buys a rate random walk or a GM that is not there.
+    """
+    independent = math.log2(tau[-1] / tau[0]) + 1.0
+    shared = max(tau.size / independent, 1.0)
 
     def bic(c):
-        return c.chi2 + math.log(n) * c.n_params
+        return c.chi2 / shared + math.log(independent) * c.n_params
 
     valid = [c for c in candidates if not c.on_bound]
     best = min(valid, key=bic)
@@ -365,24 +374,28 @@ def fit_noise(curve: AllanCurve) -> NoiseFit:
         raise ValueError(
             "fewer than four taus are known to 25 % from the white region on: the log is too short to fit"
         )
-    tau, adev = curve.tau_s[sl], curve.adev[sl]
-    scale = np.hypot(0.5 * np.log(curve.ci_high[sl] / curve.ci_low[sl]), MODEL_FLOOR)
+    # Fitted to the longest tau: the untrusted taus still carry evidence (a rise that
+    # goes on), at the weight of their wide intervals; held to the trusted ones.
+    fit = slice(sl.start, curve.tau_s.size)
+    tau, adev = curve.tau_s[fit], curve.adev[fit]
+    scale = np.hypot(0.5 * np.log(curve.ci_high[fit] / curve.ci_low[fit]), MODEL_FLOOR)
     # Q where the curve shows it, and then only if it earns its parameter (BIC).
     extra_sets: list[dict[str, tuple[float, ...]]] = [{}]
     if quantised:
         extra_sets.append({"Q": (float(adev[0] * tau[0] / math.sqrt(3.0)),)})
     candidates = [c for extras in extra_sets for c in _fit_sets(tau, adev, scale, white0, extras)]
-    best, notes = _select(candidates, tau.size)
+    best, notes = _select(candidates, tau)
     k = _bump(tau, adev, np.sqrt(model_avar(tau, best.terms)))
     if k is not None:  # a periodic disturbance: the sinusoid joins every set
         excess = math.sqrt(max(adev[k] ** 2 - float(model_avar(tau[k], best.terms)), 0.0))
         sine = (excess / SINUSOID_PEAK_ADEV_RATIO, SINUSOID_PEAK_X / (math.pi * tau[k]))
         for extras in extra_sets:
             candidates += _fit_sets(tau, adev, scale, white0, {**extras, "SIN": sine})
-        best, notes = _select(candidates, tau.size)
+        best, notes = _select(candidates, tau)
     terms = _prune(best.terms, tau, adev)
-    ratio = np.sqrt(model_avar(tau, terms)) / adev
-    return _noise_fit(curve, region, terms, (float(tau[0]), float(tau[-1])), ratio, notes)
+    held_tau, held_adev = curve.tau_s[sl], curve.adev[sl]
+    ratio = np.sqrt(model_avar(held_tau, terms)) / held_adev
+    return _noise_fit(curve, region, terms, (float(held_tau[0]), float(held_tau[-1])), ratio, notes)
 
 
 def _prune(terms: dict[str, tuple[float, ...]], tau, adev) -> dict[str, tuple[float, ...]]:
