@@ -58,9 +58,9 @@ def profile_gm(curves: tuple[AllanCurve, ...], fits: tuple[NoiseFit, ...]) -> Pr
     worst ratio to it over that range is closest to 1 (minimax in log, `_minimax_gm`).
     A GM on a correlation-time bound of the profiles is refused (sigma 0), and so is
     one that brings the worst ratio closer to 1 by less than `MODEL_FLOOR` than white
-    noise alone (the curve shows none). What the
-    axes show beyond white noise and one GM (a rate random walk, a second GM, a
-    sinusoid) is carried only as far as this GM follows the curve.
+    noise alone (the curve shows none). What the axes show beyond white noise and
+    one GM (a rate random walk, a second GM, a sinusoid) is carried only as far as
+    this GM follows the curve; `not_modelled` names it.
     """
     tau = curves[0].tau_s
     adev = np.max([c.adev for c in curves], axis=0)
