@@ -275,7 +275,8 @@ def _checked_result(fit: Fit, where: str, require_convergence: bool, profile, si
     if require_convergence and not fit.converged:
         raise CalibError(
             f"the fit did not converge in {fit.iterations} iterations (last step "
-            f"{fit.history[-1]['max_step_sigma']:.3g} sigma)",
+            f"{fit.history[-1]['max_step_sigma']:.3g} sigma)"
+            + (f": {fit.history[-1]['why_not_converged']}" if "why_not_converged" in fit.history[-1] else ""),
             where,
             "no result written; check the run and the noise profile",
         )

@@ -134,10 +134,10 @@ class _Problem:
         nav = navigate(dth, dvv, self.time_s, C0, self.latitude_rad, self.gravity_mps2, t0=self.t_nav[0])
         return dth, dvv, nav
 
-    def observations(self, nav, Phi_vv, it: int, feedback=None) -> np.ndarray:
+    def observations(self, nav, Phi_vv, it: int, feedback=None, hint: str = "") -> np.ndarray:
         """Velocity changes over the observation intervals, less the noise model's prediction."""
         y = nav.v_n[self.grid.bounds]
-        return _observations(y if feedback is None else y - feedback.dv, Phi_vv, it, self.where)
+        return _observations(y if feedback is None else y - feedback.dv, Phi_vv, it, self.where, hint)
 
 
 def calibrate(
@@ -304,7 +304,7 @@ def _fit_renavigating(
             # Gauss-Markov bias noise enters through the attitude (C_b_n b): its weights follow
             # the navigated attitude while the Jacobian does. Phi_vv does not depend on it.
             noise = noise_model(A, T, profile, C_b_n=nav.C_b_n[mid])
-        z = pb.observations(nav, noise.Phi_vv, it, feedback)
+        z = pb.observations(nav, noise.Phi_vv, it, feedback, schedule.divergence_hint())
         if _relinearise(it, sol, history):
             # The Jacobian changes little once the big errors are compensated; while steps are
             # still large (a MEMS unit's percent-level errors) it follows them. A partial fit's
@@ -326,6 +326,8 @@ def _fit_renavigating(
             converged = True
             break
         feedback = schedule.update(it, step, feedback, noise, z, H, delta, A, T, nav.C_b_n[mid])
+    if not converged and schedule.why_not_converged():
+        history[-1]["why_not_converged"] = schedule.why_not_converged()
     return fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, converged, extras)
 
 
@@ -387,7 +389,8 @@ def fit_intervals(
             limit = schedule.limit(max_iterations)
         if noise is None or (profile.has_gauss_markov and it <= 3):
             noise = noise_model(A, T, profile, C_b_n=data.C_mid)
-        z = _observations(data.y if feedback is None else data.y - feedback.dv, noise.Phi_vv, it, where)
+        y = data.y if feedback is None else data.y - feedback.dv
+        z = _observations(y, noise.Phi_vv, it, where, schedule.divergence_hint())
         if want_H:
             H, Hs, D, zw = _pass_design(data, T, site, noise, z, extras, requirements)
             sol = solve_information(Hs.T @ Hs, where, names, partial, judge)
@@ -401,6 +404,8 @@ def fit_intervals(
         if (step < tol_sigma or bound < tol_sigma) and not schedule.pending():
             return fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, True, extras)
         feedback = schedule.update(it, step, feedback, noise, z, H, delta, A, T, data.C_mid)
+    if schedule is not None and schedule.why_not_converged():
+        history[-1]["why_not_converged"] = schedule.why_not_converged()
     return fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, False, extras)
 
 
@@ -427,14 +432,14 @@ def _record(history: list, entry: dict, settled: bool) -> tuple[float, float]:
     return step, bound
 
 
-def _observations(y: np.ndarray, Phi_vv: np.ndarray, it: int, where: str) -> np.ndarray:
+def _observations(y: np.ndarray, Phi_vv: np.ndarray, it: int, where: str, hint: str) -> np.ndarray:
     """Velocity changes over the observation intervals, less the noise model's prediction."""
     z = y[1:] - np.einsum("kij,kj->ki", Phi_vv, y[:-1])
     if not np.all(np.isfinite(z)) or np.abs(y).max() > 1e5:
         raise CalibError(
             f"the fit diverged at iteration {it} (navigation velocity {np.abs(y).max():.3g} m/s)",
             where,
-            "check units and that the run is a stationary-base calibration",
+            hint,
         )
     return z
 

@@ -230,14 +230,49 @@ def test_rest_gyrocompass_finds_bias_and_heading_through_a_mems_bias():
 
 
 def _held(schedule):
-    """Move the feedback until it is held (the updates the loops make)."""
-    from calib.feedback import FEEDBACK_UPDATES
+    """Move the feedback until it is held: steps well below FEEDBACK_HOLD_SIGMA after each update."""
+    from calib.feedback import FEEDBACK_MIN_UPDATES
 
-    for it in range(1, FEEDBACK_UPDATES + 1):
-        assert schedule.pending() and schedule.due(1.0)
+    it = 0
+    while schedule.due(0.1, it + 1):
+        assert schedule.pending()
+        it += 1
         schedule.moved_at(it)
-    assert not schedule.pending() and not schedule.due(1.0)
-    return FEEDBACK_UPDATES
+    # Quiet from the start, it is held after the minimum number of updates, and only then.
+    assert it == FEEDBACK_MIN_UPDATES and schedule.held and not schedule.pending()
+    return it
+
+
+def test_feedback_that_keeps_moving_the_estimate_is_never_held():
+    # A strong Gauss-Markov gyro bias can keep the feedback moving the estimate by a sigma per
+    # update: then it is given up on after MAX_FEEDBACK_UPDATES and stays pending, so neither
+    # loop can declare the fit converged (the run is reported as not converged, never as ok).
+    from calib.feedback import FEEDBACK_START_ITERATION, MAX_FEEDBACK_UPDATES, FeedbackSchedule
+
+    schedule = FeedbackSchedule(wander=True)
+    assert not schedule.due(500.0, 1)  # the first steps of a MEMS fit are linearisation error
+    it = FEEDBACK_START_ITERATION - 1
+    while schedule.due(1.0, it + 1):
+        it += 1
+        schedule.moved_at(it)
+    assert schedule.updates == MAX_FEEDBACK_UPDATES
+    assert schedule.unsettled and schedule.pending() and not schedule.held
+
+
+def test_tilt_variance_of_a_gauss_markov_gyro_bias():
+    # The attitude a first-order GM bias b (sigma s, correlation tau) builds, phi = int_0^T b dt:
+    # for T << tau the bias is a constant over the run, var = s^2 T^2; for T >> tau it is a
+    # random walk of density 2 s^2 tau, var = 2 s^2 tau T. White noise adds arw^2 T.
+    from calib.feedback import tilt_variance
+    from calib.profiles import NoiseProfile
+
+    s = 1e-4  # rad/s
+    for tau, T, expected in ((1e6, 10.0, s**2 * 100.0), (1.0, 1e6, 2.0 * s**2 * 1.0 * 1e6)):
+        prof = NoiseProfile("gm", 0.0, 1.0, s * 3600 * 180 / np.pi, tau)
+        # T/tau = 1e-5 and 1e6: the neglected terms are of that relative order.
+        assert tilt_variance(prof, T) == pytest.approx(expected, rel=2e-5)
+    white = NoiseProfile("w", 1.0, 1.0)  # 1 deg/sqrt(h)
+    assert tilt_variance(white, 3600.0) == pytest.approx(np.radians(1.0) ** 2, rel=1e-12)
 
 
 def test_held_feedback_steps_sum_their_geometric_series():
