@@ -29,7 +29,7 @@ from . import params as P
 from .errormodel import ErrorModel
 from .errors import CalibError
 from .extras import Extras
-from .feedback import MAX_ITERATIONS, FeedbackSchedule
+from .feedback import MAX_ITERATIONS, FeedbackSchedule, check_wander
 from .gyrocompass import rests_in_memory
 from .information import UNKNOWN_NAMES
 from .jacobian import (
@@ -295,6 +295,7 @@ def _fit_renavigating(
     turn = X.earth_turn(np.broadcast_to(C0, (len(dt), 3, 3)), omega_ie_n, dt)
     history: list[dict] = []
     noise, sol, converged, feedback = None, None, False, None
+    check_wander(profile, float(T.sum()), where)
     schedule = FeedbackSchedule.for_run(profile, float(T.sum()), gravity_mps2)
     for it in range(1, schedule.limit(max_iterations) + 1):
         dth, dvv, nav = pb.compensate_and_navigate(values, extra_values, C0, turn, feedback)
@@ -385,6 +386,7 @@ def fit_intervals(
         )
         turn, T = data.turn, np.diff(data.t_bounds)
         if schedule is None:  # (the run's length is known after its first pass)
+            check_wander(profile, float(T.sum()), where)
             schedule = FeedbackSchedule.for_run(profile, float(T.sum()), site.gravity_mps2)
             limit = schedule.limit(max_iterations)
         if noise is None or (profile.has_gauss_markov and it <= 3):

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import CalibError
 from .matexp import expm  # not scipy.linalg: its import costs 0.15 s per command
 from .profiles import NoiseProfile
 from .smoother import smooth
@@ -48,6 +49,12 @@ FEEDBACK_START_SIGMA = 100.0
 # (measured: 40 iterations between 100 and 40000 sigma on an ADIS16405-profile run).
 FEEDBACK_START_ITERATION = 3
 MAX_ITERATIONS = 12
+# The most attitude wander (1 sigma, from the run's start to its end) the linearised fit follows,
+# deg. Measured (docs/grades.md): at 1.8 deg (white MEMS, 30 min) every run converges honestly;
+# at 6.2 deg (a Gauss-Markov gyro bias of 39 deg/h, 87 s, over 30 min) 9 runs in 11 converge
+# with NEES 16-30 and the rest diverge; at 7.0 deg (the ADIS16405 profile, 10 min) 4 in 10
+# converge; at 9.2 and 13.5 deg most diverge or stall and one converged 4 sigma off.
+MAX_WANDER_DEG = 6.0
 WANDER_MAX_ITERATIONS = 45  # measured: 6-15 iterations (white MEMS), up to 35 (ADIS16405 profile)
 
 
@@ -65,6 +72,40 @@ def tilt_variance(profile: NoiseProfile, duration_s: float) -> float:
     if s > 0.0 and tau > 0.0:
         variance += 2.0 * s**2 * tau * (T - tau * -math.expm1(-T / tau))
     return variance
+
+
+def longest_run_s(profile: NoiseProfile, wander_deg: float = MAX_WANDER_DEG) -> float:
+    """The run length over which the profile's gyro noise walks the attitude by ``wander_deg`` (s)."""
+    target = math.radians(wander_deg) ** 2
+    lo, hi = 0.0, 1.0
+    while tilt_variance(profile, hi) < target:
+        if hi > 1e9:
+            return math.inf
+        lo, hi = hi, 2.0 * hi
+    for _ in range(60):  # tilt_variance grows with T: bisection to well below a second
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if tilt_variance(profile, mid) < target else (lo, mid)
+    return lo
+
+
+def check_wander(profile: NoiseProfile, duration_s: float, where: str) -> None:
+    """Refuse a run whose attitude wander the linearised fit cannot follow (MAX_WANDER_DEG).
+
+    Its sigmas would not be what the estimator achieves: beyond it the fit diverges, stalls or
+    (measured once) converges 4 sigma off.
+    """
+    wander = math.degrees(math.sqrt(tilt_variance(profile, duration_s)))
+    if wander <= MAX_WANDER_DEG:
+        return
+    longest = longest_run_s(profile)
+    raise CalibError(
+        f"the {profile.name} profile's gyro noise walks the attitude by {wander:.1f} deg (1 sigma) "
+        f"over this {duration_s / 60.0:.1f}-min run; the fit, linearised about the navigated "
+        f"attitude, follows at most {MAX_WANDER_DEG:g} deg",
+        where,
+        f"use a sequence of at most {longest / 60.0:.1f} min for this unit (its wander reaches "
+        f"{MAX_WANDER_DEG:g} deg then), or a gyro with less bias instability",
+    )
 
 
 def attitude_wander_ratio(profile: NoiseProfile, duration_s: float, gravity_mps2: float) -> float:

@@ -20,6 +20,7 @@ from calib import params as P
 from calib.bounds import accel_scale_bound
 from calib.errors import CalibError
 from calib.extras import Extras, as_extras
+from calib.feedback import check_wander
 from calib.profiles import NoiseProfile, as_profile
 from calib.report import format_table, parameter_entries, worst
 from calib.requirements import PAPER, Requirements, load_requirements
@@ -160,6 +161,8 @@ def analyze(
     req = load_requirements(requirements)
     if not 0.0 <= tolerance_deg <= 10.0:
         raise CalibError(f"tolerance {tolerance_deg} deg outside [0, 10]", "tolerance_deg")
+    # Beyond the wander the linearised fit follows, no calibration achieves these sigmas.
+    check_wander(prof, seq.duration_s, seq.name)
     lat, h = resolve_site(seq, latitude_deg, height_m)
     lat_rad = math.radians(lat)
     rob = analyze_tolerance(seq, prof, lat_rad, h, tolerance_deg, requirements=req)

@@ -428,3 +428,27 @@ def test_calibrate_stream_refuses_a_run_that_starts_turning(tmp_path):
     lines = res.output.strip().splitlines()
     assert "Traceback" not in res.output and "first rest lasts 0.0 s" in lines[-1], res.output
     assert "start the run with the IMU at rest" in lines[-1]
+
+
+def test_a_run_beyond_the_followable_wander_is_refused_with_the_longest_that_is(tmp_path):
+    # A gyro whose Gauss-Markov bias (60 deg/h, 214 s: the ADIS16405 fit) walks the attitude
+    # 13.5 deg over paper-9pos's 28 min: analyze refuses (its sigmas would not be achieved) and
+    # names the longest run whose wander stays within MAX_WANDER_DEG, which is where
+    # tilt_variance reaches it.
+    from calib.feedback import MAX_WANDER_DEG, longest_run_s, tilt_variance
+    from calib.profiles import NoiseProfile
+    from seqdesign.cli import main
+
+    prof = NoiseProfile("gm-gyro", 2.5, 460.0, 60.0, 214.0)
+    longest = longest_run_s(prof)
+    assert tilt_variance(prof, longest) == pytest.approx(math.radians(MAX_WANDER_DEG) ** 2, rel=1e-9)
+    path = tmp_path / "gm.toml"
+    path.write_text(
+        'name = "gm-gyro"\ngyro_arw_dph = 2.5\naccel_vrw_ug = 460.0\n'
+        "gyro_bias_instability_dph = 60.0\ngyro_bias_correlation_s = 214.0\n"
+    )
+    out = CliRunner().invoke(
+        main, ["analyze", "paper-9pos", "--profile", str(path), "--requirements", "mems"]
+    )
+    assert out.exit_code == 2 and "Traceback" not in out.output
+    assert "walks the attitude by" in out.output and f"at most {longest / 60:.1f} min" in out.output

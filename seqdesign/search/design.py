@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 from calib.errors import CalibError
 from calib.extras import NONE as NO_EXTRAS
 from calib.extras import Extras
+from calib.feedback import check_wander
 from calib.profiles import NoiseProfile
 from calib.requirements import PAPER, Requirements
 from calib.sequence import Sequence
@@ -185,6 +186,9 @@ def design(
     start and as it goes (search, screen, box, refine, check, done).
     """
     _check_design_args(c, objective)
+    # A budget whose attitude wander the fit cannot follow would be designed for sigmas no
+    # calibration achieves (calib.feedback.MAX_WANDER_DEG).
+    check_wander(profile, c.budget_s, "--budget-min")
     t0 = time.perf_counter()
     site = (math.degrees(latitude_rad), height_m)  # written into the sequence: analyse it there
     # one beam per search dwell and width (_search sets them)
