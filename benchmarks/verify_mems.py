@@ -6,8 +6,11 @@ Runs the CLI exactly as a user would (``seqdesign verify ... --json``) on three 
 
 - ``designed-15min`` under the white ``mems`` profile;
 - ``paper-9pos`` under the ADIS16405 profile ``profile fit`` measured on the real static log
-  (``benchmarks/profiles/adis16405.toml``: gyro bias instability as a Gauss-Markov term);
-- a 10-min design made by ``design`` for that profile (``benchmarks/sequences/adis16405-10min.toml``).
+  (``benchmarks/profiles/adis16405.toml``: gyro bias instability as a Gauss-Markov term, 60 deg/h,
+  214 s): its gyro walks the attitude 13.5 deg over the 28 min, beyond what the fit follows, so
+  the honest answer is a refusal naming the longest run (8.1 min), which this case records;
+- an 8-min design made by ``design --budget-min 8`` for that profile
+  (``benchmarks/sequences/adis16405-8min.toml``).
 
 Every run: a unit of MEMS grade (gyro biases within +-1000 deg/h, accelerometer biases within
 +-20 mg, scale factors within +-0.5 %, misalignments within +-1000 arcsec), its mounting within
@@ -33,7 +36,7 @@ ADIS = HERE / "profiles" / "adis16405.toml"
 CASES = {
     "designed-15min/mems": ["designed-15min", "--profile", "mems"],
     "paper-9pos/adis16405": ["paper-9pos", "--profile", str(ADIS)],
-    "adis16405-10min/adis16405": [str(HERE / "sequences" / "adis16405-10min.toml"), "--profile", str(ADIS)],
+    "adis16405-8min/adis16405": [str(HERE / "sequences" / "adis16405-8min.toml"), "--profile", str(ADIS)],
 }
 RATIO_BAND = (0.67, 1.36)
 WORST_Z = 4.5
@@ -45,6 +48,8 @@ def run_case(args: list[str], runs: int, workers: int) -> tuple[dict, float]:
     start = time.perf_counter()
     out = subprocess.run(cmd, capture_output=True, text=True, check=False)
     wall = time.perf_counter() - start
+    if out.returncode == 2:  # a refusal: what the user is told instead of figures
+        return {"refused": json.loads(out.stdout or "{}").get("error") or out.stderr.strip()}, wall
     if out.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed:\n{out.stderr}")
     return json.loads(out.stdout), wall
@@ -83,6 +88,10 @@ def main() -> None:
         if a.only and name != a.only:
             continue
         doc, wall = run_case(args, a.runs, a.workers)
+        if "runs" not in doc:
+            report[name] = {"wall_s": wall, **doc}
+            print(f"{name:28s} refused: {doc['refused']}")
+            continue
         v = verdicts(doc, a.runs)
         report[name] = {"wall_s": wall, **v, "verify": doc}
         print(
@@ -93,9 +102,10 @@ def main() -> None:
         )
         failed = [k[:-3] for k, ok in v.items() if k.endswith("_ok") and not ok]
         print(f"{'':28s} {'all criteria met' if not failed else 'NOT met: ' + ', '.join(failed)}")
-    out = HERE / "out"
-    out.mkdir(exist_ok=True)
-    (out / "verify_mems.json").write_text(json.dumps(report, indent=1))
+    out = HERE / "out" / "verify_mems.json"
+    out.parent.mkdir(exist_ok=True)
+    earlier = json.loads(out.read_text()) if out.exists() else {}  # --only keeps the other cases
+    out.write_text(json.dumps(earlier | report, indent=1))
 
 
 if __name__ == "__main__":

@@ -51,9 +51,9 @@ FEEDBACK_START_ITERATION = 3
 MAX_ITERATIONS = 12
 # The most attitude wander (1 sigma, from the run's start to its end) the linearised fit follows,
 # deg. Measured (docs/grades.md): at 1.8 deg (white MEMS, 30 min) every run converges honestly;
-# at 6.2 deg (a Gauss-Markov gyro bias of 39 deg/h, 87 s, over 30 min) 9 runs in 11 converge
-# with NEES 16-30 and the rest diverge; at 7.0 deg (the ADIS16405 profile, 10 min) 4 in 10
-# converge; at 9.2 and 13.5 deg most diverge or stall and one converged 4 sigma off.
+# at 6.2 deg (a Gauss-Markov gyro bias of 39 deg/h, 87 s, over 30 min) 6 runs in 7 converge
+# with NEES 14-30 and the other diverges; at 7.0 deg (the ADIS16405 profile, 10 min) 4 in 10
+# converge; at 9.2 and 13.5 deg most diverge or stall and one converged 4.2 sigma off.
 MAX_WANDER_DEG = 6.0
 WANDER_MAX_ITERATIONS = 45  # measured: 6-15 iterations (white MEMS), up to 35 (ADIS16405 profile)
 
