@@ -79,3 +79,34 @@ def test_calibrate_and_view_accept_the_sequence_of_a_mems_run(mems_run, tmp_path
     )
     assert res.exit_code == 0, res.output
     assert (tmp_path / "m.rrd").stat().st_size > 0
+
+
+@pytest.mark.slow
+def test_sequence_accepts_a_run_under_a_strong_gauss_markov_gyro(tmp_path):
+    # The ADIS16405 profile that `profile fit` measured (gyro bias instability 60 deg/h, 214 s)
+    # and the 8-min sequence designed for it (benchmarks/): the log's turns judged with the
+    # profile's noise are the sequence's 9 moves, so `--sequence` accepts the run, and the fit
+    # (within the wander the estimator follows) converges.
+    from pathlib import Path
+
+    from calib.sequence import load_sequence
+
+    bench = Path(__file__).resolve().parent.parent / "benchmarks"
+    seq, prof = bench / "sequences" / "adis16405-8min.toml", bench / "profiles" / "adis16405.toml"
+    run = tmp_path / "adis.npz"
+    runner = CliRunner()
+    args = ["simulate", str(seq), "--profile", str(prof), "--table2", "--seed", "3"]
+    res = runner.invoke(main, [*args, "--sample-rate-hz", "100", "-o", str(run)])
+    assert res.exit_code == 0, res.output
+    moves = len(load_sequence(seq).steps)
+    r = read_run(run)
+    starts, _ = runs_of(
+        log_turns(r.dtheta_rad, sample_intervals(r.time_s), load_profile(str(prof)).arw, r.source)
+    )
+    assert len(starts) == moves
+    res = runner.invoke(
+        main,
+        ["calibrate", str(run), "--profile", str(prof), "--requirements", "mems", "--sequence", str(seq)]
+        + ["-o", str(tmp_path / "r.toml")],
+    )
+    assert res.exit_code == 0 and "converged" in res.output, res.output
