@@ -111,12 +111,17 @@ def detect_motion(dtheta: np.ndarray, dt: np.ndarray, where: str = "run", arw: f
     else:
         grown = grow(sample_motion(dtheta, dt))
     motion = diagnose_motion(dtheta, dt, MOTION_THRESHOLD)
-    turn = largest_turn(dtheta, dt, grown, steady)
+    angles = turn_angles(dtheta, dt, grown, steady)
+    turn = float(angles.max()) if angles.size else 0.0
     # Vibration or quantisation spikes alone are no flip, nor is a MEMS bias (a steady rate
     # beyond the threshold) with noise that a window flags here and there.
     if not motion.has_flip or turn < math.radians(MIN_TURN_DEG):
         raise never_rotates(motion, where, turn)
-    first = int(np.argmax(grown))
+    # The first rest ends where the first real turn starts: a noise burst within it (a MEMS
+    # gyro's, 0.1 deg over 0.3 s) cut a 10-s first rest to 0.2-7 s and the run was refused as
+    # too short to align (5 runs in 50 of designed-15min under `mems`).
+    starts = runs_of(grown)[0]
+    first = int(starts[np.argmax(angles >= math.radians(MIN_TURN_DEG))])
     return Segmentation(moving=grown, first_rest_end=first)
 
 
@@ -132,12 +137,6 @@ def turn_angles(dtheta: np.ndarray, dt: np.ndarray, moving: np.ndarray, steady: 
         for a, b in zip(*runs_of(moving), strict=True)
     ]
     return np.array(out)
-
-
-def largest_turn(dtheta: np.ndarray, dt: np.ndarray, moving: np.ndarray, steady: np.ndarray) -> float:
-    """The largest of :func:`turn_angles` (0 when nothing turns)."""
-    angles = turn_angles(dtheta, dt, moving, steady)
-    return float(angles.max()) if angles.size else 0.0
 
 
 def steady_rate(dtheta: np.ndarray, dt: np.ndarray) -> np.ndarray:
@@ -321,7 +320,7 @@ def _window_s(dt: np.ndarray, w: int) -> float:
 def never_rotates(motion: MotionDiagnosis, where: str, turn_rad: float = 0.0) -> CalibError:
     """The refusal of a log without a flip: how far it turns at most, and its measured sway.
 
-    ``turn_rad`` is the largest rotation between rests (:func:`largest_turn`).
+    ``turn_rad`` is the largest rotation between rests (the largest of :func:`turn_angles`).
     """
     k = int(np.argmax(motion.sway_rate_arcsec_s))
     return CalibError(
