@@ -452,3 +452,20 @@ def test_a_run_beyond_the_followable_wander_is_refused_with_the_longest_that_is(
     )
     assert out.exit_code == 2 and "Traceback" not in out.output
     assert "walks the attitude by" in out.output and f"at most {longest / 60:.1f} min" in out.output
+
+
+def test_a_noise_burst_does_not_end_the_first_rest():
+    # At rest for 10 s but for a 0.2-deg twitch at 3 s (1 deg/s for 0.2 s: above the motion
+    # threshold, below MIN_TURN_DEG), then a 90-deg flip at 10 deg/s, then at rest: the first
+    # rest is the 10 s before the flip (a burst within it is noise, not a turn).
+    from calib.motion import detect_motion
+
+    rate_hz, dt = 100.0, 0.01
+    rate = np.zeros((int(40 * rate_hz), 3))
+    rate[300:320, 0] = math.radians(1.0)
+    rate[1000:1900, 1] = math.radians(10.0)
+    seg = detect_motion(rate * dt, np.full(len(rate), dt))
+    assert seg.moving[300:320].any()  # the twitch is seen as motion...
+    assert (
+        995 <= seg.first_rest_end <= 1000
+    )  # ...but the first rest ends at the flip (grown by a few samples)
