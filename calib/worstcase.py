@@ -21,6 +21,7 @@ from . import ipopt
 from . import params as P
 from .errors import CalibError
 from .extras import Extras
+from .gmmounting import GmBasis, gm_basis, informations
 from .information import eliminate, projected_covariance, scaled_inverse
 from .jacobian import N_UNKNOWN
 from .jacobian import PHI0 as PHI0_IDX
@@ -141,9 +142,16 @@ def _evaluator(
     height_m: float,
     requirements: Requirements,
     batch: int = BATCH_MOUNTINGS,
+    direct: bool = False,
 ):
-    """``evaluate(rotvecs, nominal=None) -> [Observability]`` and the basis model (None with GM)."""
-    if profile.has_gauss_markov:
+    """``evaluate(rotvecs, nominal=None) -> [Observability]`` and the model steering the search.
+
+    The model is the white path's :class:`calib.mounting.SequenceModel`, the GM
+    profile's :class:`calib.gmmounting.GmBasis`, or None with ``direct``: each
+    mounting of a GM profile then evaluated along its own trajectory, ``batch`` at a
+    time (the reference the GM basis is held to).
+    """
+    if profile.has_gauss_markov and direct:
         # Bias-instability weights depend on the mounting (measured: up to 4.7 % on a sigma
         # for designed-30min-9moves if the nominal weights are reused), so evaluate each directly.
         def evaluate_each(rotvecs, nominal=None):
@@ -154,12 +162,51 @@ def _evaluator(
             ]
 
         return evaluate_each, None
+    if profile.has_gauss_markov:
+        basis = gm_basis(seq, profile, latitude_rad, height_m)
+
+        def evaluate_gm(rotvecs, nominal=None):
+            return [
+                from_information(info, seq.duration_s, profile.name, rv, nominal, requirements)
+                for info, rv in zip(informations(basis, rotvecs), rotvecs, strict=True)
+            ]
+
+        return evaluate_gm, basis
     model = sequence_model(seq, profile, latitude_rad, height_m)
 
     def evaluate(rotvecs, nominal=None):
         return [model.analyze(rv, nominal, requirements) for rv in rotvecs]
 
     return evaluate, model
+
+
+INTERPOLATION_STEPS = 60  # the interpolant's search lattice: 61^3 points over the box
+
+
+def _lagrange_3(x: np.ndarray, h: float) -> np.ndarray:
+    """The three quadratic Lagrange polynomials of the nodes ``-h, 0, h`` at ``x``, (len(x), 3)."""
+    x = np.asarray(x, dtype=float)[:, None]
+    return np.hstack([x * (x - h) / (2 * h * h), (h * h - x * x) / (h * h), x * (x + h) / (2 * h * h)])
+
+
+def box_interpolant_maximum(values: np.ndarray, tolerance_deg: float) -> tuple[np.ndarray, float]:
+    """Where the triquadratic interpolant of the 27 box points' values peaks in the box.
+
+    ``values`` (27,) are at the points ``itertools.product(levels, levels, levels)``,
+    ``levels = (-t, 0, t)``; the interpolant through all 27 (a product of quadratic
+    Lagrange polynomials, exact at the points) is maximised over a lattice of
+    ``INTERPOLATION_STEPS + 1`` points per axis (the points among them). It steers
+    the search for the worst mounting where each evaluation is a pass of a
+    Gauss-Markov noise filter over the whole run: where the interpolant peaks away
+    from the points, one exact evaluation there decides (:func:`analyze_tolerance`).
+    Returns the peak (degrees) and the interpolant's value there.
+    """
+    V = np.asarray(values, dtype=float).reshape(3, 3, 3)
+    x = np.linspace(-tolerance_deg, tolerance_deg, INTERPOLATION_STEPS + 1)
+    L = _lagrange_3(x, tolerance_deg)
+    lattice = np.einsum("abc,ia,jb,kc->ijk", V, L, L, L)
+    i, j, k = np.unravel_index(int(np.argmax(lattice)), lattice.shape)
+    return np.array([x[i], x[j], x[k]]), float(lattice[i, j, k])
 
 
 def analyze_tolerance(
@@ -172,6 +219,7 @@ def analyze_tolerance(
     starts: int = 2,
     requirements: Requirements = PAPER,
     batch: int = BATCH_MOUNTINGS,
+    direct: bool = False,
 ) -> Robustness:
     """Worst case over the +-tolerance box of base mountings.
 
@@ -179,18 +227,32 @@ def analyze_tolerance(
     IPOPT maximises the sigma of the worst parameter, since the worst mounting
     need not be a grid point: under white noise from its ``starts`` worst grid
     points with the exact gradient of the mounting basis
-    (:func:`search_worst_mounting`); under Gauss-Markov bias instability, whose
-    whitening the basis does not hold, from its worst grid point over direct
-    evaluations (:func:`search_worst_direct`), ``batch`` mountings at a time
-    (``batch=1``: one at a time, the unbatched reference).
+    (:func:`search_worst_mounting`); under Gauss-Markov bias instability from its
+    every mounting's information exact from the GM basis (:mod:`calib.gmmounting`:
+    the nominal and the 27 in one pass of the noise filter), the search steered by
+    the 27 points' own values: where their interpolant peaks away from the points
+    (:func:`box_interpolant_maximum`), one more exact evaluation.
+    ``direct`` evaluates each GM mounting along its own trajectory instead, ``batch``
+    at a time (``batch=1``: one at a time), the search then steered by forward
+    differences (:func:`search_worst_direct`): the reference the GM basis is held to.
     """
-    evaluate, model = _evaluator(seq, profile, latitude_rad, height_m, requirements, batch)
-    nominal = evaluate([np.zeros(3)])[0]
+    evaluate, model = _evaluator(seq, profile, latitude_rad, height_m, requirements, batch, direct)
     if tolerance_deg == 0:
+        nominal = evaluate([np.zeros(3)])[0]
         return Robustness(nominal, nominal, nominal.sigma, 1, 0.0)
     levels = (-tolerance_deg, 0.0, tolerance_deg)
     grid = [np.array(p) for p in itertools.product(levels, levels, levels)]
-    results = evaluate([np.radians(p) for p in grid], nominal)
+    if isinstance(model, GmBasis):  # the nominal and the 27 in one pass of the filter
+        rotvecs = [np.zeros(3)] + [np.radians(p) for p in grid]
+        infos = informations(model, rotvecs)
+        nominal = from_information(infos[0], seq.duration_s, profile.name, rotvecs[0], None, requirements)
+        results = [
+            from_information(info, seq.duration_s, profile.name, rv, nominal, requirements)
+            for info, rv in zip(infos[1:], rotvecs[1:], strict=True)
+        ]
+    else:
+        nominal = evaluate([np.zeros(3)])[0]
+        results = evaluate([np.radians(p) for p in grid], nominal)
     sigmas = np.array([r.sigma for r in results])
     per_param = sigmas.max(axis=0)
     worst = max(results, key=lambda r: r.worst[1])
@@ -198,10 +260,20 @@ def analyze_tolerance(
         return Robustness(nominal, worst, per_param, len(grid), tolerance_deg)
     index = int(np.argmax(requirements.ratio(per_param)))
     order = np.argsort(-sigmas[:, index])
-    if model is not None:
+    found = None
+    if isinstance(model, SequenceModel):
         rotvec, sigma = search_worst_mounting(
             model, index, [grid[i] for i in order[:starts]], tolerance_deg, requirements
         )
+    elif isinstance(model, GmBasis):
+        peak, _ = box_interpolant_maximum(sigmas[:, index], tolerance_deg)
+        rotvec, sigma = np.radians(grid[order[0]]), float(sigmas[order[0], index])
+        if not any(np.allclose(peak, p, rtol=0.0, atol=1e-9) for p in grid):  # else: a point, exact already
+            info = informations(model, [np.radians(peak)])[0]
+            found = from_information(
+                info, seq.duration_s, profile.name, np.radians(peak), nominal, requirements
+            )
+            rotvec, sigma = np.radians(peak), float(found.sigma[index])
     else:
         rotvec, sigma = search_worst_direct(
             lambda rv: evaluate([rv], nominal)[0].sigma[index],
@@ -210,7 +282,7 @@ def analyze_tolerance(
             sigmas_of=lambda rvs: [o.sigma[index] for o in evaluate(rvs, nominal)],
         )
     if sigma > per_param[index]:
-        found = evaluate([rotvec], nominal)[0]
+        found = found or evaluate([rotvec], nominal)[0]
         per_param = np.maximum(per_param, found.sigma)
         if found.worst[1] > worst.worst[1]:
             worst = found
