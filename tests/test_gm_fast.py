@@ -67,7 +67,9 @@ def test_fast_worst_case_equals_the_direct_search(name):
     ref = analyze_tolerance(seq, profile, LAT, direct=True)
     box_fast = analyze_tolerance(seq, profile, LAT, search=False)
     box_ref = analyze_tolerance(seq, profile, LAT, search=False, direct=True)
-    np.testing.assert_allclose(box_fast.per_parameter_worst_sigma, box_ref.per_parameter_worst_sigma, rtol=1e-9)
+    np.testing.assert_allclose(
+        box_fast.per_parameter_worst_sigma, box_ref.per_parameter_worst_sigma, rtol=1e-9
+    )
     np.testing.assert_allclose(fast.nominal.sigma, ref.nominal.sigma, rtol=1e-9)
     assert fast.worst.worst[1] == pytest.approx(ref.worst.worst[1], rel=5e-3)
     assert np.all(fast.per_parameter_worst_sigma >= box_fast.per_parameter_worst_sigma)
