@@ -161,6 +161,6 @@ def gram_pass(
         state = predicted[:, :s] + W[:, :s]
         E[k] = e
         U[k] = W[:, s:]
-    E = E.transpose(1, 0, 2, 3).reshape(M, -1, c)
-    U = U.transpose(1, 0, 2, 3).reshape(M, -1, c)
-    return E.transpose(0, 2, 1) @ U, P, state
+    E_m = E.transpose(1, 0, 2, 3).reshape(M, -1, c)
+    U_m = U.transpose(1, 0, 2, 3).reshape(M, -1, c)
+    return E_m.transpose(0, 2, 1) @ U_m, P, state

@@ -101,12 +101,12 @@ def whitened_grams(basis: GmBasis, rotvecs: list, columns) -> np.ndarray:
     (k, M, 3, c).
     """
     R = np.array([rotvec_to_dcm(np.asarray(rv, dtype=float)) for rv in rotvecs])
-    P_ = state = gram = None
+    P_ = np.array(np.broadcast_to(basis.P0, (len(R), STATES, STATES)))
+    state = gram = None
     for k0 in range(0, len(basis.X), CHUNK_INTERVALS):
         part = slice(k0, k0 + CHUNK_INTERVALS)
         X = columns(basis.X[part])
-        if P_ is None:
-            P_ = np.array(np.broadcast_to(basis.P0, (len(R), STATES, STATES)))
+        if state is None:
             state = np.zeros((len(R), STATES, X.shape[-1]))
         turns = mounted_turns(basis.turns[part], R)
         g, P_, state = gram_pass(
