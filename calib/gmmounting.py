@@ -21,11 +21,12 @@ import numpy as np
 
 from . import earth
 from . import params as P
+from .extras import Extras
 from .gmfilter import STATES, bias_turns, gram_pass, mounted_turns, nav_table
-from .jacobian import state_matrix
+from .jacobian import extra_inputs, observation_matrix, propagate, sample_layout, state_matrix
 from .mounting import CHUNK_INTERVALS, N_BASIS, basis_chunks, basis_weights, combination
 from .noise import velocity_transitions
-from .nominal import nominal_samples
+from .nominal import nominal_run, nominal_samples
 from .profiles import NoiseProfile
 from .sequence import Sequence, nominal_attitude, timeline
 from .transform import rotvec_to_dcm
@@ -53,6 +54,8 @@ class GmBasis:
     turns: np.ndarray  # (K, 3, 3)
     turning: np.ndarray  # (K,) bool
     P0: np.ndarray  # (9, 9) filter covariance at the start
+    T: np.ndarray  # (K,) interval lengths, s
+    Phi_vv: np.ndarray  # (K, 3, 3) velocity transitions
     duration_s: float
     profile: str
 
@@ -69,7 +72,8 @@ def gm_basis(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m
     tl = timeline(seq)
     t_nav, bounds = nominal_samples(tl)
     T = np.diff(t_nav[bounds])
-    chunks = list(basis_chunks(seq, latitude_rad, height_m, velocity_transitions(A, T, profile)))
+    Phi_vv = velocity_transitions(A, T, profile)
+    chunks = list(basis_chunks(seq, latitude_rad, height_m, Phi_vv))
     keep = chunks[-1][2]
     C = nominal_attitude(tl, t_nav)[(bounds[:-1] + bounds[1:]) // 2]
     turning = np.r_[False, np.any(C[1:] != C[:-1], axis=(1, 2))]
@@ -88,6 +92,8 @@ def gm_basis(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m
         turns=turns,
         turning=turning,
         P0=np.diag(np.repeat([0.0, profile.gyro_gm_sigma**2, profile.accel_gm_sigma**2], 3)),
+        T=T,
+        Phi_vv=Phi_vv,
         duration_s=seq.duration_s,
         profile=profile.name,
     )
@@ -117,13 +123,14 @@ def whitened_grams(basis: GmBasis, rotvecs: list, columns) -> np.ndarray:
     return 0.5 * (gram + gram.transpose(0, 2, 1))
 
 
-def informations(basis: GmBasis, rotvecs: list) -> np.ndarray:
-    """The exact Fisher information (M, 24, 24) of each mounting, in one pass of the filter.
+def informations(basis: GmBasis, rotvecs: list, extra: np.ndarray | None = None) -> np.ndarray:
+    """The exact Fisher information (M, 24 [+ e], ...) of each mounting, in one pass of the filter.
 
     ``H`` of a mounting is ``X A(R)`` (:func:`calib.mounting.combination`), whose one
     non-zero per row is a basis weight: the basis laid out (rows, parameter, term)
     times the weights of all mountings is one product, 21 x fewer operations than
-    ``X A(R)`` mounting by mounting.
+    ``X A(R)`` mounting by mounting. ``extra`` (K, M, 3, e), the optional terms'
+    columns of each mounting (:func:`extra_columns`), are appended after phi0's.
     """
     W = np.array(
         [
@@ -132,13 +139,41 @@ def informations(basis: GmBasis, rotvecs: list) -> np.ndarray:
         ]
     )
     n = len(basis.column_basis)
+    start = 0
 
     def columns(X):
+        nonlocal start
         k = len(X)
         laid = np.zeros((k, 3, P.N_PARAMS, N_BASIS))
         laid[:, :, basis.column_param, basis.column_basis] = X[:, :, :n]
         H = (laid.reshape(-1, N_BASIS) @ W.T).reshape(k, 3, P.N_PARAMS, len(W)).transpose(0, 3, 1, 2)
-        phi0 = np.broadcast_to(X[:, None, :, n:], (k, len(W), 3, 3))
-        return np.concatenate([H, phi0], axis=3)
+        parts = [H, np.broadcast_to(X[:, None, :, n:], (k, len(W), 3, 3))]
+        if extra is not None:
+            parts.append(extra[start : start + k])
+        start += k
+        return np.concatenate(parts, axis=3)
 
     return whitened_grams(basis, rotvecs, columns)
+
+
+def extra_columns(
+    seq: Sequence, basis: GmBasis, latitude_rad: float, height_m: float, rotvecs: list, extras: Extras
+) -> np.ndarray:
+    """The optional terms' columns of ``H`` (K, M, 3, e), each mounting along its own trajectory.
+
+    Their sensitivities are not in the mounting basis (polynomials of up to third
+    degree in the mounting), so each mounting's moments come from its nominal
+    trajectory (:func:`calib.jacobian.extra_inputs`, as :func:`calib.jacobian.observation_jacobian`
+    forms them); the propagation, linear and column by column, is one recursion for
+    all mountings.
+    """
+    g = earth.gravity(latitude_rad, height_m)
+    inputs = []
+    for rv in rotvecs:
+        nom = nominal_run(seq, latitude_rad, height_m, rv)
+        layout = sample_layout(nom.C_b_n, nom.time_nav, nom.grid)
+        inputs.append(extra_inputs(nom.dtheta, nom.dv, layout, extras, latitude_rad, g))
+    stacked = np.concatenate(inputs, axis=2)  # (K, 6, M e)
+    S_v = propagate(stacked, basis.T, np.zeros((6, stacked.shape[-1])), latitude_rad, g)
+    H = observation_matrix(S_v, basis.Phi_vv)
+    return H.reshape(len(H), 3, len(rotvecs), extras.n).transpose(0, 2, 1, 3)

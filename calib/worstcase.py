@@ -21,7 +21,7 @@ from . import ipopt
 from . import params as P
 from .errors import CalibError
 from .extras import Extras
-from .gmmounting import GmBasis, gm_basis, informations
+from .gmmounting import GmBasis, extra_columns, gm_basis, informations
 from .information import eliminate, projected_covariance, scaled_inverse
 from .jacobian import N_UNKNOWN
 from .jacobian import PHI0 as PHI0_IDX
@@ -326,6 +326,33 @@ class ExtrasCost:
         return out
 
 
+def _extras_sigmas(
+    seq: Sequence, profile: NoiseProfile, extras: Extras, requirements: Requirements, nom_info
+):
+    """``sigmas(rotvec, info) -> (sigma of the 21 without, with, sigma of the extras)`` (SI).
+
+    What is observed is judged at the nominal mounting (information ``nom_info``),
+    returned as the second value.
+    """
+    scale = np.concatenate([requirements.si, extras.scale_si])
+    names = P.NAMES + extras.names
+    nominal = scaled_inverse(eliminate(nom_info, PHI0_IDX) * np.outer(scale, scale), names)
+    nominal_without = from_information(
+        nom_info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s, profile.name, np.zeros(3), None, requirements
+    )
+
+    def sigmas(rotvec, info):
+        obs = from_information(
+            info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s, profile.name, rotvec, nominal_without, requirements
+        )
+        M = eliminate(info, PHI0_IDX) * np.outer(scale, scale)
+        variance = np.diag(projected_covariance(M, nominal.null_basis))
+        s = np.where(nominal.estimable, np.sqrt(np.abs(variance)), np.inf) * scale
+        return obs.sigma, s[: P.N_PARAMS], s[P.N_PARAMS :]
+
+    return sigmas, nominal
+
+
 def _extras_evaluator(
     seq: Sequence,
     profile: NoiseProfile,
@@ -341,28 +368,43 @@ def _extras_evaluator(
     at a time (:func:`calib.nominal.mounting_informations`); what is observed is judged at the nominal
     mounting (the first evaluation), returned as the second value.
     """
-    scale = np.concatenate([requirements.si, extras.scale_si])
-    names = P.NAMES + extras.names
     nom_info = mounting_informations(seq, profile, latitude_rad, height_m, [np.zeros(3)], extras, batch)[0]
-    nominal = scaled_inverse(eliminate(nom_info, PHI0_IDX) * np.outer(scale, scale), names)
-    nominal_without = from_information(
-        nom_info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s, profile.name, np.zeros(3), None, requirements
-    )
-
-    def sigmas(rotvec, info):
-        obs = from_information(
-            info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s, profile.name, rotvec, nominal_without, requirements
-        )
-        M = eliminate(info, PHI0_IDX) * np.outer(scale, scale)
-        variance = np.diag(projected_covariance(M, nominal.null_basis))
-        s = np.where(nominal.estimable, np.sqrt(np.abs(variance)), np.inf) * scale
-        return obs.sigma, s[: P.N_PARAMS], s[P.N_PARAMS :]
+    sigmas, nominal = _extras_sigmas(seq, profile, extras, requirements, nom_info)
 
     def evaluate(rotvecs):
         infos = mounting_informations(seq, profile, latitude_rad, height_m, rotvecs, extras, batch)
         return [sigmas(rv, info) for rv, info in zip(rotvecs, infos, strict=True)]
 
     return evaluate, nominal
+
+
+def _gm_extras(
+    seq: Sequence,
+    profile: NoiseProfile,
+    latitude_rad: float,
+    extras: Extras,
+    height_m: float,
+    requirements: Requirements,
+    points: list,
+):
+    """The GM basis's ``evaluate`` (as :func:`_extras_evaluator`'s), the nominal and the points' results.
+
+    The nominal mounting and ``points`` in one pass of the noise filter
+    (:func:`calib.gmmounting.informations` with :func:`calib.gmmounting.extra_columns`).
+    """
+    basis = gm_basis(seq, profile, latitude_rad, height_m)
+
+    def infos_of(rotvecs):
+        extra = extra_columns(seq, basis, latitude_rad, height_m, rotvecs, extras)
+        return informations(basis, rotvecs, extra)
+
+    infos = infos_of([np.zeros(3)] + points)
+    sigmas, nominal = _extras_sigmas(seq, profile, extras, requirements, infos[0])
+
+    def evaluate(rotvecs):
+        return [sigmas(rv, info) for rv, info in zip(rotvecs, infos_of(rotvecs), strict=True)]
+
+    return evaluate, nominal, [sigmas(rv, info) for rv, info in zip(points, infos[1:], strict=True)]
 
 
 def analyze_extras(
@@ -375,24 +417,43 @@ def analyze_extras(
     requirements: Requirements = PAPER,
     search: bool = False,
     batch: int = BATCH_MOUNTINGS,
+    direct: bool = False,
 ) -> ExtrasCost:
     """Sigma of the 21 with and without the optional terms, and theirs, worst over the box.
 
     Both figures come from the same 27 mountings (corners, edges, faces and
-    centre of the box) evaluated directly along each nominal trajectory, so
-    their ratio is the cost of the terms alone. (The optional terms' moments
-    are not in the 63-term mounting basis, hence direct evaluation.) With
-    ``search``, IPOPT then maximises the sigma (with the terms) of the worst of
-    the 21 from its worst grid point (:func:`search_worst_direct`), and that
-    mounting counts as a 28th. ``batch`` mountings are evaluated at a time
-    (``batch=1``: one at a time, the unbatched reference).
+    centre of the box), so their ratio is the cost of the terms alone. Under white
+    noise each is evaluated directly along its nominal trajectory (the optional
+    terms' moments are not in the 63-term mounting basis), ``batch`` at a time
+    (``batch=1``: one at a time, the unbatched reference); with ``search``, IPOPT
+    then maximises the sigma (with the terms) of the worst of the 21 from its worst
+    grid point (:func:`search_worst_direct`), and that mounting counts as a 28th.
+    Under Gauss-Markov bias instability (unless ``direct``, which keeps the above)
+    the 21 and phi0 come from the GM basis and only the terms' columns from each
+    trajectory, the nominal and the 27 whitened in one pass of the noise filter
+    (:func:`calib.gmmounting.informations`); the search is then the interpolant's
+    peak, evaluated exactly if it is not one of the points, as in :func:`analyze_tolerance`.
     """
     levels = (-tolerance_deg, 0.0, tolerance_deg) if tolerance_deg > 0 else (0.0,)
     points = [np.radians(p) for p in itertools.product(levels, levels, levels)]
-    evaluate, nominal = _extras_evaluator(seq, profile, latitude_rad, extras, height_m, requirements, batch)
-    results = evaluate(points)
+    fast = profile.has_gauss_markov and not direct
+    if fast:
+        evaluate, nominal, results = _gm_extras(
+            seq, profile, latitude_rad, extras, height_m, requirements, points
+        )
+    else:
+        evaluate, nominal = _extras_evaluator(
+            seq, profile, latitude_rad, extras, height_m, requirements, batch
+        )
+        results = evaluate(points)
     searched = search and tolerance_deg > 0 and bool(nominal.estimable[: P.N_PARAMS].all())
-    if searched:
+    if searched and fast:
+        with_ = np.array([r[1] for r in results])
+        index = int(np.argmax(requirements.ratio(with_.max(axis=0))))
+        peak, _ = box_interpolant_maximum(with_[:, index], tolerance_deg)
+        if not any(np.allclose(np.radians(peak), p, rtol=0.0, atol=1e-9) for p in points):
+            results.extend(evaluate([np.radians(peak)]))
+    elif searched:
         with_ = np.array([r[1] for r in results])
         index = int(np.argmax(requirements.ratio(with_.max(axis=0))))
         start = np.degrees(points[int(np.argmax(with_[:, index]))])
