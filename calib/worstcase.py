@@ -236,6 +236,9 @@ def analyze_tolerance(
     at a time (``batch=1``: one at a time), the search then steered by forward
     differences (:func:`search_worst_direct`): the reference the GM basis is held to.
     """
+    # One mounting alone costs less along its trajectory than through the GM basis (its
+    # 543 columns): at zero tolerance the direct evaluation, as before.
+    direct = direct or tolerance_deg == 0
     evaluate, model = _evaluator(seq, profile, latitude_rad, height_m, requirements, batch, direct)
     if tolerance_deg == 0:
         nominal = evaluate([np.zeros(3)])[0]
@@ -436,7 +439,7 @@ def analyze_extras(
     """
     levels = (-tolerance_deg, 0.0, tolerance_deg) if tolerance_deg > 0 else (0.0,)
     points = [np.radians(p) for p in itertools.product(levels, levels, levels)]
-    fast = profile.has_gauss_markov and not direct
+    fast = profile.has_gauss_markov and not direct and tolerance_deg > 0
     if fast:
         evaluate, nominal, results = _gm_extras(
             seq, profile, latitude_rad, extras, height_m, requirements, points
