@@ -96,3 +96,32 @@ def test_box_interpolant_maximum_finds_an_interior_peak_and_keeps_a_corner():
     assert value == pytest.approx(2.0, abs=1e-4)
     found, _ = box_interpolant_maximum(np.sum(grid, axis=1), 3.0)  # monotone: the corner
     assert np.allclose(found, [3.0, 3.0, 3.0])
+
+
+@pytest.mark.parametrize("name", ["navigation-gm", str(ADIS)])
+def test_closed_form_segment_equals_the_interval_fold(name):
+    # The beam's GM segment step (Woodbury on the segment's stacked observations) against
+    # the Kalman fold over its intervals, for candidates with different filter covariances
+    # and states (after 0, 1 and 2 earlier segments), segments stacked over start attitudes.
+    from seqdesign.search.gm import fold, fold_block, segment_blocks, stack, start_state
+    from seqdesign.search.segments import gm_start_covariance, segment_columns
+
+    profile = load_profile(name)
+    rng = np.random.default_rng(5)
+    attitudes = [np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(3)]
+    attitudes = [q * np.sign(np.linalg.det(q)) for q in attitudes]
+    turn = stack([segment_columns(C, 45.0, math.radians(10.0), 1, LAT, G, profile, 45) for C in attitudes])
+    rest = stack([segment_columns(C, 30.0, 0.0, -1, LAT, G, profile, 12) for C in attitudes])
+    X, N, P = (np.repeat(a[None], 3, axis=0) for a in start_state(gm_start_covariance(profile), 24))
+    nodes = np.array([0, 1, 2])
+    X, N, P = fold(rest, X, N, P, nodes)
+    X2, N2, P2 = fold(turn, X, N, P, nodes[::-1])
+    X, N, P = np.concatenate([X, X2]), np.concatenate([N, N2]), np.concatenate([P, P2])
+    nodes = np.array([0, 1, 2, 2, 0, 1])
+    for cols in (turn, rest):
+        ref = fold(cols, X, N, P, nodes)
+        fast = fold_block(segment_blocks(cols), X, N, P, nodes)
+        d = np.sqrt(np.einsum("bii->bi", ref[1]))
+        assert np.max(np.abs(fast[1] - ref[1]) / (d[:, :, None] * d[:, None, :])) < 1e-10
+        np.testing.assert_allclose(fast[0], ref[0], rtol=1e-9, atol=1e-12 * np.abs(ref[0]).max())
+        np.testing.assert_allclose(fast[2], ref[2], rtol=1e-9, atol=1e-12 * np.abs(ref[2]).max())
