@@ -20,7 +20,7 @@ import numpy as np
 from .noise import filter_order, gm_interval_nav, rotations
 from .profiles import NoiseProfile
 
-STATES = 9  # [phi, b_g, b_a]
+STATES = 9  # [phi, b_g, b_a]: phi, then body-fixed 3-vectors (every one turns with the body)
 
 
 def nav_table(
@@ -67,8 +67,8 @@ def turned_models(F: np.ndarray, index: np.ndarray, turns: np.ndarray) -> np.nda
     """``F D`` (k, M, 12, 9) of intervals whose bias coordinates turn by ``turns`` (k, M, 3, 3) first."""
     F = np.broadcast_to(F[index][:, None], turns.shape[:2] + F.shape[1:])
     out = np.array(F)
-    out[..., 3:6] = F[..., 3:6] @ turns
-    out[..., 6:9] = F[..., 6:9] @ turns
+    for j in range(3, F.shape[-1], 3):  # every body-fixed 3-vector of the state
+        out[..., j : j + 3] = F[..., j : j + 3] @ turns
     return out
 
 
@@ -126,10 +126,11 @@ def gram_pass(
         its turn is skipped, as exact).
     X : ndarray, shape (k, M, 3, c)
         The observation columns of each mounting.
-    P : ndarray, shape (M, 9, 9)
+    P : ndarray, shape (M, s, s)
         The filter's covariance before the first interval (navigation-frame biases of
-        the interval before it).
-    state : ndarray, shape (M, 9, c)
+        the interval before it); ``s`` is 9 (``[phi, b_g, b_a]``) for the profiles'
+        first-order Gauss-Markov biases, phi then body-fixed 3-vectors in general.
+    state : ndarray, shape (M, s, c)
         The filter's state of the columns before the first interval.
 
     Returns
@@ -141,7 +142,7 @@ def gram_pass(
         After the last interval, to carry into the next ones.
     """
     n_k, M, _, c = X.shape
-    s = STATES
+    s = F.shape[-1]
     E = np.empty((n_k, M, 3, c))
     U = np.empty((n_k, M, 3, c))
     turned = np.flatnonzero(turning)

@@ -22,7 +22,7 @@ import numpy as np
 from . import earth
 from . import params as P
 from .extras import Extras
-from .gmfilter import STATES, bias_turns, gram_pass, mounted_turns, nav_table
+from .gmfilter import bias_turns, gram_pass, mounted_turns, nav_table
 from .jacobian import extra_inputs, observation_matrix, propagate, sample_layout, state_matrix
 from .mounting import CHUNK_INTERVALS, N_BASIS, basis_chunks, basis_weights, combination
 from .noise import velocity_transitions
@@ -107,13 +107,14 @@ def whitened_grams(basis: GmBasis, rotvecs: list, columns) -> np.ndarray:
     (k, M, 3, c).
     """
     R = np.array([rotvec_to_dcm(np.asarray(rv, dtype=float)) for rv in rotvecs])
-    P_ = np.array(np.broadcast_to(basis.P0, (len(R), STATES, STATES)))
+    s = len(basis.P0)
+    P_ = np.array(np.broadcast_to(basis.P0, (len(R), s, s)))
     state = gram = None
     for k0 in range(0, len(basis.X), CHUNK_INTERVALS):
         part = slice(k0, k0 + CHUNK_INTERVALS)
         X = columns(basis.X[part])
         if state is None:
-            state = np.zeros((len(R), STATES, X.shape[-1]))
+            state = np.zeros((len(R), s, X.shape[-1]))
         turns = mounted_turns(basis.turns[part], R)
         g, P_, state = gram_pass(
             basis.F, basis.Q, basis.index[part], turns, basis.turning[part], X, P_, state
