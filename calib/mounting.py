@@ -18,7 +18,14 @@ import numpy as np
 
 from . import earth
 from . import params as P
-from .jacobian import N_UNKNOWN, ObservationGrid, observation_matrix, propagate, sample_layout, step_model
+from .jacobian import (
+    N_UNKNOWN,
+    ObservationGrid,
+    observation_matrix,
+    propagate,
+    sample_layout,
+    step_model,
+)
 from .noise import Whitener, whiten
 from .nominal import noise_along, nominal_samples
 from .observability import Observability, from_information
@@ -78,6 +85,24 @@ def basis_weights_jacobian(rotvec: np.ndarray, omega_ie_n: np.ndarray, f_n: np.n
     return np.array(cols).T
 
 
+def combination(
+    setup_rotvec, column_basis: np.ndarray, column_param: np.ndarray, omega_ie_n: np.ndarray, f_n: np.ndarray
+) -> np.ndarray:
+    """(n + 3, 24) map from the kept basis columns and phi0's to the 24 columns of ``H``.
+
+    Kept column ``j`` is basis term ``column_basis[j]`` of parameter ``column_param[j]``
+    (see :class:`SequenceModel`): it enters that parameter's column with the term's
+    :func:`basis_weights` at the mounting; phi0's three columns pass unchanged.
+    """
+    R = rotvec_to_dcm(np.asarray(setup_rotvec, dtype=float))
+    w = basis_weights(R, omega_ie_n, f_n)
+    n = len(column_basis)
+    A = np.zeros((n + 3, N_UNKNOWN))
+    A[np.arange(n), column_param] = w[column_basis]
+    A[n:, P.N_PARAMS :] = np.eye(3)
+    return A
+
+
 @dataclass(frozen=True)
 class SequenceModel:
     """Whitened observation model of a sequence for every base mounting at once.
@@ -125,13 +150,7 @@ class SequenceModel:
 
     def _combination(self, setup_rotvec) -> np.ndarray:
         """(n + 3, 24) map from the kept columns and phi0 to the 24 columns of ``H``."""
-        R = rotvec_to_dcm(np.asarray(setup_rotvec, dtype=float))
-        w = basis_weights(R, self.omega_ie_n, self.f_n)
-        n = len(self.column_basis)
-        A = np.zeros((n + 3, N_UNKNOWN))
-        A[np.arange(n), self.column_param] = w[self.column_basis]
-        A[n:, P.N_PARAMS :] = np.eye(3)
-        return A
+        return combination(setup_rotvec, self.column_basis, self.column_param, self.omega_ie_n, self.f_n)
 
     def whitened(self, setup_rotvec) -> np.ndarray:
         """Whitened ``H`` (3K x 24) for one mounting (rebuilds ``X``: slow, for checks)."""
@@ -283,6 +302,30 @@ def _chunk_inputs(blocks: list, intervals: slice, extra_columns: int) -> np.ndar
 CHUNK_INTERVALS = 512  # ~13 MB of inputs: buffers reused, not paged in afresh
 
 
+def basis_chunks(seq: Sequence, latitude_rad: float, height_m: float, Phi_vv: np.ndarray):
+    """The kept basis columns and phi0's of ``H``, unwhitened, ``CHUNK_INTERVALS`` intervals at a time.
+
+    Yields ``(intervals (slice), H_chunk (k, 3, n + 3), keep)``; propagation is a
+    recursion over the intervals, its state carried from chunk to chunk. ``Phi_vv``
+    (K, 3, 3) is every interval's velocity transition (the profile's
+    :func:`calib.noise.velocity_transitions`, the same for every mounting).
+    """
+    g = earth.gravity(latitude_rad, height_m)
+    tl = timeline(seq)
+    t_nav, bounds = nominal_samples(tl)
+    flip, E = body_integrals(tl, t_nav[1:])
+    C = nominal_attitude(tl, t_nav)
+    L = sample_layout(C, t_nav, ObservationGrid(bounds))  # bounds cover every sample
+    T = np.diff(t_nav[bounds])
+    blocks, keep = _basis_blocks(L.C_mid, flip, E, L.h, L.tau, L.starts, latitude_rad, g)
+    S = np.zeros((6, len(keep) + 3))
+    S[:3, -3:] = np.eye(3)
+    for k0 in range(0, len(T), CHUNK_INTERVALS):
+        part = slice(k0, k0 + CHUNK_INTERVALS)
+        S_v, S = propagate(_chunk_inputs(blocks, part, 3), T[part], S, latitude_rad, g, return_final=True)
+        yield part, observation_matrix(S_v, Phi_vv[part]), keep
+
+
 def _whitened_chunks(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float):
     """The kept whitened columns and phi0's, ``CHUNK_INTERVALS`` intervals at a time.
 
@@ -293,20 +336,10 @@ def _whitened_chunks(seq: Sequence, profile: NoiseProfile, latitude_rad: float, 
     g = earth.gravity(latitude_rad, height_m)
     tl = timeline(seq)
     t_nav, bounds = nominal_samples(tl)
-    flip, E = body_integrals(tl, t_nav[1:])
-    C = nominal_attitude(tl, t_nav)
-    L = sample_layout(C, t_nav, ObservationGrid(bounds))  # bounds cover every sample
-    T = np.diff(t_nav[bounds])
-    blocks, keep = _basis_blocks(L.C_mid, flip, E, L.h, L.tau, L.starts, latitude_rad, g)
-    noise = noise_along(t_nav, C, bounds, latitude_rad, g, profile)
+    noise = noise_along(t_nav, nominal_attitude(tl, t_nav), bounds, latitude_rad, g, profile)
     w = noise.whitener
-    S = np.zeros((6, len(keep) + 3))
-    S[:3, -3:] = np.eye(3)
     state = None
-    for k0 in range(0, len(T), CHUNK_INTERVALS):
-        part = slice(k0, k0 + CHUNK_INTERVALS)
-        S_v, S = propagate(_chunk_inputs(blocks, part, 3), T[part], S, latitude_rad, g, return_final=True)
-        H = observation_matrix(S_v, noise.Phi_vv[part])
+    for part, H, keep in basis_chunks(seq, latitude_rad, height_m, noise.Phi_vv):
         w_part = Whitener(w.F_ss[part], w.F_vs[part], w.gain[part], w.L_inv[part], 0.0, w.P_end)
         Hw, state = whiten(w_part, H, state, return_final=True)
         yield Hw.reshape(-1, H.shape[-1]), keep

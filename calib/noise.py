@@ -79,7 +79,7 @@ def _interval(A_bytes: bytes, T: float, arw: float, vrw: float) -> IntervalModel
 
 
 @functools.lru_cache(maxsize=4096)
-def _gm_interval_nav(A_bytes: bytes, T: float, profile: NoiseProfile) -> tuple[np.ndarray, np.ndarray]:
+def gm_interval_nav(A_bytes: bytes, T: float, profile: NoiseProfile) -> tuple[np.ndarray, np.ndarray]:
     """The 12-state model with the biases in the *navigation* frame, ``C_b_n b``.
 
     In that frame the model does not depend on the attitude: ``-b / tau`` and the
@@ -111,7 +111,7 @@ def _gm_interval_nav(A_bytes: bytes, T: float, profile: NoiseProfile) -> tuple[n
     return Phi, Q
 
 
-def _rotations(C: np.ndarray) -> np.ndarray:
+def rotations(C: np.ndarray) -> np.ndarray:
     """Nearest rotation matrices (polar factor): a mid-point average of two attitudes
     is not exactly orthogonal, and the frame change above needs ``C^-1 = C'``.
     """
@@ -164,12 +164,12 @@ def gm_interval_arrays(
         raise ValueError(f"C_b_n must have shape ({len(T)}, 3, 3), got {C_b_n.shape}")
     key = np.ascontiguousarray(A, dtype=float).tobytes()
     keys, index = np.unique(np.round(np.asarray(T, dtype=float), 6), return_inverse=True)
-    nav = [_gm_interval_nav(key, float(t), profile) for t in keys]
+    nav = [gm_interval_nav(key, float(t), profile) for t in keys]
     Phi_nav = np.array([p for p, _ in nav])[index]
     Q_nav = np.array([q for _, q in nav])[index]
     R = np.zeros((len(T), 12, 12))
     R[:, :3, :3] = R[:, 3:6, 3:6] = np.eye(3)
-    R[:, 6:9, 6:9] = R[:, 9:, 9:] = _rotations(C_b_n)
+    R[:, 6:9, 6:9] = R[:, 9:, 9:] = rotations(C_b_n)
     Rt = R.transpose(0, 2, 1)
     Phi, Q = Rt @ Phi_nav @ R, Rt @ Q_nav @ R
     Q = 0.5 * (Q + Q.transpose(0, 2, 1))

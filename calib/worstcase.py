@@ -21,6 +21,7 @@ from . import ipopt
 from . import params as P
 from .errors import CalibError
 from .extras import Extras
+from .gmmounting import GmBasis, extra_columns, gm_basis, informations
 from .information import eliminate, projected_covariance, scaled_inverse
 from .jacobian import N_UNKNOWN
 from .jacobian import PHI0 as PHI0_IDX
@@ -141,9 +142,16 @@ def _evaluator(
     height_m: float,
     requirements: Requirements,
     batch: int = BATCH_MOUNTINGS,
+    direct: bool = False,
 ):
-    """``evaluate(rotvecs, nominal=None) -> [Observability]`` and the basis model (None with GM)."""
-    if profile.has_gauss_markov:
+    """``evaluate(rotvecs, nominal=None) -> [Observability]`` and the model steering the search.
+
+    The model is the white path's :class:`calib.mounting.SequenceModel`, the GM
+    profile's :class:`calib.gmmounting.GmBasis`, or None with ``direct``: each
+    mounting of a GM profile then evaluated along its own trajectory, ``batch`` at a
+    time (the reference the GM basis is held to).
+    """
+    if profile.has_gauss_markov and direct:
         # Bias-instability weights depend on the mounting (measured: up to 4.7 % on a sigma
         # for designed-30min-9moves if the nominal weights are reused), so evaluate each directly.
         def evaluate_each(rotvecs, nominal=None):
@@ -154,12 +162,51 @@ def _evaluator(
             ]
 
         return evaluate_each, None
+    if profile.has_gauss_markov:
+        basis = gm_basis(seq, profile, latitude_rad, height_m)
+
+        def evaluate_gm(rotvecs, nominal=None):
+            return [
+                from_information(info, seq.duration_s, profile.name, rv, nominal, requirements)
+                for info, rv in zip(informations(basis, rotvecs), rotvecs, strict=True)
+            ]
+
+        return evaluate_gm, basis
     model = sequence_model(seq, profile, latitude_rad, height_m)
 
     def evaluate(rotvecs, nominal=None):
         return [model.analyze(rv, nominal, requirements) for rv in rotvecs]
 
     return evaluate, model
+
+
+INTERPOLATION_STEPS = 60  # the interpolant's search lattice: 61^3 points over the box
+
+
+def _lagrange_3(x: np.ndarray, h: float) -> np.ndarray:
+    """The three quadratic Lagrange polynomials of the nodes ``-h, 0, h`` at ``x``, (len(x), 3)."""
+    x = np.asarray(x, dtype=float)[:, None]
+    return np.hstack([x * (x - h) / (2 * h * h), (h * h - x * x) / (h * h), x * (x + h) / (2 * h * h)])
+
+
+def box_interpolant_maximum(values: np.ndarray, tolerance_deg: float) -> tuple[np.ndarray, float]:
+    """Where the triquadratic interpolant of the 27 box points' values peaks in the box.
+
+    ``values`` (27,) are at the points ``itertools.product(levels, levels, levels)``,
+    ``levels = (-t, 0, t)``; the interpolant through all 27 (a product of quadratic
+    Lagrange polynomials, exact at the points) is maximised over a lattice of
+    ``INTERPOLATION_STEPS + 1`` points per axis (the points among them). It steers
+    the search for the worst mounting where each evaluation is a pass of a
+    Gauss-Markov noise filter over the whole run: where the interpolant peaks away
+    from the points, one exact evaluation there decides (:func:`analyze_tolerance`).
+    Returns the peak (degrees) and the interpolant's value there.
+    """
+    V = np.asarray(values, dtype=float).reshape(3, 3, 3)
+    x = np.linspace(-tolerance_deg, tolerance_deg, INTERPOLATION_STEPS + 1)
+    L = _lagrange_3(x, tolerance_deg)
+    lattice = np.einsum("abc,ia,jb,kc->ijk", V, L, L, L)
+    i, j, k = np.unravel_index(int(np.argmax(lattice)), lattice.shape)
+    return np.array([x[i], x[j], x[k]]), float(lattice[i, j, k])
 
 
 def analyze_tolerance(
@@ -172,6 +219,7 @@ def analyze_tolerance(
     starts: int = 2,
     requirements: Requirements = PAPER,
     batch: int = BATCH_MOUNTINGS,
+    direct: bool = False,
 ) -> Robustness:
     """Worst case over the +-tolerance box of base mountings.
 
@@ -179,18 +227,35 @@ def analyze_tolerance(
     IPOPT maximises the sigma of the worst parameter, since the worst mounting
     need not be a grid point: under white noise from its ``starts`` worst grid
     points with the exact gradient of the mounting basis
-    (:func:`search_worst_mounting`); under Gauss-Markov bias instability, whose
-    whitening the basis does not hold, from its worst grid point over direct
-    evaluations (:func:`search_worst_direct`), ``batch`` mountings at a time
-    (``batch=1``: one at a time, the unbatched reference).
+    (:func:`search_worst_mounting`); under Gauss-Markov bias instability from its
+    every mounting's information exact from the GM basis (:mod:`calib.gmmounting`:
+    the nominal and the 27 in one pass of the noise filter), the search steered by
+    the 27 points' own values: where their interpolant peaks away from the points
+    (:func:`box_interpolant_maximum`), one more exact evaluation.
+    ``direct`` evaluates each GM mounting along its own trajectory instead, ``batch``
+    at a time (``batch=1``: one at a time), the search then steered by forward
+    differences (:func:`search_worst_direct`): the reference the GM basis is held to.
     """
-    evaluate, model = _evaluator(seq, profile, latitude_rad, height_m, requirements, batch)
-    nominal = evaluate([np.zeros(3)])[0]
+    # One mounting alone costs less along its trajectory than through the GM basis (its
+    # 543 columns): at zero tolerance the direct evaluation, as before.
+    direct = direct or tolerance_deg == 0
+    evaluate, model = _evaluator(seq, profile, latitude_rad, height_m, requirements, batch, direct)
     if tolerance_deg == 0:
+        nominal = evaluate([np.zeros(3)])[0]
         return Robustness(nominal, nominal, nominal.sigma, 1, 0.0)
     levels = (-tolerance_deg, 0.0, tolerance_deg)
     grid = [np.array(p) for p in itertools.product(levels, levels, levels)]
-    results = evaluate([np.radians(p) for p in grid], nominal)
+    if isinstance(model, GmBasis):  # the nominal and the 27 in one pass of the filter
+        rotvecs = [np.zeros(3)] + [np.radians(p) for p in grid]
+        infos = informations(model, rotvecs)
+        nominal = from_information(infos[0], seq.duration_s, profile.name, rotvecs[0], None, requirements)
+        results = [
+            from_information(info, seq.duration_s, profile.name, rv, nominal, requirements)
+            for info, rv in zip(infos[1:], rotvecs[1:], strict=True)
+        ]
+    else:
+        nominal = evaluate([np.zeros(3)])[0]
+        results = evaluate([np.radians(p) for p in grid], nominal)
     sigmas = np.array([r.sigma for r in results])
     per_param = sigmas.max(axis=0)
     worst = max(results, key=lambda r: r.worst[1])
@@ -198,10 +263,20 @@ def analyze_tolerance(
         return Robustness(nominal, worst, per_param, len(grid), tolerance_deg)
     index = int(np.argmax(requirements.ratio(per_param)))
     order = np.argsort(-sigmas[:, index])
-    if model is not None:
+    found = None
+    if isinstance(model, SequenceModel):
         rotvec, sigma = search_worst_mounting(
             model, index, [grid[i] for i in order[:starts]], tolerance_deg, requirements
         )
+    elif isinstance(model, GmBasis):
+        peak, _ = box_interpolant_maximum(sigmas[:, index], tolerance_deg)
+        rotvec, sigma = np.radians(grid[order[0]]), float(sigmas[order[0], index])
+        if not any(np.allclose(peak, p, rtol=0.0, atol=1e-9) for p in grid):  # else: a point, exact already
+            info = informations(model, [np.radians(peak)])[0]
+            found = from_information(
+                info, seq.duration_s, profile.name, np.radians(peak), nominal, requirements
+            )
+            rotvec, sigma = np.radians(peak), float(found.sigma[index])
     else:
         rotvec, sigma = search_worst_direct(
             lambda rv: evaluate([rv], nominal)[0].sigma[index],
@@ -210,7 +285,7 @@ def analyze_tolerance(
             sigmas_of=lambda rvs: [o.sigma[index] for o in evaluate(rvs, nominal)],
         )
     if sigma > per_param[index]:
-        found = evaluate([rotvec], nominal)[0]
+        found = found or evaluate([rotvec], nominal)[0]
         per_param = np.maximum(per_param, found.sigma)
         if found.worst[1] > worst.worst[1]:
             worst = found
@@ -254,6 +329,33 @@ class ExtrasCost:
         return out
 
 
+def _extras_sigmas(
+    seq: Sequence, profile: NoiseProfile, extras: Extras, requirements: Requirements, nom_info
+):
+    """``sigmas(rotvec, info) -> (sigma of the 21 without, with, sigma of the extras)`` (SI).
+
+    What is observed is judged at the nominal mounting (information ``nom_info``),
+    returned as the second value.
+    """
+    scale = np.concatenate([requirements.si, extras.scale_si])
+    names = P.NAMES + extras.names
+    nominal = scaled_inverse(eliminate(nom_info, PHI0_IDX) * np.outer(scale, scale), names)
+    nominal_without = from_information(
+        nom_info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s, profile.name, np.zeros(3), None, requirements
+    )
+
+    def sigmas(rotvec, info):
+        obs = from_information(
+            info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s, profile.name, rotvec, nominal_without, requirements
+        )
+        M = eliminate(info, PHI0_IDX) * np.outer(scale, scale)
+        variance = np.diag(projected_covariance(M, nominal.null_basis))
+        s = np.where(nominal.estimable, np.sqrt(np.abs(variance)), np.inf) * scale
+        return obs.sigma, s[: P.N_PARAMS], s[P.N_PARAMS :]
+
+    return sigmas, nominal
+
+
 def _extras_evaluator(
     seq: Sequence,
     profile: NoiseProfile,
@@ -269,28 +371,43 @@ def _extras_evaluator(
     at a time (:func:`calib.nominal.mounting_informations`); what is observed is judged at the nominal
     mounting (the first evaluation), returned as the second value.
     """
-    scale = np.concatenate([requirements.si, extras.scale_si])
-    names = P.NAMES + extras.names
     nom_info = mounting_informations(seq, profile, latitude_rad, height_m, [np.zeros(3)], extras, batch)[0]
-    nominal = scaled_inverse(eliminate(nom_info, PHI0_IDX) * np.outer(scale, scale), names)
-    nominal_without = from_information(
-        nom_info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s, profile.name, np.zeros(3), None, requirements
-    )
-
-    def sigmas(rotvec, info):
-        obs = from_information(
-            info[:N_UNKNOWN, :N_UNKNOWN], seq.duration_s, profile.name, rotvec, nominal_without, requirements
-        )
-        M = eliminate(info, PHI0_IDX) * np.outer(scale, scale)
-        variance = np.diag(projected_covariance(M, nominal.null_basis))
-        s = np.where(nominal.estimable, np.sqrt(np.abs(variance)), np.inf) * scale
-        return obs.sigma, s[: P.N_PARAMS], s[P.N_PARAMS :]
+    sigmas, nominal = _extras_sigmas(seq, profile, extras, requirements, nom_info)
 
     def evaluate(rotvecs):
         infos = mounting_informations(seq, profile, latitude_rad, height_m, rotvecs, extras, batch)
         return [sigmas(rv, info) for rv, info in zip(rotvecs, infos, strict=True)]
 
     return evaluate, nominal
+
+
+def _gm_extras(
+    seq: Sequence,
+    profile: NoiseProfile,
+    latitude_rad: float,
+    extras: Extras,
+    height_m: float,
+    requirements: Requirements,
+    points: list,
+):
+    """The GM basis's ``evaluate`` (as :func:`_extras_evaluator`'s), the nominal and the points' results.
+
+    The nominal mounting and ``points`` in one pass of the noise filter
+    (:func:`calib.gmmounting.informations` with :func:`calib.gmmounting.extra_columns`).
+    """
+    basis = gm_basis(seq, profile, latitude_rad, height_m)
+
+    def infos_of(rotvecs):
+        extra = extra_columns(seq, basis, latitude_rad, height_m, rotvecs, extras)
+        return informations(basis, rotvecs, extra)
+
+    infos = infos_of([np.zeros(3)] + points)
+    sigmas, nominal = _extras_sigmas(seq, profile, extras, requirements, infos[0])
+
+    def evaluate(rotvecs):
+        return [sigmas(rv, info) for rv, info in zip(rotvecs, infos_of(rotvecs), strict=True)]
+
+    return evaluate, nominal, [sigmas(rv, info) for rv, info in zip(points, infos[1:], strict=True)]
 
 
 def analyze_extras(
@@ -303,24 +420,43 @@ def analyze_extras(
     requirements: Requirements = PAPER,
     search: bool = False,
     batch: int = BATCH_MOUNTINGS,
+    direct: bool = False,
 ) -> ExtrasCost:
     """Sigma of the 21 with and without the optional terms, and theirs, worst over the box.
 
     Both figures come from the same 27 mountings (corners, edges, faces and
-    centre of the box) evaluated directly along each nominal trajectory, so
-    their ratio is the cost of the terms alone. (The optional terms' moments
-    are not in the 63-term mounting basis, hence direct evaluation.) With
-    ``search``, IPOPT then maximises the sigma (with the terms) of the worst of
-    the 21 from its worst grid point (:func:`search_worst_direct`), and that
-    mounting counts as a 28th. ``batch`` mountings are evaluated at a time
-    (``batch=1``: one at a time, the unbatched reference).
+    centre of the box), so their ratio is the cost of the terms alone. Under white
+    noise each is evaluated directly along its nominal trajectory (the optional
+    terms' moments are not in the 63-term mounting basis), ``batch`` at a time
+    (``batch=1``: one at a time, the unbatched reference); with ``search``, IPOPT
+    then maximises the sigma (with the terms) of the worst of the 21 from its worst
+    grid point (:func:`search_worst_direct`), and that mounting counts as a 28th.
+    Under Gauss-Markov bias instability (unless ``direct``, which keeps the above)
+    the 21 and phi0 come from the GM basis and only the terms' columns from each
+    trajectory, the nominal and the 27 whitened in one pass of the noise filter
+    (:func:`calib.gmmounting.informations`); the search is then the interpolant's
+    peak, evaluated exactly if it is not one of the points, as in :func:`analyze_tolerance`.
     """
     levels = (-tolerance_deg, 0.0, tolerance_deg) if tolerance_deg > 0 else (0.0,)
     points = [np.radians(p) for p in itertools.product(levels, levels, levels)]
-    evaluate, nominal = _extras_evaluator(seq, profile, latitude_rad, extras, height_m, requirements, batch)
-    results = evaluate(points)
+    fast = profile.has_gauss_markov and not direct and tolerance_deg > 0
+    if fast:
+        evaluate, nominal, results = _gm_extras(
+            seq, profile, latitude_rad, extras, height_m, requirements, points
+        )
+    else:
+        evaluate, nominal = _extras_evaluator(
+            seq, profile, latitude_rad, extras, height_m, requirements, batch
+        )
+        results = evaluate(points)
     searched = search and tolerance_deg > 0 and bool(nominal.estimable[: P.N_PARAMS].all())
-    if searched:
+    if searched and fast:
+        with_ = np.array([r[1] for r in results])
+        index = int(np.argmax(requirements.ratio(with_.max(axis=0))))
+        peak, _ = box_interpolant_maximum(with_[:, index], tolerance_deg)
+        if not any(np.allclose(np.radians(peak), p, rtol=0.0, atol=1e-9) for p in points):
+            results.extend(evaluate([np.radians(peak)]))
+    elif searched:
         with_ = np.array([r[1] for r in results])
         index = int(np.argmax(requirements.ratio(with_.max(axis=0))))
         start = np.degrees(points[int(np.argmax(with_[:, index]))])

@@ -105,8 +105,8 @@ def test_analyze_tolerance_and_extras_batched_equal_unbatched():
     # measured with the Gram matrix summed in blocks: box points 1.7e-12 apart, the
     # searched worst sigma 9e-10.
     seq = load_sequence("paper-9pos")
-    one = analyze_tolerance(seq, GM, LAT, batch=1)
-    many = analyze_tolerance(seq, GM, LAT)
+    one = analyze_tolerance(seq, GM, LAT, batch=1, direct=True)
+    many = analyze_tolerance(seq, GM, LAT, direct=True)
     assert one.searched and many.searched
     np.testing.assert_allclose(many.nominal.sigma, one.nominal.sigma, rtol=1e-10)
     np.testing.assert_allclose(many.per_parameter_worst_sigma, one.per_parameter_worst_sigma, rtol=1e-10)

@@ -17,7 +17,7 @@ from calib.transform import AXES
 
 from .constraints import Constraints, turn_rate, turn_seconds
 from .gimbal import at_home, home_reachable, next_encoders
-from .gm import SegmentColumns, fold, stack, start_state
+from .gm import SegmentColumns, fold, fold_block, segment_blocks, stack, start_state
 from .graph import Move, Node, apply_move, as_node, attitude_of, flip_graph
 from .graph import moves as all_moves
 from .objective import score
@@ -247,8 +247,9 @@ class SearchModel:
     def _fold_exact(self, kids, keys, objective, prior):
         """Fold each kid's turn and rest with its own filter covariance.
 
-        Kids are batched by move (equal interval counts), each with its own
-        start node's columns; all rests have the same count and fold at once.
+        Kids are batched by move, each with its own start node's segment; every
+        segment is one closed-form step (:func:`.gm.fold_block`), not a loop over its
+        intervals.
         """
         X = np.stack([k.X for k in kids])
         N = np.stack([k.N for k in kids])
@@ -257,11 +258,12 @@ class SearchModel:
         by_move: dict = {}
         for i, (_node, mv) in enumerate(keys):
             by_move.setdefault(mv, []).append(i)
+        blocks = stacks["blocks"]
         for mv, idx in by_move.items():
             nodes = np.array([stacks["index"][keys[i][0]] for i in idx])
-            X[idx], N[idx], P[idx] = fold(stacks[mv], X[idx], N[idx], P[idx], nodes)
+            X[idx], N[idx], P[idx] = fold_block(blocks[mv], X[idx], N[idx], P[idx], nodes)
         nodes = np.array([stacks["index"][k.node] for k in kids])
-        X, N, P = fold(stacks["rest"], X, N, P, nodes)
+        X, N, P = fold_block(blocks["rest"], X, N, P, nodes)
         s = score(N, objective, prior, self.requirements)
         for k, x, n, p, v in zip(kids, X, N, P, s, strict=True):
             k.X, k.N, k.P, k.score = x, n, p, float(v)
@@ -277,6 +279,8 @@ class SearchModel:
             }
             for mv in self.moves:
                 st[mv] = stack([self.turn[(n, mv)] for n in nodes])
+            # each segment's effect in closed form for any filter covariance (gm.SegmentBlock)
+            st["blocks"] = {key: segment_blocks(st[key]) for key in ["rest", *self.moves]}
             self.__dict__["_stacked"] = st
         return self.__dict__["_stacked"]
 

@@ -134,3 +134,94 @@ def fold(cols: SegmentColumns, X: np.ndarray, N: np.ndarray, P: np.ndarray, inde
     N = N + _tr(W) @ W
     A, B = (cols.A, cols.B) if index is None else (cols.A[index], cols.B[index])
     return np.concatenate([A @ S + B, ph], axis=1), N, P
+
+
+@dataclass(frozen=True)
+class SegmentBlock:
+    """A segment's effect on any candidate in closed form, whatever its filter covariance.
+
+    The segment's observations stacked, ``Z = O s_0 + n`` (``s_0`` the filter state at
+    its start, ``n`` the segment's noise, covariance ``Sigma``), and its end state
+    ``s_L = Phi s_0 + n_s``, with ``n_s = K0 n + r`` (``r`` independent of ``n``). A
+    candidate's columns enter as ``y = x - O s^_0 = C c``, ``C = [Hh | Hp | O]`` and
+    ``c = [S; I; -s^_0]``. With the candidate's covariance ``P`` and
+    ``T = I + O' Sigma^-1 O P`` (Woodbury, valid for a singular ``P``):
+
+    - information added: ``y' (O P O' + Sigma)^-1 y = c' G c - v' P T^-1 v``,
+      ``G = C' Sigma^-1 C``, ``v = O' Sigma^-1 y`` (rows ``O`` of ``G c``);
+    - end state: ``s^_L = D (s^_0 + P T^-1 v) + K0 x``, ``D = Phi - K0 O``;
+    - end covariance: ``P_L = P_L0 + D P T^-1 D'``.
+
+    ``G``, ``K0 C``, ``D`` and ``P_L0`` do not depend on the candidate: one Kalman pass
+    over the segment from a known state (``P = 0``) gives them (:func:`segment_blocks`).
+    The sequential fold's whitened innovations have the same Gram matrix (the
+    prediction-error decomposition), so a candidate's information, state and
+    covariance are :func:`fold`'s, to rounding. Arrays carry a leading node axis
+    when stacked.
+    """
+
+    G: np.ndarray  # (39, 39): [S (6), particular (24), O (9)]
+    K0C: np.ndarray  # (s, 30): K0 [Hh | Hp]
+    D: np.ndarray  # (s, s)
+    P_L0: np.ndarray  # (s, s)
+    A: np.ndarray  # (6, 6)
+    B: np.ndarray  # (6, 24)
+
+
+def segment_blocks(cols: SegmentColumns) -> SegmentBlock:
+    """:class:`SegmentBlock` of stacked segments (:func:`stack`), one Kalman pass for all.
+
+    The filter of :func:`fold` started from a known state (``P = 0``) over the data
+    columns ``C = [Hh | Hp | O]``, ``O_k = F_vs,k Phi_{k-1}`` the response to the start
+    state (``Phi_k = F_ss,k ... F_ss,1``).
+    """
+    K, n = cols.H.shape[:2]
+    s = cols.F.shape[-1]
+    P = np.zeros((n, s, s))
+    Phi = np.broadcast_to(np.eye(s), (n, s, s)).copy()
+    state = np.zeros((n, s, 30 + s))
+    gram = np.zeros((n, 30 + s, 30 + s))
+    for k in range(K):
+        F = cols.F[k]
+        M = F @ P @ _tr(F) + cols.Q[k]
+        S_inv = np.linalg.inv(M[:, s:, s:])
+        C = M[:, :s, s:]
+        G = C @ S_inv
+        P = M[:, :s, :s] - G @ _tr(C)
+        P = 0.5 * (P + _tr(P))
+        data = np.concatenate([cols.H[k], F[:, s:] @ Phi], axis=2)  # (n, 3, 30 + s)
+        pred = F @ state
+        e = data - pred[:, s:]
+        state = pred[:, :s] + G @ e
+        gram += _tr(e) @ (S_inv @ e)
+        Phi = F[:, :s] @ Phi
+    return SegmentBlock(
+        G=0.5 * (gram + _tr(gram)),
+        K0C=state[:, :, :30],
+        D=Phi - state[:, :, 30:],
+        P_L0=P,
+        A=cols.A,
+        B=cols.B,
+    )
+
+
+def fold_block(block: SegmentBlock, X: np.ndarray, N: np.ndarray, P: np.ndarray, index=None):
+    """:func:`fold` of one segment through its :class:`SegmentBlock` (same arguments and returns)."""
+
+    def at(a):
+        return a if index is None else a[index]
+
+    s = P.shape[-1]
+    G, K0C, D = at(block.G), at(block.K0C), at(block.D)
+    S, ph = X[:, :6], X[:, 6:]
+    Gc = G[..., :6] @ S + G[..., 6:30] - G[..., 30:] @ ph  # G c, (b, 39, 24)
+    v = Gc[:, 30:]
+    T = np.eye(s) + G[..., 30:, 30:] @ P
+    PT = _tr(np.linalg.solve(_tr(T), P))  # P T^-1
+    info = _tr(S) @ Gc[:, :6] + Gc[:, 6:30] - _tr(ph) @ v - _tr(v) @ (PT @ v)
+    N = N + 0.5 * (info + _tr(info))
+    ph = D @ (ph + PT @ v) + K0C[..., :6] @ S + K0C[..., 6:]
+    P = at(block.P_L0) + D @ PT @ _tr(D)
+    P = 0.5 * (P + _tr(P))
+    A, B = at(block.A), at(block.B)
+    return np.concatenate([A @ S + B, ph], axis=1), N, P

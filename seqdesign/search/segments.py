@@ -189,7 +189,7 @@ def rest_steady_state(
     rest is then taken at the identity attitude, which makes the result the covariance
     with the biases in the navigation frame: :func:`start_covariance` rotates it into
     any attitude's body frame (the model is rotation-invariant in that frame, see
-    :func:`calib.noise._gm_interval_nav`).
+    :func:`calib.noise.gm_interval_nav`).
     """
     T = np.full(40 * SEARCH_REST_INTERVALS, dwell_s / SEARCH_REST_INTERVALS)
     C = np.broadcast_to(np.eye(3), (len(T), 3, 3)) if profile.has_gauss_markov else None

@@ -1,0 +1,124 @@
+"""Wall time of the analyser and the design under Gauss-Markov profiles, beside another checkout.
+
+Runs each command as a user would (``python -m seqdesign.cli ...``, a fresh process)
+from this checkout and, with ``--against DIR``, from another one (e.g. the commit
+before a change), interleaved so that both see the same load; prints the wall time,
+the user+sys CPU time of the child and the worst ratio each reported, and the
+load average before and after (on a shared machine the CPU figure is the one that
+says what the code costs).
+
+    python benchmarks/gm_speed.py [--against DIR] [--only analyze|design] [--adis-design FILE]
+
+The commands: ``analyze designed-30min-gm --profile navigation-gm`` with and without
+``--with all``; ``analyze FILE`` of a 10-minute design under the ADIS16405 profile
+fitted from a real log (``benchmarks/profiles/adis16405.toml``; ``--adis-design``,
+default: designed by the first design command below); ``design --budget-min 10
+--workers 2`` under that profile; and a 30-minute ``navigation-gm --with all``
+design with ``--workers 2``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+ADIS = ROOT / "benchmarks" / "profiles" / "adis16405.toml"
+
+
+def run(root: Path, args: list[str]) -> tuple[float, float, str]:
+    """Wall time, child CPU time (user + sys) and stdout of one CLI run from ``root``."""
+    cpu0 = os.times()
+    t = time.perf_counter()
+    out = subprocess.run(
+        [sys.executable, "-m", "seqdesign.cli", *args],
+        cwd=root,
+        capture_output=True,
+        text=True,
+        check=True,
+        env={**os.environ, "PYTHONPATH": str(root)},
+    ).stdout
+    wall = time.perf_counter() - t
+    cpu1 = os.times()
+    return (
+        wall,
+        (cpu1.children_user - cpu0.children_user) + (cpu1.children_system - cpu0.children_system),
+        out,
+    )
+
+
+def worst_of(args: list[str], out: str) -> str:
+    """The worst ratio a command reported."""
+    if args[0] == "analyze":
+        doc = json.loads(out)
+        w = doc["worst"]
+        text = f"{w['name']} {w['ratio']:.5f}"
+        extras = doc.get("extras") or doc.get("with")
+        if extras:
+            text += f"; with the terms {extras['worst_with']['name']} {extras['worst_with']['ratio']:.5f}"
+        return text
+    m = re.search(r"worst[^\n]*?(\d+\.\d+)", out)
+    return m.group(0) if m else out.strip().splitlines()[-1][:60]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--against", type=Path, help="another checkout to time side by side")
+    ap.add_argument("--only", choices=["analyze", "design"])
+    ap.add_argument("--adis-design", type=Path, help="a 10-minute design under the ADIS profile")
+    a = ap.parse_args()
+    roots = [ROOT] + ([a.against.resolve()] if a.against else [])
+    tmp = Path(tempfile.mkdtemp())
+    adis_design = a.adis_design or tmp / "0" / "adis-10min.toml"  # this checkout's design
+    commands = []
+    if a.only != "analyze":
+        commands += [
+            [
+                "design",
+                "--budget-min",
+                "10",
+                "--workers",
+                "2",
+                "--profile",
+                str(ADIS),
+                "-o",
+                "{out}/adis-10min.toml",
+            ],
+            ["design", "--budget-min", "30", "--workers", "2", "--profile", "navigation-gm", "--with", "all"]
+            + ["-o", "{out}/gm-30min-all.toml"],
+        ]
+    if a.only != "design":
+        commands += [
+            ["analyze", "designed-30min-gm", "--profile", "navigation-gm", "--json"],
+            ["analyze", "designed-30min-gm", "--profile", "navigation-gm", "--with", "all", "--json"],
+            ["analyze", str(adis_design), "--profile", str(ADIS), "--json"],
+        ]
+    print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}", flush=True)
+    print("  (" + ", ".join(map(str, roots)) + ")")
+    print(f"  outputs in {tmp}")
+    for n, args in enumerate(commands):
+        for i, root in enumerate(roots):
+            out_dir = tmp / str(i)
+            out_dir.mkdir(exist_ok=True)
+            concrete = [x.replace("{out}", str(out_dir)) for x in args]
+            if concrete[0] == "analyze" and concrete[1].endswith(".toml") and not Path(concrete[1]).exists():
+                print(f"  (no {concrete[1]}: skipped)")
+                continue
+            w, c, o = run(root, concrete)
+            (out_dir / f"{n}.out").write_text(o)
+            label = " ".join(args[:2] + [x for x in args[2:] if not x.startswith("{out}")])
+            print(
+                f"{label[:80]:<80} [{i}] {w:8.1f} s wall {c:8.1f} s cpu  {worst_of(concrete, o)}", flush=True
+            )
+    print(f"load average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+
+
+if __name__ == "__main__":
+    main()
