@@ -72,6 +72,8 @@ class CalibrationResult:
         ``measured`` (the log's) or ``normal`` (WGS-84 model); empty if unknown.
     requirements : Requirements
         What the ratios are judged against.
+    caveats : tuple of str
+        Warnings about the noise model's honesty for this profile (a MEMS gyro's GM bias).
     by_hand : HandSummary or None
         For a run placed by hand, the rests and moves the fit used.
     """
@@ -97,6 +99,7 @@ class CalibrationResult:
     gravity_source: str = ""
     requirements: Requirements = PAPER
     by_hand: HandSummary | None = None  # a run placed by hand: its rests and moves
+    caveats: tuple = ()  # what the fit's model does not prove for this run (calib.feedback)
 
     @property
     def error_model(self) -> ErrorModel:
@@ -160,6 +163,7 @@ class CalibrationResult:
                 + "; unobserved combinations: "
                 + "; ".join(self.null_directions)
             )
+        out.extend(self.caveats)
         req = min(self.requirements.values[P.ACCEL_SCALE])
         if self.gravity_source == "normal" and req <= 5 * self.ppm_per_mgal:
             out.append(

@@ -469,3 +469,15 @@ def test_a_noise_burst_does_not_end_the_first_rest():
     assert (
         995 <= seg.first_rest_end <= 1000
     )  # ...but the first rest ends at the flip (grown by a few samples)
+
+
+def test_sigmas_under_a_mems_gauss_markov_gyro_carry_the_caveat():
+    # White MEMS noise is proven honest by the Monte Carlo; a MEMS gyro with GM bias is not
+    # (NEES 58 under the ADIS16405 profile), so its result says so; a navigation-grade GM
+    # profile (ARW 0.001 deg/sqrt(h)) is proven and carries none.
+    from calib.feedback import gauss_markov_caveat
+    from calib.profiles import NoiseProfile
+
+    assert gauss_markov_caveat(load_profile("mems")) is None
+    assert gauss_markov_caveat(load_profile("navigation-gm")) is None
+    assert "not proven honest" in gauss_markov_caveat(NoiseProfile("adis", 2.5, 459.0, 60.0, 214.0))
