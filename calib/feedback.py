@@ -30,11 +30,10 @@ from .solution import solve_step
 ATTITUDE_FEEDBACK_RATIO = 0.5
 # The feedback moves at every step until two steps in a row (each taken about a just-moved
 # feedback) are below FEEDBACK_HOLD_SIGMA, then it is held. Under white MEMS noise that takes
-# the 4 updates it always took (measured on MEMS paper-9pos runs: the first update moves the
-# estimate by several sigmas, the later ones by hundredths, converging at 0.07-0.65 per update);
-# held there, the estimate is within 0.002 sigma of the fully iterated one (two runs iterated 30
-# times). A strong Gauss-Markov gyro bias walks the attitude further (the ADIS16405's 39 deg/h,
-# 87 s: 3.5 deg of tilt over 30 min) and the feedback settles slowly: held after 4 updates the
+# 4-9 updates (an earlier rule held it after 4 always: on the golden designed-15min run the
+# updates were then still moving the estimate by several sigmas, and it ended 0.5 sigma off the
+# settled fixed point). A strong Gauss-Markov gyro bias walks the attitude further (39 deg/h,
+# 87 s: 3.5 deg RMS tilt over 30 min) and the feedback settles slowly: held after 4 updates the
 # accelerometer scale factors came out 5 sigma off (NEES 202); held below FEEDBACK_HOLD_SIGMA
 # they are within 2.5 sigma. A fit whose feedback has not settled after MAX_FEEDBACK_UPDATES is
 # not converged (docs/grades.md).
