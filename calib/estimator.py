@@ -327,8 +327,8 @@ def _fit_renavigating(
             converged = True
             break
         feedback = schedule.update(it, step, feedback, noise, z, H, delta, A, T, nav.C_b_n[mid])
-    if not converged and schedule.why_not_converged():
-        history[-1]["why_not_converged"] = schedule.why_not_converged()
+    if not converged and (why := schedule.why_not_converged()):
+        history[-1]["why_not_converged"] = why
     return fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, converged, extras)
 
 
@@ -406,8 +406,8 @@ def fit_intervals(
         if (step < tol_sigma or bound < tol_sigma) and not schedule.pending():
             return fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, True, extras)
         feedback = schedule.update(it, step, feedback, noise, z, H, delta, A, T, data.C_mid)
-    if schedule is not None and schedule.why_not_converged():
-        history[-1]["why_not_converged"] = schedule.why_not_converged()
+    if schedule is not None and (why := schedule.why_not_converged()):
+        history[-1]["why_not_converged"] = why
     return fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, False, extras)
 
 
