@@ -64,6 +64,15 @@ from .transform import rotvec_to_dcm
 # Past the third iteration the Jacobian is rebuilt only while the last step exceeded this many
 # sigmas: below it the linearisation error is far below the convergence tolerance.
 RELINEARISE_STEP_SIGMA = 0.1
+# A Gauss-Markov bias is fixed in the body; the noise model carries it into the navigation frame
+# along the navigated attitude, so it must be built along the attitude the fit ends on. Built
+# along one that is off by a rotation R, the modelled bias turns by C' R C against the real one
+# as the unit flips, and the fit takes the constant gyro bias for separable from the GM: measured
+# on an ADIS16405-profile run whose first heading was 69 deg off (a MEMS gyro cannot
+# gyrocompass), gyro-bias sigmas of 10 deg/h where the bound of a constant in that GM is 41 deg/h
+# (errors 3-7 sigma). Off by 1 deg the sigmas move by 0.5 %, by 3 deg 3 %, by 10 deg 20 %: the
+# noise model is rebuilt whenever the attitude moved more than this since it was built.
+NOISE_MODEL_MAX_ATTITUDE_DEG = 1.0
 
 
 def check_run(
@@ -294,19 +303,26 @@ def _fit_renavigating(
     # Until the first navigation, the Earth's turn as seen at the start attitude.
     turn = X.earth_turn(np.broadcast_to(C0, (len(dt), 3, 3)), omega_ie_n, dt)
     history: list[dict] = []
-    noise, sol, converged, feedback = None, None, False, None
+    noise, sol, converged, feedback, noise_C = None, None, False, None, None
     check_wander(profile, float(T.sum()), where)
     schedule = FeedbackSchedule.for_run(profile, float(T.sum()), gravity_mps2)
     for it in range(1, schedule.limit(max_iterations) + 1):
         dth, dvv, nav = pb.compensate_and_navigate(values, extra_values, C0, turn, feedback)
         if extras.n:  # the Earth's turn in the body, for the next compensation
             turn = X.earth_turn(0.5 * (nav.C_b_n[1:] + nav.C_b_n[:-1]), omega_ie_n, dt)
-        if noise is None or (profile.has_gauss_markov and it <= 3):
+        rebuild = (
+            noise is None
+            or (profile.has_gauss_markov and it <= 3)
+            or _noise_stale(profile, noise_C, nav.C_b_n[mid])
+        )
+        if rebuild:
             # Gauss-Markov bias noise enters through the attitude (C_b_n b): its weights follow
-            # the navigated attitude while the Jacobian does. Phi_vv does not depend on it.
-            noise = noise_model(A, T, profile, C_b_n=nav.C_b_n[mid])
+            # the navigated attitude (NOISE_MODEL_MAX_ATTITUDE_DEG), and the Jacobian with them.
+            # Phi_vv does not depend on it.
+            noise_C = nav.C_b_n[mid]
+            noise = noise_model(A, T, profile, C_b_n=noise_C)
         z = pb.observations(nav, noise.Phi_vv, it, feedback, schedule.divergence_hint())
-        if _relinearise(it, sol, history):
+        if rebuild or _relinearise(it, sol, history):
             # The Jacobian changes little once the big errors are compensated; while steps are
             # still large (a MEMS unit's percent-level errors) it follows them. A partial fit's
             # covariance is sensitive to where its nearly-null directions lie, so it follows
@@ -366,11 +382,12 @@ def fit_intervals(
     values = np.zeros(P.N_PARAMS) if start is None else start.copy()
     extra_values = np.zeros(extras.n)
     history: list[dict] = []
-    noise, sol, turn, feedback, schedule = None, None, None, None, None
-    it, limit = 0, max_iterations or MAX_ITERATIONS
+    noise, sol, turn, feedback, schedule, noise_C = None, None, None, None, None, None
+    it, limit, stale, rebuilt = 0, max_iterations or MAX_ITERATIONS, False, 0
     while it < limit:
         it += 1
-        want_H = _relinearise(it, sol, history)
+        # A noise model found stale on a pass without the Jacobian is rebuilt on the next, with it.
+        want_H = _relinearise(it, sol, history) or stale
         data = navigate_pass(
             chunks(),
             grid,
@@ -389,8 +406,10 @@ def fit_intervals(
             check_wander(profile, float(T.sum()), where)
             schedule = FeedbackSchedule.for_run(profile, float(T.sum()), site.gravity_mps2)
             limit = schedule.limit(max_iterations)
-        if noise is None or (profile.has_gauss_markov and it <= 3):
-            noise = noise_model(A, T, profile, C_b_n=data.C_mid)
+        stale = _noise_stale(profile, noise_C, data.C_mid)
+        if noise is None or (profile.has_gauss_markov and it <= 3) or (stale and want_H):
+            noise_C, stale, rebuilt = data.C_mid, False, it
+            noise = noise_model(A, T, profile, C_b_n=noise_C)
         y = data.y if feedback is None else data.y - feedback.dv
         z = _observations(y, noise.Phi_vv, it, where, schedule.divergence_hint())
         if want_H:
@@ -402,8 +421,10 @@ def fit_intervals(
         delta, resid = schedule.step(Hs, D, zw, sol, cov, it)
         values, extra_values = apply_step(values, extra_values, delta, sol, D)
         C0 = rotvec_to_dcm(delta[PHI0]) @ C0
-        step, bound = _record(history, history_entry(it, delta, cov, resid, sol), schedule.settled(it))
-        if (step < tol_sigma or bound < tol_sigma) and not schedule.pending():
+        # The weights changed with a rebuilt noise model: no geometric bound across it.
+        settled = schedule.settled(it) and it > rebuilt + 1
+        step, bound = _record(history, history_entry(it, delta, cov, resid, sol), settled)
+        if (step < tol_sigma or bound < tol_sigma) and not schedule.pending() and not stale:
             return fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, True, extras)
         feedback = schedule.update(it, step, feedback, noise, z, H, delta, A, T, data.C_mid)
     if schedule is not None and (why := schedule.why_not_converged()):
@@ -444,6 +465,19 @@ def _observations(y: np.ndarray, Phi_vv: np.ndarray, it: int, where: str, hint: 
             hint,
         )
     return z
+
+
+def attitude_moved_deg(C_built: np.ndarray | None, C_now: np.ndarray) -> float:
+    """The largest rotation (deg) between two attitude series (K, 3, 3); inf without the first."""
+    if C_built is None:
+        return math.inf
+    cos = 0.5 * (np.einsum("kij,kij->k", C_built, C_now) - 1.0)
+    return math.degrees(float(np.arccos(np.clip(cos, -1.0, 1.0)).max()))
+
+
+def _noise_stale(profile: NoiseProfile, C_built: np.ndarray | None, C_now: np.ndarray) -> bool:
+    """Whether a Gauss-Markov noise model must follow the attitude (NOISE_MODEL_MAX_ATTITUDE_DEG)."""
+    return profile.has_gauss_markov and attitude_moved_deg(C_built, C_now) > NOISE_MODEL_MAX_ATTITUDE_DEG
 
 
 def _relinearise(it: int, sol, history: list) -> bool:
