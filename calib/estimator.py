@@ -321,6 +321,7 @@ def _fit_renavigating(
             # Phi_vv does not depend on it.
             noise_C = nav.C_b_n[mid]
             noise = noise_model(A, T, profile, C_b_n=noise_C)
+        assert noise is not None  # built on the first pass (rebuild is true while it is None)
         z = pb.observations(nav, noise.Phi_vv, it, feedback, schedule.divergence_hint())
         if rebuild or _relinearise(it, sol, history):
             # The Jacobian changes little once the big errors are compensated; while steps are
