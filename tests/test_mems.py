@@ -284,7 +284,11 @@ def test_held_feedback_steps_sum_their_geometric_series():
 
     from calib.feedback import FeedbackSchedule
 
-    n, u, rho = 4, np.array([1.0, -2.0, 0.5, 3.0]), -0.5
+    # 24 unknowns (the 21 and the initial attitude); the heading (index 23) does not move, so
+    # the heading's trust region (HEADING_STEP_MAX_DEG) leaves the steps alone.
+    n, rho = 24, -0.5
+    u = np.zeros(n)
+    u[:4] = [1.0, -2.0, 0.5, 3.0]
     sol, eye, ones = SimpleNamespace(covariance=np.eye(n)), np.eye(n), np.ones(n)
     schedule = FeedbackSchedule(wander=True)
     it = _held(schedule) + 1
