@@ -125,27 +125,6 @@ def check_wander(profile: NoiseProfile, duration_s: float, where: str) -> None:
     )
 
 
-# A MEMS-grade gyro (ARW above a tactical unit's 0.5 deg/sqrt(h)) with Gauss-Markov bias
-# instability: its sigmas are not proven honest (below).
-MEMS_ARW_DPH = 0.5
-
-
-def gauss_markov_caveat(profile: NoiseProfile) -> str | None:
-    """What a user must know about sigmas fitted under a MEMS gyro's Gauss-Markov bias, or None.
-
-    Measured (``benchmarks/verify_mems.py``): white MEMS noise gives honest sigmas (NEES in
-    band), but under the ADIS16405 profile (60 deg/h over 214 s) an 8-min design within the
-    wander limit gave NEES 58 for 21 and gyro biases 2-3 times their sigmas.
-    """
-    if profile.gyro_gm_sigma <= 0.0 or profile.gyro_arw_dph <= MEMS_ARW_DPH:
-        return None
-    return (
-        "the sigmas of a MEMS gyro with Gauss-Markov bias instability are not proven honest: "
-        "a Monte Carlo under the ADIS16405 profile gave errors 2-3 times the gyro-bias sigmas; "
-        "run `seqdesign verify` with your sequence and profile before acting on them"
-    )
-
-
 def attitude_wander_ratio(profile: NoiseProfile, duration_s: float, gravity_mps2: float) -> float:
     """Second-order gravity through the run's attitude wander over the accelerometer-bias resolution.
 
