@@ -152,8 +152,8 @@ class AttitudeFeedback:
         """The first-order velocity effect (K + 1, 3) of the correction along ``C_mid``.
 
         The correction is a rate fixed in the body; its effect in the navigation frame turns
-        with the navigated heading. Added back as made (``dv``), it was wrong by the heading's
-        turn since then: on a MEMS run whose heading the fit moves by degrees, metres per
+        with the navigated heading. Added back as it was along the trajectory it was made on,
+        it was wrong by the heading's turn since then: on a MEMS run whose heading the fit moves by degrees, metres per
         second against millimetres of noise (measured: the fit then cycled for 30 iterations
         with the heading, never converging).
         """
@@ -251,8 +251,8 @@ class FeedbackSchedule:
     quiet: int = 0  # steps in a row below FEEDBACK_HOLD_SIGMA about a just-moved feedback
     held: bool = False
     wander_deg: float = 0.0  # the 1-sigma tilt the gyro noise builds over the run
-    heading_limited: bool = False  # the last step's heading was cut to HEADING_STEP_MAX_DEG
-    heading_limit_deg: float = HEADING_STEP_MAX_DEG  # the trust radius (HEADING_STEP_MAX_DEG)
+    heading_limited: bool = False  # the last step's heading turn was cut to the trust radius
+    heading_limit_deg: float = HEADING_STEP_MAX_DEG  # the heading's trust radius
     heading_last_cut: float = 0.0  # the sign of the last cut heading step (0: not cut)
 
     @classmethod
