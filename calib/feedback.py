@@ -153,9 +153,9 @@ class AttitudeFeedback:
 
         The correction is a rate fixed in the body; its effect in the navigation frame turns
         with the navigated heading. Added back as it was along the trajectory it was made on,
-        it was wrong by the heading's turn since then: on a MEMS run whose heading the fit moves by degrees, metres per
-        second against millimetres of noise (measured: the fit then cycled for 30 iterations
-        with the heading, never converging).
+        it was wrong by the heading's turn since then: on a MEMS run whose heading the fit
+        moves by degrees, metres per second against millimetres of noise (measured: the fit
+        then cycled for 30 iterations with the heading, never converging).
         """
         return _velocity_effect(-np.einsum("kij,kj->ki", C_mid, self.body_rate), A, T)
 
