@@ -5,12 +5,14 @@ A sequence's figures are quoted at the worst base mounting within
 21 parameters, :func:`analyze_extras` for what fitting a real unit's optional
 terms costs them. Under white noise each mounting comes from the mounting
 basis (:mod:`calib.mounting`), with an exact sigma gradient; with
-Gauss-Markov bias instability or optional terms each is evaluated along its
-own nominal trajectory (:func:`calib.nominal.mounting_informations`).
+Gauss-Markov bias instability from the GM basis (:mod:`calib.gmmounting`), the
+optional terms' columns too; white noise with optional terms, and ``direct``,
+along each mounting's own nominal trajectory (:func:`calib.nominal.mounting_informations`).
 """
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from dataclasses import dataclass
@@ -20,8 +22,9 @@ import numpy as np
 from . import ipopt
 from . import params as P
 from .errors import CalibError
+from .extras import NONE as NO_EXTRAS
 from .extras import Extras
-from .gmmounting import GmBasis, extra_columns, gm_basis, informations
+from .gmmounting import GmBasis, extra_basis, gm_basis, informations
 from .information import eliminate, projected_covariance, scaled_inverse
 from .jacobian import N_UNKNOWN
 from .jacobian import PHI0 as PHI0_IDX
@@ -209,6 +212,36 @@ def box_interpolant_maximum(values: np.ndarray, tolerance_deg: float) -> tuple[n
     return np.array([x[i], x[j], x[k]]), float(lattice[i, j, k])
 
 
+def _box_points(tolerance_deg: float) -> list:
+    """The 27 corners, edge and face centres and centre of the box (rotation vectors, rad)."""
+    levels = (-tolerance_deg, 0.0, tolerance_deg)
+    return [np.radians(p) for p in itertools.product(levels, levels, levels)]
+
+
+@functools.lru_cache(maxsize=1)
+def box_informations(
+    seq: Sequence,
+    profile: NoiseProfile,
+    latitude_rad: float,
+    height_m: float,
+    tolerance_deg: float,
+    extras: Extras = NO_EXTRAS,
+) -> np.ndarray:
+    """The informations (28, 24 + e, 24 + e) of the nominal mounting and the 27 box points.
+
+    Under a GM profile, in one pass of the filter over the GM basis
+    (:func:`calib.gmmounting.informations`), the optional terms' columns after phi0's.
+    The filter whitens column by column, so the leading 24 x 24 block is the
+    information without the terms: :func:`analyze_tolerance` and
+    :func:`analyze_extras` of the same terms share this pass (the last one is kept).
+    """
+    basis = gm_basis(seq, profile, latitude_rad, height_m)
+    xb = extra_basis(seq, latitude_rad, height_m, extras) if extras.n else None
+    infos = informations(basis, [np.zeros(3)] + _box_points(tolerance_deg), xb)
+    infos.setflags(write=False)
+    return infos
+
+
 def analyze_tolerance(
     seq: Sequence,
     profile: NoiseProfile,
@@ -220,6 +253,7 @@ def analyze_tolerance(
     requirements: Requirements = PAPER,
     batch: int = BATCH_MOUNTINGS,
     direct: bool = False,
+    extras: Extras = NO_EXTRAS,
 ) -> Robustness:
     """Worst case over the +-tolerance box of base mountings.
 
@@ -235,6 +269,9 @@ def analyze_tolerance(
     ``direct`` evaluates each GM mounting along its own trajectory instead, ``batch``
     at a time (``batch=1``: one at a time), the search then steered by forward
     differences (:func:`search_worst_direct`): the reference the GM basis is held to.
+    ``extras``, the optional terms :func:`analyze_extras` will be asked about next: under
+    a GM profile the box's pass of the filter then carries their columns too and serves
+    both (:func:`box_informations`); the figures here are the same.
     """
     # One mounting alone costs less along its trajectory than through the GM basis (its
     # 543 columns): at zero tolerance the direct evaluation, as before.
@@ -247,7 +284,8 @@ def analyze_tolerance(
     grid = [np.array(p) for p in itertools.product(levels, levels, levels)]
     if isinstance(model, GmBasis):  # the nominal and the 27 in one pass of the filter
         rotvecs = [np.zeros(3)] + [np.radians(p) for p in grid]
-        infos = informations(model, rotvecs)
+        infos = box_informations(seq, profile, latitude_rad, height_m, tolerance_deg, extras)
+        infos = infos[:, :N_UNKNOWN, :N_UNKNOWN]
         nominal = from_information(infos[0], seq.duration_s, profile.name, rotvecs[0], None, requirements)
         results = [
             from_information(info, seq.duration_s, profile.name, rv, nominal, requirements)
@@ -388,20 +426,21 @@ def _gm_extras(
     extras: Extras,
     height_m: float,
     requirements: Requirements,
-    points: list,
+    tolerance_deg: float,
 ):
     """The GM basis's ``evaluate`` (as :func:`_extras_evaluator`'s), the nominal and the points' results.
 
-    The nominal mounting and ``points`` in one pass of the noise filter
-    (:func:`calib.gmmounting.informations` with :func:`calib.gmmounting.extra_columns`).
+    The nominal mounting and the 27 box points in one pass of the noise filter
+    (:func:`box_informations`, the terms' columns from :func:`calib.gmmounting.extra_basis`).
     """
+    points = _box_points(tolerance_deg)
     basis = gm_basis(seq, profile, latitude_rad, height_m)
+    xb = extra_basis(seq, latitude_rad, height_m, extras)
 
     def infos_of(rotvecs):
-        extra = extra_columns(seq, basis, latitude_rad, height_m, rotvecs, extras)
-        return informations(basis, rotvecs, extra)
+        return informations(basis, rotvecs, xb)
 
-    infos = infos_of([np.zeros(3)] + points)
+    infos = box_informations(seq, profile, latitude_rad, height_m, tolerance_deg, extras)
     sigmas, nominal = _extras_sigmas(seq, profile, extras, requirements, infos[0])
 
     def evaluate(rotvecs):
@@ -442,7 +481,7 @@ def analyze_extras(
     fast = profile.has_gauss_markov and not direct and tolerance_deg > 0
     if fast:
         evaluate, nominal, results = _gm_extras(
-            seq, profile, latitude_rad, extras, height_m, requirements, points
+            seq, profile, latitude_rad, extras, height_m, requirements, tolerance_deg
         )
     else:
         evaluate, nominal = _extras_evaluator(
