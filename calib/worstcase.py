@@ -413,6 +413,8 @@ def _extras_evaluator(
     sigmas, nominal = _extras_sigmas(seq, profile, extras, requirements, nom_info)
 
     def evaluate(rotvecs):
+        if len(rotvecs) == 1 and not np.any(rotvecs[0]):  # the nominal alone (a design's screen): as above
+            return [sigmas(rotvecs[0], nom_info)]
         infos = mounting_informations(seq, profile, latitude_rad, height_m, rotvecs, extras, batch)
         return [sigmas(rv, info) for rv, info in zip(rotvecs, infos, strict=True)]
 
