@@ -98,6 +98,12 @@ def _walk_information_exact(
     return walk_informations_exact(walk, c, [dwells], latitude_rad, gravity_mps2, profile)[0]
 
 
+@functools.lru_cache(maxsize=8)
+def _graph(start, axes: str):
+    """:func:`flip_graph` of a start, built once per refinement (every IPOPT evaluation walks it)."""
+    return flip_graph(start, axes)
+
+
 @functools.lru_cache(maxsize=4096)
 def turn_block(node, mv, duration, rate, latitude_rad, gravity_mps2, profile) -> SegmentBlock:
     """A turn's :class:`SegmentBlock` from ``node`` (cached: every IPOPT evaluation folds the same turns)."""
@@ -122,7 +128,7 @@ def walk_informations_exact(
     folded in closed form (:func:`turn_block`, built once per turn, not a loop over
     its intervals at every evaluation; ``closed_form=False``: the loop, the reference).
     """
-    graph = flip_graph(c.start, c.axes)
+    graph = _graph(as_node(c.start), c.axes)
     node = as_node(c.start)
     B = len(dwell_sets)
     X, N, Pc = (np.repeat(a[None], B, axis=0) for a in start_state(gm_start_covariance(profile), N_UNKNOWN))
