@@ -212,3 +212,27 @@ def test_closed_form_segment_equals_the_interval_fold(name):
         assert np.max(np.abs(fast[1] - ref[1]) / (d[:, :, None] * d[:, None, :])) < 1e-10
         np.testing.assert_allclose(fast[0], ref[0], rtol=1e-9, atol=1e-12 * np.abs(ref[0]).max())
         np.testing.assert_allclose(fast[2], ref[2], rtol=1e-9, atol=1e-12 * np.abs(ref[2]).max())
+
+
+@pytest.mark.parametrize("name", ["navigation-gm", str(ADIS)])
+def test_a_turn_then_its_rest_in_one_block_equals_the_two_folds(name):
+    # The beam folds a move's turn and the rest after it through one block (gm.then): the
+    # same information, state and covariance as the Kalman loop over both, stacked nodes.
+    from seqdesign.search.gm import fold, fold_block, segment_blocks, stack, start_state, then
+    from seqdesign.search.segments import gm_start_covariance, segment_columns
+
+    profile = load_profile(name)
+    rng = np.random.default_rng(7)
+    attitudes = [np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(3)]
+    attitudes = [q * np.sign(np.linalg.det(q)) for q in attitudes]
+    turn = stack([segment_columns(C, 27.0, math.radians(10.0), 2, LAT, G, profile, 27) for C in attitudes])
+    rest = stack([segment_columns(C, 40.0, 0.0, -1, LAT, G, profile, 12) for C in attitudes[::-1]])
+    X, N, P = (np.repeat(a[None], 4, axis=0) for a in start_state(gm_start_covariance(profile), 24))
+    nodes = np.array([0, 1, 2, 1])
+    X, N, P = fold(rest, X, N, P, nodes)  # candidates with a history (different covariances)
+    ref = fold(rest, *fold(turn, X, N, P, nodes), nodes)
+    fast = fold_block(segment_blocks(then(turn, rest)), X, N, P, nodes)
+    d = np.sqrt(np.einsum("bii->bi", ref[1]))
+    assert np.max(np.abs(fast[1] - ref[1]) / (d[:, :, None] * d[:, None, :])) < 1e-10
+    np.testing.assert_allclose(fast[0], ref[0], rtol=1e-9, atol=1e-12 * np.abs(ref[0]).max())
+    np.testing.assert_allclose(fast[2], ref[2], rtol=1e-9, atol=1e-12 * np.abs(ref[2]).max())
