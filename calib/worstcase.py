@@ -12,24 +12,23 @@ along each mounting's own nominal trajectory (:func:`calib.nominal.mounting_info
 
 from __future__ import annotations
 
-import functools
 import itertools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from . import earth, ipopt
+from . import ipopt
 from . import params as P
 from .errors import CalibError
 from .extras import NONE as NO_EXTRAS
 from .extras import Extras
-from .gmmounting import GmBasis, extra_basis, gm_basis, informations
+from .gmmounting import GmBasis, box_informations, extra_basis, gm_basis, informations, nominal_information
 from .information import eliminate, projected_covariance, scaled_inverse
 from .jacobian import N_UNKNOWN
 from .jacobian import PHI0 as PHI0_IDX
 from .mounting import SequenceModel, sequence_model
-from .nominal import BATCH_MOUNTINGS, information_one, mounting_informations, nominal_run
+from .nominal import BATCH_MOUNTINGS, mounting_informations
 from .observability import Observability, from_information
 from .profiles import NoiseProfile
 from .requirements import PAPER, Requirements
@@ -212,48 +211,6 @@ def box_interpolant_maximum(values: np.ndarray, tolerance_deg: float) -> tuple[n
     return np.array([x[i], x[j], x[k]]), float(lattice[i, j, k])
 
 
-def _nominal_information(
-    seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float, extras: Extras = NO_EXTRAS
-) -> np.ndarray:
-    """The nominal mounting's information alone under a GM profile (:func:`calib.nominal.information_one`).
-
-    What a design's screen asks of every candidate: the same information as the
-    direct evaluation to rounding, at about half its cost.
-    """
-    nom = nominal_run(seq, latitude_rad, height_m, np.zeros(3))
-    return information_one(nom, profile, latitude_rad, earth.gravity(latitude_rad, height_m), extras)
-
-
-def _box_points(tolerance_deg: float) -> list:
-    """The 27 corners, edge and face centres and centre of the box (rotation vectors, rad)."""
-    levels = (-tolerance_deg, 0.0, tolerance_deg)
-    return [np.radians(p) for p in itertools.product(levels, levels, levels)]
-
-
-@functools.lru_cache(maxsize=1)
-def box_informations(
-    seq: Sequence,
-    profile: NoiseProfile,
-    latitude_rad: float,
-    height_m: float,
-    tolerance_deg: float,
-    extras: Extras = NO_EXTRAS,
-) -> np.ndarray:
-    """The informations (28, 24 + e, 24 + e) of the nominal mounting and the 27 box points.
-
-    Under a GM profile, in one pass of the filter over the GM basis
-    (:func:`calib.gmmounting.informations`), the optional terms' columns after phi0's.
-    The filter whitens column by column, so the leading 24 x 24 block is the
-    information without the terms: :func:`analyze_tolerance` and
-    :func:`analyze_extras` of the same terms share this pass (the last one is kept).
-    """
-    basis = gm_basis(seq, profile, latitude_rad, height_m)
-    xb = extra_basis(seq, latitude_rad, height_m, extras) if extras.n else None
-    infos = informations(basis, [np.zeros(3)] + _box_points(tolerance_deg), xb)
-    infos.setflags(write=False)
-    return infos
-
-
 def analyze_tolerance(
     seq: Sequence,
     profile: NoiseProfile,
@@ -283,12 +240,12 @@ def analyze_tolerance(
     differences (:func:`search_worst_direct`): the reference the GM basis is held to.
     ``extras``, the optional terms :func:`analyze_extras` will be asked about next: under
     a GM profile the box's pass of the filter then carries their columns too and serves
-    both (:func:`box_informations`); the figures here are the same.
+    both (:func:`calib.gmmounting.box_informations`); the figures here are the same.
     """
     # One mounting alone costs less along its trajectory than through the GM basis (its
     # 543 columns): at zero tolerance the direct evaluation, the GM filter in one loop.
     if tolerance_deg == 0 and profile.has_gauss_markov and not direct:
-        info = _nominal_information(seq, profile, latitude_rad, height_m)
+        info = nominal_information(seq, profile, latitude_rad, height_m)
         nominal = from_information(info, seq.duration_s, profile.name, np.zeros(3), None, requirements)
         return Robustness(nominal, nominal, nominal.sigma, 1, 0.0)
     direct = direct or tolerance_deg == 0
@@ -425,14 +382,13 @@ def _extras_evaluator(
     Each mounting is evaluated directly along its own nominal trajectory, ``batch``
     at a time (:func:`calib.nominal.mounting_informations`); what is observed is judged at the nominal
     mounting (the first evaluation), returned as the second value. ``one``: the nominal
-    mounting's through :func:`_nominal_information` (a GM profile, zero tolerance).
+    mounting's through :func:`calib.gmmounting.nominal_information` (a GM profile, zero tolerance).
     """
     if one:
-        nom_info = _nominal_information(seq, profile, latitude_rad, height_m, extras)
+        nom_info = nominal_information(seq, profile, latitude_rad, height_m, extras)
     else:
-        nom_info = mounting_informations(seq, profile, latitude_rad, height_m, [np.zeros(3)], extras, batch)[
-            0
-        ]
+        infos = mounting_informations(seq, profile, latitude_rad, height_m, [np.zeros(3)], extras, batch)
+        nom_info = infos[0]
     sigmas, nominal = _extras_sigmas(seq, profile, extras, requirements, nom_info)
 
     def evaluate(rotvecs):
@@ -456,9 +412,9 @@ def _gm_extras(
     """The GM basis's ``evaluate`` (as :func:`_extras_evaluator`'s), the nominal and the points' results.
 
     The nominal mounting and the 27 box points in one pass of the noise filter
-    (:func:`box_informations`, the terms' columns from :func:`calib.gmmounting.extra_basis`).
+    (:func:`calib.gmmounting.box_informations`, the terms' columns from :func:`calib.gmmounting.extra_basis`).
     """
-    points = _box_points(tolerance_deg)
+    points = [np.radians(p) for p in itertools.product(*[(-tolerance_deg, 0.0, tolerance_deg)] * 3)]
     basis = gm_basis(seq, profile, latitude_rad, height_m)
     xb = extra_basis(seq, latitude_rad, height_m, extras)
 
