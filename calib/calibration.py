@@ -26,7 +26,6 @@ from .chunks import calibrate_file, run_header
 from .errors import CalibError
 from .estimator import calibrate as fit_run
 from .extras import Extras, as_extras
-from .feedback import gauss_markov_caveat
 from .handrun import as_fit, hand_fit_of, summary_of
 from .motion import check_sequence_matches, log_turns, sequence_motion
 from .profiles import NoiseProfile, as_profile
@@ -316,5 +315,4 @@ def result_from_fit(
         gravity_mps2=site.gravity_mps2,
         gravity_source=site.gravity_source,
         requirements=requirements,
-        caveats=tuple(c for c in [gauss_markov_caveat(profile)] if c),
     )

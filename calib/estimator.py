@@ -43,6 +43,7 @@ from .jacobian import (
 )
 from .motion import Segmentation, detect_motion
 from .noise import noise_model, whiten
+from .noiseframe import model_frame, noise_stale, to_frame
 from .profiles import NoiseProfile
 from .requirements import PAPER, Requirements
 from .seqinfer import infer_sequence
@@ -64,15 +65,6 @@ from .transform import rotvec_to_dcm
 # Past the third iteration the Jacobian is rebuilt only while the last step exceeded this many
 # sigmas: below it the linearisation error is far below the convergence tolerance.
 RELINEARISE_STEP_SIGMA = 0.1
-# A Gauss-Markov bias is fixed in the body; the noise model carries it into the navigation frame
-# along the navigated attitude, so it must be built along the attitude the fit ends on. Built
-# along one that is off by a rotation R, the modelled bias turns by C' R C against the real one
-# as the unit flips, and the fit takes the constant gyro bias for separable from the GM: measured
-# on an ADIS16405-profile run whose first heading was 69 deg off (a MEMS gyro cannot
-# gyrocompass), gyro-bias sigmas of 10 deg/h where the bound of a constant in that GM is 41 deg/h
-# (errors 3-7 sigma). Off by 1 deg the sigmas move by 0.5 %, by 3 deg 3 %, by 10 deg 20 %: the
-# noise model is rebuilt whenever the attitude moved more than this since it was built.
-NOISE_MODEL_MAX_ATTITUDE_DEG = 1.0
 
 
 def check_run(
@@ -143,10 +135,10 @@ class _Problem:
         nav = navigate(dth, dvv, self.time_s, C0, self.latitude_rad, self.gravity_mps2, t0=self.t_nav[0])
         return dth, dvv, nav
 
-    def observations(self, nav, Phi_vv, it: int, feedback=None, hint: str = "") -> np.ndarray:
+    def observations(self, nav, Phi_vv, it: int, feedback_dv=None, hint: str = "") -> np.ndarray:
         """Velocity changes over the observation intervals, less the noise model's prediction."""
         y = nav.v_n[self.grid.bounds]
-        return _observations(y if feedback is None else y - feedback.dv, Phi_vv, it, self.where, hint)
+        return _observations(y if feedback_dv is None else y - feedback_dv, Phi_vv, it, self.where, hint)
 
 
 def calibrate(
@@ -313,16 +305,19 @@ def _fit_renavigating(
         rebuild = (
             noise is None
             or (profile.has_gauss_markov and it <= 3)
-            or _noise_stale(profile, noise_C, nav.C_b_n[mid])
+            or noise_stale(profile, noise_C, nav.C_b_n[mid])
         )
         if rebuild:
             # Gauss-Markov bias noise enters through the attitude (C_b_n b): its weights follow
-            # the navigated attitude (NOISE_MODEL_MAX_ATTITUDE_DEG), and the Jacobian with them.
+            # the navigated attitude (calib.noiseframe), and the Jacobian with them.
             # Phi_vv does not depend on it.
             noise_C = nav.C_b_n[mid]
             noise = noise_model(A, T, profile, C_b_n=noise_C)
         assert noise is not None  # built on the first pass (rebuild is true while it is None)
-        z = pb.observations(nav, noise.Phi_vv, it, feedback, schedule.divergence_hint())
+        fb_dv: np.ndarray | None = None if feedback is None else feedback.dv_along(nav.C_b_n[mid], A, T)
+        # Observations and Jacobian in the frame the noise model was built in (heading_turn).
+        R, C_model = model_frame(profile, noise_C, nav.C_b_n[mid])
+        z = to_frame(R, pb.observations(nav, noise.Phi_vv, it, fb_dv, schedule.divergence_hint()))
         if rebuild or _relinearise(it, sol, history):
             # The Jacobian changes little once the big errors are compensated; while steps are
             # still large (a MEMS unit's percent-level errors) it follows them. A partial fit's
@@ -331,6 +326,7 @@ def _fit_renavigating(
             H = observation_jacobian(
                 nav.C_b_n, dth, dvv, nav.time_s, grid, latitude_rad, gravity_mps2, noise.Phi_vv, extras
             )
+            H = to_frame(R, H)
             Hs, D = scaled_design(whiten(noise.whitener, H), extras, requirements)
             sol = solve_information(Hs.T @ Hs, where, names, partial, judge)
             cov = sol.covariance * np.outer(D, D)
@@ -343,9 +339,10 @@ def _fit_renavigating(
         if step < tol_sigma and not schedule.pending():
             converged = True
             break
-        feedback = schedule.update(it, step, feedback, noise, z, H, delta, A, T, nav.C_b_n[mid])
+        feedback = schedule.update(it, step, feedback, noise, z, H, delta, A, T, C_model)
     if not converged and (why := schedule.why_not_converged()):
         history[-1]["why_not_converged"] = why
+    z, H = to_frame(R.T, z), to_frame(R.T, H)  # back in the navigation frame
     return fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, converged, extras)
 
 
@@ -407,14 +404,15 @@ def fit_intervals(
             check_wander(profile, float(T.sum()), where)
             schedule = FeedbackSchedule.for_run(profile, float(T.sum()), site.gravity_mps2)
             limit = schedule.limit(max_iterations)
-        stale = _noise_stale(profile, noise_C, data.C_mid)
+        stale = noise_stale(profile, noise_C, data.C_mid)
         if noise is None or (profile.has_gauss_markov and it <= 3) or (stale and want_H):
             noise_C, stale, rebuilt = data.C_mid, False, it
             noise = noise_model(A, T, profile, C_b_n=noise_C)
-        y = data.y if feedback is None else data.y - feedback.dv
-        z = _observations(y, noise.Phi_vv, it, where, schedule.divergence_hint())
+        y = data.y if feedback is None else data.y - feedback.dv_along(data.C_mid, A, T)
+        R, C_model = model_frame(profile, noise_C, data.C_mid)
+        z = to_frame(R, _observations(y, noise.Phi_vv, it, where, schedule.divergence_hint()))
         if want_H:
-            H, Hs, D, zw = _pass_design(data, T, site, noise, z, extras, requirements)
+            H, Hs, D, zw = _pass_design(data, T, site, noise, z, extras, requirements, R)
             sol = solve_information(Hs.T @ Hs, where, names, partial, judge)
             cov = sol.covariance * np.outer(D, D)
         else:
@@ -426,18 +424,23 @@ def fit_intervals(
         settled = schedule.settled(it) and it > rebuilt + 1
         step, bound = _record(history, history_entry(it, delta, cov, resid, sol), settled)
         if (step < tol_sigma or bound < tol_sigma) and not schedule.pending() and not stale:
+            z, H = to_frame(R.T, z), to_frame(R.T, H)
             return fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, True, extras)
-        feedback = schedule.update(it, step, feedback, noise, z, H, delta, A, T, data.C_mid)
+        feedback = schedule.update(it, step, feedback, noise, z, H, delta, A, T, C_model)
     if schedule is not None and (why := schedule.why_not_converged()):
         history[-1]["why_not_converged"] = why
+    z, H = to_frame(R.T, z), to_frame(R.T, H)
     return fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, False, extras)
 
 
-def _pass_design(data, T, site: Site, noise, z, extras: Extras, requirements: Requirements):
-    """A pass's Jacobian, its whitened and scaled form, and the whitened observations."""
+def _pass_design(data, T, site: Site, noise, z, extras: Extras, requirements: Requirements, R):
+    """A pass's Jacobian (in the frame ``R`` turns to), its whitened and scaled form, and the
+    whitened observations.
+    """
     H = observation_matrix(
         sensitivities(data.moments, T, site.latitude_rad, site.gravity_mps2, data.extra), noise.Phi_vv
     )
+    H = to_frame(R, H)
     # H and z share the whitening filter: one recursion for both.
     Hz = whiten(noise.whitener, np.concatenate([H, z[:, :, None]], axis=2))
     Hs, D = scaled_design(Hz[:, :, :-1], extras, requirements)
@@ -466,19 +469,6 @@ def _observations(y: np.ndarray, Phi_vv: np.ndarray, it: int, where: str, hint: 
             hint,
         )
     return z
-
-
-def attitude_moved_deg(C_built: np.ndarray | None, C_now: np.ndarray) -> float:
-    """The largest rotation (deg) between two attitude series (K, 3, 3); inf without the first."""
-    if C_built is None:
-        return math.inf
-    cos = 0.5 * (np.einsum("kij,kij->k", C_built, C_now) - 1.0)
-    return math.degrees(float(np.arccos(np.clip(cos, -1.0, 1.0)).max()))
-
-
-def _noise_stale(profile: NoiseProfile, C_built: np.ndarray | None, C_now: np.ndarray) -> bool:
-    """Whether a Gauss-Markov noise model must follow the attitude (NOISE_MODEL_MAX_ATTITUDE_DEG)."""
-    return profile.has_gauss_markov and attitude_moved_deg(C_built, C_now) > NOISE_MODEL_MAX_ATTITUDE_DEG
 
 
 def _relinearise(it: int, sol, history: list) -> bool:

@@ -110,4 +110,3 @@ def test_sequence_accepts_a_run_under_a_strong_gauss_markov_gyro(tmp_path):
         + ["-o", str(tmp_path / "r.toml")],
     )
     assert res.exit_code == 0 and "converged" in res.output, res.output
-    assert "not proven honest" in res.output  # the caveat of a MEMS gyro's GM bias
