@@ -165,3 +165,56 @@ def gram_pass(
     E_m = E.transpose(1, 0, 2, 3).reshape(M, -1, c)
     U_m = U.transpose(1, 0, 2, 3).reshape(M, -1, c)
     return E_m.transpose(0, 2, 1) @ U_m, P, state
+
+
+def _inverse_3(S: np.ndarray) -> np.ndarray:
+    """Inverse of one symmetric 3 x 3 matrix, in closed form on Python floats (:func:`inverse_3`)."""
+    (a, b, c), (_, e, f), (_, _, i) = S.tolist()
+    A, B, C = e * i - f * f, c * f - b * i, b * f - c * e
+    det = a * A + b * B + c * C
+    if not det > 0.0:
+        raise np.linalg.LinAlgError("innovation covariance is not positive definite")
+    return np.array([[A, B, C], [B, a * i - c * c, b * c - a * f], [C, b * c - a * f, a * e - b * b]]) / det
+
+
+def gram_one(
+    F: np.ndarray,
+    Q: np.ndarray,
+    index: np.ndarray,
+    turns: np.ndarray,
+    turning: np.ndarray,
+    X: np.ndarray,
+    P: np.ndarray,
+) -> np.ndarray:
+    """:func:`gram_pass` of one mounting over a whole run: its whitened Gram matrix (c, c).
+
+    For one mounting the batch axis costs more than it carries (each batched product
+    and the batched 3 x 3 inverse are ~10 x a 2-D product's cost at this size): one
+    loop of 2-D products, the inverse on Python floats. ``turns`` (K, 3, 3) and
+    ``X`` (K, 3, c) are this mounting's; ``P`` (s, s) the covariance before the first
+    interval. The arithmetic is :func:`gram_pass`'s, to rounding.
+    """
+    s = F.shape[-1]
+    c = X.shape[-1]
+    Fk = np.array(F[index])
+    turned = np.flatnonzero(turning)
+    Fk[turned] = turned_models(F, index[turned], turns[turned][:, None])[:, 0]
+    Fk_t = np.ascontiguousarray(Fk.transpose(0, 2, 1))
+    E = np.empty((len(X), 3, c))
+    U = np.empty((len(X), 3, c))
+    state = np.zeros((s, c))
+    dot = np.dot
+    for k in range(len(X)):
+        J = dot(dot(Fk[k], P), Fk_t[k]) + Q[index[k]]  # predicted [state; velocity] covariance
+        S_inv = _inverse_3(J[s:, s:])
+        cross = J[:s, s:]
+        gain = dot(cross, S_inv)
+        P = J[:s, :s] - dot(gain, cross.T)
+        P = 0.5 * (P + P.T)
+        predicted = dot(Fk[k], state)
+        e = X[k] - predicted[s:]
+        state = predicted[:s] + dot(gain, e)
+        E[k] = e
+        U[k] = dot(S_inv, e)
+    gram = E.reshape(-1, c).T @ U.reshape(-1, c)
+    return 0.5 * (gram + gram.T)

@@ -5,8 +5,9 @@ A sequence's figures are quoted at the worst base mounting within
 21 parameters, :func:`analyze_extras` for what fitting a real unit's optional
 terms costs them. Under white noise each mounting comes from the mounting
 basis (:mod:`calib.mounting`), with an exact sigma gradient; with
-Gauss-Markov bias instability or optional terms each is evaluated along its
-own nominal trajectory (:func:`calib.nominal.mounting_informations`).
+Gauss-Markov bias instability from the GM basis (:mod:`calib.gmmounting`), the
+optional terms' columns too; white noise with optional terms, and ``direct``,
+along each mounting's own nominal trajectory (:func:`calib.nominal.mounting_informations`).
 """
 
 from __future__ import annotations
@@ -20,8 +21,9 @@ import numpy as np
 from . import ipopt
 from . import params as P
 from .errors import CalibError
+from .extras import NONE as NO_EXTRAS
 from .extras import Extras
-from .gmmounting import GmBasis, extra_columns, gm_basis, informations
+from .gmmounting import GmBasis, box_informations, extra_basis, gm_basis, informations, nominal_information
 from .information import eliminate, projected_covariance, scaled_inverse
 from .jacobian import N_UNKNOWN
 from .jacobian import PHI0 as PHI0_IDX
@@ -220,6 +222,7 @@ def analyze_tolerance(
     requirements: Requirements = PAPER,
     batch: int = BATCH_MOUNTINGS,
     direct: bool = False,
+    extras: Extras = NO_EXTRAS,
 ) -> Robustness:
     """Worst case over the +-tolerance box of base mountings.
 
@@ -235,9 +238,16 @@ def analyze_tolerance(
     ``direct`` evaluates each GM mounting along its own trajectory instead, ``batch``
     at a time (``batch=1``: one at a time), the search then steered by forward
     differences (:func:`search_worst_direct`): the reference the GM basis is held to.
+    ``extras``, the optional terms :func:`analyze_extras` will be asked about next: under
+    a GM profile the box's pass of the filter then carries their columns too and serves
+    both (:func:`calib.gmmounting.box_informations`); the figures here are the same.
     """
     # One mounting alone costs less along its trajectory than through the GM basis (its
-    # 543 columns): at zero tolerance the direct evaluation, as before.
+    # 543 columns): at zero tolerance the direct evaluation, the GM filter in one loop.
+    if tolerance_deg == 0 and profile.has_gauss_markov and not direct:
+        info = nominal_information(seq, profile, latitude_rad, height_m)
+        nominal = from_information(info, seq.duration_s, profile.name, np.zeros(3), None, requirements)
+        return Robustness(nominal, nominal, nominal.sigma, 1, 0.0)
     direct = direct or tolerance_deg == 0
     evaluate, model = _evaluator(seq, profile, latitude_rad, height_m, requirements, batch, direct)
     if tolerance_deg == 0:
@@ -247,7 +257,8 @@ def analyze_tolerance(
     grid = [np.array(p) for p in itertools.product(levels, levels, levels)]
     if isinstance(model, GmBasis):  # the nominal and the 27 in one pass of the filter
         rotvecs = [np.zeros(3)] + [np.radians(p) for p in grid]
-        infos = informations(model, rotvecs)
+        infos = box_informations(seq, profile, latitude_rad, height_m, tolerance_deg, extras)
+        infos = infos[:, :N_UNKNOWN, :N_UNKNOWN]
         nominal = from_information(infos[0], seq.duration_s, profile.name, rotvecs[0], None, requirements)
         results = [
             from_information(info, seq.duration_s, profile.name, rv, nominal, requirements)
@@ -364,17 +375,25 @@ def _extras_evaluator(
     height_m: float,
     requirements: Requirements,
     batch: int = BATCH_MOUNTINGS,
+    one: bool = False,
 ):
     """``evaluate(rotvecs) -> [(sigma of the 21 without, with, sigma of the extras)]`` (SI).
 
     Each mounting is evaluated directly along its own nominal trajectory, ``batch``
     at a time (:func:`calib.nominal.mounting_informations`); what is observed is judged at the nominal
-    mounting (the first evaluation), returned as the second value.
+    mounting (the first evaluation), returned as the second value. ``one``: the nominal
+    mounting's through :func:`calib.gmmounting.nominal_information` (a GM profile, zero tolerance).
     """
-    nom_info = mounting_informations(seq, profile, latitude_rad, height_m, [np.zeros(3)], extras, batch)[0]
+    if one:
+        nom_info = nominal_information(seq, profile, latitude_rad, height_m, extras)
+    else:
+        infos = mounting_informations(seq, profile, latitude_rad, height_m, [np.zeros(3)], extras, batch)
+        nom_info = infos[0]
     sigmas, nominal = _extras_sigmas(seq, profile, extras, requirements, nom_info)
 
     def evaluate(rotvecs):
+        if len(rotvecs) == 1 and not np.any(rotvecs[0]):  # the nominal alone (a design's screen): as above
+            return [sigmas(rotvecs[0], nom_info)]
         infos = mounting_informations(seq, profile, latitude_rad, height_m, rotvecs, extras, batch)
         return [sigmas(rv, info) for rv, info in zip(rotvecs, infos, strict=True)]
 
@@ -388,20 +407,21 @@ def _gm_extras(
     extras: Extras,
     height_m: float,
     requirements: Requirements,
-    points: list,
+    tolerance_deg: float,
 ):
     """The GM basis's ``evaluate`` (as :func:`_extras_evaluator`'s), the nominal and the points' results.
 
-    The nominal mounting and ``points`` in one pass of the noise filter
-    (:func:`calib.gmmounting.informations` with :func:`calib.gmmounting.extra_columns`).
+    The nominal mounting and the 27 box points in one pass of the noise filter
+    (:func:`calib.gmmounting.box_informations`, the terms' columns from :func:`calib.gmmounting.extra_basis`).
     """
+    points = [np.radians(p) for p in itertools.product(*[(-tolerance_deg, 0.0, tolerance_deg)] * 3)]
     basis = gm_basis(seq, profile, latitude_rad, height_m)
+    xb = extra_basis(seq, latitude_rad, height_m, extras)
 
     def infos_of(rotvecs):
-        extra = extra_columns(seq, basis, latitude_rad, height_m, rotvecs, extras)
-        return informations(basis, rotvecs, extra)
+        return informations(basis, rotvecs, xb)
 
-    infos = infos_of([np.zeros(3)] + points)
+    infos = box_informations(seq, profile, latitude_rad, height_m, tolerance_deg, extras)
     sigmas, nominal = _extras_sigmas(seq, profile, extras, requirements, infos[0])
 
     def evaluate(rotvecs):
@@ -442,11 +462,12 @@ def analyze_extras(
     fast = profile.has_gauss_markov and not direct and tolerance_deg > 0
     if fast:
         evaluate, nominal, results = _gm_extras(
-            seq, profile, latitude_rad, extras, height_m, requirements, points
+            seq, profile, latitude_rad, extras, height_m, requirements, tolerance_deg
         )
     else:
+        one = profile.has_gauss_markov and not direct and tolerance_deg == 0
         evaluate, nominal = _extras_evaluator(
-            seq, profile, latitude_rad, extras, height_m, requirements, batch
+            seq, profile, latitude_rad, extras, height_m, requirements, batch, one
         )
         results = evaluate(points)
     searched = search and tolerance_deg > 0 and bool(nominal.estimable[: P.N_PARAMS].all())

@@ -165,7 +165,7 @@ def analyze(
     check_wander(prof, seq.duration_s, seq.name)
     lat, h = resolve_site(seq, latitude_deg, height_m)
     lat_rad = math.radians(lat)
-    rob = analyze_tolerance(seq, prof, lat_rad, h, tolerance_deg, requirements=req)
+    rob = analyze_tolerance(seq, prof, lat_rad, h, tolerance_deg, requirements=req, extras=extras)
     bound = accel_scale_bound(seq.duration_s, prof, earth.gravity(lat_rad, h), req)
     cost = (
         analyze_extras(seq, prof, lat_rad, extras, h, tolerance_deg, req, search=True) if extras.n else None

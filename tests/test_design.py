@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,6 +21,7 @@ from seqdesign.cli import main
 from seqdesign.search import Constraints, Move, SearchModel, beam_search, brute_force, flip_graph, to_sequence
 
 LAT = math.radians(40.0)
+ADIS = Path(__file__).resolve().parents[1] / "benchmarks" / "profiles" / "adis16405.toml"
 PROFILE = load_profile("navigation")
 
 
@@ -446,6 +448,28 @@ def test_batched_walk_information_equals_one_walk_at_a_time():
     for d, N in zip(D, batched, strict=True):
         single = _walk_information_exact(walk, c, list(d), LAT, g, prof)
         assert np.allclose(N, single, rtol=1e-12, atol=1e-12 * np.abs(single).max())
+
+
+@pytest.mark.parametrize("name", ["navigation-gm", str(ADIS)])
+def test_refinement_turns_in_closed_form_equal_the_interval_fold(name):
+    # The refinement folds each turn through its segment block (Woodbury, built once)
+    # instead of the Kalman loop over its intervals: the same information, variances to 1e-10.
+    from calib import earth
+    from calib.information import inverse_diagonal
+    from seqdesign.search.refine import walk_informations_exact
+
+    prof = load_profile(name)
+    c = Constraints(budget_s=600.0, min_dwell_s=10.0)
+    walk = (Move("Z", 1, 5), Move("Y", 1, 5), Move("X", -1, 5), Move("Z", -1, 2), Move("Y", 1, 3))
+    g = earth.gravity(LAT)
+    D = np.array([[10.0, 12.0, 15.0, 11.0, 40.0, 20.0], [30.0, 10.0, 10.0, 25.0, 10.0, 100.0]])
+    fast = walk_informations_exact(walk, c, D, LAT, g, prof)
+    ref = walk_informations_exact(walk, c, D, LAT, g, prof, closed_form=False)
+    for a, b in zip(fast, ref, strict=True):
+        d = np.sqrt(np.diag(b))
+        assert np.max(np.abs(a - b) / np.outer(d, d)) < 1e-10
+        # the 21's variances (the ratios'); phi0's heading under a MEMS gyro, 1 rad^2, to 2e-10
+        np.testing.assert_allclose(inverse_diagonal(a)[:21], inverse_diagonal(b)[:21], rtol=1e-10)
 
 
 @pytest.mark.slow

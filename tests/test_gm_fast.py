@@ -18,19 +18,22 @@ import numpy as np
 import pytest
 
 from calib import earth
+from calib.extras import GROUP_NAMES, Extras
 from calib.gmfilter import inverse_3
-from calib.gmmounting import gm_basis, informations
+from calib.gmmounting import extra_basis, extra_columns, gm_basis, informations
+from calib.jacobian import observation_jacobian
 from calib.mounting import sequence_model
-from calib.nominal import information_along, nominal_run
+from calib.nominal import information_along, information_one, nominal_run
 from calib.profiles import load_profile
 from calib.sequence import load_sequence
-from calib.worstcase import analyze_tolerance, box_interpolant_maximum
+from calib.worstcase import analyze_extras, analyze_tolerance, box_interpolant_maximum
 
 LAT = math.radians(40.0)
 G = earth.gravity(LAT)
 ADIS = Path(__file__).resolve().parents[1] / "benchmarks" / "profiles" / "adis16405.toml"
 PROFILES = ["navigation-gm", "mems", str(ADIS)]
 MOUNTINGS = [np.radians(d) for d in ([0.0, 0.0, 0.0], [3.0, -3.0, 3.0], [-1.0, 2.5, -0.5], [-3.0, 0.0, 3.0])]
+ALL = Extras(GROUP_NAMES)
 
 
 def _sigmas(info):
@@ -52,6 +55,90 @@ def test_fast_sigma_equals_the_exact_evaluation(name):
     for rv, info in zip(MOUNTINGS, fast, strict=True):
         exact = information_along(nominal_run(seq, LAT, 0.0, rv), profile, LAT, G)
         np.testing.assert_allclose(_sigmas(info), _sigmas(exact), rtol=1e-9)
+
+
+def test_terms_columns_from_the_basis_equal_each_trajectory():
+    # The optional terms' columns of H as polynomials in the mounting (lever arm, k2, time
+    # offset), weighted per mounting, against the Jacobian along each mounting's own
+    # trajectory. Measured: 4e-14 of each column's largest element.
+    seq = load_sequence("paper-9pos")
+    basis = gm_basis(seq, load_profile("navigation-gm"), LAT, 0.0)
+    fast = extra_columns(basis, extra_basis(seq, LAT, 0.0, ALL), MOUNTINGS)
+    for m, rv in enumerate(MOUNTINGS):
+        nom = nominal_run(seq, LAT, 0.0, rv)
+        H = observation_jacobian(
+            nom.C_b_n, nom.dtheta, nom.dv, nom.time_nav, nom.grid, LAT, G, basis.Phi_vv, ALL
+        )
+        exact = H[:, :, 24:]
+        scale = np.abs(exact).max(axis=(0, 1))
+        assert np.all(np.abs(fast[:, m] - exact).max(axis=(0, 1)) <= 1e-11 * scale)
+
+
+@pytest.mark.parametrize("name", ["navigation-gm", str(ADIS)])
+def test_fast_sigma_with_the_terms_equals_the_exact_evaluation(name):
+    # --with all under a GM profile: the 21, phi0 and the terms' columns in one pass of the
+    # filter, against each mounting's own evaluation with the terms. Measured 8e-13 on a sigma.
+    profile = load_profile(name)
+    seq = load_sequence("paper-9pos")
+    fast = informations(gm_basis(seq, profile, LAT, 0.0), MOUNTINGS, extra_basis(seq, LAT, 0.0, ALL))
+    for rv, info in zip(MOUNTINGS, fast, strict=True):
+        exact = information_along(nominal_run(seq, LAT, 0.0, rv), profile, LAT, G, ALL)
+        sigma = [np.sqrt(np.diag(np.linalg.inv(i))) for i in (info, exact)]
+        np.testing.assert_allclose(sigma[0], sigma[1], rtol=1e-9)
+
+
+def test_the_box_pass_with_the_terms_leaves_the_21_as_they_are():
+    # analyze_tolerance told the terms analyze_extras will be asked about shares its pass:
+    # the same figures as without them (the filter whitens column by column).
+    profile = load_profile("navigation-gm")
+    seq = load_sequence("paper-9pos")
+    alone = analyze_tolerance(seq, profile, LAT, search=False)
+    shared = analyze_tolerance(seq, profile, LAT, search=False, extras=ALL)
+    np.testing.assert_allclose(shared.per_parameter_worst_sigma, alone.per_parameter_worst_sigma, rtol=1e-12)
+    np.testing.assert_allclose(shared.nominal.sigma, alone.nominal.sigma, rtol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["navigation-gm", str(ADIS)])
+def test_one_mounting_filter_equals_the_exact_evaluation(name):
+    # One mounting's trajectory through the navigation-frame filter in one loop of 2-D
+    # products (what a design's screen runs per candidate), with and without the terms,
+    # against the body-frame filter along the same trajectory. Measured 1e-14 on a sigma.
+    profile = load_profile(name)
+    seq = load_sequence("paper-9pos")
+    for extras in (Extras(), ALL):
+        for rv in MOUNTINGS[:2]:
+            nom = nominal_run(seq, LAT, 0.0, rv)
+            fast = information_one(nom, profile, LAT, G, extras)
+            exact = information_along(nom, profile, LAT, G, extras)
+            sigma = [np.sqrt(np.diag(np.linalg.inv(i))) for i in (fast, exact)]
+            np.testing.assert_allclose(sigma[0], sigma[1], rtol=1e-9)
+
+
+def test_the_screen_at_the_nominal_mounting_equals_the_direct_evaluation():
+    # Zero tolerance (a design's screen): analyze_tolerance and analyze_extras through the
+    # one-mounting filter, against the direct evaluation they kept before.
+    profile = load_profile(str(ADIS))
+    seq = load_sequence("paper-9pos")
+    fast = analyze_tolerance(seq, profile, LAT, tolerance_deg=0.0)
+    ref = analyze_tolerance(seq, profile, LAT, tolerance_deg=0.0, direct=True)
+    np.testing.assert_allclose(fast.nominal.sigma, ref.nominal.sigma, rtol=1e-9)
+    fast_x = analyze_extras(seq, profile, LAT, ALL, tolerance_deg=0.0)
+    ref_x = analyze_extras(seq, profile, LAT, ALL, tolerance_deg=0.0, direct=True)
+    np.testing.assert_allclose(fast_x.sigma_with, ref_x.sigma_with, rtol=1e-9)
+    np.testing.assert_allclose(fast_x.extra_sigma, ref_x.extra_sigma, rtol=1e-9)
+
+
+@pytest.mark.slow
+def test_fast_extras_cost_equals_the_direct_evaluation():
+    # analyze --with all under a GM profile (the 27 points and the search's peak) against
+    # every mounting evaluated along its own trajectory: the same box figures to rounding.
+    profile = load_profile("navigation-gm")
+    seq = load_sequence("paper-9pos")
+    fast = analyze_extras(seq, profile, LAT, ALL)
+    ref = analyze_extras(seq, profile, LAT, ALL, direct=True)
+    for a, b in ((fast.sigma_with, ref.sigma_with), (fast.sigma_without, ref.sigma_without)):
+        np.testing.assert_allclose(a, b, rtol=1e-9)
+    np.testing.assert_allclose(fast.extra_sigma, ref.extra_sigma, rtol=1e-9)
 
 
 @pytest.mark.slow
@@ -125,3 +212,27 @@ def test_closed_form_segment_equals_the_interval_fold(name):
         assert np.max(np.abs(fast[1] - ref[1]) / (d[:, :, None] * d[:, None, :])) < 1e-10
         np.testing.assert_allclose(fast[0], ref[0], rtol=1e-9, atol=1e-12 * np.abs(ref[0]).max())
         np.testing.assert_allclose(fast[2], ref[2], rtol=1e-9, atol=1e-12 * np.abs(ref[2]).max())
+
+
+@pytest.mark.parametrize("name", ["navigation-gm", str(ADIS)])
+def test_a_turn_then_its_rest_in_one_block_equals_the_two_folds(name):
+    # The beam folds a move's turn and the rest after it through one block (gm.then): the
+    # same information, state and covariance as the Kalman loop over both, stacked nodes.
+    from seqdesign.search.gm import fold, fold_block, segment_blocks, stack, start_state, then
+    from seqdesign.search.segments import gm_start_covariance, segment_columns
+
+    profile = load_profile(name)
+    rng = np.random.default_rng(7)
+    attitudes = [np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(3)]
+    attitudes = [q * np.sign(np.linalg.det(q)) for q in attitudes]
+    turn = stack([segment_columns(C, 27.0, math.radians(10.0), 2, LAT, G, profile, 27) for C in attitudes])
+    rest = stack([segment_columns(C, 40.0, 0.0, -1, LAT, G, profile, 12) for C in attitudes[::-1]])
+    X, N, P = (np.repeat(a[None], 4, axis=0) for a in start_state(gm_start_covariance(profile), 24))
+    nodes = np.array([0, 1, 2, 1])
+    X, N, P = fold(rest, X, N, P, nodes)  # candidates with a history (different covariances)
+    ref = fold(rest, *fold(turn, X, N, P, nodes), nodes)
+    fast = fold_block(segment_blocks(then(turn, rest)), X, N, P, nodes)
+    d = np.sqrt(np.einsum("bii->bi", ref[1]))
+    assert np.max(np.abs(fast[1] - ref[1]) / (d[:, :, None] * d[:, None, :])) < 1e-10
+    np.testing.assert_allclose(fast[0], ref[0], rtol=1e-9, atol=1e-12 * np.abs(ref[0]).max())
+    np.testing.assert_allclose(fast[2], ref[2], rtol=1e-9, atol=1e-12 * np.abs(ref[2]).max())

@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -17,7 +16,7 @@ from calib.transform import AXES
 
 from .constraints import Constraints, turn_rate, turn_seconds
 from .gimbal import at_home, home_reachable, next_encoders
-from .gm import SegmentColumns, fold, fold_block, segment_blocks, stack, start_state
+from .gm import SegmentColumns, fold, fold_block, segment_blocks, stack, start_state, then
 from .graph import Move, Node, apply_move, as_node, attitude_of, flip_graph
 from .graph import moves as all_moves
 from .objective import score
@@ -45,6 +44,7 @@ class Candidate:
     score: float = math.inf
     P: np.ndarray | None = None  # filter covariance (exact-noise search only)
     enc: tuple | None = None  # encoder angles (rad, continuous) with a gimbal
+    label: str = ""  # the moves' labels joined by spaces (the ranking's tie-break), grown move by move
 
 
 @dataclass
@@ -209,18 +209,22 @@ class SearchModel:
         """All feasible children of ``parents``, scored (batched)."""
         c = self.constraints
         kids, effs, keys = [], [], []
+        # per move, once per step (not per parent): its time and label
+        step = {mv: (self.turn_time(mv), mv.label()) for mv in self.moves}
         for par in parents:
             if len(par.walk) >= c.max_flips:
                 continue
             for mv in self.moves:
-                t = par.time_s + self.turn_time(mv) + self.dwell_s
+                turn, label = step[mv]
+                t = par.time_s + turn + self.dwell_s
                 if t > c.budget_s + 1e-9:
                     continue
                 ok, enc = self._gimbal_child(par, mv, t)
                 if not ok:
                     continue
                 end = apply_move(self.graph, par.node, mv)
-                kids.append(Candidate(par.walk + (mv,), end, par.X, par.N, t, P=par.P, enc=enc))
+                label = f"{par.label} {label}" if par.walk else label
+                kids.append(Candidate(par.walk + (mv,), end, par.X, par.N, t, P=par.P, enc=enc, label=label))
                 keys.append((par.node, mv))
                 if not self.exact_noise:
                     effs.append((self.turn[(par.node, mv)], self.rest[end]))
@@ -247,9 +251,9 @@ class SearchModel:
     def _fold_exact(self, kids, keys, objective, prior):
         """Fold each kid's turn and rest with its own filter covariance.
 
-        Kids are batched by move, each with its own start node's segment; every
-        segment is one closed-form step (:func:`.gm.fold_block`), not a loop over its
-        intervals.
+        Kids are batched by move, each with its own start node's segment; the turn and
+        the rest after it are one closed-form step (:func:`.gm.fold_block` of
+        :func:`.gm.then`), not a loop over their intervals.
         """
         X = np.stack([k.X for k in kids])
         N = np.stack([k.N for k in kids])
@@ -259,29 +263,33 @@ class SearchModel:
         for i, (_node, mv) in enumerate(keys):
             by_move.setdefault(mv, []).append(i)
         blocks = stacks["blocks"]
-        for mv, idx in by_move.items():
+        for mv, idx in by_move.items():  # the turn and the rest after it: one block
             nodes = np.array([stacks["index"][keys[i][0]] for i in idx])
             X[idx], N[idx], P[idx] = fold_block(blocks[mv], X[idx], N[idx], P[idx], nodes)
-        nodes = np.array([stacks["index"][k.node] for k in kids])
-        X, N, P = fold_block(blocks["rest"], X, N, P, nodes)
         s = score(N, objective, prior, self.requirements)
         for k, x, n, p, v in zip(kids, X, N, P, s, strict=True):
             k.X, k.N, k.P, k.score = x, n, p, float(v)
         return kids
 
     def _stacks(self) -> dict:
-        """Per move, and for the rests, every node's columns stacked (built once)."""
+        """Per move, the turn and the rest after it from every node, as one block (built once)."""
         if "_stacked" not in self.__dict__:
             nodes = list(self.rest)
-            st: dict[object, Any] = {
+            # Each move's turn and the rest after it as one segment, stacked over the start
+            # nodes, its effect in closed form for any filter covariance (gm.SegmentBlock):
+            # one step per candidate, not two.
+            self.__dict__["_stacked"] = {
                 "index": {n: i for i, n in enumerate(nodes)},
-                "rest": stack([self.rest[n] for n in nodes]),
+                "blocks": {
+                    mv: segment_blocks(
+                        then(
+                            stack([self.turn[(n, mv)] for n in nodes]),
+                            stack([self.rest[apply_move(self.graph, n, mv)] for n in nodes]),
+                        )
+                    )
+                    for mv in self.moves
+                },
             }
-            for mv in self.moves:
-                st[mv] = stack([self.turn[(n, mv)] for n in nodes])
-            # each segment's effect in closed form for any filter covariance (gm.SegmentBlock)
-            st["blocks"] = {key: segment_blocks(st[key]) for key in ["rest", *self.moves]}
-            self.__dict__["_stacked"] = st
         return self.__dict__["_stacked"]
 
     def complete(self, cand: Candidate) -> bool:
@@ -295,7 +303,7 @@ class SearchModel:
 
 
 def _key(c: Candidate):
-    return (c.score, " ".join(m.label() for m in c.walk))
+    return (c.score, c.label)  # the label is " ".join of the moves' labels
 
 
 def beam_search(

@@ -85,6 +85,26 @@ def stack(cols: list[SegmentColumns]) -> SegmentColumns:
     return SegmentColumns(H=st("H", 1), A=st("A", 0), B=st("B", 0), F=st("F", 1), Q=st("Q", 1))
 
 
+def then(first: SegmentColumns, second: SegmentColumns) -> SegmentColumns:
+    """Two segments one after the other as one (e.g. a turn and the rest after it), stacked alike.
+
+    The second's columns are relative to its own start ``S' = A1 S + B1``: written
+    relative to the first's start they are ``[H2_hom A1 | H2_hom B1 + H2_part]``, and
+    the end state ``S_end = A2 A1 S + A2 B1 + B2``. Its :class:`SegmentBlock` then folds
+    both in one step (:func:`fold_block`), the same as folding them in turn to rounding.
+    """
+    H2 = second.H
+    hom, part = H2[..., :6], H2[..., 6:]
+    H = np.concatenate([hom @ first.A, hom @ first.B + part], axis=-1)
+    return SegmentColumns(
+        H=np.ascontiguousarray(np.concatenate([first.H, H])),
+        A=second.A @ first.A,
+        B=second.A @ first.B + second.B,
+        F=np.ascontiguousarray(np.concatenate([first.F, second.F])),
+        Q=np.ascontiguousarray(np.concatenate([first.Q, second.Q])),
+    )
+
+
 def _tr(a: np.ndarray) -> np.ndarray:
     return np.swapaxes(a, -1, -2)
 

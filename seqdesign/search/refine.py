@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -14,7 +15,7 @@ from calib.profiles import NoiseProfile
 from calib.requirements import PAPER, Requirements
 
 from .constraints import Constraints, turn_rate, turn_seconds
-from .gm import fold, stack, start_state
+from .gm import SegmentBlock, fold, fold_block, segment_blocks, stack, start_state
 from .graph import apply_move, as_node, attitude_of, flip_graph
 from .objective import scaled_marginal
 from .segments import (
@@ -97,16 +98,37 @@ def _walk_information_exact(
     return walk_informations_exact(walk, c, [dwells], latitude_rad, gravity_mps2, profile)[0]
 
 
+@functools.lru_cache(maxsize=8)
+def _graph(start, axes: str):
+    """:func:`flip_graph` of a start, built once per refinement (every IPOPT evaluation walks it)."""
+    return flip_graph(start, axes)
+
+
+@functools.lru_cache(maxsize=4096)
+def turn_block(node, mv, duration, rate, latitude_rad, gravity_mps2, profile) -> SegmentBlock:
+    """A turn's :class:`SegmentBlock` from ``node`` (cached: every IPOPT evaluation folds the same turns)."""
+    cols = turn_columns(node, mv, duration, rate, latitude_rad, gravity_mps2, profile)
+    return segment_blocks(stack([cols]))
+
+
 def walk_informations_exact(
-    walk, c: Constraints, dwell_sets, latitude_rad: float, gravity_mps2: float, profile: NoiseProfile
+    walk,
+    c: Constraints,
+    dwell_sets,
+    latitude_rad: float,
+    gravity_mps2: float,
+    profile: NoiseProfile,
+    closed_form: bool = True,
 ) -> np.ndarray:
     """Information ``(B, 24, 24)`` of one walk under ``B`` sets of dwells, batched (GM).
 
     The turns are shared; every rest has :data:`SEARCH_REST_INTERVALS` intervals
     whatever its length, so the rests of the ``B`` candidates stack and one fold
-    carries them all (what IPOPT's finite differences need at once).
+    carries them all (what IPOPT's finite differences need at once). Each turn is
+    folded in closed form (:func:`turn_block`, built once per turn, not a loop over
+    its intervals at every evaluation; ``closed_form=False``: the loop, the reference).
     """
-    graph = flip_graph(c.start, c.axes)
+    graph = _graph(as_node(c.start), c.axes)
     node = as_node(c.start)
     B = len(dwell_sets)
     X, N, Pc = (np.repeat(a[None], B, axis=0) for a in start_state(gm_start_covariance(profile), N_UNKNOWN))
@@ -119,15 +141,13 @@ def walk_informations_exact(
         )
 
     X, N, Pc = fold(rests(node, 0), X, N, Pc, rows)
+    first = np.zeros(B, dtype=int)
     for k, mv in enumerate(walk, start=1):
-        X, N, Pc = fold(
-            turn_columns(
-                node, mv, turn_seconds(mv, c), turn_rate(mv, c), latitude_rad, gravity_mps2, profile
-            ),
-            X,
-            N,
-            Pc,
-        )
+        turn = (node, mv, turn_seconds(mv, c), turn_rate(mv, c), latitude_rad, gravity_mps2, profile)
+        if closed_form:
+            X, N, Pc = fold_block(turn_block(*turn), X, N, Pc, first)
+        else:
+            X, N, Pc = fold(turn_columns(*turn), X, N, Pc)
         node = apply_move(graph, node, mv)
         X, N, Pc = fold(rests(node, k), X, N, Pc, rows)
     return N
