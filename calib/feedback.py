@@ -55,12 +55,12 @@ MAX_ITERATIONS = 12
 # the heading by up to 100 deg from one iteration to the next (measured on ADIS16405-profile
 # runs), and with it the gyro biases and the tilt path: the fit cycles. A step that would turn
 # the heading further than the trust radius is taken as the best step with the heading turned
-# only that far (the conditional least-squares step). The radius starts here, halves when a cut
-# step is answered by one the other way and doubles back (up to this) when answered by one the
-# same way. Measured at 20 deg of wander (paper-9pos, a gyro GM of 91 deg/h over 214 s), where
-# Gauss-Newton asks for 20-225 deg either way: so 5 runs in 6 converge and one cycles (+15,
-# -7.5, -15, +7.5 deg: not converged); a radius that never grows back crawls 0.9 deg per
-# iteration towards a heading 53 deg away; one that grows after two or three cuts cycles too.
+# only that far (the conditional least-squares step). The radius starts here; a cut step answered
+# by one the other way halves it and the most it may grow back to; one answered the same way
+# doubles it, up to that most. Measured (paper-9pos, ADIS16405 profile and stronger), where
+# Gauss-Newton asks for 20-225 deg either way: a radius doubled back to 15 deg after every
+# reversal cycled (+7.5, +15, -7.5, -15 deg) in 6 runs of 50; one that never grows back crawls
+# 0.9 deg per iteration towards a heading 53 deg away.
 HEADING_STEP_MAX_DEG = 15.0
 # No fit converges on a cut step while the radius is at least this: below it the heading moves
 # the 21 by a hundredth of a sigma (measured: 0.1 sigma of a gyro scale factor per 6 deg).
@@ -253,6 +253,7 @@ class FeedbackSchedule:
     wander_deg: float = 0.0  # the 1-sigma tilt the gyro noise builds over the run
     heading_limited: bool = False  # the last step's heading turn was cut to the trust radius
     heading_limit_deg: float = HEADING_STEP_MAX_DEG  # the heading's trust radius
+    heading_cap_deg: float = HEADING_STEP_MAX_DEG  # the most it may grow back to
     heading_last_cut: float = 0.0  # the sign of the last cut heading step (0: not cut)
 
     @classmethod
@@ -339,8 +340,9 @@ class FeedbackSchedule:
         """Move the heading's trust radius after a cut step, given this step's heading (rad)."""
         if self.heading_last_cut * heading < 0.0:
             self.heading_limit_deg *= 0.5
+            self.heading_cap_deg = self.heading_limit_deg
         elif self.heading_last_cut * heading > 0.0:
-            self.heading_limit_deg = min(2.0 * self.heading_limit_deg, HEADING_STEP_MAX_DEG)
+            self.heading_limit_deg = min(2.0 * self.heading_limit_deg, self.heading_cap_deg)
 
     def step(self, Hs, D, zw, sol, cov: np.ndarray, it: int):
         """The Gauss-Newton step (SI) and whitened residual after it; Aitken's once held."""
