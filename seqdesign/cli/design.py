@@ -251,6 +251,7 @@ def design(
         extras=with_terms,
         name=base,
     )
+    _refuse_unobservable(report, requirements)
     for row in report.rows:
         report.save_design(row, paths[row.budget_min], provenance())
         info(f"wrote {paths[row.budget_min]}")
@@ -260,6 +261,26 @@ def design(
         emit_json(report.to_json())
         return
     click.echo(report.to_text())
+
+
+def _refuse_unobservable(report, requirements) -> None:
+    """Refuse designs that leave a parameter not estimable at the requirements' scale.
+
+    Judged against requirements far below the unit's own sigmas (a MEMS unit against the
+    paper's navigation-grade ones: 3 sigma / requirement in the thousands), every candidate
+    scores inf and the search has nothing to choose by: the walk it returns is arbitrary.
+    """
+    for row in report.rows:
+        if not math.isfinite(row.result.worst_ratio):
+            name = getattr(requirements, "name", requirements) or "paper"
+            raise CalibError(
+                f"no {row.budget_min:g}-min design estimates {row.result.worst_name} at the scale "
+                f"of the requirements '{name}' under profile {report.profile.name}: every "
+                "candidate scores inf, so there is nothing to choose by",
+                "--requirements",
+                "judge the unit against requirements of its grade (`--requirements mems` for a "
+                "MEMS unit, or your own file), or give a longer budget",
+            )
 
 
 def _budgets(text: str) -> list[float]:
