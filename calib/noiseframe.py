@@ -26,7 +26,7 @@ from .profiles import NoiseProfile
 NOISE_MODEL_MAX_ATTITUDE_DEG = 1.0
 
 
-def heading_turn(C_built: np.ndarray | None, C_now: np.ndarray) -> np.ndarray:
+def heading_turn(C_built: np.ndarray, C_now: np.ndarray) -> np.ndarray:
     """The turn about the vertical (3, 3) from the attitude series a noise model was built
     along to the navigated one (both (K, 3, 3)): their mean difference in heading.
 
@@ -37,10 +37,7 @@ def heading_turn(C_built: np.ndarray | None, C_now: np.ndarray) -> np.ndarray:
     are taken into the model's frame by ``to_frame(R, .)`` instead of rebuilding the model at
     each heading: rebuilt at each, the fit's weights moved with its heading and the heading
     never settled (measured: +-1-6 deg for 40 iterations on an ADIS16405-profile run).
-    Identity without a model or a difference.
     """
-    if C_built is None or C_built is C_now:
-        return np.eye(3)
     R = np.einsum("kij,klj->kil", C_now, C_built)  # C_now C_built^T per interval
     psi = float(np.mean(np.arctan2(R[:, 1, 0] - R[:, 0, 1], R[:, 0, 0] + R[:, 1, 1])))
     c, s = math.cos(psi), math.sin(psi)

@@ -185,6 +185,13 @@ def test_box_interpolant_maximum_finds_an_interior_peak_and_keeps_a_corner():
     assert np.allclose(found, [3.0, 3.0, 3.0])
 
 
+def _random_attitudes(seed: int, n: int = 3) -> list[np.ndarray]:
+    """``n`` random proper rotations (QR of Gaussian matrices, the sign fixed to det +1)."""
+    rng = np.random.default_rng(seed)
+    qs = [np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(n)]
+    return [q * np.sign(np.linalg.det(q)) for q in qs]
+
+
 @pytest.mark.parametrize("name", ["navigation-gm", str(ADIS)])
 def test_closed_form_segment_equals_the_interval_fold(name):
     # The beam's GM segment step (Woodbury on the segment's stacked observations) against
@@ -194,9 +201,7 @@ def test_closed_form_segment_equals_the_interval_fold(name):
     from seqdesign.search.segments import gm_start_covariance, segment_columns
 
     profile = load_profile(name)
-    rng = np.random.default_rng(5)
-    attitudes = [np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(3)]
-    attitudes = [q * np.sign(np.linalg.det(q)) for q in attitudes]
+    attitudes = _random_attitudes(5)
     turn = stack([segment_columns(C, 45.0, math.radians(10.0), 1, LAT, G, profile, 45) for C in attitudes])
     rest = stack([segment_columns(C, 30.0, 0.0, -1, LAT, G, profile, 12) for C in attitudes])
     X, N, P = (np.repeat(a[None], 3, axis=0) for a in start_state(gm_start_covariance(profile), 24))
@@ -222,9 +227,7 @@ def test_a_turn_then_its_rest_in_one_block_equals_the_two_folds(name):
     from seqdesign.search.segments import gm_start_covariance, segment_columns
 
     profile = load_profile(name)
-    rng = np.random.default_rng(7)
-    attitudes = [np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(3)]
-    attitudes = [q * np.sign(np.linalg.det(q)) for q in attitudes]
+    attitudes = _random_attitudes(7)
     turn = stack([segment_columns(C, 27.0, math.radians(10.0), 2, LAT, G, profile, 27) for C in attitudes])
     rest = stack([segment_columns(C, 40.0, 0.0, -1, LAT, G, profile, 12) for C in attitudes[::-1]])
     X, N, P = (np.repeat(a[None], 4, axis=0) for a in start_state(gm_start_covariance(profile), 24))
