@@ -315,4 +315,17 @@ def result_from_fit(
         gravity_mps2=site.gravity_mps2,
         gravity_source=site.gravity_source,
         requirements=requirements,
+        caveats=_caveats(fit),
+    )
+
+
+def _caveats(fit: Fit) -> tuple:
+    """What the fit's model does not prove for this run: a heading held undetermined."""
+    sigma = fit.history[-1].get("heading_held_sigma_deg") if fit.history else None
+    if sigma is None:
+        return ()
+    return (
+        f"the run does not determine the heading (sigma {sigma:.0f} deg: the gyro's bias instability "
+        "buries the Earth's horizontal rate); it cycled and was held, the 21 fitted given it; their "
+        "sigmas carry its linearised uncertainty (docs/grades.md)",
     )

@@ -334,7 +334,7 @@ def _fit_renavigating(
         delta, resid = schedule.step(Hs, D, zw, sol, cov, it)
         values, extra_values = apply_step(values, extra_values, delta, sol, D)
         C0 = rotvec_to_dcm(delta[PHI0]) @ C0
-        history.append(history_entry(it, delta, cov, resid, sol))
+        history.append(history_entry(it, delta, cov, resid, sol) | schedule.record())
         step = history[-1]["max_step_sigma"]
         if step < tol_sigma and not schedule.pending():
             converged = True
@@ -422,7 +422,7 @@ def fit_intervals(
         C0 = rotvec_to_dcm(delta[PHI0]) @ C0
         # The weights changed with a rebuilt noise model: no geometric bound across it.
         settled = schedule.settled(it) and it > rebuilt + 1
-        step, bound = _record(history, history_entry(it, delta, cov, resid, sol), settled)
+        step, bound = _record(history, history_entry(it, delta, cov, resid, sol) | schedule.record(), settled)
         if (step < tol_sigma or bound < tol_sigma) and not schedule.pending() and not stale:
             z, H = to_frame(R.T, z), to_frame(R.T, H)
             return fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, True, extras)

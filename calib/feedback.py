@@ -62,6 +62,14 @@ MAX_ITERATIONS = 12
 # reversal cycled (+7.5, +15, -7.5, -15 deg) in 6 runs of 50; one that never grows back crawls
 # 0.9 deg per iteration towards a heading 53 deg away.
 HEADING_STEP_MAX_DEG = 15.0
+# A heading whose own sigma exceeds this is beyond what the linearised fit can locate: at 30 deg
+# the second-order term the model lacks, Omega_h (1 - cos psi), is 13 % of the first-order one.
+# Then Gauss-Newton's target heading jumps with each rebuild of the noise model (measured on
+# paper-9pos under the ADIS16405 profile: sigma 78-88 deg, targets -67 to +91 deg, and 3 runs of
+# 50 cycled for 45 iterations with the radius halved four times). Once a cut step has been
+# answered the other way twice (the radius at a quarter) such a heading is held where it is and
+# the rest fitted given it; the covariance keeps the heading's (linearised) uncertainty.
+HEADING_UNDETERMINED_DEG = 30.0
 # No fit converges on a cut step while the radius is at least this: below it the heading moves
 # the 21 by a hundredth of a sigma (measured: 0.1 sigma of a gyro scale factor per 6 deg).
 HEADING_SETTLED_DEG = 0.5
@@ -255,12 +263,18 @@ class FeedbackSchedule:
     heading_limit_deg: float = HEADING_STEP_MAX_DEG  # the heading's trust radius
     heading_cap_deg: float = HEADING_STEP_MAX_DEG  # the most it may grow back to
     heading_last_cut: float = 0.0  # the sign of the last cut heading step (0: not cut)
+    heading_held: bool = False  # the heading is undetermined and held (HEADING_UNDETERMINED_DEG)
+    heading_sigma_deg: float = 0.0  # the heading's sigma at the last step
 
     @classmethod
     def for_run(cls, profile: NoiseProfile, duration_s: float, gravity_mps2: float):
         """On exactly when the run's attitude wander leaks gravity (:func:`attitude_wander_ratio`)."""
         wander = attitude_wander_ratio(profile, duration_s, gravity_mps2) > ATTITUDE_FEEDBACK_RATIO
         return cls(wander, wander_deg=math.degrees(math.sqrt(tilt_variance(profile, duration_s))))
+
+    def record(self) -> dict:
+        """What an iteration's history entry adds: the held heading's sigma, once held."""
+        return {"heading_held_sigma_deg": self.heading_sigma_deg} if self.heading_held else {}
 
     def why_not_converged(self) -> str | None:
         """The cause of a fit that ran out of iterations, when it is the feedback's."""
@@ -336,11 +350,17 @@ class FeedbackSchedule:
         """
         return it > self.moved + 1
 
-    def heading_trust(self, heading: float) -> None:
-        """Move the heading's trust radius after a cut step, given this step's heading (rad)."""
+    def heading_trust(self, heading: float, heading_sigma_deg: float) -> None:
+        """Move the heading's trust radius after a cut step, given this step's heading (rad) and
+        the heading's sigma; hold an undetermined heading once it cycles (HEADING_UNDETERMINED_DEG).
+        """
         if self.heading_last_cut * heading < 0.0:
             self.heading_limit_deg *= 0.5
             self.heading_cap_deg = self.heading_limit_deg
+            cycling = self.heading_limit_deg <= 0.25 * HEADING_STEP_MAX_DEG
+            if cycling and heading_sigma_deg > HEADING_UNDETERMINED_DEG:
+                self.heading_held = True
+                self.heading_limit_deg = self.heading_cap_deg = 0.0
         elif self.heading_last_cut * heading > 0.0:
             self.heading_limit_deg = min(2.0 * self.heading_limit_deg, self.heading_cap_deg)
 
@@ -352,8 +372,10 @@ class FeedbackSchedule:
             delta, self.last = aitken(delta, np.sqrt(np.diag(cov)), last)
             resid = zw - Hs @ (delta / D)
         if self.wander:
-            heading = delta[PHI0.start + 2]
-            self.heading_trust(heading)
+            u = PHI0.start + 2
+            heading = delta[u]
+            self.heading_sigma_deg = math.degrees(math.sqrt(sol.covariance[u, u]) * D[u])
+            self.heading_trust(heading, self.heading_sigma_deg)
             delta, self.heading_limited = limit_heading_step(delta, sol.covariance, D, self.heading_limit_deg)
             self.heading_last_cut = math.copysign(1.0, heading) if self.heading_limited else 0.0
             if self.heading_limited:

@@ -7,7 +7,13 @@ import math
 
 import numpy as np
 
-from calib.feedback import AttitudeFeedback, limit_heading_step
+from calib.feedback import (
+    HEADING_STEP_MAX_DEG,
+    HEADING_UNDETERMINED_DEG,
+    AttitudeFeedback,
+    FeedbackSchedule,
+    limit_heading_step,
+)
 from calib.jacobian import PHI0, state_matrix
 from calib.noise import noise_model, whiten
 from calib.noiseframe import attitude_moved_deg, heading_turn, to_frame
@@ -107,3 +113,49 @@ def test_a_cut_heading_step_is_the_least_squares_step_given_that_heading():
     small[u] = 0.01
     same, was_cut = limit_heading_step(small, cov, D, limit_deg)
     assert not was_cut and same is small  # within the limit: the step as it was
+
+
+def _cycle(sigma_deg: float, steps_deg) -> FeedbackSchedule:
+    """A wander run's schedule fed heading steps (deg), each cut when beyond the radius."""
+    schedule = FeedbackSchedule(wander=True)
+    for step in steps_deg:
+        heading = math.radians(step)
+        schedule.heading_trust(heading, sigma_deg)
+        schedule.heading_limited = abs(step) > schedule.heading_limit_deg
+        schedule.heading_last_cut = math.copysign(1.0, heading) if schedule.heading_limited else 0.0
+    return schedule
+
+
+def test_an_undetermined_heading_that_cycles_is_held_and_a_determined_one_is_not():
+    # Gauss-Newton asking for +-60 deg, cut every time: the radius halves at each reversal. A
+    # heading whose own sigma is 80 deg (what paper-9pos leaves under the ADIS16405 profile) is
+    # beyond the linear model, so once the radius is at a quarter it is held (radius 0, the rest
+    # fitted given it) and no longer keeps the fit from converging. One of sigma 5 deg is located
+    # by the fit: it keeps being followed, its radius halving towards HEADING_SETTLED_DEG.
+    steps = [60.0, -60.0, 60.0, -60.0, 60.0]
+    held = _cycle(80.0, steps)
+    assert held.heading_held and held.heading_limit_deg == 0.0
+    held.held = True  # with the feedback held, a held heading leaves nothing pending
+    assert not held.pending() and "heading_held_sigma_deg" in held.record()
+    followed = _cycle(5.0, steps)
+    assert not followed.heading_held and followed.record() == {}
+    assert followed.heading_limit_deg == HEADING_STEP_MAX_DEG / 16  # halved at four reversals
+    # One reversal is not yet a cycle, whatever the sigma.
+    once = _cycle(HEADING_UNDETERMINED_DEG * 3, [60.0, -60.0])
+    assert not once.heading_held and once.heading_limit_deg == HEADING_STEP_MAX_DEG / 2
+
+
+def test_a_held_heading_step_is_the_least_squares_step_with_the_heading_kept():
+    # Radius 0: the step is the minimiser of |z - H d| with the heading's component zero.
+    rng = np.random.default_rng(8)
+    n, m = PHI0.stop, 150
+    H = rng.normal(size=(m, n))
+    z = rng.normal(size=m)
+    cov = np.linalg.inv(H.T @ H)
+    delta = cov @ H.T @ z
+    u = PHI0.start + 2
+    held, was_cut = limit_heading_step(delta, cov, np.ones(n), 0.0)
+    others = [i for i in range(n) if i != u]
+    rest, *_ = np.linalg.lstsq(H[:, others], z, rcond=None)
+    assert was_cut and held[u] == 0.0
+    np.testing.assert_allclose(held[others], rest, rtol=1e-8, atol=1e-12)
