@@ -21,7 +21,6 @@ import itertools
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import sparse
 
 from . import earth
 from . import params as P
@@ -269,6 +268,8 @@ def _interval_moments(x: np.ndarray, starts: np.ndarray, tau: np.ndarray) -> np.
     One sparse product (a row per interval and weight): ``np.add.reduceat`` of
     these wide rows costs several times more.
     """
+    from scipy import sparse  # lazy: 0.26 s to import, and only the optional terms need it
+
     n, K = len(x), len(starts)
     interval = np.repeat(np.arange(K), np.diff(np.append(starts, n)))
     rows = np.concatenate([2 * interval, 2 * interval + 1])
