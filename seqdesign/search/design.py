@@ -27,13 +27,14 @@ from .objective import OBJECTIVES
 from .parallel import map_jobs
 from .pipeline import (
     SCHEDULER_BATCH,
+    ExactJob,
     ExactScorer,
     ExactScores,
     Finalist,
     Pipeline,
     Progress,
-    Refiner,
     by_order,
+    refined,
     select,
 )
 
@@ -198,16 +199,24 @@ def design(
     batch = max(workers, SCHEDULER_BATCH if scheduler else 1)
     exact = ExactScores(scorer, workers, scheduler)
 
-    refiner = Refiner(c, latitude_rad, height_m, profile, objective, requirements, scorer, tolerance_deg)
-    pipeline = Pipeline(c, exact, tolerance_deg, batch, progress, refiner if refine else None)
-    unrefined = pipeline.boxed_pool(results)
-    if narrow is None:
-        (pool,) = pipeline.with_refined([unrefined])
-        answers = [pool[0], unrefined[0]]  # the default's, and what --no-refine returns
-    else:  # and what --beam-width 20 (with and without --no-refine) returns
-        n_unrefined = pipeline.boxed_pool(narrow)
-        pool, n_pool = pipeline.with_refined([unrefined, n_unrefined])
-        answers = [pool[0], unrefined[0]]
+    def refine_best(best: Finalist) -> list[Finalist]:
+        return refined(
+            best,
+            c,
+            latitude_rad,
+            height_m,
+            profile,
+            objective,
+            requirements,
+            lambda w, d: exact([ExactJob(w, d, False, tolerance_deg)])[0],
+            progress,
+        )
+
+    pipeline = Pipeline(c, exact, tolerance_deg, batch, progress, refine_best if refine else None)
+    unrefined, pool = pipeline.pools(results)
+    answers = [pool[0], unrefined[0]]  # the default's, and what --no-refine returns
+    if narrow is not None:  # what --beam-width 20 (with and without --no-refine) returns
+        n_unrefined, n_pool = pipeline.pools(narrow)
         pool = by_order(pool + n_pool)
         answers += [pool[0], n_pool[0], n_unrefined[0]]
     best = select(answers, exact, tolerance_deg, batch, progress)

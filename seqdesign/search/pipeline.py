@@ -350,93 +350,58 @@ def boxed(screened, exact: ExactScores, tolerance_deg, progress, batch: int = 1)
     return by_order(pool)
 
 
-@dataclass(frozen=True)
-class Refiner:
-    """IPOPT-refines a finalist's dwells and scores them exactly over the box: picklable, so
-    that the best of the wide and of the narrow beams refine at once on the workers.
+def refined(best: Finalist, c, latitude_rad, height_m, profile, objective, requirements, exact, progress):
+    """The best candidate with IPOPT-refined dwells, exactly re-scored ([] if unchanged).
 
-    Returns the refined dwells and their :class:`ExactScore` (None when IPOPT kept the
-    uniform dwells).
+    ``exact(walk, dwells)`` is the :class:`ExactScore` over the box.
     """
-
-    c: Constraints
-    latitude_rad: float
-    height_m: float
-    profile: NoiseProfile
-    objective: str
-    requirements: Requirements
-    scorer: ExactScorer
-    tolerance_deg: float
-
-    def __call__(self, best: Finalist) -> tuple[tuple, ExactScore | None]:
-        new_dwells, _, _ = refine_dwells(
-            best.walk,
-            self.c,
-            best.dwells[0],
-            self.latitude_rad,
-            self.height_m,
-            self.profile,
-            self.objective,
-            self.requirements,
-            best.repeats,
+    if progress:
+        progress(Progress("refine", f"refining the dwells of {best.label} with IPOPT", 0, 1, 0, best.ratio))
+    new_dwells, _, _ = refine_dwells(
+        best.walk, c, best.dwells[0], latitude_rad, height_m, profile, objective, requirements, best.repeats
+    )
+    if tuple(new_dwells) == best.dwells:
+        if progress:
+            progress(Progress("refine", "refinement kept the uniform dwells", 1, 1, 1, best.ratio))
+        return []
+    out = exact(best.walk, tuple(new_dwells))
+    if progress:
+        progress(
+            Progress(
+                "refine",
+                f"refined: {out.ratio:.3f} ({out.worst_name}) against {best.ratio:.3f} uniform",
+                1,
+                1,
+                1,
+                min(out.ratio, best.ratio),
+            )
         )
-        dwells = tuple(new_dwells)
-        if dwells == best.dwells:
-            return dwells, None
-        return dwells, self.scorer(ExactJob(best.walk, dwells, False, self.tolerance_deg))
+    return [Finalist(out.ratio, best.label + " (refined)", tuple(new_dwells), best.walk, best.repeats)]
 
 
 @dataclass
 class Pipeline:
-    """Screen, box and refine the proposals of sets of beams, sharing the exact scores."""
+    """Screen, box and refine the proposals of a set of beams, sharing the exact scores."""
 
     c: Constraints
     exact: ExactScores
     tolerance_deg: float
     batch: int
-    progress: Callable[[Progress], None] | None
-    refiner: Refiner | None = None  # None: --no-refine
+    progress: object
+    refine: Callable[[Finalist], list[Finalist]] | None = None  # None: --no-refine
+    _refined: dict = field(default_factory=dict)
 
-    def boxed_pool(self, results) -> list[Finalist]:
-        """The proposals of ``results`` screened, the best re-scored over the box: best first."""
+    def pools(self, results) -> tuple[list[Finalist], list[Finalist]]:
+        """``(pool, with_refined)``: the box scores best first, and the same with the refined best."""
         # chunks of the batch, several per map on processes (each map starts its pool)
         chunk = self.batch if self.batch == 1 else 4 * self.batch
         found = screen(proposals(results, self.c), self.exact, self.progress, chunk)
-        return boxed(found, self.exact, self.tolerance_deg, self.progress, self.batch)
-
-    def with_refined(self, pools: list[list[Finalist]]) -> list[list[Finalist]]:
-        """Each pool with its best's refinement added, best first.
-
-        The distinct bests refine at once, one per worker: each refinement is serial
-        (IPOPT), and one after the other they left a core idle.
-        """
-        if self.refiner is None:
-            return [by_order(pool) for pool in pools]
-        bests = list({(p[0].walk, p[0].dwells): p[0] for p in pools}.values())
-        for best in bests:
-            self._report(f"refining the dwells of {best.label} with IPOPT", 0, best.ratio)
-        workers = min(self.exact.workers, len(bests))
-        outs = map_jobs(self.refiner, bests, workers, self.exact.scheduler)
-        refined: dict[tuple, list[Finalist]] = {}
-        for best, (dwells, out) in zip(bests, outs, strict=True):
-            key = (best.walk, best.dwells)
-            refined[key] = []
-            if out is None:
-                self._report("refinement kept the uniform dwells", 1, best.ratio)
-                continue
-            job = ExactJob(best.walk, dwells, False, self.tolerance_deg)
-            self.exact.memo[job] = replace(out, robustness=None, extras_cost=None)
-            self._report(
-                f"refined: {out.ratio:.3f} ({out.worst_name}) against {best.ratio:.3f} uniform",
-                1,
-                min(out.ratio, best.ratio),
-            )
-            refined[key] = [Finalist(out.ratio, best.label + " (refined)", dwells, best.walk, best.repeats)]
-        return [by_order(pool + refined[(pool[0].walk, pool[0].dwells)]) for pool in pools]
-
-    def _report(self, message: str, done: int, best: float) -> None:
-        if self.progress:
-            self.progress(Progress("refine", message, done, 1, done, best))
+        pool = boxed(found, self.exact, self.tolerance_deg, self.progress, self.batch)
+        key = (pool[0].walk, pool[0].dwells)
+        if self.refine is not None and key not in self._refined:
+            self._refined[key] = self.refine(pool[0])
+        extra = self._refined[key] if self.refine is not None else []
+        return pool, by_order(pool + extra)
 
 
 def select(answers, exact: ExactScores, tolerance_deg, batch: int = 1, progress=None) -> Rescored:
