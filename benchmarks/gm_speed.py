@@ -3,18 +3,20 @@
 Runs each command as a user would (``python -m seqdesign.cli ...``, a fresh process)
 from this checkout and, with ``--against DIR``, from another one (e.g. the commit
 before a change), interleaved so that both see the same load; prints the wall time,
-the user+sys CPU time of the child and the worst ratio each reported, and the
+the user+sys CPU time of the child, the peak PSS of the command and its workers
+together (sampled each second) and the worst ratio each reported, and the
 load average before and after (on a shared machine the CPU figure is the one that
 says what the code costs).
 
-    python benchmarks/gm_speed.py [--against DIR] [--only analyze|design] [--adis-design FILE]
+    python benchmarks/gm_speed.py [--against DIR] [--only analyze|design|front] [--adis-design FILE]
 
 The commands: ``analyze designed-30min-gm --profile navigation-gm`` with and without
 ``--with all``; ``analyze FILE`` of a 10-minute design under the ADIS16405 profile
 fitted from a real log (``benchmarks/profiles/adis16405.toml``; ``--adis-design``,
 default: designed by the first design command below); ``design --budget-min 10
---workers 2`` under that profile; and a 30-minute ``navigation-gm --with all``
-design with ``--workers 2``.
+--workers 2`` under that profile, against the paper's requirements and the ``mems``
+ones; a 30-minute ``navigation-gm --with all`` design with ``--workers 2``; and the
+Gauss-Markov front ``design --pareto --budgets 10,20,30,40 --profile navigation-gm``.
 """
 
 from __future__ import annotations
@@ -33,25 +35,54 @@ ROOT = Path(__file__).resolve().parent.parent
 ADIS = ROOT / "benchmarks" / "profiles" / "adis16405.toml"
 
 
-def run(root: Path, args: list[str]) -> tuple[float, float, str]:
-    """Wall time, child CPU time (user + sys) and stdout of one CLI run from ``root``."""
+def run(root: Path, args: list[str]) -> tuple[float, float, float, str]:
+    """Wall time, child CPU time (user + sys), peak memory (GB) and stdout of one CLI run from ``root``.
+
+    The memory is the largest proportional set size (PSS: shared pages split between the
+    processes that share them) of the command and its workers together, sampled each second.
+    """
     cpu0 = os.times()
     t = time.perf_counter()
-    out = subprocess.run(
-        [sys.executable, "-m", "seqdesign.cli", *args],
-        cwd=root,
-        capture_output=True,
-        text=True,
-        check=True,
-        env={**os.environ, "PYTHONPATH": str(root)},
-    ).stdout
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    with tempfile.TemporaryFile("w+") as stdout:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "seqdesign.cli", *args], cwd=root, stdout=stdout, text=True, env=env
+        )
+        peak = 0
+        while proc.poll() is None:
+            peak = max(peak, tree_pss_kb(proc.pid))
+            time.sleep(1.0)
+        if proc.returncode:
+            raise subprocess.CalledProcessError(proc.returncode, args)
+        stdout.seek(0)
+        out = stdout.read()
     wall = time.perf_counter() - t
     cpu1 = os.times()
-    return (
-        wall,
-        (cpu1.children_user - cpu0.children_user) + (cpu1.children_system - cpu0.children_system),
-        out,
-    )
+    cpu = (cpu1.children_user - cpu0.children_user) + (cpu1.children_system - cpu0.children_system)
+    return wall, cpu, peak / 1e6, out
+
+
+def tree_pss_kb(pid: int) -> int:
+    """PSS (kB) of a process and its descendants, from /proc (0 where /proc is not Linux's)."""
+    children: dict[int, list[int]] = {}
+    for d in Path("/proc").glob("[0-9]*"):
+        try:
+            ppid = int((d / "stat").read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, IndexError, ValueError):
+            continue
+        children.setdefault(ppid, []).append(int(d.name))
+    total, todo = 0, [pid]
+    while todo:
+        p = todo.pop()
+        try:
+            for line in Path(f"/proc/{p}/smaps_rollup").read_text().splitlines():
+                if line.startswith("Pss:"):
+                    total += int(line.split()[1])
+                    break
+        except OSError:
+            pass
+        todo += children.get(p, [])
+    return total
 
 
 def worst_of(args: list[str], out: str) -> str:
@@ -71,14 +102,14 @@ def worst_of(args: list[str], out: str) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--against", type=Path, help="another checkout to time side by side")
-    ap.add_argument("--only", choices=["analyze", "design"])
+    ap.add_argument("--only", choices=["analyze", "design", "front"])
     ap.add_argument("--adis-design", type=Path, help="a 10-minute design under the ADIS profile")
     a = ap.parse_args()
     roots = [ROOT] + ([a.against.resolve()] if a.against else [])
     tmp = Path(tempfile.mkdtemp())
     adis_design = a.adis_design or tmp / "0" / "adis-10min.toml"  # this checkout's design
     commands = []
-    if a.only != "analyze":
+    if a.only in (None, "design"):
         commands += [
             [
                 "design",
@@ -91,15 +122,22 @@ def main() -> None:
                 "-o",
                 "{out}/adis-10min.toml",
             ],
+            ["design", "--budget-min", "10", "--workers", "2", "--profile", str(ADIS)]
+            + ["--requirements", "mems", "-o", "{out}/adis-10min-mems.toml"],
             ["design", "--budget-min", "30", "--workers", "2", "--profile", "navigation-gm", "--with", "all"]
             + ["-o", "{out}/gm-30min-all.toml"],
         ]
-    if a.only != "design":
+    if a.only in (None, "analyze"):
         commands += [
             ["analyze", "designed-30min-gm", "--profile", "navigation-gm", "--json"],
             ["analyze", "designed-30min-gm", "--profile", "navigation-gm", "--with", "all", "--json"],
             ["analyze", str(adis_design), "--profile", str(ADIS), "--json"],
         ]
+    if a.only in (None, "front"):
+        commands.append(
+            ["design", "--pareto", "--budgets", "10,20,30,40", "--profile", "navigation-gm", "--workers", "2"]
+            + ["-o", "{out}/front"]
+        )
     print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}", flush=True)
     print("  (" + ", ".join(map(str, roots)) + ")")
     print(f"  outputs in {tmp}")
@@ -111,12 +149,11 @@ def main() -> None:
             if concrete[0] == "analyze" and concrete[1].endswith(".toml") and not Path(concrete[1]).exists():
                 print(f"  (no {concrete[1]}: skipped)")
                 continue
-            w, c, o = run(root, concrete)
+            w, c, gb, o = run(root, concrete)
             (out_dir / f"{n}.out").write_text(o)
             label = " ".join(args[:2] + [x for x in args[2:] if not x.startswith("{out}")])
-            print(
-                f"{label[:80]:<80} [{i}] {w:8.1f} s wall {c:8.1f} s cpu  {worst_of(concrete, o)}", flush=True
-            )
+            figures = f"{w:8.1f} s wall {c:8.1f} s cpu {gb:5.2f} GB"
+            print(f"{label[:80]:<80} [{i}] {figures}  {worst_of(concrete, o)}", flush=True)
     print(f"load average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 
 
