@@ -23,7 +23,7 @@ from .allanplot import plot_allan
 from .errors import CalibError
 from .fileio import atomic_write_text
 from .params import DEG, DEG_PER_HOUR, MICRO_G
-from .profilegm import CALIBRATION_TAU_S, ProfileGM, not_modelled, profile_gm
+from .profilegm import CALIBRATION_TAU_S, PROFILE_SIGMA_MAX, ProfileGM, not_modelled, profile_gm
 from .profiles import NoiseProfile, _from_doc
 from .runlog import Run, read_run
 from .static import StaticLevel, static_level
@@ -175,8 +175,8 @@ def fit_profile(run: Run, name: str) -> ProfileFit:
         accel_curves=curves["accel"],
         gyro=fits["gyro"],
         accel=fits["accel"],
-        gyro_profile=profile_gm(curves["gyro"], fits["gyro"]),
-        accel_profile=profile_gm(curves["accel"], fits["accel"]),
+        gyro_profile=profile_gm(curves["gyro"], fits["gyro"], PROFILE_SIGMA_MAX["gyro"]),
+        accel_profile=profile_gm(curves["accel"], fits["accel"], PROFILE_SIGMA_MAX["accel"]),
         level=level,
         latitude_deg=run.latitude_deg,
         height_m=run.height_m,

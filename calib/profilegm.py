@@ -16,12 +16,24 @@ import numpy as np
 
 from .allan import GM_PEAK_ADEV_RATIO, AllanCurve, avar_white
 from .allanfit import BOUND_MARGIN, MODEL_FLOOR, NoiseFit, model_avar, trusted_end
-from .profiles import _TAU_RANGE
+from .params import DEG_PER_HOUR, MICRO_G
+from .profiles import _GM_KEYS, _TAU_RANGE
 
 # What matters to a calibration run: its intervals and rests (tens of seconds) up to
 # its length (about an hour).
 CALIBRATION_TAU_S = (10.0, 3600.0)
 PROFILE_TAU_RANGE = _TAU_RANGE  # calib.profiles' bounds of a GM correlation time, s
+# The largest GM sigma a profile carries, SI (calib.profiles' bounds).
+PROFILE_SIGMA_MAX = {
+    "gyro": _GM_KEYS["gyro_bias_instability_dph"][1] * DEG_PER_HOUR,
+    "accel": _GM_KEYS["accel_bias_instability_ug"][1] * MICRO_G,
+}
+# A GM shows as one only when its correlation time is within this factor of the taus fitted:
+# far beyond the longest its deviation rises as a rate random walk, and only sigma^2 / tau
+# shows; far below the shortest it falls as white noise, and only sigma^2 tau shows. Either
+# way sigma and tau are not determined apart (measured: a 20-min white-noise log, fitted over
+# 10-97 s, gave a gyro "GM" of 1142 deg/h over 769,000 s from the scatter of its last taus).
+IDENTIFIED_TAU_FACTOR = 10.0
 
 
 @dataclass(frozen=True)
@@ -49,16 +61,20 @@ class ProfileGM:
     note: str = ""
 
 
-def profile_gm(curves: tuple[AllanCurve, ...], fits: tuple[NoiseFit, ...]) -> ProfileGM:
+def profile_gm(
+    curves: tuple[AllanCurve, ...], fits: tuple[NoiseFit, ...], sigma_max: float = math.inf
+) -> ProfileGM:
     """The single GM that, with the largest white noise held, follows the worst axis over a run's taus.
 
     The rule: at each tau from `CALIBRATION_TAU_S` on (up to the last trusted tau of
     every axis) take the largest of the axes' measured deviations; with the
     profile's N (the largest axis') held, the GM sigma and correlation time whose
     worst ratio to it over that range is closest to 1 (minimax in log, `_minimax_gm`).
-    A GM on a correlation-time bound of the profiles is refused (sigma 0), and so is
-    one that brings the worst ratio closer to 1 by less than `MODEL_FLOOR` than white
-    noise alone (the curve shows none). What the axes show beyond white noise and
+    A GM on a correlation-time bound of the profiles is refused (sigma 0), and so is one
+    whose correlation time is not within `IDENTIFIED_TAU_FACTOR` of the taus fitted, one
+    above ``sigma_max`` (what a profile carries, `PROFILE_SIGMA_MAX`), and one that brings
+    the worst ratio closer to 1 by less than `MODEL_FLOOR` than white noise alone (the
+    curve shows none). What the axes show beyond white noise and
     one GM (a rate random walk, a second GM, a sinusoid) is carried only as far as
     this GM follows the curve; `not_modelled` names it.
     """
@@ -81,6 +97,15 @@ def profile_gm(curves: tuple[AllanCurve, ...], fits: tuple[NoiseFit, ...]) -> Pr
             f"no GM: its correlation time went to its bound ({tc:.3g} s), so no single GM "
             f"follows the curve over {span[0]:.3g}-{span[1]:.3g} s"
         )
+    elif not span[0] / IDENTIFIED_TAU_FACTOR <= tc <= span[1] * IDENTIFIED_TAU_FACTOR:
+        shows = "rate random walk" if tc > span[1] else "white noise"
+        note = (
+            f"no GM: its correlation time ({tc:.3g} s) is far outside the taus fitted "
+            f"({span[0]:.3g}-{span[1]:.3g} s), where a GM shows only as a {shows}: its sigma "
+            "and correlation time are not determined apart"
+        )
+    elif sigma > sigma_max:
+        note = f"no GM: its sigma ({sigma:.3g}, SI) is beyond what a profile carries ({sigma_max:.3g})"
     elif np.max(np.abs(np.log(white_only))) - worst < MODEL_FLOOR:
         note = f"no GM: white noise alone follows the curve over {span[0]:.3g}-{span[1]:.3g} s as well"
     if note:
