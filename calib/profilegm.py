@@ -34,6 +34,11 @@ PROFILE_SIGMA_MAX = {
 # way sigma and tau are not determined apart (measured: a 20-min white-noise log, fitted over
 # 10-97 s, gave a gyro "GM" of 1142 deg/h over 769,000 s from the scatter of its last taus).
 IDENTIFIED_TAU_FACTOR = 10.0
+# White noise alone is kept when it lies within this many 68 % intervals of the measured
+# deviation at every tau fitted: the curve then shows no GM (about 95 % at each tau). Without
+# it a 20-min white-noise log got a gyro GM of 9-48 deg/h in 33 fits of 60, the minimax
+# following the scatter of its long taus; with it 15 of 60 (22-48 deg/h): such a log is short.
+WHITE_WITHIN_INTERVALS = 2.0
 
 
 @dataclass(frozen=True)
@@ -79,14 +84,18 @@ def profile_gm(
     this GM follows the curve; `not_modelled` names it.
     """
     tau = curves[0].tau_s
+    worst_axis = np.argmax([c.adev for c in curves], axis=0)
     adev = np.max([c.adev for c in curves], axis=0)
+    pick = (worst_axis, np.arange(tau.size))
+    up = np.log(np.array([c.ci_high for c in curves])[pick] / adev)
+    down = np.log(adev / np.array([c.ci_low for c in curves])[pick])
     end = min(trusted_end(c) for c in curves)
     keep = np.flatnonzero((tau >= CALIBRATION_TAU_S[0]) & (tau <= CALIBRATION_TAU_S[1]))
     keep = keep[keep < end]
     white = max(f.white for f in fits)
     if keep.size < 3:
         return ProfileGM(white, 0.0, 0.0, (0.0, 0.0), (1.0, 1.0), "the log is too short for a GM")
-    tau, adev = tau[keep], adev[keep]
+    tau, adev, up, down = tau[keep], adev[keep], up[keep], down[keep]  # log half-widths
     span = (float(tau[0]), float(tau[-1]))
     sigma, tc, worst = _minimax_gm(tau, adev, white)
     white_only = np.sqrt(avar_white(tau, white)) / adev
@@ -106,6 +115,11 @@ def profile_gm(
         )
     elif sigma > sigma_max:
         note = f"no GM: its sigma ({sigma:.3g}, SI) is beyond what a profile carries ({sigma_max:.3g})"
+    elif np.all(np.abs(np.log(white_only)) <= WHITE_WITHIN_INTERVALS * np.where(white_only > 1, up, down)):
+        note = (
+            f"no GM: white noise alone lies within {WHITE_WITHIN_INTERVALS:g} times the measured "
+            f"deviation's 68 % interval at every tau of {span[0]:.3g}-{span[1]:.3g} s"
+        )
     elif np.max(np.abs(np.log(white_only))) - worst < MODEL_FLOOR:
         note = f"no GM: white noise alone follows the curve over {span[0]:.3g}-{span[1]:.3g} s as well"
     if note:
