@@ -40,6 +40,7 @@ import numpy as np
 
 from . import earth
 from . import params as P
+from .compiled import compiled_arg, kernel
 from .extras import NONE as NO_EXTRAS
 from .extras import Extras, dv_sensitivity, earth_turn
 from .transform import skew
@@ -267,14 +268,33 @@ def propagate(
     model = step_model(float(latitude_rad), float(gravity_mps2))
     # Interval lengths repeat up to rounding; 1 ns changes Phi by ~1e-8 of its g T block.
     keys, index = np.unique(np.round(T, 9), return_inverse=True)
-    Phis = [np.asarray(model.transition(t)) for t in keys]
-    S = S0.copy()
+    Phis = np.array([np.asarray(model.transition(t)) for t in keys]).reshape(len(keys), 6, 6)
+    S = np.array(S0, dtype=float)
     out = np.empty((len(T) + 1, 3, S0.shape[1]))
-    out[0] = S[3:]
-    for k in range(len(T)):
-        S = Phis[index[k]] @ S + inputs[k]
-        out[k + 1] = S[3:]
+    _propagate(Phis, compiled_arg(index, np.int64), compiled_arg(inputs), S, out)
     return (out, S) if return_final else out
+
+
+@kernel
+def _propagate(Phis, index, inputs, S, out):  # pragma: no cover - compiled
+    """:func:`propagate`'s recursion, compiled: a 6 x 6 product per interval cost more to
+    call from Python than to compute. Updates ``S`` (6, c) in place; fills ``out``.
+    """
+    c = S.shape[1]
+    nxt = np.empty((6, c))
+    out[0] = S[3:]
+    for k in range(len(index)):
+        Phi = Phis[index[k]]
+        for i in range(6):
+            for q in range(c):
+                nxt[i, q] = inputs[k, i, q]
+            for j in range(6):
+                f = Phi[i, j]
+                if f != 0.0:
+                    for q in range(c):
+                        nxt[i, q] += f * S[j, q]
+        S[:, :] = nxt
+        out[k + 1] = S[3:]
 
 
 def moment_inputs(moments: np.ndarray, latitude_rad: float, gravity_mps2: float) -> np.ndarray:

@@ -160,9 +160,9 @@ def information_one(
 
     The same Jacobian; the noise filter of :mod:`calib.gmfilter` (a handful of
     interval models shared by every interval, the bias coordinates turned between
-    them) in one loop of 2-D products (:func:`calib.gmfilter.gram_one`): the same
-    information to rounding at about half the cost, for what evaluates one mounting
-    at a time (a design's screen at the nominal mounting).
+    them), compiled (:func:`calib.gmfilter.gram_one`): the same information to
+    rounding at a fraction of the cost, for what evaluates one mounting at a time (a
+    design's screen at the nominal mounting).
     """
     A = state_matrix(latitude_rad, gravity_mps2)
     bounds = nom.grid.bounds

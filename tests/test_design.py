@@ -72,7 +72,7 @@ def test_search_model_agrees_with_the_exact_analyser():
 def test_dask_local_cluster_gives_the_serial_result():
     distributed = pytest.importorskip("dask.distributed")
     from seqdesign.search.beam import BeamJob, search_at_dwell
-    from seqdesign.search.parallel import map_jobs
+    from seqdesign.search.parallel import map_jobs, worker_pool
 
     c = Constraints(budget_s=400.0, max_flips=2, max_quarters=1)
     jobs = [BeamJob(c, d, LAT, 0.0, PROFILE, "worst", 20, 2, PAPER) for d in (60.0, 90.0)]
@@ -92,17 +92,20 @@ def test_dask_local_cluster_gives_the_serial_result():
 
 def test_local_workers_give_the_serial_result():
     from seqdesign.search.beam import BeamJob, search_at_dwell
-    from seqdesign.search.parallel import map_jobs
+    from seqdesign.search.parallel import map_jobs, worker_pool
 
     c = Constraints(budget_s=400.0, max_flips=2, max_quarters=1)
     jobs = [BeamJob(c, d, LAT, 0.0, PROFILE, "worst", 20, 2, PAPER) for d in (60.0, 90.0)]
     serial = map_jobs(search_at_dwell, jobs)
     parallel = map_jobs(search_at_dwell, jobs, workers=2)
+    # the pool a design keeps for all its rounds: the same workers twice, the same answer
+    with worker_pool(2):
+        kept = [map_jobs(search_at_dwell, jobs, workers=2), map_jobs(search_at_dwell, jobs[::-1], workers=2)]
 
     def figures(results):
         return [(r.dwell_s, r.walks, r.scores, r.evaluated) for r in results]
 
-    assert figures(serial) == figures(parallel)
+    assert figures(serial) == figures(parallel) == figures(kept[0]) == figures(kept[1][::-1])
 
 
 @pytest.mark.parametrize(

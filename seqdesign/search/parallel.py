@@ -7,7 +7,33 @@ answer does not depend on ``workers`` or ``scheduler``.
 
 from __future__ import annotations
 
+import contextlib
+from concurrent.futures import ProcessPoolExecutor
+
 from calib.errors import CalibError
+
+# The local pool of an enclosing :func:`worker_pool` (None outside one).
+_shared: dict[int, ProcessPoolExecutor] = {}
+
+
+@contextlib.contextmanager
+def worker_pool(workers: int):
+    """Keep one pool of ``workers`` local processes for every :func:`map_jobs` inside.
+
+    A design maps its jobs in many small rounds (the screen reports as it goes, the box
+    re-scores two at a time); a pool per round pays the workers' start and their cold
+    caches (compiled kernels, a sequence's basis) each time. Nested uses share the
+    outermost pool; serial runs (``workers`` <= 1) need none.
+    """
+    if workers <= 1 or workers in _shared:
+        yield
+        return
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        _shared[workers] = pool
+        try:
+            yield
+        finally:
+            del _shared[workers]
 
 
 def map_jobs(fn, jobs, workers: int = 1, scheduler: str | None = None):
@@ -26,8 +52,8 @@ def map_jobs(fn, jobs, workers: int = 1, scheduler: str | None = None):
             if isinstance(scheduler, str):
                 client.close()
     if workers > 1:
-        from concurrent.futures import ProcessPoolExecutor
-
+        if workers in _shared:
+            return list(_shared[workers].map(fn, jobs))
         with ProcessPoolExecutor(max_workers=workers) as pool:
             return list(pool.map(fn, jobs))
     return [fn(j) for j in jobs]

@@ -27,6 +27,7 @@ from calib.worstcase import analyze_tolerance
 from ..plots import pareto_png
 from .constraints import Constraints, check_constraints
 from .design import DesignResult, design
+from .parallel import worker_pool
 
 
 @dataclass(frozen=True)
@@ -301,35 +302,37 @@ def design_budgets(
     budgets_min = list(budgets_min)
     names = design_names(budgets_min, name)
     rows = []
-    for b in budgets_min:
-        c = Constraints(budget_s=b * 60.0, **constraints)
-        check_constraints(c)
-        res = design(
-            c,
-            prof,
-            lat,
-            0.0,
-            objective,
-            tolerance_deg,
-            beam_width,
-            keep=4,
-            refine=refine,
-            name=names[b],
-            workers=workers,
-            scheduler=scheduler,
-            progress=None if progress is None else (lambda r, b=b: progress(b, r)),
-            requirements=req,
-            extras=ext,
-        )
-        T = res.sequence.duration_s
-        rows.append(
-            DesignRow(
-                b,
-                res,
-                accel_scale_bound(T, prof, g, req),
-                accel_scale_bound(T, prof, g, req, design_rate_dps(res.sequence)),
+    # one pool of workers for every budget's search and re-scoring (parallel.worker_pool)
+    with worker_pool(workers):
+        for b in budgets_min:
+            c = Constraints(budget_s=b * 60.0, **constraints)
+            check_constraints(c)
+            res = design(
+                c,
+                prof,
+                lat,
+                0.0,
+                objective,
+                tolerance_deg,
+                beam_width,
+                keep=4,
+                refine=refine,
+                name=names[b],
+                workers=workers,
+                scheduler=scheduler,
+                progress=None if progress is None else (lambda r, b=b: progress(b, r)),
+                requirements=req,
+                extras=ext,
             )
-        )
+            T = res.sequence.duration_s
+            rows.append(
+                DesignRow(
+                    b,
+                    res,
+                    accel_scale_bound(T, prof, g, req),
+                    accel_scale_bound(T, prof, g, req, design_rate_dps(res.sequence)),
+                )
+            )
     paper_T, paper_worst = paper_point(prof, lat, tolerance_deg, req)
     return DesignReport(
         rows,
