@@ -41,14 +41,16 @@ from .transform import rotvec_to_dcm
 class GmBasis:
     """A sequence's unwhitened mounting basis and its navigation-frame GM filter.
 
-    ``X`` holds the kept basis columns and phi0's of ``H`` for every interval
-    (:func:`calib.mounting.basis_chunks`); ``F``, ``Q`` and ``index`` the distinct
+    ``X`` holds the kept basis columns and phi0's of ``H`` for every interval, in
+    chunks of ``CHUNK_INTERVALS`` intervals (:func:`calib.mounting.basis_chunks`: kept
+    as they come, since one array of a 30-min run's ~200 MB cost more to allocate and
+    fill than any use of it); ``F``, ``Q`` and ``index`` the distinct
     interval models (:func:`calib.gmfilter.nav_table`); ``turns`` the nominal
     attitude's turn between consecutive intervals (:func:`calib.gmfilter.bias_turns`),
     exactly the identity where ``turning`` is False.
     """
 
-    X: np.ndarray  # (K, 3, n + 3)
+    X: tuple[np.ndarray, ...]  # chunks (k, 3, n + 3), K intervals in all
     column_basis: np.ndarray  # (n,) int
     column_param: np.ndarray  # (n,) int
     omega_ie_n: np.ndarray
@@ -78,7 +80,7 @@ def gm_basis(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m
     t_nav, bounds = nominal_samples(tl)
     T = np.diff(t_nav[bounds])
     Phi_vv = velocity_transitions(A, T, profile)
-    chunks = list(basis_chunks(seq, latitude_rad, height_m, Phi_vv))
+    chunks = list(basis_chunks(seq, latitude_rad, height_m, Phi_vv, compiled=True))
     keep = chunks[-1][2]
     C = nominal_attitude(tl, t_nav)[(bounds[:-1] + bounds[1:]) // 2]
     turning = np.r_[False, np.any(C[1:] != C[:-1], axis=(1, 2))]
@@ -86,7 +88,7 @@ def gm_basis(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m
     turns[~turning] = np.eye(3)  # the same attitude: the identity, exactly
     F, Q, index = nav_table(A, T, profile)
     return GmBasis(
-        X=np.concatenate([X for _, X, _ in chunks]),
+        X=tuple(X for _, X, _ in chunks),
         column_basis=keep // P.N_PARAMS,
         column_param=keep % P.N_PARAMS,
         omega_ie_n=earth.omega_ie_n(latitude_rad),
@@ -115,9 +117,11 @@ def whitened_grams(basis: GmBasis, rotvecs: list, columns) -> np.ndarray:
     s = len(basis.P0)
     P_ = np.array(np.broadcast_to(basis.P0, (len(R), s, s)))
     state = gram = None
-    for k0 in range(0, len(basis.X), CHUNK_INTERVALS):
-        part = slice(k0, k0 + CHUNK_INTERVALS)
-        X = columns(basis.X[part])
+    k0 = 0
+    for chunk in basis.X:
+        part = slice(k0, k0 + len(chunk))
+        k0 += len(chunk)
+        X = columns(chunk)
         if state is None:
             state = np.zeros((len(R), s, X.shape[-1]))
         turns = mounted_turns(basis.turns[part], R)
@@ -320,7 +324,9 @@ def extra_chunks(basis: GmBasis, xb: ExtraBasis, rotvecs: list):
             weighted = (mom.reshape(-1, mom.shape[-1]) @ W).reshape(k, 2, len(columns), 3, M)
             moments[..., columns, :] = weighted.transpose(0, 1, 3, 2, 4)
         inputs = G @ moments.reshape(k, 6, e * M)
-        S_v, S = propagate(inputs, basis.T[part], S, xb.latitude_rad, xb.gravity_mps2, return_final=True)
+        S_v, S = propagate(
+            inputs, basis.T[part], S, xb.latitude_rad, xb.gravity_mps2, return_final=True, compiled=True
+        )
         H = S_v[1:] - basis.Phi_vv[part] @ S_v[:-1]  # calib.jacobian.observation_matrix
         yield H.reshape(k, 3, e, M).transpose(0, 3, 1, 2)
 

@@ -40,7 +40,6 @@ import numpy as np
 
 from . import earth
 from . import params as P
-from .compiled import compiled_arg, kernel
 from .extras import NONE as NO_EXTRAS
 from .extras import Extras, dv_sensitivity, earth_turn
 from .transform import skew
@@ -251,8 +250,13 @@ def propagate(
     latitude_rad: float,
     gravity_mps2: float,
     return_final: bool = False,
+    compiled: bool = False,
 ):
     """Velocity rows of ``S_k = Phi(T_k) S_{k-1} + inputs_k`` for any number of columns.
+
+    ``compiled``: the recursion compiled (:func:`calib.kernels.propagate_columns`, the
+    same to rounding, ~7 x faster over a 30-min run), for the Gauss-Markov paths that
+    load the compiled kernels anyway (their start-up is ~1 s once per process).
 
     Parameters
     ----------
@@ -268,33 +272,21 @@ def propagate(
     model = step_model(float(latitude_rad), float(gravity_mps2))
     # Interval lengths repeat up to rounding; 1 ns changes Phi by ~1e-8 of its g T block.
     keys, index = np.unique(np.round(T, 9), return_inverse=True)
-    Phis = np.array([np.asarray(model.transition(t)) for t in keys]).reshape(len(keys), 6, 6)
-    S = np.array(S0, dtype=float)
+    Phis = [np.asarray(model.transition(t)) for t in keys]
+    S = S0.copy()
     out = np.empty((len(T) + 1, 3, S0.shape[1]))
-    _propagate(Phis, compiled_arg(index, np.int64), compiled_arg(inputs), S, out)
-    return (out, S) if return_final else out
+    if compiled:
+        from .kernels import compiled_arg, propagate_columns
 
-
-@kernel
-def _propagate(Phis, index, inputs, S, out):  # pragma: no cover - compiled
-    """:func:`propagate`'s recursion, compiled: a 6 x 6 product per interval cost more to
-    call from Python than to compute. Updates ``S`` (6, c) in place; fills ``out``.
-    """
-    c = S.shape[1]
-    nxt = np.empty((6, c))
+        S = compiled_arg(S)
+        Phi = np.array(Phis).reshape(len(keys), 6, 6)
+        propagate_columns(Phi, compiled_arg(index, np.int64), compiled_arg(inputs), S, out)
+        return (out, S) if return_final else out
     out[0] = S[3:]
-    for k in range(len(index)):
-        Phi = Phis[index[k]]
-        for i in range(6):
-            for q in range(c):
-                nxt[i, q] = inputs[k, i, q]
-            for j in range(6):
-                f = Phi[i, j]
-                if f != 0.0:
-                    for q in range(c):
-                        nxt[i, q] += f * S[j, q]
-        S[:, :] = nxt
+    for k in range(len(T)):
+        S = Phis[index[k]] @ S + inputs[k]
         out[k + 1] = S[3:]
+    return (out, S) if return_final else out
 
 
 def moment_inputs(moments: np.ndarray, latitude_rad: float, gravity_mps2: float) -> np.ndarray:
@@ -337,6 +329,7 @@ def sensitivities(
     latitude_rad: float,
     gravity_mps2: float,
     extra: np.ndarray | None = None,
+    compiled: bool = False,
 ) -> np.ndarray:
     """``d(dv at each interval end) / d(params, phi0[, extras])``, shape ``(K + 1, 3, N_UNKNOWN [+ e])``.
 
@@ -346,14 +339,15 @@ def sensitivities(
     only the 6 x 24 recursion is a loop. (Measured: a casadi ``mapaccum`` of
     the same step took 33 ms for the paper's 1044 intervals against 15 ms
     here, most of it in casadi's VM and DM-to-numpy conversion.) ``extra``
-    (``(K, 6, e)`` from :func:`extra_inputs`) appends the optional terms' columns.
+    (``(K, 6, e)`` from :func:`extra_inputs`) appends the optional terms' columns;
+    ``compiled`` as in :func:`propagate`.
     """
     inputs = moment_inputs(moments, latitude_rad, gravity_mps2)
     if extra is not None and extra.shape[-1]:
         inputs = np.concatenate([inputs, extra], axis=2)
     S0 = np.zeros((6, inputs.shape[-1]))
     S0[:3, PHI0] = np.eye(3)
-    return propagate(inputs, T, S0, latitude_rad, gravity_mps2)
+    return propagate(inputs, T, S0, latitude_rad, gravity_mps2, compiled=compiled)
 
 
 def observation_matrix(S_v: np.ndarray, Phi_vv: np.ndarray) -> np.ndarray:
@@ -371,15 +365,18 @@ def observation_jacobian(
     gravity_mps2: float,
     Phi_vv: np.ndarray,
     extras: Extras = NO_EXTRAS,
+    compiled: bool = False,
 ) -> np.ndarray:
     """``H`` of every interval along a trajectory, shape ``(K, 3, N_UNKNOWN + extras.n)``.
 
     The one linear model of the tool: the estimator evaluates it along the
     navigated trajectory, the analyser along the nominal one. Columns: the
     21 parameters, the initial attitude error, then the switched-on extras.
+    ``compiled`` as in :func:`propagate`.
     """
     layout = sample_layout(C_b_n, time_nav, grid)
     moments = trajectory_moments(C_b_n, dtheta, dv, time_nav, grid, layout)
     T = np.diff(time_nav[grid.bounds])
     extra = extra_inputs(dtheta, dv, layout, extras, latitude_rad, gravity_mps2)
-    return observation_matrix(sensitivities(moments, T, latitude_rad, gravity_mps2, extra), Phi_vv)
+    S_v = sensitivities(moments, T, latitude_rad, gravity_mps2, extra, compiled)
+    return observation_matrix(S_v, Phi_vv)

@@ -302,13 +302,16 @@ def _chunk_inputs(blocks: list, intervals: slice, extra_columns: int) -> np.ndar
 CHUNK_INTERVALS = 512  # ~13 MB of inputs: buffers reused, not paged in afresh
 
 
-def basis_chunks(seq: Sequence, latitude_rad: float, height_m: float, Phi_vv: np.ndarray):
+def basis_chunks(
+    seq: Sequence, latitude_rad: float, height_m: float, Phi_vv: np.ndarray, compiled: bool = False
+):
     """The kept basis columns and phi0's of ``H``, unwhitened, ``CHUNK_INTERVALS`` intervals at a time.
 
     Yields ``(intervals (slice), H_chunk (k, 3, n + 3), keep)``; propagation is a
     recursion over the intervals, its state carried from chunk to chunk. ``Phi_vv``
     (K, 3, 3) is every interval's velocity transition (the profile's
-    :func:`calib.noise.velocity_transitions`, the same for every mounting).
+    :func:`calib.noise.velocity_transitions`, the same for every mounting); ``compiled``
+    as in :func:`calib.jacobian.propagate`.
     """
     g = earth.gravity(latitude_rad, height_m)
     tl = timeline(seq)
@@ -322,7 +325,8 @@ def basis_chunks(seq: Sequence, latitude_rad: float, height_m: float, Phi_vv: np
     S[:3, -3:] = np.eye(3)
     for k0 in range(0, len(T), CHUNK_INTERVALS):
         part = slice(k0, k0 + CHUNK_INTERVALS)
-        S_v, S = propagate(_chunk_inputs(blocks, part, 3), T[part], S, latitude_rad, g, return_final=True)
+        inputs = _chunk_inputs(blocks, part, 3)
+        S_v, S = propagate(inputs, T[part], S, latitude_rad, g, return_final=True, compiled=compiled)
         yield part, observation_matrix(S_v, Phi_vv[part]), keep
 
 

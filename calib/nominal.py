@@ -169,7 +169,16 @@ def information_one(
     T = np.diff(nom.time_nav[bounds])
     Phi_vv = velocity_transitions(A, T, profile)
     H = observation_jacobian(
-        nom.C_b_n, nom.dtheta, nom.dv, nom.time_nav, nom.grid, latitude_rad, gravity_mps2, Phi_vv, extras
+        nom.C_b_n,
+        nom.dtheta,
+        nom.dv,
+        nom.time_nav,
+        nom.grid,
+        latitude_rad,
+        gravity_mps2,
+        Phi_vv,
+        extras,
+        compiled=True,
     )
     C = nom.C_b_n[(bounds[:-1] + bounds[1:]) // 2]
     turning = np.r_[False, np.any(C[1:] != C[:-1], axis=(1, 2))]

@@ -72,7 +72,7 @@ def test_search_model_agrees_with_the_exact_analyser():
 def test_dask_local_cluster_gives_the_serial_result():
     distributed = pytest.importorskip("dask.distributed")
     from seqdesign.search.beam import BeamJob, search_at_dwell
-    from seqdesign.search.parallel import map_jobs, worker_pool
+    from seqdesign.search.parallel import map_jobs
 
     c = Constraints(budget_s=400.0, max_flips=2, max_quarters=1)
     jobs = [BeamJob(c, d, LAT, 0.0, PROFILE, "worst", 20, 2, PAPER) for d in (60.0, 90.0)]

@@ -19,7 +19,6 @@ import pytest
 
 from calib import earth
 from calib.extras import GROUP_NAMES, Extras
-from calib.gmfilter import gram_one
 from calib.gmmounting import extra_basis, extra_columns, gm_basis, informations
 from calib.jacobian import observation_jacobian
 from calib.mounting import sequence_model
@@ -160,17 +159,6 @@ def test_fast_worst_case_equals_the_direct_search(name):
     np.testing.assert_allclose(fast.nominal.sigma, ref.nominal.sigma, rtol=1e-9)
     assert fast.worst.worst[1] == pytest.approx(ref.worst.worst[1], rel=5e-3)
     assert np.all(fast.per_parameter_worst_sigma >= box_fast.per_parameter_worst_sigma)
-
-
-def test_the_compiled_filter_refuses_an_innovation_covariance_that_is_not_positive():
-    # A negative velocity noise makes S = F P F' + Q indefinite at the first interval: the
-    # closed-form inverse must not return garbage (a negative "information") but raise.
-    F = np.zeros((1, 12, 9))
-    F[0, :9] = np.eye(9)
-    Q = -np.eye(12)[None]
-    X, turns = np.ones((2, 3, 4)), np.broadcast_to(np.eye(3), (2, 3, 3))
-    with pytest.raises(np.linalg.LinAlgError):
-        gram_one(F, Q, np.zeros(2, int), turns, np.zeros(2, bool), X, np.eye(9))
 
 
 def test_box_interpolant_maximum_finds_an_interior_peak_and_keeps_a_corner():
