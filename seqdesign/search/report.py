@@ -302,9 +302,10 @@ def design_budgets(
     budgets_min = list(budgets_min)
     names = design_names(budgets_min, name)
     rows = []
-    # one pool of workers for every budget's search and re-scoring (parallel.worker_pool)
-    with worker_pool(workers):
-        for b in budgets_min:
+    for b in budgets_min:
+        # one pool of workers for all of a budget's rounds (parallel.worker_pool); a pool per
+        # budget, so that what its workers cache is let go before the next budget's search
+        with worker_pool(workers):
             c = Constraints(budget_s=b * 60.0, **constraints)
             check_constraints(c)
             res = design(
