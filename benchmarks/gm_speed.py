@@ -14,8 +14,7 @@ The commands: ``analyze designed-30min-gm --profile navigation-gm`` with and wit
 ``--with all``; ``analyze FILE`` of a 10-minute design under the ADIS16405 profile
 fitted from a real log (``benchmarks/profiles/adis16405.toml``; ``--adis-design``,
 default: designed by the first design command below); ``design --budget-min 10
---workers 2`` under that profile, against the paper's requirements and the ``mems``
-ones; a 30-minute ``navigation-gm --with all`` design with ``--workers 2``; and the
+--workers 2`` under that profile against the ``mems`` requirements; a 30-minute ``navigation-gm --with all`` design with ``--workers 2``; and the
 Gauss-Markov front ``design --pareto --budgets 10,20,30,40 --profile navigation-gm``.
 """
 
@@ -110,20 +109,11 @@ def main() -> None:
     adis_design = a.adis_design or tmp / "0" / "adis-10min.toml"  # this checkout's design
     commands = []
     if a.only in (None, "design"):
+        # (against the paper's navigation-grade requirements the ADIS design is refused: every
+        # candidate leaves the gyro biases not estimable at that scale)
         commands += [
-            [
-                "design",
-                "--budget-min",
-                "10",
-                "--workers",
-                "2",
-                "--profile",
-                str(ADIS),
-                "-o",
-                "{out}/adis-10min.toml",
-            ],
             ["design", "--budget-min", "10", "--workers", "2", "--profile", str(ADIS)]
-            + ["--requirements", "mems", "-o", "{out}/adis-10min-mems.toml"],
+            + ["--requirements", "mems", "-o", "{out}/adis-10min.toml"],
             ["design", "--budget-min", "30", "--workers", "2", "--profile", "navigation-gm", "--with", "all"]
             + ["-o", "{out}/gm-30min-all.toml"],
         ]

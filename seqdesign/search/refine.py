@@ -212,6 +212,8 @@ def refine_dwells(
         ubg = np.zeros(1)
     uniform = np.full(n, dwell0)
     r0 = ratios(uniform)
+    if not np.all(np.isfinite(r0)):  # a parameter not estimable at this scale: no slope to follow
+        return list(uniform[groups]), float(r0.max()), float(r0.max())
     solver = ca.nlpsol(
         "dwells",
         "ipopt",
