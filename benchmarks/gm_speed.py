@@ -14,7 +14,8 @@ The commands: ``analyze designed-30min-gm --profile navigation-gm`` with and wit
 ``--with all``; ``analyze FILE`` of a 10-minute design under the ADIS16405 profile
 fitted from a real log (``benchmarks/profiles/adis16405.toml``; ``--adis-design``,
 default: designed by the first design command below); ``design --budget-min 10
---workers 2`` under that profile against the ``mems`` requirements; a 30-minute ``navigation-gm --with all`` design with ``--workers 2``; and the
+--workers 2`` under that profile against the ``mems`` requirements; a 30-minute
+``navigation-gm --with all`` design with ``--workers 2``; and the
 Gauss-Markov front ``design --pareto --budgets 10,20,30,40 --profile navigation-gm``.
 """
 
