@@ -71,7 +71,7 @@ class GmBasis:
         return combination(rotvec, self.column_basis, self.column_param, self.omega_ie_n, self.f_n)
 
 
-@functools.lru_cache(maxsize=2)  # ~100 MB for a 30-minute sequence: the last two analysed
+@functools.lru_cache(maxsize=2)  # ~200 MB for a 30-minute sequence: the last two analysed
 def gm_basis(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float = 0.0) -> GmBasis:
     """Build (and cache) the :class:`GmBasis` of a sequence under a GM profile."""
     g = earth.gravity(latitude_rad, height_m)
@@ -376,3 +376,14 @@ def box_informations(
     infos = informations(basis, [np.zeros(3)] + box_points(tolerance_deg), xb)
     infos.setflags(write=False)
     return infos
+
+
+def release_caches() -> None:
+    """Let go of the cached bases and box informations (a 30-min sequence's are ~0.3 GB).
+
+    For a process that analyses each sequence once (a design's exact-scoring worker, kept
+    for all its rounds): what the caches hold serves no later job there.
+    """
+    gm_basis.cache_clear()
+    extra_basis.cache_clear()
+    box_informations.cache_clear()

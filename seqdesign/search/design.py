@@ -24,7 +24,7 @@ from .beam import BeamJob, search_at_dwell
 from .constraints import Constraints, check_constraints, uniform_dwell
 from .gimbal import check_sequence_plays
 from .objective import OBJECTIVES
-from .parallel import map_jobs
+from .parallel import map_jobs, worker_pool
 from .pipeline import (
     SCHEDULER_BATCH,
     ExactJob,
@@ -212,14 +212,17 @@ def design(
             progress,
         )
 
-    pipeline = Pipeline(c, exact, tolerance_deg, batch, progress, refine_best if refine else None)
-    unrefined, pool = pipeline.pools(results)
-    answers = [pool[0], unrefined[0]]  # the default's, and what --no-refine returns
-    if narrow is not None:  # what --beam-width 20 (with and without --no-refine) returns
-        n_unrefined, n_pool = pipeline.pools(narrow)
-        pool = by_order(pool + n_pool)
-        answers += [pool[0], n_pool[0], n_unrefined[0]]
-    best = select(answers, exact, tolerance_deg, batch, progress)
+    # One pool of workers for every exact-scoring round (parallel.worker_pool); not for the
+    # search, whose workers cache every segment of the walk graph (~1 GB each at 30 min)
+    with worker_pool(workers if scheduler is None else 1):
+        pipeline = Pipeline(c, exact, tolerance_deg, batch, progress, refine_best if refine else None)
+        unrefined, pool = pipeline.pools(results)
+        answers = [pool[0], unrefined[0]]  # the default's, and what --no-refine returns
+        if narrow is not None:  # what --beam-width 20 (with and without --no-refine) returns
+            n_unrefined, n_pool = pipeline.pools(narrow)
+            pool = by_order(pool + n_pool)
+            answers += [pool[0], n_pool[0], n_unrefined[0]]
+        best = select(answers, exact, tolerance_deg, batch, progress)
     winner = best.exact
     check_sequence_plays(winner.sequence, c.gimbal)
     if progress:

@@ -20,6 +20,7 @@ from calib.errors import CalibError
 from calib.extras import NONE as NO_EXTRAS
 from calib.extras import Extras
 from calib.gimbal import plan_sequence
+from calib.gmmounting import release_caches
 from calib.profiles import NoiseProfile
 from calib.requirements import PAPER, Requirements
 from calib.sequence import Sequence
@@ -171,16 +172,21 @@ class ExactScorer:
 
     def __call__(self, job: ExactJob) -> ExactScore:
         seq = to_sequence(job.walk, self.c, list(job.dwells), self.name, None, *self.site)
-        worst, wname, rob, cost = _exact_worst(
-            seq,
-            self.profile,
-            self.latitude_rad,
-            self.height_m,
-            job.tolerance_deg,
-            job.search,
-            self.requirements,
-            self.extras,
-        )
+        try:
+            worst, wname, rob, cost = _exact_worst(
+                seq,
+                self.profile,
+                self.latitude_rad,
+                self.height_m,
+                job.tolerance_deg,
+                job.search,
+                self.requirements,
+                self.extras,
+            )
+        finally:
+            # each job scores its own sequence: its cached basis serves no later job, and the
+            # workers are kept for all of a design's rounds (parallel.worker_pool)
+            release_caches()
         return ExactScore(worst, wname, rob, cost, seq)
 
 

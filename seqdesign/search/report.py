@@ -27,7 +27,6 @@ from calib.worstcase import analyze_tolerance
 from ..plots import pareto_png
 from .constraints import Constraints, check_constraints
 from .design import DesignResult, design
-from .parallel import worker_pool
 
 
 @dataclass(frozen=True)
@@ -303,37 +302,34 @@ def design_budgets(
     names = design_names(budgets_min, name)
     rows = []
     for b in budgets_min:
-        # one pool of workers for all of a budget's rounds (parallel.worker_pool); a pool per
-        # budget, so that what its workers cache is let go before the next budget's search
-        with worker_pool(workers):
-            c = Constraints(budget_s=b * 60.0, **constraints)
-            check_constraints(c)
-            res = design(
-                c,
-                prof,
-                lat,
-                0.0,
-                objective,
-                tolerance_deg,
-                beam_width,
-                keep=4,
-                refine=refine,
-                name=names[b],
-                workers=workers,
-                scheduler=scheduler,
-                progress=None if progress is None else (lambda r, b=b: progress(b, r)),
-                requirements=req,
-                extras=ext,
+        c = Constraints(budget_s=b * 60.0, **constraints)
+        check_constraints(c)
+        res = design(
+            c,
+            prof,
+            lat,
+            0.0,
+            objective,
+            tolerance_deg,
+            beam_width,
+            keep=4,
+            refine=refine,
+            name=names[b],
+            workers=workers,
+            scheduler=scheduler,
+            progress=None if progress is None else (lambda r, b=b: progress(b, r)),
+            requirements=req,
+            extras=ext,
+        )
+        T = res.sequence.duration_s
+        rows.append(
+            DesignRow(
+                b,
+                res,
+                accel_scale_bound(T, prof, g, req),
+                accel_scale_bound(T, prof, g, req, design_rate_dps(res.sequence)),
             )
-            T = res.sequence.duration_s
-            rows.append(
-                DesignRow(
-                    b,
-                    res,
-                    accel_scale_bound(T, prof, g, req),
-                    accel_scale_bound(T, prof, g, req, design_rate_dps(res.sequence)),
-                )
-            )
+        )
     paper_T, paper_worst = paper_point(prof, lat, tolerance_deg, req)
     return DesignReport(
         rows,
