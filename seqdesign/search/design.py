@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 
 from calib.errors import CalibError
@@ -216,10 +217,21 @@ def design(
     # search, whose workers cache every segment of the walk graph (~1 GB each at 30 min)
     with worker_pool(workers if scheduler is None else 1):
         pipeline = Pipeline(c, exact, tolerance_deg, batch, progress, refine_best if refine else None)
-        unrefined, pool = pipeline.pools(results)
+        n_boxed: list[Finalist] | None = None
+        if narrow is not None and refine and workers > 1 and scheduler is None:
+            # The wide beams' refinement (serial IPOPT in this process) beside the narrow beams'
+            # screen and box (on the workers): the same jobs, the same answers, no idle core.
+            boxed = pipeline.boxed_pool(results)
+            with ThreadPoolExecutor(1) as beside:
+                wide = beside.submit(pipeline.with_refined, boxed)
+                n_boxed = pipeline.boxed_pool(narrow)
+                unrefined, pool = wide.result()
+        else:
+            unrefined, pool = pipeline.pools(results)
+            n_boxed = pipeline.boxed_pool(narrow) if narrow is not None else None
         answers = [pool[0], unrefined[0]]  # the default's, and what --no-refine returns
-        if narrow is not None:  # what --beam-width 20 (with and without --no-refine) returns
-            n_unrefined, n_pool = pipeline.pools(narrow)
+        if n_boxed is not None:  # what --beam-width 20 (with and without --no-refine) returns
+            n_unrefined, n_pool = pipeline.with_refined(n_boxed)
             pool = by_order(pool + n_pool)
             answers += [pool[0], n_pool[0], n_unrefined[0]]
         best = select(answers, exact, tolerance_deg, batch, progress)

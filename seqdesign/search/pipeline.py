@@ -399,10 +399,17 @@ class Pipeline:
 
     def pools(self, results) -> tuple[list[Finalist], list[Finalist]]:
         """``(pool, with_refined)``: the box scores best first, and the same with the refined best."""
-        # chunks of the batch, several per map on processes (each map starts its pool)
+        return self.with_refined(self.boxed_pool(results))
+
+    def boxed_pool(self, results) -> list[Finalist]:
+        """The beams' proposals screened, the best re-scored over the box: best first."""
+        # chunks of the batch, several per map on the workers (progress said between maps)
         chunk = self.batch if self.batch == 1 else 4 * self.batch
         found = screen(proposals(results, self.c), self.exact, self.progress, chunk)
-        pool = boxed(found, self.exact, self.tolerance_deg, self.progress, self.batch)
+        return boxed(found, self.exact, self.tolerance_deg, self.progress, self.batch)
+
+    def with_refined(self, pool: list[Finalist]) -> tuple[list[Finalist], list[Finalist]]:
+        """``(pool, pool with its best refined)``; a best refined before is not refined again."""
         key = (pool[0].walk, pool[0].dwells)
         if self.refine is not None and key not in self._refined:
             self._refined[key] = self.refine(pool[0])
