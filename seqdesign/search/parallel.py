@@ -12,7 +12,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 from calib.errors import CalibError
 
-# The local pool of an enclosing :func:`worker_pool` (None outside one).
+# The local pools of the enclosing :func:`worker_pool` blocks, by worker count (none outside one).
 _shared: dict[int, ProcessPoolExecutor] = {}
 
 
@@ -20,10 +20,10 @@ _shared: dict[int, ProcessPoolExecutor] = {}
 def worker_pool(workers: int):
     """Keep one pool of ``workers`` local processes for every :func:`map_jobs` inside.
 
-    A design maps its jobs in many small rounds (the screen reports as it goes, the box
-    re-scores two at a time); a pool per round pays the workers' start and their cold
-    caches (compiled kernels, a sequence's basis) each time. Nested uses share the
-    outermost pool; serial runs (``workers`` <= 1) need none.
+    A design maps its exact-scoring jobs in many small rounds (the screen reports as it
+    goes, the box re-scores two at a time); a pool per round pays the workers' start and
+    their imports (numba's and its compiled kernels' ~1 s under a Gauss-Markov profile)
+    each time. Nested uses share the outermost pool; serial runs (``workers`` <= 1) need none.
     """
     if workers <= 1 or workers in _shared:
         yield
