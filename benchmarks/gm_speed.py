@@ -95,8 +95,9 @@ def worst_of(args: list[str], out: str) -> str:
         if extras:
             text += f"; with the terms {extras['worst_with']['name']} {extras['worst_with']['ratio']:.5f}"
         return text
-    m = re.search(r"worst[^\n]*?(\d+\.\d+)", out)
-    return m.group(0) if m else out.strip().splitlines()[-1][:60]
+    # the report's rows: "   30m   30.0m   sax     1.290 ..." (the paper's line after them is not a design's)
+    rows = re.findall(r"^\s+(\S+m)\s+\S+m\s+(\w+)\s+(\d+\.\d+)", out, re.MULTILINE)
+    return "; ".join(f"{b} {name} {ratio}" for b, name, ratio in rows) or out.strip().splitlines()[-1][:60]
 
 
 def main() -> None:

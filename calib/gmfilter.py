@@ -49,13 +49,27 @@ def nav_table(
     return np.array(F), np.array(Q), index
 
 
-def bias_turns(C_mid: np.ndarray) -> np.ndarray:
-    """``D_k = C_k C_{k-1}'`` (K, 3, 3) of the intervals' mid-point attitudes (polar factors), ``D_0 = I``."""
-    R = rotations(np.asarray(C_mid, dtype=float))
+def bias_turns(C_mid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``D_k = C_k C_{k-1}'`` (K, 3, 3) of the intervals' mid-point attitudes (polar factors), ``D_0 = I``.
+
+    Returns ``(D, turning)``: ``turning`` (K,) marks the intervals whose attitude differs
+    from the one before; the others' ``D`` is the identity exactly (the filter skips it).
+    """
+    C_mid = np.asarray(C_mid, dtype=float)
+    turning = np.r_[False, np.any(C_mid[1:] != C_mid[:-1], axis=(1, 2))]
+    R = rotations(C_mid)
     D = np.empty_like(R)
     D[0] = np.eye(3)
     D[1:] = R[1:] @ R[:-1].transpose(0, 2, 1)
-    return D
+    D[~turning] = np.eye(3)  # the same attitude: the identity, exactly
+    return D, turning
+
+
+def gm_start_covariance(profile: NoiseProfile) -> np.ndarray:
+    """The filter covariance (9, 9) at a run's start: phi zero (an unknown of the fit), the
+    biases at their stationary ``sigma^2 I`` (as :func:`calib.noise.whitener`).
+    """
+    return np.diag(np.repeat([0.0, profile.gyro_gm_sigma**2, profile.accel_gm_sigma**2], 3))
 
 
 def mounted_turns(D: np.ndarray, R: np.ndarray) -> np.ndarray:

@@ -26,7 +26,7 @@ from . import earth
 from . import params as P
 from .extras import NONE as NO_EXTRAS
 from .extras import Extras
-from .gmfilter import bias_turns, gram_pass, mounted_turns, nav_table
+from .gmfilter import bias_turns, gm_start_covariance, gram_pass, mounted_turns, nav_table
 from .jacobian import ObservationGrid, propagate, sample_layout, state_matrix, step_model
 from .mounting import CHUNK_INTERVALS, N_BASIS, basis_chunks, basis_weights, combination
 from .noise import velocity_transitions
@@ -82,10 +82,7 @@ def gm_basis(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m
     Phi_vv = velocity_transitions(A, T, profile)
     chunks = list(basis_chunks(seq, latitude_rad, height_m, Phi_vv, compiled=True))
     keep = chunks[-1][2]
-    C = nominal_attitude(tl, t_nav)[(bounds[:-1] + bounds[1:]) // 2]
-    turning = np.r_[False, np.any(C[1:] != C[:-1], axis=(1, 2))]
-    turns = bias_turns(C)
-    turns[~turning] = np.eye(3)  # the same attitude: the identity, exactly
+    turns, turning = bias_turns(nominal_attitude(tl, t_nav)[(bounds[:-1] + bounds[1:]) // 2])
     F, Q, index = nav_table(A, T, profile)
     return GmBasis(
         X=tuple(X for _, X, _ in chunks),
@@ -98,7 +95,7 @@ def gm_basis(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m
         index=index,
         turns=turns,
         turning=turning,
-        P0=np.diag(np.repeat([0.0, profile.gyro_gm_sigma**2, profile.accel_gm_sigma**2], 3)),
+        P0=gm_start_covariance(profile),
         T=T,
         Phi_vv=Phi_vv,
         duration_s=seq.duration_s,

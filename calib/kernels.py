@@ -62,6 +62,19 @@ def filter_columns(F, Q, index, turns, turning, X, P, state, E, U):  # pragma: n
 
 
 @kernel
+def _product_skipping_zeros(A, B, out):  # pragma: no cover - compiled
+    """``out = A B``, the exact zeros of ``A`` skipped (the transitions are about half zeros)."""
+    for i in range(A.shape[0]):
+        for q in range(B.shape[1]):
+            out[i, q] = 0.0
+        for r in range(A.shape[1]):
+            f = A[i, r]
+            if f != 0.0:
+                for q in range(B.shape[1]):
+                    out[i, q] += f * B[r, q]
+
+
+@kernel
 def _turn_biases(Fu, D, Fk):  # pragma: no cover - compiled
     """``Fk`` = the model ``Fu``, its bias coordinates turned by ``D`` first (each 3-vector after phi)."""
     for i in range(Fu.shape[0]):
@@ -79,14 +92,7 @@ def _predicted_covariance(Fk, P, Q, FP, J):  # pragma: no cover - compiled
     The GM biases' rows of the transition are diagonal blocks: about half its entries are zero.
     """
     n, s = Fk.shape
-    for i in range(n):
-        for j in range(s):
-            FP[i, j] = 0.0
-        for r in range(s):
-            f = Fk[i, r]
-            if f != 0.0:
-                for j in range(s):
-                    FP[i, j] += f * P[r, j]
+    _product_skipping_zeros(Fk, P, FP)
     for i in range(n):
         for j in range(i, n):
             acc = Q[i, j]
@@ -132,16 +138,9 @@ def _filtered_covariance(J, S_inv, gain, P):  # pragma: no cover - compiled
 @kernel
 def _filter_step(Fk, state, x, S_inv, gain, pred, e, w):  # pragma: no cover - compiled
     """The columns' step: predicted, innovation ``e``, whitened ``w = S^-1 e``, filtered state."""
-    n, s = Fk.shape
+    s = Fk.shape[1]
     c = state.shape[1]
-    for i in range(n):
-        for q in range(c):
-            pred[i, q] = 0.0
-        for r in range(s):
-            f = Fk[i, r]
-            if f != 0.0:
-                for q in range(c):
-                    pred[i, q] += f * state[r, q]
+    _product_skipping_zeros(Fk, state, pred)
     for i in range(3):
         for q in range(c):
             e[i, q] = x[i, q] - pred[s + i, q]
@@ -165,18 +164,10 @@ def propagate_columns(Phis, index, inputs, S, out):  # pragma: no cover - compil
         for i in range(3):
             out[0, i, q] = S[3 + i, q]
     for k in range(len(index)):
-        Phi = Phis[index[k]]
+        _product_skipping_zeros(Phis[index[k]], S, nxt)
         for i in range(6):
             for q in range(c):
-                nxt[i, q] = inputs[k, i, q]
-            for j in range(6):
-                f = Phi[i, j]
-                if f != 0.0:
-                    for q in range(c):
-                        nxt[i, q] += f * S[j, q]
-        for i in range(6):
-            for q in range(c):
-                S[i, q] = nxt[i, q]
+                S[i, q] = nxt[i, q] + inputs[k, i, q]
         for i in range(3):
             for q in range(c):
                 out[k + 1, i, q] = S[3 + i, q]

@@ -18,7 +18,7 @@ import numpy as np
 from . import earth
 from .extras import NONE as NO_EXTRAS
 from .extras import Extras
-from .gmfilter import bias_turns, gram_one, nav_table
+from .gmfilter import bias_turns, gm_start_covariance, gram_one, nav_table
 from .jacobian import MOVE_STEP_S, ObservationGrid, observation_jacobian, state_matrix
 from .noise import filter_blocks, gm_interval_arrays, noise_model, velocity_transitions, whiten, whiten_batch
 from .profiles import NoiseProfile
@@ -134,17 +134,7 @@ def information_along(
 ) -> np.ndarray:
     """Fisher information (24 + e square, SI) of the shared model along one trajectory."""
     noise = noise_along(nom.time_nav, nom.C_b_n, nom.grid.bounds, latitude_rad, gravity_mps2, profile)
-    H = observation_jacobian(
-        nom.C_b_n,
-        nom.dtheta,
-        nom.dv,
-        nom.time_nav,
-        nom.grid,
-        latitude_rad,
-        gravity_mps2,
-        noise.Phi_vv,
-        extras,
-    )
+    H = _jacobian_along(nom, latitude_rad, gravity_mps2, noise.Phi_vv, extras)
     Hw = whiten(noise.whitener, H).reshape(-1, H.shape[-1])
     return Hw.T @ Hw
 
@@ -168,7 +158,15 @@ def information_one(
     bounds = nom.grid.bounds
     T = np.diff(nom.time_nav[bounds])
     Phi_vv = velocity_transitions(A, T, profile)
-    H = observation_jacobian(
+    H = _jacobian_along(nom, latitude_rad, gravity_mps2, Phi_vv, extras, compiled=True)
+    turns, turning = bias_turns(nom.C_b_n[(bounds[:-1] + bounds[1:]) // 2])
+    F, Q, index = nav_table(A, T, profile)
+    return gram_one(F, Q, index, turns, turning, H, gm_start_covariance(profile))
+
+
+def _jacobian_along(nom: NominalRun, latitude_rad, gravity_mps2, Phi_vv, extras, compiled=False):
+    """:func:`calib.jacobian.observation_jacobian` along a nominal run (``compiled`` as there)."""
+    return observation_jacobian(
         nom.C_b_n,
         nom.dtheta,
         nom.dv,
@@ -178,15 +176,8 @@ def information_one(
         gravity_mps2,
         Phi_vv,
         extras,
-        compiled=True,
+        compiled=compiled,
     )
-    C = nom.C_b_n[(bounds[:-1] + bounds[1:]) // 2]
-    turning = np.r_[False, np.any(C[1:] != C[:-1], axis=(1, 2))]
-    turns = bias_turns(C)
-    turns[~turning] = np.eye(3)  # the same attitude: the identity, exactly
-    F, Q, index = nav_table(A, T, profile)
-    P0 = np.diag(np.repeat([0.0, profile.gyro_gm_sigma**2, profile.accel_gm_sigma**2], 3))
-    return gram_one(F, Q, index, turns, turning, H, P0)
 
 
 BATCH_INTERVALS = 1024  # intervals of noise model held per mounting (~2.4 MB each)

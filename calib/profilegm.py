@@ -84,9 +84,9 @@ def profile_gm(
     this GM follows the curve; `not_modelled` names it.
     """
     tau = curves[0].tau_s
-    worst_axis = np.argmax([c.adev for c in curves], axis=0)
-    adev = np.max([c.adev for c in curves], axis=0)
-    pick = (worst_axis, np.arange(tau.size))
+    adevs = np.array([c.adev for c in curves])
+    pick = (np.argmax(adevs, axis=0), np.arange(tau.size))  # the worst axis at each tau
+    adev = adevs[pick]
     up = np.log(np.array([c.ci_high for c in curves])[pick] / adev)
     down = np.log(adev / np.array([c.ci_low for c in curves])[pick])
     end = min(trusted_end(c) for c in curves)

@@ -187,8 +187,9 @@ def test_closed_form_segment_equals_the_interval_fold(name):
     # The beam's GM segment step (Woodbury on the segment's stacked observations) against
     # the Kalman fold over its intervals, for candidates with different filter covariances
     # and states (after 0, 1 and 2 earlier segments), segments stacked over start attitudes.
+    from calib.gmfilter import gm_start_covariance
     from seqdesign.search.gm import fold, fold_block, segment_blocks, stack, start_state
-    from seqdesign.search.segments import gm_start_covariance, segment_columns
+    from seqdesign.search.segments import segment_columns
 
     profile = load_profile(name)
     attitudes = _random_attitudes(5)
@@ -213,8 +214,9 @@ def test_closed_form_segment_equals_the_interval_fold(name):
 def test_a_turn_then_its_rest_in_one_block_equals_the_two_folds(name):
     # The beam folds a move's turn and the rest after it through one block (gm.then): the
     # same information, state and covariance as the Kalman loop over both, stacked nodes.
+    from calib.gmfilter import gm_start_covariance
     from seqdesign.search.gm import fold, fold_block, segment_blocks, stack, start_state, then
-    from seqdesign.search.segments import gm_start_covariance, segment_columns
+    from seqdesign.search.segments import segment_columns
 
     profile = load_profile(name)
     attitudes = _random_attitudes(7)

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib import earth
+from calib.gmfilter import gm_start_covariance
 from calib.jacobian import N_UNKNOWN
 from calib.profiles import NoiseProfile
 from calib.requirements import PAPER, Requirements
@@ -23,7 +24,6 @@ from .objective import score
 from .segments import (
     SEARCH_REST_INTERVALS,
     SegmentEffect,
-    gm_start_covariance,
     rest_steady_state,
     segment_columns,
     segment_effect,

@@ -9,6 +9,7 @@ import numpy as np
 
 from calib import earth, ipopt
 from calib import params as P
+from calib.gmfilter import gm_start_covariance
 from calib.information import inverse_diagonal
 from calib.jacobian import N_UNKNOWN
 from calib.profiles import NoiseProfile
@@ -20,7 +21,6 @@ from .graph import apply_move, as_node, attitude_of, flip_graph
 from .objective import scaled_marginal
 from .segments import (
     SEARCH_REST_INTERVALS,
-    gm_start_covariance,
     rest_columns,
     rest_steady_state,
     segment_effect,
@@ -212,8 +212,9 @@ def refine_dwells(
         ubg = np.zeros(1)
     uniform = np.full(n, dwell0)
     r0 = ratios(uniform)
+    kept = list(uniform[groups]), float(r0.max()), float(r0.max())  # the uniform dwells kept
     if not np.all(np.isfinite(r0)):  # a parameter not estimable at this scale: no slope to follow
-        return list(uniform[groups]), float(r0.max()), float(r0.max())
+        return kept
     solver = ca.nlpsol(
         "dwells",
         "ipopt",
@@ -235,7 +236,7 @@ def refine_dwells(
         dw[i] -= over / count[i]
     r1 = ratios(dw)
     if r1.max() >= r0.max():  # never return worse than the uniform start
-        return list(uniform[groups]), float(r0.max()), float(r0.max())
+        return kept
     return (dwells_in_ms(dw[groups], c.budget_s - turn_time), float(r0.max()), float(r1.max()))
 
 

@@ -196,13 +196,6 @@ def rest_steady_state(
     return whitener(interval_models(state_matrix(latitude_rad, gravity_mps2), T, profile, C)).P_end
 
 
-def gm_start_covariance(profile: NoiseProfile) -> np.ndarray:
-    """Filter covariance at a run's start with GM biases: phi zero (an unknown of the fit),
-    the biases at their stationary ``sigma^2 I`` (as :func:`calib.noise.whitener`).
-    """
-    return np.diag(np.repeat([0.0, profile.gyro_gm_sigma**2, profile.accel_gm_sigma**2], 3))
-
-
 def start_covariance(P_nav: np.ndarray, C_b_n: np.ndarray) -> np.ndarray:
     """The filter covariance a segment starts from at attitude ``C_b_n`` (body-frame biases).
 
