@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from calib import earth
-from calib.gmfilter import gram_one, gram_pass
+from calib.gmfilter import MOUNTINGS_AT_ONCE, gram_one, gram_pass
 from calib.jacobian import propagate, step_model
 
 LAT = math.radians(40.0)
@@ -66,18 +66,34 @@ def _random_filter_inputs(seed, K=40, M=3, c=5):
     return F, Q, index, turns, turning, X, P, state
 
 
+# Both kernels: the mountings one by one (filter_columns) and their covariances at once (filter_mountings).
+@pytest.mark.parametrize("M", [3, MOUNTINGS_AT_ONCE + 1])
 @pytest.mark.parametrize("seed", [1, 2])
-def test_compiled_filter_equals_the_textbook_filter(seed):
+def test_compiled_filter_equals_the_textbook_filter(seed, M):
     # Same recursion, the arithmetic reordered (closed-form 3 x 3 inverse, zeros skipped,
     # one Gram product at the end): agreement to rounding over 40 intervals; 1e-9 relative
     # is far below any figure the analyser prints and far above double rounding here.
-    F, Q, index, turns, turning, X, P, state = _random_filter_inputs(seed)
+    F, Q, index, turns, turning, X, P, state = _random_filter_inputs(seed, M=M)
     gram, P_end, state_end = gram_pass(F, Q, index, turns, turning, X, P, state)
     for m in range(X.shape[1]):
         ref = _reference_filter(F, Q, index, turns[:, m], turning, X[:, m], P[m], state[m])
         np.testing.assert_allclose(gram[m], ref[0], rtol=1e-9, atol=1e-9 * np.abs(ref[0]).max())
         np.testing.assert_allclose(P_end[m], ref[1], rtol=1e-9, atol=1e-9 * np.abs(ref[1]).max())
         np.testing.assert_allclose(state_end[m], ref[2], rtol=1e-9, atol=1e-9 * np.abs(ref[2]).max())
+
+
+def test_the_two_kernels_give_the_same_bits():
+    # filter_mountings is filter_columns with the covariance loops turned inside out: each
+    # operation the same, in the same order, so each figure the same to the last bit.
+    F, Q, index, turns, turning, X, P, state = _random_filter_inputs(4, M=MOUNTINGS_AT_ONCE)
+    at_once = gram_pass(F, Q, index, turns, turning, X, P, state)
+    cut = MOUNTINGS_AT_ONCE // 2  # two batches below the threshold: the one-by-one kernel
+    halves = [
+        gram_pass(F, Q, index, turns[:, h], turning, X[:, h], P[h], state[h])
+        for h in (np.s_[:cut], np.s_[cut:])
+    ]
+    for whole, *parts in zip(at_once, *halves, strict=True):
+        np.testing.assert_array_equal(whole, np.concatenate(parts))
 
 
 def test_one_mounting_from_rest_is_the_batched_filter():
@@ -96,6 +112,18 @@ def test_the_compiled_filter_refuses_an_innovation_covariance_that_is_not_positi
     X, turns = np.ones((2, 3, 4)), np.broadcast_to(np.eye(3), (2, 3, 3))
     with pytest.raises(np.linalg.LinAlgError):
         gram_one(F, Q, np.zeros(2, int), turns, np.zeros(2, bool), X, np.eye(9))
+    M = MOUNTINGS_AT_ONCE  # and the kernel that filters many mountings at once
+    with pytest.raises(np.linalg.LinAlgError):
+        gram_pass(
+            F,
+            Q,
+            np.zeros(2, int),
+            np.broadcast_to(np.eye(3), (2, M, 3, 3)),
+            np.zeros(2, bool),
+            np.ones((2, M, 3, 4)),
+            np.broadcast_to(np.eye(9), (M, 9, 9)),
+            np.zeros((M, 9, 4)),
+        )
 
 
 def test_compiled_propagation_equals_the_loop():
