@@ -8,7 +8,8 @@ together (sampled each second) and the worst ratio each reported, and the
 load average before and after (on a shared machine the CPU figure is the one that
 says what the code costs).
 
-    python benchmarks/gm_speed.py [--against DIR] [--only analyze|design|front] [--adis-design FILE]
+    python benchmarks/gm_speed.py [--against DIR ...] [--only analyze|design|front]
+                                  [--adis-design FILE] [--repeat N]
 
 The commands: ``analyze designed-30min-gm --profile navigation-gm`` with and without
 ``--with all``; ``analyze FILE`` of a 10-minute design under the ADIS16405 profile
@@ -17,6 +18,9 @@ default: designed by the first design command below); ``design --budget-min 10
 --workers 2`` under that profile against the ``mems`` requirements; a 30-minute
 ``navigation-gm --with all`` design with ``--workers 2``; and the
 Gauss-Markov front ``design --pareto --budgets 10,20,30,40 --profile navigation-gm``.
+``--against`` may be given several times (e.g. the commit before a change and the
+one before the whole line of work); ``--repeat N`` runs each command N times, the
+checkouts interleaved each time.
 """
 
 from __future__ import annotations
@@ -102,11 +106,12 @@ def worst_of(args: list[str], out: str) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--against", type=Path, help="another checkout to time side by side")
+    ap.add_argument("--against", type=Path, action="append", default=[], help="another checkout (repeatable)")
     ap.add_argument("--only", choices=["analyze", "design", "front"])
     ap.add_argument("--adis-design", type=Path, help="a 10-minute design under the ADIS profile")
+    ap.add_argument("--repeat", type=int, default=1, help="runs of each command per checkout")
     a = ap.parse_args()
-    roots = [ROOT] + ([a.against.resolve()] if a.against else [])
+    roots = [ROOT] + [d.resolve() for d in a.against]
     tmp = Path(tempfile.mkdtemp())
     adis_design = a.adis_design or tmp / "0" / "adis-10min.toml"  # this checkout's design
     commands = []
@@ -133,7 +138,7 @@ def main() -> None:
     print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}", flush=True)
     print("  (" + ", ".join(map(str, roots)) + ")")
     print(f"  outputs in {tmp}")
-    for n, args in enumerate(commands):
+    for n, args in [(n, args) for n, args in enumerate(commands) for _ in range(a.repeat)]:
         for i, root in enumerate(roots):
             out_dir = tmp / str(i)
             out_dir.mkdir(exist_ok=True)
