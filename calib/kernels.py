@@ -101,8 +101,7 @@ def _turned_models(Fu, D, turning, Fk, nonzero):  # pragma: no cover - compiled
     n, s, M = Fk.shape
     for i in range(n):
         for j in range(s):
-            row_of_block = j >= 3 and turning
-            if row_of_block:
+            if turning and j >= 3:  # a bias column (phi's come first), turned
                 j0 = j - j % 3
                 nonzero[i, j] = Fu[i, j0] != 0.0 or Fu[i, j0 + 1] != 0.0 or Fu[i, j0 + 2] != 0.0
                 for m in range(M):
