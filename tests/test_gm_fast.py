@@ -19,6 +19,7 @@ import pytest
 
 from calib import earth
 from calib.extras import GROUP_NAMES, Extras
+from calib.gmfilter import MOUNTINGS_AT_ONCE
 from calib.gmmounting import extra_basis, extra_columns, gm_basis, informations
 from calib.jacobian import observation_jacobian
 from calib.mounting import sequence_model
@@ -31,7 +32,20 @@ LAT = math.radians(40.0)
 G = earth.gravity(LAT)
 ADIS = Path(__file__).resolve().parents[1] / "benchmarks" / "profiles" / "adis16405.toml"
 PROFILES = ["navigation-gm", "mems", str(ADIS)]
-MOUNTINGS = [np.radians(d) for d in ([0.0, 0.0, 0.0], [3.0, -3.0, 3.0], [-1.0, 2.5, -0.5], [-3.0, 0.0, 3.0])]
+# Six mountings: the filter takes them all at once (calib.gmfilter.MOUNTINGS_AT_ONCE), as in the
+# box pass; test_one_mounting_filter_equals_the_exact_evaluation covers the one-by-one kernel.
+MOUNTINGS = [
+    np.radians(d)
+    for d in (
+        [0.0, 0.0, 0.0],
+        [3.0, -3.0, 3.0],
+        [-1.0, 2.5, -0.5],
+        [-3.0, 0.0, 3.0],
+        [2.0, 3.0, -3.0],
+        [0.5, -2.0, 1.5],
+    )
+]
+assert len(MOUNTINGS) >= MOUNTINGS_AT_ONCE
 ALL = Extras(GROUP_NAMES)
 
 
