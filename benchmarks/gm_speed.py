@@ -47,15 +47,20 @@ def run(root: Path, args: list[str]) -> tuple[float, float, float, str]:
     """
     cpu0 = os.times()
     t = time.perf_counter()
-    env = {**os.environ, "PYTHONPATH": str(root)}
+    # as a user runs it: the modules' bytecode cached (a shell may have told Python not to write it)
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"} | {"PYTHONPATH": str(root)}
     with tempfile.TemporaryFile("w+") as stdout:
         proc = subprocess.Popen(
             [sys.executable, "-m", "seqdesign.cli", *args], cwd=root, stdout=stdout, text=True, env=env
         )
         peak = 0
-        while proc.poll() is None:
+        while True:  # memory sampled each second; the end seen within milliseconds
             peak = max(peak, tree_pss_kb(proc.pid))
-            time.sleep(1.0)
+            try:
+                proc.wait(timeout=1.0)
+                break
+            except subprocess.TimeoutExpired:
+                pass
         if proc.returncode:
             raise subprocess.CalledProcessError(proc.returncode, args)
         stdout.seek(0)
