@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .noise import filter_order, gm_interval_nav, rotations
+from .noise import filter_order, gm_bias_covariance, gm_interval_nav, rotations
 from .profiles import NoiseProfile
 
 STATES = 9  # [phi, b_g, b_a]: phi, then body-fixed 3-vectors (every one turns with the body)
@@ -69,7 +69,9 @@ def gm_start_covariance(profile: NoiseProfile) -> np.ndarray:
     """The filter covariance (9, 9) at a run's start: phi zero (an unknown of the fit), the
     biases at their stationary ``sigma^2 I`` (as :func:`calib.noise.whitener`).
     """
-    return np.diag(np.repeat([0.0, profile.gyro_gm_sigma**2, profile.accel_gm_sigma**2], 3))
+    P0 = np.zeros((STATES, STATES))
+    P0[3:, 3:] = gm_bias_covariance(profile)
+    return P0
 
 
 def mounted_turns(D: np.ndarray, R: np.ndarray) -> np.ndarray:

@@ -256,7 +256,7 @@ def propagate(
 
     ``compiled``: the recursion compiled (:func:`calib.kernels.propagate_columns`, the
     same to rounding, ~7 x faster over a 30-min run), for the Gauss-Markov paths that
-    load the compiled kernels anyway (their start-up is ~1 s once per process).
+    load the compiled kernels anyway (their start-up is ~0.5 s once per process).
 
     Parameters
     ----------

@@ -4,9 +4,10 @@ Only the sequential recursions are compiled (as pyins compiles its strapdown
 recursion and vectorises the rest): one step of 12 x 9 matrices costs more to call
 from numpy than to compute. numba compiles each kernel on its first call (seconds)
 and keeps the machine code in its on-disk cache (``__pycache__`` beside this module,
-or ``NUMBA_CACHE_DIR``); a later process loads it in about a second, numba's own
-start-up included. That is why this module is imported only by the paths that need
-it (the Gauss-Markov noise filter), never by the white-noise ones.
+or ``NUMBA_CACHE_DIR``); a later process loads it in about half a second, numba's
+own start-up included (a second on a loaded machine). That is why this module is
+imported only by the paths that need it (the Gauss-Markov noise filter), never by the
+white-noise ones.
 """
 
 from __future__ import annotations

@@ -173,8 +173,12 @@ def gm_interval_arrays(
     Rt = R.transpose(0, 2, 1)
     Phi, Q = Rt @ Phi_nav @ R, Rt @ Q_nav @ R
     Q = 0.5 * (Q + Q.transpose(0, 2, 1))
-    P_bias = np.diag(np.repeat([profile.gyro_gm_sigma**2, profile.accel_gm_sigma**2], 3))
-    return Phi, Q, P_bias
+    return Phi, Q, gm_bias_covariance(profile)
+
+
+def gm_bias_covariance(profile: NoiseProfile) -> np.ndarray:
+    """The GM biases' stationary covariance (6, 6): ``sigma^2 I`` per sensor, the gyro's first."""
+    return np.diag(np.repeat([profile.gyro_gm_sigma**2, profile.accel_gm_sigma**2], 3))
 
 
 def velocity_transitions(A: np.ndarray, T: np.ndarray, profile: NoiseProfile) -> np.ndarray:

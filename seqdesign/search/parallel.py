@@ -22,7 +22,7 @@ def worker_pool(workers: int):
 
     A design maps its exact-scoring jobs in many small rounds (the screen reports as it
     goes, the box re-scores two at a time); a pool per round pays the workers' start and
-    their imports (numba's and its compiled kernels' ~1 s under a Gauss-Markov profile)
+    their imports (numba's and its compiled kernels' 0.5-1 s under a Gauss-Markov profile)
     each time. Nested uses share the outermost pool; serial runs (``workers`` <= 1) need none.
     """
     if workers <= 1 or workers in _shared:
