@@ -4,9 +4,17 @@ An IMU samples on its own crystal: every increment covers one nominal period
 ``1 / sample_rate_hz``. The time column is written by whatever logged the
 samples (often a host clock) and only locates them; it can jitter, and a
 logger can drop or repeat samples. Here the time column is turned into a
-sample count (rounding each step to whole periods), the jitter is measured
-against that count, and lost and repeated samples are named. Pure functions
-over arrays; :mod:`calib.runlog` applies them when it reads a run.
+sample count, the jitter is measured against that count, and lost and
+repeated samples are named. Pure functions over arrays; :mod:`calib.runlog`
+applies them when it reads a run.
+
+The count rule (`sample_index`): the rows are consecutive samples, each one
+period after the one before, unless the stamps say otherwise *and keep saying
+it*. A lost sample shifts every later stamp by a period against the count; a
+host's reception jitter delays a stamp and the next ones catch up. So a step of
+two periods or more is a gap only where the stamps' median lag against the
+count over the next stretch exceeds the one over the stretch before by a whole
+number of periods; a jittering stamp that the next ones make good is jitter.
 """
 
 from __future__ import annotations
@@ -20,9 +28,16 @@ import numpy as np
 from calib.errors import CalibError
 from calib.motion import runs_of
 
-# A step whose length in periods is this far from a whole number does not come
-# from one crystal: jitter of a quarter period would already be exceptional.
+# A persistent shift of the stamps against the count this far from a whole number of
+# periods is neither lost samples nor jitter: the stamps do not come from one crystal.
 MAX_STEP_FRACTION = 0.35
+# The stretch each side of a suspected gap whose median lag decides it (s): long against a
+# host's reception jitter (a few periods), short against a clock's drift (ppm of it).
+LAG_WINDOW_S = 1.0
+LAG_WINDOW_MIN = 25  # rows: a median of fewer would follow the jitter
+# Steps all within this of whole periods (and none zero) come from the IMU's own clock and are
+# counted step by step; a host's reception jitter goes beyond it.
+STEP_RULE_FRACTION = 0.25
 # A step beyond this many periods (58 days at 200 Hz) is a clock jump, not lost samples.
 MAX_STEP_PERIODS = 1e9
 # Below this (relative to the period) the time column is uniform up to float rounding
@@ -246,7 +261,10 @@ def stamps_rate(time_s: np.ndarray) -> float:
     first = float(np.median(step))
     if not first > 0:
         return math.nan
-    counts = np.rint(np.maximum(step, 0.0) / first)
+    try:  # the counts of `sample_clock` (the count rule for jittering stamps)
+        counts = _whole_steps(rel, first, np.zeros(len(rel), dtype=bool)).astype(float)
+    except CalibError:
+        counts = np.rint(np.maximum(step, 0.0) / first)
     index = np.zeros(len(rel))
     np.cumsum(counts, out=index[1:])
     if index[-1] == 0:
@@ -257,10 +275,16 @@ def stamps_rate(time_s: np.ndarray) -> float:
 
 
 def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarray:
-    """Each time step in whole periods (0 for a duplicate); refuse jumps and fractions."""
+    """Each time step in samples (0 for a duplicate); refuse jumps and shifts that are not whole.
+
+    Stamps from the IMU's own clock (every step within a quarter period of a
+    whole number of periods, none zero) are counted step by step: the step
+    rule, exact for a lost sample and for a logger clock that drifts slowly.
+    Otherwise the stamps jitter (a host's reception times) and the count rule
+    of the module's docstring applies.
+    """
     periods = np.diff(time_s)
     periods /= period
-    fix = "the time column must locate samples taken at sample_rate_hz; "
     huge = np.flatnonzero(periods > MAX_STEP_PERIODS)
     if huge.size:
         i = int(huge[0]) + 1
@@ -268,25 +292,122 @@ def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarr
             f"the time jumps by {time_s[i] - time_s[i - 1]:.6g} s before row {i}, "
             f"{periods[i - 1]:.3g} nominal periods",
             str(i),
-            fix + "split the log where its clock jumps",
+            "the time column must locate samples taken at sample_rate_hz; split the log where its "
+            "clock jumps",
         )
+    counted = ~dup[1:]
     steps = np.rint(periods).astype(np.int64)
-    steps[dup[1:]] = 0
-    off = periods  # |periods - steps|, in place
-    off -= steps
-    np.abs(off, out=off)
-    off[dup[1:]] = 0.0
-    bad = np.flatnonzero((off > MAX_STEP_FRACTION) | ((steps == 0) & ~dup[1:]))
-    if bad.size:
-        i = int(bad[0]) + 1
+    steps[~counted] = 0
+    off = np.abs(periods - steps)
+    off[~counted] = 0.0
+    zero = np.flatnonzero((steps == 0) & counted)
+    if zero.size:  # a step shorter than half a period: two samples at one time
+        i = int(zero[0]) + 1
         raise CalibError(
             f"the time step {time_s[i] - time_s[i - 1]:.6g} s before row {i} is "
-            f"{(time_s[i] - time_s[i - 1]) / period:.3f} nominal periods, not a "
-            "whole number",
+            f"{periods[i - 1]:.3f} nominal periods: two samples at one time",
             str(i),
-            fix + "check the rate, or whether the log mixes clocks",
+            "the time column must locate samples taken at sample_rate_hz; check the rate, or "
+            "whether the log mixes clocks",
         )
+    if not (off > STEP_RULE_FRACTION).any():
+        return steps
+    return _counted_steps(time_s, periods, counted, period)
+
+
+def _counted_steps(time_s: np.ndarray, periods: np.ndarray, counted: np.ndarray, period: float) -> np.ndarray:
+    """The count rule: one sample per row, plus the gaps the stamps' lag keeps."""
+    steps = counted.astype(np.int64)
+    index = np.zeros(len(time_s))
+    np.cumsum(steps, out=index[1:])
+    lag = (time_s - time_s[0]) / period - index  # in periods; exact: t - t0 at epoch magnitude
+    width = max(LAG_WINDOW_MIN, int(round(LAG_WINDOW_S / period)))
+    # A logger clock off the nominal rate is a trend in the lag, not lost samples: the lag's
+    # median over the first and the last stretch (jitter aside; printed stamps rounded to ms
+    # make the median step no measure of a rate a few ppm off).
+    if index[-1] > 0:
+        ends = min(width, len(lag))
+        head, tail = float(np.median(lag[:ends])), float(np.median(lag[-ends:]))
+        lag -= (index - index[ends // 2]) * (tail - head) / max(index[-1] - ends + 1, 1.0)
+    for c in np.flatnonzero((periods >= 1.5) & counted):
+        row = c + 1  # the first row after the step
+        before = float(np.median(lag[max(0, row - width) : row]))
+        after = float(np.median(lag[row : row + width]))
+        shift = after - before
+        lost = int(np.rint(shift))
+        if abs(shift - lost) > MAX_STEP_FRACTION:
+            raise CalibError(
+                f"the time stamps fall behind the sample count by {shift:.2f} periods after row "
+                f"{row} and stay there: not a whole number of lost samples",
+                str(row),
+                "the time column must locate samples taken at sample_rate_hz; check the rate, or "
+                "whether the log mixes clocks",
+            )
+        if lost > 0:
+            row = _gap_row(lag, periods, row, width, lost)
+            steps[row - 1] += lost
+            lag[row:] -= lost
+    _check_lag_kept(lag, width)
     return steps
+
+
+def _gap_row(lag: np.ndarray, periods: np.ndarray, row: int, width: int, lost: int) -> int:
+    """Where, near ``row``, ``lost`` samples went: the long step that splits the lag best.
+
+    The medians find that the lag shifts but not to the row (they are flat over
+    half a window); the split of least absolute misfit (a level ``b`` before,
+    ``b + lost`` after) among the steps of 1.5 periods or more does.
+    """
+    lo, hi = max(0, row - width), min(len(lag), row + width)
+    base = float(np.median(lag[lo:row]))
+    before = np.concatenate([[0.0], np.cumsum(np.abs(lag[lo:hi] - base))])
+    after = np.concatenate([[0.0], np.cumsum(np.abs(lag[lo:hi] - base - lost))])
+    rows = lo + 1 + np.flatnonzero(periods[lo : hi - 1] >= 1.5)
+    rows = rows[rows >= row]  # the candidates before `row` were judged already
+    if rows.size == 0:
+        return row
+    cost = before[rows - lo] + after[-1] - after[rows - lo]
+    return int(rows[np.argmin(cost)])
+
+
+def _check_lag_kept(lag: np.ndarray, width: int) -> None:
+    """Refuse stamps whose median lag against the count shifts and stays (in periods, detrended).
+
+    Left after the gaps were counted, such a shift is a sample the stamps have no
+    room for (a repeated time with other data) or a lost one the jitter hid.
+    """
+    n = len(lag)
+    m = min(width, n // 2)
+    if m < 2:
+        return
+    stride = max(1, m // 4)  # medians on a grid: a shift lasts a window, a quarter of one finds it
+    m -= m % stride
+    starts = np.arange(0, n - m + 1, stride)
+    medians = np.array([np.median(lag[j : j + m]) for j in starts]) if len(starts) < 64 else None
+    if medians is None:
+        view = np.lib.stride_tricks.sliding_window_view(lag, m)[::stride]
+        medians = np.median(view, axis=1)
+    shift = medians[m // stride :] - medians[: -(m // stride)]
+    bad = np.flatnonzero(np.abs(shift) > MAX_STEP_FRACTION)
+    if bad.size:
+        k = int(bad[np.argmax(np.abs(shift[bad]))])
+        row = int(starts[k + m // stride])
+        size = float(shift[k])
+        whole = abs(size - round(size)) <= MAX_STEP_FRACTION
+        why = (
+            "not a whole number of samples: the stamps do not come from one sample clock"
+            if not whole
+            else "samples are lost where no step shows it"
+            if size > 0
+            else "more rows than the stamps have room for (a repeated time with other data)"
+        )
+        raise CalibError(
+            f"from row {row} the time stamps fall {'behind' if size > 0 else 'ahead of'} the sample "
+            f"count by {abs(size):.2f} periods and stay there: {why}",
+            str(row),
+            "the time column must locate samples taken at sample_rate_hz; check the rate, or whether "
+            "the log mixes clocks or repeats rows",
+        )
 
 
 def _runs_of(dup: np.ndarray, time_s: np.ndarray, origin: float = 0.0) -> list:

@@ -17,12 +17,15 @@ three axes. Other columns (temperature, gimbal encoders, ...) are ignored here.
 The classic header of ``docs/formats.md`` (``dtheta_x_rad``, ``dv_x_mps``) is one case
 of the grammar, so every file that read before reads the same.
 
-Rates become increments by the rectangular rule: the increment of the sample
-ending at ``t_k`` is ``rate_k * (t_k - t_{k-1})`` (the first sample uses the
-nominal period). A logger's rate sample is the sensor's mean rate over its
-output interval (the decimation filter averages), so this is exact for that
-reading; a trapezoid would mix neighbouring samples and correlate their noise,
-which bends the Allan deviation at the shortest averaging times.
+Rates become increments by the rectangular rule over the IMU's own period:
+the increment of sample ``k`` is ``rate_k / sample_rate_hz``. A logger's rate
+sample is the sensor's mean rate over its output interval (the decimation
+filter averages), so this is exact for that reading; a trapezoid would mix
+neighbouring samples and correlate their noise, which bends the Allan
+deviation at the shortest averaging times. The time column's own steps are not
+used: a host's reception stamps jitter by milliseconds around a sample period
+the IMU's crystal keeps to ppm (:mod:`calib.runlog.clock`), and a sample lost
+before row ``k`` is filled on its own, not folded into ``k``.
 
 A header whose names are the logger's own (``t,gx,gy,gz,ax,ay,az``) is read
 through a column map (:func:`parse_column_map`): ``t=time_ms,gx=gyro_x_dps,...``
@@ -305,16 +308,13 @@ def to_increments(
 ) -> np.ndarray:
     """A sensor's ``(n, 3)`` file values as SI increments over each sample.
 
-    Rates use the rectangular rule of the module docstring: ``rate_k * (t_k - t_{k-1})``,
-    the first sample ``rate_0 * nominal_dt``.
+    Rates use the rectangular rule of the module docstring: ``rate_k * nominal_dt``
+    (``time_s`` only locates the samples).
     """
     si = values * np.asarray(sensor.si_per_unit)
     if not sensor.is_rate:
         return si
-    dt = np.empty_like(time_s)
-    dt[0] = nominal_dt
-    dt[1:] = np.diff(time_s)
-    return si * dt[:, None]
+    return si * nominal_dt
 
 
 # The output rates of IMUs, Hz: a factor 1000 wide, so at most one time unit puts a log in it.
