@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from calib.calibration import calibrate
-from calib.errors import CalibError
 from calib.errormodel import ErrorModel
+from calib.errors import CalibError
 from calib.handplan import xsens_like_plan
 from calib.handsim import simulate_by_hand
 from calib.profiles import as_profile
