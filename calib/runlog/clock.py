@@ -330,7 +330,7 @@ def _counted_steps(time_s: np.ndarray, periods: np.ndarray, counted: np.ndarray,
         head, tail = float(np.median(lag[:ends])), float(np.median(lag[-ends:]))
         lag -= (index - index[ends // 2]) * (tail - head) / max(index[-1] - ends + 1, 1.0)
     for c in np.flatnonzero((periods >= 1.5) & counted):
-        row = c + 1  # the first row after the step
+        row = int(c) + 1  # the first row after the step
         before = float(np.median(lag[max(0, row - width) : row]))
         after = float(np.median(lag[row : row + width]))
         shift = after - before
