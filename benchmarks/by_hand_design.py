@@ -48,7 +48,9 @@ def recording_poses() -> PoseList:
         latitude_deg=45.4,
         height_m=0.0,
     )
-    fit = hand_fit_of(run, site_of(run, 9.81744), MEMS, as_extras(None, by_hand=True), False, REQ)
+    fit, _, _ = hand_fit_of(
+        run, site_of(run, 9.81744), MEMS, as_extras(None, by_hand=True), False, REQ, ("g-sensitivity",), False
+    )
     rests = fit.data.rests
     period = float(np.median(np.diff(run.time_s)))
     up = np.einsum("kji,j->ki", fit.C_rest, [0.0, 0.0, 1.0])

@@ -26,7 +26,7 @@ from .chunks import calibrate_file, run_header
 from .errors import CalibError
 from .estimator import calibrate as fit_run
 from .extras import Extras, as_extras
-from .handrun import as_fit, hand_fit_of, summary_of
+from .handrun import as_fit, fit_checked, summary_of
 from .motion import check_sequence_matches, log_turns, sequence_motion
 from .profiles import NoiseProfile, as_profile
 from .requirements import PAPER, Requirements, load_requirements
@@ -115,6 +115,8 @@ def calibrate(
     height_m: float | None = None,
     provenance: dict | None = None,
     by_hand: bool = False,
+    without: str | None = None,
+    fix_units: bool = False,
 ) -> CalibrationResult:
     """Fit the 21 parameters (and any optional terms) of a run log.
 
@@ -154,6 +156,15 @@ def calibrate(
     by_hand : bool
         The run was placed by hand (no gimbal, no sequence): fitted from its
         rests and the moves between them (:mod:`calib.handfit`); read whole.
+        Its optional term (the gyro g-sensitivity) is fitted when the data need
+        it (:func:`calib.handrun.hand_fit_of`) unless ``extras`` or ``without``
+        names it.
+    without : str, optional
+        A run placed by hand: optional terms never fitted (``"g-sensitivity"``).
+    fix_units : bool
+        A run placed by hand whose labels its data contradict (an accelerometer in g read
+        as m/s^2, deg/s read as rad/s, swapped or flipped axes, a wrong rate;
+        :mod:`calib.handsetup`) is put right and fitted, saying so, instead of refused.
 
     Returns
     -------
@@ -169,7 +180,7 @@ def calibrate(
         return _by_hand(
             source,
             prof,
-            extras,
+            (extras, tuple(g for g in (without or "").split(",") if g), fix_units),
             partial,
             require_convergence,
             req,
@@ -178,6 +189,12 @@ def calibrate(
             stream,
             dict(allow_gaps=allow_gaps, latitude_deg=latitude_deg, height_m=height_m),
             sequence,
+        )
+    if without:
+        raise CalibError(
+            "--without chooses the optional terms of a run placed by hand",
+            str(getattr(source, "source", source)),
+            "leave it out (a gimbal run fits only the terms --with names), or add --by-hand",
         )
     model = dict(extras=extras, partial=partial, requirements=req, sequence=sequence)
     if isinstance(source, (str, os.PathLike)):
@@ -229,7 +246,7 @@ def _fit_in_memory(run, site: Site, profile: NoiseProfile, sequence, **model) ->
 def _by_hand(
     source,
     prof,
-    extras,
+    terms,
     partial,
     require_convergence,
     req,
@@ -239,7 +256,12 @@ def _by_hand(
     reading,
     sequence,
 ) -> CalibrationResult:
-    """A run placed by hand, read whole: its fit, checked as a gimbal run's."""
+    """A run placed by hand, read whole: its fit, checked as a gimbal run's.
+
+    ``terms`` is the optional terms forced in (Extras) and out (names), and whether to put
+    right the setup mistakes the data show (``--fix-units``).
+    """
+    *terms, fix_units = terms
     if sequence is not None:
         raise CalibError(
             "a run placed by hand follows no sequence file",
@@ -251,10 +273,10 @@ def _by_hand(
             raise CalibError("a run placed by hand is read whole", str(source), "leave out --stream")
         source = read_run(source, **reading)
     site = site_of(source, gravity_mps2)
-    hand = hand_fit_of(source, site, prof, extras, partial, req)
+    hand, extras, choice, source, notes = fit_checked(source, site, prof, terms, partial, req, fix_units)
     fit = as_fit(hand, extras)
     result = _checked_result(fit, source.source, require_convergence, prof, site, provenance, req)
-    return replace(result, by_hand=summary_of(hand, source))
+    return replace(result, by_hand=summary_of(hand, source, choice, tuple(notes)))
 
 
 def rate_limit(run) -> float:

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -36,6 +37,7 @@ from .errors import CalibError
 from .extras import G_SENSITIVITY_SI_PER_UNIT
 from .handmoves import move_rotation, move_sensitivity, right_jacobian_inverse
 from .handposes import tip_to
+from .handweights import Weights, component_sizes, components, redundancy, refuted, reweighted
 from .information import scaled_inverse
 from .profiles import NoiseProfile
 from .requirements import PAPER, Requirements
@@ -45,6 +47,7 @@ from .transform import dcm_to_rotvec, rotvec_to_dcm, skew
 N = P.N_PARAMS
 N_GS = 9  # the gyro g-sensitivity matrix, when fitted
 MAX_ITERATIONS = 30
+MAX_REWEIGHTS = 12  # the weights settle in 3-6 rounds on the real recordings
 STEP_TOL_SIGMA = 1e-3
 ATTITUDE_SCALE = 1e-3  # rad: the size an attitude unknown is judged at by the observability rule
 _ACCEL_DA = error_matrix_jacobian("accel")
@@ -66,6 +69,8 @@ class HandData:
         The samples from the end of rest ``r`` to the start of rest ``r + 1``.
     move_used : ndarray of bool, shape (K - 1,)
         False for a move with clipped samples (its rests are then not chained).
+    move_turn_rad : ndarray, shape (K - 1,)
+        The angle the gyro turned through over each move (the sum of its increments' norms).
     """
 
     rests: Rests
@@ -74,6 +79,7 @@ class HandData:
     rest_force: np.ndarray
     move_slices: list
     move_used: np.ndarray
+    move_turn_rad: np.ndarray
 
     @property
     def count(self) -> int:
@@ -88,7 +94,8 @@ def hand_data(dtheta, dv, dt, profile: NoiseProfile, clipped=None, where: str = 
     force = np.array([dv[a:b].sum(0) for a, b in zip(rests.start, rests.end, strict=True)]) / T[:, None]
     slices = [slice(int(e), int(s)) for e, s in zip(rests.end[:-1], rests.start[1:], strict=True)]
     used = np.array([clipped is None or not clipped[s].any() for s in slices], dtype=bool)
-    return HandData(rests, T, rate, force, slices, used)
+    turn = np.array([np.linalg.norm(dtheta[s], axis=1).sum() for s in slices])
+    return HandData(rests, T, rate, force, slices, used, turn)
 
 
 @dataclass
@@ -116,6 +123,8 @@ class HandFit:
     estimable: np.ndarray  # over the 21 and the g-sensitivity
     null_directions: list = field(default_factory=list)
     history: list = field(default_factory=list)
+    weights: Weights = field(default_factory=Weights)
+    weight_sizes: dict = field(default_factory=dict)  # the non-white components in the user's units
 
     @property
     def chi2_per_dof(self) -> float:
@@ -243,7 +252,7 @@ def linearise(
         J[:, :N] = np.einsum("pjk,k->jp", _ACCEL_DA, u_f)
         J[:, P.ACCEL_BIAS] = np.eye(3)
         J[:, cols] = (A_a @ C[r].T @ skew(f_n)) @ Smap
-        add(J, data.rest_force[r] - (A_a @ u_f + model.accel_bias), profile.vrw / math.sqrt(T), ("rest", r))
+        add(J, data.rest_force[r] - (A_a @ u_f + model.accel_bias), profile.vrw / math.sqrt(T), ("force", r))
         J = np.zeros((3, layout.n))
         J[:, :N] = np.einsum("pjk,k->jp", _GYRO_DA, u_w)
         J[:, P.GYRO_BIAS] = np.eye(3)
@@ -252,7 +261,7 @@ def linearise(
         J[:, layout.h] = A_g @ C[r].T[:, :2]
         J[:, cols] = (A_g @ C[r].T @ skew(omega_n) + G @ C[r].T @ skew(f_n)) @ Smap
         pred = A_g @ u_w + model.gyro_bias + G @ u_f
-        add(J, data.rest_rate[r] - pred, profile.arw / math.sqrt(T), ("rest", r))
+        add(J, data.rest_rate[r] - pred, profile.arw / math.sqrt(T), ("rate", r))
     for r, sl in enumerate(data.move_slices):
         if not data.move_used[r]:
             continue
@@ -309,6 +318,8 @@ def fit_by_hand(
     requirements: Requirements = PAPER,
     partial: bool = False,
     heading_prior: bool = True,
+    earn_weights: bool = True,
+    weights: Weights | None = None,
     where: str = "run",
 ) -> HandFit:
     """Fit the 21 parameters of a run placed by hand (see the module's model).
@@ -334,6 +345,12 @@ def fit_by_hand(
     heading_prior : bool
         Weight the horizontal Earth rate by the prior of an unknown heading (off: only the
         gyros tell it, as for a noise-free run whose exact recovery a test checks).
+    earn_weights : bool
+        Give each group of observations the noise its residuals show, and an outlying block
+        its own (:mod:`calib.handweights`); off: the profile's weights (or ``weights``) as
+        they are.
+    weights : Weights, optional
+        The weights to start from (default: the profile's).
     where : str
         The run's name in messages.
     """
@@ -356,20 +373,28 @@ def fit_by_hand(
     args = (data, dtheta, dv, dt)
     site = (latitude_rad, gravity_mps2, profile, heading_prior)
     history: list = []
+    weights = Weights() if weights is None else weights
     converged = False
-    for iteration in range(1, MAX_ITERATIONS + 1):
-        e, s, jac, _ = linearise(*args, state, layout, *site)
-        Jw = jac / s[:, None] * scale
-        inv = scaled_inverse(Jw.T @ Jw, names=names)
-        step = scale * (inv.covariance @ (Jw.T @ (e / s)))
-        sigma = scale * np.sqrt(np.diag(inv.covariance))
-        state.update(step, layout)
-        max_step = float(np.max(np.abs(step) / np.where(sigma > 0, sigma, np.inf)))
-        history.append({"iteration": iteration, "max_step_sigma": max_step})
-        if max_step < STEP_TOL_SIGMA:
-            converged = True
+    for rounds in range(MAX_REWEIGHTS if earn_weights else 1):
+        converged = _gauss_newton(args, state, layout, site, weights, scale, names, history)
+        if not earn_weights:
             break
-    e, s, jac, groups = linearise(*args, state, layout, *site)
+        e, s, jac, labels = linearise(*args, state, layout, *site)
+        shapes = components(labels, s, data.move_turn_rad)
+        Jw = jac / weights.sigma(shapes, s, labels)[:, None] * scale
+        inv = scaled_inverse(Jw.T @ Jw, names=names)
+        red = redundancy(Jw, inv.covariance)
+        if not weights.earning and not weights.block and rounds == 0:
+            outliers = reweighted(weights, e, red, labels, shapes, s).block
+            weights = Weights(earning=refuted(e, red, labels, s, outliers))
+        new = reweighted(weights, e, red, labels, shapes, s)
+        done = new.settled(weights, shapes, s, labels)
+        weights = new
+        if done:
+            break
+    e, s, jac, labels = linearise(*args, state, layout, *site)
+    shapes = components(labels, s, data.move_turn_rad)
+    s = weights.sigma(shapes, s, labels)
     Jw = jac / s[:, None] * scale
     inv = scaled_inverse(Jw.T @ Jw, names=names)
     estimable = inv.estimable[: layout.h.start]
@@ -383,12 +408,13 @@ def fit_by_hand(
             "add poses that excite them (other faces up, turns about other axes), or --partial",
         )
     z2 = (e / s) ** 2
-    kind = np.array([g[0] for g in groups])
-    index = np.array([g[1] for g in groups])
-    rest_chi2 = np.bincount(index[kind == "rest"], z2[kind == "rest"], minlength=data.count)
+    kind = np.array([g[0] for g in labels])
+    index = np.array([g[1] for g in labels])
+    at_rest = (kind == "force") | (kind == "rate")
+    rest_chi2 = np.bincount(index[at_rest], z2[at_rest], minlength=data.count)
     move_chi2 = np.bincount(index[kind == "move"], z2[kind == "move"], minlength=data.count - 1)
     move_chi2[~data.move_used] = np.nan
-    force_rows = np.flatnonzero((kind == "rest") & (np.arange(len(e)) % 6 < 3))
+    force_rows = np.flatnonzero(kind == "force")
     return HandFit(
         values=state.values,
         g_sensitivity=state.G if g_sensitivity else None,
@@ -407,4 +433,32 @@ def fit_by_hand(
         estimable=estimable,
         null_directions=inv.null_directions(),
         history=history,
+        weights=weights,
+        weight_sizes=component_sizes(weights, shapes, labels, data.move_turn_rad),
     )
+
+
+def _gauss_newton(
+    args: tuple[Any, Any, Any, Any],
+    state: FitState,
+    layout: Layout,
+    site: tuple[Any, Any, Any, Any],
+    weights: Weights,
+    scale,
+    names,
+    history,
+) -> bool:
+    """Iterate the unknowns at fixed weights until every step is below `STEP_TOL_SIGMA`."""
+    for _ in range(MAX_ITERATIONS):
+        e, s, jac, labels = linearise(*args, state, layout, *site)
+        s = weights.sigma(components(labels, s, args[0].move_turn_rad), s, labels)
+        Jw = jac / s[:, None] * scale
+        inv = scaled_inverse(Jw.T @ Jw, names=names)
+        step = scale * (inv.covariance @ (Jw.T @ (e / s)))
+        sigma = scale * np.sqrt(np.diag(inv.covariance))
+        state.update(step, layout)
+        max_step = float(np.max(np.abs(step) / np.where(sigma > 0, sigma, np.inf)))
+        history.append({"iteration": len(history) + 1, "max_step_sigma": max_step})
+        if max_step < STEP_TOL_SIGMA:
+            return True
+    return False

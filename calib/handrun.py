@@ -7,12 +7,18 @@ and a :class:`calib.handsummary.HandSummary` of the rests and moves used.
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+from functools import partial as partial_fit
+
 import numpy as np
+from scipy.stats import f as f_distribution
 
 from . import params as P
 from .errors import CalibError
 from .extras import Extras
-from .handfit import HandFit, fit_by_hand
+from .handfit import N_GS, HandFit, fit_by_hand
+from .handsetup import check_setup, fixed, rate_mistake
 from .handsummary import HandSummary
 from .profiles import NoiseProfile
 from .runlog import Run
@@ -21,18 +27,74 @@ from .site import Site
 from .solution import Fit
 from .strapdown import sample_intervals
 
+G_SENSITIVITY = "g-sensitivity"  # the optional term a hand-placed run can fit
+# A term is chosen when leaving it out raises the misfit beyond this false-alarm rate: one
+# recording in a thousand without the effect gets it (and loses nothing but a little precision).
+CHOICE_ALPHA = 1e-3
 
-def hand_fit_of(run: Run, site: Site, profile: NoiseProfile, extras: Extras, partial: bool, req) -> HandFit:
-    """The fit of a run placed by hand, read as it is."""
-    unsupported = [g for g in extras.groups if g != "g-sensitivity"]
+
+@dataclass(frozen=True)
+class TermChoice:
+    """Whether an optional term was fitted, and why.
+
+    ``how`` is ``"forced in"`` (``--with``), ``"forced out"`` (``--without``) or ``"tested"``:
+    then ``F`` is the misfit the term removes per term over the misfit left per degree of
+    freedom, at the weights of the fit without it, and ``p`` its chance under no such effect
+    (an F distribution on ``dof``).
+    """
+
+    term: str
+    chosen: bool
+    how: str
+    F: float = float("nan")
+    dof: tuple = (0, 0)
+    p: float = float("nan")
+
+    def line(self) -> str:
+        verdict = "fitted" if self.chosen else "not fitted"
+        if self.how != "tested":
+            flag = "--with" if self.chosen else "--without"
+            return f"model: {self.term} {verdict} ({self.how} by {flag})"
+        return (
+            f"model: {self.term} {verdict}: F = {self.F:.3g} on {self.dof[0]} and {self.dof[1]} "
+            f"degrees of freedom, p = {self.p:.2g} ({'below' if self.chosen else 'not below'} "
+            f"{CHOICE_ALPHA:g}; --with/--without {self.term} forces it)"
+        )
+
+    def to_json(self) -> dict:
+        doc = {"term": self.term, "fitted": self.chosen, "how": self.how}
+        if self.how == "tested":
+            doc |= {"F": self.F, "dof": list(self.dof), "p": self.p, "alpha": CHOICE_ALPHA}
+        return doc
+
+
+def hand_fit_of(
+    run: Run,
+    site: Site,
+    profile: NoiseProfile,
+    extras: Extras,
+    partial: bool,
+    req,
+    without: tuple = (),
+    earn_weights: bool = True,
+) -> tuple[HandFit, Extras, TermChoice]:
+    """The fit of a run placed by hand, read as it is, with the g-sensitivity chosen by the data.
+
+    Unless ``extras`` forces it in or ``without`` out, the gyro g-sensitivity is
+    fitted when an F test at the weights of the fit without it says the data
+    need it (`CHOICE_ALPHA`). Returns the fit, the optional terms it carries and
+    the choice.
+    """
+    unsupported = [g for g in (*extras.groups, *without) if g != G_SENSITIVITY]
     if unsupported:
         raise CalibError(
-            f"--with {','.join(unsupported)} is not fitted on a run placed by hand",
+            f"--with/--without {','.join(unsupported)} is not fitted on a run placed by hand",
             run.source,
             "leave them out (g-sensitivity is the term a hand-placed run can fit)",
         )
     dt = sample_intervals(run.time_s)
-    return fit_by_hand(
+    fit = partial_fit(
+        fit_by_hand,
         run.time_s,
         run.dtheta_rad,
         run.dv_mps,
@@ -40,12 +102,59 @@ def hand_fit_of(run: Run, site: Site, profile: NoiseProfile, extras: Extras, par
         site.latitude_rad,
         site.gravity_mps2,
         profile,
-        g_sensitivity="g-sensitivity" in extras.groups,
         clipped=None if run.clipped is None else run.clipped.any(axis=1),
         requirements=req,
-        partial=partial,
         where=run.source,
     )
+    if G_SENSITIVITY in extras.groups or G_SENSITIVITY in without:
+        chosen = G_SENSITIVITY in extras.groups
+        how = "forced in" if chosen else "forced out"
+        hand = fit(g_sensitivity=chosen, partial=partial, earn_weights=earn_weights)
+        return hand, extras, TermChoice(G_SENSITIVITY, chosen, how)
+    plain = fit(g_sensitivity=False, partial=partial, earn_weights=earn_weights)
+    test = fit(g_sensitivity=True, partial=True, earn_weights=False, weights=plain.weights)
+    n_terms = N_GS
+    F = max(plain.chi2 - test.chi2, 0.0) / n_terms / (test.chi2 / max(test.dof, 1))
+    p = float(f_distribution.sf(F, n_terms, max(test.dof, 1)))
+    choice = TermChoice(G_SENSITIVITY, p < CHOICE_ALPHA, "tested", float(F), (n_terms, int(test.dof)), p)
+    if not choice.chosen:
+        return plain, extras, choice
+    hand = fit(g_sensitivity=True, partial=partial, earn_weights=earn_weights, weights=plain.weights)
+    return hand, Extras((*extras.groups, G_SENSITIVITY)), choice
+
+
+def fit_checked(
+    run: Run,
+    site: Site,
+    profile: NoiseProfile,
+    terms: tuple,
+    partial: bool,
+    req,
+    fix_units: bool = False,
+) -> tuple[HandFit, Extras, TermChoice, Run, list]:
+    """The setup checked (:mod:`calib.handsetup`), the fit with its model chosen, the rate checked.
+
+    ``terms`` is the optional terms forced in (Extras) and out (names). Returns the fit, its
+    terms, the choice, the run as fitted (put right under ``fix_units``) and what was put right.
+    """
+    extras, without = terms
+    run, notes = check_setup(run, site.gravity_mps2, fix_units)
+    hand, used, choice = hand_fit_of(run, site, profile, extras, partial, req, without)
+    sigma = np.sqrt(np.diag(hand.covariance))[P.GYRO_SCALE] * math.sqrt(max(hand.chi2_per_dof, 1.0))
+    period = float(np.median(sample_intervals(run.time_s)))
+    mistake = rate_mistake(hand.values[P.GYRO_SCALE], sigma, period)
+    if mistake is not None:
+        if not fix_units:
+            raise CalibError(
+                mistake.what,
+                run.source,
+                "give the IMU's own rate (--sample-rate-hz), or --fix-units to calibrate at the rate the "
+                "data say (a gyro whose three scale factors are truly this alike cannot be told from it)",
+            )
+        run = fixed(run, [mistake])
+        notes.append(f"fixed: {mistake.what}")
+        hand, used, choice = hand_fit_of(run, site, profile, extras, partial, req, without)
+    return hand, used, choice, run, notes
 
 
 def as_fit(hand: HandFit, extras: Extras) -> Fit:
@@ -78,8 +187,8 @@ def as_fit(hand: HandFit, extras: Extras) -> Fit:
     )
 
 
-def summary_of(hand: HandFit, run: Run) -> HandSummary:
-    """Rests and moves in seconds from the log's start."""
+def summary_of(hand: HandFit, run: Run, choice: TermChoice | None = None, notes: tuple = ()) -> HandSummary:
+    """Rests and moves in seconds from the log's start, the weights earned and the model chosen."""
     t0 = float(run.time_s[0] - sample_intervals(run.time_s)[0])
     t = np.concatenate([[t0], run.time_s]) - t0  # sample i spans t[i] .. t[i + 1]
     rests = hand.data.rests
@@ -93,4 +202,7 @@ def summary_of(hand: HandFit, run: Run) -> HandSummary:
         move_chi2=hand.move_chi2,
         clipped=tuple(describe_clipping(run)),
         chi2_per_dof=hand.chi2_per_dof,
+        notes=(*notes, *(() if choice is None else (choice.line(),)), *hand.weights.lines(hand.weight_sizes)),
+        choices={"weights": hand.weights.to_json(hand.weight_sizes)}
+        | ({} if choice is None else {"model": [choice.to_json()]}),
     )

@@ -8,7 +8,7 @@ where.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -33,6 +33,10 @@ class HandSummary:
     clipped : tuple of str
         The clipped stretches, described.
     chi2_per_dof : float
+    notes : tuple of str
+        The model chosen and the weights earned (:mod:`calib.handweights`), as printed.
+    choices : dict
+        The same for ``--json``: ``model`` and ``weights``.
     """
 
     rest_s: np.ndarray
@@ -42,6 +46,8 @@ class HandSummary:
     move_chi2: np.ndarray
     clipped: tuple = ()
     chi2_per_dof: float = float("nan")
+    notes: tuple = ()  # the model chosen and the weights earned, one line each
+    choices: dict = field(default_factory=dict)  # the same for --json
 
     def worst(self) -> tuple[list[int], list[int]]:
         """Indices of the rests and used moves with the largest residual power, largest first."""
@@ -59,6 +65,7 @@ class HandSummary:
         ]
         for k in np.flatnonzero(~self.move_used):
             out.append(f"move {k + 1} ({self.move_s[k, 0]:.2f}-{self.move_s[k, 1]:.2f} s) left out: clipped")
+        out += list(self.notes)
         out += list(self.clipped)
         if self.chi2_per_dof > CHI2_NAMED:
             rests, moves = self.worst()
@@ -90,6 +97,7 @@ class HandSummary:
                 for (a, b), u, c in zip(self.move_s, self.move_used, self.move_chi2, strict=True)
             ],
             "clipped": list(self.clipped),
+            **self.choices,
             "worst_rests": [r + 1 for r in rests],
             "worst_moves": [m + 1 for m in moves],
         }

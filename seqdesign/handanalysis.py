@@ -62,6 +62,7 @@ def predict(
         g_sensitivity=g_sensitivity,
         requirements=requirements,
         partial=True,
+        earn_weights=False,  # a noise-free run: the profile's weights are the prediction's
         where=plan_name(plan),
     )
     return prediction_of(fit)
@@ -232,11 +233,12 @@ def analyze_recording(
 ) -> HandAnalysis:
     """The prediction of a recorded hand run from its own rests and moves (as the fit finds them).
 
-    The sigmas are the fit's covariance before any Birge inflation: what the recording's
-    geometry and the profile's noise allow, whatever its residuals.
+    The sigmas are the fit's covariance before any Birge inflation, with the model and the
+    weights `calib.handrun.hand_fit_of` chooses: what calibrating the recording reports.
     """
     ext = extras if extras is not None else Extras()
-    hand = hand_fit_of(run, site, profile, ext, True, requirements)
+    # The fit calibrate makes (its model and weights chosen alike): the sigma it will report.
+    hand, _, _ = hand_fit_of(run, site, profile, ext, True, requirements)
     rests = hand.data.rests
     period = float(np.median(sample_intervals(run.time_s)))
     poses = PoseList(

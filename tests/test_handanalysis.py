@@ -102,8 +102,10 @@ def test_six_faces_tipped_over_edges_leave_gyro_terms_unobserved_and_name_a_cure
 @pytest.mark.slow
 def test_the_prediction_is_what_calibrating_noisy_runs_of_the_poses_achieves(tmp_path):
     # 40 noisy runs of the same thirteen poses, each with its own MEMS-sized errors, calibrated.
-    # The sigma each run reports is the predicted one (2 %: rests found in noise differ by a few
-    # samples from the noise-free plan's), and the RMS error over the predicted sigma is 1 within
+    # The sigma a run reports is the predicted one (2 %: rests found in noise differ by a few
+    # samples from the noise-free plan's) for the median run: a run whose residuals refute the
+    # profile's noise by chance (1 % per group) or hold an outlying block (0.01 %) earns weights of
+    # its own (calib.handweights). The RMS error over the predicted sigma is 1 within
     # its sampling spread: sqrt(chi2(40)/40) lies in [0.67, 1.36] with 99.9 % per parameter.
     poses = load_poses(_write(tmp_path, TWELVE))
     predicted = analyze_hand(poses, MEMS, REQ, tolerance_deg=0.0, cure=False).nominal.sigma
@@ -116,7 +118,7 @@ def test_the_prediction_is_what_calibrating_noisy_runs_of_the_poses_achieves(tmp
         result = calibrate(run, MEMS, by_hand=True, requirements=REQ)
         errors.append(result.values - truth.values)
         reported.append(result.sigma)
-    assert np.allclose(np.mean(reported, axis=0), predicted, rtol=0.02)
+    assert np.allclose(np.median(reported, axis=0), predicted, rtol=0.02)
     ratio = np.sqrt(np.mean(np.square(errors), axis=0)) / predicted
     assert np.all((ratio > 0.67) & (ratio < 1.36)), np.round(ratio, 2)
 

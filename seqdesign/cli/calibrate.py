@@ -37,7 +37,15 @@ from .tools import emit_json, guarded, hidden_alias, info, provenance
     "--allow-gaps", is_flag=True, help="Remove duplicated samples and fill samples dropped at rest."
 )
 @options.with_terms(
-    "Also fit a real unit's terms beyond the 21: any of lever-arm, k2, time-offset (comma-separated), or all."
+    "Also fit a real unit's terms beyond the 21: any of lever-arm, k2, time-offset (comma-separated), or "
+    "all; by hand: g-sensitivity (fitted anyway when the data need it)."
+)
+@click.option(
+    "--without",
+    "without_terms",
+    default=None,
+    metavar="TERMS",
+    help="By hand: never fit these optional terms (g-sensitivity), even when the data would choose them.",
 )
 @options.requirements
 @options.gravity(
@@ -69,6 +77,13 @@ from .tools import emit_json, guarded, hidden_alias, info, provenance
     help="Also write the result as the correction a user applies, calibrated = M (raw - b) per "
     "sensor with its sigmas, in the log's units (counts for a log read through --conversion).",
 )
+@click.option(
+    "--fix-units",
+    is_flag=True,
+    help="By hand: where the data contradict the log's labels (accelerometer in g read as m/s^2, "
+    "gyro in deg/s read as rad/s, swapped or flipped axes, a wrong sample rate), put them right and "
+    "say so instead of refusing.",
+)
 @options.as_json
 @guarded
 def calibrate(
@@ -85,12 +100,14 @@ def calibrate(
     sample_rate_hz,
     allow_gaps,
     with_terms,
+    without_terms,
     requirements,
     gravity_mps2,
     partial,
     stream,
     by_hand,
     correction_path,
+    fix_units,
     as_json,
 ):
     """Align, navigate on the stationary base and fit the 21 error parameters of
@@ -147,6 +164,8 @@ def calibrate(
         requirements=requirements,
         gravity_mps2=gravity_mps2,
         by_hand=by_hand,
+        without=without_terms,
+        fix_units=fix_units,
         provenance=provenance(
             {
                 "run": run_path,
