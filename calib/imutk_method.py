@@ -200,6 +200,7 @@ def imutk_calibrate(
     gyro_scale0: np.ndarray | float = 1.0,
     interval_samples: int = INTERVAL_SAMPLES,
     use_means: bool = False,
+    min_intervals: int = MIN_INTERVALS,
     raw_units: tuple[str, str] = ("counts", "counts"),
     source: str = "imu_tk's method",
 ) -> ImuTkFit:
@@ -221,6 +222,8 @@ def imutk_calibrate(
         The shortest static interval kept, and the samples of each used as residuals.
     use_means : bool
         One residual per interval (its mean) instead of its first ``interval_samples`` samples.
+    min_intervals : int
+        The fewest static intervals a threshold must give (imu_tk's: :data:`MIN_INTERVALS`).
     raw_units : (str, str)
         The gyro's and the accelerometer's raw unit, for the correction.
     source : str
@@ -244,7 +247,7 @@ def imutk_calibrate(
         start, end = static_intervals(accel, k * base)
         keep = end - start >= interval_samples
         start, end = start[keep], end[keep]
-        if len(start) < MIN_INTERVALS:
+        if len(start) < min_intervals:
             continue
         means = np.array([accel[a:b].mean(axis=0) for a, b in zip(start, end, strict=True)])
         samples = means if use_means else np.vstack([accel[a : a + interval_samples] for a in start])
@@ -254,7 +257,7 @@ def imutk_calibrate(
             best = (p, cost, k, start, end)
     if best is None:
         raise CalibError(
-            f"no threshold gives {MIN_INTERVALS} static intervals of {interval_samples} samples",
+            f"no threshold gives {min_intervals} static intervals of {interval_samples} samples",
             source,
             "give a recording with more static poses, each held longer",
         )
