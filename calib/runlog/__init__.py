@@ -10,7 +10,8 @@ The one owner of the run-log format: its name, metadata and columns
 (:mod:`~calib.runlog.columns`), the sample clock of the time column
 (:mod:`~calib.runlog.clock`), the PSINS ``.imu`` log (:mod:`~calib.runlog.psins`);
 for hand recordings, a sample counter in place of the time
-(:mod:`~calib.runlog.counter`), raw counts and their nominal conversion
+(:mod:`~calib.runlog.counter`), a text log without a header (:mod:`~calib.runlog.headerless`),
+raw counts and their nominal conversion
 (:mod:`~calib.runlog.conversion`), imu_tk's two files (:mod:`~calib.runlog.imutk`)
 and clipped stretches (:mod:`~calib.runlog.clipping`). CSV writing is
 :mod:`~calib.runlog.csvwrite`.

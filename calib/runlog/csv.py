@@ -28,6 +28,7 @@ from calib.runlog.columns import (
 from calib.runlog.conversion import Conversion, sensor_si
 from calib.runlog.counter import counter_suspect, counter_time
 from calib.runlog.format import ARRAY_COLUMNS, FORMAT, GIMBAL_COLUMNS, REQUIRED_COLUMNS, REQUIRED_META
+from calib.runlog.headerless import with_header
 from calib.runlog.paths import read_bytes
 from calib.runlog.run import Run, meta_float
 
@@ -76,9 +77,11 @@ def read_csv(
     mapping = parse_column_map(columns, name)
     lines = _decode_lines(read_bytes(path), name)
     meta, key_lines, header_index = parse_preamble(lines, name)
+    lines, added = with_header(lines, header_index, mapping, meta, options or {}, name)  # no header row
     lines = _to_commas(lines, header_index, name)
     plan, has_gimbal, positions = _parse_header(lines[header_index], header_index + 1, name, mapping)
     rows, row_lines = _data_rows(lines, header_index + 1)
+    row_lines = row_lines - added  # the file's own line numbers
     if not rows:
         raise CalibError(
             "the header row is not followed by any data rows",

@@ -9,17 +9,22 @@ from pathlib import Path
 
 from calib.errors import CalibError
 
+TEXT = (".txt", ".log", ".dat")  # a logger's text log, read as CSV (docs/logs-columns.md)
+
 
 def run_kind(path: str | os.PathLike) -> str:
-    """Lower-case suffix, refused unless .csv, .npz or .imu."""
+    """Lower-case suffix, refused unless .csv, .npz or .imu; a text log (.txt, .log, .dat) reads as .csv."""
     suffix = Path(path).suffix.lower()
-    if suffix == ".gz" and Path(path).name.lower().endswith(".csv.gz"):
+    if suffix == ".gz" and Path(path).name.lower().endswith(tuple(s + ".gz" for s in (".csv", *TEXT))):
         return ".csv"  # read through gzip (read_bytes)
+    if suffix in TEXT:
+        return ".csv"  # a logger's text: columns by the CSV reader's rules (headerless too)
     if suffix not in (".csv", ".npz", ".imu"):
         raise CalibError(
             f"unknown run log type {suffix or '(no suffix)'!r}",
             str(path),
-            "name run logs *.csv (interchange), *.npz (fast native) or *.imu (PSINS text, read only)",
+            "name run logs *.csv (interchange), *.npz (fast native) or *.imu (PSINS text, read only); "
+            "a logger's text log may be *.txt, *.log or *.dat",
         )
     return suffix
 

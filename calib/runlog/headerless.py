@@ -1,0 +1,151 @@
+"""A text log without a header row: columns named by position, samples evenly spaced.
+
+Some loggers write one row of numbers per sample and nothing else (mikoff's
+imu-calib logs: ``ax ay az wx wy wz``, space separated, no time). A file whose
+first row after its ``#`` lines is all numbers has no header; its columns are
+then named by position, ``1`` to ``N``, in the column map
+(``1=accel_x_mps2,2=accel_y_mps2,...``). Fields may be separated by commas,
+semicolons or white space (spaces and tabs, any number).
+
+When the map names no time column (``time_*``) and no ``counter``, the samples
+are taken as evenly spaced at the stated rate: a counter ``0, 1, 2, ...`` is
+added, so that sample ``i`` ends its interval at ``(i + 1) / sample_rate_hz``
+(:mod:`calib.runlog.counter`). The rate must then be stated
+(``sample_rate_hz``, the CLI's ``--sample-rate-hz``, or a
+``# sample_rate_hz:`` line): a file without a time says nothing of it.
+"""
+
+from __future__ import annotations
+
+from calib.errors import CalibError
+from calib.runlog.columns import COUNTER, TIME_NAMES
+from calib.runlog.counter import RATE_FIX
+
+EXAMPLE_MAP = "1=accel_x_mps2,2=accel_y_mps2,3=accel_z_mps2,4=gyro_x_radps,5=gyro_y_radps,6=gyro_z_radps"
+
+
+def _fields(line: str) -> list[str]:
+    """The fields of a data row, split on commas, else semicolons, else white space."""
+    s = line.strip()
+    for sep in (",", ";"):
+        if sep in s:
+            return [f.strip() for f in s.split(sep)]
+    return s.split()
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def is_headerless(line: str) -> bool:
+    """Whether the first non-comment row ``line`` is numbers (data), not a header."""
+    fields = _fields(line)
+    return bool(fields) and all(_is_number(f) for f in fields)
+
+
+_SENSORS = {"gyro": "gyro", "dtheta": "gyro", "accel": "accelerometer", "dv": "accelerometer"}
+
+
+def _check_sensors(mapping: dict[str, str], n: int, where: str) -> None:
+    """Refuse a map of a file without header that leaves a sensor's axis unnamed, in its terms."""
+    axes: dict[str, set[str]] = {"gyro": set(), "accelerometer": set()}
+    for target in mapping.values():
+        parts = target.split("_")
+        if parts[0] in _SENSORS and len(parts) > 1:
+            axes[_SENSORS[parts[0]]].add(parts[1])
+    short = [f"the {s} on {len(a)} of 3 axes" for s, a in axes.items() if len(a) < 3]
+    if short:
+        raise CalibError(
+            "the column map names " + " and ".join(short) + f"; the file has no header row, so each of "
+            f"its {n} columns is named by its position",
+            where,
+            f"map the gyro's and the accelerometer's three axes by position, e.g. {EXAMPLE_MAP}",
+        )
+
+
+def with_header(
+    lines: list[str], header_index: int, mapping: dict[str, str], meta: dict, options: dict, name: str
+) -> tuple[list[str], int]:
+    """The file's lines with a header row of positions put in, when it has none.
+
+    Parameters
+    ----------
+    lines : list of str
+        The file's lines; ``lines[header_index]`` is its first row that is no ``#`` line.
+    header_index : int
+    mapping : dict of str to str
+        The column map (:func:`calib.runlog.columns.parse_column_map`).
+    meta : dict
+        The metadata above the rows (a ``sample_rate_hz`` there states the rate).
+    options : dict
+        The reader's options (``sample_rate_hz``).
+    name : str
+        The file, for messages.
+
+    Returns
+    -------
+    lines : list of str
+        Unchanged for a file with a header; else the rows rewritten with commas
+        (and a counter field when the map gives no time), under a header row
+        ``1,2,...,N[,counter]`` inserted at ``header_index``.
+    added : int
+        1 when a header row was inserted (the file's line numbers of the rows
+        are one less than their index + 1), else 0.
+
+    Raises
+    ------
+    CalibError
+        For a file without a header: no column map, a map naming other than the
+        positions ``1..N``, or no time column and no stated rate.
+    """
+    first = lines[header_index]
+    if not is_headerless(first):
+        return lines, 0
+    n = len(_fields(first))
+    where = f"{name}, line {header_index + 1}"
+    if not mapping:
+        raise CalibError(
+            f"the file has no header row (its first row is {n} numbers)",
+            where,
+            f"name its columns by position 1..{n} in a column map (the CLI's --columns), e.g. {EXAMPLE_MAP}",
+        )
+    positions = [str(i) for i in range(1, n + 1)]
+    wrong = [k for k in mapping if k not in positions]
+    if wrong:
+        raise CalibError(
+            "column map names " + ", ".join(f"'{k}'" for k in wrong) + f", and the file has no header row: "
+            f"its columns are named by position, 1 to {n}",
+            where,
+            f"map positions, e.g. {EXAMPLE_MAP}",
+        )
+    _check_sensors(mapping, n, where)
+    timed = any(v in TIME_NAMES or v == COUNTER for v in mapping.values())
+    if not timed and options.get("sample_rate_hz") is None and "sample_rate_hz" not in meta:
+        raise CalibError(
+            "the file has no time column, so its samples are taken as evenly spaced at the IMU's rate, "
+            "which is not stated",
+            where,
+            RATE_FIX,
+        )
+    body, count = [], 0
+    for index, line in enumerate(lines[header_index:], start=header_index):
+        if not line.strip():
+            body.append(line)
+            continue
+        fields = _fields(line)
+        if len(fields) != n:
+            raise CalibError(
+                f"row has {len(fields)} fields, the first row has {n}",
+                f"{name}, line {index + 1} (sample {count})",
+                "every row needs one value per column",
+            )
+        if not timed:
+            fields.append(str(count))
+            count += 1
+        body.append(",".join(fields))
+    header = ",".join(positions + ([] if timed else [COUNTER]))
+    return lines[:header_index] + [header] + body, 1
