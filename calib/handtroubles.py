@@ -26,7 +26,8 @@ import numpy as np
 
 from .extras import G_SENSITIVITY_SI_PER_UNIT
 from .handclock import EPOCH_MS, STAMP_MODES
-from .handtremor import Tremor, tremor_from_table, tremor_to_table
+from .handplan import HandPlan
+from .handtremor import SHAKE_MPS2, Tremor, random_tremor, tremor_from_table, tremor_to_table
 
 MAX_RATE_ERROR = 0.2  # beyond 20 % a rate is not a crystal's error but a wrong setting
 
@@ -135,3 +136,47 @@ def troubles_from_table(table: dict) -> HandTroubles:
         stamps=str(stamps.get("mode", "seconds")),
         epoch_ms=int(stamps.get("epoch_ms", EPOCH_MS)),
     )
+
+
+@dataclass(frozen=True)
+class TroubleSpec:
+    """How big the troubles of simulated hand runs are; :meth:`draw` gives one run's (SI).
+
+    Attributes
+    ----------
+    tremor_deg : float
+        RMS tremor angle per body axis of a held pose, deg (0: no tremor).
+    hand_held_s : float or None
+        Only the rests that begin before this are held in the hand (None: all).
+    shake_mps2 : float
+        RMS shake acceleration per axis of a held pose, m/s^2.
+    g_sensitivity_dphg : float, ndarray of 9, or None
+        Gyro g-sensitivity in deg/h/g: 9 row-major values (``gsxx gsxy ... gszz``), or one
+        half-range each run draws the 9 within (uniformly); None: none.
+    rate_error : float
+        The IMU's true sample rate over its nominal one, less 1.
+    stamp_jitter_s : float
+        Largest host delay of a stamp, s.
+    stamps : str
+        ``"seconds"`` or ``"epoch-ms"``.
+    """
+
+    tremor_deg: float = 0.0
+    hand_held_s: float | None = None
+    shake_mps2: float = SHAKE_MPS2
+    g_sensitivity_dphg: float | tuple[float, ...] | None = None
+    rate_error: float = 0.0
+    stamp_jitter_s: float = 0.0
+    stamps: str = "seconds"
+
+    def draw(self, plan: HandPlan, rng: np.random.Generator) -> HandTroubles:
+        """One run's troubles: its tremor, then its g-sensitivity, drawn from ``rng`` (only when on)."""
+        tremor = None
+        if self.tremor_deg > 0.0:
+            tremor = random_tremor(plan, rng, self.tremor_deg, self.hand_held_s, self.shake_mps2)
+        G = None
+        if isinstance(self.g_sensitivity_dphg, float | int):
+            G = random_g_sensitivity(float(self.g_sensitivity_dphg), rng)
+        elif self.g_sensitivity_dphg is not None:
+            G = g_sensitivity_from_dphg(self.g_sensitivity_dphg)
+        return HandTroubles(tremor, G, self.rate_error, self.stamp_jitter_s, self.stamps)
