@@ -33,7 +33,7 @@ from .handplan import HandPlan
 from .handtremor import Tremor, held_at
 from .handtroubles import HandTroubles, apply_g_sensitivity, troubles_to_table
 from .profiles import NoiseProfile
-from .runlog import Run, write_run
+from .runlog import Run, write_run, write_windows
 from .sim import SimConfig, Truth, add_noise, run_meta
 from .truth import truth_path_for, truth_to_dict
 
@@ -348,12 +348,16 @@ def write_hand_run(output: str | Path, run: Run, truth: HandTruth, provenance: d
     """Write the run log (``.csv`` or ``.npz``) and its truth file beside it; return the truth's path.
 
     Epoch-ms stamps (``truth.troubles.stamps``) are written as a ``time_ms`` column of
-    integers, in a ``.csv`` only.
+    integers, in a ``.csv`` only. A host's stamps are written as they are, unchecked (a
+    reader judges them; :func:`calib.runlog.write_run` would refuse stamps that repeat or
+    step by a fraction of a period).
     """
     if truth.troubles.stamps == "epoch-ms":
         if Path(output).suffix.lower() != ".csv":
             raise ValueError("epoch-ms stamps are written in a .csv run log (an .npz holds float seconds)")
         write_epoch_ms_csv(run, output)
+    elif truth.troubles.stamp_jitter_s > 0.0:
+        write_windows(output, run.meta, [(run.time_s, run.dtheta_rad, run.dv_mps)])
     else:
         write_run(run, output)
     truth_path = truth_path_for(output)
