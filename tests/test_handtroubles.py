@@ -83,7 +83,8 @@ def test_no_troubles_is_the_table_run_bit_for_bit():
     assert not truth.troubles.any
     # The CLI draws the troubles from a fourth stream: the first three are those it drew before.
     three, four = np.random.SeedSequence(9).spawn(3), np.random.SeedSequence(9).spawn(4)
-    assert all(a.generate_state(4).tolist() == b.generate_state(4).tolist() for a, b in zip(three, four[:3]))
+    for a, b in zip(three, four[:3], strict=True):
+        assert a.generate_state(4).tolist() == b.generate_state(4).tolist()
 
 
 # Tremor ----------------------------------------------------------------------------------------
@@ -322,3 +323,100 @@ def test_a_rate_error_scales_each_turn_and_keeps_the_rests_right():
         idx = _inside(t_true, RATE * (1 + eps), plan.rest_start_s[k], plan.rest_end_s[k])
         f = fast.dv_mps[idx].sum(axis=0) * RATE / idx.size
         assert np.linalg.norm(f - plan.C_b_n[k].T @ [0.0, 0.0, G]) < 1e-9 * G
+
+
+# The truth file and the CLI ------------------------------------------------------------------
+
+
+def test_the_truth_file_holds_the_troubles_exactly(tmp_path):
+    from calib.fileio import load_toml
+    from calib.truth import read_truth
+
+    plan = _plan(n=3)
+    spec = TroubleSpec(tremor_deg=0.2, hand_held_s=15.0, g_sensitivity_dphg=300.0, rate_error=-0.005)
+    troubles = spec.draw(plan, np.random.default_rng(4))
+    run, truth = simulate_by_hand(plan, CFG, troubles=troubles)
+    path = write_hand_run(tmp_path / "hand.npz", run, truth)
+    read_truth(path)  # the common reader takes it as is
+    hand = load_toml(path)["hand"]
+    assert hand["rate_error"] == -0.005
+    back = troubles_from_table(hand)
+    assert back.tremor is not None and troubles.tremor is not None
+    for name in ("rest", "start_s", "end_s", "taper_s", "amplitude", "frequency_hz", "phase_rad"):
+        assert np.array_equal(getattr(back.tremor, name), getattr(troubles.tremor, name)), name
+    assert np.allclose(back.g_sensitivity, troubles.g_sensitivity, rtol=1e-15, atol=0)
+    assert np.all(np.abs(hand["g_sensitivity_dphg"]) <= 300.0)
+    assert np.allclose(hand["tremor"]["rms_angle_deg"], 0.2)
+    plain, plain_truth = simulate_by_hand(plan, CFG)
+    doc = load_toml(write_hand_run(tmp_path / "plain.npz", plain, plain_truth))["hand"]
+    assert not {"tremor", "g_sensitivity_dphg", "rate_error", "stamps"} & set(doc)
+
+
+def test_cli_simulate_with_troubles(tmp_path):
+    from calib.fileio import load_toml
+    from seqdesign.cli import main
+
+    out = tmp_path / "hand.csv"
+    res = CliRunner().invoke(
+        main,
+        ["simulate", "--by-hand", "--poses", "4", "--seed", "3", "--tremor-deg", "0.2",
+         "--hand-held-s", "40", "--stamp-jitter-ms", "12", "--stamps", "epoch-ms",
+         "--g-sensitivity-dphg", "200", "--rate-error", "0.01", "--profile", "mems",
+         "-o", str(out), "--json"],
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert len(doc["troubles"]) == 5
+    hand = load_toml(tmp_path / "hand.truth.toml")["hand"]
+    assert hand["stamps"] == {"mode": "epoch-ms", "jitter_ms": 12.0, "epoch_ms": EPOCH_MS}
+    assert hand["rate_error"] == 0.01 and hand["tremor"]["rest"] == [0]  # the first rest: 50 s
+    lines = [line for line in out.read_text().splitlines() if not line.startswith("#")]
+    stamps = np.array([int(line.split(",")[0]) for line in lines[1:]])
+    assert lines[0].startswith("time_ms,") and np.all(np.diff(stamps) >= 0)
+    assert len(stamps) == doc["samples"]
+
+
+@pytest.mark.parametrize(
+    "args, names",
+    [
+        (["--hand-held-s", "20"], "--hand-held-s"),
+        (["--shake-mps2", "0.1"], "--shake-mps2"),
+        (["--g-sensitivity-dphg", "1,2,3"], "--g-sensitivity-dphg"),
+        (["--g-sensitivity-dphg", "abc"], "--g-sensitivity-dphg"),
+        (["--g-sensitivity-dphg", "-5"], "--g-sensitivity-dphg"),
+        (["--stamps", "epoch-ms", "-o", "x.npz"], "--stamps"),
+        (["--rate-error", "0.5"], "--rate-error"),
+    ],
+)
+def test_cli_refuses_bad_troubles_in_one_line(tmp_path, args, names):
+    from seqdesign.cli import main
+
+    res = CliRunner().invoke(main, ["simulate", "--by-hand", "-o", str(tmp_path / "x.csv"), *args])
+    assert res.exit_code == 2 and names in res.output and "Traceback" not in res.output
+    # One error line (click's range errors come with its usage lines), nothing written.
+    assert sum("rror" in line for line in res.output.splitlines()) == 1 and not list(tmp_path.iterdir())
+
+
+def test_cli_troubles_need_by_hand(tmp_path):
+    from seqdesign.cli import main
+
+    runner = CliRunner()
+    out = str(tmp_path / "x.npz")
+    res = runner.invoke(main, ["simulate", "paper-9pos", "--tremor-deg", "0.1", "-o", out])
+    assert res.exit_code == 2 and "--tremor-deg" in res.output and "--by-hand" in res.output
+    res = runner.invoke(main, ["verify", "paper-9pos", "--rate-error", "0.01", "--runs", "2"])
+    assert res.exit_code == 2 and "--rate-error" in res.output and "--by-hand" in res.output
+
+
+def test_cli_verify_by_hand_with_troubles():
+    """The runs carry the troubles (named in the report); each run is simulated, and fitted or refused."""
+    from seqdesign.cli import main
+
+    res = CliRunner().invoke(
+        main,
+        ["verify", "--by-hand", "--poses", "6", "--runs", "2", "--profile", "mems", "--sample-rate-hz", "100",
+         "--g-sensitivity-dphg", "200", "--rate-error", "0.001", "--with", "g-sensitivity", "--json"],
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["runs"] == 2 and "g-sensitivity 200" in doc["sequence"] and "rate error" in doc["sequence"]
