@@ -66,11 +66,10 @@ def _gravity_mismatch(plan, run) -> np.ndarray:
     return np.array(out)
 
 
-def _rest_force(plan, run) -> np.ndarray:
-    """|mean specific force| of each rest, per the log's own period."""
-    return np.array(
-        [np.linalg.norm(run.dv_mps[i].mean(axis=0)) * run.sample_rate_hz for i in _rests(plan, run)]
-    )
+def _rest_force(plan, run, samples_of=None) -> np.ndarray:
+    """|mean specific force| of each rest, per the log's own period (rests found in ``samples_of``)."""
+    rests = _rests(plan, samples_of if samples_of is not None else run)
+    return np.array([np.linalg.norm(run.dv_mps[i].mean(axis=0)) * run.sample_rate_hz for i in rests])
 
 
 def test_the_correct_log_is_consistent(clean):
