@@ -83,11 +83,13 @@ class Tremor:
         return np.concatenate([self.start_s + self.taper_s, self.end_s - self.taper_s])
 
     def rms_angle_rad(self) -> np.ndarray:
-        """RMS of each rotation-vector axis over the untapered middle, (R, 3) (distinct frequencies)."""
+        """RMS of each rotation-vector axis, (R, 3), over a long untapered window (there the cross terms
+        of distinct frequencies average out; over a few seconds two close frequencies beat).
+        """
         return np.sqrt(0.5 * np.sum(self.amplitude[:, :3] ** 2, axis=2))
 
     def rms_rate_rad_s(self, sample_period_s: float = 0.0) -> np.ndarray:
-        """RMS body rate per axis over the untapered middle, (R, 3), small angles (``J_r ~ I``).
+        """RMS body rate per axis, (R, 3), over a long untapered window, small angles (``J_r ~ I``).
 
         With ``sample_period_s`` > 0, that of the mean rates over samples of that length
         (what a rate-integrating gyro gives): each sinusoid is attenuated by
@@ -98,7 +100,7 @@ class Tremor:
         return np.sqrt(0.5 * np.sum((self.amplitude[:, :3] * w * gain) ** 2, axis=2))
 
     def rms_accel_mps2(self) -> np.ndarray:
-        """RMS shake acceleration per ENU axis over the untapered middle, (R, 3)."""
+        """RMS shake acceleration per ENU axis, (R, 3), over a long untapered window."""
         w2 = (2.0 * np.pi * self.frequency_hz[:, 3:]) ** 2
         return np.sqrt(0.5 * np.sum((self.amplitude[:, 3:] * w2) ** 2, axis=2))
 

@@ -73,6 +73,14 @@ def simulate_by_hand(output, profile, errors_file, table2, seed, site, noise_fre
         )
     if hand["poses"] is not None and hand["like"]:
         raise CalibError("--poses and --like both given", "--poses", "choose one")
+    if hand["like"] and (
+        names := [f"--{k.replace('_', '-')}" for k in ("rest_s", "first_rest_s") if hand[k]]
+    ):
+        raise CalibError(
+            f"{', '.join(names)} and --like both given", names[0], "--like fixes the rests: choose one"
+        )
+    if hand["rest_s"] and hand["rest_s"][0] > hand["rest_s"][1]:
+        raise CalibError(f"--rest-s {hand['rest_s'][0]:g} {hand['rest_s'][1]:g}: MIN above MAX", "--rest-s")
     spec = trouble_spec({k: hand[k] for k in TROUBLE_DEFAULTS})
     if spec.stamps == "epoch-ms" and Path(output).suffix.lower() != ".csv":
         raise CalibError(
@@ -96,7 +104,8 @@ def simulate_by_hand(output, profile, errors_file, table2, seed, site, noise_fre
         plan = xsens_like_plan(plan_rng, **shape)
     else:
         n_poses = hand["poses"] if hand["poses"] is not None else DEFAULT_POSES
-        plan = random_hand_plan(n_poses, plan_rng, **shape)
+        rests = {k: hand[k] for k in ("rest_s", "first_rest_s") if hand[k]}
+        plan = random_hand_plan(n_poses, plan_rng, **shape, **rests)
     errors = _errors(errors_file, table2, hand["random_errors"], errors_rng)
     troubles = spec.draw(plan, trouble_rng)
     cfg = SimConfig(

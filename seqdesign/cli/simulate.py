@@ -127,6 +127,8 @@ HAND_DEFAULTS = {
     "wobble_deg": 10.0,
     "oversample": 10,
     "random_errors": None,
+    "rest_s": None,
+    "first_rest_s": None,
 }
 
 
@@ -229,6 +231,21 @@ HAND_DEFAULTS = {
     default=None,
     help="--by-hand: draw the 21 errors uniformly within the sizes of a unit of this grade.",
 )
+@click.option(
+    "--rest-s",
+    type=click.FloatRange(0.1, 3600.0),
+    nargs=2,
+    default=None,
+    metavar="MIN MAX",
+    help="--by-hand: each rest after the first lasts between these, s (default 5 12; a hand "
+    "holding short poses: 1 6).",
+)
+@click.option(
+    "--first-rest-s",
+    type=click.FloatRange(0.1, 36000.0),
+    default=None,
+    help="--by-hand: the first rest (the static start), s (default 50).",
+)
 @trouble_options
 @options.as_json
 @guarded
@@ -259,6 +276,8 @@ def simulate(
     wobble_deg=10.0,
     oversample=10,
     random_errors=None,
+    rest_s=None,
+    first_rest_s=None,
     **troubles,
 ):
     """Simulate the IMU increments of SEQUENCE on a stationary base with exact
@@ -275,6 +294,8 @@ def simulate(
         "wobble_deg": wobble_deg,
         "oversample": oversample,
         "random_errors": random_errors,
+        "rest_s": rest_s,
+        "first_rest_s": first_rest_s,
     }
     if by_hand:
         gimbal_run = {
