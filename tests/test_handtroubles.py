@@ -420,3 +420,21 @@ def test_cli_verify_by_hand_with_troubles():
     assert res.exit_code == 0, res.output
     doc = json.loads(res.stdout)
     assert doc["runs"] == 2 and "g-sensitivity 200" in doc["sequence"] and "rate error" in doc["sequence"]
+
+
+def test_cli_short_poses_held_in_the_hand(tmp_path):
+    """Like a recording whose first 26 s are held in the hand with 1-6 s poses."""
+    from calib.fileio import load_toml
+    from seqdesign.cli import main
+
+    out = tmp_path / "short.npz"
+    res = CliRunner().invoke(
+        main,
+        ["simulate", "--by-hand", "--poses", "10", "--rest-s", "1", "6", "--first-rest-s", "3", "--seed", "1",
+         "--tremor-deg", "0.3", "--hand-held-s", "26", "--peak-rate-dps", "400", "-o", str(out)],
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    hand = load_toml(tmp_path / "short.truth.toml")["hand"]
+    rests, starts = np.array(hand["rest_s"]), np.array(hand["rest_start_s"])
+    assert rests[0] == 3.0 and np.all((rests[1:] >= 1.0) & (rests[1:] <= 6.0))
+    assert hand["tremor"]["rest"] == np.flatnonzero(starts < 26.0).tolist()
