@@ -12,7 +12,9 @@ did not converge. The runs are independent: N workers or a dask cluster give the
 from __future__ import annotations
 
 import math
+import tempfile
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -24,10 +26,11 @@ from calib.extras import NONE as NO_EXTRAS
 from calib.extras import Extras
 from calib.handplan import random_hand_plan, xsens_like_plan
 from calib.handposes import PoseList, tipping_plan
-from calib.handsim import simulate_by_hand
+from calib.handsim import simulate_by_hand, write_hand_run
 from calib.handtroubles import TroubleSpec
 from calib.profiles import NoiseProfile
 from calib.requirements import PAPER, Requirements
+from calib.runlog import read_run
 from calib.sequence import Sequence
 from calib.sim import SimConfig, simulate
 from calib.transform import rotvec_to_dcm
@@ -208,12 +211,6 @@ def _one_hand_run(job: VerifyJob, errors: ErrorModel, rng: np.random.Generator) 
 
 def _as_read(run, truth):
     """A run with a host's stamps as ``calibrate`` gets it from its file: written, then read back."""
-    import tempfile
-    from pathlib import Path
-
-    from calib.handsim import write_hand_run
-    from calib.runlog import read_run
-
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "run.csv"
         write_hand_run(path, run, truth)
