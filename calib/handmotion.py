@@ -33,6 +33,7 @@ import numpy as np
 
 from . import earth
 from .handplan import HandPlan, bump, min_jerk
+from .handtremor import Tremor, held_at, tremor_state
 from .strapdown import cross3
 from .transform import rotvec_to_dcm
 
@@ -69,8 +70,12 @@ def segment_of(plan: HandPlan, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return k, moving
 
 
-def hand_state(plan: HandPlan, t: np.ndarray) -> HandState:
-    """The trajectory at times ``t`` (s from the start of the run), shape ``(m,)``."""
+def hand_state(plan: HandPlan, t: np.ndarray, tremor: Tremor | None = None) -> HandState:
+    """The trajectory at times ``t`` (s from the start of the run), shape ``(m,)``.
+
+    With a ``tremor`` (:mod:`calib.handtremor`), its held rests wobble and shake:
+    ``C_b_n = C_k exp([theta x])``, ``omega_nb_b = J_r(theta) theta'``, ``p, v, a`` its shake's.
+    """
     t = np.atleast_1d(np.asarray(t, dtype=float))
     k, moving = segment_of(plan, t)
     m = len(t)
@@ -100,6 +105,13 @@ def hand_state(plan: HandPlan, t: np.ndarray) -> HandState:
         p[moving] = h[:, None] * d
         v[moving] = (d_h / move)[:, None] * d
         a[moving] = (dd_h / move**2)[:, None] * d
+    if tremor is not None:
+        held = held_at(tremor, t)
+        sel = held >= 0
+        if sel.any():
+            tr = tremor_state(tremor, held[sel], t[sel])
+            C[sel] = C[sel] @ rotvec_to_dcm(tr.theta)
+            w_nb[sel], p[sel], v[sel], a[sel] = tr.omega_nb_b, tr.p_n, tr.v_n, tr.a_n
     return HandState(C_b_n=C, omega_nb_b=w_nb, p_n=p, v_n=v, a_n=a)
 
 

@@ -11,6 +11,10 @@ move: :data:`GAUSS_NODES`-point Gauss-Legendre, error of order ``h^8``
 relative to the turn's time scale, i.e. at rounding for the grids used). Then
 the 21 errors (:meth:`calib.errormodel.ErrorModel.apply`) and the profile's
 noise (:func:`calib.sim.add_noise`). ``docs/by-hand-sim.md`` gives the physics.
+
+The troubles of real hand recordings (:mod:`calib.handtroubles`: tremor, gyro
+g-sensitivity, a sample-clock rate error, host time stamps) are off by default;
+a run without them is the same to the last bit.
 """
 
 from __future__ import annotations
@@ -23,10 +27,13 @@ import numpy as np
 
 from .errormodel import ErrorModel
 from .fileio import atomic_write_text
+from .handclock import epoch_ms, epoch_seconds, host_stamps, write_epoch_ms_csv
 from .handmotion import hand_state, segment_of, sensed
 from .handplan import HandPlan
+from .handtremor import Tremor, held_at
+from .handtroubles import HandTroubles, apply_g_sensitivity, troubles_to_table
 from .profiles import NoiseProfile
-from .runlog import Run, write_run
+from .runlog import Run, write_run, write_windows
 from .sim import SimConfig, Truth, add_noise, run_meta
 from .truth import truth_path_for, truth_to_dict
 
@@ -41,7 +48,9 @@ def sample_times(plan: HandPlan, sample_rate_hz: float) -> np.ndarray:
     return np.arange(1, n + 1) / sample_rate_hz
 
 
-def quadrature(plan: HandPlan, time_s: np.ndarray, oversample: int) -> tuple[np.ndarray, ...]:
+def quadrature(
+    plan: HandPlan, time_s: np.ndarray, oversample: int, tremor: Tremor | None = None
+) -> tuple[np.ndarray, ...]:
     """Nodes, weights and sample index of the rule integrating over each sample interval.
 
     Parameters
@@ -51,6 +60,8 @@ def quadrature(plan: HandPlan, time_s: np.ndarray, oversample: int) -> tuple[np.
         End of each sample; the first interval starts at 0.
     oversample : int
         Equal pieces per sample interval (before the cuts at the plan's breakpoints).
+    tremor : Tremor, optional
+        Held rests: integrated as moves are (Gauss-Legendre), cut at the ends of their tapers.
 
     Returns
     -------
@@ -64,12 +75,17 @@ def quadrature(plan: HandPlan, time_s: np.ndarray, oversample: int) -> tuple[np.
     starts = np.concatenate([[0.0], time_s[:-1]])
     frac = np.arange(oversample) / oversample
     fine = (starts[:, None] + (time_s - starts)[:, None] * frac[None, :]).ravel()
-    inside = plan.breakpoints_s[(plan.breakpoints_s > 0.0) & (plan.breakpoints_s < time_s[-1])]
+    breaks = plan.breakpoints_s
+    if tremor is not None:
+        breaks = np.concatenate([breaks, tremor.breakpoints_s])
+    inside = breaks[(breaks > 0.0) & (breaks < time_s[-1])]
     cuts = np.unique(np.concatenate([fine, time_s, inside]))
     a, b = cuts[:-1], cuts[1:]
     mid = 0.5 * (a + b)
     sample = np.searchsorted(time_s, mid)
     _, moving = segment_of(plan, mid)
+    if tremor is not None:
+        moving = moving | (held_at(tremor, mid) >= 0)
     # A rest piece: the integrand is constant, its midpoint is exact.
     t_rest, w_rest, s_rest = mid[~moving], (b - a)[~moving], sample[~moving]
     x, gw = np.polynomial.legendre.leggauss(GAUSS_NODES)
@@ -91,6 +107,7 @@ def true_increments(
     sample_rate_hz: float,
     oversample: int = 10,
     time_s: np.ndarray | None = None,
+    tremor: Tremor | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Exact gyro and accelerometer increments of a hand-placed run.
 
@@ -104,6 +121,8 @@ def true_increments(
         Pieces per sample interval of the quadrature grid (default 10).
     time_s : ndarray, optional
         Sample end times (increasing, the first interval from 0); default uniform.
+    tremor : Tremor, optional
+        The held rests' tremor (:mod:`calib.handtremor`); None: every rest on the table.
 
     Returns
     -------
@@ -114,11 +133,11 @@ def true_increments(
     if time_s is None:
         time_s = sample_times(plan, sample_rate_hz)
     n = len(time_s)
-    t, w, sample = quadrature(plan, time_s, oversample)
+    t, w, sample = quadrature(plan, time_s, oversample, tremor)
     dtheta, dv = np.zeros((n, 3)), np.zeros((n, 3))
     for lo in range(0, len(t), CHUNK_NODES):
         sl = slice(lo, lo + CHUNK_NODES)
-        omega, f = sensed(hand_state(plan, t[sl]), latitude_rad, gravity_mps2)
+        omega, f = sensed(hand_state(plan, t[sl], tremor), latitude_rad, gravity_mps2)
         for i in range(3):
             dtheta[:, i] += np.bincount(sample[sl], w[sl] * omega[:, i], minlength=n)
             dv[:, i] += np.bincount(sample[sl], w[sl] * f[:, i], minlength=n)
@@ -148,6 +167,8 @@ class HandTruth:
         Whether noise was added.
     oversample : int
         The quadrature grid of the increments.
+    troubles : HandTroubles
+        Tremor, g-sensitivity, rate error and stamps (:mod:`calib.handtroubles`); none by default.
     """
 
     errors: ErrorModel
@@ -156,6 +177,7 @@ class HandTruth:
     seed: int | None
     noise: bool
     oversample: int = 10
+    troubles: HandTroubles = HandTroubles()
 
     @property
     def rest_start_s(self) -> np.ndarray:
@@ -190,6 +212,8 @@ def simulate_by_hand(
     seed: int | None = None,
     oversample: int = 10,
     rng: np.random.Generator | None = None,
+    troubles: HandTroubles | None = None,
+    stamp_rng: np.random.Generator | None = None,
 ) -> tuple[Run, HandTruth]:
     """Simulate a run placed by hand.
 
@@ -197,7 +221,7 @@ def simulate_by_hand(
     ----------
     plan : HandPlan
     cfg : SimConfig
-        Site, sample rate and (optionally) measured gravity.
+        Site, sample rate (the IMU's nominal one) and (optionally) measured gravity.
     errors : ErrorModel, optional
         The injected 21 errors; None: none.
     profile : NoiseProfile, optional
@@ -208,21 +232,34 @@ def simulate_by_hand(
         Pieces per sample interval of the quadrature (default 10).
     rng : numpy.random.Generator, optional
         The noise's generator instead of ``default_rng(seed)``.
+    troubles : HandTroubles, optional
+        Tremor, gyro g-sensitivity, a sample-clock rate error, host stamps
+        (:mod:`calib.handtroubles`); None: none, the run is the same to the last bit.
+    stamp_rng : numpy.random.Generator, optional
+        The host delays' generator (jittering stamps only); default: a stream spawned from ``seed``.
 
     Returns
     -------
     run : Run
+        ``time_s`` the written stamps: the nominal sample times, the host's reception
+        times, or epoch seconds in whole ms (``troubles.stamps``).
     truth : HandTruth
     """
     errors = errors if errors is not None else ErrorModel.zero()
+    trouble = troubles if troubles is not None else HandTroubles()
+    rate_hz = cfg.sample_rate_hz * (1.0 + trouble.rate_error)  # the IMU's true rate
     time_s, dtheta, dv = true_increments(
-        plan, cfg.latitude_rad, cfg.gravity, cfg.sample_rate_hz, oversample=oversample
+        plan, cfg.latitude_rad, cfg.gravity, rate_hz, oversample=oversample, tremor=trouble.tremor
     )
     dt = np.diff(np.concatenate([[0.0], time_s]))
+    dv_true = dv
     dtheta, dv = errors.apply(dtheta, dv, dt)
+    dtheta = apply_g_sensitivity(dtheta, dv_true, trouble.g_sensitivity)
     if profile is not None:
         noise_rng = rng if rng is not None else np.random.default_rng(seed)
         dtheta, dv = add_noise(dtheta, dv, dt, profile, noise_rng)
+    if trouble.any:
+        time_s, dtheta, dv = _as_logged(time_s, dtheta, dv, cfg.sample_rate_hz, trouble, seed, stamp_rng)
     run = Run(time_s=time_s, dtheta_rad=dtheta, dv_mps=dv, meta=hand_meta(cfg, plan))
     truth = HandTruth(
         errors=errors,
@@ -231,8 +268,25 @@ def simulate_by_hand(
         seed=seed,
         noise=profile is not None,
         oversample=oversample,
+        troubles=trouble,
     )
     return run, truth
+
+
+def _as_logged(time_s, dtheta, dv, nominal_hz, trouble: HandTroubles, seed, stamp_rng):
+    """The IMU's samples as the log holds them: increments over the nominal period, the stamps written."""
+    if trouble.rate_error != 0.0:
+        # Mean rate and specific force over the true sample, times the nominal period.
+        scale = 1.0 + trouble.rate_error
+        dtheta, dv = dtheta * scale, dv * scale
+    stamps = np.arange(1, len(time_s) + 1) / nominal_hz
+    if trouble.stamp_jitter_s > 0.0:
+        if stamp_rng is None:
+            stamp_rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
+        stamps = host_stamps(time_s, trouble.stamp_jitter_s, stamp_rng)
+    if trouble.stamps == "epoch-ms":
+        stamps = epoch_seconds(epoch_ms(stamps, trouble.epoch_ms))
+    return stamps, dtheta, dv
 
 
 def plan_to_table(plan: HandPlan) -> dict:
@@ -276,7 +330,7 @@ def hand_truth_to_dict(truth: HandTruth) -> dict:
     """The truth TOML document: the common tables (:func:`calib.truth.truth_to_dict`) and ``[hand]``."""
     doc = truth_to_dict(truth.as_truth())
     doc["meta"]["oversample"] = int(truth.oversample)
-    doc["hand"] = plan_to_table(truth.plan)
+    doc["hand"] = plan_to_table(truth.plan) | troubles_to_table(truth.troubles)
     return doc
 
 
@@ -291,8 +345,21 @@ def write_hand_truth(path: str | Path, truth: HandTruth, provenance: dict | None
 
 
 def write_hand_run(output: str | Path, run: Run, truth: HandTruth, provenance: dict | None = None) -> Path:
-    """Write the run log (``.csv`` or ``.npz``) and its truth file beside it; return the truth's path."""
-    write_run(run, output)
+    """Write the run log (``.csv`` or ``.npz``) and its truth file beside it; return the truth's path.
+
+    Epoch-ms stamps (``truth.troubles.stamps``) are written as a ``time_ms`` column of
+    integers, in a ``.csv`` only. A host's stamps are written as they are, unchecked (a
+    reader judges them; :func:`calib.runlog.write_run` would refuse stamps that repeat or
+    step by a fraction of a period).
+    """
+    if truth.troubles.stamps == "epoch-ms":
+        if Path(output).suffix.lower() != ".csv":
+            raise ValueError("epoch-ms stamps are written in a .csv run log (an .npz holds float seconds)")
+        write_epoch_ms_csv(run, output)
+    elif truth.troubles.stamp_jitter_s > 0.0:
+        write_windows(output, run.meta, [(run.time_s, run.dtheta_rad, run.dv_mps)])
+    else:
+        write_run(run, output)
     truth_path = truth_path_for(output)
     write_hand_truth(truth_path, truth, provenance)
     return truth_path

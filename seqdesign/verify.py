@@ -12,7 +12,9 @@ did not converge. The runs are independent: N workers or a dask cluster give the
 from __future__ import annotations
 
 import math
+import tempfile
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -24,9 +26,11 @@ from calib.extras import NONE as NO_EXTRAS
 from calib.extras import Extras
 from calib.handplan import random_hand_plan, xsens_like_plan
 from calib.handposes import PoseList, tipping_plan
-from calib.handsim import simulate_by_hand
+from calib.handsim import simulate_by_hand, write_hand_run
+from calib.handtroubles import TroubleSpec
 from calib.profiles import NoiseProfile
 from calib.requirements import PAPER, Requirements
+from calib.runlog import read_run
 from calib.sequence import Sequence
 from calib.sim import SimConfig, simulate
 from calib.transform import rotvec_to_dcm
@@ -78,15 +82,31 @@ class HandShape:
     peak_rate_dps: float | None = None
     translation_m: float = 0.3
     wobble_deg: float = 10.0
-    g_sensitivity: bool = False  # fit the gyro g-sensitivity too (the truth has none)
+    g_sensitivity: bool = False  # fit the gyro g-sensitivity too (injected by troubles only)
     pose_list: PoseList | None = None  # a user's poses instead of random ones
     placement_deg: float = 0.0  # each pose of the pose list placed within this (each axis)
+    troubles: TroubleSpec = TroubleSpec()  # a real recording's troubles (none by default)
 
     @property
     def name(self) -> str:
         if self.pose_list is not None:
-            return f"by hand ({self.pose_list.name})"
-        return f"by hand ({self.like}-like)" if self.like else f"by hand ({self.poses} random poses)"
+            shape = self.pose_list.name
+        else:
+            shape = f"{self.like}-like" if self.like else f"{self.poses} random poses"
+        return f"by hand ({shape}{''.join(', ' + t for t in self.trouble_words())})"
+
+    def trouble_words(self) -> list[str]:
+        """The troubles the runs carry, in words (none: an empty list)."""
+        t = self.troubles
+        gs = t.g_sensitivity_dphg
+        words = {
+            f"tremor {t.tremor_deg:g} deg": t.tremor_deg,
+            f"g-sensitivity {gs if isinstance(gs, float | int) else 'fixed'} deg/h/g": gs is not None,
+            f"rate error {t.rate_error:+g}": t.rate_error,
+            f"stamps up to {1000 * t.stamp_jitter_s:g} ms late": t.stamp_jitter_s,
+            f"{t.stamps} stamps": t.stamps != "seconds",
+        }
+        return [w for w, on in words.items() if on]
 
     def plan(self, rng: np.random.Generator):
         if self.pose_list is not None:
@@ -168,8 +188,14 @@ def one_run(job: VerifyJob) -> RunOutcome:
 def _one_hand_run(job: VerifyJob, errors: ErrorModel, rng: np.random.Generator) -> RunOutcome:
     """One run placed by hand: its poses, moves and noise drawn from the run's generator."""
     assert job.hand is not None
-    run, truth = simulate_by_hand(job.hand.plan(rng), job.config, errors, job.profile, rng=rng)
+    plan = job.hand.plan(rng)
+    troubles = job.hand.troubles.draw(plan, rng)
+    run, truth = simulate_by_hand(
+        plan, job.config, errors, job.profile, rng=rng, troubles=troubles, stamp_rng=rng
+    )
     try:
+        if troubles.stamp_jitter_s or troubles.stamps != "seconds":
+            run = _as_read(run, truth)
         result = calibrate(
             run,
             job.profile,
@@ -181,6 +207,14 @@ def _one_hand_run(job: VerifyJob, errors: ErrorModel, rng: np.random.Generator) 
     except CalibError as exc:
         return RunOutcome(job.seed, None, None, False, str(exc))
     return RunOutcome(job.seed, result.values - truth.errors.values, result.covariance, result.converged)
+
+
+def _as_read(run, truth):
+    """A run with a host's stamps as ``calibrate`` gets it from its file: written, then read back."""
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "run.csv"
+        write_hand_run(path, run, truth)
+        return read_run(path)
 
 
 @dataclass(frozen=True)

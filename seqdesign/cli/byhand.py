@@ -10,6 +10,7 @@ import numpy as np
 
 from calib.errors import CalibError
 
+from .handtroubles import TROUBLE_DEFAULTS, trouble_spec
 from .tools import emit_json, provenance
 
 DEFAULT_POSES = 20
@@ -55,7 +56,7 @@ def simulate_by_hand(output, profile, errors_file, table2, seed, site, noise_fre
     """Simulate a run placed by hand and write the run log and its truth file (with the plan).
 
     ``site`` is ``(latitude, height, gravity_mps2, sample_rate_hz)`` as given; ``hand`` the
-    ``--by-hand`` options by name.
+    ``--by-hand`` options by name (the troubles' of :mod:`seqdesign.cli.handtroubles` too).
     """
     latitude, height, gravity_mps2, sample_rate_hz = site
     from calib import earth
@@ -72,6 +73,21 @@ def simulate_by_hand(output, profile, errors_file, table2, seed, site, noise_fre
         )
     if hand["poses"] is not None and hand["like"]:
         raise CalibError("--poses and --like both given", "--poses", "choose one")
+    if hand["like"] and (
+        names := [f"--{k.replace('_', '-')}" for k in ("rest_s", "first_rest_s") if hand[k]]
+    ):
+        raise CalibError(
+            f"{', '.join(names)} and --like both given", names[0], "--like fixes the rests: choose one"
+        )
+    if hand["rest_s"] and hand["rest_s"][0] > hand["rest_s"][1]:
+        raise CalibError(f"--rest-s {hand['rest_s'][0]:g} {hand['rest_s'][1]:g}: MIN above MAX", "--rest-s")
+    spec = trouble_spec({k: hand[k] for k in TROUBLE_DEFAULTS})
+    if spec.stamps == "epoch-ms" and Path(output).suffix.lower() != ".csv":
+        raise CalibError(
+            "--stamps epoch-ms writes integer milliseconds, which an .npz run log does not hold",
+            "--stamps",
+            "name the output .csv, or drop --stamps epoch-ms",
+        )
     lat = latitude if latitude is not None else DEFAULT_LATITUDE_DEG
     h = height if height is not None else DEFAULT_HEIGHT_M
     earth.check_site(lat, h)
@@ -79,15 +95,19 @@ def simulate_by_hand(output, profile, errors_file, table2, seed, site, noise_fre
     if source is click.core.ParameterSource.DEFAULT:
         sample_rate_hz = HAND_RATE_HZ
     prof = load_profile(profile)
-    streams = np.random.SeedSequence(seed).spawn(3)  # the plan, the errors, the noise
-    plan_rng, errors_rng, noise_rng = (np.random.default_rng(s) for s in streams)
+    # The plan, the errors, the noise, the troubles (spawn(4)[:3] is spawn(3): runs without troubles
+    # are the same with and without this fourth stream).
+    streams = np.random.SeedSequence(seed).spawn(4)
+    plan_rng, errors_rng, noise_rng, trouble_rng = (np.random.default_rng(s) for s in streams)
     shape = {k: hand[k] for k in ("translation_m", "wobble_deg", "peak_rate_dps")}
     if hand["like"] == "xsens":
         plan = xsens_like_plan(plan_rng, **shape)
     else:
         n_poses = hand["poses"] if hand["poses"] is not None else DEFAULT_POSES
-        plan = random_hand_plan(n_poses, plan_rng, **shape)
+        rests = {k: hand[k] for k in ("rest_s", "first_rest_s") if hand[k]}
+        plan = random_hand_plan(n_poses, plan_rng, **shape, **rests)
     errors = _errors(errors_file, table2, hand["random_errors"], errors_rng)
+    troubles = spec.draw(plan, trouble_rng)
     cfg = SimConfig(
         latitude_rad=math.radians(lat), height_m=h, sample_rate_hz=sample_rate_hz, gravity_mps2=gravity_mps2
     )
@@ -99,6 +119,8 @@ def simulate_by_hand(output, profile, errors_file, table2, seed, site, noise_fre
         seed=seed,
         oversample=hand["oversample"],
         rng=noise_rng,
+        troubles=troubles,
+        stamp_rng=trouble_rng,
     )
     files = {"errors": errors_file, "profile": profile if Path(profile).exists() else None}
     prov = provenance(files, motion="by-hand", profile=prof.name)
@@ -111,7 +133,7 @@ def simulate_by_hand(output, profile, errors_file, table2, seed, site, noise_fre
         "motion": "by-hand",
         "poses": plan.n_poses,
         "samples": int(run.time_s.size),
-        "duration_s": float(run.time_s[-1]),
+        "duration_s": run.n_samples / sample_rate_hz,  # as the log says: its samples at the nominal rate
         "sample_rate_hz": sample_rate_hz,
         "peak_rate_dps": peak,
         "profile": prof.name,
@@ -119,11 +141,33 @@ def simulate_by_hand(output, profile, errors_file, table2, seed, site, noise_fre
         "latitude_deg": lat,
         "height_m": h,
     }
+    if troubles.any:
+        summary["troubles"] = _troubles_summary(troubles)
     if as_json:
         emit_json(summary)
         return
     click.echo(
         f"wrote {output} ({plan.n_poses} poses placed by hand, {summary['samples']} samples, "
         f"{summary['duration_s']:.1f} s, peak {peak:.0f} deg/s, "
-        f"{'noise-free' if noise_free else 'profile ' + prof.name}) and {truth_path}"
+        f"{'noise-free' if noise_free else 'profile ' + prof.name}"
+        + (f"; {', '.join(summary['troubles'])}" if troubles.any else "")
+        + f") and {truth_path}"
     )
+
+
+def _troubles_summary(troubles) -> list[str]:
+    """The troubles of a simulated run in words, for its summary line."""
+    out = []
+    if troubles.tremor is not None:
+        deg = float(np.degrees(troubles.tremor.rms_angle_rad().mean())) if len(troubles.tremor.rest) else 0.0
+        n = len(troubles.tremor.rest)
+        out.append(f"{n} pose{'s' if n != 1 else ''} held in the hand ({deg:.2g} deg RMS tremor)")
+    if troubles.g_sensitivity is not None:
+        out.append(f"g-sensitivity up to {np.abs(troubles.g_sensitivity_dphg).max():.3g} deg/h/g")
+    if troubles.rate_error:
+        out.append(f"sample rate {troubles.rate_error:+.3%} off")
+    if troubles.stamp_jitter_s:
+        out.append(f"host stamps up to {1000 * troubles.stamp_jitter_s:g} ms late")
+    if troubles.stamps != "seconds":
+        out.append(f"stamps in {troubles.stamps}")
+    return out

@@ -14,6 +14,7 @@ from calib.errors import CalibError
 
 from . import options
 from .byhand import by_hand_refusals, simulate_by_hand
+from .handtroubles import given_troubles, trouble_options
 from .tools import emit_json, guarded, hidden_alias, info, provenance
 
 if TYPE_CHECKING:  # the machinery loads when a command runs, not for --help
@@ -126,6 +127,8 @@ HAND_DEFAULTS = {
     "wobble_deg": 10.0,
     "oversample": 10,
     "random_errors": None,
+    "rest_s": None,
+    "first_rest_s": None,
 }
 
 
@@ -228,6 +231,22 @@ HAND_DEFAULTS = {
     default=None,
     help="--by-hand: draw the 21 errors uniformly within the sizes of a unit of this grade.",
 )
+@click.option(
+    "--rest-s",
+    type=click.FloatRange(0.1, 3600.0),
+    nargs=2,
+    default=None,
+    metavar="MIN MAX",
+    help="--by-hand: each rest after the first lasts between these, s (default 5 12; a hand "
+    "holding short poses: 1 6).",
+)
+@click.option(
+    "--first-rest-s",
+    type=click.FloatRange(0.1, 36000.0),
+    default=None,
+    help="--by-hand: the first rest (the static start), s (default 50).",
+)
+@trouble_options
 @options.as_json
 @guarded
 def simulate(
@@ -257,11 +276,15 @@ def simulate(
     wobble_deg=10.0,
     oversample=10,
     random_errors=None,
+    rest_s=None,
+    first_rest_s=None,
+    **troubles,
 ):
     """Simulate the IMU increments of SEQUENCE on a stationary base with exact
     kinematics, the 21 errors and white noise; write the run log (-o) and its
     truth file beside it (run.truth.toml). With --by-hand, a run placed by hand
-    on a table instead (no SEQUENCE).
+    on a table instead (no SEQUENCE), with a real recording's troubles when asked
+    (tremor, host stamps, g-sensitivity, a rate error).
     """
     hand = {
         "poses": poses,
@@ -271,6 +294,8 @@ def simulate(
         "wobble_deg": wobble_deg,
         "oversample": oversample,
         "random_errors": random_errors,
+        "rest_s": rest_s,
+        "first_rest_s": first_rest_s,
     }
     if by_hand:
         gimbal_run = {
@@ -283,9 +308,12 @@ def simulate(
         }
         by_hand_refusals(sequence, gimbal_run)
         site = (latitude, height, gravity_mps2, sample_rate_hz)
-        simulate_by_hand(output, profile, errors_file, table2, seed, site, noise_free, as_json, hand)
+        simulate_by_hand(
+            output, profile, errors_file, table2, seed, site, noise_free, as_json, hand | troubles
+        )
         return
-    if names := ["--" + k.replace("_", "-") for k, v in hand.items() if v != HAND_DEFAULTS[k]]:
+    names = ["--" + k.replace("_", "-") for k, v in hand.items() if v != HAND_DEFAULTS[k]]
+    if names := names + given_troubles(troubles):
         raise CalibError(
             f"{', '.join(names)} describe a run placed by hand", "--by-hand", "add --by-hand, or drop them"
         )

@@ -10,6 +10,7 @@ import click
 from calib.errors import CalibError
 
 from . import options
+from .handtroubles import given_troubles, trouble_options
 from .tools import emit_json, guarded, info
 
 
@@ -73,6 +74,7 @@ from .tools import emit_json, guarded, info
     type=click.FloatRange(1.0, 5000.0),
     help="--by-hand: the fastest turn of a run peaks at this rate, deg/s.",
 )
+@trouble_options
 @click.option("--plot", "plot_path", metavar="FILE.png", help="Also draw the RMS ratios per parameter (PNG).")
 @options.as_json
 @guarded
@@ -101,6 +103,7 @@ def verify(
     placement_deg,
     plot_path,
     as_json,
+    **troubles,
 ):
     """Simulate RUNS runs of SEQUENCE (each its own unit of the profile's grade, mounting within the
     tolerance, flip errors and noise), calibrate each as `calibrate` does, and report: the mean NEES
@@ -118,6 +121,10 @@ def verify(
         raise CalibError("--errors and --table2 both given", None, "choose one")
     if workers > 1 and scheduler:
         raise CalibError("--workers and --scheduler both given", None, "choose one")
+    if not by_hand and (names := given_troubles(troubles)):
+        raise CalibError(
+            f"{', '.join(names)} describe runs placed by hand", "--by-hand", "add --by-hand, or drop them"
+        )
     if plot_path and Path(plot_path).suffix.lower() != ".png":
         raise CalibError(f"plot {plot_path!r} must end in .png", "--plot")
     # A unit placed by hand is judged by the mems requirements unless told otherwise, as calibrate does.
@@ -139,6 +146,7 @@ def verify(
             seed,
             errors,
             (like, poses, peak_rate_dps, by_hand, placement_deg),
+            troubles,
         )
     else:
         result = _verify_sequence(

@@ -22,11 +22,13 @@ def verify_by_hand(
     seed,
     errors,
     shape,
+    troubles=None,
 ):
     """Simulate and calibrate ``runs`` runs placed by hand (``verify`` reports them).
 
     ``site`` is ``(latitude, height, gravity_mps2)`` as given, ``shape`` ``(like, poses,
-    peak_rate_dps, by_hand, placement_deg)``; a SEQUENCE given with ``--by-hand`` is a pose list,
+    peak_rate_dps, by_hand, placement_deg)``, ``troubles`` the trouble options by name
+    (:mod:`seqdesign.cli.handtroubles`); a SEQUENCE given with ``--by-hand`` is a pose list,
     whose runs are held against ``analyze --by-hand``'s prediction.
     """
     import numpy as np
@@ -35,6 +37,8 @@ def verify_by_hand(
     from calib.sim import SimConfig
     from seqdesign.verify import HandShape
     from seqdesign.verify import verify as run_verify
+
+    from .handtroubles import TROUBLE_DEFAULTS, trouble_spec
 
     like, poses, peak_rate_dps, by_hand, placement_deg = shape
     pose_list = None
@@ -52,6 +56,7 @@ def verify_by_hand(
         raise CalibError(
             "no SEQUENCE given", "verify", "give a sequence, or --by-hand for runs placed by hand"
         )
+    spec = trouble_spec(troubles or TROUBLE_DEFAULTS)
     extras = as_extras(with_terms, by_hand=True)
     latitude, height, gravity_mps2 = site
     lat = 45.0 if latitude is None else latitude
@@ -68,6 +73,7 @@ def verify_by_hand(
         g_sensitivity=bool(extras.groups),
         pose_list=pose_list,
         placement_deg=placement_deg,
+        troubles=spec,
     )
     predicted = np.full(21, np.nan)
     if pose_list is not None:  # the analyser's prediction the runs are held against
