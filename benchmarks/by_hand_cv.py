@@ -105,8 +105,13 @@ def mikoff(name: str) -> Recording:
 def ours_on(rec: Recording, part: Run):
     """Our default hand fit of a part, as a correction in the recording's raw units."""
     res = calibrate(part, "mems", by_hand=True, requirements="mems", gravity_mps2=rec.gravity)
+    G = sG = None
+    if "g-sensitivity" in res.extras.groups:  # chosen by the data: part of the correction
+        part_gs = res.extras.index("g-sensitivity")
+        G = np.asarray(res.extra_values)[part_gs].reshape(3, 3)
+        sG = np.asarray(res.extra_sigma)[part_gs].reshape(3, 3)
     c = correction_from_parameters(
-        res.values, res.covariance, None, None, rec.gyro_conversion, rec.accel_conversion, source="ours"
+        res.values, res.covariance, G, sG, rec.gyro_conversion, rec.accel_conversion, source="ours"
     )
     return c, res
 
