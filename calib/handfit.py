@@ -71,6 +71,9 @@ class HandData:
         False for a move with clipped samples (its rests are then not chained).
     move_turn_rad : ndarray, shape (K - 1,)
         The angle the gyro turned through over each move (the sum of its increments' norms).
+    rest_noise : ndarray, shape (K, 2)
+        Each rest's own white noise over the profile's (accelerometer, gyro), at least 1: the
+        scatter of its samples (a pose held in the hand trembles).
     """
 
     rests: Rests
@@ -80,22 +83,35 @@ class HandData:
     move_slices: list
     move_used: np.ndarray
     move_turn_rad: np.ndarray
+    rest_noise: np.ndarray
 
     @property
     def count(self) -> int:
         return len(self.rest_time_s)
 
 
-def hand_data(dtheta, dv, dt, profile: NoiseProfile, clipped=None, where: str = "run") -> HandData:
-    """Rests found with the profile's noise, their means, and the moves between them."""
-    rests = find_rests(dtheta, dv, dt, profile.arw, profile.vrw, where)
+def hand_data(
+    dtheta, dv, dt, profile: NoiseProfile, clipped=None, where: str = "run", loosen: float = 1.0
+) -> HandData:
+    """Rests found with the profile's noise (thresholds times ``loosen``), their means, each rest's
+    own noise, and the moves between them.
+    """
+    rests = find_rests(dtheta, dv, dt, profile.arw, profile.vrw, where, loosen)
     T = np.array([dt[a:b].sum() for a, b in zip(rests.start, rests.end, strict=True)])
     rate = np.array([dtheta[a:b].sum(0) for a, b in zip(rests.start, rests.end, strict=True)]) / T[:, None]
     force = np.array([dv[a:b].sum(0) for a, b in zip(rests.start, rests.end, strict=True)]) / T[:, None]
     slices = [slice(int(e), int(s)) for e, s in zip(rests.end[:-1], rests.start[1:], strict=True)]
     used = np.array([clipped is None or not clipped[s].any() for s in slices], dtype=bool)
     turn = np.array([np.linalg.norm(dtheta[s], axis=1).sum() for s in slices])
-    return HandData(rests, T, rate, force, slices, used, turn)
+    noise = np.ones((len(T), 2))
+    for r, (a, b) in enumerate(zip(rests.start, rests.end, strict=True)):
+        # A pose held in the hand trembles: its samples scatter beyond the profile's white noise,
+        # and so does their mean (the scatter's own, never less than the profile's).
+        h = dt[a:b, None]
+        for k, (x, density) in enumerate(((dv, profile.vrw), (dtheta, profile.arw))):
+            per_sample = np.mean(np.var(x[a:b] / h, axis=0)) * float(np.mean(h))
+            noise[r, k] = max(1.0, math.sqrt(per_sample) / density) if density > 0 else 1.0
+    return HandData(rests, T, rate, force, slices, used, turn, noise)
 
 
 @dataclass
@@ -252,7 +268,13 @@ def linearise(
         J[:, :N] = np.einsum("pjk,k->jp", _ACCEL_DA, u_f)
         J[:, P.ACCEL_BIAS] = np.eye(3)
         J[:, cols] = (A_a @ C[r].T @ skew(f_n)) @ Smap
-        add(J, data.rest_force[r] - (A_a @ u_f + model.accel_bias), profile.vrw / math.sqrt(T), ("force", r))
+        noise_f, noise_w = data.rest_noise[r]
+        add(
+            J,
+            data.rest_force[r] - (A_a @ u_f + model.accel_bias),
+            noise_f * profile.vrw / math.sqrt(T),
+            ("force", r),
+        )
         J = np.zeros((3, layout.n))
         J[:, :N] = np.einsum("pjk,k->jp", _GYRO_DA, u_w)
         J[:, P.GYRO_BIAS] = np.eye(3)
@@ -261,7 +283,7 @@ def linearise(
         J[:, layout.h] = A_g @ C[r].T[:, :2]
         J[:, cols] = (A_g @ C[r].T @ skew(omega_n) + G @ C[r].T @ skew(f_n)) @ Smap
         pred = A_g @ u_w + model.gyro_bias + G @ u_f
-        add(J, data.rest_rate[r] - pred, profile.arw / math.sqrt(T), ("rate", r))
+        add(J, data.rest_rate[r] - pred, noise_w * profile.arw / math.sqrt(T), ("rate", r))
     for r, sl in enumerate(data.move_slices):
         if not data.move_used[r]:
             continue
@@ -320,6 +342,7 @@ def fit_by_hand(
     heading_prior: bool = True,
     earn_weights: bool = True,
     weights: Weights | None = None,
+    loosen: float = 1.0,
     where: str = "run",
 ) -> HandFit:
     """Fit the 21 parameters of a run placed by hand (see the module's model).
@@ -351,6 +374,8 @@ def fit_by_hand(
         they are.
     weights : Weights, optional
         The weights to start from (default: the profile's).
+    loosen : float
+        Multiplies the rest finder's thresholds (poses held in the hand).
     where : str
         The run's name in messages.
     """
@@ -361,7 +386,7 @@ def fit_by_hand(
             where,
             "give a profile of white noise (ARW, VRW) for this run",
         )
-    data = hand_data(dtheta, dv, dt, profile, clipped, where)
+    data = hand_data(dtheta, dv, dt, profile, clipped, where, loosen)
     layout = Layout(data.count, g_sensitivity)
     values = np.zeros(N)
     values[P.GYRO_BIAS] = np.average(data.rest_rate, axis=0, weights=data.rest_time_s)

@@ -85,6 +85,7 @@ def plan_sigma(
         slices,
         np.ones(K - 1, dtype=bool),
         np.array([np.linalg.norm(np.array(dtheta[sl]), axis=1).sum() for sl in slices]),
+        np.ones((K, 2)),
     )
     layout = Layout(K, g_sensitivity)
     state = FitState(np.zeros(P.N_PARAMS), np.zeros((3, 3)), omega_n[:2].copy(), np.array(C_b_n, dtype=float))

@@ -73,32 +73,42 @@ def moving_mean(x: np.ndarray, window: int) -> np.ndarray:
 
 
 def still_samples(
-    dtheta: np.ndarray, dv: np.ndarray, dt: np.ndarray, arw: float, vrw: float
+    dtheta: np.ndarray, dv: np.ndarray, dt: np.ndarray, arw: float, vrw: float, loosen: float = 1.0
 ) -> tuple[np.ndarray, float, float]:
-    """Per sample, whether the unit is still, and the gyro and accelerometer thresholds used."""
+    """Per sample, whether the unit is still, and the gyro and accelerometer thresholds used.
+
+    ``loosen`` multiplies every threshold (a pose held in the hand trembles beyond the
+    profile's noise; :func:`calib.handrun.hand_fit_of` chooses it by the fit).
+    """
     period = float(np.median(dt))
     window = max(3, int(round(WINDOW_S / period)))
     rate = dtheta / dt[:, None] - steady_rate(dtheta, dt)
-    gyro_threshold = max(MOTION_THRESHOLD, 5.0 * arw / math.sqrt(window * period))
+    gyro_threshold = loosen * max(MOTION_THRESHOLD, 5.0 * arw / math.sqrt(window * period))
     gyro_moving = np.linalg.norm(moving_mean(rate, window), axis=1) > gyro_threshold
     force = dv / dt[:, None]
     mean = moving_mean(force, window)
     spread = np.sqrt(np.maximum(moving_mean(force**2, window) - mean**2, 0.0))
-    accel_threshold = max(ACCEL_FLOOR, 4.0 * vrw / math.sqrt(period))
+    accel_threshold = loosen * max(ACCEL_FLOOR, 4.0 * vrw / math.sqrt(period))
     # A carried unit's acceleration can rise too smoothly for the spread within a window to
     # show it: the windows either side (not overlapping) then disagree on the mean.
     # (The windows centred a window either side of each sample: a change of the mean within
     # 1.5 windows is seen, and a slow rise of acceleration is seen early.)
     drift = np.zeros(len(force))
     drift[window:-window] = np.max(np.abs(mean[2 * window :] - mean[: -2 * window]), axis=1)
-    drift_threshold = max(DRIFT_FLOOR, 5.0 * vrw / math.sqrt(period) * math.sqrt(2.0 / window))
+    drift_threshold = loosen * max(DRIFT_FLOOR, 5.0 * vrw / math.sqrt(period) * math.sqrt(2.0 / window))
     accel_moving = (np.max(spread, axis=1) > accel_threshold) | (drift > drift_threshold)
     moving = grow(gyro_moving | accel_moving, window + int(round(MARGIN_S / period)))
     return ~moving, gyro_threshold, accel_threshold
 
 
 def find_rests(
-    dtheta: np.ndarray, dv: np.ndarray, dt: np.ndarray, arw: float, vrw: float, where: str = "run"
+    dtheta: np.ndarray,
+    dv: np.ndarray,
+    dt: np.ndarray,
+    arw: float,
+    vrw: float,
+    where: str = "run",
+    loosen: float = 1.0,
 ) -> Rests:
     """The rests of a run placed by hand (see the module's rule).
 
@@ -112,12 +122,14 @@ def find_rests(
         The profile's white noise, rad/sqrt(s) and m/s/sqrt(s).
     where : str
         The run's name, for the refusal.
+    loosen : float
+        Multiplies every threshold (poses held in the hand).
 
     Returns
     -------
     Rests
     """
-    still, g_thr, a_thr = still_samples(dtheta, dv, dt, arw, vrw)
+    still, g_thr, a_thr = still_samples(dtheta, dv, dt, arw, vrw, loosen)
     start, end = runs_of(still)
     elapsed = np.concatenate([[0.0], np.cumsum(dt)])
     keep = elapsed[end] - elapsed[start] >= MIN_REST_S

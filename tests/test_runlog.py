@@ -308,15 +308,16 @@ def test_non_utf8_refused(tmp_path):
 
 
 def test_time_must_strictly_increase(tmp_path):
-    # A repeated time with other increments is not a copy of a sample: refused as disorder.
+    # A repeated time with other increments is not a copy of a sample, and a clock that keeps the
+    # period elsewhere does not stamp two samples alike: refused where it happens.
     times = [0.005, 0.01, 0.015, 0.015, 0.02]
     body = [ROW.format(t=t) for t in times]
     body[3] = body[3].replace("1e-07", "2e-07", 1)
     path = write_text(tmp_path, csv_text(body=body))
-    refusal(path, "line 9", "sample 3", "does not strictly increase", "time_s = 0.015 follows 0.015")
+    refusal(path, "line 9", "sample 3", "two samples at one time", "time_s = 0.015 follows 0.015")
     times = [0.005, 0.01, 0.008, 0.02]
     path = write_text(tmp_path, csv_text(body=[ROW.format(t=t) for t in times]))
-    refusal(path, "line 8", "sample 2")
+    refusal(path, "line 8", "sample 2", "time goes backwards")
 
 
 def test_exact_duplicate_rows_are_named_and_removed_when_allowed(tmp_path):

@@ -117,7 +117,8 @@ def sensor_clipping(
         mask |= at_limits(raw, conversion.range_counts)
         si = conversion.to_si(raw, kind)
     else:
-        si = raw * np.asarray(sensor.si_per_unit) / (1.0 if sensor.is_rate else dt)
+        with np.errstate(over="ignore"):  # a value near 1e308: inf here, refused as not finite later
+            si = raw * np.asarray(sensor.si_per_unit) / (1.0 if sensor.is_rate else dt)
     if kind == "gyro":
         mask |= flat_top(si)
     return mask
