@@ -140,6 +140,7 @@ class HandFit:
     null_directions: list = field(default_factory=list)
     history: list = field(default_factory=list)
     weights: Weights = field(default_factory=Weights)
+    log_likelihood: float = 0.0  # Gaussian, at the weights earned (up to a constant): compares models
     weight_sizes: dict = field(default_factory=dict)  # the non-white components in the user's units
 
     @property
@@ -449,6 +450,7 @@ def fit_by_hand(
         converged=converged,
         iterations=len(history),
         chi2=float(z2.sum()),
+        log_likelihood=float(-0.5 * z2.sum() - np.log(s).sum()),
         dof=len(e) - inv.rank,
         rest_chi2=rest_chi2,
         move_chi2=move_chi2,

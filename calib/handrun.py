@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from functools import partial as partial_fit
 
 import numpy as np
-from scipy.stats import f as f_distribution
+from scipy.stats import chi2 as chi2_distribution
 
 from . import params as P
 from .errors import CalibError
@@ -39,16 +39,16 @@ class TermChoice:
     """Whether an optional term was fitted, and why.
 
     ``how`` is ``"forced in"`` (``--with``), ``"forced out"`` (``--without``) or ``"tested"``:
-    then ``F`` is the misfit the term removes per term over the misfit left per degree of
-    freedom, at the weights of the fit without it, and ``p`` its chance under no such effect
-    (an F distribution on ``dof``).
+    then ``statistic`` is twice the log-likelihood the term gains, each model at the weights its
+    own residuals earn, and ``p`` its chance under no such effect (a chi2 on ``dof``, the
+    term's count).
     """
 
     term: str
     chosen: bool
     how: str
-    F: float = float("nan")
-    dof: tuple = (0, 0)
+    statistic: float = float("nan")
+    dof: tuple = (0,)
     p: float = float("nan")
 
     def line(self) -> str:
@@ -57,15 +57,20 @@ class TermChoice:
             flag = "--with" if self.chosen else "--without"
             return f"model: {self.term} {verdict} ({self.how} by {flag})"
         return (
-            f"model: {self.term} {verdict}: F = {self.F:.3g} on {self.dof[0]} and {self.dof[1]} "
-            f"degrees of freedom, p = {self.p:.2g} ({'below' if self.chosen else 'not below'} "
-            f"{CHOICE_ALPHA:g}; --with/--without {self.term} forces it)"
+            f"model: {self.term} {verdict}: likelihood ratio {self.statistic:.3g} for {self.dof[0]} terms, "
+            f"p = {self.p:.2g} ({'below' if self.chosen else 'not below'} {CHOICE_ALPHA:g}; "
+            f"--with/--without {self.term} forces it)"
         )
 
     def to_json(self) -> dict:
         doc = {"term": self.term, "fitted": self.chosen, "how": self.how}
         if self.how == "tested":
-            doc |= {"F": self.F, "dof": list(self.dof), "p": self.p, "alpha": CHOICE_ALPHA}
+            doc |= {
+                "likelihood_ratio": self.statistic,
+                "dof": self.dof[0],
+                "p": self.p,
+                "alpha": CHOICE_ALPHA,
+            }
         return doc
 
 
@@ -116,15 +121,18 @@ def hand_fit_of(
         hand = fit(g_sensitivity=chosen, partial=partial, earn_weights=earn_weights)
         return hand, extras, TermChoice(G_SENSITIVITY, chosen, how)
     plain = fit(g_sensitivity=False, partial=partial, earn_weights=earn_weights)
-    test = fit(g_sensitivity=True, partial=True, earn_weights=False, weights=plain.weights)
-    n_terms = N_GS
-    F = max(plain.chi2 - test.chi2, 0.0) / n_terms / (test.chi2 / max(test.dof, 1))
-    p = float(f_distribution.sf(F, n_terms, max(test.dof, 1)))
-    choice = TermChoice(G_SENSITIVITY, p < CHOICE_ALPHA, "tested", float(F), (n_terms, int(test.dof)), p)
+    # Each model with the weights its own residuals earn: a term the data need shrinks the noise
+    # the other model must call a floor, and the likelihood says so (a test at the plain fit's
+    # weights would let that floor hide the term).
+    test = fit(g_sensitivity=True, partial=True, earn_weights=earn_weights, weights=plain.weights)
+    ratio = max(2.0 * (test.log_likelihood - plain.log_likelihood), 0.0)
+    p = float(chi2_distribution.sf(ratio, N_GS))
+    choice = TermChoice(G_SENSITIVITY, p < CHOICE_ALPHA, "tested", ratio, (N_GS,), p)
     if not choice.chosen:
         return plain, extras, choice
-    hand = fit(g_sensitivity=True, partial=partial, earn_weights=earn_weights, weights=plain.weights)
-    return hand, Extras((*extras.groups, G_SENSITIVITY)), choice
+    if not partial and not test.estimable.all():
+        test = fit(g_sensitivity=True, partial=False, earn_weights=earn_weights, weights=plain.weights)
+    return test, Extras((*extras.groups, G_SENSITIVITY)), choice
 
 
 def _loosening(fit, g_sensitivity: bool) -> float:
