@@ -27,6 +27,7 @@ from .errors import CalibError
 from .estimator import calibrate as fit_run
 from .extras import Extras, as_extras
 from .handrun import as_fit, fit_checked, summary_of
+from .handsetup import carried_by_hand
 from .motion import check_sequence_matches, log_turns, sequence_motion
 from .profiles import NoiseProfile, as_profile
 from .requirements import PAPER, Requirements, load_requirements
@@ -217,7 +218,20 @@ calibrate_run = calibrate
 
 
 def _fit_in_memory(run, site: Site, profile: NoiseProfile, sequence, **model) -> Fit:
-    """The estimator on a run held whole; a sequence's flips mark where it turns."""
+    """The estimator on a run held whole; a sequence's flips mark where it turns.
+
+    A run whose fast turns carry the unit (:func:`calib.handsetup.carried_by_hand`) was turned
+    by hand: the gimbal's model (flips about the IMU's centre, long dwells) does not hold, and
+    it is refused naming ``--by-hand``.
+    """
+    if sequence is None:
+        carried = carried_by_hand(run)
+        if carried is not None:
+            raise CalibError(
+                carried,
+                run.source,
+                "calibrate it as a run placed by hand: add --by-hand (and --profile mems for a MEMS unit)",
+            )
     moving = None
     if sequence is not None:
         dt = sample_intervals(run.time_s)

@@ -279,3 +279,39 @@ def check_setup(run, gravity_mps2: float, fix: bool):
             "as the data say",
         )
     return fixed(run, mistakes), [f"fixed: {m.what}" for m in mistakes]
+
+
+# A hand carries the unit: while it turns the unit fast, the specific force leaves g by metres
+# per second squared. A gimbal turns the IMU about its own centre: a lever arm of a decimetre at
+# 1 rad/s and 2 rad/s^2 leaves g by 0.2 m/s^2.
+CARRIED_MPS2 = 0.5
+FAST_TURN = 0.5  # rad/s: the samples judged (a hand's turns pass it; a gimbal's flips may not)
+
+
+def carried_by_hand(run) -> str | None:
+    """Why a run looks turned by hand (its fast turns carry the unit), or None.
+
+    The 90th percentile of ``| |f| - g |`` over the samples turning faster than `FAST_TURN`
+    (at least 50 of them), against `CARRIED_MPS2`, with at least four still stretches.
+    """
+    if len(run.time_s) < 3:
+        return None
+    dt = np.diff(np.concatenate([[run.time_s[0] - (run.time_s[1] - run.time_s[0])], run.time_s]))
+    start, end = still_stretches(run.dtheta_rad, run.dv_mps, dt)
+    if len(start) < 4:
+        return None
+    still = np.zeros(len(dt), dtype=bool)
+    for a, b in zip(start, end, strict=True):
+        still[a:b] = True
+    f = np.linalg.norm(run.dv_mps / dt[:, None], axis=1)
+    fast = np.linalg.norm(run.dtheta_rad / dt[:, None], axis=1) > FAST_TURN
+    if fast.sum() < 50:
+        return None
+    lurch = float(np.percentile(np.abs(f[fast] - np.median(f[still])), 90))
+    if lurch < CARRIED_MPS2:
+        return None
+    return (
+        f"while it turns fast the specific force leaves g by {lurch:.2g} m/s^2 (90th percentile), "
+        f"between {len(start)} still stretches: the unit was carried by hand, not turned about its "
+        "centre by a gimbal"
+    )
