@@ -385,7 +385,7 @@ def fit_by_hand(
             f"profile {profile.name!r} has a Gauss-Markov bias; the fit of a run placed by hand "
             "weights rests and moves with white noise only",
             where,
-            "give a profile of white noise (ARW, VRW) for this run",
+            "give its white part (calib.profiles.white_part; calibrate does so itself)",
         )
     data = hand_data(dtheta, dv, dt, profile, clipped, where, loosen)
     layout = Layout(data.count, g_sensitivity)

@@ -20,7 +20,7 @@ from .extras import Extras
 from .handfit import N_GS, HandFit, fit_by_hand
 from .handsetup import check_setup, fixed, rate_mistake
 from .handsummary import HandSummary
-from .profiles import NoiseProfile
+from .profiles import NoiseProfile, white_part
 from .runlog import Run
 from .runlog.clipping import describe_clipping
 from .site import Site
@@ -172,6 +172,12 @@ def fit_checked(
     """
     extras, without = terms
     run, notes = check_setup(run, site.gravity_mps2, fix_units)
+    if profile.has_gauss_markov:
+        notes.append(
+            f"profile {profile.name}: its white part weights the fit (a hand fit does not model a "
+            "Gauss-Markov bias; one that wanders between rests shows as the rests' floor below)"
+        )
+        profile = white_part(profile)
     hand, used, choice = hand_fit_of(run, site, profile, extras, partial, req, without)
     sigma = np.sqrt(np.diag(hand.covariance))[P.GYRO_SCALE] * math.sqrt(max(hand.chi2_per_dof, 1.0))
     period = float(np.median(sample_intervals(run.time_s)))

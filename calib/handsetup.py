@@ -266,8 +266,35 @@ def fixed(run, mistakes: list[Mistake]):
     return run
 
 
+STATIC_TILT_DEG = 5.0  # gravity never leaving its first direction by more: a static log
+
+
+def static_refusal(run) -> CalibError | None:
+    """The refusal of a log whose gravity direction never moves (the gimbal path says the same)."""
+    dt = np.diff(np.concatenate([[run.time_s[0] - (run.time_s[1] - run.time_s[0])], run.time_s]))
+    per = max(1, int(round(1.0 / float(np.median(dt)))))  # one-second means
+    n = len(dt) // per * per
+    if n == 0:
+        return None
+    f = (run.dv_mps[:n] / dt[:n, None]).reshape(-1, per, 3).mean(axis=1)
+    u = f / np.maximum(np.linalg.norm(f, axis=1), 1e-12)[:, None]
+    tilt = float(np.degrees(np.arccos(np.clip(u @ u[0], -1.0, 1.0))).max())
+    if tilt >= STATIC_TILT_DEG:
+        return None
+    return CalibError(
+        f"the log never turns (gravity stays within {tilt:.2g} deg of its first direction): it is a "
+        "static log; use it with `seqdesign profile fit` (profile_fit in a notebook) for a noise profile",
+        run.source,
+        "a calibration by hand holds the unit still in several poses with different faces up "
+        "(docs/by-hand.md)",
+    )
+
+
 def check_setup(run, gravity_mps2: float, fix: bool):
     """Refuse a run whose labels the data contradict, or put it right when ``fix``; the lines said."""
+    static = static_refusal(run)
+    if static is not None:
+        raise static
     mistakes = diagnose(run, gravity_mps2)
     if not mistakes:
         return run, []

@@ -78,6 +78,13 @@ class NoiseProfile:
         return self.gyro_bias_instability_dph > 0 or self.accel_bias_instability_ug > 0
 
 
+def white_part(profile: NoiseProfile) -> NoiseProfile:
+    """The profile's white noise alone (its Gauss-Markov biases dropped), named so."""
+    if not profile.has_gauss_markov:
+        return profile
+    return NoiseProfile(f"{profile.name} (white part)", profile.gyro_arw_dph, profile.accel_vrw_ug)
+
+
 def builtin_profiles() -> list[str]:
     """Names of the profiles shipped with the tool."""
     folder = resources.files("calib") / "profiles"

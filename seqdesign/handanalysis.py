@@ -24,7 +24,7 @@ from calib.handfit import fit_by_hand
 from calib.handposes import AXES, PoseList, tipping_plan
 from calib.handrun import hand_fit_of
 from calib.handsim import simulate_by_hand
-from calib.profiles import NoiseProfile
+from calib.profiles import NoiseProfile, white_part
 from calib.report import format_table, parameter_entries, worst
 from calib.requirements import Requirements
 from calib.sim import SimConfig
@@ -237,6 +237,7 @@ def analyze_recording(
     weights `calib.handrun.hand_fit_of` chooses: what calibrating the recording reports.
     """
     ext = extras if extras is not None else Extras()
+    profile = white_part(profile)  # as calibrate weights it (calib.handrun.fit_checked)
     # The fit calibrate makes (its model and weights chosen alike): the sigma it will report.
     hand, _, _ = hand_fit_of(run, site, profile, ext, True, requirements)
     rests = hand.data.rests

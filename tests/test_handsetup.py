@@ -10,6 +10,7 @@ refused by the gimbal fit naming ``--by-hand``.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -135,3 +136,41 @@ def test_cli_names_the_mistake_and_fix_units_puts_it_right(hand_run, tmp_path):
     res = CliRunner().invoke(main, [*args, "--fix-units"])
     assert res.exit_code == 0, res.output
     assert "fixed: " in res.output and out.exists()
+
+
+def test_a_static_log_gets_the_one_diagnosis_of_the_gimbal_path(tmp_path):
+    seq = tmp_path / "static.toml"
+    seq.write_text(
+        'name = "static"\nstart = ["east", "south", "down"]\ninitial_dwell_s = 60\n'
+        '[[step]]\naxis = "Z"\nangle_deg = 0.001\ndwell_s = 0\n'
+    )
+    run_path = tmp_path / "static.npz"
+    runner = CliRunner()
+    res = runner.invoke(
+        main, ["simulate", str(seq), "--profile", "mems", "--sample-rate-hz", "100", "-o", str(run_path)]
+    )
+    assert res.exit_code == 0, res.output
+    for extra in (["--by-hand"], []):
+        res = runner.invoke(
+            main, ["calibrate", str(run_path), "--profile", "mems", *extra, "-o", str(tmp_path / "r.toml")]
+        )
+        assert res.exit_code == 2 and "it is a static log; use it with `seqdesign profile fit`" in res.output
+        assert "Traceback" not in res.output and not (tmp_path / "r.toml").exists()
+
+
+def test_a_profile_with_a_gauss_markov_bias_weights_a_hand_fit_by_its_white_part(hand_run, tmp_path):
+    from calib.profiles import load_profile, white_part
+
+    run, _ = hand_run
+    path = tmp_path / "hand.npz"
+    write_run(run, path)
+    gm = Path(__file__).parent.parent / "benchmarks" / "profiles" / "adis16405.toml"
+    assert load_profile(gm).has_gauss_markov
+    out = tmp_path / "r.toml"
+    res = CliRunner().invoke(
+        main, ["calibrate", str(path), "--by-hand", "--profile", str(gm), "-o", str(out)]
+    )
+    assert res.exit_code == 0, res.output
+    assert "its white part weights the fit" in res.output
+    white = white_part(load_profile(gm))
+    assert not white.has_gauss_markov and white.gyro_arw_dph == load_profile(gm).gyro_arw_dph
