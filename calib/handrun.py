@@ -32,6 +32,7 @@ G_SENSITIVITY = "g-sensitivity"  # the optional term a hand-placed run can fit
 # recording in a thousand without the effect gets it (and loses nothing but a little precision).
 CHOICE_ALPHA = 1e-3
 LOOSENINGS = (1.0, 2.0, 4.0, 8.0)  # the rest finder's thresholds, times the profile's noise
+MORE_REST = 1.5  # a looser factor is taken on while it finds this much more rest time
 
 
 @dataclass(frozen=True)
@@ -136,7 +137,7 @@ def hand_fit_of(
 
 
 def _loosening(fit, g_sensitivity: bool) -> float:
-    """The least factor on the rest finder's thresholds whose rests separate all 21.
+    """The factor on the rest finder's thresholds: the profile's, loosened only as far as needed.
 
     A pose held in the hand trembles beyond the profile's noise: thresholds from the
     profile then find too few rests, or parts of them, and the fit refuses the run as not
@@ -144,16 +145,26 @@ def _loosening(fit, g_sensitivity: bool) -> float:
     ends of moves: on the real recordings whose poses lie on a table (Xsens, Ferraris,
     MPU-9150) looser thresholds lowered the fit's own sigmas yet carried the gravity
     direction worse from pose to pose out of sample (benchmarks/by_hand_cv.py). So the
-    profile's thresholds stand wherever they serve, and are loosened only as far as needed.
+    profile's thresholds stand wherever their rests separate the 21; else the least factor
+    whose rests do, and a looser one still while it finds `MORE_REST` times the rest time
+    (trembling poses found whole, not a few still moments of them).
     """
+    chosen, rest_time = None, 0.0
     for loosen in LOOSENINGS:
         try:
             hand = fit(g_sensitivity=g_sensitivity, partial=True, earn_weights=True, loosen=loosen)
         except CalibError:  # too few rests at these thresholds
             continue
-        if hand.estimable[: P.N_PARAMS].all():
-            return loosen
-    return 1.0  # none serves: the profile's thresholds, and the fit's own refusal
+        if not hand.estimable[: P.N_PARAMS].all():
+            continue
+        total = float(hand.data.rest_time_s.sum())
+        if chosen is None or total >= MORE_REST * rest_time:
+            if chosen == 1.0:
+                return chosen  # the profile's thresholds serve: they stand
+            chosen, rest_time = loosen, total
+        else:
+            break
+    return 1.0 if chosen is None else chosen
 
 
 def fit_checked(

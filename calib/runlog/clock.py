@@ -38,6 +38,10 @@ LAG_WINDOW_MIN = 25  # rows: a median of fewer would follow the jitter
 # Steps all within this of whole periods (and none zero) come from the IMU's own clock and are
 # counted step by step; a host's reception jitter goes beyond it.
 STEP_RULE_FRACTION = 0.25
+# The count rule's last check: a median lag over two seconds that shifts by this much and stays
+# (half a period less a margin for the medians' own scatter under a host's jitter of a period or
+# more) is no jitter.
+PERSISTENT_SHIFT = 0.45
 # A step beyond this many periods (58 days at 200 Hz) is a clock jump, not lost samples.
 MAX_STEP_PERIODS = 1e9
 # Below this (relative to the period) the time column is uniform up to float rounding
@@ -341,7 +345,7 @@ def _counted_steps(time_s: np.ndarray, periods: np.ndarray, counted: np.ndarray,
             row = _gap_row(lag, periods, row, width, lost)
             steps[row - 1] += lost
             lag[row:] -= lost
-    _check_lag_kept(lag, width)
+    _check_lag_kept(lag, 2 * width)
     return steps
 
 
@@ -382,7 +386,7 @@ def _check_lag_kept(lag: np.ndarray, width: int) -> None:
         view = np.lib.stride_tricks.sliding_window_view(lag, m)[::stride]
         medians = np.median(view, axis=1)
     shift = medians[m // stride :] - medians[: -(m // stride)]
-    bad = np.flatnonzero(np.abs(shift) > MAX_STEP_FRACTION)
+    bad = np.flatnonzero(np.abs(shift) > PERSISTENT_SHIFT)
     if bad.size:
         k = int(bad[np.argmax(np.abs(shift[bad]))])
         row = int(starts[k + m // stride])
