@@ -149,7 +149,8 @@ def _loosening(fit, g_sensitivity: bool) -> float:
     whose rests do, and a looser one still while it finds `MORE_REST` times the rest time
     (trembling poses found whole, not a few still moments of them).
     """
-    chosen, rest_time = None, 0.0
+    chosen: float | None = None
+    rest_time = 0.0
     for loosen in LOOSENINGS:
         try:
             hand = fit(g_sensitivity=g_sensitivity, partial=True, earn_weights=True, loosen=loosen)
@@ -160,7 +161,7 @@ def _loosening(fit, g_sensitivity: bool) -> float:
         total = float(hand.data.rest_time_s.sum())
         if chosen is None or total >= MORE_REST * rest_time:
             if chosen == 1.0:
-                return chosen  # the profile's thresholds serve: they stand
+                return 1.0  # the profile's thresholds serve: they stand
             chosen, rest_time = loosen, total
         else:
             break
