@@ -158,13 +158,12 @@ def _loosening(fit, g_sensitivity: bool) -> float:
             continue
         if not hand.estimable[: P.N_PARAMS].all():
             continue
+        if loosen == 1.0:
+            return 1.0  # the profile's thresholds serve: they stand
         total = float(hand.data.rest_time_s.sum())
-        if chosen is None or total >= MORE_REST * rest_time:
-            if chosen == 1.0:
-                return 1.0  # the profile's thresholds serve: they stand
-            chosen, rest_time = loosen, total
-        else:
+        if chosen is not None and total < MORE_REST * rest_time:
             break
+        chosen, rest_time = loosen, total
     return 1.0 if chosen is None else chosen
 
 
