@@ -210,6 +210,7 @@ def calibrate(
         raise ValueError("a run in memory is calibrated in memory: stream applies to a file")
     site = site_of(source, gravity_mps2)
     fit = _fit_in_memory(source, site, prof, **model)
+    provenance = {**(provenance or {}), "samples": samples_fingerprint(source)}
     return _checked_result(fit, source.source, require_convergence, prof, site, provenance, req)
 
 
@@ -289,6 +290,7 @@ def _by_hand(
     site = site_of(source, gravity_mps2)
     hand, extras, choice, source, notes = fit_checked(source, site, prof, terms, partial, req, fix_units)
     fit = as_fit(hand, extras)
+    provenance = {**(provenance or {}), "samples": samples_fingerprint(source)}
     result = _checked_result(fit, source.source, require_convergence, prof, site, provenance, req)
     return replace(result, by_hand=summary_of(hand, source, choice, tuple(notes)))
 
@@ -304,6 +306,21 @@ def rate_limit(run) -> float:
     if conversion is None:
         return MAX_PLAUSIBLE_RATE
     return max(MAX_PLAUSIBLE_RATE, conversion.max_rate_rad_s)
+
+
+def samples_fingerprint(run) -> str:
+    """What identifies a log's samples whatever its time stamps: their count, mean rate and force.
+
+    The means are ratios of the increments' sums to the time's, in which the period
+    cancels: the same samples read with uniform, float or epoch-ms stamps give the same
+    figures, and ``compare`` knows two results as fits of one recording.
+    """
+    T = float(run.time_s[-1] - run.time_s[0]) * len(run.time_s) / max(len(run.time_s) - 1, 1)
+    w = run.dtheta_rad.sum(axis=0) / T
+    f = run.dv_mps.sum(axis=0) / T
+    return (
+        f"n={len(run.time_s)} w=" + ",".join(f"{x:.7e}" for x in w) + " f=" + ",".join(f"{x:.7e}" for x in f)
+    )
 
 
 def _checked_result(fit: Fit, where: str, require_convergence: bool, profile, site, provenance, req):

@@ -119,7 +119,14 @@ class Repeatability:
             "dof": dof,
             "p_value": p,
             "flagged": [n for n, e in self.entries().items() if e["flag"]],
+            "same_samples": self.same_samples,
         }
+
+    @property
+    def same_samples(self) -> bool:
+        """Whether both results were fitted on the same samples (their fingerprints agree)."""
+        a, b = self.a.provenance.get("samples"), self.b.provenance.get("samples")
+        return a is not None and a == b
 
     def to_text(self) -> str:
         lines = [f"{'param':<6}{'unit':<8}{'A':>12}{'B':>12}{'B - A':>11}{'sigma A+B':>11}{'diff/sig':>9}"]
@@ -136,6 +143,13 @@ class Repeatability:
         lines.append(f"A = {self.names[0]}, B = {self.names[1]}; sigma A+B = sqrt(sA^2 + sB^2)")
         if self.a.correlation is not None and self.b.correlation is not None:
             lines.append("p from the sum's distribution with both results' correlations (docs/formats.md)")
+        if self.same_samples:
+            lines.append(
+                f"chi2 = {s:.1f} over {dof} parameters: both are fits of the same samples "
+                f"({self.a.provenance['samples'].split(' ')[0]}): their difference says how the two fits "
+                "differ, nothing of the unit's repeatability"
+            )
+            return "\n".join(lines)
         lines.append(
             f"chi2 = {s:.1f} over {dof} parameters (p = {p:.3g}): "
             + (

@@ -24,6 +24,7 @@ from calib.profiles import as_profile
 from calib.runlog import read_run
 from calib.runlog.clock import sample_clock
 from calib.sim import SimConfig
+from seqdesign.repeatability import Repeatability
 
 RATE_HZ = 100.0
 PERIOD = 1.0 / RATE_HZ
@@ -78,9 +79,9 @@ def test_stamps_half_a_period_off_for_good_are_refused():
         sample_clock(stamps, RATE_HZ)
 
 
-def _hand_run():
-    """A noise-free hand run with MEMS-sized errors, 100 Hz (Xsens-like poses, shortened)."""
-    rng = np.random.default_rng(11)
+def _hand_run(seed: int = 11):
+    """A hand run with MEMS-sized errors and the mems profile's noise, 100 Hz (Xsens-like poses)."""
+    rng = np.random.default_rng(seed)
     plan = xsens_like_plan(rng)
     values = np.zeros(21)
     values[:3] = np.radians(0.3)  # gyro biases, 0.3 deg/s
@@ -127,6 +128,10 @@ def test_the_same_samples_under_uniform_float_and_epoch_ms_stamps_calibrate_alik
         np.testing.assert_allclose(result.by_hand.rest_s, base.by_hand.rest_s, atol=1e-3)
         # The issue's bound: the same estimates within 0.01 sigma.
         assert np.max(np.abs(result.values - base.values) / base.sigma) < 0.01, name
+        # compare knows them as fits of one recording, not two calibrations that agree.
+        assert Repeatability(base, result, ("uniform", name)).same_samples
+    other = calibrate(_hand_run(seed=12), "mems", by_hand=True)
+    assert not Repeatability(base, other, ("uniform", "another run")).same_samples
 
 
 def test_a_sample_lost_in_a_move_is_refused_even_with_allow_gaps(tmp_path):
