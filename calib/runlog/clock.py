@@ -126,9 +126,16 @@ class SampleClock:
         return figures
 
 
-def describe(events: list) -> str:
-    """``'1 at t = 250.005 s, 2 at t = 750 s'`` for a list of (time, count)."""
-    return ", ".join(f"{c} at t = {t:.6g} s" for t, c in events)
+def describe(events: list, first: int = 3) -> str:
+    """``'1 at t = 250.005 s, 2 at t = 750 s'`` for a list of (time, count).
+
+    Past ``first`` events only the first few are named, after their number (a
+    100 Hz log read at 200 Hz loses every other sample: tens of thousands of places).
+    """
+    named = ", ".join(f"{c} at t = {t:.6g} s" for t, c in events[:first])
+    if len(events) <= first:
+        return named
+    return f"in {len(events)} places, the first {first}: {named}, ..."
 
 
 def duplicate_rows(time_s: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, period_s: float) -> np.ndarray:
@@ -259,7 +266,8 @@ def stamps_rate(time_s: np.ndarray) -> float:
 def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarray:
     """Each time step in whole periods (0 for a duplicate); refuse jumps and fractions."""
     periods = np.diff(time_s)
-    periods /= period
+    with np.errstate(over="ignore"):  # a stamp near the float limit: an infinite jump, refused below
+        periods /= period
     fix = "the time column must locate samples taken at sample_rate_hz; "
     huge = np.flatnonzero(periods > MAX_STEP_PERIODS)
     if huge.size:

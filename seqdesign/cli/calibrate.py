@@ -13,7 +13,7 @@ from pathlib import Path
 import click
 
 from . import options
-from .tools import emit_json, guarded, hidden_alias, info, provenance
+from .tools import emit_json, guarded, hidden_alias, info, provenance, refuse_overwrite
 
 
 @click.command(short_help="Identify the 21 parameters (value and sigma) from a run log.")
@@ -104,6 +104,19 @@ def calibrate(
     from calib.sequence import load_sequence
     from calib.truth import read_truth, truth_path_for
 
+    out_path = Path(output) if output else Path(run_path).with_name(Path(run_path).stem + ".result.toml")
+    refuse_overwrite(
+        {"-o": out_path, "--correction": correction_path},
+        {
+            "RUN": run_path,
+            "--gyro-file": gyro_file,
+            "--conversion": conversion,
+            "--sequence": sequence,
+            "--truth": truth_path,
+            "--profile": profile,
+            "--requirements": requirements,
+        },
+    )
     extras = as_extras(with_terms, by_hand=by_hand)
     prof = as_profile(profile)
     reading = dict(allow_gaps=allow_gaps, latitude_deg=latitude, height_m=height)
@@ -130,7 +143,6 @@ def calibrate(
         gravity_mps2, notes = run_notes(run, gravity_mps2)  # a conversion file's gravity, clipping
         for note in notes:
             info(note)
-    out_path = Path(output) if output else Path(run_path).with_name(Path(run_path).stem + ".result.toml")
     if truth_path is None and truth_path_for(run_path).exists():
         truth_path = truth_path_for(run_path)
     truth = read_truth(truth_path) if truth_path else None

@@ -13,7 +13,7 @@ from __future__ import annotations
 import click
 
 from . import options
-from .tools import emit_json, guarded, info
+from .tools import emit_json, guarded, info, refuse_overwrite
 
 
 @click.command(short_help="Apply a calibration (calibrated = M (raw - b)) to a log.")
@@ -55,6 +55,15 @@ def correct(
 
     from .reading import hand_reading
 
+    refuse_overwrite(
+        {"-o": output},
+        {
+            "LOG": run_path,
+            "--correction": correction_path,
+            "--gyro-file": gyro_file,
+            "--conversion": conversion,
+        },
+    )
     correction = Correction.load(correction_path)
     reading = dict(latitude_deg=latitude, height_m=height, columns=columns)
     run = read_run(run_path, **reading, **hand_reading(gyro_file, conversion, sample_rate_hz))
