@@ -11,7 +11,9 @@ PYTEST := $(BIN)/python -m pytest -q -n 2 -p no:cacheprovider
 $(BIN)/seqdesign: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[test,dask,plot]'
+	# setuptools' notice that every editable install gets ("be careful with folders named as the
+	# package"), information, not a problem of this project: filtered by its exact words.
+	PYTHONWARNINGS="ignore:Editable installation:UserWarning" $(BIN)/pip install --quiet -e '.[test,dask,plot]'
 	touch $@
 
 venv: $(BIN)/seqdesign

@@ -9,7 +9,7 @@ import click
 from calib.errors import CalibError
 
 from . import options
-from .tools import emit_json, guarded, info
+from .tools import emit_json, guarded, info, rerun_command
 
 TOLERANCE = click.FloatRange(0.0, 10.0)
 
@@ -120,7 +120,7 @@ def analyze(
         path = view_path or f"{result.sequence.name}-analysis.rrd"
         record_analysis(result, path)
         doc["recording"] = str(path)
-        info(f"wrote {path} (open it with: rerun {path})")
+        info(f"wrote {path} (open it with: {rerun_command()} {path})")
     if as_json:
         emit_json(doc)
         return

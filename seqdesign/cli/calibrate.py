@@ -60,7 +60,9 @@ from .tools import emit_json, guarded, hidden_alias, info, provenance, refuse_ov
     "--by-hand",
     is_flag=True,
     help="RUN was placed by hand (no gimbal, no sequence): fit it from its rests, found with the "
-    "profile's noise, and the gyros across the moves between them (any axis, fast, carried).",
+    "profile's noise, and the gyros across the moves between them (any axis, fast, carried). "
+    "Give the unit's white-noise profile (--profile mems, or your own): the default navigation "
+    "profile's noise is far below a hand-turned unit's and finds no rest.",
 )
 @click.option(
     "--correction",
@@ -180,11 +182,13 @@ def calibrate(
             correction_path
         )
         info(f"wrote {correction_path}")
-    for warning in result.warnings():
+    # On the command line the surveyed gravity is --gravity (the library names its argument).
+    warned = result.warnings(gravity_option="--gravity")
+    for warning in warned:
         info(f"warning: {warning}")
     doc = {"result": str(out_path)} | ({} if run is None else {"clock": run.clock.as_dict()})
     if as_json:
-        emit_json(result.to_json(truth) | doc)
+        emit_json(result.to_json(truth) | doc | {"warnings": warned})
         return
     click.echo(result.to_text(truth))
     click.echo(f"wrote {out_path}")

@@ -138,9 +138,7 @@ PROGRESS_EVERY_S = 2.0  # at most one progress line this often, besides each pha
     "--protocol", "protocol_path", metavar="FILE.md", help="--by-hand: also write the protocol (and its PNG)."
 )
 @options.as_json
-@options.gimbal(
-    "Only moves this gimbal plays (docs/gimbal.md); --rate-dps defaults to its rate.", metavar="FILE|NAME"
-)
+@options.gimbal("Only moves this gimbal plays; --rate-dps defaults to its rate.")
 @guarded
 def design(
     budget_min,

@@ -10,7 +10,9 @@ from .tools import emit_json, guarded
 
 @click.command(short_help="Print a sequence's rest positions: axes, gimbal angles, times.")
 @click.argument("sequence")
-@options.gimbal("Gimbal description (TOML): list its counter-rotations and flag violations.")
+@options.gimbal(
+    "List the counter-rotations and flag the violations on this gimbal (default: slip rings, no limits)."
+)
 @options.as_json
 @guarded
 def show(sequence, gimbal_file, as_json):

@@ -11,8 +11,10 @@ import json
 import math
 import os
 import shlex
+import shutil
 import sys
 import warnings
+from pathlib import Path
 
 import click
 
@@ -54,6 +56,23 @@ def command_line() -> str:
         else:
             parts += [param.opts[0]] + [shlex.quote(str(v)) for v in values]
     return " ".join(parts)
+
+
+def rerun_command() -> str:
+    """The viewer's command as the user's shell finds it.
+
+    ``rerun`` when it is on PATH (an activated environment); else the one
+    installed beside this Python, e.g. ``.venv/bin/rerun`` (``make demo`` runs
+    the tool from the venv without activating it, where plain ``rerun`` is not found).
+    """
+    beside = Path(sys.executable).parent / "rerun"  # not resolved: the venv's bin, not the base Python's
+    on_path = shutil.which("rerun")
+    if not beside.exists() or (on_path and Path(on_path).resolve() == beside.resolve()):
+        return "rerun"
+    try:
+        return str(beside.relative_to(Path.cwd()))
+    except ValueError:  # the environment is elsewhere
+        return str(beside)
 
 
 def provenance(inputs: dict | None = None, **extra) -> dict:

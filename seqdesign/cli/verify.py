@@ -46,9 +46,7 @@ from .tools import emit_json, guarded, info
     "unit of the profile's grade, see docs/verify.md).",
 )
 @click.option("--table2", is_flag=True, help="Every run has the paper's Table 2 standard errors.")
-@options.gimbal(
-    "Gimbal description (TOML) or shipped name: refuse a sequence it cannot play.", metavar="FILE|NAME"
-)
+@options.gimbal("Refuse a sequence this gimbal cannot play.")
 @click.option(
     "--by-hand",
     is_flag=True,
