@@ -137,3 +137,35 @@ def test_a_near_miss_is_still_refused_naming_the_key_meant(tmp_path):
     path = tmp_path / "s.toml"
     path.write_text(SEQUENCE.format(top="", step="dwel_s = 60"))
     one_line_refusal(cli("show", path), "did you mean 'dwell_s'")
+
+
+# ---------------------------------------------------------------------------
+# 3. The corrected log keeps the absolute time
+
+
+def test_correct_keeps_the_epoch_of_a_log_stamped_in_unix_time(logged, tmp_path):
+    epoch, rate = 1_700_000_000, 100.0
+    stamps = [f"{epoch + k / rate:.6f}" for k in range(1, 501)]
+    rows = [f"{t},0.0,0.0,7.3e-05,0.0,0.0,9.8" for t in stamps]
+    log = tmp_path / "logger.csv"
+    log.write_text(
+        "# latitude_deg: 40\n# height_m: 0\n"
+        "time_s,gyro_x_radps,gyro_y_radps,gyro_z_radps,accel_x_mps2,accel_y_mps2,accel_z_mps2\n"
+        + "\n".join(rows)
+        + "\n"
+    )
+    out = tmp_path / "corrected.csv"
+    res = cli("correct", log, "--correction", logged / "c.toml", "-o", out)
+    assert res.returncode == 0, res.stderr
+    header = dict(
+        ln[2:].split(": ", 1) for ln in out.read_text().splitlines() if ln.startswith("# ") and ": " in ln
+    )
+    assert "time_origin_s" in header, header
+    origin = float(header["time_origin_s"])
+    body = [ln for ln in out.read_text().splitlines() if ln and not ln.startswith("#")][1:]
+    for k in (0, 250, 499):  # each sample back at its own absolute time, to the stamps' microsecond
+        assert abs(origin + float(body[k].split(",")[0]) - float(stamps[k])) < 2e-6
+    assert "time_origin_s" in res.stderr
+    # A log without epoch stamps gets no origin (its time_s is already what it says).
+    res = cli("correct", logged / "run.npz", "--correction", logged / "c.toml", "-o", tmp_path / "o.csv")
+    assert res.returncode == 0 and "time_origin_s" not in (tmp_path / "o.csv").read_text()

@@ -73,8 +73,13 @@ def correct(
     # The calibrated log is in SI: the raw reading's keys (its conversion, its source format) go.
     meta = {k: v for k, v in run.meta.items() if not k.startswith(("conversion", "source_format"))}
     meta["calibrated_with"] = str(correction_path)
+    origin = _time_origin(run)
+    if origin:  # epoch stamps were re-based to their first: the absolute time is kept beside them
+        meta["time_origin_s"] = repr(origin)
     write_run(Run(run.time_s, rate * dt, force * dt, meta, source=output), output)
     info(f"applied {correction_path} to {run.n_samples} samples of {run_path}")
+    if origin:
+        info(f"time_s counts from {origin:.6f} s, the log's first stamp (time_origin_s in {output})")
     doc = {
         "output": output,
         "samples": run.n_samples,
@@ -85,3 +90,17 @@ def correct(
         emit_json(doc)
         return
     click.echo(f"wrote {output}")
+
+
+def _time_origin(run) -> float:
+    """The absolute time of ``time_s = 0``: epoch stamps' first, on top of any origin the log states.
+
+    A log whose time column counts from an epoch (UNIX or ROS time) is read from
+    its first stamp (``calib.runlog.clock.epoch_origin``: a float64 at 1.7e9 s
+    rounds each interval); the calibrated log writes its stamps the same way and
+    states that first stamp as ``time_origin_s``, so no absolute time is lost.
+    """
+    from calib.runlog.run import meta_float
+
+    stated = meta_float(run.meta, "time_origin_s", run.source) if "time_origin_s" in run.meta else 0.0
+    return stated + (run.clock.origin_s if run.clock is not None else 0.0)
