@@ -121,6 +121,12 @@ def calibrate(
     )
     extras = as_extras(with_terms, by_hand=by_hand)
     prof = as_profile(profile)
+    if not by_hand:  # a hand fit takes the mems requirements by default (calib.calibration)
+        from calib.requirements import default_for
+
+        requirements, chosen = default_for(prof, requirements)  # the profile's grade, when not given
+        if chosen:
+            info(chosen)
     reading = dict(allow_gaps=allow_gaps, latitude_deg=latitude, height_m=height)
     from .reading import hand_reading, run_notes
 

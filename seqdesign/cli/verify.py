@@ -108,7 +108,7 @@ def verify(
     """
     from calib.errormodel import ErrorModel
     from calib.profiles import as_profile
-    from calib.requirements import load_requirements
+    from calib.requirements import default_for, load_requirements
     from calib.truth import read_errors
     from seqdesign.plots import verify_png
 
@@ -119,7 +119,14 @@ def verify(
     if plot_path and Path(plot_path).suffix.lower() != ".png":
         raise CalibError(f"plot {plot_path!r} must end in .png", "--plot")
     # A unit placed by hand is judged by the mems requirements unless told otherwise, as calibrate does.
-    prof, req = as_profile(profile), load_requirements(requirements or ("mems" if by_hand else None))
+    prof = as_profile(profile)
+    if by_hand:
+        req = load_requirements(requirements or "mems")
+    else:
+        requirements, chosen = default_for(prof, requirements)  # the profile's grade, when not given
+        if chosen:
+            info(chosen)
+        req = load_requirements(requirements)
     errors = read_errors(errors_file) if errors_file else ErrorModel.from_table2() if table2 else None
     if by_hand or sequence is None:
         from .verifyhand import verify_by_hand
