@@ -289,13 +289,22 @@ class Verification:
         lo, hi = nees["band_99"]
         verdict = "honest" if nees["in_band"] else "NOT honest: the reported sigmas are wrong"
         lines.append(f"mean NEES {nees['mean']:.2f} (99 % band [{lo:.2f}, {hi:.2f}] for 21 dof): {verdict}")
-        head = ("param", "unit", "analyze σ", "RMS error", "RMS/σ run", "RMS/σ pred")
-        lines.append("{:>6} {:>8} {:>11} {:>11} {:>10} {:>10}".format(*head))
+        # Runs placed by hand at random have no analyser's prediction: its two columns would be
+        # all "-", so they are left out.
+        predicted = any(e["predicted_sigma"] is not None for e in doc["parameters"].values())
+        if predicted:
+            head = ("param", "unit", "analyze σ", "RMS error", "RMS/σ run", "RMS/σ pred")
+            lines.append("{:>6} {:>8} {:>11} {:>11} {:>10} {:>10}".format(*head))
+        else:
+            lines.append("{:>6} {:>8} {:>11} {:>10}".format("param", "unit", "RMS error", "RMS/σ run"))
         for name, e in doc["parameters"].items():
-            lines.append(
-                f"{name:>6} {e['unit']:>8} {_figure(e['predicted_sigma'], 11, '.4g')} {e['rms_error']:11.4g} "
-                f"{e['rms_over_reported_sigma']:10.2f} {_figure(e['rms_over_predicted_sigma'], 10, '.2f')}"
-            )
+            row = f"{name:>6} {e['unit']:>8} "
+            if predicted:
+                row += f"{_figure(e['predicted_sigma'], 11, '.4g')} "
+            row += f"{e['rms_error']:11.4g} {e['rms_over_reported_sigma']:10.2f}"
+            if predicted:
+                row += f" {_figure(e['rms_over_predicted_sigma'], 10, '.2f')}"
+            lines.append(row)
         return "\n".join(lines)
 
 
@@ -324,6 +333,7 @@ def verify(
     workers: int = 1,
     scheduler=None,
     hand: HandShape | None = None,
+    progress=None,
 ) -> Verification:
     """Simulate and calibrate ``runs`` runs of ``seq`` (run ``i`` from seed ``seed + i``).
 
@@ -348,6 +358,8 @@ def verify(
     hand : HandShape, optional
         Runs placed by hand of this shape instead of ``seq`` (then None): each run draws its
         own poses, moves and noise; there is no analyser's prediction (``predicted_sigma`` nan).
+    progress : callable, optional
+        ``progress(done, runs)`` as runs finish (:func:`map_jobs`).
     """
     grade = grade_of(profile)
     half = error_half_range(grade)
@@ -367,5 +379,6 @@ def verify(
         )
         for i in range(runs)
     ]
-    outcomes = tuple(map_jobs(one_run, jobs, workers, scheduler))
+    done = None if progress is None else (lambda n: progress(n, runs))
+    outcomes = tuple(map_jobs(one_run, jobs, workers, scheduler, done=done))
     return Verification(seq, profile, requirements, grade, np.asarray(predicted_sigma, float), outcomes, hand)

@@ -230,3 +230,49 @@ def test_each_shipped_profile_is_judged_by_its_grade_s_requirements(profile, req
     res = cli("analyze", "paper-9pos", "--profile", profile, "--tolerance-deg", "0", "--json")
     assert res.returncode == 0, res.stderr
     assert json.loads(res.stdout)["requirements"] == requirements
+
+
+# ---------------------------------------------------------------------------
+# 13. verify says how far it is, and prints no column that has nothing
+
+
+def test_verify_prints_progress_on_stderr_and_its_table_on_stdout():
+    res = cli("verify", "paper-9pos", "--runs", "2", "--sample-rate-hz", "10", "--json")
+    assert res.returncode == 0, res.stderr
+    assert "2 of 2 runs done" in res.stderr
+    assert json.loads(res.stdout)["runs"] == 2  # stdout stays one document
+
+
+def test_verify_by_hand_prints_no_column_that_is_all_dashes():
+    res = cli("verify", "--by-hand", "--runs", "3")
+    assert res.returncode == 0, res.stderr
+    assert "3 of 3 runs done" in res.stderr
+    lines = res.stdout.splitlines()
+    head = next(i for i, ln in enumerate(lines) if ln.split()[:2] == ["param", "unit"])
+    assert "analyze σ" not in lines[head] and "pred" not in lines[head]
+    rows = [ln.split() for ln in lines[head + 1 : head + 22]]
+    assert len(rows) == 21 and all(len(r) == 4 for r in rows)  # param, unit, RMS error, RMS/σ run
+    for column in range(2, len(rows[0])):
+        assert any(r[column] != "-" for r in rows)
+    # A pose list has the analyser's prediction: its columns are there.
+    res = cli(
+        "verify",
+        "--by-hand",
+        REPO / "sequences" / "hand" / "mems-5min.toml",
+        "--profile",
+        "mems",
+        "--runs",
+        "2",
+    )
+    assert res.returncode == 0, res.stderr
+    assert "analyze σ" in res.stdout and "RMS/σ pred" in res.stdout
+
+
+@pytest.mark.parametrize("arw_dph", [0.0005, 0.01, 0.02, 0.5, 0.6, 2.6])
+def test_the_requirements_grade_is_the_grade_verify_draws_errors_by(arw_dph):
+    from calib.profiles import NoiseProfile
+    from calib.requirements import grade_of
+    from seqdesign import verify
+
+    prof = NoiseProfile(name="p", gyro_arw_dph=arw_dph, accel_vrw_ug=10.0)
+    assert grade_of(prof)[0].lower() == verify.grade_of(prof)

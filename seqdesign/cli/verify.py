@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 from pathlib import Path
 
 import click
@@ -10,6 +11,7 @@ import click
 from calib.errors import CalibError
 
 from . import options
+from .design import _duration
 from .tools import emit_json, guarded, info
 
 
@@ -144,6 +146,7 @@ def verify(
             seed,
             errors,
             (like, poses, peak_rate_dps, by_hand, placement_deg),
+            progress=RunsProgress(),
         )
     else:
         result = _verify_sequence(
@@ -230,4 +233,27 @@ def _verify_sequence(
         requirements=req,
         workers=workers,
         scheduler=scheduler,
+        progress=RunsProgress(),
     )
+
+
+class RunsProgress:
+    """A Monte Carlo's progress on stderr, as ``design`` says its own: runs done, time, time left.
+
+    At most one line every ``every_s`` seconds, and always the last; a run of tens of
+    seconds each would otherwise leave the terminal silent for minutes.
+    """
+
+    def __init__(self, every_s: float = 5.0):
+        self.every_s = every_s
+        self.t0 = time.monotonic()
+        self.last = -math.inf
+
+    def __call__(self, done: int, runs: int) -> None:
+        now = time.monotonic()
+        if done < runs and now - self.last < self.every_s:
+            return
+        self.last = now
+        elapsed = now - self.t0
+        left = f", about {_duration(elapsed / done * (runs - done))} left" if done < runs else ""
+        info(f"  {done} of {runs} runs done ({_duration(elapsed)}{left})")

@@ -22,6 +22,7 @@ def verify_by_hand(
     seed,
     errors,
     shape,
+    progress=None,
 ):
     """Simulate and calibrate ``runs`` runs placed by hand (``verify`` reports them).
 
@@ -91,4 +92,5 @@ def verify_by_hand(
         workers=workers,
         scheduler=scheduler,
         hand=hand,
+        progress=progress,
     )
