@@ -88,9 +88,9 @@ def load_requirements(name_or_path: str | Path | Requirements | None = None) -> 
 
 
 # A unit's grade from its gyro's white noise (ARW, deg/sqrt(h), at most): the shipped profiles
-# sit at 0.001 (navigation), 0.05 (tactical) and 2.6 (mems); the limits are verify's, which
-# draws each grade's errors (seqdesign.verify.GRADE_ARW_DPH). Each grade's shipped requirements
-# (paper: navigation grade) are its default.
+# sit at 0.001 (navigation), 0.05 (tactical) and 2.6 (mems). verify draws each grade's errors
+# by them (seqdesign.verify.grade_of); each grade's shipped requirements (paper: navigation
+# grade) are its default.
 GRADES = ((0.01, "navigation", DEFAULT), (0.5, "tactical", "tactical"), (math.inf, "MEMS", "mems"))
 
 

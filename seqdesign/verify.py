@@ -27,6 +27,7 @@ from calib.handposes import PoseList, tipping_plan
 from calib.handsim import simulate_by_hand
 from calib.profiles import NoiseProfile
 from calib.requirements import PAPER, Requirements
+from calib.requirements import grade_of as requirements_grade
 from calib.sequence import Sequence
 from calib.sim import SimConfig, simulate
 from calib.transform import rotvec_to_dcm
@@ -34,23 +35,21 @@ from calib.transform import rotvec_to_dcm
 from .search.parallel import map_jobs
 
 # The unit's errors before calibration, half-ranges in spec units, by grade (the profile's ARW
-# decides the grade: GRADE_ARW_DPH). Navigation and tactical: twice the paper's Table 2
-# standard values, which are a navigation unit's; MEMS: the sizes of an ADIS16405-class data
-# sheet (gyro bias 1000 deg/h, accelerometer bias 20 mg, scale factors 0.5 %, misalignments
-# 1000 arcsec = 0.28 deg).
+# decides the grade: calib.requirements.GRADES, which also gives each its requirements).
+# Navigation and tactical: twice the paper's Table 2 standard values, which are a navigation
+# unit's; MEMS: the sizes of an ADIS16405-class data sheet (gyro bias 1000 deg/h,
+# accelerometer bias 20 mg, scale factors 0.5 %, misalignments 1000 arcsec = 0.28 deg).
 _MEMS = {("gyro", "bias"): 1000.0, ("accel", "bias"): 20000.0, ("gyro", "scale"): 5000.0}
 _MEMS |= {("accel", "scale"): 5000.0}
 MEMS_MISALIGNMENT_ARCSEC = 1000.0
-GRADE_ARW_DPH = {"navigation": 0.01, "tactical": 0.5}  # at most this ARW, deg/sqrt(h)
 
 
 def grade_of(profile: NoiseProfile) -> str:
-    """``navigation``, ``tactical`` or ``mems``, from the gyro's angle random walk."""
-    arw_dph = math.degrees(profile.arw) * 60.0
-    for grade, limit in GRADE_ARW_DPH.items():
-        if arw_dph <= limit:
-            return grade
-    return "mems"
+    """``navigation``, ``tactical`` or ``mems``, from the gyro's angle random walk.
+
+    The grade the default requirements follow too (:func:`calib.requirements.grade_of`).
+    """
+    return requirements_grade(profile)[0].lower()
 
 
 def error_half_range(grade: str) -> np.ndarray:
