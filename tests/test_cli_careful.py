@@ -276,3 +276,33 @@ def test_the_requirements_grade_is_the_grade_verify_draws_errors_by(arw_dph):
 
     prof = NoiseProfile(name="p", gyro_arw_dph=arw_dph, accel_vrw_ug=10.0)
     assert grade_of(prof)[0].lower() == verify.grade_of(prof)
+
+
+# ---------------------------------------------------------------------------
+# 17. show says what the default gimbal is, and what keeps a design off a real one
+
+
+def test_show_on_the_default_gimbal_warns_of_lock_and_winding_a_real_gimbal_refuses():
+    seq = REPO / "benchmarks" / "sequences" / "adis16405-10min.toml"
+    res = cli("show", seq)
+    assert res.returncode == 0, res.stderr
+    gimbal_line = next(ln for ln in res.stdout.splitlines() if ln.startswith("gimbal: "))
+    assert "ideal" in gimbal_line and "no angle, rate or acceleration limit" in gimbal_line
+    doc = json.loads(cli("show", seq, "--json").stdout)
+    warnings = [ln for ln in res.stderr.splitlines() if ln.startswith("warning: ")]
+    assert warnings == [f"warning: {w}" for w in doc["warnings"]]
+    assert any("plays on none of the shipped gimbals" in w for w in warnings)
+    # The rests in lock are those whose middle gimbal is at +-90 deg (conventions.md).
+    locked = [p["position"] for p in doc["positions"] if abs((p["middle_deg"] + 90.0) % 180.0 - 90.0) > 89.99]
+    assert locked and any(
+        w.startswith(f"warning: rest(s) {', '.join(map(str, locked))} in gimbal lock") for w in warnings
+    )
+    # The middle gimbal's largest encoder angle, beyond a turn: cables would not follow.
+    reach = max(abs(p["middle_deg"]) for p in doc["positions"])
+    assert reach > 360 and any(f"middle gimbal winds to {reach:.0f} deg" in w for w in warnings)
+
+
+@pytest.mark.parametrize("args", [["designed-30min-slip-rings"], ["paper-9pos", "--gimbal", "slip-rings"]])
+def test_show_does_not_warn_of_a_real_gimbal_where_one_plays_it_or_one_is_given(args):
+    res = cli("show", *args)
+    assert "plays on none" not in res.stderr and "winds to" not in res.stderr

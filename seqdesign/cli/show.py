@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from . import options
-from .tools import emit_json, guarded
+from .tools import emit_json, guarded, info
 
 
 @click.command(short_help="Print a sequence's rest positions: axes, gimbal angles, times.")
@@ -24,6 +24,8 @@ def show(sequence, gimbal_file, as_json):
     from seqdesign.positions import show_positions
 
     shown = show_positions(sequence, load_gimbal(gimbal_file))
+    for warning in shown.warnings():  # on the ideal default gimbal: what a real one would refuse
+        info(f"warning: {warning}")
     if as_json:
         emit_json(shown.to_json())
         return
