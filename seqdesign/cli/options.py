@@ -49,7 +49,8 @@ requirements = click.option(
     default=None,
     metavar="FILE|NAME",
     help="Accuracy requirements: a TOML file with a [requirements] table (spec names and "
-    "units; missing ones keep the paper's) or paper, tactical, mems.",
+    "units; missing ones keep the paper's) or paper, tactical, mems. Default: those of the "
+    "profile's grade (paper for a navigation-grade one; docs/grades.md), mems by hand.",
 )
 
 
