@@ -8,10 +8,12 @@ PYTEST := $(BIN)/python -m pytest -q -n 2 -p no:cacheprovider
 
 .PHONY: demo test test-slow test-all lint bench venv clean
 
+# setuptools' notice that every editable install gets ("be careful with folders named as the
+# package") is information, not a problem of this project: filtered by its exact words.
 $(BIN)/seqdesign: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[test,dask,plot]'
+	PYTHONWARNINGS="ignore:Editable installation:UserWarning" $(BIN)/pip install --quiet -e '.[test,dask,plot]'
 	touch $@
 
 venv: $(BIN)/seqdesign

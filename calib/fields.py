@@ -174,7 +174,9 @@ class Fields:
         for key in self.table:
             if key in known:
                 continue
-            close = difflib.get_close_matches(key, known, n=1, cutoff=0.75)
+            # 0.8: one letter off in four ('sgxx'), a unit left off ('dwell'), two swapped
+            # ('rate_dsp'); not two of four ('site' is no typo of 'step').
+            close = difflib.get_close_matches(key, known, n=1, cutoff=0.8)
             if close:
                 raise CalibError(
                     f"unknown key '{key}': did you mean '{close[0]}'?",

@@ -17,6 +17,7 @@ from .errors import CalibError
 _TOML_MARKS = (
     ("result", ("parameters", "initial_attitude")),
     ("truth", ("errors",)),
+    ("poses", ("pose",)),  # before sequence: its keys (hold_s) are no sequence's
     ("sequence", ("step", "start")),
     ("requirements", ("requirements",)),
     ("profile", ("gyro_arw_dph", "accel_vrw_ug")),
@@ -26,6 +27,7 @@ _WHAT = {
     "result": "a calibration result (what calibrate writes)",
     "truth": "a truth file (what simulate writes beside a run)",
     "sequence": "a sequence file",
+    "poses": "a pose list, for a run placed by hand (read with --by-hand)",
     "requirements": "a requirements file",
     "profile": "a noise profile",
     "gimbal": "a gimbal description",
@@ -42,8 +44,8 @@ _FIX = {
 
 
 def kind_of(path: str | os.PathLike) -> str:
-    """``run``, ``psins``, ``result``, ``truth``, ``sequence``, ``requirements``, ``profile``,
-    ``gimbal`` or ``unknown``, from the suffix and, for TOML, the top-level keys.
+    """``run``, ``psins``, ``result``, ``truth``, ``poses``, ``sequence``, ``requirements``,
+    ``profile``, ``gimbal`` or ``unknown``, from the suffix and, for TOML, the top-level keys.
     """
     name = str(path).lower()
     if name.endswith((".csv", ".csv.gz", ".npz")):

@@ -282,11 +282,10 @@ def static_refusal(run) -> CalibError | None:
     if tilt >= STATIC_TILT_DEG:
         return None
     return CalibError(
-        f"the log never turns (gravity stays within {tilt:.2g} deg of its first direction): it is a "
-        "static log; use it with `seqdesign profile fit` (profile_fit in a notebook) for a noise profile",
+        f"the log never turns (gravity within {tilt:.2g} deg of its first direction): it is a static "
+        "log; use it with `seqdesign profile fit` for a noise profile",
         run.source,
-        "a calibration by hand holds the unit still in several poses with different faces up "
-        "(docs/by-hand.md)",
+        "calibrating by hand takes poses with different faces up (docs/by-hand.md)",
     )
 
 

@@ -326,7 +326,7 @@ def never_rotates(motion: MotionDiagnosis, where: str, turn_rad: float = 0.0) ->
     ``turn_rad`` is the largest rotation between rests (the largest of :func:`turn_angles`).
     """
     k = int(np.argmax(motion.sway_rate_arcsec_s))
-    fix = "a calibration run must flip the IMU by tens of degrees between rests"
+    fix = "a calibration run flips the IMU by tens of degrees between rests"
     # A base that sways (a vehicle, a soft table) is worth naming; a MEMS gyro's integrated bias
     # noise "sways" by degrees and says nothing a user can act on.
     if motion.sway_arcsec[k] <= SWAY_NAMED_ARCSEC:
@@ -335,9 +335,9 @@ def never_rotates(motion: MotionDiagnosis, where: str, turn_rad: float = 0.0) ->
             f"{'xyz'[k]} ({motion.sway_rate_arcsec_s[k]:.3g} arcsec/s RMS over {motion.window_s:.3g} s)"
         )
     return CalibError(
-        f"the log never rotates (largest rotation between rests is {math.degrees(turn_rad):.2g} deg, "
+        f"the log never rotates (largest rotation between rests {math.degrees(turn_rad):.2g} deg, "
         f"a flip turns by tens): it is a static log; use it with `seqdesign profile fit` "
-        f"(profile_fit in a notebook) for a noise profile",
+        f"for a noise profile",
         where,
         fix,
     )

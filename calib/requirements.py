@@ -11,6 +11,7 @@ paper's), or a shipped name (``paper``, ``tactical``, ``mems``).
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass, field
 from importlib import resources
@@ -84,6 +85,39 @@ def load_requirements(name_or_path: str | Path | Requirements | None = None) -> 
             )
         path = builtin
     return requirements_from_dict(load_toml(path), str(path))
+
+
+# A unit's grade from its gyro's white noise (ARW, deg/sqrt(h), at most): the shipped profiles
+# sit at 0.001 (navigation), 0.05 (tactical) and 2.6 (mems). verify draws each grade's errors
+# by them (seqdesign.verify.grade_of); each grade's shipped requirements (paper: navigation
+# grade) are its default.
+GRADES = ((0.01, "navigation", DEFAULT), (0.5, "tactical", "tactical"), (math.inf, "MEMS", "mems"))
+
+
+def grade_of(profile) -> tuple[str, str]:
+    """The grade of a noise profile and the name of its default requirements (``("MEMS", "mems")``)."""
+    for arw_dph, grade, name in GRADES:
+        if profile.gyro_arw_dph <= arw_dph:
+            return grade, name
+    raise AssertionError("the last grade has no upper bound")
+
+
+def default_for(profile, requirements: str | Path | Requirements | None) -> tuple[object, str | None]:
+    """The requirements to judge ``profile``'s unit by, and the line that says so when chosen here.
+
+    Given requirements are kept (no line). Without them, the profile's grade gives
+    the default: a MEMS unit is not judged by the paper's navigation-grade
+    requirements, which every sigma of it would miss a thousand times over.
+    """
+    if requirements is not None:
+        return requirements, None
+    grade, name = grade_of(profile)
+    if name == DEFAULT:
+        return None, None
+    return name, (
+        f"requirements {name}: the default for profile {profile.name}, a {grade} unit (gyro ARW "
+        f"{profile.gyro_arw_dph:.3g} deg/sqrt(h)); give --requirements to judge it by others"
+    )
 
 
 def requirements_from_dict(doc: dict, where: str) -> Requirements:

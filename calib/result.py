@@ -148,8 +148,12 @@ class CalibrationResult:
             out |= extra_entries(self.extras, self.extra_sigma, self.extra_values, true_extra)
         return out
 
-    def warnings(self) -> list[str]:
-        """What a user must know before trusting the numbers."""
+    def warnings(self, gravity_option: str = "gravity_mps2") -> list[str]:
+        """What a user must know before trusting the numbers.
+
+        ``gravity_option``: how the user gives the surveyed gravity where they are
+        (the CLI's ``--gravity``; the API's and the log's ``gravity_mps2``).
+        """
         out = []
         if self.birge_inflated:
             out.append(
@@ -169,7 +173,7 @@ class CalibrationResult:
             out.append(
                 f"accelerometer scale factors rest on modelled normal gravity: each mGal "
                 f"of local anomaly is {self.ppm_per_mgal:.2f} ppm on sax, say and saz "
-                f"(requirement {req:g} ppm); give the surveyed gravity (gravity_mps2)"
+                f"(requirement {req:g} ppm); give the surveyed gravity ({gravity_option})"
             )
         return out
 

@@ -149,9 +149,29 @@ SEQUENCE_KEYS = (
 STEP_KEYS = ("axis", "angle_deg", "rate_dps", "dwell_s", "accel_dps2", "jerk_dps3")
 
 
-def _check_keys(table: dict, known, kind: str, where: str) -> None:
-    """Refuse a near miss of a known key; warn about any other key the tool ignores."""
-    for message in Fields(table, where).check_keys(known, kind):
+# A key named as a quantity in a unit (wait_s, speed_dps) is a setting: run without it, the
+# sequence would play the defaults (a 180 s dwell, 10 deg/s) while the file says otherwise.
+SETTING_SUFFIXES = ("_s", "_min", "_h", "_deg", "_rad", "_dps", "_dps2", "_dps3", "_radps", "_m", "_hz")
+
+
+def _check_keys(table: dict, known, kind: str, where: str, every_key_sets: bool = False) -> None:
+    """Refuse a near miss of a known key and a setting the tool does not read; warn about any other key.
+
+    ``every_key_sets``: the table holds settings alone (a ``[[step]]`` is its motion), so
+    any key it does not read is refused.
+    """
+    fields = Fields(table, where)
+    notes = fields.check_keys(known, kind)  # near misses refused first, naming the closest
+    for key in table:
+        if key in known or not (every_key_sets or key.endswith(SETTING_SUFFIXES)):
+            continue
+        dwell = "; a rest's length is 'dwell_s' in its [[step]]" if key.endswith("_s") else ""
+        raise CalibError(
+            "not a key the tool reads, and it would change the run (the default would be played instead)",
+            fields.here(key),
+            f"use the {kind} keys: {', '.join(known)}{dwell}",
+        )
+    for message in notes:
         warnings.warn(message, stacklevel=3)
 
 
@@ -232,7 +252,7 @@ def _step_from_dict(raw, here: str, default_profile: tuple) -> Step:
     """One validated ``[[step]]``."""
     if not isinstance(raw, dict):
         raise CalibError("each [[step]] must be a table", here)
-    _check_keys(raw, STEP_KEYS, "step", here)
+    _check_keys(raw, STEP_KEYS, "step", here, every_key_sets=True)
     axis = raw.get("axis")
     if not isinstance(axis, str) or axis.upper() not in ("X", "Y", "Z"):
         raise CalibError(f'axis must be "X", "Y" or "Z", got {axis!r}', here)

@@ -17,7 +17,7 @@ import numpy as np
 
 from calib import earth
 from calib import params as P
-from calib.bounds import accel_scale_bound
+from calib.bounds import Unreachable, accel_scale_bound, unreachable
 from calib.errors import CalibError
 from calib.extras import Extras, as_extras
 from calib.feedback import check_wander
@@ -103,10 +103,24 @@ class Analysis:
             "correlated_pairs": [{"a": a, "b": b, "rho": r} for a, b, r in w.correlated_pairs()],
             "criteria": w.criteria(),
             "accel_scale_bound": {"best_possible_ratio": self.bound, "achieved_ratio": float(max(ratios))},
+            "unreachable": [
+                {
+                    "parameters": list(u.names),
+                    "best_possible_ratio": u.ratio,
+                    "needed_s": u.needed_s,
+                    "why": u.why,
+                }
+                for u in self.unreachable()
+            ],
         }
         if self.extras_cost is not None:
             doc["extras"] = _extras_doc(self.extras_cost, self.requirements)
         return doc
+
+    def unreachable(self) -> list[Unreachable]:
+        """The requirements no sequence of this length meets under this noise (:mod:`calib.bounds`)."""
+        g = earth.gravity(math.radians(self.latitude_deg), self.height_m)
+        return unreachable(self.sequence.duration_s, self.profile, g, self.requirements)
 
     def to_text(self) -> str:
         """What ``analyze`` prints."""
@@ -120,9 +134,35 @@ class Analysis:
             f"{' + IPOPT search' if rob.searched else ''})",
             format_table(doc["parameters"]),
         ] + _verdict(doc)
+        lines += self._why_missed(doc)
         if self.extras_cost is not None:
             lines += _extras_text(doc["extras"])
         return "\n".join(lines)
+
+    def _why_missed(self, doc: dict) -> list[str]:
+        """Why the misses miss, where the verdict is printed: a bound of the noise, or the moves."""
+        misses = [n for n in doc["estimable"] if doc["parameters"][n]["ratio"] > 1.0]
+        if not misses:
+            return []
+        p = self.profile
+        lines = [
+            f"why: judged by requirements {self.requirements.name} under profile {p.name} (gyro ARW "
+            f"{p.gyro_arw_dph:.3g} deg/sqrt(h), accel VRW {p.accel_vrw_ug:.3g} ug/sqrt(Hz)"
+            + (", Gauss-Markov biases" if p.has_gauss_markov else "")
+            + ")"
+        ]
+        bounded: set[str] = set()
+        for u in self.unreachable():
+            if set(u.names) & set(misses):
+                lines.append("  " + u.text(self.sequence.duration_s))
+                bounded.update(u.names)
+        rest = [n for n in misses if n not in bounded]
+        if rest:
+            lines.append(
+                f"  {', '.join(rest)}: no bound of the noise forbids them at this length; other moves "
+                f"may meet them (seqdesign design --budget-min {self.sequence.duration_s / 60:.0f})"
+            )
+        return lines
 
 
 def analyze(

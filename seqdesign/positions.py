@@ -15,7 +15,7 @@ import numpy as np
 from calib.encoders import RestPosition, rest_positions
 from calib.errors import CalibError
 from calib.gimbal import GimbalPlan, plan_sequence
-from calib.gimbalfile import Gimbal, load_gimbal
+from calib.gimbalfile import DEFAULT_GIMBAL, Gimbal, builtin_gimbal_dir, load_gimbal
 from calib.sequence import Sequence, load_sequence
 
 LOCK_NOTE = (
@@ -62,6 +62,11 @@ def gimbal_summary(seq, gimbal, plan) -> tuple[dict, list[str]]:
         "violations": [str(v) for v in plan.violations],
     }
     lines = [f"gimbal: {gimbal.name}" + ("" if plan.violations else " (every move playable)")]
+    if gimbal is DEFAULT_GIMBAL:
+        lines[0] += (
+            f"; an ideal one: no angle, rate or acceleration limit and no margin from gimbal lock "
+            f"(a real gimbal: --gimbal {' or '.join(_shipped_gimbals())} or your own file)"
+        )
     for u in unlocks:
         lines.append(
             f"  before step {u['step']}: counter-rotation in gimbal lock, "
@@ -71,6 +76,59 @@ def gimbal_summary(seq, gimbal, plan) -> tuple[dict, list[str]]:
     for v in plan.violations:
         lines.append(f"  VIOLATION {v}")
     return doc, lines
+
+
+# Beyond a turn either way an encoder's cables need slip rings (the shipped cable-wrap
+# gimbal keeps every axis within +-360 deg).
+WIND_LIMIT_DEG = 360.0
+
+
+def _shipped_gimbals() -> list[str]:
+    return sorted(p.stem for p in builtin_gimbal_dir().glob("*.toml"))
+
+
+def real_gimbal_warnings(seq: Sequence, gimbal: Gimbal, positions: list[RestPosition]) -> list[str]:
+    """What keeps a sequence shown on the ideal default gimbal off every real one.
+
+    Nothing when it plays on one of the shipped gimbals, or when the user gave a gimbal
+    (its violations are listed already). Else: the limits each shipped gimbal breaks
+    (range, lock margin, rate, acceleration ...), then the rests in gimbal lock (a real
+    gimbal keeps a margin from it) and each encoder winding beyond a turn (cables).
+    """
+    if gimbal is not DEFAULT_GIMBAL:
+        return []
+    refusals = []
+    for name in _shipped_gimbals():
+        plan = plan_sequence(seq, load_gimbal(name))
+        if plan.playable:
+            return []
+        limits = sorted({v.limit for v in plan.violations})
+        refusals.append(f"{name}: {len(plan.violations)} violation(s) of {', '.join(limits)}")
+    out = [
+        f"{seq.name} plays on none of the shipped gimbals ({'; '.join(refusals)}): `seqdesign show "
+        "SEQ --gimbal NAME` lists them, `seqdesign design --gimbal NAME` designs for one"
+    ]
+    locked = [p.number for p in positions if p.gimbal_lock]
+    if locked:
+        out.append(
+            f"rest(s) {_first_few(locked)} in gimbal lock (middle at +-90 deg), which a real gimbal "
+            "keeps a margin from (cable-wrap: 15 deg)"
+        )
+    angles = np.array([p.gimbal_deg for p in positions])
+    for axis, name in enumerate(("outer", "middle", "inner")):
+        reach = float(np.max(np.abs(angles[:, axis])))
+        if reach > WIND_LIMIT_DEG + 1e-6:
+            out.append(
+                f"the {name} gimbal winds to {reach:.0f} deg: only slip rings turn that far "
+                f"(cable-wrap stays within +-{WIND_LIMIT_DEG:.0f} deg)"
+            )
+    return out
+
+
+def _first_few(numbers: list[int], few: int = 6) -> str:
+    """``'2, 3, 7'``, or ``'2, 3, 7, ... (20 in all)'``: a list that stays short."""
+    text = ", ".join(map(str, numbers[:few]))
+    return text if len(numbers) <= few else f"{text}, ... ({len(numbers)} in all)"
 
 
 @dataclass(frozen=True)
@@ -98,12 +156,17 @@ class Positions:
     def playable(self) -> bool:
         return self.plan.playable
 
+    def warnings(self) -> list[str]:
+        """What would keep the sequence off a real gimbal (:func:`real_gimbal_warnings`)."""
+        return real_gimbal_warnings(self.sequence, self.gimbal, self.positions)
+
     def to_json(self) -> dict:
         """The ``show --json`` document."""
         seq = self.sequence
         gimbal_doc, _ = gimbal_summary(seq, self.gimbal, self.plan)
         return {
             **gimbal_doc,
+            "warnings": self.warnings(),
             "sequence": seq.name,
             "duration_s": seq.duration_s,
             "positions": [

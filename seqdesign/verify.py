@@ -30,6 +30,7 @@ from calib.handsim import simulate_by_hand, write_hand_run
 from calib.handtroubles import TroubleSpec
 from calib.profiles import NoiseProfile
 from calib.requirements import PAPER, Requirements
+from calib.requirements import grade_of as requirements_grade
 from calib.runlog import read_run
 from calib.sequence import Sequence
 from calib.sim import SimConfig, simulate
@@ -38,23 +39,21 @@ from calib.transform import rotvec_to_dcm
 from .search.parallel import map_jobs
 
 # The unit's errors before calibration, half-ranges in spec units, by grade (the profile's ARW
-# decides the grade: GRADE_ARW_DPH). Navigation and tactical: twice the paper's Table 2
-# standard values, which are a navigation unit's; MEMS: the sizes of an ADIS16405-class data
-# sheet (gyro bias 1000 deg/h, accelerometer bias 20 mg, scale factors 0.5 %, misalignments
-# 1000 arcsec = 0.28 deg).
+# decides the grade: calib.requirements.GRADES, which also gives each its requirements).
+# Navigation and tactical: twice the paper's Table 2 standard values, which are a navigation
+# unit's; MEMS: the sizes of an ADIS16405-class data sheet (gyro bias 1000 deg/h,
+# accelerometer bias 20 mg, scale factors 0.5 %, misalignments 1000 arcsec = 0.28 deg).
 _MEMS = {("gyro", "bias"): 1000.0, ("accel", "bias"): 20000.0, ("gyro", "scale"): 5000.0}
 _MEMS |= {("accel", "scale"): 5000.0}
 MEMS_MISALIGNMENT_ARCSEC = 1000.0
-GRADE_ARW_DPH = {"navigation": 0.01, "tactical": 0.5}  # at most this ARW, deg/sqrt(h)
 
 
 def grade_of(profile: NoiseProfile) -> str:
-    """``navigation``, ``tactical`` or ``mems``, from the gyro's angle random walk."""
-    arw_dph = math.degrees(profile.arw) * 60.0
-    for grade, limit in GRADE_ARW_DPH.items():
-        if arw_dph <= limit:
-            return grade
-    return "mems"
+    """``navigation``, ``tactical`` or ``mems``, from the gyro's angle random walk.
+
+    The grade the default requirements follow too (:func:`calib.requirements.grade_of`).
+    """
+    return requirements_grade(profile)[0].lower()
 
 
 def error_half_range(grade: str) -> np.ndarray:
@@ -323,13 +322,22 @@ class Verification:
         lo, hi = nees["band_99"]
         verdict = "honest" if nees["in_band"] else "NOT honest: the reported sigmas are wrong"
         lines.append(f"mean NEES {nees['mean']:.2f} (99 % band [{lo:.2f}, {hi:.2f}] for 21 dof): {verdict}")
-        head = ("param", "unit", "analyze σ", "RMS error", "RMS/σ run", "RMS/σ pred")
-        lines.append("{:>6} {:>8} {:>11} {:>11} {:>10} {:>10}".format(*head))
+        # Runs placed by hand at random have no analyser's prediction: its two columns would be
+        # all "-", so they are left out.
+        predicted = any(e["predicted_sigma"] is not None for e in doc["parameters"].values())
+        if predicted:
+            head = ("param", "unit", "analyze σ", "RMS error", "RMS/σ run", "RMS/σ pred")
+            lines.append("{:>6} {:>8} {:>11} {:>11} {:>10} {:>10}".format(*head))
+        else:
+            lines.append("{:>6} {:>8} {:>11} {:>10}".format("param", "unit", "RMS error", "RMS/σ run"))
         for name, e in doc["parameters"].items():
-            lines.append(
-                f"{name:>6} {e['unit']:>8} {_figure(e['predicted_sigma'], 11, '.4g')} {e['rms_error']:11.4g} "
-                f"{e['rms_over_reported_sigma']:10.2f} {_figure(e['rms_over_predicted_sigma'], 10, '.2f')}"
-            )
+            row = f"{name:>6} {e['unit']:>8} "
+            if predicted:
+                row += f"{_figure(e['predicted_sigma'], 11, '.4g')} "
+            row += f"{e['rms_error']:11.4g} {e['rms_over_reported_sigma']:10.2f}"
+            if predicted:
+                row += f" {_figure(e['rms_over_predicted_sigma'], 10, '.2f')}"
+            lines.append(row)
         return "\n".join(lines)
 
 
@@ -358,6 +366,7 @@ def verify(
     workers: int = 1,
     scheduler=None,
     hand: HandShape | None = None,
+    progress=None,
 ) -> Verification:
     """Simulate and calibrate ``runs`` runs of ``seq`` (run ``i`` from seed ``seed + i``).
 
@@ -382,6 +391,8 @@ def verify(
     hand : HandShape, optional
         Runs placed by hand of this shape instead of ``seq`` (then None): each run draws its
         own poses, moves and noise; there is no analyser's prediction (``predicted_sigma`` nan).
+    progress : callable, optional
+        ``progress(done, runs)`` as runs finish (:func:`map_jobs`).
     """
     grade = grade_of(profile)
     half = error_half_range(grade)
@@ -401,5 +412,6 @@ def verify(
         )
         for i in range(runs)
     ]
-    outcomes = tuple(map_jobs(one_run, jobs, workers, scheduler))
+    done = None if progress is None else (lambda n: progress(n, runs))
+    outcomes = tuple(map_jobs(one_run, jobs, workers, scheduler, done=done))
     return Verification(seq, profile, requirements, grade, np.asarray(predicted_sigma, float), outcomes, hand)

@@ -127,7 +127,7 @@ def test_export_replays_to_the_show_attitudes(tmp_path, name):
     assert res.exit_code == 0, res.output
     header, rows = read_schedule(out)
     assert header["sequence"] == name and header["rate_hz"] == "100"
-    shown = json.loads(CliRunner().invoke(main, ["show", name, "--json"]).output)
+    shown = json.loads(CliRunner().invoke(main, ["show", name, "--json"]).stdout)
     C_start = attitude("east", "up", "south")
     for p in shown["positions"]:
         C_show = attitude(p["x"], p["y"], p["z"])

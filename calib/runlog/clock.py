@@ -145,9 +145,16 @@ class SampleClock:
         return figures
 
 
-def describe(events: list) -> str:
-    """``'1 at t = 250.005 s, 2 at t = 750 s'`` for a list of (time, count)."""
-    return ", ".join(f"{c} at t = {t:.6g} s" for t, c in events)
+def describe(events: list, first: int = 3) -> str:
+    """``'1 at t = 250.005 s, 2 at t = 750 s'`` for a list of (time, count).
+
+    Past ``first`` events only the first few are named, after their number (a
+    100 Hz log read at 200 Hz loses every other sample: tens of thousands of places).
+    """
+    named = ", ".join(f"{c} at t = {t:.6g} s" for t, c in events[:first])
+    if len(events) <= first:
+        return named
+    return f"in {len(events)} places, the first {first}: {named}, ..."
 
 
 def duplicate_rows(time_s: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, period_s: float) -> np.ndarray:

@@ -153,6 +153,7 @@ META_HINTS = {
     "height_m": "ellipsoidal height in metres, within [-1000, 10000]",
     "sample_rate_hz": "the IMU output rate in Hz, greater than 0",
     "gravity_mps2": "measured gravity in m/s^2, greater than 0, or leave the key out",
+    "time_origin_s": "the absolute time of time_s = 0 in s (e.g. UNIX time), or leave the key out",
 }
 
 

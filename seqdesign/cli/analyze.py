@@ -9,7 +9,7 @@ import click
 from calib.errors import CalibError
 
 from . import options
-from .tools import emit_json, guarded, info
+from .tools import emit_json, guarded, info, rerun_command
 
 TOLERANCE = click.FloatRange(0.0, 10.0)
 
@@ -101,13 +101,19 @@ def analyze(
             as_json,
             reading,
         )
+    from calib.profiles import as_profile
+    from calib.requirements import default_for
     from seqdesign.analysis import analyze as run_analysis
 
     if view_path and Path(view_path).suffix != ".rrd":
         raise CalibError(f"recording {view_path!r} must end in .rrd", "--view")
+    prof = as_profile(profile)
+    requirements, chosen = default_for(prof, requirements)  # the profile's grade, when not given
+    if chosen:
+        info(chosen)
     result = run_analysis(
         sequence,
-        profile,
+        prof,
         latitude_deg=latitude,
         tolerance_deg=tolerance_deg,
         extras=with_terms,
@@ -120,11 +126,21 @@ def analyze(
         path = view_path or f"{result.sequence.name}-analysis.rrd"
         record_analysis(result, path)
         doc["recording"] = str(path)
-        info(f"wrote {path} (open it with: rerun {path})")
+        info(f"wrote {path} (open it with: {rerun_command()} {path})")
     if as_json:
         emit_json(doc)
         return
     click.echo(result.to_text())
+    ctx = click.get_current_context()
+    defaults = all(
+        ctx.get_parameter_source(k) is click.core.ParameterSource.DEFAULT for k in ("profile", "requirements")
+    )
+    if defaults and any(e["ratio"] > 1.0 for e in doc["parameters"].values()):
+        # The paper's own sequence misses under the defaults: say they are defaults, not the user's unit.
+        click.echo(
+            "these are the defaults, the paper's navigation-grade requirements under the navigation "
+            "profile, not your unit's: give its --profile (its grade sets the requirements) or --requirements"
+        )
 
 
 def _analyze_by_hand(
@@ -200,7 +216,7 @@ def compare(sequences, profile, latitude, height, tolerance_deg, requirements, a
     """
     from calib.filekind import kind_of
     from calib.profiles import as_profile
-    from calib.requirements import load_requirements
+    from calib.requirements import default_for, load_requirements
     from seqdesign.analysis import analyze as run_analysis
     from seqdesign.analysis import compare_text, site_warnings
 
@@ -222,6 +238,9 @@ def compare(sequences, profile, latitude, height, tolerance_deg, requirements, a
         return
 
     prof = as_profile(profile)
+    requirements, chosen = default_for(prof, requirements)  # the profile's grade, when not given
+    if chosen:
+        info(chosen)
     req = load_requirements(requirements)
     analyses = [
         run_analysis(

@@ -13,7 +13,7 @@ from pathlib import Path
 import click
 
 from . import options
-from .tools import emit_json, guarded, hidden_alias, info, provenance
+from .tools import emit_json, guarded, hidden_alias, info, provenance, refuse_overwrite
 
 
 @click.command(short_help="Identify the 21 parameters (value and sigma) from a run log.")
@@ -68,7 +68,9 @@ from .tools import emit_json, guarded, hidden_alias, info, provenance
     "--by-hand",
     is_flag=True,
     help="RUN was placed by hand (no gimbal, no sequence): fit it from its rests, found with the "
-    "profile's noise, and the gyros across the moves between them (any axis, fast, carried).",
+    "profile's noise, and the gyros across the moves between them (any axis, fast, carried). "
+    "Give the unit's white-noise profile (--profile mems, or your own): the default navigation "
+    "profile's noise is far below a hand-turned unit's and finds no rest.",
 )
 @click.option(
     "--correction",
@@ -121,8 +123,27 @@ def calibrate(
     from calib.sequence import load_sequence
     from calib.truth import read_truth, truth_path_for
 
+    out_path = Path(output) if output else Path(run_path).with_name(Path(run_path).stem + ".result.toml")
+    refuse_overwrite(
+        {"-o": out_path, "--correction": correction_path},
+        {
+            "RUN": run_path,
+            "--gyro-file": gyro_file,
+            "--conversion": conversion,
+            "--sequence": sequence,
+            "--truth": truth_path,
+            "--profile": profile,
+            "--requirements": requirements,
+        },
+    )
     extras = as_extras(with_terms, by_hand=by_hand)
     prof = as_profile(profile)
+    if not by_hand:  # a hand fit takes the mems requirements by default (calib.calibration)
+        from calib.requirements import default_for
+
+        requirements, chosen = default_for(prof, requirements)  # the profile's grade, when not given
+        if chosen:
+            info(chosen)
     reading = dict(allow_gaps=allow_gaps, latitude_deg=latitude, height_m=height)
     from .reading import hand_reading, run_notes
 
@@ -147,7 +168,6 @@ def calibrate(
         gravity_mps2, notes = run_notes(run, gravity_mps2)  # a conversion file's gravity, clipping
         for note in notes:
             info(note)
-    out_path = Path(output) if output else Path(run_path).with_name(Path(run_path).stem + ".result.toml")
     if truth_path is None and truth_path_for(run_path).exists():
         truth_path = truth_path_for(run_path)
     truth = read_truth(truth_path) if truth_path else None
@@ -187,11 +207,13 @@ def calibrate(
             correction_path
         )
         info(f"wrote {correction_path}")
-    for warning in result.warnings():
+    # On the command line the surveyed gravity is --gravity (the library names its argument).
+    warned = result.warnings(gravity_option="--gravity")
+    for warning in warned:
         info(f"warning: {warning}")
     doc = {"result": str(out_path)} | ({} if run is None else {"clock": run.clock.as_dict()})
     if as_json:
-        emit_json(result.to_json(truth) | doc)
+        emit_json(result.to_json(truth) | doc | {"warnings": warned})
         return
     click.echo(result.to_text(truth))
     click.echo(f"wrote {out_path}")

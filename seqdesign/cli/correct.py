@@ -13,7 +13,7 @@ from __future__ import annotations
 import click
 
 from . import options
-from .tools import emit_json, guarded, info
+from .tools import emit_json, guarded, info, refuse_overwrite
 
 
 @click.command(short_help="Apply a calibration (calibrated = M (raw - b)) to a log.")
@@ -55,6 +55,15 @@ def correct(
 
     from .reading import hand_reading
 
+    refuse_overwrite(
+        {"-o": output},
+        {
+            "LOG": run_path,
+            "--correction": correction_path,
+            "--gyro-file": gyro_file,
+            "--conversion": conversion,
+        },
+    )
     correction = Correction.load(correction_path)
     reading = dict(latitude_deg=latitude, height_m=height, columns=columns)
     run = read_run(run_path, **reading, **hand_reading(gyro_file, conversion, sample_rate_hz))
@@ -64,8 +73,13 @@ def correct(
     # The calibrated log is in SI: the raw reading's keys (its conversion, its source format) go.
     meta = {k: v for k, v in run.meta.items() if not k.startswith(("conversion", "source_format"))}
     meta["calibrated_with"] = str(correction_path)
+    origin = _time_origin(run)
+    if origin:  # epoch stamps were re-based to their first: the absolute time is kept beside them
+        meta["time_origin_s"] = repr(origin)
     write_run(Run(run.time_s, rate * dt, force * dt, meta, source=output), output)
     info(f"applied {correction_path} to {run.n_samples} samples of {run_path}")
+    if origin:
+        info(f"time_s counts from {origin:.6f} s, the log's first stamp (time_origin_s in {output})")
     doc = {
         "output": output,
         "samples": run.n_samples,
@@ -76,3 +90,17 @@ def correct(
         emit_json(doc)
         return
     click.echo(f"wrote {output}")
+
+
+def _time_origin(run) -> float:
+    """The absolute time of ``time_s = 0``: epoch stamps' first, on top of any origin the log states.
+
+    A log whose time column counts from an epoch (UNIX or ROS time) is read from
+    its first stamp (``calib.runlog.clock.epoch_origin``: a float64 at 1.7e9 s
+    rounds each interval); the calibrated log writes its stamps the same way and
+    states that first stamp as ``time_origin_s``, so no absolute time is lost.
+    """
+    from calib.runlog.run import meta_float
+
+    stated = meta_float(run.meta, "time_origin_s", run.source) if "time_origin_s" in run.meta else 0.0
+    return stated + (run.clock.origin_s if run.clock is not None else 0.0)

@@ -138,9 +138,7 @@ PROGRESS_EVERY_S = 2.0  # at most one progress line this often, besides each pha
     "--protocol", "protocol_path", metavar="FILE.md", help="--by-hand: also write the protocol (and its PNG)."
 )
 @options.as_json
-@options.gimbal(
-    "Only moves this gimbal plays (docs/gimbal.md); --rate-dps defaults to its rate.", metavar="FILE|NAME"
-)
+@options.gimbal("Only moves this gimbal plays; --rate-dps defaults to its rate.")
 @guarded
 def design(
     budget_min,
@@ -221,6 +219,7 @@ def design(
 
     _, constraints = resolve_gimbal(gimbal_file, constraints)  # refused before the search
     sweep = _budgets(budgets) if pareto else [budget_min]
+    profile, requirements = _say_the_bounds(profile, requirements, latitude, sweep)
     base = name if name is not None else (_stem(output) if output else None)
     names = design_names(sweep, base)
     paths = {b: _design_path(names[b], output, pareto) for b in sweep}
@@ -261,6 +260,32 @@ def design(
         emit_json(report.to_json())
         return
     click.echo(report.to_text())
+
+
+def _say_the_bounds(profile, requirements, latitude, budgets_min):
+    """The profile and the requirements to design for, after saying what no design can meet.
+
+    Without ``--requirements`` the profile's grade gives them (and it is said). A
+    requirement that no sequence of a budget can meet (a bound of :mod:`calib.bounds`:
+    a MEMS gyro's bias wander, gravity the only excitation of the accelerometer scale
+    factors) is said before the minutes of search, with the length that would meet it.
+    """
+    from calib import earth
+    from calib.bounds import unreachable
+    from calib.profiles import as_profile
+    from calib.requirements import default_for, load_requirements
+
+    prof = as_profile(profile)
+    requirements, chosen = default_for(prof, requirements)
+    if chosen:
+        info(chosen)
+    req = load_requirements(requirements)
+    earth.check_site(latitude, 0.0)
+    g = earth.gravity(math.radians(latitude))
+    for b in budgets_min:
+        for bound in unreachable(b * 60.0, prof, g, req):
+            info(f"warning: {bound.text(b * 60.0)}")
+    return prof, req
 
 
 def _refuse_unobservable(report, requirements) -> None:

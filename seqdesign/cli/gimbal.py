@@ -19,7 +19,7 @@ from .tools import emit_json, guarded, info, provenance
 
 @click.command(short_help="Write the time-stamped command schedule a gimbal controller plays.")
 @click.argument("sequence")
-@options.gimbal("Gimbal description (TOML; see docs/gimbal.md). Default: slip rings, no limits.")
+@options.gimbal("The gimbal to schedule (default: slip rings, no limits).")
 @click.option("-o", "--output", required=True, help="Schedule to write (.csv).")
 @click.option(
     "--rate-hz",

@@ -49,7 +49,8 @@ requirements = click.option(
     default=None,
     metavar="FILE|NAME",
     help="Accuracy requirements: a TOML file with a [requirements] table (spec names and "
-    "units; missing ones keep the paper's) or paper, tactical, mems.",
+    "units; missing ones keep the paper's) or paper, tactical, mems. Default: those of the "
+    "profile's grade (paper for a navigation-grade one; docs/grades.md), mems by hand.",
 )
 
 
@@ -65,11 +66,22 @@ def tolerance(
     return click.option("--tolerance-deg", type=TOLERANCE, default=3.0, show_default=True, help=help)
 
 
-def gimbal(help: str, metavar: str | None = None):
-    """``--gimbal`` description file (or shipped name), into ``gimbal_file``."""
-    if metavar:
-        return click.option("--gimbal", "gimbal_file", default=None, metavar=metavar, help=help)
-    return click.option("--gimbal", "gimbal_file", type=click.Path(dir_okay=False), help=help)
+# The gimbals shipped in sequences/gimbals/ (a test holds the list to the folder).
+SHIPPED_GIMBALS = "slip-rings, cable-wrap"
+
+
+def gimbal(help: str):
+    """``--gimbal``, a shipped name or a description file, into ``gimbal_file``.
+
+    ``help`` says what the command does with it; what the value may be is said here, once.
+    """
+    return click.option(
+        "--gimbal",
+        "gimbal_file",
+        default=None,
+        metavar="NAME|FILE",
+        help=f"{help} A shipped gimbal ({SHIPPED_GIMBALS}) or a TOML file (docs/gimbal.md).",
+    )
 
 
 def seed(help: str = "Random seed (noise, setup, flip errors)."):
@@ -93,10 +105,11 @@ columns = click.option(
     "columns",
     default=None,
     metavar="MAP",
+    # The example is short enough to stay on one line of the help (a longer one was cut mid-word).
     help="Map a logger CSV's own column names to ours (docs/logs-columns.md): comma-separated "
-    "FILE_NAME=OUR_NAME pairs, e.g. t=time_ms,gx=gyro_x_dps,gy=gyro_y_dps,gz=gyro_z_dps,"
-    "ax=accel_x_mps2,ay=accel_y_mps2,az=accel_z_mps2; our name's suffix gives the unit "
-    "(time_s, time_ms, time_us, time_ns; radps, dps; mps2, g).",
+    "FILE_NAME=OUR_NAME pairs, e.g. t=time_ms,gx=gyro_x_dps,ax=accel_x_g and so on for gy, "
+    "gz, ay, az; our name's suffix gives the unit (time_s, time_ms, time_us, time_ns; radps, "
+    "dps; mps2, g).",
 )
 
 

@@ -5,12 +5,14 @@ from __future__ import annotations
 import click
 
 from . import options
-from .tools import emit_json, guarded
+from .tools import emit_json, guarded, info
 
 
 @click.command(short_help="Print a sequence's rest positions: axes, gimbal angles, times.")
 @click.argument("sequence")
-@options.gimbal("Gimbal description (TOML): list its counter-rotations and flag violations.")
+@options.gimbal(
+    "List the counter-rotations and flag the violations on this gimbal (default: slip rings, no limits)."
+)
 @options.as_json
 @guarded
 def show(sequence, gimbal_file, as_json):
@@ -22,6 +24,8 @@ def show(sequence, gimbal_file, as_json):
     from seqdesign.positions import show_positions
 
     shown = show_positions(sequence, load_gimbal(gimbal_file))
+    for warning in shown.warnings():  # on the ideal default gimbal: what a real one would refuse
+        info(f"warning: {warning}")
     if as_json:
         emit_json(shown.to_json())
         return

@@ -173,8 +173,8 @@ HAND_DEFAULTS = {
     "e.g. rxx=3,k2y=20,dt_ga=0.5.",
 )
 @options.gimbal(
-    "Gimbal description (TOML): refuse moves it cannot play; its limits pace "
-    "the lock counter-rotations in the encoder channels."
+    "Refuse moves this gimbal cannot play; its limits pace the lock counter-rotations in the "
+    "encoder channels."
 )
 @click.option(
     "--stream",

@@ -9,9 +9,12 @@ from __future__ import annotations
 import functools
 import json
 import math
+import os
 import shlex
+import shutil
 import sys
 import warnings
+from pathlib import Path
 
 import click
 
@@ -19,6 +22,19 @@ from calib.errors import CalibError
 from seqdesign.provenance import call_provenance
 
 EXIT_BAD_INPUT = 2
+# No notice the tool prints is longer: a message names the first few of a long list
+# (calib.runlog.clock.describe); this bound catches a warning that would not, keeping both ends.
+# A refusal is left whole: it is written to its bound where it is raised, and its fix is its end.
+MAX_MESSAGE = 400
+
+
+def bounded(text: str) -> str:
+    """``text`` cut in the middle to `MAX_MESSAGE` characters: what is wrong and the fix (its ends) stay."""
+    if len(text) <= MAX_MESSAGE:
+        return text
+    head = MAX_MESSAGE * 2 // 3
+    tail = MAX_MESSAGE - head - 5
+    return text[:head] + " ... " + text[-tail:]
 
 
 def command_line() -> str:
@@ -42,6 +58,23 @@ def command_line() -> str:
     return " ".join(parts)
 
 
+def rerun_command() -> str:
+    """The viewer's command as the user's shell finds it.
+
+    ``rerun`` when it is on PATH (an activated environment); else the one
+    installed beside this Python, e.g. ``.venv/bin/rerun`` (``make demo`` runs
+    the tool from the venv without activating it, where plain ``rerun`` is not found).
+    """
+    beside = Path(sys.executable).parent / "rerun"  # not resolved: the venv's bin, not the base Python's
+    on_path = shutil.which("rerun")
+    if not beside.exists() or (on_path and Path(on_path).resolve() == beside.resolve()):
+        return "rerun"
+    try:
+        return str(beside.relative_to(Path.cwd()))
+    except ValueError:  # the environment is elsewhere
+        return str(beside)
+
+
 def provenance(inputs: dict | None = None, **extra) -> dict:
     """Tool version, the command line as typed, SHA-256 of every input file, and ``extra`` facts."""
     return call_provenance(command_line(), inputs, **extra)
@@ -60,6 +93,46 @@ def hidden_alias(command: click.Command, name: str, flag: str) -> click.Command:
         help=f"Same as `seqdesign {command.name} --{flag}`.",
         hidden=True,
     )
+
+
+def _same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
+    """Whether two paths name one file: the same inode when both exist (links, ``./x``), else one path."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them does not exist yet: compare the paths it would be written at
+        return os.path.realpath(a) == os.path.realpath(b)
+
+
+Paths = dict[str, str | os.PathLike | None]
+
+
+def refuse_overwrite(outputs: Paths, inputs: Paths) -> None:
+    """Refuse, before anything is read or written, an output that is one of the inputs.
+
+    Writing the result over the raw log (``-o x.csv`` on ``x.csv``) would lose the
+    only copy of the recording; two outputs at one path would lose the first.
+
+    Parameters
+    ----------
+    outputs, inputs
+        Option name (as the user typed it, e.g. ``"-o"``, ``"LOG"``) to path; None is not given.
+
+    Raises
+    ------
+    CalibError
+        Naming the option and the input it would overwrite.
+    """
+    # An input that is not a file is a shipped name (--profile mems), nothing to overwrite.
+    given_in = [(name, path) for name, path in inputs.items() if path is not None and os.path.isfile(path)]
+    given_out = [(name, path) for name, path in outputs.items() if path is not None]
+    for i, (out_name, out_path) in enumerate(given_out):
+        for in_name, in_path in given_in + given_out[:i]:
+            if _same_file(out_path, in_path):
+                raise CalibError(
+                    f"{out_name} is the same file as {in_name}, which it would overwrite",
+                    str(out_path),
+                    f"give {out_name} another file name",
+                )
 
 
 def guarded(fn):
@@ -108,8 +181,8 @@ def emit_json(doc) -> None:
 
 def info(msg: str) -> None:
     """A line on stderr (stdout is for results)."""
-    click.echo(msg, err=True)
+    click.echo(bounded(msg) if "\n" not in msg else msg, err=True)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    click.echo(f"warning: {message}", err=True)
+    click.echo(bounded(f"warning: {message}"), err=True)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 from pathlib import Path
 
 import click
@@ -10,6 +11,7 @@ import click
 from calib.errors import CalibError
 
 from . import options
+from .design import _duration
 from .handtroubles import given_troubles, trouble_options
 from .tools import emit_json, guarded, info
 
@@ -47,9 +49,7 @@ from .tools import emit_json, guarded, info
     "unit of the profile's grade, see docs/verify.md).",
 )
 @click.option("--table2", is_flag=True, help="Every run has the paper's Table 2 standard errors.")
-@options.gimbal(
-    "Gimbal description (TOML) or shipped name: refuse a sequence it cannot play.", metavar="FILE|NAME"
-)
+@options.gimbal("Refuse a sequence this gimbal cannot play.")
 @click.option(
     "--by-hand",
     is_flag=True,
@@ -113,7 +113,7 @@ def verify(
     """
     from calib.errormodel import ErrorModel
     from calib.profiles import as_profile
-    from calib.requirements import load_requirements
+    from calib.requirements import default_for, load_requirements
     from calib.truth import read_errors
     from seqdesign.plots import verify_png
 
@@ -128,7 +128,14 @@ def verify(
     if plot_path and Path(plot_path).suffix.lower() != ".png":
         raise CalibError(f"plot {plot_path!r} must end in .png", "--plot")
     # A unit placed by hand is judged by the mems requirements unless told otherwise, as calibrate does.
-    prof, req = as_profile(profile), load_requirements(requirements or ("mems" if by_hand else None))
+    prof = as_profile(profile)
+    if by_hand:
+        req = load_requirements(requirements or "mems")
+    else:
+        requirements, chosen = default_for(prof, requirements)  # the profile's grade, when not given
+        if chosen:
+            info(chosen)
+        req = load_requirements(requirements)
     errors = read_errors(errors_file) if errors_file else ErrorModel.from_table2() if table2 else None
     if by_hand or sequence is None:
         from .verifyhand import verify_by_hand
@@ -147,6 +154,7 @@ def verify(
             errors,
             (like, poses, peak_rate_dps, by_hand, placement_deg),
             troubles,
+            progress=RunsProgress(),
         )
     else:
         result = _verify_sequence(
@@ -233,4 +241,27 @@ def _verify_sequence(
         requirements=req,
         workers=workers,
         scheduler=scheduler,
+        progress=RunsProgress(),
     )
+
+
+class RunsProgress:
+    """A Monte Carlo's progress on stderr, as ``design`` says its own: runs done, time, time left.
+
+    At most one line every ``every_s`` seconds, and always the last; a run of tens of
+    seconds each would otherwise leave the terminal silent for minutes.
+    """
+
+    def __init__(self, every_s: float = 5.0):
+        self.every_s = every_s
+        self.t0 = time.monotonic()
+        self.last = -math.inf
+
+    def __call__(self, done: int, runs: int) -> None:
+        now = time.monotonic()
+        if done < runs and now - self.last < self.every_s:
+            return
+        self.last = now
+        elapsed = now - self.t0
+        left = f", about {_duration(elapsed / done * (runs - done))} left" if done < runs else ""
+        info(f"  {done} of {runs} runs done ({_duration(elapsed)}{left})")

@@ -23,6 +23,7 @@ def verify_by_hand(
     errors,
     shape,
     troubles=None,
+    progress=None,
 ):
     """Simulate and calibrate ``runs`` runs placed by hand (``verify`` reports them).
 
@@ -97,4 +98,5 @@ def verify_by_hand(
         workers=workers,
         scheduler=scheduler,
         hand=hand,
+        progress=progress,
     )

@@ -19,7 +19,7 @@ import click
 from calib.errors import CalibError
 
 from . import options
-from .tools import guarded
+from .tools import guarded, rerun_command
 from .tools import info as _info
 
 # Exit code of `view --spawn` when there is no display: the recording is written, the viewer
@@ -209,8 +209,8 @@ def view(
     if no_display:
         _info(
             f"error: --spawn: no display to open the viewer on (DISPLAY and WAYLAND_DISPLAY "
-            f"are unset); {out} is written: open it with 'rerun {out}' where there is a "
-            f"display, or 'rerun --serve-web {out}' and a browser"
+            f"are unset); {out} is written: open it with '{rerun_command()} {out}' where there is a "
+            f"display, or '{rerun_command()} --serve-web {out}' and a browser"
         )
     elif spawn:
         _spawn_viewer(out)
@@ -236,7 +236,7 @@ def view(
             f"scene from {doc['scene_source']})"
         )
         if not spawn:
-            click.echo(f"open it with: rerun {out}")
+            click.echo(f"open it with: {rerun_command()} {out}")
     if no_display:
         sys.exit(EXIT_NO_DISPLAY)
 

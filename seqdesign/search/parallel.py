@@ -36,8 +36,12 @@ def worker_pool(workers: int):
             del _shared[workers]
 
 
-def map_jobs(fn, jobs, workers: int = 1, scheduler: str | None = None):
-    """Run jobs serially, on local processes, or on a dask.distributed cluster; same order out."""
+def map_jobs(fn, jobs, workers: int = 1, scheduler: str | None = None, done=None):
+    """Run jobs serially, on local processes, or on a dask.distributed cluster; same order out.
+
+    ``done(n)``, if given, is called as the first ``n`` results are in (serially and on local
+    processes as each arrives in order; on a cluster once, at the end).
+    """
     if scheduler:
         try:
             from dask.distributed import Client
@@ -47,13 +51,23 @@ def map_jobs(fn, jobs, workers: int = 1, scheduler: str | None = None):
             ) from None
         client = scheduler if not isinstance(scheduler, str) else Client(scheduler)
         try:
-            return client.gather(client.map(fn, jobs, pure=False))
+            return _collect(client.gather(client.map(fn, jobs, pure=False)), done)
         finally:
             if isinstance(scheduler, str):
                 client.close()
     if workers > 1:
         if workers in _shared:
-            return list(_shared[workers].map(fn, jobs))
+            return _collect(_shared[workers].map(fn, jobs), done)
         with ProcessPoolExecutor(max_workers=workers) as pool:
-            return list(pool.map(fn, jobs))
-    return [fn(j) for j in jobs]
+            return _collect(pool.map(fn, jobs), done)
+    return _collect(map(fn, jobs), done)
+
+
+def _collect(results, done) -> list:
+    """The results as a list, saying each arrival to ``done`` (the executors yield them in order)."""
+    out = []
+    for result in results:
+        out.append(result)
+        if done is not None:
+            done(len(out))
+    return out
