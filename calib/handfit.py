@@ -72,8 +72,8 @@ class HandData:
     move_turn_rad : ndarray, shape (K - 1,)
         The angle the gyro turned through over each move (the sum of its increments' norms).
     rest_noise : ndarray, shape (K, 2)
-        Each rest's own white noise over the profile's (accelerometer, gyro), at least 1: the
-        scatter of its samples (a pose held in the hand trembles).
+        Each rest mean's own noise over the profile's white noise (accelerometer, gyro), at
+        least 1 (`rest_noise_factor`: a pose held in the hand trembles).
     """
 
     rests: Rests
@@ -88,6 +88,22 @@ class HandData:
     @property
     def count(self) -> int:
         return len(self.rest_time_s)
+
+
+def rest_noise_factor(increments: np.ndarray, T: float, density: float) -> float:
+    """How much a rest's mean is noisier than the profile's white noise says (at least 1).
+
+    A pose held in the hand trembles: the unit wobbles and shakes about a mean pose, so its
+    increments' running sum (the angle, or the velocity, about the rest's mean) wanders within
+    a bound instead of walking. The mean over the rest then errs by the wander's change from
+    start to end over ``T``: variance ``2 s^2 / T^2``, ``s^2`` the wander's variance beyond
+    what white noise gives a bridge of ``T`` (``density^2 T / 6``).
+    """
+    if density <= 0 or len(increments) < 3:
+        return 1.0
+    wander = np.cumsum(increments - increments.mean(axis=0), axis=0)
+    extra = max(float(np.mean(np.var(wander, axis=0))) - density**2 * T / 6.0, 0.0)
+    return math.sqrt(1.0 + 2.0 * extra / T**2 / (density**2 / T))
 
 
 def hand_data(
@@ -105,12 +121,8 @@ def hand_data(
     turn = np.array([np.linalg.norm(dtheta[s], axis=1).sum() for s in slices])
     noise = np.ones((len(T), 2))
     for r, (a, b) in enumerate(zip(rests.start, rests.end, strict=True)):
-        # A pose held in the hand trembles: its samples scatter beyond the profile's white noise,
-        # and so does their mean (the scatter's own, never less than the profile's).
-        h = dt[a:b, None]
         for k, (x, density) in enumerate(((dv, profile.vrw), (dtheta, profile.arw))):
-            per_sample = np.mean(np.var(x[a:b] / h, axis=0)) * float(np.mean(h))
-            noise[r, k] = max(1.0, math.sqrt(per_sample) / density) if density > 0 else 1.0
+            noise[r, k] = rest_noise_factor(x[a:b], T[r], density)
     return HandData(rests, T, rate, force, slices, used, turn, noise)
 
 
