@@ -149,3 +149,13 @@ def test_a_sample_lost_in_a_move_is_refused_even_with_allow_gaps(tmp_path):
         read_run(path, columns=columns, latitude_deg=45.0, height_m=0.0, allow_gaps=True)
     with pytest.raises(CalibError, match="1 sample.s. dropped"):
         read_run(path, columns=columns, latitude_deg=45.0, height_m=0.0)
+
+
+def test_the_clock_says_which_rule_it_used():
+    # Stamps of the IMU's own clock (jitter far below a quarter period): rounded step by step.
+    clean = PERIOD * np.arange(1_000) + 1e-5 * np.random.default_rng(0).standard_normal(1_000)
+    assert sample_clock(clean, RATE_HZ).rule == "step"
+    jittery = PERIOD * np.arange(1_000) + host_delays(1_000, np.random.default_rng(1))
+    clock = sample_clock(jittery, RATE_HZ)
+    assert clock.rule == "count" and "rows counted as samples" in clock.summary()
+    assert clock.as_dict()["rule"] == "count"

@@ -86,6 +86,10 @@ class SampleClock:
         sample (one period after the row before the hole) and how many are missing.
     duplicates : list of (float, int)
         Each repeated sample: its time and how many extra copies follow it.
+    rule : str
+        ``"step"``: every step rounded to whole periods (stamps of the IMU's own clock);
+        ``"count"``: the rows counted, a gap only where the stamps' lag stays (a host's
+        jittering stamps; the module's docstring).
     origin_s : float
         The time column's first stamp when it counts from an epoch
         (``|t0| > EPOCH_S``), else 0: every time here (offset, dropped,
@@ -102,6 +106,7 @@ class SampleClock:
     dropped: list
     duplicates: list
     origin_s: float = 0.0
+    rule: str = "step"  # how the rows were counted: "step" (the IMU's clock) or "count" (host stamps)
 
     @property
     def uniform(self) -> bool:
@@ -118,6 +123,8 @@ class SampleClock:
         )
         if abs(self.rate_error_ppm) >= 1.0:
             text += f"; its period is {self.rate_error_ppm:+.3g} ppm off the nominal"
+        if self.rule == "count":
+            text += "; rows counted as samples (host stamps), a gap only where the stamps' lag stays"
         if self.uniform:
             text = "clock: time column uniform at the nominal period"
         if self.dropped:
@@ -139,6 +146,7 @@ class SampleClock:
             "jitter_max_s": self.jitter_max_s,
             "dropped": [{"time_s": t, "count": c} for t, c in self.dropped],
             "duplicates": [{"time_s": t, "count": c} for t, c in self.duplicates],
+            "rule": self.rule,
         }
         if self.origin_s:  # only for epoch stamps: the times above count from it
             figures["origin_s"] = self.origin_s
@@ -208,6 +216,10 @@ def sample_clock(
     period = 1.0 / sample_rate_hz
     dup = np.zeros(len(time_s), dtype=bool) if duplicate is None else duplicate
     steps = _whole_steps(time_s, period, dup)
+    counted = steps[~dup[1:]]
+    with np.errstate(over="ignore", invalid="ignore"):
+        off = np.abs(np.diff(time_s)[~dup[1:]] / period - np.rint(np.diff(time_s)[~dup[1:]] / period))
+    rule = "count" if counted.size and bool((off > STEP_RULE_FRACTION).any()) else "step"
     origin = epoch_origin(time_s)
     dropped = [(float(time_s[i] - origin + period), int(steps[i] - 1)) for i in np.flatnonzero(steps > 1)]
     index = np.zeros(len(time_s), dtype=np.int64)
@@ -239,6 +251,7 @@ def sample_clock(
         dropped=dropped,
         duplicates=_runs_of(dup, time_s, origin),
         origin_s=origin,
+        rule=rule,
     )
 
 
