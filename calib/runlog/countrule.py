@@ -1,0 +1,140 @@
+"""The count rule: rows of a log whose host stamps jitter, counted as samples.
+
+The rows are consecutive samples, each one period after the one before, unless
+the stamps say otherwise *and keep saying it*. A lost sample shifts every later
+stamp by a period against the count; a host's reception jitter delays a stamp
+and the next ones catch up. So a step of 1.5 periods or more is a gap only where
+the stamps' median lag against the count over the next stretch exceeds the one
+over the stretch before by a whole number of periods; a jittering stamp that the
+next ones make good is jitter. :mod:`calib.runlog.clock` applies it where the
+stamps jitter beyond a quarter period.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from calib.errors import CalibError
+
+# A persistent shift of the stamps against the count this far from a whole number of
+# periods is neither lost samples nor jitter: the stamps do not come from one crystal.
+MAX_STEP_FRACTION = 0.35
+# The stretch each side of a suspected gap whose median lag decides it (s): long against a
+# host's reception jitter (a few periods), short against a clock's drift (ppm of it).
+LAG_WINDOW_S = 1.0
+LAG_WINDOW_MIN = 25  # rows: a median of fewer would follow the jitter
+# The last check: a median lag over two seconds that shifts by this much and stays (half a
+# period less a margin for the medians' own scatter under a host's jitter of a period or more)
+# is no jitter.
+PERSISTENT_SHIFT = 0.45
+
+
+def counted_steps(time_s: np.ndarray, periods: np.ndarray, counted: np.ndarray, period: float) -> np.ndarray:
+    """The count rule: one sample per row, plus the gaps the stamps' lag keeps.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,)
+        The stamps, s.
+    periods : ndarray, shape (n - 1,)
+        Their steps in nominal periods.
+    counted : ndarray of bool, shape (n - 1,)
+        False for a row that repeats the one before (a duplicate: no sample).
+    period : float
+        The nominal period, s.
+
+    Returns
+    -------
+    ndarray of int, shape (n - 1,)
+        Samples per step.
+
+    Raises
+    ------
+    CalibError
+        Where the lag shifts and stays by no whole number of periods (``where`` the row).
+    """
+    steps = counted.astype(np.int64)
+    index = np.zeros(len(time_s))
+    np.cumsum(steps, out=index[1:])
+    lag = (time_s - time_s[0]) / period - index  # in periods; exact: t - t0 at epoch magnitude
+    width = max(LAG_WINDOW_MIN, int(round(LAG_WINDOW_S / period)))
+    # A logger clock off the nominal rate is a trend in the lag, not lost samples: the lag's
+    # median over the first and the last stretch (jitter aside; printed stamps rounded to ms
+    # make the median step no measure of a rate a few ppm off).
+    if index[-1] > 0:
+        ends = min(width, len(lag))
+        head, tail = float(np.median(lag[:ends])), float(np.median(lag[-ends:]))
+        lag -= (index - index[ends // 2]) * (tail - head) / max(index[-1] - ends + 1, 1.0)
+    for c in np.flatnonzero((periods >= 1.5) & counted):
+        row = int(c) + 1  # the first row after the step
+        before = float(np.median(lag[max(0, row - width) : row]))
+        after = float(np.median(lag[row : row + width]))
+        shift = after - before
+        lost = int(np.rint(shift))
+        if abs(shift - lost) > MAX_STEP_FRACTION:
+            continue  # no whole number of samples: jitter here, or refused by the check below
+        if lost > 0:
+            row = _gap_row(lag, periods, row, width, lost)
+            steps[row - 1] += lost
+            lag[row:] -= lost
+    _check_lag_kept(lag, 2 * width)
+    return steps
+
+
+def _gap_row(lag: np.ndarray, periods: np.ndarray, row: int, width: int, lost: int) -> int:
+    """Where, near ``row``, ``lost`` samples went: the long step that splits the lag best.
+
+    The medians find that the lag shifts but not to the row (they are flat over
+    half a window); the split of least absolute misfit (a level ``b`` before,
+    ``b + lost`` after) among the steps of 1.5 periods or more does.
+    """
+    lo, hi = max(0, row - width), min(len(lag), row + width)
+    base = float(np.median(lag[lo:row]))
+    before = np.concatenate([[0.0], np.cumsum(np.abs(lag[lo:hi] - base))])
+    after = np.concatenate([[0.0], np.cumsum(np.abs(lag[lo:hi] - base - lost))])
+    rows = lo + 1 + np.flatnonzero(periods[lo : hi - 1] >= 1.5)
+    rows = rows[rows >= row]  # the candidates before `row` were judged already
+    if rows.size == 0:
+        return row
+    cost = before[rows - lo] + after[-1] - after[rows - lo]
+    return int(rows[np.argmin(cost)])
+
+
+def _check_lag_kept(lag: np.ndarray, width: int) -> None:
+    """Refuse stamps whose median lag against the count shifts and stays (in periods, detrended).
+
+    Left after the gaps were counted, such a shift is a sample the stamps have no
+    room for (a repeated time with other data) or a lost one the jitter hid.
+    """
+    n = len(lag)
+    m = min(width, n // 2)
+    if m < 2:
+        return
+    stride = max(1, m // 4)  # medians on a grid: a shift lasts a window, a quarter of one finds it
+    m -= m % stride
+    starts = np.arange(0, n - m + 1, stride)
+    medians = np.array([np.median(lag[j : j + m]) for j in starts]) if len(starts) < 64 else None
+    if medians is None:
+        view = np.lib.stride_tricks.sliding_window_view(lag, m)[::stride]
+        medians = np.median(view, axis=1)
+    shift = medians[m // stride :] - medians[: -(m // stride)]
+    bad = np.flatnonzero(np.abs(shift) > PERSISTENT_SHIFT)
+    if bad.size:
+        k = int(bad[np.argmax(np.abs(shift[bad]))])
+        row = int(starts[k + m // stride])
+        size = float(shift[k])
+        whole = abs(size - round(size)) <= MAX_STEP_FRACTION
+        why = (
+            "not a whole number of samples: the stamps do not come from one sample clock"
+            if not whole
+            else "samples are lost where no step shows it"
+            if size > 0
+            else "more rows than the stamps have room for (a repeated time with other data)"
+        )
+        raise CalibError(
+            f"from row {row} the time stamps fall {'behind' if size > 0 else 'ahead of'} the sample "
+            f"count by {abs(size):.2f} periods and stay there: {why}",
+            str(row),
+            "the time column must locate samples taken at sample_rate_hz; check the rate, or whether "
+            "the log mixes clocks or repeats rows",
+        )
