@@ -9,6 +9,7 @@ g-sensitivity is fitted when it is there and not when it is not.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 
 import numpy as np
@@ -94,3 +95,26 @@ def test_a_g_sensitivity_that_is_there_is_fitted_and_recovered():
     sigma = np.asarray(result.extra_sigma)[part]
     # Each of the nine within 4 sigma of the truth (36 draws of a normal stay within 4 with 99.8 %).
     assert np.all(np.abs(fitted - G.reshape(9)) < 4 * sigma)
+
+
+@pytest.mark.slow
+def test_monte_carlo_of_trembling_jittering_g_sensitive_hand_runs_is_honest():
+    # Eight Xsens-shaped hand runs, each with its own MEMS errors, poses held in a trembling hand
+    # (0.2 deg), a g-sensitivity of up to 300 deg/h/g and host stamps up to 12 ms late (read back
+    # from a file as a user's log is), calibrated with the defaults (the model and the weights the
+    # data choose). The mean NEES of 8 honest runs of 21 parameters lies in the 99 % band of
+    # chi2(168)/8; the 50-run figures are in BENCHMARKS.md.
+    from click.testing import CliRunner
+    from scipy.stats import chi2
+
+    from seqdesign.cli import main
+
+    args = ["verify", "--by-hand", "--like", "xsens", "--profile", "mems", "--requirements", "mems"]
+    args += ["--runs", "8", "--workers", "1", "--sample-rate-hz", "100", "--seed", "1", "--json"]
+    args += ["--tremor-deg", "0.2", "--g-sensitivity-dphg", "300", "--stamp-jitter-ms", "12"]
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["converged"] == 8 and not doc["refused"]
+    lo, hi = chi2.ppf([0.005, 0.995], 8 * 21) / 8
+    assert lo < doc["nees"]["mean"] < hi, doc["nees"]
