@@ -174,3 +174,15 @@ def test_a_profile_with_a_gauss_markov_bias_weights_a_hand_fit_by_its_white_part
     assert "its white part weights the fit" in res.output
     white = white_part(load_profile(gm))
     assert not white.has_gauss_markov and white.gyro_arw_dph == load_profile(gm).gyro_arw_dph
+
+
+def test_a_long_refusal_is_printed_within_400_characters(tmp_path):
+    from calib.errors import CalibError
+    from seqdesign.cli.tools import MAX_MESSAGE, refusal_line
+
+    deep = tmp_path.joinpath(*["a-long-folder-name"] * 12) / "run.csv"
+    exc = CalibError("x" * 250, f"{deep}, line 4, column t", "give the IMU's rate (--sample-rate-hz)")
+    line = refusal_line(exc)
+    assert (
+        len(line) <= MAX_MESSAGE and line.startswith("run.csv, line 4") and line.endswith("--sample-rate-hz)")
+    )

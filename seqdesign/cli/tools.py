@@ -24,7 +24,9 @@ from seqdesign.provenance import call_provenance
 EXIT_BAD_INPUT = 2
 # No notice the tool prints is longer: a message names the first few of a long list
 # (calib.runlog.clock.describe); this bound catches a warning that would not, keeping both ends.
-# A refusal is left whole: it is written to its bound where it is raised, and its fix is its end.
+# A refusal is printed with its file named by its name alone when the whole path would take it
+# past the bound (a temporary folder's path is a hundred characters), then bounded alike;
+# `--json` keeps every field whole.
 MAX_MESSAGE = 400
 
 
@@ -35,6 +37,16 @@ def bounded(text: str) -> str:
     head = MAX_MESSAGE * 2 // 3
     tail = MAX_MESSAGE - head - 5
     return text[:head] + " ... " + text[-tail:]
+
+
+def refusal_line(exc: CalibError) -> str:
+    """A refusal in at most `MAX_MESSAGE` characters: a long path to its file name, then `bounded`."""
+    text = exc.message
+    if len(text) > MAX_MESSAGE and exc.where and "/" in exc.where:
+        head, sep, rest = exc.where.partition(",")
+        short = CalibError(exc.what, Path(head).name + sep + rest, exc.fix)
+        text = short.message
+    return bounded(text)
 
 
 def command_line() -> str:
@@ -152,7 +164,7 @@ def guarded(fn):
                 warnings.showwarning = _show_warning
                 return fn(*args, **kwargs)
         except CalibError as exc:
-            click.echo(f"error: {exc.message}", err=True)
+            click.echo(f"error: {refusal_line(exc)}", err=True)
             if kwargs.get("as_json"):
                 emit_json({"error": {"what": exc.what, "where": exc.where, "fix": exc.fix}})
             sys.exit(EXIT_BAD_INPUT)
