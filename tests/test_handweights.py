@@ -53,12 +53,11 @@ def test_noise_twice_the_profiles_earns_a_factor_of_two():
     )
     result = calibrate(_run(2, profile=loud), MEMS, by_hand=True)
     white = result.by_hand.choices["weights"]["white_factor"]
-    # A rest's own samples scatter twice as far as the profile says: each rest carries that in
-    # its sigma already (the rest groups keep a factor near 1). The moves have no such scatter
-    # to read: their group earns the 2, known to about 1/sqrt(2 r) of itself (37 moves, r near
-    # 100: 7 %); 25 % is about three of those.
-    assert white["move"] == pytest.approx(2.0, rel=0.25), white
-    assert white["force"] == pytest.approx(1.0, rel=0.25) and white["rate"] == pytest.approx(1.0, rel=0.25)
+    # Each group earns the 2 (a rest's own wander beyond white noise, calib.handdata, is a trembling
+    # pose's, not a louder white noise). A factor is known to about 1/sqrt(2 r) of itself (r its
+    # redundancy, 70-110 per group here: 7-9 %); 25 % is about three of those.
+    for group in ("force", "rate", "move"):
+        assert white[group] == pytest.approx(2.0, rel=0.25), (group, white)
     assert 0.75 < result.chi2_per_dof < 1.25
     # The sigmas carry it: every error within 4 of them (21 normal draws stay within 4 with 99.9 %;
     # at the profile's weights the moves' sigmas would be half what they are).
