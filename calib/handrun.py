@@ -1,8 +1,12 @@
 """Calibrate a run placed by hand: the fit of :mod:`calib.handfit` as a calibration result.
 
-The result carries the 21 (and the gyro g-sensitivity when asked for) with
-their sigmas, Birge-checked like a gimbal run's, the first rest's attitude,
-and a :class:`calib.handsummary.HandSummary` of the rests and moves used.
+Around the fit: the setup checked (:mod:`calib.handsetup`), the rest finder's
+thresholds loosened for poses held in the hand, the gyro g-sensitivity chosen by
+the data (or forced), and a wrong rate told by the scale factors. The result
+carries the 21 (and the g-sensitivity when fitted) with their sigmas,
+Birge-checked like a gimbal run's, the first rest's attitude, and a
+:class:`calib.handsummary.HandSummary` of the rests and moves used, the model
+chosen and the weights earned.
 """
 
 from __future__ import annotations
@@ -28,8 +32,8 @@ from .solution import Fit
 from .strapdown import sample_intervals
 
 G_SENSITIVITY = "g-sensitivity"  # the optional term a hand-placed run can fit
-# A term is chosen when leaving it out raises the misfit beyond this false-alarm rate: one
-# recording in a thousand without the effect gets it (and loses nothing but a little precision).
+# A term is chosen when its likelihood ratio passes this false-alarm rate: one recording in a
+# thousand without the effect gets it (and loses nothing but a little precision).
 CHOICE_ALPHA = 1e-3
 LOOSENINGS = (1.0, 2.0, 4.0, 8.0)  # the rest finder's thresholds, times the profile's noise
 MORE_REST = 1.5  # a looser factor is taken on while it finds this much more rest time
