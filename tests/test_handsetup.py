@@ -183,6 +183,5 @@ def test_a_long_refusal_is_printed_within_400_characters(tmp_path):
     deep = tmp_path.joinpath(*["a-long-folder-name"] * 12) / "run.csv"
     exc = CalibError("x" * 250, f"{deep}, line 4, column t", "give the IMU's rate (--sample-rate-hz)")
     line = refusal_line(exc)
-    assert (
-        len(line) <= MAX_MESSAGE and line.startswith("run.csv, line 4") and line.endswith("(--sample-rate-hz))")
-    )
+    assert len(line) <= MAX_MESSAGE and line.startswith("run.csv, line 4")
+    assert line.endswith("(--sample-rate-hz))")
