@@ -117,6 +117,28 @@ ABSOLUTE = {"jitter_max_s": 1e-9, "jitter_rms_s": 1e-9, "rate_error_ppm": 1e-9}
 
 DESIGN = ["design", "--budget-min", "2", "--beam-width", "8", "--min-dwell-s", "10"]
 
+# The hand path: a simulated hand run with some of a real recording's troubles (poses held in a
+# trembling hand for the first 20 s, a gyro g-sensitivity), calibrated as its owner would; a
+# shipped pose list analysed; a small by-hand Monte Carlo.
+HAND_SIMULATION = [
+    "simulate", "--by-hand", "--poses", "20", "--profile", "mems", "--random-errors", "mems",
+    "--seed", "3", "--sample-rate-hz", "100", "--tremor-deg", "0.1", "--hand-held-s", "20",
+    "--g-sensitivity-dphg", "200",
+]  # fmt: skip
+HAND = {
+    "calibrate hand": ["calibrate", "{run}", "--by-hand", "--profile", "mems"],
+    "calibrate hand without g-sensitivity": [
+        "calibrate", "{run}", "--by-hand", "--profile", "mems", "--without", "g-sensitivity",
+    ],
+    "analyze hand mems-5min": [
+        "analyze", "sequences/hand/mems-5min.toml", "--by-hand", "--profile", "mems", "--placements", "3",
+    ],
+    "verify hand": [
+        "verify", "--by-hand", "--poses", "14", "--profile", "mems", "--runs", "2", "--seed", "1",
+        "--workers", "1", "--sample-rate-hz", "100",
+    ],
+}  # fmt: skip
+
 
 def scrub(doc):
     """The document without its volatile keys (recursively)."""
@@ -156,6 +178,16 @@ def figures(tmp: Path, which: str = "all") -> dict:
                 ]
             )
         out["api calibrate nav"] = _api_calibrate(tmp / "nav.npz")
+    if which in ("all", "hand"):
+        run = str(tmp / "hand.npz")
+        out["simulate hand"] = _cli([*HAND_SIMULATION, "-o", run])
+        repo = Path(__file__).resolve().parent.parent
+        for name, args in HAND.items():
+            args = [a.replace("{run}", run) for a in args]
+            args = [str(repo / a) if a.startswith("sequences/") else a for a in args]
+            if args[0] == "calibrate":
+                args += ["-o", str(tmp / f"{name.replace(' ', '_')}.result.toml")]
+            out[name] = _cli(args)
     if which in ("all", "design"):
         out["design 2 min"] = _cli([*DESIGN, "-o", str(tmp / "d2.toml")])
         out["api design 2 min"] = _api_design()
