@@ -31,6 +31,7 @@ from .errors import CalibError
 from .motion import runs_of
 from .params import STANDARD_GRAVITY
 from .rests import moving_mean
+from .strapdown import sample_intervals
 
 WINDOW_S = 0.25
 QUIET_FACTOR = 4.0  # a window is quiet within this factor of the recording's quietest tenth
@@ -154,7 +155,7 @@ def diagnose(run, gravity_mps2: float) -> list[Mistake]:
     -------
     list of Mistake
     """
-    dt = np.diff(np.concatenate([[run.time_s[0] - (run.time_s[1] - run.time_s[0])], run.time_s]))
+    dt = sample_intervals(run.time_s)
     dtheta, dv = run.dtheta_rad, run.dv_mps
     start, end = still_stretches(dtheta, dv, dt)
     if len(start) < 2:
@@ -271,7 +272,7 @@ STATIC_TILT_DEG = 5.0  # gravity never leaving its first direction by more: a st
 
 def static_refusal(run) -> CalibError | None:
     """The refusal of a log whose gravity direction never moves (the gimbal path says the same)."""
-    dt = np.diff(np.concatenate([[run.time_s[0] - (run.time_s[1] - run.time_s[0])], run.time_s]))
+    dt = sample_intervals(run.time_s)
     per = max(1, int(round(1.0 / float(np.median(dt)))))  # one-second means
     n = len(dt) // per * per
     if n == 0:
@@ -327,7 +328,7 @@ def carried_by_hand(run) -> str | None:
     """
     if len(run.time_s) < 3:
         return None
-    dt = np.diff(np.concatenate([[run.time_s[0] - (run.time_s[1] - run.time_s[0])], run.time_s]))
+    dt = sample_intervals(run.time_s)
     start, end = still_stretches(run.dtheta_rad, run.dv_mps, dt)
     if len(start) < 4:
         return None
