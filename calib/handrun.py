@@ -119,13 +119,18 @@ def hand_fit_of(
     )
     forced = G_SENSITIVITY in extras.groups or G_SENSITIVITY in without
     chosen = G_SENSITIVITY in extras.groups
+    found = None
     if earn_weights:  # poses held in the hand: the rest finder's thresholds chosen by the fit
-        fit = partial_fit(fit, loosen=_loosening(fit, chosen))
+        loosen, found = _loosening(fit, chosen)
+        fit = partial_fit(fit, loosen=loosen)
+    # The loosening's fit at its factor is this model's fit (the same inputs): not made again,
+    # unless a refusal of what it leaves unestimated is owed.
+    first = found if found is not None and (partial or found.estimable.all()) else None
     if forced:
         how = "forced in" if chosen else "forced out"
-        hand = fit(g_sensitivity=chosen, partial=partial, earn_weights=earn_weights)
+        hand = first or fit(g_sensitivity=chosen, partial=partial, earn_weights=earn_weights)
         return hand, extras, TermChoice(G_SENSITIVITY, chosen, how)
-    plain = fit(g_sensitivity=False, partial=partial, earn_weights=earn_weights)
+    plain = first or fit(g_sensitivity=False, partial=partial, earn_weights=earn_weights)
     # Each model with the weights its own residuals earn: a term the data need shrinks the noise
     # the other model must call a floor, and the likelihood says so (a test at the plain fit's
     # weights would let that floor hide the term).
@@ -140,8 +145,9 @@ def hand_fit_of(
     return test, Extras((*extras.groups, G_SENSITIVITY)), choice
 
 
-def _loosening(fit, g_sensitivity: bool) -> float:
-    """The factor on the rest finder's thresholds: the profile's, loosened only as far as needed.
+def _loosening(fit, g_sensitivity: bool) -> tuple[float, HandFit | None]:
+    """The factor on the rest finder's thresholds (the profile's, loosened only as far as needed),
+    and the fit made at it (None where no factor serves).
 
     A pose held in the hand trembles beyond the profile's noise: thresholds from the
     profile then find too few rests, or parts of them, and the fit refuses the run as not
@@ -153,7 +159,7 @@ def _loosening(fit, g_sensitivity: bool) -> float:
     whose rests do, and a looser one still while it finds `MORE_REST` times the rest time
     (trembling poses found whole, not a few still moments of them).
     """
-    chosen: float | None = None
+    chosen: tuple[float, HandFit] | None = None
     rest_time = 0.0
     for loosen in LOOSENINGS:
         try:
@@ -163,12 +169,12 @@ def _loosening(fit, g_sensitivity: bool) -> float:
         if not hand.estimable[: P.N_PARAMS].all():
             continue
         if loosen == 1.0:
-            return 1.0  # the profile's thresholds serve: they stand
+            return 1.0, hand  # the profile's thresholds serve: they stand
         total = float(hand.data.rest_time_s.sum())
         if chosen is not None and total < MORE_REST * rest_time:
             break
-        chosen, rest_time = loosen, total
-    return 1.0 if chosen is None else chosen
+        chosen, rest_time = (loosen, hand), total
+    return (1.0, None) if chosen is None else chosen
 
 
 def fit_checked(
