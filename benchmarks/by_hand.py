@@ -11,7 +11,7 @@ nominal conversion), and prints Markdown tables:
 
     PYTHONPATH=. python benchmarks/by_hand.py [--moves]
 
-Needs /work/shared/realdata (or REALDATA=<folder>).
+Reads the recordings copied into tests/data/realdata (or REALDATA=<folder>).
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ from calib.rests import find_rests
 from calib.runlog import Run, make_meta
 from calib.strapdown import sample_intervals
 
-DATA = Path(os.environ.get("REALDATA", "/work/shared/realdata"))
+DATA = Path(os.environ.get("REALDATA", Path(__file__).resolve().parents[1] / "tests" / "data" / "realdata"))
 XSENS_ZERO_G = np.array([32768.0, 32466.0, 32485.0])  # counts (the authors' nominal values)
 XSENS_K_G = np.array([4778.0, 4758.0, 4766.0])  # counts per rad/s
 XSENS_ZERO_A = np.array([33123.0, 33276.0, 32360.0])

@@ -19,7 +19,7 @@ were fitted on the whole recording, the held-out third included.
 
     PYTHONPATH=. .venv/bin/python benchmarks/by_hand_cv.py [--json]
 
-Needs /work/shared/realdata (or REALDATA=<folder>).
+Reads the recordings copied into tests/data/realdata (or REALDATA=<folder>).
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
     PYTHONPATH=. python benchmarks/by_hand_design.py [--runs 20]
 
-1. imu_tk's Xsens recording (../shared/realdata) is calibrated by hand; its rests become a pose
+1. imu_tk's Xsens recording (tests/data/realdata) is calibrated by hand; its rests become a pose
    list (each rest's up vector, its length, the moves' lengths) and ``analyze_hand`` predicts it
    with each pose placed within 15 deg.
 2. ``design_hand`` for the same length (512 s, the same 52 s start), predicted the same way.
@@ -34,7 +34,7 @@ from seqdesign.handanalysis import analyze_hand
 from seqdesign.handdesign import design_hand
 from seqdesign.verify import error_half_range
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "realdata" / "imu_tk-xsens"
+DATA = Path(__file__).resolve().parents[1] / "tests" / "data" / "realdata" / "imu_tk-xsens"
 MEMS = load_profile("mems")
 REQ = load_requirements("mems")
 PLACEMENT_DEG = 15.0

@@ -139,6 +139,36 @@ HAND = {
     ],
 }  # fmt: skip
 
+# The real hand recordings copied into tests/data/realdata (sources and licences beside them),
+# calibrated as their owners would (`--by-hand --profile mems` and the site, nothing else), and a
+# pose list designed by hand.
+REALDATA = "tests/data/realdata"
+MIKOFF = [
+    "--columns", "1=accel_x_mps2,2=accel_y_mps2,3=accel_z_mps2,4=gyro_x_radps,5=gyro_y_radps,6=gyro_z_radps",
+    "--sample-rate-hz", "100", "--latitude", "55", "--height", "100",
+]  # fmt: skip
+REAL = {
+    "calibrate real xsens": [
+        "calibrate", f"{REALDATA}/imu_tk-xsens/xsens_acc.mat.gz",
+        "--gyro-file", f"{REALDATA}/imu_tk-xsens/xsens_gyro.mat.gz",
+        "--conversion", f"{REALDATA}/imu_tk-xsens/xsens-nominal-values.txt",
+        "--by-hand", "--profile", "mems", "--latitude", "45.4", "--height", "0",
+    ],
+    "calibrate real ferraris": [
+        "calibrate", f"{REALDATA}/imucal-ferraris/example_ferraris_session.csv", "--sample-rate-hz", "102.4",
+        "--columns", "n_samples=counter,gyr_x=gyro_x_dps,gyr_y=gyro_y_dps,gyr_z=gyro_z_dps,"
+        "acc_x=accel_x_mps2,acc_y=accel_y_mps2,acc_z=accel_z_mps2",
+        "--by-hand", "--profile", "mems", "--latitude", "49.6", "--height", "300", "--gravity", "9.81",
+    ],
+    "calibrate real mpu9150 imu0": [
+        "calibrate", f"{REALDATA}/mikoff-mpu9150/imu0.log.gz", *MIKOFF, "--by-hand", "--profile", "mems",
+    ],
+    "calibrate real mpu9150 imu1": [
+        "calibrate", f"{REALDATA}/mikoff-mpu9150/imu1.log.gz", *MIKOFF, "--by-hand", "--profile", "mems",
+    ],
+    "design hand 3 min": ["design", "--by-hand", "--budget-min", "3", "--profile", "mems"],
+}  # fmt: skip
+
 
 def scrub(doc):
     """The document without its volatile keys (recursively)."""
@@ -188,6 +218,11 @@ def figures(tmp: Path, which: str = "all") -> dict:
             if args[0] == "calibrate":
                 args += ["-o", str(tmp / f"{name.replace(' ', '_')}.result.toml")]
             out[name] = _cli(args)
+    if which in ("all", "real"):
+        repo = Path(__file__).resolve().parent.parent
+        for name, args in REAL.items():
+            args = [str(repo / a) if a.startswith(REALDATA) else a for a in args]
+            out[name] = _cli([*args, "-o", str(tmp / f"{name.replace(' ', '_')}.toml")])
     if which in ("all", "design"):
         out["design 2 min"] = _cli([*DESIGN, "-o", str(tmp / "d2.toml")])
         out["api design 2 min"] = _api_design()

@@ -22,7 +22,7 @@ pytestmark = pytest.mark.slow
 WANT = json.loads(GOLDEN.read_text())
 
 
-@pytest.mark.parametrize("which", ["analyze", "calibrate", "design", "hand"])
+@pytest.mark.parametrize("which", ["analyze", "calibrate", "design", "hand", "real"])
 def test_figures_unchanged(which, tmp_path):
     got = figures(tmp_path, which)
     diffs = [d for name in got for d in compare(got[name], WANT[name], name)]

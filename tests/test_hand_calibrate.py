@@ -10,11 +10,11 @@ two-sample coning correction) is good enough at the hand's rates.
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from realdata import FERRARIS, XSENS
 
 from calib import params as P
 from calib.calibration import calibrate
@@ -150,21 +150,18 @@ def test_cli_refuses_by_hand_with_a_sequence_or_stream(tmp_path):
         assert not (tmp_path / "r.toml").exists()
 
 
-REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
-needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason="../shared/realdata is absent")
 FERRARIS_COLUMNS = (
     "n_samples=counter,gyr_x=gyro_x_dps,gyr_y=gyro_y_dps,gyr_z=gyro_z_dps,"
     "acc_x=accel_x_mps2,acc_y=accel_y_mps2,acc_z=accel_z_mps2"
 )
 
 
-@needs_realdata
 def test_imu_tk_recording_calibrates_as_it_is(tmp_path):
     # imu_tk's two files in raw counts with the datasheet values, through the CLI: all rests of
     # the recording (a 52 s start and 37 poses) and every move before the clipped end are used,
     # and with the gyro g-sensitivity the residuals are the profile's noise (chi2/dof near 1;
     # 16 without the term: the docs' evidence for it).
-    d = REALDATA / "imu_tk-xsens"
+    d = XSENS
     res = CliRunner().invoke(
         main,
         ["calibrate", str(d / "xsens_acc.mat.gz"), "--gyro-file", str(d / "xsens_gyro.mat.gz")]
@@ -186,11 +183,10 @@ def test_imu_tk_recording_calibrates_as_it_is(tmp_path):
     assert np.allclose(c.gyro.b, 32768, atol=400)
 
 
-@needs_realdata
 def test_imucal_recording_calibrates_by_its_sample_counter(tmp_path):
     # The Ferraris session: six faces and three turns about vertical axes, read by its counter
     # at 102.4 Hz. Each of imucal's six annotated faces lies inside one of the rests found.
-    path = REALDATA / "imucal-ferraris" / "example_ferraris_session.csv"
+    path = FERRARIS / "example_ferraris_session.csv"
     res = CliRunner().invoke(
         main,
         ["calibrate", str(path), "--columns", FERRARIS_COLUMNS, "--sample-rate-hz", "102.4", "--by-hand"]
@@ -218,11 +214,10 @@ def test_imucal_recording_calibrates_by_its_sample_counter(tmp_path):
     }
 
 
-@needs_realdata
 def test_analyze_of_a_recording_is_the_sigma_calibrating_it_reports(tmp_path):
     # From the recording's own rests and moves: the prediction is the fit's covariance, so it is
     # what calibrate reports (its chi2/dof 1.03 is below the Birge limit: no inflation either side).
-    d = REALDATA / "imu_tk-xsens"
+    d = XSENS
     reading = [
         "--gyro-file",
         str(d / "xsens_gyro.mat.gz"),

@@ -15,6 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from realdata import FERRARIS as FERRARIS_DIR
+from realdata import XSENS
 
 from calib import sanity
 from calib.errors import CalibError
@@ -23,10 +25,7 @@ from calib.runlog.clipping import clipped_stretches, describe_clipping, flat_top
 from calib.runlog.conversion import Conversion, read_conversion
 from seqdesign.cli import main
 
-REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
-XSENS = REALDATA / "imu_tk-xsens"
-FERRARIS = REALDATA / "imucal-ferraris" / "example_ferraris_session.csv"
-needs_realdata = pytest.mark.skipif(not XSENS.is_dir(), reason="../shared/realdata is absent")
+FERRARIS = FERRARIS_DIR / "example_ferraris_session.csv"
 
 SITE = {"latitude_deg": 45.4, "height_m": 12.0}
 SITE_CLI = ["--latitude", "45.4", "--height", "12"]
@@ -38,6 +37,7 @@ COUNTS_MAP = (
     "c=counter,gx=gyro_x_counts,gy=gyro_y_counts,gz=gyro_z_counts,"
     "ax=accel_x_counts,ay=accel_y_counts,az=accel_z_counts"
 )
+
 NOMINAL_TEXT = """# a comment; local gravity 9.81744 m/s^2; 100 Hz
 offset_acc  (counts) = 33123 33276 32360
 offset_gyro (counts) = 32768 32466 32485
@@ -434,7 +434,6 @@ def xsens():
     )
 
 
-@needs_realdata
 def test_the_xsens_recording_reads_as_it_is(xsens):
     assert xsens.n_samples == 51175
     assert xsens.sample_rate_hz == pytest.approx(100.0, rel=1e-3)
@@ -457,7 +456,6 @@ def test_the_xsens_recording_reads_as_it_is(xsens):
     sanity.check_rates(xsens.dtheta_rad, rate_dt, "xsens", xsens.conversion.max_rate_rad_s)
 
 
-@needs_realdata
 def test_the_ferraris_recording_reads_at_its_counters_rate():
     run = read_run(FERRARIS, columns=FERRARIS_MAP, sample_rate_hz=102.4, **SITE)
     assert run.n_samples == 10376 and run.sample_rate_hz == 102.4

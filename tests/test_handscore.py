@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import gzip
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
+from realdata import FERRARIS, XSENS
 
 from calib.correction import Correction, SensorCorrection
 from calib.errors import CalibError
@@ -18,7 +18,6 @@ from calib.rests import find_rests
 from calib.strapdown import sample_intervals
 from calib.transform import rotvec_to_dcm
 
-REALDATA = Path("/work/shared/realdata")
 G = 9.81
 RATE_HZ = 100.0
 # Each move: a body axis and an angle turned about it at a constant rate over 1 s.
@@ -227,12 +226,8 @@ def test_imucal_is_R_inverse_K_inverse_raw_less_b():
         imucal_correction({**doc, "acc_unit": "g"})
 
 
-needs_data = pytest.mark.skipif(not REALDATA.is_dir(), reason="no /work/shared/realdata")
-
-
-@needs_data
 def test_imu_tk_result_on_its_log_reads_gravity():
-    d = REALDATA / "imu_tk-xsens"
+    d = XSENS
     c = read_imu_tk(d / "imu_tk-result.txt")
     acc = np.loadtxt(gzip.open(d / "xsens_acc.mat.gz"), max_rows=4000)
     gyr = np.loadtxt(gzip.open(d / "xsens_gyro.mat.gz"), max_rows=4000)
@@ -242,9 +237,8 @@ def test_imu_tk_result_on_its_log_reads_gravity():
     assert np.degrees(np.linalg.norm(w[200:].mean(0))) * 3600 < 60
 
 
-@needs_data
 def test_imucal_result_on_its_log_reads_each_face():
-    d = REALDATA / "imucal-ferraris"
+    d = FERRARIS
     c = read_imucal(d / "example_ferraris_session-imucal-result.json")
     a = np.loadtxt(d / "example_ferraris_session.csv", delimiter=",", skiprows=1)
     w, f = c.apply(a[:, 1:4], a[:, 4:7])
@@ -259,10 +253,9 @@ def test_imucal_result_on_its_log_reads_each_face():
         assert np.degrees(np.abs(w[lo:hi].mean(0))).max() < 0.02  # deg/s
 
 
-@needs_data
 def test_imu_tk_scored_on_its_log():
     """imu_tk's result on its log's rests: |f| 9.81744 within mm/s^2, the vertical carried within 1 deg."""
-    d = REALDATA / "imu_tk-xsens"
+    d = XSENS
     acc = np.loadtxt(gzip.open(d / "xsens_acc.mat.gz"))
     gyr = np.loadtxt(gzip.open(d / "xsens_gyro.mat.gz"))
     t = acc[:, 0]

@@ -4,17 +4,16 @@ from __future__ import annotations
 
 import gzip
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
+from realdata import XSENS
 
 from calib.errors import CalibError
 from calib.handscore import axes_of
 from calib.imutk_method import imutk_calibrate, static_intervals
 from calib.othertools import read_imu_tk
 
-XSENS = Path(__file__).resolve().parents[2] / "shared" / "realdata" / "imu_tk-xsens"
 G = 9.80665
 RATE_HZ = 100.0
 
@@ -105,7 +104,6 @@ def test_static_intervals_are_where_the_variance_stays_low():
     assert list(start) == [50, 500] and list(end) == [350, 950]
 
 
-@pytest.mark.skipif(not XSENS.is_dir(), reason="../shared/realdata is absent")
 def test_imu_tks_own_result_on_its_xsens_recording():
     acc = np.loadtxt(gzip.open(XSENS / "xsens_acc.mat.gz"))
     gyr = np.loadtxt(gzip.open(XSENS / "xsens_gyro.mat.gz"))

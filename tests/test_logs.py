@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 from conftest import ARCSEC, W_EARTH
+from realdata import PSINS, needs
 
 from calib import params as P
 from calib.errormodel import ErrorModel
@@ -29,8 +30,6 @@ from calib.sim import SimConfig, simulate
 from calib.truth import write_truth
 from seqdesign.cli import main
 
-REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
-PSINS = REALDATA / "psins-lasergyro-static.imu"
 LAT = math.radians(40.0)
 RATE = 200.0  # Hz, the run
 DWELL = 40.0  # s; rests 0-40, 49-89, ... (90 deg flips at 10 deg/s take 9 s)
@@ -333,10 +332,7 @@ def test_psins_malformed_logs_are_refused_through_the_cli(tmp_path, text, parts)
     assert not (tmp_path / "r.toml").exists()
 
 
-needs_realdata = pytest.mark.skipif(not PSINS.exists(), reason="../shared/realdata is absent")
-
-
-@needs_realdata
+@needs(PSINS)
 def test_psins_laser_gyro_log_sees_the_earth_rate_within_its_sway():
     run = read_run(PSINS)
     assert run.n_samples == 184718 and run.sample_rate_hz == 100.0
@@ -356,7 +352,7 @@ def test_psins_laser_gyro_log_sees_the_earth_rate_within_its_sway():
     assert abs(horizontal - W_EARTH * math.cos(L)) < bound + bias
 
 
-@needs_realdata
+@needs(PSINS)
 def test_psins_laser_gyro_log_is_refused_as_never_rotating(tmp_path):
     r = CliRunner().invoke(main, ["calibrate", str(PSINS), "-o", str(tmp_path / "r.toml")])
     assert r.exit_code == 2 and "Traceback" not in r.output

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from realdata import ADIS, needs
 
 from calib.errormodel import ErrorModel
 from calib.profiles import NoiseProfile, load_profile
@@ -16,9 +17,6 @@ from calib.runlog import Run, read_run, write_run
 from calib.sequence import Sequence, Step
 from calib.sim import SimConfig, simulate
 from seqdesign.cli import main
-
-REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
-ADIS = REALDATA / "adis16405-static-100hz.csv.gz"
 
 # The simulated unit: white noise and a first-order GM bias on every axis.
 TRUE = NoiseProfile(
@@ -30,6 +28,7 @@ TRUE = NoiseProfile(
     accel_bias_instability_ug=50.0,
     accel_bias_correlation_s=10.0,
 )
+
 STATIC_S = 3000.0  # 300 GM correlation times
 
 
@@ -118,7 +117,7 @@ def independent_oadev(rate: np.ndarray, m: int) -> float:
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(not ADIS.exists(), reason="../shared/realdata is absent")
+@needs(ADIS)
 def test_adis_log_against_an_independent_allan_deviation(tmp_path):
     out = tmp_path / "adis.toml"
     result = CliRunner().invoke(

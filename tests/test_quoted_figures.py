@@ -15,10 +15,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from realdata import XSENS
 
 REPO = Path(__file__).resolve().parents[1]
-REALDATA = REPO.parent / "shared" / "realdata"
-needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason="the shared real logs are not here")
 
 
 def cli_json(*args) -> dict:
@@ -86,10 +85,6 @@ def test_a_pose_list_header_s_figures_are_what_analyze_prints(path):
     assert round(3.0 * sigma_dph / 30.0, 2) == float(bound)
 
 
-XSENS = REALDATA / "imu_tk-xsens"
-
-
-@needs_realdata
 @pytest.mark.slow  # two hand fits of the real recording, ~10 s
 @pytest.mark.parametrize(
     "terms, phrase",
