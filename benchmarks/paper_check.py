@@ -15,12 +15,13 @@ import math
 import numpy as np
 
 import calib  # noqa: F401  (BLAS threads)
-from calib import params as P
-from calib.errormodel import ErrorModel, paper_table
-from calib.estimator import calibrate
-from calib.profiles import load_profile
-from calib.sequence import load_sequence
-from calib.sim import SimConfig, simulate
+from calib.fit.estimator import calibrate
+from calib.model import params as P
+from calib.model.error_model import ErrorModel, paper_table
+from calib.noise.profiles import load_profile
+from calib.sequence.definition import load_sequence
+from calib.sequence.kinematics import SimConfig
+from calib.sim.gimbal_run import simulate
 
 
 def main() -> None:

@@ -9,14 +9,15 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from calib import params as P
-from calib.errormodel import ErrorModel
-from calib.estimator import calibrate
-from calib.profiles import load_profile
-from calib.rateprofile import RateProfile
-from calib.sequence import load_sequence, nominal_attitude, sequence_from_dict, timeline
-from calib.sim import SimConfig, simulate, true_increments
-from calib.strapdown import navigate
+from calib.fit.estimator import calibrate
+from calib.model import params as P
+from calib.model.error_model import ErrorModel
+from calib.nav.strapdown import navigate
+from calib.noise.profiles import load_profile
+from calib.sequence.definition import load_sequence, nominal_attitude, sequence_from_dict, timeline
+from calib.sequence.kinematics import SimConfig, true_increments
+from calib.sequence.rate_profile import RateProfile
+from calib.sim.gimbal_run import simulate
 
 LAT = math.radians(40.0)
 D = math.radians
@@ -87,7 +88,7 @@ def test_sequence_file_keys_default_and_per_step():
 def test_simulated_increments_match_quadrature(jerk):
     # Independent check of the closed form / Gauss-Legendre increments: adaptive quadrature of
     # C_nom(t)^T f over samples in the acceleration, jerk and cruise phases of the first move.
-    from calib import earth
+    from calib.nav import earth
 
     seq = accelerating(load_sequence("paper-9pos"), 5.0, jerk)
     tl = timeline(seq)
@@ -135,7 +136,7 @@ def test_navigating_an_accelerating_run_holds_zero_velocity():
 def test_real_angular_acceleration_reaches_the_lever_arm_term():
     # Tangential lever-arm term: over a trapezoid's acceleration phase the accelerometer at
     # r senses alpha x r for v/a seconds: a velocity step (alpha x r) v/a = (v x r) in total.
-    from calib import extras as X
+    from calib.model import optional_terms as X
 
     seq = accelerating(load_sequence("paper-9pos"), 5.0)
     tl = timeline(seq)
@@ -197,7 +198,7 @@ def test_encoder_steps_within_the_moves_rate(noise_free_accel_fit):
 def test_analyser_models_accelerating_moves_as_the_estimator_sees_them(noise_free_accel_fit):
     # The analyser builds its model from the same timeline (with the profile's pieces); its
     # sigmas must match the estimator's on the accelerating run as on constant-rate ones (1 %).
-    from calib.mounting import analyze
+    from calib.analysis.mounting import analyze
 
     fit, _, _ = noise_free_accel_fit
     seq = accelerating(load_sequence("paper-9pos"), 5.0, 10.0)
@@ -210,7 +211,7 @@ def test_lever_arms_recovered_on_accelerating_moves():
     # The lever arms' tangential term now acts over the S-curve's ramps instead of in a single
     # sample: simulated and fitted with the same term, a noise-free run must come back within
     # 1/20 of each requirement and of 1 cm per lever-arm component.
-    from calib.extras import Extras, ExtraValues
+    from calib.model.optional_terms import Extras, ExtraValues
 
     lever = {
         "rxx": 3.0,

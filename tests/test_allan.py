@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 
-from calib.allan import GM_PEAK_ADEV_RATIO, GM_PEAK_TAU_RATIO, allan_deviation, avar_gauss_markov
-from calib.allanfit import fit_noise
-from calib.gaussmarkov import gauss_markov
+from calib.allan.deviation import GM_PEAK_ADEV_RATIO, GM_PEAK_TAU_RATIO, allan_deviation, avar_gauss_markov
+from calib.allan.noise_terms import fit_noise
+from calib.noise.gauss_markov import gauss_markov
 
 
 def test_gm_peak_is_where_the_constants_say():

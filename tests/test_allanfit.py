@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 
-from calib.allan import (
+from calib.allan.deviation import (
     SINUSOID_PEAK_ADEV_RATIO,
     SINUSOID_PEAK_X,
     allan_deviation,
@@ -24,10 +24,10 @@ from calib.allan import (
     avar_sinusoid,
     avar_white,
 )
-from calib.allanfit import TRUSTED_CI, fit_noise
-from calib.allanplot import plot_allan
-from calib.gaussmarkov import gauss_markov
-from calib.profilegm import not_modelled, profile_gm
+from calib.allan.noise_terms import TRUSTED_CI, fit_noise
+from calib.allan.plot import plot_allan
+from calib.allan.profile_gm import not_modelled, profile_gm
+from calib.noise.gauss_markov import gauss_markov
 
 
 def series(n, dt, seed, white=0.0, gm=(0.0, 1.0), rrw=0.0, q=0.0, sine=(0.0, 1.0)) -> np.ndarray:

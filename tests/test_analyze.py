@@ -9,18 +9,19 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from calib import earth
-from calib import params as P
-from calib.errormodel import ErrorModel
-from calib.jacobian import N_UNKNOWN, observation_jacobian, state_matrix
-from calib.mounting import analyze
-from calib.noise import noise_model
-from calib.nominal import nominal_run
-from calib.profiles import load_profile
-from calib.sequence import load_sequence, sequence_from_dict
-from calib.sim import SimConfig, simulate
-from calib.strapdown import navigate
-from calib.transform import rotvec_to_dcm
+from calib.analysis.mounting import analyze
+from calib.analysis.nominal import nominal_run
+from calib.model import params as P
+from calib.model.error_model import ErrorModel
+from calib.nav import earth
+from calib.nav.jacobian import N_UNKNOWN, observation_jacobian, state_matrix
+from calib.nav.strapdown import navigate
+from calib.nav.transform import rotvec_to_dcm
+from calib.noise.profiles import load_profile
+from calib.noise.whitening import noise_model
+from calib.sequence.definition import load_sequence, sequence_from_dict
+from calib.sequence.kinematics import SimConfig
+from calib.sim.gimbal_run import simulate
 from seqdesign.cli import main
 
 LAT = math.radians(40.0)
@@ -76,7 +77,7 @@ def test_paper_sequence_is_full_rank_and_matches_physical_bound():
     assert obs.rank == 21 and not obs.unobservable
     # Accelerometer scale factors cannot beat the gravity-only bound of conventions.md:
     # sigma >= VRW sqrt(3/T)/g for the best-served axis of the three together.
-    from calib.bounds import accel_scale_bound
+    from calib.analysis.bounds import accel_scale_bound
 
     bound = accel_scale_bound(seq.duration_s, prof, earth.gravity(LAT))
     assert max(obs.ratio[P.ACCEL_SCALE]) >= bound * 0.999
@@ -89,7 +90,7 @@ def test_gauss_markov_density_integrates_to_its_variance_and_has_the_right_limit
     # S(f) = 2 sigma^2 tau / (1 + (2 pi f tau)^2) is the two-sided PSD of a first-order GM
     # process: its integral over all f is the stationary variance sigma^2 (quadrature
     # on a log grid to 1e-4; the tails beyond 1e4/tau hold < 1e-4 of it).
-    from calib.bounds import accel_density_at_rate
+    from calib.analysis.bounds import accel_density_at_rate
 
     prof = load_profile("navigation-gm")
     tau, var = prof.accel_bias_correlation_s, prof.accel_gm_sigma**2
@@ -109,7 +110,7 @@ def test_gauss_markov_sequences_do_not_beat_the_rate_bound(name):
     # The coloured-noise bound (docs/gm-bound.md) is the best a gimbal turning at the
     # sequence's rate can do for the accelerometer scale factors under navigation-gm: no
     # sequence's sigma may fall below it. Nominal mounting (the bound holds for any).
-    from calib.bounds import accel_scale_bound
+    from calib.analysis.bounds import accel_scale_bound
     from seqdesign.search import design_rate_dps
 
     seq = load_sequence(name)
@@ -124,7 +125,7 @@ def test_gauss_markov_sequences_do_not_beat_the_rate_bound(name):
 def test_sigma_scales_with_noise():
     # Halving both noise densities halves every sigma (information is 1/noise^2).
     seq = load_sequence("paper-9pos")
-    from calib.profiles import NoiseProfile
+    from calib.noise.profiles import NoiseProfile
 
     a = analyze(seq, NoiseProfile("a", 0.002, 20.0), LAT)
     b = analyze(seq, NoiseProfile("b", 0.001, 10.0), LAT)
@@ -189,8 +190,8 @@ def test_mounting_basis_model_equals_direct_evaluation():
     # The analyser's SequenceModel writes H for any mounting as a fixed combination of
     # 63 basis terms; it must equal the model evaluated directly along that mounting's
     # trajectory (same arithmetic reordered: agreement to rounding, 1e-10).
-    from calib.mounting import sequence_model
-    from calib.nominal import information_along
+    from calib.analysis.mounting import sequence_model
+    from calib.analysis.nominal import information_along
 
     seq = load_sequence("paper-9pos")
     prof = load_profile("navigation")
@@ -264,7 +265,7 @@ def test_mounting_model_is_the_same_built_in_any_chunking(monkeypatch):
     # The model is accumulated interval-chunk by chunk, carrying the propagation and
     # the whitening filter across chunks: 7-interval chunks must give the one-chunk
     # information (same sums in another order: rounding, 1e-11).
-    import calib.mounting as O
+    import calib.analysis.mounting as O
 
     seq, prof = load_sequence("paper-9pos"), load_profile("navigation")
     rv = np.radians([1.0, -2.0, 3.0])
@@ -280,7 +281,7 @@ def test_direct_search_finds_an_interior_maximum_the_box_misses():
     # sigma is close to quadratic in the mounting): the forward-difference-steered IPOPT
     # must reach the peak from the worst box point within its iteration cap. The 1e-3 deg
     # forward step biases the gradient by half a step: 0.01 deg is ample.
-    from calib.worstcase import search_worst_direct
+    from calib.analysis.worst_case import search_worst_direct
 
     peak = np.radians([1.2, -0.7, 2.1])
 
@@ -300,10 +301,10 @@ def test_gm_and_extras_worst_case_searches_are_exact_and_never_below_the_box():
     # worst case over the box is searched by IPOPT over direct evaluations beyond the 27
     # points: it can only raise each worst sigma (the box points are kept), and the
     # worst mounting it reports is an exact evaluation there.
-    from calib.extras import as_extras
-    from calib.nominal import information_along
-    from calib.observability import from_information
-    from calib.worstcase import analyze_extras, analyze_tolerance
+    from calib.analysis.nominal import information_along
+    from calib.analysis.observability import from_information
+    from calib.analysis.worst_case import analyze_extras, analyze_tolerance
+    from calib.model.optional_terms import as_extras
 
     seq, gm = load_sequence("paper-9pos"), load_profile("navigation-gm")
     box = analyze_tolerance(seq, gm, LAT, search=False)

@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from calib.errormodel import ErrorModel
 from calib.errors import CalibError
-from calib.profiles import NoiseProfile, load_profile
+from calib.model.error_model import ErrorModel
+from calib.noise.profiles import NoiseProfile, load_profile
 from calib.runlog import Run, write_run
-from calib.sequence import Sequence, Step, load_sequence
-from calib.sim import SimConfig, simulate
+from calib.sequence.definition import Sequence, Step, load_sequence
+from calib.sequence.kinematics import SimConfig
+from calib.sim.gimbal_run import simulate
 from seqdesign import api as sd
 from seqdesign.cli import main
 
@@ -171,7 +172,7 @@ def test_design_is_the_cli_design(keyword_design, tmp_path):
 
 
 def test_design_keywords_equal_the_dict_and_the_typed_constraints(keyword_design):
-    from calib.gimbalfile import load_gimbal
+    from calib.gimbal.description import load_gimbal
 
     as_dict = sd.design([2], {"max_quarters": 3, "rate_dps": None, "gimbal": "cable-wrap"}, beam_width=8)
     typed = sd.design(

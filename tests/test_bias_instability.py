@@ -7,13 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from calib import params as P
-from calib.errormodel import ErrorModel
-from calib.estimator import calibrate
-from calib.profiles import NoiseProfile, load_profile
-from calib.sequence import load_sequence
-from calib.sim import SimConfig, simulate
-from calib.worstcase import analyze_tolerance
+from calib.analysis.worst_case import analyze_tolerance
+from calib.fit.estimator import calibrate
+from calib.model import params as P
+from calib.model.error_model import ErrorModel
+from calib.noise.profiles import NoiseProfile, load_profile
+from calib.sequence.definition import load_sequence
+from calib.sequence.kinematics import SimConfig
+from calib.sim.gimbal_run import simulate
 
 LAT = math.radians(40.0)
 WHITE = load_profile("navigation")

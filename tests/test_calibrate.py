@@ -9,13 +9,14 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from calib import params as P
-from calib.errormodel import ErrorModel
-from calib.estimator import calibrate
-from calib.profiles import load_profile
+from calib.fit.estimator import calibrate
+from calib.model import params as P
+from calib.model.error_model import ErrorModel
+from calib.noise.profiles import load_profile
 from calib.runlog import read_run, write_run
-from calib.sequence import load_sequence
-from calib.sim import SimConfig, simulate
+from calib.sequence.definition import load_sequence
+from calib.sequence.kinematics import SimConfig
+from calib.sim.gimbal_run import simulate
 from seqdesign.cli import main
 
 LAT = math.radians(40.0)
@@ -56,7 +57,7 @@ def test_noise_free_recovery_within_a_twentieth_of_requirements(noise_free_fit):
 def test_noise_free_alignment_finds_the_mounting(noise_free_fit, paper):
     # Gyrocompassing with 3 deg/h gyro bias starts many degrees off in heading;
     # the fit must still end at the true initial attitude R_setup C_start.
-    from calib.transform import dcm_to_rotvec, rotvec_to_dcm
+    from calib.nav.transform import dcm_to_rotvec, rotvec_to_dcm
 
     fit, _, _ = noise_free_fit
     C_true = rotvec_to_dcm(SETUP) @ paper.C_start
@@ -87,7 +88,7 @@ def test_any_heading_works(paper):
 def test_monte_carlo_statistical_honesty(name):
     """N = 50 noisy runs: mean NEES in the 99 % interval of chi2(1050)/50 and
     RMS(error)/mean(sigma) in [0.67, 1.36] for every parameter (99 % over 21 at N = 50)."""
-    from calib.mounting import analyze
+    from calib.analysis.mounting import analyze
     from seqdesign.montecarlo import run_trials
 
     prof = load_profile("navigation")
@@ -166,7 +167,7 @@ def test_cli_calibrate_json_reports_truth_and_error(short_run, tmp_path):
         assert e["ratio"] == pytest.approx(3 * e["sigma"] / e["requirement"])
         # Errors within 5 sigma (a 21-parameter run fails this by chance with p ~ 1e-5).
         assert abs(e["error"]) < 5 * e["sigma"], name
-    from calib.result import CalibrationResult
+    from calib.calibration.result import CalibrationResult
 
     loaded = CalibrationResult.load(res)
     assert loaded.converged and loaded.profile == "navigation"
@@ -241,7 +242,7 @@ def test_coarse_analysis_model_agrees_with_the_estimators_fine_one(noise_free_fi
     # with 1 s intervals. Both are the same linear model: their predicted sigmas
     # must agree. 1 % is far below what would change a verdict and far above the
     # 0.2 % the coarser rest intervals cost.
-    from calib.mounting import analyze
+    from calib.analysis.mounting import analyze
 
     fit, _, _ = noise_free_fit
     obs = analyze(paper, load_profile("navigation"), LAT, 0.0, SETUP)

@@ -270,8 +270,8 @@ def test_verify_by_hand_prints_no_column_that_is_all_dashes():
 
 @pytest.mark.parametrize("arw_dph", [0.0005, 0.01, 0.02, 0.5, 0.6, 2.6])
 def test_the_requirements_grade_is_the_grade_verify_draws_errors_by(arw_dph):
-    from calib.profiles import NoiseProfile
-    from calib.requirements import grade_of
+    from calib.model.requirements import grade_of
+    from calib.noise.profiles import NoiseProfile
     from seqdesign import verify
 
     prof = NoiseProfile(name="p", gyro_arw_dph=arw_dph, accel_vrw_ug=10.0)

@@ -24,7 +24,7 @@ from conftest import (
 )
 
 from calib.runlog import read_run
-from calib.truth import read_truth
+from calib.sim.truth import read_truth
 from seqdesign.cli import main
 
 

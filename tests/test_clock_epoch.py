@@ -18,13 +18,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calib.calibration import calibrate
-from calib.errormodel import ErrorModel
-from calib.profiles import load_profile
+from calib.calibration.entry import calibrate
+from calib.model.error_model import ErrorModel
+from calib.noise.profiles import load_profile
 from calib.runlog import read_run
 from calib.runlog.clock import EPOCH_S, stamps_rate
-from calib.sequence import load_sequence
-from calib.sim import SimConfig, simulate
+from calib.sequence.definition import load_sequence
+from calib.sequence.kinematics import SimConfig
+from calib.sim.gimbal_run import simulate
 
 RATE_HZ = 100.0
 EPOCH = 1_700_000_000

@@ -15,15 +15,15 @@ import math
 import numpy as np
 import pytest
 
-from calib.calibration import calibrate
-from calib.errormodel import ErrorModel
+from calib.calibration.entry import calibrate
 from calib.errors import CalibError
-from calib.handplan import xsens_like_plan
-from calib.handsim import simulate_by_hand
-from calib.profiles import as_profile
+from calib.hand.plan import xsens_like_plan
+from calib.hand.simulate import simulate_by_hand
+from calib.model.error_model import ErrorModel
+from calib.noise.profiles import as_profile
 from calib.runlog import read_run
 from calib.runlog.clock import sample_clock
-from calib.sim import SimConfig
+from calib.sequence.kinematics import SimConfig
 from seqdesign.repeatability import Repeatability
 
 RATE_HZ = 100.0

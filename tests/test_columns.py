@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from calib.errors import CalibError
-from calib.params import STANDARD_GRAVITY
+from calib.model.params import STANDARD_GRAVITY
 from calib.runlog import read_run
 
 RATE = np.array([[0.5, -0.25, 2.0], [1.0, 0.0, -3.0], [0.0, 0.75, 0.25], [0.1, 0.2, 0.3]])  # deg/s

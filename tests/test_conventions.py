@@ -20,9 +20,9 @@ from conftest import (
     table_column_units,
 )
 
-from calib import earth
-from calib import params as P
-from calib.errormodel import ErrorModel
+from calib.model import params as P
+from calib.model.error_model import ErrorModel
+from calib.nav import earth
 
 # ---------------------------------------------------------------------------
 # Gravity and Earth rate

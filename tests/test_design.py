@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from calib import params as P
-from calib.mounting import analyze
-from calib.profiles import load_profile
-from calib.requirements import PAPER
-from calib.sequence import load_sequence
-from calib.transform import attitude_from_directions, rot_axis
-from calib.worstcase import analyze_tolerance
+from calib.analysis.mounting import analyze
+from calib.analysis.worst_case import analyze_tolerance
+from calib.model import params as P
+from calib.model.requirements import PAPER
+from calib.nav.transform import attitude_from_directions, rot_axis
+from calib.noise.profiles import load_profile
+from calib.sequence.definition import load_sequence
 from seqdesign.cli import main
 from seqdesign.search import Constraints, Move, SearchModel, beam_search, brute_force, flip_graph, to_sequence
 
@@ -125,7 +125,7 @@ def test_shipped_designs_beat_the_paper_and_meet_the_targets(name, budget_s, tar
 
 
 def test_to_sequence_round_trips_a_walk(tmp_path):
-    from calib.sequence import save_sequence
+    from calib.sequence.definition import save_sequence
 
     c = Constraints()
     walk = (Move("X", -1, 4), Move("Z", 1, 5))
@@ -227,7 +227,7 @@ def test_sigma_gradient_matches_finite_differences():
     # basis) against central differences of the analyser's own sigma. Step 1e-5 rad:
     # truncation h^2 sigma'''/6 ~ 1e-10 of sigma, ~1e-6 of the largest gradient component;
     # tolerance 1e-5 of that component.
-    from calib.mounting import sequence_model
+    from calib.analysis.mounting import sequence_model
 
     model = sequence_model(load_sequence("paper-9pos"), PROFILE, LAT)
     theta = np.radians([1.0, -2.0, 2.5])
@@ -248,8 +248,8 @@ def test_sigma_gradient_matches_finite_differences():
 
 @pytest.mark.slow
 def test_design_with_terms_scores_the_21_with_them_fitted():
-    from calib.extras import Extras
-    from calib.worstcase import analyze_extras
+    from calib.analysis.worst_case import analyze_extras
+    from calib.model.optional_terms import Extras
     from seqdesign.search import design
 
     c = Constraints(budget_s=360.0, max_flips=3, max_quarters=2, min_dwell_s=10.0)
@@ -345,8 +345,8 @@ def test_shipped_gm_designs_beat_the_white_noise_designs_on_the_real_unit(name, 
     """Issue 12's targets: under navigation-gm with every extra term fitted (latitude 40 deg,
     worst over +-3 deg), <= 1.95 within 15 min and <= 1.40 within 30 min (the white-noise
     designs the issue measured, 9 moves each, reached 2.53 and 2.26 there)."""
-    from calib.extras import GROUP_NAMES, Extras
-    from calib.worstcase import analyze_extras
+    from calib.analysis.worst_case import analyze_extras
+    from calib.model.optional_terms import GROUP_NAMES, Extras
 
     seq = load_sequence(name)
     assert seq.duration_s <= budget_s + 1e-6
@@ -439,7 +439,7 @@ def test_refinement_jacobian_is_the_derivative_of_the_ratios():
 def test_batched_walk_information_equals_one_walk_at_a_time():
     # The GM refinement folds all finite-difference points at once; each row must be the
     # information of that dwell set alone (same arithmetic, batched: equal to rounding).
-    from calib import earth
+    from calib.nav import earth
     from seqdesign.search.refine import _walk_information_exact, walk_informations_exact
 
     prof = load_profile("navigation-gm")
@@ -457,8 +457,8 @@ def test_batched_walk_information_equals_one_walk_at_a_time():
 def test_refinement_turns_in_closed_form_equal_the_interval_fold(name):
     # The refinement folds each turn through its segment block (Woodbury, built once)
     # instead of the Kalman loop over its intervals: the same information, variances to 1e-10.
-    from calib import earth
-    from calib.information import inverse_diagonal
+    from calib.model.information import inverse_diagonal
+    from calib.nav import earth
     from seqdesign.search.refine import walk_informations_exact
 
     prof = load_profile(name)

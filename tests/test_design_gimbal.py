@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from calib.gimbal import check_playable, plan_sequence
-from calib.gimbalfile import gimbal_from_dict, load_gimbal
-from calib.profiles import load_profile
-from calib.sequence import load_sequence
+from calib.gimbal.description import gimbal_from_dict, load_gimbal
+from calib.gimbal.rule import check_playable, plan_sequence
+from calib.noise.profiles import load_profile
+from calib.sequence.definition import load_sequence
 from seqdesign.cli import main
 from seqdesign.search import Constraints, SearchModel, beam_search, to_sequence
 from seqdesign.search.gimbal import gimbal_limits
@@ -168,7 +168,7 @@ def test_shipped_gimbal_designs_play_on_their_gimbal(name):
     # The file names the gimbal it was designed for (with the file's hash); every move
     # replays through plan_sequence on that gimbal, with an acceleration limit per step
     # (no instantaneous rate step), and the run lasts at most its 30-min budget.
-    from calib.fileio import sha256_file
+    from calib.io.files import sha256_file
 
     path = Path(__file__).parents[1] / "sequences" / f"{name}.toml"
     prov = tomllib.loads(path.read_text())["provenance"]

@@ -11,17 +11,18 @@ import math
 import numpy as np
 import pytest
 
-from calib import earth
-from calib import params as P
-from calib.errormodel import ErrorModel
 from calib.errors import CalibError
-from calib.estimator import calibrate
-from calib.extras import GROUP_NAMES, Extras, ExtraValues, parse_groups
-from calib.profiles import load_profile
-from calib.sequence import load_sequence, timeline
-from calib.sim import SimConfig, simulate
-from calib.transform import dcm_to_rotvec, rotvec_to_dcm
-from calib.truth import read_truth, write_truth
+from calib.fit.estimator import calibrate
+from calib.model import params as P
+from calib.model.error_model import ErrorModel
+from calib.model.optional_terms import GROUP_NAMES, Extras, ExtraValues, parse_groups
+from calib.nav import earth
+from calib.nav.transform import dcm_to_rotvec, rotvec_to_dcm
+from calib.noise.profiles import load_profile
+from calib.sequence.definition import load_sequence, timeline
+from calib.sequence.kinematics import SimConfig
+from calib.sim.gimbal_run import simulate
+from calib.sim.truth import read_truth, write_truth
 
 LAT = math.radians(40.0)
 CFG = SimConfig(latitude_rad=LAT, sample_rate_hz=50.0)
@@ -181,10 +182,10 @@ def test_ignoring_the_extra_terms_biases_the_fit():
 
 def test_extra_columns_match_central_finite_difference():
     """Each extra column of H equals a central difference of simulate -> navigate (1e-3 rel)."""
-    from calib.jacobian import N_UNKNOWN, ObservationGrid, observation_jacobian, state_matrix
-    from calib.noise import noise_model
-    from calib.nominal import nominal_run
-    from calib.strapdown import navigate
+    from calib.analysis.nominal import nominal_run
+    from calib.nav.jacobian import N_UNKNOWN, ObservationGrid, observation_jacobian, state_matrix
+    from calib.nav.strapdown import navigate
+    from calib.noise.whitening import noise_model
 
     seq = load_sequence("paper-9pos")
     rate = 50.0
@@ -232,7 +233,7 @@ def test_analyser_with_extras_predicts_the_estimators_sigma(all_on_fit):
     # The analyser (coarse nominal sampling, 5 s rest intervals) and the estimator (200 Hz,
     # 1 s) evaluate the same model at the same mounting; the 21-parameter case agrees to
     # 0.2 %, so 1 % leaves room for the extra columns' coarser sampling.
-    from calib.nominal import information_along, nominal_run
+    from calib.analysis.nominal import information_along, nominal_run
 
     fit, _, _, setup = all_on_fit
     nom = nominal_run(load_sequence("paper-9pos"), LAT, 0.0, setup)
@@ -244,7 +245,7 @@ def test_analyser_with_extras_predicts_the_estimators_sigma(all_on_fit):
 
 def test_fitting_more_terms_never_shrinks_a_sigma():
     # Marginal variances can only grow when unknowns are added (Schur complement).
-    from calib.worstcase import analyze_extras
+    from calib.analysis.worst_case import analyze_extras
 
     cost = analyze_extras(load_sequence("paper-9pos"), PROFILE, LAT, Extras(("k2",)), tolerance_deg=0.0)
     assert np.all(cost.sigma_with >= cost.sigma_without * (1 - 1e-9))

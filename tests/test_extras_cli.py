@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from calib.extras import GROUP_NAMES, Extras
-from calib.result import CalibrationResult
+from calib.calibration.result import CalibrationResult
+from calib.model.optional_terms import GROUP_NAMES, Extras
 from seqdesign.cli import main
 from tests.test_cli_foundation import refused
 

@@ -1,4 +1,4 @@
-"""Arrays of numbers read from TOML files (calib.fields.Fields.numbers) and their readers."""
+"""Arrays of numbers read from TOML files (calib.io.fields.Fields.numbers) and their readers."""
 
 import math
 
@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 import tomli_w
 
-from calib.errormodel import ErrorModel
 from calib.errors import CalibError
-from calib.fields import Fields
-from calib.gimbalfile import load_gimbal
-from calib.sim import Truth
-from calib.truth import read_truth, truth_to_dict
+from calib.gimbal.description import load_gimbal
+from calib.io.fields import Fields
+from calib.model.error_model import ErrorModel
+from calib.sim.gimbal_run import Truth
+from calib.sim.truth import read_truth, truth_to_dict
 
 BAD_ARRAYS = [  # (value, what the refusal must say, the offending item's key)
     (0.5, "must be an array", "x"),

@@ -18,11 +18,11 @@ from conftest import rodrigues
 from scipy.linalg import block_diag, expm
 
 from calib.errors import CalibError
-from calib.gaussmarkov import gauss_markov
-from calib.jacobian import state_matrix
-from calib.noise import noise_model, whiten
-from calib.params import MICRO_G
-from calib.profiles import NoiseProfile, builtin_profiles, load_profile
+from calib.model.params import MICRO_G
+from calib.nav.jacobian import state_matrix
+from calib.noise.gauss_markov import gauss_markov
+from calib.noise.profiles import NoiseProfile, builtin_profiles, load_profile
+from calib.noise.whitening import noise_model, whiten
 
 LAT = math.radians(40.0)
 G = 9.80

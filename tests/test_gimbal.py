@@ -11,11 +11,11 @@ import pytest
 from click.testing import CliRunner
 from conftest import attitude, rodrigues
 
-from calib.encoders import encoder_track
-from calib.gimbal import plan_move, plan_sequence
-from calib.gimbalfile import DEFAULT_GIMBAL, load_gimbal
-from calib.rateprofile import RateProfile
-from calib.sequence import Sequence, Step, load_sequence, nominal_attitude, timeline
+from calib.gimbal.description import DEFAULT_GIMBAL, load_gimbal
+from calib.gimbal.encoders import encoder_track
+from calib.gimbal.rule import plan_move, plan_sequence
+from calib.sequence.definition import Sequence, Step, load_sequence, nominal_attitude, timeline
+from calib.sequence.rate_profile import RateProfile
 from seqdesign.cli import main
 from seqdesign.cli.gimbal import read_schedule
 
@@ -307,9 +307,10 @@ def test_shipped_gimbal_files_load():
 def test_simulator_encoder_channels_contain_the_counter_rotation():
     # simulate: during the counter-rotation the encoders turn (outer and inner opposite) while
     # the gyros see only the Earth rate: the IMU stays still.
-    from calib.errormodel import ErrorModel
-    from calib.profiles import load_profile
-    from calib.sim import SimConfig, simulate
+    from calib.model.error_model import ErrorModel
+    from calib.noise.profiles import load_profile
+    from calib.sequence.kinematics import SimConfig
+    from calib.sim.gimbal_run import simulate
 
     seq = lock_sequence()
     run, _ = simulate(
@@ -329,9 +330,10 @@ def test_simulator_encoder_channels_contain_the_counter_rotation():
 def test_encoders_with_flip_errors_step_no_faster_than_the_moves():
     # With flip errors the encoders follow the nominal plan's gimbals, each turned by the
     # real angle: still no jump anywhere (the 90-degree jumps at 559.8 s).
-    from calib.errormodel import ErrorModel
-    from calib.profiles import load_profile
-    from calib.sim import SimConfig, simulate
+    from calib.model.error_model import ErrorModel
+    from calib.noise.profiles import load_profile
+    from calib.sequence.kinematics import SimConfig
+    from calib.sim.gimbal_run import simulate
 
     run, _ = simulate(
         load_sequence("designed-15min"),

@@ -2,9 +2,9 @@
 
 Under a Gauss-Markov profile every mounting has its own noise filter; the
 analyser runs the filters of several mountings in one pass over the shared
-interval grid (:func:`calib.nominal.information_along_many`). The reference
-is the unbatched path, :func:`calib.nominal.information_along` (one
-:func:`calib.noise.whitener` and :func:`calib.noise.whiten` per mounting),
+interval grid (:func:`calib.analysis.nominal.information_along_many`). The reference
+is the unbatched path, :func:`calib.analysis.nominal.information_along` (one
+:func:`calib.noise.whitening.whitener` and :func:`calib.noise.whitening.whiten` per mounting),
 reached in the analyser with ``batch=1``.
 """
 
@@ -15,15 +15,22 @@ import math
 import numpy as np
 import pytest
 
-from calib import earth
-from calib import nominal as nominal_module
-from calib.extras import as_extras
-from calib.jacobian import state_matrix
-from calib.noise import filter_blocks, gm_interval_arrays, interval_models, whiten, whiten_batch, whitener
-from calib.nominal import information_along, information_along_many, nominal_run, same_grid
-from calib.profiles import load_profile
-from calib.sequence import load_sequence
-from calib.worstcase import analyze_extras, analyze_tolerance
+from calib.analysis import nominal as nominal_module
+from calib.analysis.nominal import information_along, information_along_many, nominal_run, same_grid
+from calib.analysis.worst_case import analyze_extras, analyze_tolerance
+from calib.model.optional_terms import as_extras
+from calib.nav import earth
+from calib.nav.jacobian import state_matrix
+from calib.noise.profiles import load_profile
+from calib.noise.whitening import (
+    filter_blocks,
+    gm_interval_arrays,
+    interval_models,
+    whiten,
+    whiten_batch,
+    whitener,
+)
+from calib.sequence.definition import load_sequence
 
 LAT = math.radians(40.0)
 G = earth.gravity(LAT)

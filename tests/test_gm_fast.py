@@ -2,11 +2,11 @@
 
 Under a Gauss-Markov profile the worst-mounting search evaluates every mounting
 through the sequence's unwhitened mounting basis and a navigation-frame GM
-filter run for many mountings at once (:mod:`calib.gmmounting`,
-:mod:`calib.gmfilter`); under white noise through the whitened basis
-(:mod:`calib.mounting`). The reference is :func:`calib.nominal.information_along`:
+filter run for many mountings at once (:mod:`calib.analysis.gm_mounting`,
+:mod:`calib.noise.gm_filter`); under white noise through the whitened basis
+(:mod:`calib.analysis.mounting`). The reference is :func:`calib.analysis.nominal.information_along`:
 the Jacobian along the mounting's own nominal trajectory and the body-frame
-filter of :func:`calib.noise.whitener`, one mounting at a time.
+filter of :func:`calib.noise.whitening.whitener`, one mounting at a time.
 """
 
 from __future__ import annotations
@@ -17,22 +17,22 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calib import earth
-from calib.extras import GROUP_NAMES, Extras
-from calib.gmfilter import MOUNTINGS_AT_ONCE
-from calib.gmmounting import extra_basis, extra_columns, gm_basis, informations
-from calib.jacobian import observation_jacobian
-from calib.mounting import sequence_model
-from calib.nominal import information_along, information_one, nominal_run
-from calib.profiles import load_profile
-from calib.sequence import load_sequence
-from calib.worstcase import analyze_extras, analyze_tolerance, box_interpolant_maximum
+from calib.analysis.gm_mounting import extra_basis, extra_columns, gm_basis, informations
+from calib.analysis.mounting import sequence_model
+from calib.analysis.nominal import information_along, information_one, nominal_run
+from calib.analysis.worst_case import analyze_extras, analyze_tolerance, box_interpolant_maximum
+from calib.model.optional_terms import GROUP_NAMES, Extras
+from calib.nav import earth
+from calib.nav.jacobian import observation_jacobian
+from calib.noise.gm_filter import MOUNTINGS_AT_ONCE
+from calib.noise.profiles import load_profile
+from calib.sequence.definition import load_sequence
 
 LAT = math.radians(40.0)
 G = earth.gravity(LAT)
 ADIS = Path(__file__).resolve().parents[1] / "benchmarks" / "profiles" / "adis16405.toml"
 PROFILES = ["navigation-gm", "mems", str(ADIS)]
-# Six mountings: the filter takes them all at once (calib.gmfilter.MOUNTINGS_AT_ONCE), as in the
+# Six mountings: the filter takes them all at once (calib.noise.gm_filter.MOUNTINGS_AT_ONCE), as in the
 # box pass; test_one_mounting_filter_equals_the_exact_evaluation covers the one-by-one kernel.
 MOUNTINGS = [
     np.radians(d)
@@ -201,7 +201,7 @@ def test_closed_form_segment_equals_the_interval_fold(name):
     # The beam's GM segment step (Woodbury on the segment's stacked observations) against
     # the Kalman fold over its intervals, for candidates with different filter covariances
     # and states (after 0, 1 and 2 earlier segments), segments stacked over start attitudes.
-    from calib.gmfilter import gm_start_covariance
+    from calib.noise.gm_filter import gm_start_covariance
     from seqdesign.search.gm import fold, fold_block, segment_blocks, stack, start_state
     from seqdesign.search.segments import segment_columns
 
@@ -228,7 +228,7 @@ def test_closed_form_segment_equals_the_interval_fold(name):
 def test_a_turn_then_its_rest_in_one_block_equals_the_two_folds(name):
     # The beam folds a move's turn and the rest after it through one block (gm.then): the
     # same information, state and covariance as the Kalman loop over both, stacked nodes.
-    from calib.gmfilter import gm_start_covariance
+    from calib.noise.gm_filter import gm_start_covariance
     from seqdesign.search.gm import fold, fold_block, segment_blocks, stack, start_state, then
     from seqdesign.search.segments import segment_columns
 

@@ -1,6 +1,6 @@
 """Calibrating runs placed by hand end to end: the simulator's runs, the correction, the refusals.
 
-The simulator (:mod:`calib.handsim`) is independent of the fit: it integrates a
+The simulator (:mod:`calib.hand.simulate`) is independent of the fit: it integrates a
 closed-form trajectory (wobbling turn axes, a carried translation) ten times finer
 than the output rate by Gauss-Legendre quadrature. Recovering its errors to a tenth
 of a sigma is the proof that the fit's integration rule (interval increments, the
@@ -16,15 +16,15 @@ import pytest
 from click.testing import CliRunner
 from realdata import FERRARIS, XSENS
 
-from calib import params as P
-from calib.calibration import calibrate
-from calib.correction import Correction, correction_of_result, raw_samples
+from calib.calibration.correction import Correction, correction_of_result, raw_samples
+from calib.calibration.entry import calibrate
 from calib.errors import CalibError
-from calib.handplan import HandPlan, random_hand_plan, xsens_like_plan
-from calib.handsim import draw_errors, simulate_by_hand
-from calib.profiles import load_profile
+from calib.hand.plan import HandPlan, random_hand_plan, xsens_like_plan
+from calib.hand.simulate import draw_errors, simulate_by_hand
+from calib.model import params as P
+from calib.noise.profiles import load_profile
 from calib.runlog import Run
-from calib.sim import SimConfig
+from calib.sequence.kinematics import SimConfig
 from seqdesign.cli import main
 from seqdesign.verify import error_half_range
 

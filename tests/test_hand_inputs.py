@@ -15,11 +15,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from realdata import FERRARIS as FERRARIS_DIR
-from realdata import XSENS
+from realdata import FERRARIS as FERRARIS_DIR, XSENS
 
-from calib import sanity
 from calib.errors import CalibError
+from calib.fit import sanity
 from calib.runlog import read_run
 from calib.runlog.clipping import clipped_stretches, describe_clipping, flat_top
 from calib.runlog.conversion import Conversion, read_conversion

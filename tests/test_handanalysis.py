@@ -13,15 +13,15 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from calib import params as P
-from calib.calibration import calibrate
+from calib.calibration.entry import calibrate
 from calib.errors import CalibError
-from calib.handinfo import plan_sigma
-from calib.handposes import load_poses, tip_to
-from calib.handsim import draw_errors, simulate_by_hand
-from calib.profiles import load_profile
-from calib.requirements import load_requirements
-from calib.sim import SimConfig
+from calib.hand.poses import load_poses, tip_to
+from calib.hand.predict import plan_sigma
+from calib.hand.simulate import draw_errors, simulate_by_hand
+from calib.model import params as P
+from calib.model.requirements import load_requirements
+from calib.noise.profiles import load_profile
+from calib.sequence.kinematics import SimConfig
 from seqdesign.cli import main
 from seqdesign.handanalysis import analyze_hand
 from seqdesign.handdesign import design_hand
@@ -105,7 +105,7 @@ def test_the_prediction_is_what_calibrating_noisy_runs_of_the_poses_achieves(tmp
     # The sigma a run reports is the predicted one (2 %: rests found in noise differ by a few
     # samples from the noise-free plan's) for the median run: a run whose residuals refute the
     # profile's noise by chance (1 % per group) or hold an outlying block (0.01 %) earns weights of
-    # its own (calib.handweights). The RMS error over the predicted sigma is 1 within
+    # its own (calib.hand.weights). The RMS error over the predicted sigma is 1 within
     # its sampling spread: sqrt(chi2(40)/40) lies in [0.67, 1.36] with 99.9 % per parameter.
     poses = load_poses(_write(tmp_path, TWELVE))
     predicted = analyze_hand(poses, MEMS, REQ, tolerance_deg=0.0, cure=False).nominal.sigma

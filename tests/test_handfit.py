@@ -15,16 +15,16 @@ import math
 import numpy as np
 import pytest
 
-from calib import earth
-from calib import params as P
-from calib.errormodel import ErrorModel
 from calib.errors import CalibError
-from calib.handfit import FitState, Layout, fit_by_hand, hand_data, linearise
-from calib.handmoves import move_rotation, move_sensitivity
-from calib.profiles import NoiseProfile
-from calib.requirements import load_requirements
-from calib.rests import find_rests
-from calib.transform import dcm_to_rotvec, rotvec_to_dcm
+from calib.hand.joint_fit import FitState, Layout, fit_by_hand, hand_data, linearise
+from calib.hand.moves import move_rotation, move_sensitivity
+from calib.hand.rests import find_rests
+from calib.model import params as P
+from calib.model.error_model import ErrorModel
+from calib.model.requirements import load_requirements
+from calib.nav import earth
+from calib.nav.transform import dcm_to_rotvec, rotvec_to_dcm
+from calib.noise.profiles import NoiseProfile
 
 LAT = math.radians(45.0)
 G = 9.80

@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 from realdata import FERRARIS, XSENS
 
-from calib.correction import Correction, SensorCorrection
+from calib.calibration.correction import Correction, SensorCorrection
 from calib.errors import CalibError
-from calib.handscore import axes_of, force_spread, pose_to_pose, score
-from calib.othertools import imucal_correction, parse_imu_tk, read_imu_tk, read_imucal
-from calib.profiles import as_profile
-from calib.rests import find_rests
-from calib.strapdown import sample_intervals
-from calib.transform import rotvec_to_dcm
+from calib.hand.rests import find_rests
+from calib.nav.strapdown import sample_intervals
+from calib.nav.transform import rotvec_to_dcm
+from calib.noise.profiles import as_profile
+from calib.peers.published import imucal_correction, parse_imu_tk, read_imu_tk, read_imucal
+from calib.peers.scores import axes_of, force_spread, pose_to_pose, score
 
 G = 9.81
 RATE_HZ = 100.0

@@ -16,13 +16,16 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from calib.calibration import calibrate
-from calib.errormodel import ErrorModel
+from calib.calibration.entry import calibrate
 from calib.errors import CalibError
-from calib.handplan import xsens_like_plan
-from calib.handsetup import carried_by_hand, diagnose
-from calib.handsim import simulate_by_hand
-from calib.logmistakes import (
+from calib.hand.plan import xsens_like_plan
+from calib.hand.setup import carried_by_hand, diagnose
+from calib.hand.simulate import simulate_by_hand
+from calib.model.error_model import ErrorModel
+from calib.noise.profiles import as_profile
+from calib.runlog import write_run
+from calib.sequence.kinematics import SimConfig
+from calib.sim.log_mistakes import (
     accel_in_g,
     axes_swapped,
     axis_flipped,
@@ -30,9 +33,6 @@ from calib.logmistakes import (
     gyro_in_deg,
     rate_mislabelled,
 )
-from calib.profiles import as_profile
-from calib.runlog import write_run
-from calib.sim import SimConfig
 from seqdesign.cli import main
 
 LAT = math.radians(45.0)
@@ -107,8 +107,8 @@ def test_a_wrong_rate_shows_as_three_gyro_scale_factors_alike(hand_run):
 
 
 def test_a_gimbal_run_is_not_taken_for_a_hand(tmp_path):
-    from calib.sequence import load_sequence
-    from calib.sim import simulate
+    from calib.sequence.definition import load_sequence
+    from calib.sim.gimbal_run import simulate
 
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=100.0)
     run, _ = simulate(load_sequence("paper-9pos"), cfg, ErrorModel.zero(), as_profile("mems"), seed=1)
@@ -159,7 +159,7 @@ def test_a_static_log_gets_the_one_diagnosis_of_the_gimbal_path(tmp_path):
 
 
 def test_a_profile_with_a_gauss_markov_bias_weights_a_hand_fit_by_its_white_part(hand_run, tmp_path):
-    from calib.profiles import load_profile, white_part
+    from calib.noise.profiles import load_profile, white_part
 
     run, _ = hand_run
     path = tmp_path / "hand.npz"

@@ -29,16 +29,16 @@ from conftest import (
     sensor_model,
 )
 
-from calib.errormodel import ErrorModel
-from calib.handmotion import hand_state, sensed
-from calib.handplan import HandPlan, random_hand_plan, xsens_like_plan
-from calib.handsim import draw_errors, simulate_by_hand, true_increments, write_hand_run
-from calib.profiles import load_profile
+from calib.hand.plan import HandPlan, random_hand_plan, xsens_like_plan
+from calib.hand.simulate import draw_errors, simulate_by_hand, true_increments, write_hand_run
+from calib.hand.trajectory import hand_state, sensed
+from calib.model.error_model import ErrorModel
+from calib.nav.strapdown import coning_rotvec, navigate
+from calib.nav.transform import quat_mult, quat_to_dcm, rotvec_to_quat
+from calib.noise.profiles import load_profile
 from calib.runlog import read_run
-from calib.sim import SimConfig
-from calib.strapdown import coning_rotvec, navigate
-from calib.transform import quat_mult, quat_to_dcm, rotvec_to_quat
-from calib.truth import read_truth
+from calib.sequence.kinematics import SimConfig
+from calib.sim.truth import read_truth
 
 LAT = 45.4 * DEG
 G = 9.81744  # the Xsens recording's local gravity
@@ -326,8 +326,8 @@ def test_a_plan_refuses_a_wobble_along_the_turn():
 
 
 def test_run_and_truth_files_round_trip(tmp_path):
-    from calib.fileio import load_toml
-    from calib.handsim import plan_from_table
+    from calib.hand.simulate import plan_from_table
+    from calib.io.files import load_toml
 
     plan = _plan()
     errors = ErrorModel.from_table2()
@@ -368,7 +368,7 @@ def test_cli_simulate_by_hand(tmp_path):
 
 
 def load_truth_doc(path):
-    from calib.fileio import load_toml
+    from calib.io.files import load_toml
 
     return load_toml(path)
 

@@ -16,15 +16,15 @@ import pytest
 from click.testing import CliRunner
 from conftest import DEG, DEG_PER_H, earth_rate_enu, log_so3, rodrigues
 
-from calib.handclock import EPOCH_MS, host_stamps
-from calib.handplan import HandPlan, random_hand_plan
-from calib.handsim import simulate_by_hand, true_increments, write_hand_run
-from calib.handtremor import Tremor, random_tremor
-from calib.handtroubles import HandTroubles, TroubleSpec, g_sensitivity_from_dphg, troubles_from_table
-from calib.profiles import load_profile
-from calib.sim import SimConfig
-from calib.strapdown import coning_rotvec, navigate
-from calib.transform import quat_mult, quat_to_dcm, rotvec_to_quat
+from calib.hand.host_clock import EPOCH_MS, host_stamps
+from calib.hand.plan import HandPlan, random_hand_plan
+from calib.hand.simulate import simulate_by_hand, true_increments, write_hand_run
+from calib.hand.tremor import Tremor, random_tremor
+from calib.hand.troubles import HandTroubles, TroubleSpec, g_sensitivity_from_dphg, troubles_from_table
+from calib.nav.strapdown import coning_rotvec, navigate
+from calib.nav.transform import quat_mult, quat_to_dcm, rotvec_to_quat
+from calib.noise.profiles import load_profile
+from calib.sequence.kinematics import SimConfig
 
 LAT = 45.4 * DEG
 G = 9.81744
@@ -329,8 +329,8 @@ def test_a_rate_error_scales_each_turn_and_keeps_the_rests_right():
 
 
 def test_the_truth_file_holds_the_troubles_exactly(tmp_path):
-    from calib.fileio import load_toml
-    from calib.truth import read_truth
+    from calib.io.files import load_toml
+    from calib.sim.truth import read_truth
 
     plan = _plan(n=3)
     spec = TroubleSpec(tremor_deg=0.2, hand_held_s=15.0, g_sensitivity_dphg=300.0, rate_error=-0.005)
@@ -353,7 +353,7 @@ def test_the_truth_file_holds_the_troubles_exactly(tmp_path):
 
 
 def test_cli_simulate_with_troubles(tmp_path):
-    from calib.fileio import load_toml
+    from calib.io.files import load_toml
     from seqdesign.cli import main
 
     out = tmp_path / "hand.csv"
@@ -424,7 +424,7 @@ def test_cli_verify_by_hand_with_troubles():
 
 def test_cli_short_poses_held_in_the_hand(tmp_path):
     """Like a recording whose first 26 s are held in the hand with 1-6 s poses."""
-    from calib.fileio import load_toml
+    from calib.io.files import load_toml
     from seqdesign.cli import main
 
     out = tmp_path / "short.npz"

@@ -1,4 +1,4 @@
-"""Weights the data earn and a model the data choose (calib.handweights, calib.handrun).
+"""Weights the data earn and a model the data choose (calib.hand.weights, calib.hand.calibrate).
 
 Simulated hand runs whose truth is known: noise the profile states keeps the profile's
 weights and the 21 alone; noise twice the profile's earns a white factor of 2; a move
@@ -15,13 +15,13 @@ import math
 import numpy as np
 import pytest
 
-from calib.calibration import calibrate
-from calib.errormodel import ErrorModel
-from calib.handplan import xsens_like_plan
-from calib.handsim import simulate_by_hand
-from calib.handtroubles import HandTroubles, g_sensitivity_from_dphg
-from calib.profiles import as_profile
-from calib.sim import SimConfig
+from calib.calibration.entry import calibrate
+from calib.hand.plan import xsens_like_plan
+from calib.hand.simulate import simulate_by_hand
+from calib.hand.troubles import HandTroubles, g_sensitivity_from_dphg
+from calib.model.error_model import ErrorModel
+from calib.noise.profiles import as_profile
+from calib.sequence.kinematics import SimConfig
 
 MEMS = as_profile("mems")
 CFG = SimConfig(latitude_rad=math.radians(45.0), height_m=0.0, sample_rate_hz=100.0)
@@ -53,7 +53,7 @@ def test_noise_twice_the_profiles_earns_a_factor_of_two():
     )
     result = calibrate(_run(2, profile=loud), MEMS, by_hand=True)
     white = result.by_hand.choices["weights"]["white_factor"]
-    # Each group earns the 2 (a rest's own wander beyond white noise, calib.handdata, is a trembling
+    # Each group earns the 2 (a rest's own wander beyond white noise, calib.hand.data, is a trembling
     # pose's, not a louder white noise). A factor is known to about 1/sqrt(2 r) of itself (r its
     # redundancy, 70-110 per group here: 7-9 %); 25 % is about three of those.
     for group in ("force", "rate", "move"):

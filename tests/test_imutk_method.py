@@ -10,9 +10,9 @@ import pytest
 from realdata import XSENS
 
 from calib.errors import CalibError
-from calib.handscore import axes_of
-from calib.imutk_method import imutk_calibrate, static_intervals
-from calib.othertools import read_imu_tk
+from calib.peers.imutk_method import imutk_calibrate, static_intervals
+from calib.peers.published import read_imu_tk
+from calib.peers.scores import axes_of
 
 G = 9.80665
 RATE_HZ = 100.0

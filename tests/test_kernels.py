@@ -1,4 +1,4 @@
-"""The compiled recursions (calib.kernels) against the textbook recursions written plainly here.
+"""The compiled recursions (calib.noise.kernels) against the textbook recursions written plainly here.
 
 The analyser's own fast-versus-exact tests (tests/test_gm_fast.py) check the physics
 end to end; these check each kernel alone, on random inputs that exercise every branch
@@ -12,9 +12,9 @@ import math
 import numpy as np
 import pytest
 
-from calib import earth
-from calib.gmfilter import MOUNTINGS_AT_ONCE, gram_one, gram_pass
-from calib.jacobian import propagate, step_model
+from calib.nav import earth
+from calib.nav.jacobian import propagate, step_model
+from calib.noise.gm_filter import MOUNTINGS_AT_ONCE, gram_one, gram_pass
 
 LAT = math.radians(40.0)
 

@@ -16,17 +16,18 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from calib import params as P
-from calib.earth import RATE as W_EARTH
-from calib.errormodel import ErrorModel
 from calib.errors import CalibError
-from calib.motion import check_sequence_matches
-from calib.profiles import load_profile
+from calib.fit.sanity import GyroUnitError, explain_gyro_unit
+from calib.model import params as P
+from calib.model.error_model import ErrorModel
+from calib.nav.earth import RATE as W_EARTH
+from calib.noise.profiles import load_profile
 from calib.runlog import Run, make_meta, read_run, write_run
 from calib.runlog.csv import time_in_seconds
-from calib.sanity import GyroUnitError, explain_gyro_unit
-from calib.sequence import sequence_from_dict
-from calib.sim import SimConfig, simulate
+from calib.sequence.definition import sequence_from_dict
+from calib.sequence.kinematics import SimConfig
+from calib.sequence.motion import check_sequence_matches
+from calib.sim.gimbal_run import simulate
 from seqdesign.cli import main
 
 RATE_HZ = 100.0
@@ -350,7 +351,12 @@ def test_a_static_log_serves_profile_fit_with_its_own_header(tmp_path):
 # Library messages speak library terms
 
 
-OWN = ["calib/motion.py", "calib/sanity.py", "calib/start.py", *map(str, Path("calib/runlog").glob("*.py"))]
+OWN = [
+    "calib/sequence/motion.py",
+    "calib/fit/sanity.py",
+    "calib/fit/start.py",
+    *map(str, Path("calib/runlog").glob("*.py")),
+]
 
 
 @pytest.mark.parametrize("name", OWN)

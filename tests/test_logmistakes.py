@@ -1,4 +1,4 @@
-"""A log's setup mistakes (calib.logmistakes) break the physics a diagnosis checks, each its own way.
+"""A log's setup mistakes (calib.sim.log_mistakes) break the physics a diagnosis checks, each its own way.
 
 On a clean simulated hand run: the rests' specific force is ``g`` in m/s^2, and across each move the
 gyro's turn carries the gravity direction of one rest into the next (``f_(k+1) = R^T f_k``; the Earth
@@ -10,9 +10,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.handplan import random_hand_plan
-from calib.handsim import simulate_by_hand
-from calib.logmistakes import (
+from calib.hand.plan import random_hand_plan
+from calib.hand.simulate import simulate_by_hand
+from calib.nav.strapdown import coning_rotvec
+from calib.nav.transform import quat_mult, quat_to_dcm, rotvec_to_quat
+from calib.sequence.kinematics import SimConfig
+from calib.sim.log_mistakes import (
     MISTAKES,
     accel_in_g,
     axes_swapped,
@@ -21,9 +24,6 @@ from calib.logmistakes import (
     gyro_in_deg,
     rate_mislabelled,
 )
-from calib.sim import SimConfig
-from calib.strapdown import coning_rotvec
-from calib.transform import quat_mult, quat_to_dcm, rotvec_to_quat
 
 G = 9.81
 RATE = 100.0

@@ -18,16 +18,17 @@ from click.testing import CliRunner
 from conftest import ARCSEC, W_EARTH
 from realdata import PSINS, needs
 
-from calib import params as P
-from calib.errormodel import ErrorModel
-from calib.motion import sequence_motion
-from calib.profiles import load_profile
+from calib.fit.sanity import check_saturation
+from calib.model import params as P
+from calib.model.error_model import ErrorModel
+from calib.noise.profiles import load_profile
 from calib.runlog import Run, read_run, write_run
 from calib.runlog.clock import sample_clock
-from calib.sanity import check_saturation
-from calib.sequence import sequence_from_dict
-from calib.sim import SimConfig, simulate
-from calib.truth import write_truth
+from calib.sequence.definition import sequence_from_dict
+from calib.sequence.kinematics import SimConfig
+from calib.sequence.motion import sequence_motion
+from calib.sim.gimbal_run import simulate
+from calib.sim.truth import write_truth
 from seqdesign.cli import main
 
 LAT = math.radians(40.0)

@@ -1,4 +1,4 @@
-"""The numpy rotations of calib.transform and the matrix exponential of calib.matexp.
+"""The numpy rotations of calib.nav.transform and the matrix exponential of calib.noise.matexp.
 
 Both replace scipy functions on the calibrate path (whose imports cost every
 command 0.25 s); scipy is the independent reference here.
@@ -9,8 +9,8 @@ import pytest
 from scipy.linalg import expm as scipy_expm
 from scipy.spatial.transform import Rotation
 
-from calib.matexp import expm
-from calib.transform import dcm_to_rotvec, rotvec_to_dcm, skew
+from calib.nav.transform import dcm_to_rotvec, rotvec_to_dcm, skew
+from calib.noise.matexp import expm
 
 # Rounding of a handful of products of unit-size numbers: a few ulp of 1.
 ULP_TOL = 1e-14

@@ -10,11 +10,12 @@ import pytest
 from click.testing import CliRunner
 from scipy.stats import chi2
 
-from calib.feedback import ATTITUDE_FEEDBACK_RATIO, attitude_wander_ratio
-from calib.jacobian import state_matrix
-from calib.noise import interval_models
-from calib.profiles import load_profile
-from calib.smoother import smooth
+from calib.fit.feedback import ATTITUDE_FEEDBACK_RATIO
+from calib.nav.jacobian import state_matrix
+from calib.noise.profiles import load_profile
+from calib.noise.smoother import smooth
+from calib.noise.wander import attitude_wander_ratio
+from calib.noise.whitening import interval_models
 from seqdesign.cli import main
 
 LAT = math.radians(40.0)
@@ -146,11 +147,12 @@ def test_mems_monte_carlo_nees_is_in_its_band():
     # 50 Hz to stay fast. Honest sigmas make the sum of the ten NEES chi-square with 210
     # degrees of freedom: the mean lies in [15.9, 26.9] with 99 % probability (fixed seeds).
     # benchmarks/mems_mc.py runs fifty at 100 Hz.
-    from calib import params as P
-    from calib.calibration import calibrate_run
-    from calib.errormodel import ErrorModel
-    from calib.sequence import load_sequence
-    from calib.sim import SimConfig, simulate
+    from calib.calibration.entry import calibrate_run
+    from calib.model import params as P
+    from calib.model.error_model import ErrorModel
+    from calib.sequence.definition import load_sequence
+    from calib.sequence.kinematics import SimConfig
+    from calib.sim.gimbal_run import simulate
 
     half = np.array(
         [
@@ -187,17 +189,18 @@ def test_rest_gyrocompass_finds_bias_and_heading_through_a_mems_bias():
     # projection by ~0.2 deg/h: the bias to 1 deg/h, the heading to 3 deg (0.2 / 11.5 rad is
     # 1 deg). A first-rest gyrocompass after removing the mean rate over the rests is off by
     # the Earth rate's own average over them.
-    from calib import params as P
-    from calib.errormodel import ErrorModel
-    from calib.estimator import calibrate
-    from calib.gyrocompass import rest_gyrocompass
-    from calib.motion import detect_motion
-    from calib.requirements import load_requirements
-    from calib.sequence import load_sequence
-    from calib.sim import SimConfig, simulate
-    from calib.start import coarse_alignment, start_values
-    from calib.strapdown import sample_intervals
-    from calib.transform import dcm_to_rotvec
+    from calib.fit.estimator import calibrate
+    from calib.fit.gyrocompass import rest_gyrocompass
+    from calib.fit.start import coarse_alignment, start_values
+    from calib.model import params as P
+    from calib.model.error_model import ErrorModel
+    from calib.model.requirements import load_requirements
+    from calib.nav.strapdown import sample_intervals
+    from calib.nav.transform import dcm_to_rotvec
+    from calib.sequence.definition import load_sequence
+    from calib.sequence.kinematics import SimConfig
+    from calib.sequence.motion import detect_motion
+    from calib.sim.gimbal_run import simulate
 
     errors = ErrorModel.from_units([MEMS_ERRORS[p.name] for p in P.PARAMETERS])
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=20.0)
@@ -231,7 +234,7 @@ def test_rest_gyrocompass_finds_bias_and_heading_through_a_mems_bias():
 
 def _held(schedule):
     """Move the feedback until it is held: steps well below FEEDBACK_HOLD_SIGMA after each update."""
-    from calib.feedback import FEEDBACK_MIN_UPDATES
+    from calib.fit.feedback import FEEDBACK_MIN_UPDATES
 
     it = 0
     while schedule.due(0.1, it + 1):
@@ -247,7 +250,7 @@ def test_feedback_that_keeps_moving_the_estimate_is_never_held():
     # A strong Gauss-Markov gyro bias can keep the feedback moving the estimate by a sigma per
     # update: then it is given up on after MAX_FEEDBACK_UPDATES and stays pending, so neither
     # loop can declare the fit converged (the run is reported as not converged, never as ok).
-    from calib.feedback import FEEDBACK_START_ITERATION, MAX_FEEDBACK_UPDATES, FeedbackSchedule
+    from calib.fit.feedback import FEEDBACK_START_ITERATION, MAX_FEEDBACK_UPDATES, FeedbackSchedule
 
     schedule = FeedbackSchedule(wander=True)
     assert not schedule.due(500.0, 1)  # the first steps of a MEMS fit are linearisation error
@@ -263,8 +266,8 @@ def test_tilt_variance_of_a_gauss_markov_gyro_bias():
     # The attitude a first-order GM bias b (sigma s, correlation tau) builds, phi = int_0^T b dt:
     # for T << tau the bias is a constant over the run, var = s^2 T^2; for T >> tau it is a
     # random walk of density 2 s^2 tau, var = 2 s^2 tau T. White noise adds arw^2 T.
-    from calib.feedback import tilt_variance
-    from calib.profiles import NoiseProfile
+    from calib.noise.profiles import NoiseProfile
+    from calib.noise.wander import tilt_variance
 
     s = 1e-4  # rad/s
     for tau, T, expected in ((1e6, 10.0, s**2 * 100.0), (1.0, 1e6, 2.0 * s**2 * 1.0 * 1e6)):
@@ -282,7 +285,7 @@ def test_held_feedback_steps_sum_their_geometric_series():
     # series: u + rho u / (1 - rho) = u / (1 - rho), to a few roundings.
     from types import SimpleNamespace
 
-    from calib.feedback import FeedbackSchedule
+    from calib.fit.feedback import FeedbackSchedule
 
     # 24 unknowns (the 21 and the initial attitude); the heading (index 23) does not move, so
     # the heading's trust region (HEADING_STEP_MAX_DEG) leaves the steps alone.
@@ -319,12 +322,13 @@ def test_streamed_mems_fit_equals_renavigating_fit(profile):
     # the noise model's frame and rebuild it on the same tilt.
     from pathlib import Path
 
-    from calib import params as P
-    from calib.errormodel import ErrorModel
-    from calib.estimator import calibrate
-    from calib.requirements import load_requirements
-    from calib.sequence import load_sequence
-    from calib.sim import SimConfig, simulate
+    from calib.fit.estimator import calibrate
+    from calib.model import params as P
+    from calib.model.error_model import ErrorModel
+    from calib.model.requirements import load_requirements
+    from calib.sequence.definition import load_sequence
+    from calib.sequence.kinematics import SimConfig
+    from calib.sim.gimbal_run import simulate
 
     errors = ErrorModel.from_units([MEMS_ERRORS[p.name] for p in P.PARAMETERS])
     cfg, seq = SimConfig(latitude_rad=LAT, sample_rate_hz=20.0), load_sequence("paper-9pos")
@@ -377,13 +381,13 @@ def test_calibrate_stream_gives_a_mems_run_the_calibrate_start(tmp_path):
     # tolerance. Each stops within tol_sigma = 1e-3 sigma of the same fixed point, so they agree
     # to 1e-3 sigma (measured: 1e-9), at the default chunk and at 1000-sample chunks that cut
     # the run's rests, flips and smoothing windows in 34 places.
-    from calib.chunks import calibrate_file, survey
-    from calib.errormodel import ErrorModel
-    from calib.motion import detect_motion
-    from calib.requirements import load_requirements
+    from calib.fit.chunked import calibrate_file, survey
+    from calib.model.error_model import ErrorModel
+    from calib.model.requirements import load_requirements
+    from calib.nav.site import Site
+    from calib.nav.strapdown import sample_intervals
     from calib.runlog import read_run
-    from calib.site import Site
-    from calib.strapdown import sample_intervals
+    from calib.sequence.motion import detect_motion
 
     runner = CliRunner()
     run = _mems_run(tmp_path, runner)
@@ -419,9 +423,9 @@ def test_calibrate_stream_gives_a_mems_run_the_calibrate_start(tmp_path):
 def test_calibrate_stream_refuses_a_run_that_starts_turning(tmp_path):
     # A log cut inside its first flip has no first rest to align on: one line, exit 2 (it
     # was a ValueError traceback when no sample before the first motion was read).
-    from calib.motion import detect_motion
+    from calib.nav.strapdown import sample_intervals
     from calib.runlog import read_meta
-    from calib.strapdown import sample_intervals
+    from calib.sequence.motion import detect_motion
 
     runner = CliRunner()
     run = _mems_run(tmp_path, runner)
@@ -447,8 +451,8 @@ def test_a_run_beyond_the_followable_wander_is_refused_with_the_longest_that_is(
     # correlation time) walks the attitude 26 deg over paper-9pos's 28 min: analyze refuses (its
     # sigmas would not be achieved) and names the longest run whose wander stays within
     # MAX_WANDER_DEG, which is where tilt_variance reaches it.
-    from calib.feedback import MAX_WANDER_DEG, longest_run_s, tilt_variance
-    from calib.profiles import NoiseProfile
+    from calib.noise.profiles import NoiseProfile
+    from calib.noise.wander import MAX_WANDER_DEG, longest_run_s, tilt_variance
     from seqdesign.cli import main
 
     prof = NoiseProfile("gm-gyro", 2.5, 460.0, 90.0, 428.0)
@@ -471,7 +475,7 @@ def test_a_noise_burst_does_not_end_the_first_rest():
     # At rest for 10 s but for a 0.2-deg twitch at 3 s (1 deg/s for 0.2 s: above the motion
     # threshold, below MIN_TURN_DEG), then a 90-deg flip at 10 deg/s, then at rest: the first
     # rest is the 10 s before the flip (a burst within it is noise, not a turn).
-    from calib.motion import detect_motion
+    from calib.sequence.motion import detect_motion
 
     rate_hz, dt = 100.0, 0.01
     rate = np.zeros((int(40 * rate_hz), 3))
@@ -495,12 +499,13 @@ def test_gyro_bias_sigma_under_a_gauss_markov_gyro_respects_the_bound_of_a_const
     import dataclasses
     from pathlib import Path
 
-    from calib import params as P
-    from calib.calibration import calibrate
-    from calib.errormodel import ErrorModel
-    from calib.requirements import load_requirements
-    from calib.sequence import load_sequence
-    from calib.sim import SimConfig, simulate
+    from calib.calibration.entry import calibrate
+    from calib.model import params as P
+    from calib.model.error_model import ErrorModel
+    from calib.model.requirements import load_requirements
+    from calib.sequence.definition import load_sequence
+    from calib.sequence.kinematics import SimConfig
+    from calib.sim.gimbal_run import simulate
     from seqdesign.verify import error_half_range
 
     bench = Path(__file__).resolve().parents[1] / "benchmarks"
@@ -534,13 +539,14 @@ def test_a_fit_follows_a_mems_gyro_that_walks_the_attitude_13_degrees():
 
     from scipy.stats import chi2 as chi2_dist
 
-    from calib import params as P
-    from calib.calibration import calibrate
-    from calib.errormodel import ErrorModel
-    from calib.feedback import tilt_variance
-    from calib.requirements import load_requirements
-    from calib.sequence import load_sequence
-    from calib.sim import SimConfig, simulate
+    from calib.calibration.entry import calibrate
+    from calib.model import params as P
+    from calib.model.error_model import ErrorModel
+    from calib.model.requirements import load_requirements
+    from calib.noise.wander import tilt_variance
+    from calib.sequence.definition import load_sequence
+    from calib.sequence.kinematics import SimConfig
+    from calib.sim.gimbal_run import simulate
     from seqdesign.verify import error_half_range
 
     prof = load_profile(Path(__file__).resolve().parents[1] / "benchmarks" / "profiles" / "adis16405.toml")

@@ -16,12 +16,13 @@ import math
 import numpy as np
 import pytest
 
-from calib import params as P
-from calib.calibration import calibrate_run
-from calib.errormodel import ErrorModel
-from calib.profiles import load_profile
-from calib.sequence import load_sequence
-from calib.sim import SimConfig, simulate
+from calib.calibration.entry import calibrate_run
+from calib.model import params as P
+from calib.model.error_model import ErrorModel
+from calib.noise.profiles import load_profile
+from calib.sequence.definition import load_sequence
+from calib.sequence.kinematics import SimConfig
+from calib.sim.gimbal_run import simulate
 from seqdesign.verify import error_half_range
 
 SEED = 1400  # the first unit of benchmarks/mems_mc.py

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from calib.motion import MIN_TURN_DEG, log_turns, runs_of
-from calib.profiles import load_profile
+from calib.nav.strapdown import sample_intervals
+from calib.noise.profiles import load_profile
 from calib.runlog import read_run
-from calib.strapdown import sample_intervals
+from calib.sequence.motion import MIN_TURN_DEG, log_turns, runs_of
 from seqdesign.cli import main
 
 
@@ -89,7 +89,7 @@ def test_sequence_accepts_a_run_under_a_strong_gauss_markov_gyro(tmp_path):
     # (within the wander the estimator follows) converges.
     from pathlib import Path
 
-    from calib.sequence import load_sequence
+    from calib.sequence.definition import load_sequence
 
     bench = Path(__file__).resolve().parent.parent / "benchmarks"
     seq, prof = bench / "sequences" / "adis16405-8min.toml", bench / "profiles" / "adis16405.toml"

@@ -1,10 +1,10 @@
-"""The closed-form 3 x 3 inverse Cholesky factor of the noise filter (calib.noise)."""
+"""The closed-form 3 x 3 inverse Cholesky factor of the noise filter (calib.noise.whitening)."""
 
 import numpy as np
 import pytest
 from scipy.linalg import solve_triangular
 
-from calib.noise import _cholesky_inverse_3, cholesky_inverse_3
+from calib.noise.whitening import _cholesky_inverse_3, cholesky_inverse_3
 
 EPS = np.finfo(float).eps
 

@@ -7,18 +7,18 @@ import math
 
 import numpy as np
 
-from calib.feedback import (
+from calib.fit.feedback import (
     HEADING_STEP_MAX_DEG,
     HEADING_UNDETERMINED_DEG,
     AttitudeFeedback,
     FeedbackSchedule,
     limit_heading_step,
 )
-from calib.jacobian import PHI0, state_matrix
-from calib.noise import noise_model, whiten
-from calib.noiseframe import attitude_moved_deg, heading_turn, to_frame
-from calib.profiles import load_profile
-from calib.transform import rotvec_to_dcm, skew
+from calib.nav.jacobian import PHI0, state_matrix
+from calib.nav.transform import rotvec_to_dcm, skew
+from calib.noise.frame import attitude_moved_deg, heading_turn, to_frame
+from calib.noise.profiles import load_profile
+from calib.noise.whitening import noise_model, whiten
 
 G = 9.80
 

@@ -11,11 +11,12 @@ import pytest
 from click.testing import CliRunner
 from realdata import ADIS, needs
 
-from calib.errormodel import ErrorModel
-from calib.profiles import NoiseProfile, load_profile
+from calib.model.error_model import ErrorModel
+from calib.noise.profiles import NoiseProfile, load_profile
 from calib.runlog import Run, read_run, write_run
-from calib.sequence import Sequence, Step
-from calib.sim import SimConfig, simulate
+from calib.sequence.definition import Sequence, Step
+from calib.sequence.kinematics import SimConfig
+from calib.sim.gimbal_run import simulate
 from seqdesign.cli import main
 
 # The simulated unit: white noise and a first-order GM bias on every axis.

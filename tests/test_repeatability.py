@@ -76,13 +76,13 @@ def test_weighted_chi2_sf_is_chi2_where_it_must_be():
 
 
 def _result(values, sigma, corr):
-    from calib.result import CalibrationResult
+    from calib.calibration.result import CalibrationResult
 
     return CalibrationResult(values, sigma, np.eye(3), True, 1, 0.0, "navigation", correlation=corr)
 
 
 def test_compare_p_value_is_uniform_for_honest_correlated_results():
-    from calib import params as P
+    from calib.model import params as P
     from seqdesign.repeatability import Repeatability
 
     # Seven blocks of three estimates correlated by 0.9: the difference's correlation has

@@ -10,9 +10,9 @@ import zipfile
 import numpy as np
 import pytest
 
-from calib import fileio
 from calib.errors import CalibError
-from calib.fileio import atomic_write_bytes, atomic_write_text, sha256_file
+from calib.io import files as fileio
+from calib.io.files import atomic_write_bytes, atomic_write_text, sha256_file
 from calib.runlog import Run, check_run, make_meta, read_run, write_run
 
 HEADER = "time_s,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_mps,dv_y_mps,dv_z_mps"

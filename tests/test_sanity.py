@@ -8,11 +8,12 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from calib.errormodel import ErrorModel
-from calib.profiles import load_profile
+from calib.model.error_model import ErrorModel
+from calib.noise.profiles import load_profile
 from calib.runlog import Run, write_run
-from calib.sequence import sequence_from_dict
-from calib.sim import SimConfig, simulate
+from calib.sequence.definition import sequence_from_dict
+from calib.sequence.kinematics import SimConfig
+from calib.sim.gimbal_run import simulate
 from seqdesign.cli import main
 
 LAT = math.radians(40.0)
@@ -123,7 +124,7 @@ def test_rest_that_moves_is_refused(good_run, tmp_path):
 
 
 def test_fit_stopped_early_reports_not_converged(good_run):
-    from calib.estimator import calibrate
+    from calib.fit.estimator import calibrate
 
     # One Gauss-Newton step cannot absorb the ~15 deg gyrocompassing error that Table 2's
     # 3 deg/h gyro bias causes: the fit must say it has not converged (the CLI then

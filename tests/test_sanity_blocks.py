@@ -1,6 +1,6 @@
 """The whole-run sanity checks computed a block at a time give the whole-run answer.
 
-``calib.sanity`` walks long logs in blocks of ``MOTION_BLOCK`` samples so that
+``calib.fit.sanity`` walks long logs in blocks of ``MOTION_BLOCK`` samples so that
 its memory does not grow with the log; the answers must not depend on where
 the blocks end.
 """
@@ -12,8 +12,9 @@ import math
 import numpy as np
 import pytest
 
-from calib import motion, sanity
 from calib.errors import CalibError
+from calib.fit import sanity
+from calib.sequence import motion
 
 RATE_HZ = 100.0
 FLIP_RATE = math.radians(10.0)  # rad/s, the paper's turn rate

@@ -156,7 +156,7 @@ def test_partial_fit_recovers_the_estimable_with_the_analysers_sigma(z_run, anal
             assert e["sigma"] == pytest.approx(analysis["parameters"][name]["sigma"], rel=0.02)
         else:
             assert e["sigma"] is None and e["estimable"] is False
-    from calib.result import CalibrationResult
+    from calib.calibration.result import CalibrationResult
 
     back = CalibrationResult.load(out)
     assert set(back.not_estimable) == set(analysis["not_estimable"])

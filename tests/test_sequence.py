@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from conftest import DWELL_S, FLIP_S, N_POS, attitude, rest_window, rot_about, table1_gimbal, table1_positions
 
-from calib.encoders import rest_positions
 from calib.errors import CalibError
-from calib.sequence import (
+from calib.gimbal.encoders import rest_positions
+from calib.sequence.definition import (
     Sequence,
     Step,
     load_sequence,
@@ -216,8 +216,12 @@ def test_every_shipped_sequence_starts_with_a_rest_calibrate_can_align_on():
     # A designed sequence's first dwell may sit at the design's minimum; calibrate refuses a first
     # rest shorter than MIN_ALIGN_S, and motion detection takes up to FIRST_REST_MARGIN_S from its
     # end (designed-15min-gm, with a 10.0 s first rest, was once refused at a 10 s limit).
-    from calib.sequence import builtin_sequence_dir, load_sequence
-    from calib.start import FIRST_REST_MARGIN_S, MIN_ALIGN_S
+    from calib.sequence.definition import (
+        FIRST_REST_MARGIN_S,
+        MIN_ALIGN_S,
+        builtin_sequence_dir,
+        load_sequence,
+    )
 
     for path in sorted(builtin_sequence_dir().glob("*.toml")):
         seq = load_sequence(path)

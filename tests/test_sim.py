@@ -29,11 +29,12 @@ from conftest import (
     table_column_si,
 )
 
-from calib.errormodel import ErrorModel
-from calib.profiles import load_profile
-from calib.sequence import Sequence, Step
-from calib.sim import SimConfig, Truth, simulate
-from calib.truth import read_truth, write_truth
+from calib.model.error_model import ErrorModel
+from calib.noise.profiles import load_profile
+from calib.sequence.definition import Sequence, Step
+from calib.sequence.kinematics import SimConfig
+from calib.sim.gimbal_run import Truth, simulate
+from calib.sim.truth import read_truth, write_truth
 
 FS = 200.0
 DT = 1.0 / FS
@@ -362,7 +363,7 @@ def test_encoder_angles_track_middle_gimbal_through_90():
     # At the start body X is the middle gimbal's axis, so +180 deg about X turns only the middle
     # gimbal: an encoder counts 0 -> 180 with outer and inner still at 0 (conventions: angles
     # continuous along a run, as encoders count). rest_positions must agree with the run log.
-    from calib.encoders import rest_positions
+    from calib.gimbal.encoders import rest_positions
 
     seq = Sequence(
         name="mid",

@@ -20,8 +20,8 @@ from conftest import (
     skew,
 )
 
-from calib.strapdown import navigate
-from calib.transform import prefix_product, quat_mult, quat_to_dcm, rotvec_to_quat
+from calib.nav.strapdown import navigate
+from calib.nav.transform import prefix_product, quat_mult, quat_to_dcm, rotvec_to_quat
 
 LAT = math.radians(LAT_DEG)
 G = normal_gravity(LAT, 0.0)

@@ -10,21 +10,22 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from calib import earth, stream
-from calib import extras as X
-from calib.errormodel import ErrorModel
-from calib.estimator import calibrate
-from calib.jacobian import default_grid, extra_inputs, sample_layout, trajectory_moments
-from calib.motion import detect_motion
-from calib.profiles import load_profile
+from calib.fit.estimator import calibrate
+from calib.fit.start import coarse_alignment
+from calib.model import optional_terms as X
+from calib.model.error_model import ErrorModel
+from calib.nav import chunk_pass as stream, earth
+from calib.nav.jacobian import default_grid, extra_inputs, sample_layout, trajectory_moments
+from calib.nav.site import Site
+from calib.nav.strapdown import navigate, sample_intervals
+from calib.nav.transform import quat_mult
+from calib.noise.profiles import load_profile
 from calib.runlog import read_run
-from calib.sequence import load_sequence
-from calib.sim import SimConfig, simulate
-from calib.simstream import simulate_to_file
-from calib.site import Site
-from calib.start import coarse_alignment
-from calib.strapdown import navigate, sample_intervals
-from calib.transform import quat_mult
+from calib.sequence.definition import load_sequence
+from calib.sequence.kinematics import SimConfig
+from calib.sequence.motion import detect_motion
+from calib.sim.gimbal_run import simulate
+from calib.sim.to_disk import simulate_to_file
 from seqdesign.cli import main
 
 LAT = math.radians(40.0)
@@ -221,7 +222,7 @@ def short_files(paper, tmp_path_factory):
 def test_calibrating_from_disk_in_chunks_equals_calibrating_in_memory(short_files):
     # Same samples, same chunk cuts at interval ends, same passes: the same numbers,
     # whatever the reading block (here 7777 rows, which never falls on a cut).
-    from calib.chunks import calibrate_file
+    from calib.fit.chunked import calibrate_file
 
     paths, fit, cfg = short_files
     for p in paths:
@@ -232,7 +233,7 @@ def test_calibrating_from_disk_in_chunks_equals_calibrating_in_memory(short_file
 
 @pytest.mark.slow
 def test_cli_calibrate_stream_agrees_with_calibrate_and_takes_a_sequence(short_files, tmp_path):
-    # One entry (calib.calibration.calibrate) for both readings: the same estimator on the same
+    # One entry (calib.calibration.entry.calibrate) for both readings: the same estimator on the same
     # samples gives the same estimates, to 1e-9 sigma, with or without a sequence file (whose
     # flips then mark where the run turns, in chunks as in memory).
     paths, _, _ = short_files

@@ -9,7 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from calib.runlog import read_run
-from calib.sequence import load_sequence, save_sequence
+from calib.sequence.definition import load_sequence, save_sequence
 from seqdesign.cli import main
 from seqdesign.cli.design import ProgressLines
 from seqdesign.search import Progress

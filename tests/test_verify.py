@@ -10,10 +10,10 @@ import pytest
 from click.testing import CliRunner
 from scipy.stats import chi2
 
-from calib import params as P
-from calib.profiles import load_profile
-from calib.sequence import load_sequence
-from calib.sim import SimConfig
+from calib.model import params as P
+from calib.noise.profiles import load_profile
+from calib.sequence.definition import load_sequence
+from calib.sequence.kinematics import SimConfig
 from seqdesign.cli import main
 from seqdesign.verify import chi2_band, error_half_range, grade_of, verify
 

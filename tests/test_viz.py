@@ -28,7 +28,7 @@ from conftest import (
     table1_positions,
 )
 
-from calib.review import review_run
+from calib.fit.replay import review_run
 
 RATE_HZ = 40.0  # a short, fast run: 67680 samples for the 28-min sequence
 N_SAMPLES = int(round((N_POS * DWELL_S + (N_POS - 1) * FLIP_S) * RATE_HZ))
@@ -126,10 +126,11 @@ def text_of(rec, entity) -> str:
 
 @pytest.fixture(scope="module")
 def sim():
-    from calib.errormodel import ErrorModel
-    from calib.profiles import load_profile
-    from calib.sequence import load_sequence
-    from calib.sim import SimConfig, simulate
+    from calib.model.error_model import ErrorModel
+    from calib.noise.profiles import load_profile
+    from calib.sequence.definition import load_sequence
+    from calib.sequence.kinematics import SimConfig
+    from calib.sim.gimbal_run import simulate
 
     seq = load_sequence("paper-9pos")
     run, truth = simulate(
@@ -154,7 +155,7 @@ def requirement_si(name: str) -> float:
 @pytest.fixture(scope="module")
 def result(sim):
     """A result 0.5 sigma off the truth with sigma = 0.3 x requirement (3 sigma / req = 0.9)."""
-    from calib.result import CalibrationResult
+    from calib.calibration.result import CalibrationResult
 
     seq, run, truth = sim
     req = np.array([requirement_si(n) for n in SPEC_NAMES])
@@ -423,7 +424,7 @@ def nominal_analysis(seq):
 
 
 def test_analysis_recording(tmp_path):
-    from calib.sequence import load_sequence
+    from calib.sequence.definition import load_sequence
     from viz.record import record_analysis
 
     seq = load_sequence("paper-9pos")
@@ -458,9 +459,9 @@ def test_analysis_recording(tmp_path):
 def _write_run(sim, result, folder: Path, sha_of_run: bool = True) -> Path:
     from dataclasses import replace
 
-    from calib.fileio import sha256_file
+    from calib.io.files import sha256_file
     from calib.runlog import write_run
-    from calib.truth import write_truth
+    from calib.sim.truth import write_truth
 
     seq, run, truth = sim
     path = folder / "run.npz"
@@ -544,7 +545,7 @@ def test_failure_midway_leaves_old_file_untouched(sim, tmp_path, monkeypatch):
     def boom(*a, **k):
         raise KeyboardInterrupt
 
-    # Interrupted half-way through logging (the estimation work is done before, in calib.review).
+    # Interrupted half-way through logging (the estimation work is done before, in calib.fit.replay).
     monkeypatch.setattr(viz.run, "block_means", boom)
     with pytest.raises(KeyboardInterrupt):
         record_run(run, target, review_run(run), sequence=seq)
@@ -619,7 +620,7 @@ def test_correlation_matrix_carries_the_parameter_names(recorded):
 
 
 def test_analysis_bars_and_matrix_carry_the_names(tmp_path):
-    from calib.sequence import load_sequence
+    from calib.sequence.definition import load_sequence
     from viz.record import record_analysis
 
     seq = load_sequence("paper-9pos")
@@ -674,12 +675,13 @@ def test_noise_sigma_matches_monte_carlo_spread():
     """40 noise-only runs (no IMU errors) navigated from their true initial attitude: the RMS
     velocity error matches velocity_noise_sigma. The RMS of 40 draws scatters by 1/sqrt(80)
     = 11 % (1 sigma): the band [0.67, 1.33] is 3 of those."""
-    from calib.errormodel import ErrorModel
-    from calib.profiles import load_profile
-    from calib.review import velocity_noise_sigma
-    from calib.sequence import load_sequence
-    from calib.sim import SimConfig, simulate
-    from calib.strapdown import navigate
+    from calib.fit.replay import velocity_noise_sigma
+    from calib.model.error_model import ErrorModel
+    from calib.nav.strapdown import navigate
+    from calib.noise.profiles import load_profile
+    from calib.sequence.definition import load_sequence
+    from calib.sequence.kinematics import SimConfig
+    from calib.sim.gimbal_run import simulate
 
     seq, lat = load_sequence("paper-9pos"), math.radians(40.0)
     cfg, profile = SimConfig(lat, sample_rate_hz=10.0), load_profile("navigation")
@@ -703,11 +705,12 @@ def test_calibrated_velocity_stays_inside_the_envelope():
     velocity error after calibration is inside the predicted +/-3 sigma >= 99 % of the time on
     every axis (measured: 99.99 % pooled over these 5 runs). The fit absorbs part of the noise,
     so the residual sits well inside; the noise-only spread is checked above."""
-    from calib.calibration import calibrate_run
-    from calib.errormodel import ErrorModel
-    from calib.profiles import load_profile
-    from calib.sequence import load_sequence
-    from calib.sim import SimConfig, simulate
+    from calib.calibration.entry import calibrate_run
+    from calib.model.error_model import ErrorModel
+    from calib.noise.profiles import load_profile
+    from calib.sequence.definition import load_sequence
+    from calib.sequence.kinematics import SimConfig
+    from calib.sim.gimbal_run import simulate
 
     seq = load_sequence("paper-9pos")
     inside = []
@@ -775,7 +778,7 @@ def test_display_available():
 
 def test_rank_deficient_analysis_names_the_unobservable_bars(tmp_path):
     """One Z flip cannot observe all 21: their bars are empty and say so."""
-    from calib.sequence import load_sequence
+    from calib.sequence.definition import load_sequence
     from viz.record import record_analysis
 
     path = tmp_path / "onez.toml"
@@ -805,7 +808,7 @@ def test_rank_deficient_analysis_names_the_unobservable_bars(tmp_path):
 def test_view_draws_a_result_against_its_own_requirements(tmp_path, monkeypatch):
     """simulate -> calibrate --requirements mems -> view: the bars are 3 sigma / the MEMS
     requirement and |error| / the MEMS requirement, the expected values built from the
-    result file's sigmas, the truth file and calib/requirements_files/mems.toml."""
+    result file's sigmas, the truth file and calib/data/requirements/mems.toml."""
     import tomllib
 
     from seqdesign.cli import main
@@ -819,7 +822,7 @@ def test_view_draws_a_result_against_its_own_requirements(tmp_path, monkeypatch)
     ):
         res = runner.invoke(main, args)
         assert res.exit_code == 0, (args, res.output)
-    mems_file = Path(__file__).parent.parent / "calib" / "requirements_files" / "mems.toml"
+    mems_file = Path(__file__).parent.parent / "calib" / "data" / "requirements" / "mems.toml"
     mems = tomllib.loads(mems_file.read_text())["requirements"]
     saved = tomllib.loads((tmp_path / "run.result.toml").read_text())["parameters"]
     truth = tomllib.loads((tmp_path / "run.truth.toml").read_text())["errors"]

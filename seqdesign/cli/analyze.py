@@ -101,8 +101,8 @@ def analyze(
             as_json,
             reading,
         )
-    from calib.profiles import as_profile
-    from calib.requirements import default_for
+    from calib.model.requirements import default_for
+    from calib.noise.profiles import as_profile
     from seqdesign.analysis import analyze as run_analysis
 
     if view_path and Path(view_path).suffix != ".rrd":
@@ -147,10 +147,10 @@ def _analyze_by_hand(
     path, profile, latitude, requirements, with_terms, placement_deg, placements, view_path, as_json, reading
 ):
     """``analyze --by-hand POSES`` (or a recorded LOG): the prediction of :mod:`seqdesign.handanalysis`."""
-    from calib.extras import as_extras
-    from calib.handposes import load_poses
-    from calib.profiles import as_profile
-    from calib.requirements import load_requirements
+    from calib.hand.poses import load_poses
+    from calib.model.optional_terms import as_extras
+    from calib.model.requirements import load_requirements
+    from calib.noise.profiles import as_profile
     from seqdesign.handanalysis import analyze_hand
 
     if view_path is not None:
@@ -158,8 +158,8 @@ def _analyze_by_hand(
             "--view is not recorded for a pose list", "--view", "leave out --view with --by-hand"
         )
     if not str(path).lower().endswith(".toml"):  # a recorded log: its own rests and moves
+        from calib.nav.site import site_of
         from calib.runlog import read_run
-        from calib.site import site_of
         from seqdesign.handanalysis import analyze_recording
 
         from .reading import hand_reading, run_notes
@@ -214,11 +214,10 @@ def compare(sequences, profile, latitude, height, tolerance_deg, requirements, a
     side: each difference against the combined sigma, and a chi-square
     over all of them (the repeatability check of the paper's Table 3).
     """
-    from calib.filekind import kind_of
-    from calib.profiles import as_profile
-    from calib.requirements import default_for, load_requirements
-    from seqdesign.analysis import analyze as run_analysis
-    from seqdesign.analysis import compare_text, site_warnings
+    from calib.io.kinds import kind_of
+    from calib.model.requirements import default_for, load_requirements
+    from calib.noise.profiles import as_profile
+    from seqdesign.analysis import analyze as run_analysis, compare_text, site_warnings
 
     kinds = {kind_of(s) for s in sequences}
     if "result" in kinds:

@@ -27,10 +27,10 @@ def design_by_hand(
     as_json,
 ) -> None:
     """Design, analyse (with a hand's placement error) and write the pose list and its protocol."""
-    from calib.extras import as_extras
-    from calib.fileio import atomic_write_text
-    from calib.profiles import as_profile
-    from calib.requirements import load_requirements
+    from calib.io.files import atomic_write_text
+    from calib.model.optional_terms import as_extras
+    from calib.model.requirements import load_requirements
+    from calib.noise.profiles import as_profile
     from seqdesign.handanalysis import analyze_hand
     from seqdesign.handdesign import design_hand
     from seqdesign.handprotocol import pose_toml, write_protocol

@@ -1,7 +1,7 @@
 """What the design search needs from a real gimbal (``design --gimbal FILE``).
 
 The search walks moves of whole quarter turns; with a gimbal each child is
-played by :func:`calib.gimbal.plan_move` from its parent's encoder state
+played by :func:`calib.gimbal.rule.plan_move` from its parent's encoder state
 (continuous angles, so winding counts) and dropped when the move breaks a
 limit (range, lock margin, rate, acceleration, or a lock counter-rotation
 longer than the shortest rest). A gimbal that must end at home only accepts
@@ -23,9 +23,9 @@ import math
 import numpy as np
 
 from calib.errors import CalibError
-from calib.gimbal import plan_move, plan_sequence
-from calib.gimbalfile import Gimbal, load_gimbal
-from calib.rateprofile import RateProfile
+from calib.gimbal.description import Gimbal, load_gimbal
+from calib.gimbal.rule import plan_move, plan_sequence
+from calib.sequence.rate_profile import RateProfile
 
 HOME_TOL_RAD = 1e-6  # encoder "at 0": grid moves land on multiples of pi/2 to rounding
 MAX_DESIGN_RATE_DPS = 100.0  # check_constraints' upper bound on --rate-dps

@@ -12,17 +12,16 @@ import math
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
-from calib import earth
-from calib.bounds import accel_scale_bound
+from calib.analysis.bounds import accel_scale_bound
+from calib.analysis.worst_case import analyze_tolerance
 from calib.errors import CalibError
-from calib.extras import NONE as NO_EXTRAS
-from calib.extras import Extras, parse_groups
-from calib.fileio import atomic_write_text, sha256_file
-from calib.gimbalfile import Gimbal
-from calib.profiles import NoiseProfile, as_profile
-from calib.requirements import PAPER, Requirements, load_requirements
-from calib.sequence import load_sequence, save_sequence
-from calib.worstcase import analyze_tolerance
+from calib.gimbal.description import Gimbal
+from calib.io.files import atomic_write_text, sha256_file
+from calib.model.optional_terms import NONE as NO_EXTRAS, Extras, parse_groups
+from calib.model.requirements import PAPER, Requirements, load_requirements
+from calib.nav import earth
+from calib.noise.profiles import NoiseProfile, as_profile
+from calib.sequence.definition import load_sequence, save_sequence
 
 from ..plots import pareto_png
 from .constraints import Constraints, check_constraints
