@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 import calib  # noqa: F401  (BLAS threads)
-from calib.fit.estimator import calibrate
+from calib.fit.estimator import fit_run
 from calib.model import params as P
 from calib.model.error_model import ErrorModel, paper_table
 from calib.noise.profiles import load_profile
@@ -33,7 +33,7 @@ def main() -> None:
     cfg = SimConfig(latitude_rad=lat)
     truth = ErrorModel.from_table2()
     run, _ = simulate(seq, cfg, truth, prof, setup_rotvec=np.radians([1.0, -2.0, 3.0]), seed=args.seed)
-    fit = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, lat, cfg.gravity, prof)
+    fit = fit_run(run.time_s, run.dtheta_rad, run.dv_mps, lat, cfg.gravity, prof)
     err = P.from_si(fit.values - truth.values)
     sig = P.from_si(fit.sigma)
     paper_err = paper_table("table2_simulation", "paper_error")

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from calib.fit.estimator import calibrate
+from calib.fit.estimator import fit_run
 from calib.model import params as P
 from calib.model.error_model import ErrorModel
 from calib.nav.strapdown import navigate
@@ -165,7 +165,7 @@ def noise_free_accel_fit():
     cfg = SimConfig(latitude_rad=LAT)
     truth = ErrorModel.from_table2()
     run, _ = simulate(seq, cfg, truth, load_profile("navigation"), setup_rotvec=SETUP, noise=False)
-    fit = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, load_profile("navigation"))
+    fit = fit_run(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, load_profile("navigation"))
     return fit, truth, run
 
 
@@ -232,7 +232,7 @@ def test_lever_arms_recovered_on_accelerating_moves():
         seq, cfg, truth, load_profile("navigation"), setup_rotvec=SETUP, noise=False, extra=extra
     )
     ex = Extras(("lever-arm",))
-    fit = calibrate(
+    fit = fit_run(
         run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, load_profile("navigation"), extras=ex
     )
     assert fit.converged

@@ -249,7 +249,7 @@ def noisy_run(paper_seq):
 
 def test_cli_and_library_give_identical_sigmas(noisy_run, tmp_path):
     """The CLI's sigmas (Birge check included) are the library's, to the last digit."""
-    from calib.calibration.entry import calibrate_run
+    from calib.calibration.entry import calibrate
     from calib.runlog import write_run
     from seqdesign.cli import main
 
@@ -259,7 +259,7 @@ def test_cli_and_library_give_identical_sigmas(noisy_run, tmp_path):
     res = CliRunner().invoke(main, ["calibrate", str(path), "--json"])
     assert res.exit_code == 0, res.output
     cli = json.loads(res.stdout)
-    lib = calibrate_run(run).to_json()
+    lib = calibrate(run).to_json()
     for name, e in lib["parameters"].items():
         assert cli["parameters"][name]["sigma"] == e["sigma"], name
         assert cli["parameters"][name]["value"] == e["value"], name
@@ -268,14 +268,14 @@ def test_cli_and_library_give_identical_sigmas(noisy_run, tmp_path):
 
 def test_library_result_carries_the_policy(noisy_run):
     """A notebook gets the Birge scale, convergence, correlation and gravity without the CLI."""
-    from calib.calibration.entry import calibrate_run
+    from calib.calibration.entry import calibrate
     from calib.noise.profiles import NoiseProfile
 
     run = noisy_run
     # Half the simulated noise density: chi2/dof ~ 4, so the sigmas must come back inflated
     # by its square root (the Birge ratio) straight from the library.
     half = NoiseProfile("half", 0.0005, 5.0)
-    res = calibrate_run(run, half)
+    res = calibrate(run, half)
     assert res.converged and 3.0 < res.chi2_per_dof < 5.0
     assert res.sigma_scale == pytest.approx(np.sqrt(res.chi2_per_dof))
     assert res.correlation.shape == (21, 21)

@@ -147,7 +147,7 @@ def test_mems_monte_carlo_nees_is_in_its_band():
     # 50 Hz to stay fast. Honest sigmas make the sum of the ten NEES chi-square with 210
     # degrees of freedom: the mean lies in [15.9, 26.9] with 99 % probability (fixed seeds).
     # benchmarks/mems_mc.py runs fifty at 100 Hz.
-    from calib.calibration.entry import calibrate_run
+    from calib.calibration.entry import calibrate
     from calib.model import params as P
     from calib.model.error_model import ErrorModel
     from calib.sequence.definition import load_sequence
@@ -175,7 +175,7 @@ def test_mems_monte_carlo_nees_is_in_its_band():
             flip_error_deg=0.5,
             random_setup_deg=3.0,
         )
-        res = calibrate_run(run, prof, requirements="mems")
+        res = calibrate(run, prof, requirements="mems")
         nees.append(res.nees(truth.errors.values))
     lo, hi = chi2.ppf([0.005, 0.995], 21 * n) / n
     assert lo < np.mean(nees) < hi, nees
@@ -189,7 +189,7 @@ def test_rest_gyrocompass_finds_bias_and_heading_through_a_mems_bias():
     # projection by ~0.2 deg/h: the bias to 1 deg/h, the heading to 3 deg (0.2 / 11.5 rad is
     # 1 deg). A first-rest gyrocompass after removing the mean rate over the rests is off by
     # the Earth rate's own average over them.
-    from calib.fit.estimator import calibrate
+    from calib.fit.estimator import fit_run
     from calib.fit.gyrocompass import rest_gyrocompass
     from calib.fit.start import coarse_alignment, start_values
     from calib.model import params as P
@@ -220,7 +220,7 @@ def test_rest_gyrocompass_finds_bias_and_heading_through_a_mems_bias():
     bias, C0 = rest_gyrocompass(run.dtheta_rad, dt, seg.moving, C_lev, LAT, start)
     deg_h = np.degrees(np.abs(bias - errors.values[P.GYRO_BIAS])) * 3600.0
     assert deg_h.max() < 1.0, deg_h
-    exact = calibrate(
+    exact = fit_run(
         run.time_s,
         run.dtheta_rad,
         run.dv_mps,
@@ -322,7 +322,7 @@ def test_streamed_mems_fit_equals_renavigating_fit(profile):
     # the noise model's frame and rebuild it on the same tilt.
     from pathlib import Path
 
-    from calib.fit.estimator import calibrate
+    from calib.fit.estimator import fit_run
     from calib.model import params as P
     from calib.model.error_model import ErrorModel
     from calib.model.requirements import load_requirements
@@ -340,8 +340,8 @@ def test_streamed_mems_fit_equals_renavigating_fit(profile):
     run, _ = simulate(seq, cfg, errors, prof, seed=5, random_setup_deg=3.0, flip_error_deg=0.5)
     args = (run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, prof)
     req = load_requirements("mems")
-    ref = calibrate(*args, requirements=req, renavigate="always")
-    fit = calibrate(*args, requirements=req)
+    ref = fit_run(*args, requirements=req, renavigate="always")
+    fit = fit_run(*args, requirements=req)
     assert ref.converged and fit.converged
     assert np.all(np.abs(fit.values - ref.values) <= 1e-3 * ref.sigma)
     assert fit.iterations <= ref.iterations
@@ -381,7 +381,7 @@ def test_calibrate_stream_gives_a_mems_run_the_calibrate_start(tmp_path):
     # tolerance. Each stops within tol_sigma = 1e-3 sigma of the same fixed point, so they agree
     # to 1e-3 sigma (measured: 1e-9), at the default chunk and at 1000-sample chunks that cut
     # the run's rests, flips and smoothing windows in 34 places.
-    from calib.fit.chunked import calibrate_file, survey
+    from calib.fit.chunked import fit_file, survey
     from calib.model.error_model import ErrorModel
     from calib.model.requirements import load_requirements
     from calib.nav.site import Site
@@ -407,7 +407,7 @@ def test_calibrate_stream_gives_a_mems_run_the_calibrate_start(tmp_path):
         survey(run, prof, rows=1000)[0],
         detect_motion(log.dtheta_rad, sample_intervals(log.time_s), arw=prof.arw).moving,
     )
-    fit = calibrate_file(
+    fit = fit_file(
         run,
         Site(LAT, out["calibrate"]["gravity"]["value_mps2"]),
         prof,

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from calib.fit.estimator import calibrate
+from calib.fit.estimator import fit_run
 from calib.fit.start import coarse_alignment
 from calib.model import optional_terms as X
 from calib.model.error_model import ErrorModel
@@ -111,8 +111,8 @@ def test_streamed_fit_equals_renavigating_fit(paper, noise):
     run, cfg = _run(paper, 50.0, noise)
     prof = load_profile("navigation")
     args = (run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, prof)
-    ref = calibrate(*args, renavigate="always")
-    fit = calibrate(*args)
+    ref = fit_run(*args, renavigate="always")
+    fit = fit_run(*args)
     assert ref.converged and fit.converged
     assert np.all(np.abs(fit.values - ref.values) <= 1e-3 * ref.sigma)
     # Same Jacobians along the same trajectories: the sigmas agree to rounding.
@@ -125,8 +125,8 @@ def test_streamed_fit_with_a_real_units_terms_equals_renavigating_fit(paper):
     run, cfg = _run(paper, 50.0, noise=True, extra=EXTRA)
     prof, extras = load_profile("navigation"), X.Extras(X.parse_groups("all"))
     args = (run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, prof)
-    ref = calibrate(*args, extras=extras, renavigate="always")
-    fit = calibrate(*args, extras=extras)
+    ref = fit_run(*args, extras=extras, renavigate="always")
+    fit = fit_run(*args, extras=extras)
     assert ref.converged and fit.converged
     assert np.all(np.abs(fit.values - ref.values) <= 1e-3 * ref.sigma)
     assert np.all(np.abs(fit.extra_values - ref.extra_values) <= 1e-3 * ref.extra_sigma)
@@ -214,7 +214,7 @@ def short_files(paper, tmp_path_factory):
     paths = [folder / "run.npz", folder / "run.csv"]
     for p in paths:
         write_run(run, p)
-    fit = calibrate(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, load_profile("navigation"))
+    fit = fit_run(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, load_profile("navigation"))
     return paths, fit, cfg
 
 
@@ -222,11 +222,11 @@ def short_files(paper, tmp_path_factory):
 def test_calibrating_from_disk_in_chunks_equals_calibrating_in_memory(short_files):
     # Same samples, same chunk cuts at interval ends, same passes: the same numbers,
     # whatever the reading block (here 7777 rows, which never falls on a cut).
-    from calib.fit.chunked import calibrate_file
+    from calib.fit.chunked import fit_file
 
     paths, fit, cfg = short_files
     for p in paths:
-        streamed = calibrate_file(p, Site(LAT, cfg.gravity), load_profile("navigation"), rows=7777)
+        streamed = fit_file(p, Site(LAT, cfg.gravity), load_profile("navigation"), rows=7777)
         assert np.array_equal(streamed.values, fit.values)
         assert np.array_equal(streamed.sigma, fit.sigma)
 

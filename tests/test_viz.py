@@ -705,7 +705,7 @@ def test_calibrated_velocity_stays_inside_the_envelope():
     velocity error after calibration is inside the predicted +/-3 sigma >= 99 % of the time on
     every axis (measured: 99.99 % pooled over these 5 runs). The fit absorbs part of the noise,
     so the residual sits well inside; the noise-only spread is checked above."""
-    from calib.calibration.entry import calibrate_run
+    from calib.calibration.entry import calibrate
     from calib.model.error_model import ErrorModel
     from calib.noise.profiles import load_profile
     from calib.sequence.definition import load_sequence
@@ -723,7 +723,7 @@ def test_calibrated_velocity_stays_inside_the_envelope():
             seed=seed,
             random_setup_deg=3.0,
         )
-        review = review_run(run, calibrate_run(run, "navigation", sequence=seq))
+        review = review_run(run, calibrate(run, "navigation", sequence=seq))
         assert review.noise_profile == "navigation"
         t = run.time_s - review.t0
         sigma = np.column_stack(

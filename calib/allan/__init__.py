@@ -16,7 +16,7 @@ Modules:
 - :mod:`calib.allan.static`: What a static unit must read, and its biases after removing it
 """
 
-from .deviation import (
+from calib.allan.deviation import (
     AllanCurve,
     allan_deviation,
     avar_gauss_markov,
@@ -28,9 +28,9 @@ from .deviation import (
     octave_taus,
     white_region,
 )
-from .noise_terms import NoiseFit, fit_noise, fitted_range, model_avar, trusted_end
-from .plot import plot_allan
-from .profile_fit import (
+from calib.allan.noise_terms import NoiseFit, fit_noise, fitted_range, model_avar, trusted_end
+from calib.allan.plot import plot_allan
+from calib.allan.profile_fit import (
     FittedProfile,
     ProfileFit,
     fit_log,
@@ -44,8 +44,8 @@ from .profile_fit import (
     read_static_log,
     save_profile,
 )
-from .profile_gm import ProfileGM, not_modelled, profile_gm
-from .static import StaticLevel, static_level
+from calib.allan.profile_gm import ProfileGM, not_modelled, profile_gm
+from calib.allan.static import StaticLevel, static_level
 
 __all__ = [
     "AllanCurve",

@@ -20,7 +20,7 @@ Modules:
   search beyond them
 """
 
-from .bounds import (
+from calib.analysis.bounds import (
     Unreachable,
     accel_density_at_rate,
     accel_scale_bound,
@@ -29,7 +29,7 @@ from .bounds import (
     format_duration,
     unreachable,
 )
-from .gm_mounting import (
+from calib.analysis.gm_mounting import (
     ExtraBasis,
     GmBasis,
     box_informations,
@@ -43,8 +43,8 @@ from .gm_mounting import (
     release_caches,
     whitened_grams,
 )
-from .ipopt import Function, function, maximize_in_box, options
-from .mounting import (
+from calib.analysis.ipopt import Function, function, maximize_in_box, options
+from calib.analysis.mounting import (
     SequenceModel,
     analyze,
     basis_chunks,
@@ -55,7 +55,7 @@ from .mounting import (
     rotvec_derivatives,
     sequence_model,
 )
-from .nominal import (
+from calib.analysis.nominal import (
     NominalRun,
     information_along,
     information_along_many,
@@ -66,8 +66,8 @@ from .nominal import (
     nominal_samples,
     same_grid,
 )
-from .observability import Observability, from_information
-from .worst_case import (
+from calib.analysis.observability import Observability, from_information
+from calib.analysis.worst_case import (
     ExtrasCost,
     Robustness,
     analyze_extras,

@@ -11,14 +11,14 @@ Modules:
   attitude and the fit's health
 """
 
-from .correction import (
+from calib.calibration.correction import (
     Correction,
     SensorCorrection,
     correction_from_parameters,
     correction_of_result,
     raw_samples,
 )
-from .entry import (
+from calib.calibration.entry import (
     calibrate,
     check_streamable,
     rate_limit,
@@ -26,7 +26,7 @@ from .entry import (
     result_from_fit,
     samples_fingerprint,
 )
-from .result import CalibrationResult
+from calib.calibration.result import CalibrationResult
 
 __all__ = [
     "CalibrationResult",

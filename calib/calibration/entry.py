@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 
 from calib.errors import CalibError
-from calib.fit.chunked import calibrate_file, run_header
-from calib.fit.estimator import calibrate as fit_run
+from calib.fit.chunked import fit_file, run_header
+from calib.fit.estimator import fit_run
 from calib.fit.sanity import MAX_PLAUSIBLE_RATE, GyroUnitError, explain_gyro_unit
 from calib.fit.solution import Fit
 from calib.hand.calibrate import as_fit, fit_checked, summary_of
@@ -203,7 +203,7 @@ def calibrate(
         reading: dict[str, Any] = dict(allow_gaps=allow_gaps, latitude_deg=latitude_deg, height_m=height_m)
         if reads_in_chunks(source, stream, **reading):
             site = site_of(run_header(source), gravity_mps2)
-            fit, where = calibrate_file(source, site, prof, **model), str(source)
+            fit, where = fit_file(source, site, prof, **model), str(source)
             return _checked_result(fit, where, require_convergence, prof, site, provenance, req)
 
         source = read_run(source, **reading)
@@ -213,10 +213,6 @@ def calibrate(
     fit = _fit_in_memory(source, site, prof, **model)
     provenance = {**(provenance or {}), "samples": samples_fingerprint(source)}
     return _checked_result(fit, source.source, require_convergence, prof, site, provenance, req)
-
-
-# The in-memory name the library has always had (seqdesign.api, the Monte Carlo).
-calibrate_run = calibrate
 
 
 def _fit_in_memory(run, site: Site, profile: NoiseProfile, sequence, **model) -> Fit:

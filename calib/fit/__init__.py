@@ -19,16 +19,16 @@ Modules:
   paths
 """
 
-from .chunked import aligned, calibrate_file, file_start, run_header, sequence_motion_file, survey
-from .estimator import calibrate, check_run, fit_intervals
-from .feedback import (
+from calib.fit.chunked import aligned, file_start, fit_file, run_header, sequence_motion_file, survey
+from calib.fit.estimator import check_run, fit_intervals, fit_run
+from calib.fit.feedback import (
     AttitudeFeedback,
     FeedbackSchedule,
     aitken,
     attitude_feedback,
     limit_heading_step,
 )
-from .gyrocompass import (
+from calib.fit.gyrocompass import (
     Rests,
     gyrocompass_rests,
     rest_attitudes,
@@ -36,8 +36,8 @@ from .gyrocompass import (
     rest_rates,
     rests_in_memory,
 )
-from .replay import RunReview, motion_profile, result_profile, review_run, velocity_noise_sigma
-from .sanity import (
+from calib.fit.replay import RunReview, motion_profile, result_profile, review_run, velocity_noise_sigma
+from calib.fit.sanity import (
     GyroUnitError,
     check_gravity,
     check_latitude,
@@ -47,7 +47,7 @@ from .sanity import (
     check_saturation,
     explain_gyro_unit,
 )
-from .solution import (
+from calib.fit.solution import (
     Fit,
     Solution,
     apply_step,
@@ -61,7 +61,7 @@ from .solution import (
     solve_step,
     unknown_scale,
 )
-from .start import (
+from calib.fit.start import (
     check_first_rest,
     coarse_alignment,
     mean_rest_rate,
@@ -82,8 +82,6 @@ __all__ = [
     "aligned",
     "apply_step",
     "attitude_feedback",
-    "calibrate",
-    "calibrate_file",
     "check_first_rest",
     "check_gravity",
     "check_latitude",
@@ -95,8 +93,10 @@ __all__ = [
     "coarse_alignment",
     "explain_gyro_unit",
     "file_start",
+    "fit_file",
     "fit_intervals",
     "fit_result",
+    "fit_run",
     "gyrocompass_rests",
     "history_entry",
     "limit_heading_step",

@@ -2,7 +2,7 @@
 
 :func:`read_chunks` yields ``(time_s, dtheta, dv)`` blocks of an NPZ
 (members read as streams: stored or deflated, never loaded whole) or an
-``imu-run/1`` CSV (rows parsed a block at a time). :func:`calibrate_file`
+``imu-run/1`` CSV (rows parsed a block at a time). :func:`fit_file`
 runs the estimator on such a source: one reading pass finds where the IMU
 turns and checks the samples (a second one judges a noisy or strongly biased
 gyro on windowed rates), the first rest is read for the alignment, a MEMS
@@ -270,7 +270,7 @@ def _elapsed(path, rows, where, period, idx: np.ndarray) -> np.ndarray:
     return out
 
 
-def calibrate_file(
+def fit_file(
     path,
     site: Site,
     profile: NoiseProfile,
@@ -282,7 +282,7 @@ def calibrate_file(
     max_iterations: int | None = None,
     tol_sigma: float = 1e-3,
 ):
-    """:func:`calib.fit.estimator.calibrate` of a run log read from disk chunk by chunk.
+    """:func:`calib.fit.estimator.fit_run` of a run log read from disk chunk by chunk.
 
     Returns the same :class:`calib.fit.solution.Fit`; the estimates equal those
     of the in-memory path to rounding (the same passes over the same samples).

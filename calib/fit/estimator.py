@@ -143,7 +143,7 @@ class _Problem:
         return _observations(y if feedback_dv is None else y - feedback_dv, Phi_vv, it, self.where, hint)
 
 
-def calibrate(
+def fit_run(
     time_s: np.ndarray,
     dtheta_m: np.ndarray,
     dv_m: np.ndarray,

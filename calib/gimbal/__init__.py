@@ -11,9 +11,9 @@ Modules:
   the encoder angles
 """
 
-from .description import Gimbal, GimbalAxis, builtin_gimbal_dir, gimbal_from_dict, load_gimbal
-from .encoders import RestPosition, encoder_track, rest_positions
-from .rule import (
+from calib.gimbal.description import Gimbal, GimbalAxis, builtin_gimbal_dir, gimbal_from_dict, load_gimbal
+from calib.gimbal.encoders import RestPosition, encoder_track, rest_positions
+from calib.gimbal.rule import (
     GimbalPlan,
     Move,
     Violation,

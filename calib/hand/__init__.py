@@ -37,12 +37,12 @@ Modules:
   placed by hand
 """
 
-from .calibrate import TermChoice, as_fit, fit_checked, hand_fit_of, summary_of
-from .data import HandData, hand_data, rest_noise_factor
-from .host_clock import epoch_ms, epoch_seconds, host_stamps, write_epoch_ms_csv
-from .joint_fit import FitState, HandFit, Layout, fit_by_hand, linearise, unknown_scales
-from .moves import move_rotation, move_sensitivity, right_jacobian, right_jacobian_inverse
-from .plan import (
+from calib.hand.calibrate import TermChoice, as_fit, fit_checked, hand_fit_of, summary_of
+from calib.hand.data import HandData, hand_data, rest_noise_factor
+from calib.hand.host_clock import epoch_ms, epoch_seconds, host_stamps, write_epoch_ms_csv
+from calib.hand.joint_fit import FitState, HandFit, Layout, fit_by_hand, linearise, unknown_scales
+from calib.hand.moves import move_rotation, move_sensitivity, right_jacobian, right_jacobian_inverse
+from calib.hand.plan import (
     HandPlan,
     bump,
     min_jerk,
@@ -53,10 +53,10 @@ from .plan import (
     random_rotation,
     xsens_like_plan,
 )
-from .poses import PoseList, load_poses, tip_to, tipping_plan
-from .predict import plan_sigma
-from .rests import Rests, find_rests, moving_mean, still_samples
-from .setup import (
+from calib.hand.poses import PoseList, load_poses, tip_to, tipping_plan
+from calib.hand.predict import plan_sigma
+from calib.hand.rests import Rests, find_rests, moving_mean, still_samples
+from calib.hand.setup import (
     Mistake,
     carried_by_hand,
     carried_misfit,
@@ -67,7 +67,7 @@ from .setup import (
     static_refusal,
     still_stretches,
 )
-from .simulate import (
+from calib.hand.simulate import (
     HandTruth,
     draw_errors,
     hand_meta,
@@ -81,9 +81,9 @@ from .simulate import (
     write_hand_run,
     write_hand_truth,
 )
-from .summary import HandSummary
-from .trajectory import HandState, hand_state, segment_of, sensed
-from .tremor import (
+from calib.hand.summary import HandSummary
+from calib.hand.trajectory import HandState, hand_state, segment_of, sensed
+from calib.hand.tremor import (
     Tremor,
     TremorState,
     held_at,
@@ -93,7 +93,7 @@ from .tremor import (
     tremor_state,
     tremor_to_table,
 )
-from .troubles import (
+from calib.hand.troubles import (
     HandTroubles,
     TroubleSpec,
     apply_g_sensitivity,
@@ -102,7 +102,7 @@ from .troubles import (
     troubles_from_table,
     troubles_to_table,
 )
-from .weights import Weights, component_sizes, components, redundancy, refuted, reweighted
+from calib.hand.weights import Weights, component_sizes, components, redundancy, refuted, reweighted
 
 __all__ = [
     "FitState",

@@ -8,8 +8,8 @@ Modules:
 - :mod:`calib.io.kinds`: What kind of file a user gave, so that a wrong one is named as what it is
 """
 
-from .fields import Fields, check_format_version
-from .files import (
+from calib.io.fields import Fields, check_format_version
+from calib.io.files import (
     atomic_write_bytes,
     atomic_write_file,
     atomic_write_text,
@@ -21,7 +21,7 @@ from .files import (
     sha256_file,
     toml_number,
 )
-from .kinds import expect, kind_of
+from calib.io.kinds import expect, kind_of
 
 __all__ = [
     "Fields",

@@ -14,8 +14,8 @@ Modules:
   a shipped class, or a file
 """
 
-from .error_model import ErrorModel, error_matrix_jacobian, paper_table
-from .information import (
+from calib.model.error_model import ErrorModel, error_matrix_jacobian, paper_table
+from calib.model.information import (
     ScaledInverse,
     describe_null,
     eliminate,
@@ -27,7 +27,7 @@ from .information import (
     weak_mask,
     weak_mask_batched,
 )
-from .optional_terms import (
+from calib.model.optional_terms import (
     ExtraParameter,
     Extras,
     ExtraValues,
@@ -42,9 +42,9 @@ from .optional_terms import (
     parse_values,
     sample_rates,
 )
-from .params import Parameter, from_si, ratio, to_si
-from .report import extra_entries, format_table, parameter_entries, worst
-from .requirements import (
+from calib.model.params import Parameter, from_si, ratio, to_si
+from calib.model.report import extra_entries, format_table, parameter_entries, worst
+from calib.model.requirements import (
     Requirements,
     builtin_dir,
     default_for,

@@ -17,9 +17,9 @@ Modules:
   conventions
 """
 
-from .earth import check_site, gravity, omega_ie_n, specific_force_n
-from .site import Site, ppm_per_mgal, site_of
-from .strapdown import (
+from calib.nav.earth import check_site, gravity, omega_ie_n, specific_force_n
+from calib.nav.site import Site, ppm_per_mgal, site_of
+from calib.nav.strapdown import (
     Navigation,
     coning_rotvec,
     cross3,
@@ -28,7 +28,7 @@ from .strapdown import (
     sculling_dv,
     start_time,
 )
-from .transform import (
+from calib.nav.transform import (
     attitude_from_directions,
     axis_index,
     dcm_to_rotvec,

@@ -23,9 +23,9 @@ Modules:
   GLS)
 """
 
-from .frame import attitude_moved_deg, heading_turn, model_frame, noise_stale, to_frame
-from .gauss_markov import gauss_markov
-from .gm_filter import (
+from calib.noise.frame import attitude_moved_deg, heading_turn, model_frame, noise_stale, to_frame
+from calib.noise.gauss_markov import gauss_markov
+from calib.noise.gm_filter import (
     bias_turns,
     gm_start_covariance,
     gram_one,
@@ -33,11 +33,11 @@ from .gm_filter import (
     mounted_turns,
     nav_table,
 )
-from .matexp import expm
-from .profiles import NoiseProfile, as_profile, builtin_profiles, load_profile, white_part
-from .smoother import smooth
-from .wander import attitude_wander_ratio, check_wander, longest_run_s, tilt_variance
-from .whitening import (
+from calib.noise.matexp import expm
+from calib.noise.profiles import NoiseProfile, as_profile, builtin_profiles, load_profile, white_part
+from calib.noise.smoother import smooth
+from calib.noise.wander import attitude_wander_ratio, check_wander, longest_run_s, tilt_variance
+from calib.noise.whitening import (
     IntervalModel,
     NoiseModel,
     Whitener,

@@ -6,12 +6,12 @@ Modules:
 - :mod:`calib.peers.imutk_method`: imu_tk's multi-position method (Tedaldi, Pretto, Menegatti, ICRA
   2014), written here from its description
 - :mod:`calib.peers.published`: Other tools' calibrations read as a
-  :class:`calib.calibration.correction.Correction` (``calibrated = M (raw - b)``)
+  :class:`~calib.calibration.correction.Correction` (``M (raw - b)``)
 - :mod:`calib.peers.scores`: Scores of any calibration on a recording placed by hand, free of any
   tool's convention
 """
 
-from .imutk_method import (
+from calib.peers.imutk_method import (
     ImuTkFit,
     carried_rotations,
     ellipsoid_start,
@@ -21,8 +21,8 @@ from .imutk_method import (
     static_intervals,
     window_variance_norm,
 )
-from .published import imu_tk_triad, imucal_correction, parse_imu_tk, read_imu_tk, read_imucal
-from .scores import (
+from calib.peers.published import imu_tk_triad, imucal_correction, parse_imu_tk, read_imu_tk, read_imucal
+from calib.peers.scores import (
     Axes,
     ForceSpread,
     HandScore,

@@ -15,7 +15,7 @@ Modules:
   (jerk-limited)
 """
 
-from .definition import (
+from calib.sequence.definition import (
     Sequence,
     Step,
     Timeline,
@@ -27,9 +27,9 @@ from .definition import (
     sequence_from_dict,
     timeline,
 )
-from .inferred import infer_sequence
-from .kinematics import SimConfig, body_integrals, true_increments, uniform_times
-from .motion import (
+from calib.sequence.inferred import infer_sequence
+from calib.sequence.kinematics import SimConfig, body_integrals, true_increments, uniform_times
+from calib.sequence.motion import (
     MotionDiagnosis,
     Segmentation,
     carried_cumsum,
@@ -50,7 +50,7 @@ from .motion import (
     window_rate,
     windowed_motion,
 )
-from .rate_profile import Pieces, RateProfile
+from calib.sequence.rate_profile import Pieces, RateProfile
 
 __all__ = [
     "MotionDiagnosis",

@@ -12,8 +12,8 @@ Modules:
   (``--errors``)
 """
 
-from .gimbal_run import Truth, add_noise, encoder_angles, run_meta, simulate
-from .log_mistakes import (
+from calib.sim.gimbal_run import Truth, add_noise, encoder_angles, run_meta, simulate
+from calib.sim.log_mistakes import (
     accel_in_g,
     axes_swapped,
     axis_flipped,
@@ -21,8 +21,8 @@ from .log_mistakes import (
     gyro_in_deg,
     rate_mislabelled,
 )
-from .to_disk import sample_windows, simulate_to_file
-from .truth import (
+from calib.sim.to_disk import sample_windows, simulate_to_file
+from calib.sim.truth import (
     errors_from_table,
     read_errors,
     read_truth,
