@@ -31,7 +31,7 @@ from calib.calibration.correction import Correction, correction_from_parameters
 from calib.calibration.entry import calibrate
 from calib.hand.rests import find_rests
 from calib.nav.strapdown import sample_intervals
-from calib.noise.profiles import as_profile
+from calib.noise.profiles import load_profile
 from calib.peers.published import read_imu_tk, read_imucal
 from calib.peers.scores import HandScore, score
 from calib.runlog import Run, make_meta
@@ -161,7 +161,7 @@ def ours(rec: Recording, partial: bool = False) -> tuple[Correction, object]:
 
 def rests_of(rec: Recording):
     """The rests every tool is scored on: found on the whole log with the mems profile."""
-    p = as_profile("mems")
+    p = load_profile("mems")
     return find_rests(
         rec.run.dtheta_rad, rec.run.dv_mps, sample_intervals(rec.run.time_s), p.arw, p.vrw, rec.name
     )

@@ -45,7 +45,7 @@ from calib.calibration.entry import calibrate
 from calib.errors import CalibError
 from calib.hand.rests import find_rests
 from calib.nav.strapdown import sample_intervals
-from calib.noise.profiles import as_profile
+from calib.noise.profiles import load_profile
 from calib.peers.imutk_method import MIN_INTERVALS, imutk_calibrate
 from calib.peers.published import read_imu_tk, read_imucal
 from calib.runlog import Run, read_run
@@ -122,7 +122,7 @@ def imutk_on(rec: Recording, part: Run, keep: np.ndarray):
     Returns the fit (None when refused) and a note: imu_tk needs 12 static intervals; a part
     with fewer is fitted with as many as its 9 accelerometer parameters, and said so.
     """
-    p = as_profile("mems")
+    p = load_profile("mems")
     r = find_rests(part.dtheta_rad, part.dv_mps, sample_intervals(part.time_s), p.arw, p.vrw, part.source)
     rate = 1.0 / float(np.median(np.diff(part.time_s)))
     i = int(np.argmax(r.end - r.start))

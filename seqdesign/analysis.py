@@ -23,7 +23,7 @@ from calib.model.optional_terms import Extras, as_extras
 from calib.model.report import format_table, parameter_entries, worst
 from calib.model.requirements import PAPER, Requirements, load_requirements
 from calib.nav import earth
-from calib.noise.profiles import NoiseProfile, as_profile
+from calib.noise.profiles import NoiseProfile, load_profile
 from calib.noise.wander import check_wander
 from calib.sequence.definition import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, Sequence, load_sequence
 
@@ -197,7 +197,7 @@ def analyze(
     Analysis
     """
     seq = sequence if isinstance(sequence, Sequence) else load_sequence(sequence)
-    prof, extras = as_profile(profile), as_extras(extras)
+    prof, extras = load_profile(profile), as_extras(extras)
     req = load_requirements(requirements)
     if not 0.0 <= tolerance_deg <= 10.0:
         raise CalibError(f"tolerance {tolerance_deg} deg outside [0, 10]", "tolerance_deg")

@@ -47,7 +47,7 @@ from .positions import Positions, as_gimbal, show_positions as show
 from .provenance import call_provenance
 from .repeatability import compare_results
 from .schedule import Schedule, export_schedule as export, read_schedule
-from .search import Constraints, DesignReport, design_budgets, parse_node, resolve_gimbal
+from .search import Constraints, DesignReport, design_budgets, gimbal_constraints, parse_node
 
 __all__ = [
     "Analysis",
@@ -219,7 +219,7 @@ def design(
     if chosen is not None:
         if rate_dps is None and not isinstance(constraints, Constraints) and "rate_dps" not in base:
             fields["rate_dps"] = None  # the gimbal's own rate, as the CLI's default
-        _, fields = resolve_gimbal(as_gimbal(chosen), fields)
+        _, fields = gimbal_constraints(as_gimbal(chosen), fields)
     return design_budgets(
         budgets_min,
         fields,

@@ -20,7 +20,7 @@ from calib.errors import CalibError
 from calib.hand.plan import xsens_like_plan
 from calib.hand.simulate import simulate_by_hand
 from calib.model.error_model import ErrorModel
-from calib.noise.profiles import as_profile
+from calib.noise.profiles import load_profile
 from calib.runlog import read_run
 from calib.runlog.clock import sample_clock
 from calib.sequence.kinematics import SimConfig
@@ -89,7 +89,7 @@ def _hand_run(seed: int = 11):
     values[12:15] = 0.05  # accelerometer biases, m/s^2
     values[15:18] = 3e-3
     cfg = SimConfig(latitude_rad=math.radians(45.0), height_m=0.0, sample_rate_hz=RATE_HZ)
-    run, _ = simulate_by_hand(plan, cfg, ErrorModel(values), as_profile("mems"), seed=5)
+    run, _ = simulate_by_hand(plan, cfg, ErrorModel(values), load_profile("mems"), seed=5)
     return run
 
 

@@ -14,7 +14,7 @@ from calib.errors import CalibError
 from calib.hand.rests import find_rests
 from calib.nav.strapdown import sample_intervals
 from calib.nav.transform import rotvec_to_dcm
-from calib.noise.profiles import as_profile
+from calib.noise.profiles import load_profile
 from calib.peers.published import imucal_correction, parse_imu_tk, read_imu_tk, read_imucal
 from calib.peers.scores import axes_of, force_spread, pose_to_pose, score
 
@@ -262,7 +262,7 @@ def test_imu_tk_scored_on_its_log():
     nominal = (acc[:, 1:] - [33123.0, 33276.0, 32360.0]) / [415.0, 413.0, 415.0]
     rate = (gyr[:, 1:] - [32768.0, 32466.0, 32485.0]) / [4778.0, 4758.0, 4766.0]
     dt = sample_intervals(t)
-    p = as_profile("mems")
+    p = load_profile("mems")
     rests = find_rests(rate * dt[:, None], nominal * dt[:, None], dt, p.arw, p.vrw)
     s = score(read_imu_tk(d / "imu_tk-result.txt"), gyr[:, 1:], acc[:, 1:], t, rests.start, rests.end)
     assert rests.count > 30

@@ -22,7 +22,7 @@ from calib.hand.plan import xsens_like_plan
 from calib.hand.setup import carried_by_hand, diagnose
 from calib.hand.simulate import simulate_by_hand
 from calib.model.error_model import ErrorModel
-from calib.noise.profiles import as_profile
+from calib.noise.profiles import load_profile
 from calib.runlog import write_run
 from calib.sequence.kinematics import SimConfig
 from calib.sim.log_mistakes import (
@@ -49,7 +49,7 @@ def hand_run():
     values[12:15] = [0.05, -0.03, 0.08]
     values[15:18] = [2e-3, 3e-3, -1e-3]
     cfg = SimConfig(latitude_rad=LAT, height_m=0.0, sample_rate_hz=RATE_HZ)
-    run, truth = simulate_by_hand(xsens_like_plan(rng), cfg, ErrorModel(values), as_profile("mems"), seed=4)
+    run, truth = simulate_by_hand(xsens_like_plan(rng), cfg, ErrorModel(values), load_profile("mems"), seed=4)
     return run, cfg.gravity
 
 
@@ -111,7 +111,7 @@ def test_a_gimbal_run_is_not_taken_for_a_hand(tmp_path):
     from calib.sim.gimbal_run import simulate
 
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=100.0)
-    run, _ = simulate(load_sequence("paper-9pos"), cfg, ErrorModel.zero(), as_profile("mems"), seed=1)
+    run, _ = simulate(load_sequence("paper-9pos"), cfg, ErrorModel.zero(), load_profile("mems"), seed=1)
     assert carried_by_hand(run) is None
 
 

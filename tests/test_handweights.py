@@ -20,10 +20,10 @@ from calib.hand.plan import xsens_like_plan
 from calib.hand.simulate import simulate_by_hand
 from calib.hand.troubles import HandTroubles, g_sensitivity_from_dphg
 from calib.model.error_model import ErrorModel
-from calib.noise.profiles import as_profile
+from calib.noise.profiles import load_profile
 from calib.sequence.kinematics import SimConfig
 
-MEMS = as_profile("mems")
+MEMS = load_profile("mems")
 CFG = SimConfig(latitude_rad=math.radians(45.0), height_m=0.0, sample_rate_hz=100.0)
 VALUES = np.zeros(21)
 VALUES[0:3] = np.radians([0.2, -0.3, 0.1])

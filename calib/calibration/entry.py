@@ -33,7 +33,7 @@ from calib.model.optional_terms import Extras, as_extras
 from calib.model.requirements import PAPER, Requirements, load_requirements
 from calib.nav.site import Site, site_of
 from calib.nav.strapdown import sample_intervals
-from calib.noise.profiles import NoiseProfile, as_profile
+from calib.noise.profiles import NoiseProfile, load_profile
 from calib.runlog import read_run
 from calib.sequence.motion import check_sequence_matches, log_turns, sequence_motion
 
@@ -174,7 +174,7 @@ def calibrate(
         With the Birge-checked sigmas, the correlation of the 21, the site
         gravity and the fit's health.
     """
-    prof, extras = as_profile(profile), as_extras(extras, by_hand=by_hand)
+    prof, extras = load_profile(profile), as_extras(extras, by_hand=by_hand)
     # A unit calibrated by hand is a MEMS unit: judged by the paper's navigation-grade requirements,
     # every sigma would be "weak" (beyond 1000 requirements) and nothing estimable.
     req = load_requirements(requirements if requirements is not None or not by_hand else "mems")

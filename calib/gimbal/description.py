@@ -161,10 +161,14 @@ def builtin_gimbal_dir() -> Path:
     return Path(str(resources.files("sequences"))) / "gimbals"
 
 
-def load_gimbal(name_or_path: str | Path | None) -> Gimbal:
-    """A gimbal file by path or shipped name (``cable-wrap``); None gives :data:`DEFAULT_GIMBAL`."""
+def load_gimbal(name_or_path: Gimbal | str | Path | None) -> Gimbal:
+    """A gimbal file by path or shipped name (``cable-wrap``); None gives :data:`DEFAULT_GIMBAL`, a
+    :class:`Gimbal` is returned as it is.
+    """
     if name_or_path is None:
         return DEFAULT_GIMBAL
+    if isinstance(name_or_path, Gimbal):
+        return name_or_path
     p = Path(name_or_path)
     if not p.exists():
         shipped = builtin_gimbal_dir() / f"{p.name}.toml"

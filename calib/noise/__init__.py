@@ -34,7 +34,7 @@ from calib.noise.gm_filter import (
     nav_table,
 )
 from calib.noise.matexp import expm
-from calib.noise.profiles import NoiseProfile, as_profile, builtin_profiles, load_profile, white_part
+from calib.noise.profiles import NoiseProfile, builtin_profiles, load_profile, white_part
 from calib.noise.smoother import smooth
 from calib.noise.wander import attitude_wander_ratio, check_wander, longest_run_s, tilt_variance
 from calib.noise.whitening import (
@@ -61,7 +61,6 @@ __all__ = [
     "NoiseModel",
     "NoiseProfile",
     "Whitener",
-    "as_profile",
     "attitude_moved_deg",
     "attitude_wander_ratio",
     "bias_turns",

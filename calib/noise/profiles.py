@@ -169,10 +169,12 @@ def _from_doc(doc: dict, where: str) -> NoiseProfile:
     return NoiseProfile(name=name, **values)
 
 
-def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> NoiseProfile:
+def load_profile(name_or_path: NoiseProfile | str | Path = DEFAULT_PROFILE) -> NoiseProfile:
     """A built-in profile by name (``navigation``, ``navigation-gm``, ``tactical``) or a
-    profile TOML file.
+    profile TOML file; a :class:`NoiseProfile` is returned as it is.
     """
+    if isinstance(name_or_path, NoiseProfile):
+        return name_or_path
     text = str(name_or_path)
     path = Path(text)
     if not path.exists():
@@ -187,8 +189,3 @@ def load_profile(name_or_path: str | Path = DEFAULT_PROFILE) -> NoiseProfile:
     expect(path, "profile")
     doc = load_toml(path)
     return _from_doc(doc, str(path))
-
-
-def as_profile(profile: NoiseProfile | str) -> NoiseProfile:
-    """A profile object from itself, a built-in name or a TOML path."""
-    return profile if isinstance(profile, NoiseProfile) else load_profile(profile)

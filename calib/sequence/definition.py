@@ -305,8 +305,10 @@ def resolve_sequence_path(name_or_path: str | Path) -> Path:
     )
 
 
-def load_sequence(name_or_path: str | Path) -> Sequence:
-    """Read a sequence file (or a shipped sequence by name)."""
+def load_sequence(name_or_path: Sequence | str | Path) -> Sequence:
+    """Read a sequence file (or a shipped sequence by name); a :class:`Sequence` is returned as it is."""
+    if isinstance(name_or_path, Sequence):
+        return name_or_path
     path = resolve_sequence_path(name_or_path)
     expect(path, "sequence")
     doc = load_toml(path)

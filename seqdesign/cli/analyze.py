@@ -102,12 +102,12 @@ def analyze(
             reading,
         )
     from calib.model.requirements import default_for
-    from calib.noise.profiles import as_profile
+    from calib.noise.profiles import load_profile
     from seqdesign.analysis import analyze as run_analysis
 
     if view_path and Path(view_path).suffix != ".rrd":
         raise CalibError(f"recording {view_path!r} must end in .rrd", "--view")
-    prof = as_profile(profile)
+    prof = load_profile(profile)
     requirements, chosen = default_for(prof, requirements)  # the profile's grade, when not given
     if chosen:
         info(chosen)
@@ -150,7 +150,7 @@ def _analyze_by_hand(
     from calib.hand.poses import load_poses
     from calib.model.optional_terms import as_extras
     from calib.model.requirements import load_requirements
-    from calib.noise.profiles import as_profile
+    from calib.noise.profiles import load_profile
     from seqdesign.handanalysis import analyze_hand
 
     if view_path is not None:
@@ -178,14 +178,14 @@ def _analyze_by_hand(
         result = analyze_recording(
             run,
             site_of(run, gravity),
-            as_profile(profile),
+            load_profile(profile),
             load_requirements(requirements or "mems"),
             as_extras(with_terms, by_hand=True),
         )
     else:
         result = analyze_hand(
             load_poses(path),
-            as_profile(profile),
+            load_profile(profile),
             load_requirements(requirements or "mems"),
             latitude_deg=45.0 if latitude is None else latitude,
             tolerance_deg=placement_deg,
@@ -216,7 +216,7 @@ def compare(sequences, profile, latitude, height, tolerance_deg, requirements, a
     """
     from calib.io.kinds import kind_of
     from calib.model.requirements import default_for, load_requirements
-    from calib.noise.profiles import as_profile
+    from calib.noise.profiles import load_profile
     from seqdesign.analysis import analyze as run_analysis, compare_text, site_warnings
 
     kinds = {kind_of(s) for s in sequences}
@@ -236,7 +236,7 @@ def compare(sequences, profile, latitude, height, tolerance_deg, requirements, a
             click.echo(rep.to_text())
         return
 
-    prof = as_profile(profile)
+    prof = load_profile(profile)
     requirements, chosen = default_for(prof, requirements)  # the profile's grade, when not given
     if chosen:
         info(chosen)

@@ -215,9 +215,9 @@ def design(
         and click.get_current_context().get_parameter_source("rate_dps") is click.core.ParameterSource.DEFAULT
     ):
         constraints["rate_dps"] = None  # the gimbal's own rate
-    from seqdesign.search import resolve_gimbal
+    from seqdesign.search import gimbal_constraints
 
-    _, constraints = resolve_gimbal(gimbal_file, constraints)  # refused before the search
+    _, constraints = gimbal_constraints(gimbal_file, constraints)  # refused before the search
     sweep = _budgets(budgets) if pareto else [budget_min]
     profile, requirements = _say_the_bounds(profile, requirements, latitude, sweep)
     base = name if name is not None else (_stem(output) if output else None)
@@ -273,9 +273,9 @@ def _say_the_bounds(profile, requirements, latitude, budgets_min):
     from calib.analysis.bounds import unreachable
     from calib.model.requirements import default_for, load_requirements
     from calib.nav import earth
-    from calib.noise.profiles import as_profile
+    from calib.noise.profiles import load_profile
 
-    prof = as_profile(profile)
+    prof = load_profile(profile)
     requirements, chosen = default_for(prof, requirements)
     if chosen:
         info(chosen)

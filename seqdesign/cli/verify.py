@@ -113,7 +113,7 @@ def verify(
     """
     from calib.model.error_model import ErrorModel
     from calib.model.requirements import default_for, load_requirements
-    from calib.noise.profiles import as_profile
+    from calib.noise.profiles import load_profile
     from calib.sim.truth import read_errors
     from seqdesign.plots import verify_png
 
@@ -128,7 +128,7 @@ def verify(
     if plot_path and Path(plot_path).suffix.lower() != ".png":
         raise CalibError(f"plot {plot_path!r} must end in .png", "--plot")
     # A unit placed by hand is judged by the mems requirements unless told otherwise, as calibrate does.
-    prof = as_profile(profile)
+    prof = load_profile(profile)
     if by_hand:
         req = load_requirements(requirements or "mems")
     else:

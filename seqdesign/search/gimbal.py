@@ -66,7 +66,7 @@ def gimbal_limits(gimbal: Gimbal, rate_dps: float | None, default_rate_dps: floa
     }
 
 
-def resolve_gimbal(gimbal, constraints: dict) -> tuple[Gimbal | None, dict]:
+def gimbal_constraints(gimbal, constraints: dict) -> tuple[Gimbal | None, dict]:
     """The gimbal (path, shipped name or :class:`Gimbal`) and the constraints with its limits.
 
     ``constraints['rate_dps'] = None`` means "the gimbal's own rate".
@@ -76,7 +76,7 @@ def resolve_gimbal(gimbal, constraints: dict) -> tuple[Gimbal | None, dict]:
         if out.get("rate_dps", 0) is None:
             out["rate_dps"] = 10.0
         return None, out
-    g = gimbal if isinstance(gimbal, Gimbal) else load_gimbal(gimbal)
+    g = load_gimbal(gimbal)
     return g, dict(constraints) | gimbal_limits(g, constraints.get("rate_dps")) | {"gimbal": g}
 
 
