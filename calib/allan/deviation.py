@@ -21,7 +21,7 @@ which rises like a rate random walk (``2 sigma^2 tau / 3 T_c``) for ``tau << T_c
 and falls like white noise (``2 sigma^2 T_c / tau``) for ``tau >> T_c``. Its
 maximum, over ``x = tau / T_c``, is at x = 1.893 and is 0.6174 sigma
 (``GM_PEAK_TAU_RATIO``, ``GM_PEAK_ADEV_RATIO``; derived by maximising the bracket
-numerically, checked in tests/test_allan.py): the relation between an Allan
+numerically, checked in tests/calib/allan/test_allan.py): the relation between an Allan
 floor and the GM sigma and tau of a profile.
 
 A sinusoidal rate of amplitude W0 (a bench's or a building's vibration) peaks at

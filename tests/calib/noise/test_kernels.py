@@ -1,6 +1,6 @@
 """The compiled recursions (calib.noise.kernels) against the textbook recursions written plainly here.
 
-The analyser's own fast-versus-exact tests (tests/test_gm_fast.py) check the physics
+The analyser's own fast-versus-exact tests (tests/calib/analysis/test_gm_fast.py) check the physics
 end to end; these check each kernel alone, on random inputs that exercise every branch
 (turned and unturned intervals, several mountings, zero and non-zero transition entries).
 """

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import math
 import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from realdata import REPO
 
 from calib.gimbal.description import gimbal_from_dict, load_gimbal
 from calib.gimbal.rule import check_playable, plan_sequence
@@ -89,7 +89,7 @@ def test_design_cli_writes_a_playable_file_naming_the_gimbal(tmp_path):
     # ~10 s: a 5-minute design on the shipped cable-wrap gimbal, small beam, nominal mounting
     # only, no refinement (the figure does not matter here, only what is written).
     out = tmp_path / "d.toml"
-    gimbal = Path(__file__).parents[1] / "sequences" / "gimbals" / "cable-wrap.toml"
+    gimbal = REPO / "sequences" / "gimbals" / "cable-wrap.toml"
     res = CliRunner().invoke(
         main,
         [
@@ -170,9 +170,9 @@ def test_shipped_gimbal_designs_play_on_their_gimbal(name):
     # (no instantaneous rate step), and the run lasts at most its 30-min budget.
     from calib.io.files import sha256_file
 
-    path = Path(__file__).parents[1] / "sequences" / f"{name}.toml"
+    path = REPO / "sequences" / f"{name}.toml"
     prov = tomllib.loads(path.read_text())["provenance"]
-    gimbal_file = Path(__file__).parents[1] / prov["gimbal_file"]
+    gimbal_file = REPO / prov["gimbal_file"]
     assert sha256_file(gimbal_file) == prov["gimbal_sha256"]
     seq = load_sequence(path)
     g = load_gimbal(gimbal_file)

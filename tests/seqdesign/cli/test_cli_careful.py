@@ -13,8 +13,7 @@ import sys
 from pathlib import Path
 
 import pytest
-
-REPO = Path(__file__).resolve().parents[1]
+from realdata import REPO
 
 
 def cli(*args, cwd=None, env=None) -> subprocess.CompletedProcess:

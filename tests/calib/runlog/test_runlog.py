@@ -203,7 +203,7 @@ def test_npz_is_uncompressed_and_pickle_free(tmp_path):
 @pytest.mark.parametrize(
     "meta, parts",
     [
-        # A file without '# format:' is a logger's file (tests/test_columns.py) and reads.
+        # A file without '# format:' is a logger's file (tests/calib/runlog/test_columns.py) and reads.
         (["# format: imu-run/2", *META[1:]], ["line 1", "unknown format 'imu-run/2'"]),
         ([META[0], META[2], META[3]], ["'latitude_deg' is missing", "# latitude_deg:"]),
         ([META[0], META[1], META[3]], ["'height_m' is missing"]),

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from realdata import REPO
 
 from calib.analysis.mounting import analyze
 from calib.analysis.worst_case import analyze_tolerance
@@ -21,7 +21,7 @@ from seqdesign.cli import main
 from seqdesign.search import Constraints, Move, SearchModel, beam_search, brute_force, flip_graph, to_sequence
 
 LAT = math.radians(40.0)
-ADIS = Path(__file__).resolve().parents[1] / "benchmarks" / "profiles" / "adis16405.toml"
+ADIS = REPO / "benchmarks" / "profiles" / "adis16405.toml"
 PROFILE = load_profile("navigation")
 
 
@@ -549,9 +549,8 @@ def test_design_refuses_when_every_candidate_is_unestimable_at_the_requirements(
     # casadi writes to the terminal's stderr, not Python's.
     import subprocess
     import sys
-    from pathlib import Path
 
-    prof = Path(__file__).resolve().parents[1] / "benchmarks" / "profiles" / "adis16405.toml"
+    prof = REPO / "benchmarks" / "profiles" / "adis16405.toml"
     out = tmp_path / "d.toml"
     res = subprocess.run(
         [sys.executable, "-m", "seqdesign.cli", "design", "--budget-min", "3", "--profile", str(prof)]

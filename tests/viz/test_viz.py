@@ -27,6 +27,7 @@ from conftest import (
     rest_window,
     table1_positions,
 )
+from realdata import REPO
 
 from calib.fit.replay import review_run
 
@@ -822,7 +823,7 @@ def test_view_draws_a_result_against_its_own_requirements(tmp_path, monkeypatch)
     ):
         res = runner.invoke(main, args)
         assert res.exit_code == 0, (args, res.output)
-    mems_file = Path(__file__).parent.parent / "calib" / "data" / "requirements" / "mems.toml"
+    mems_file = REPO / "calib" / "data" / "requirements" / "mems.toml"
     mems = tomllib.loads(mems_file.read_text())["requirements"]
     saved = tomllib.loads((tmp_path / "run.result.toml").read_text())["parameters"]
     truth = tomllib.loads((tmp_path / "run.truth.toml").read_text())["errors"]

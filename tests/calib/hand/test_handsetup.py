@@ -10,11 +10,11 @@ refused by the gimbal fit naming ``--by-hand``.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from realdata import REPO
 
 from calib.calibration.entry import calibrate
 from calib.errors import CalibError
@@ -164,7 +164,7 @@ def test_a_profile_with_a_gauss_markov_bias_weights_a_hand_fit_by_its_white_part
     run, _ = hand_run
     path = tmp_path / "hand.npz"
     write_run(run, path)
-    gm = Path(__file__).parent.parent / "benchmarks" / "profiles" / "adis16405.toml"
+    gm = REPO / "benchmarks" / "profiles" / "adis16405.toml"
     assert load_profile(gm).has_gauss_markov
     out = tmp_path / "r.toml"
     res = CliRunner().invoke(

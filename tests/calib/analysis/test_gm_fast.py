@@ -12,10 +12,10 @@ filter of :func:`calib.noise.whitening.whitener`, one mounting at a time.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
+from realdata import REPO
 
 from calib.analysis.gm_mounting import extra_basis, extra_columns, gm_basis, informations
 from calib.analysis.mounting import sequence_model
@@ -30,7 +30,7 @@ from calib.sequence.definition import load_sequence
 
 LAT = math.radians(40.0)
 G = earth.gravity(LAT)
-ADIS = Path(__file__).resolve().parents[1] / "benchmarks" / "profiles" / "adis16405.toml"
+ADIS = REPO / "benchmarks" / "profiles" / "adis16405.toml"
 PROFILES = ["navigation-gm", "mems", str(ADIS)]
 # Six mountings: the filter takes them all at once (calib.noise.gm_filter.MOUNTINGS_AT_ONCE), as in the
 # box pass; test_one_mounting_filter_equals_the_exact_evaluation covers the one-by-one kernel.

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from realdata import REPO
 
 from calib.errors import CalibError
 from calib.fit.sanity import GyroUnitError, explain_gyro_unit
@@ -362,7 +363,7 @@ OWN = [
 @pytest.mark.parametrize("name", OWN)
 def test_reader_and_motion_messages_name_flags_only_as_the_clis(name):
     # A notebook user calls read_run(..., height_m=...): "give --height M" means nothing there.
-    text = (Path(__file__).resolve().parents[1] / name).read_text()
+    text = (REPO / name).read_text()
     strings = re.findall(r'"[^"\n]*"', text)
     bare = [s for s in strings if re.search(r"(?<!the CLI's )--[a-z]", s)]
     assert not bare, bare

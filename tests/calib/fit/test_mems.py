@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from realdata import REPO
 from scipy.stats import chi2
 
 from calib.fit.feedback import ATTITUDE_FEEDBACK_RATIO
@@ -320,7 +321,6 @@ def test_streamed_mems_fit_equals_renavigating_fit(profile):
     # tol_sigma (1e-3) of it, so they agree to tol_sigma, as without feedback (test_stream.py).
     # Under the ADIS16405 profile's Gauss-Markov gyro both also turn their observations into
     # the noise model's frame and rebuild it on the same tilt.
-    from pathlib import Path
 
     from calib.fit.estimator import fit_run
     from calib.model import params as P
@@ -334,7 +334,7 @@ def test_streamed_mems_fit_equals_renavigating_fit(profile):
     cfg, seq = SimConfig(latitude_rad=LAT, sample_rate_hz=20.0), load_sequence("paper-9pos")
     prof = load_profile("mems")
     if profile == "adis16405":
-        bench = Path(__file__).resolve().parents[1] / "benchmarks"
+        bench = REPO / "benchmarks"
         prof = load_profile(bench / "profiles" / "adis16405.toml")
         seq = load_sequence(bench / "sequences" / "adis16405-8min.toml")
     run, _ = simulate(seq, cfg, errors, prof, seed=5, random_setup_deg=3.0, flip_error_deg=0.5)
@@ -497,7 +497,6 @@ def test_gyro_bias_sigma_under_a_gauss_markov_gyro_respects_the_bound_of_a_const
     # tens of degrees off; a noise model left along them turned the modelled GM against the real
     # one at every flip and reported 10 deg/h where this bound is 41 deg/h (errors 3-7 sigma).
     import dataclasses
-    from pathlib import Path
 
     from calib.calibration.entry import calibrate
     from calib.model import params as P
@@ -508,7 +507,7 @@ def test_gyro_bias_sigma_under_a_gauss_markov_gyro_respects_the_bound_of_a_const
     from calib.sim.gimbal_run import simulate
     from seqdesign.verify import error_half_range
 
-    bench = Path(__file__).resolve().parents[1] / "benchmarks"
+    bench = REPO / "benchmarks"
     prof = dataclasses.replace(
         load_profile(bench / "profiles" / "adis16405.toml"), accel_bias_instability_ug=0.0
     )
@@ -535,7 +534,6 @@ def test_a_fit_follows_a_mems_gyro_that_walks_the_attitude_13_degrees():
     # 21's NEES below the 99.9 % point of chi-square(21), 46.8. Before the observations were
     # taken into the noise model's frame such runs cycled with the heading (NEES in the
     # thousands) or were refused.
-    from pathlib import Path
 
     from scipy.stats import chi2 as chi2_dist
 
@@ -549,7 +547,7 @@ def test_a_fit_follows_a_mems_gyro_that_walks_the_attitude_13_degrees():
     from calib.sim.gimbal_run import simulate
     from seqdesign.verify import error_half_range
 
-    prof = load_profile(Path(__file__).resolve().parents[1] / "benchmarks" / "profiles" / "adis16405.toml")
+    prof = load_profile(REPO / "benchmarks" / "profiles" / "adis16405.toml")
     seq = load_sequence("paper-9pos")
     rng = np.random.default_rng(2)
     errors = ErrorModel.from_units(rng.uniform(-1.0, 1.0, P.N_PARAMS) * error_half_range("mems"))

@@ -3,17 +3,17 @@
 from __future__ import annotations
 
 import gzip
-from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from realdata import REPO
 
 from calib.errors import CalibError
 from calib.runlog import read_run
 from seqdesign.cli import main
 
-MIKOFF = Path(__file__).resolve().parent / "data" / "mikoff-mpu9150" / "imu0-first2000.log"
+MIKOFF = REPO / "tests" / "data" / "mikoff-mpu9150" / "imu0-first2000.log"
 MAP = "1=accel_x_mps2,2=accel_y_mps2,3=accel_z_mps2,4=gyro_x_radps,5=gyro_y_radps,6=gyro_z_radps"
 SITE = {"latitude_deg": 55.0, "height_m": 100.0}
 # Four samples: specific force (m/s^2) then rates (rad/s), as mikoff's logs hold them.

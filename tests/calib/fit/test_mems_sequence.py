@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from realdata import REPO
 
 from calib.nav.strapdown import sample_intervals
 from calib.noise.profiles import load_profile
@@ -87,11 +88,10 @@ def test_sequence_accepts_a_run_under_a_strong_gauss_markov_gyro(tmp_path):
     # and the 8-min sequence designed for it (benchmarks/): the log's turns judged with the
     # profile's noise are the sequence's 9 moves, so `--sequence` accepts the run, and the fit
     # (within the wander the estimator follows) converges.
-    from pathlib import Path
 
     from calib.sequence.definition import load_sequence
 
-    bench = Path(__file__).resolve().parent.parent / "benchmarks"
+    bench = REPO / "benchmarks"
     seq, prof = bench / "sequences" / "adis16405-8min.toml", bench / "profiles" / "adis16405.toml"
     run = tmp_path / "adis.npz"
     runner = CliRunner()
