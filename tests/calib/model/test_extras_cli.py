@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from tests.test_cli_foundation import refused
+from refusals import refused
 
 from calib.calibration.result import CalibrationResult
 from calib.model.optional_terms import GROUP_NAMES, Extras
