@@ -32,11 +32,11 @@ import numpy as np
 from by_hand import DATA, rests_of, scored, xsens
 from by_hand_cv import imutk_on, mikoff, ours_on, slice_run
 
-from calib.correction import correction_from_parameters
-from calib.handmoves import move_rotation
-from calib.handscore import rest_means
-from calib.rests import WINDOW_S
-from calib.strapdown import sample_intervals
+from calib.calibration.correction import correction_from_parameters
+from calib.hand.moves import move_rotation
+from calib.hand.rests import WINDOW_S
+from calib.nav.strapdown import sample_intervals
+from calib.peers.scores import rest_means
 
 TURNING_DEG = 1.0  # a move the gyro turns through less than this is a rest split inside one pose
 DRAWS = 30

@@ -163,12 +163,16 @@ def test_the_architecture_page_names_every_folder():
     """docs/architecture.md's table of folders names each of calib's folders, and nothing else."""
     page = (REPO / "docs" / "architecture.md").read_text()
     table = page[page.index("## The folders") :].split("\n## ")[0]
-    named = {
-        line.split("`")[1].removeprefix("calib/").rstrip("/")
-        for line in table.splitlines()
-        if line.startswith("| `calib")
-    }
-    assert named == set(CALIB_LAYERS) - {"errors"} | {"errors.py"}
+    rows = [line.split("|")[1:4] for line in table.splitlines() if line.startswith("| `calib")]
+    named = [
+        folder.strip().strip("`").removeprefix("calib/").rstrip("/").removesuffix(".py")
+        for folder, _, _ in rows
+    ]
+    assert named == list(CALIB_LAYERS)  # in the layers' order
+    for folder, (_, _, modules) in zip(named, rows, strict=True):
+        if folder != "errors":
+            on_disk = {p.stem for p in (REPO / "calib" / folder).glob("*.py")} - {"__init__"}
+            assert set(modules.split()) == on_disk, folder
 
 
 def test_no_import_cycles():
