@@ -24,10 +24,10 @@ import numpy as np
 from scipy.stats import chi2
 
 import calib  # noqa: F401  (BLAS threads)
-from calib import params as P
-from calib.mounting import analyze
-from calib.profiles import load_profile
-from calib.sequence import load_sequence
+from calib.analysis.mounting import analyze
+from calib.model import params as P
+from calib.noise.profiles import load_profile
+from calib.sequence.definition import load_sequence
 from seqdesign.montecarlo import run_trials
 
 

@@ -1,7 +1,7 @@
 """Our fit of runs placed by hand side by side with imu_tk and imucal, on their own real recordings.
 
-Scores every calibration with :mod:`calib.handscore` on the same rests (found by
-:func:`calib.rests.find_rests` with the mems profile on the log read with its
+Scores every calibration with :mod:`calib.peers.scores` on the same rests (found by
+:func:`calib.hand.rests.find_rests` with the mems profile on the log read with its
 nominal conversion), and prints Markdown tables:
 
 * Xsens MTi (imu_tk's test log): ours (by hand, g-sensitivity, mems) vs imu_tk's result; then ours
@@ -27,14 +27,14 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.calibration import calibrate
-from calib.correction import Correction, correction_from_parameters
-from calib.handscore import HandScore, score
-from calib.othertools import read_imu_tk, read_imucal
-from calib.profiles import as_profile
-from calib.rests import find_rests
+from calib.calibration.correction import Correction, correction_from_parameters
+from calib.calibration.entry import calibrate
+from calib.hand.rests import find_rests
+from calib.nav.strapdown import sample_intervals
+from calib.noise.profiles import load_profile
+from calib.peers.published import read_imu_tk, read_imucal
+from calib.peers.scores import HandScore, score
 from calib.runlog import Run, make_meta
-from calib.strapdown import sample_intervals
 
 DATA = Path(os.environ.get("REALDATA", Path(__file__).resolve().parents[1] / "tests" / "data" / "realdata"))
 XSENS_ZERO_G = np.array([32768.0, 32466.0, 32485.0])  # counts (the authors' nominal values)
@@ -161,7 +161,7 @@ def ours(rec: Recording, partial: bool = False) -> tuple[Correction, object]:
 
 def rests_of(rec: Recording):
     """The rests every tool is scored on: found on the whole log with the mems profile."""
-    p = as_profile("mems")
+    p = load_profile("mems")
     return find_rests(
         rec.run.dtheta_rad, rec.run.dv_mps, sample_intervals(rec.run.time_s), p.arw, p.vrw, rec.name
     )

@@ -8,11 +8,11 @@ part:
 
 * ours: ``calibrate(run, "mems", by_hand=True, requirements="mems", gravity_mps2=g)``, the default
   model (no ``--with``), as a user would run it with the site only;
-* imu_tk's method (:mod:`calib.imutk_method`), its ``T_init`` the longest rest of the part (capped at
+* imu_tk's method (:mod:`calib.peers.imutk_method`), its ``T_init`` the longest rest of the part (capped at
   imu_tk's 50 s): a part that starts mid-recording has no static start of its own.
 
-Both are scored by :mod:`calib.handscore` on the same rests of the held-out third (those that
-:func:`calib.rests.find_rests` finds on the whole recording with the mems profile, lying wholly in
+Both are scored by :mod:`calib.peers.scores` on the same rests of the held-out third (those that
+:func:`calib.hand.rests.find_rests` finds on the whole recording with the mems profile, lying wholly in
 the third): the |specific force| spread (std) and the gyro's pose-to-pose RMS angle. The published
 results (imu_tk's own on the Xsens, imucal's on the Ferraris) are scored on the same rests; they
 were fitted on the whole recording, the held-out third included.
@@ -40,15 +40,15 @@ from by_hand import (
     xsens,
 )
 
-from calib.calibration import calibrate
-from calib.correction import correction_from_parameters
+from calib.calibration.correction import correction_from_parameters
+from calib.calibration.entry import calibrate
 from calib.errors import CalibError
-from calib.imutk_method import MIN_INTERVALS, imutk_calibrate
-from calib.othertools import read_imu_tk, read_imucal
-from calib.profiles import as_profile
-from calib.rests import find_rests
+from calib.hand.rests import find_rests
+from calib.nav.strapdown import sample_intervals
+from calib.noise.profiles import load_profile
+from calib.peers.imutk_method import MIN_INTERVALS, imutk_calibrate
+from calib.peers.published import read_imu_tk, read_imucal
 from calib.runlog import Run, read_run
-from calib.strapdown import sample_intervals
 
 MIKOFF_RATE_HZ, MIKOFF_GRAVITY, MIKOFF_LATITUDE, MIKOFF_HEIGHT = 100.0, 9.81, 55.0, 100.0  # site unknown
 MIKOFF_COLUMNS = "1=accel_x_mps2,2=accel_y_mps2,3=accel_z_mps2,4=gyro_x_radps,5=gyro_y_radps,6=gyro_z_radps"
@@ -59,7 +59,7 @@ TARGETS = {"spread": 1.0, "poses": 0.6, "mean_spread": 0.9, "mean_poses": 0.45} 
 def slice_run(run: Run, t0: float, t1: float) -> Run:
     """The samples of ``run`` whose interval ends in ``(t0, t1]``, as a Run of their own.
 
-    Stamps mark each sample's end (``calib.strapdown.sample_intervals``), so a part's
+    Stamps mark each sample's end (``calib.nav.strapdown.sample_intervals``), so a part's
     first sample began one period before its stamp: no sample is shared between
     two parts cut at the same time. The clock and the clipping go with the samples.
     """
@@ -122,7 +122,7 @@ def imutk_on(rec: Recording, part: Run, keep: np.ndarray):
     Returns the fit (None when refused) and a note: imu_tk needs 12 static intervals; a part
     with fewer is fitted with as many as its 9 accelerometer parameters, and said so.
     """
-    p = as_profile("mems")
+    p = load_profile("mems")
     r = find_rests(part.dtheta_rad, part.dv_mps, sample_intervals(part.time_s), p.arw, p.vrw, part.source)
     rate = 1.0 / float(np.median(np.diff(part.time_s)))
     i = int(np.argmax(r.end - r.start))

@@ -20,16 +20,16 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.calibration import calibrate
-from calib.extras import as_extras
-from calib.handposes import PoseList
-from calib.handrun import hand_fit_of
-from calib.handsim import draw_errors, simulate_by_hand
-from calib.profiles import load_profile
-from calib.requirements import load_requirements
+from calib.calibration.entry import calibrate
+from calib.hand.calibrate import hand_fit_of
+from calib.hand.poses import PoseList
+from calib.hand.simulate import draw_errors, simulate_by_hand
+from calib.model.optional_terms import as_extras
+from calib.model.requirements import load_requirements
+from calib.nav.site import site_of
+from calib.noise.profiles import load_profile
 from calib.runlog import read_run
-from calib.sim import SimConfig
-from calib.site import site_of
+from calib.sequence.kinematics import SimConfig
 from seqdesign.handanalysis import analyze_hand
 from seqdesign.handdesign import design_hand
 from seqdesign.verify import error_half_range

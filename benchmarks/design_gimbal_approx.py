@@ -16,7 +16,7 @@ import argparse
 from dataclasses import replace
 
 import calib  # noqa: F401  (BLAS threads)
-from calib.sequence import Step, load_sequence
+from calib.sequence.definition import Step, load_sequence
 from seqdesign.analysis import analyze
 
 

@@ -17,12 +17,12 @@ import argparse
 import math
 import time
 
-from calib import earth
-from calib import params as P
-from calib.bounds import accel_scale_bound
-from calib.mounting import analyze
-from calib.profiles import load_profile
-from calib.sequence import Sequence, Step
+from calib.analysis.bounds import accel_scale_bound
+from calib.analysis.mounting import analyze
+from calib.model import params as P
+from calib.nav import earth
+from calib.noise.profiles import load_profile
+from calib.sequence.definition import Sequence, Step
 
 LAT = math.radians(40.0)
 # designed-30min-gm's first six turns: +Z +Y -X -Z -Y +X (each axis both ways)

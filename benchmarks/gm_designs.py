@@ -1,7 +1,7 @@
 """Monte Carlo proof of a design for the real unit (issue 12).
 
 Simulates a sequence with the Gauss-Markov profile and every extra term at its
-typical size (``calib/extras.py``), calibrates with the same profile and
+typical size (``calib/model/optional_terms.py``), calibrates with the same profile and
 ``--with all``, and reports the mean NEES of the 21 against its 99 % band and
 RMS(error)/sigma per parameter (issue 12 asks for [0.67, 1.36]).
 
@@ -16,10 +16,10 @@ import time
 import numpy as np
 from scipy.stats import chi2
 
-from calib import params as P
-from calib.extras import GROUP_NAMES, Extras, ExtraValues
-from calib.profiles import load_profile
-from calib.sequence import load_sequence
+from calib.model import params as P
+from calib.model.optional_terms import GROUP_NAMES, Extras, ExtraValues
+from calib.noise.profiles import load_profile
+from calib.sequence.definition import load_sequence
 from seqdesign.montecarlo import run_trials
 
 

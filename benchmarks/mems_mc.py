@@ -8,7 +8,7 @@ factors within +-0.5 %, misalignments within +-1000 arcsec, all uniform),
 its base mounting within +-3 deg, flip errors within +-0.5 deg and the white
 noise of the `mems` profile (ARW 2.6 deg/sqrt(h), VRW 460 ug/sqrt(Hz)) at
 100 Hz, from seed ``--seed + i``. Every run is calibrated with
-:func:`calib.calibration.calibrate_run` (what ``seqdesign calibrate`` calls)
+:func:`calib.calibration.entry.calibrate` (what ``seqdesign calibrate`` calls)
 with the `mems` profile and requirements. Prints the mean NEES of the 21
 against the 99 % band of its chi-square distribution (21 N degrees of
 freedom, divided by N) and, per parameter, RMS(error / sigma) over the runs
@@ -27,13 +27,14 @@ import numpy as np
 from scipy.stats import chi2
 
 import calib  # noqa: F401  (BLAS threads)
-from calib import params as P
-from calib.calibration import calibrate_run
-from calib.errormodel import ErrorModel
+from calib.calibration.entry import calibrate
 from calib.errors import CalibError
-from calib.profiles import load_profile
-from calib.sequence import load_sequence
-from calib.sim import SimConfig, simulate
+from calib.model import params as P
+from calib.model.error_model import ErrorModel
+from calib.noise.profiles import load_profile
+from calib.sequence.definition import load_sequence
+from calib.sequence.kinematics import SimConfig
+from calib.sim.gimbal_run import simulate
 from seqdesign.verify import error_half_range
 
 SAMPLE_RATE_HZ = 100.0  # the rate of the ADIS16405 log in the shared realdata folder
@@ -66,7 +67,7 @@ def one_run(args):
     )
     t0 = time.process_time()
     try:
-        res = calibrate_run(run, prof, requirements="mems", require_convergence=False)
+        res = calibrate(run, prof, requirements="mems", require_convergence=False)
     except CalibError as e:  # a refusal is a failed run, counted and named, not a crash
         print(f"seed {seed}: {e}", flush=True)
         return None, None, False, 0, time.process_time() - t0, seed

@@ -20,10 +20,10 @@ import time
 import numpy as np
 
 import calib  # noqa: F401  (BLAS threads)
-from calib import params as P
-from calib.extras import GROUP_NAMES, Extras, ExtraValues
-from calib.profiles import load_profile
-from calib.sequence import load_sequence
+from calib.model import params as P
+from calib.model.optional_terms import GROUP_NAMES, Extras, ExtraValues
+from calib.noise.profiles import load_profile
+from calib.sequence.definition import load_sequence
 from seqdesign.montecarlo import run_trials
 
 LEVER = {

@@ -31,13 +31,14 @@ import numpy as np
 from scipy.stats import chi2, kstest
 
 import calib  # noqa: F401  (BLAS threads)
-from calib import params as P
-from calib.calibration import calibrate_run
-from calib.errormodel import ErrorModel
+from calib.calibration.entry import calibrate
 from calib.errors import CalibError
-from calib.profiles import load_profile
-from calib.sequence import load_sequence
-from calib.sim import SimConfig, simulate
+from calib.model import params as P
+from calib.model.error_model import ErrorModel
+from calib.noise.profiles import load_profile
+from calib.sequence.definition import load_sequence
+from calib.sequence.kinematics import SimConfig
+from calib.sim.gimbal_run import simulate
 from seqdesign.repeatability import Repeatability, weighted_chi2_sf
 from seqdesign.verify import error_half_range
 
@@ -71,7 +72,7 @@ def one_run(args):
     )
     t0 = time.process_time()
     try:
-        res = calibrate_run(run, prof, requirements="mems", require_convergence=False)
+        res = calibrate(run, prof, requirements="mems", require_convergence=False)
     except CalibError as e:
         print(f"seed {seed}: {e}", flush=True)
         return None, seed, time.process_time() - t0

@@ -121,8 +121,8 @@ def cli_rows(tmp: Path) -> list:
 
 def analysis_rows(seq, prof, lat) -> list:
     """The analyser in-process and through the CLI."""
-    from calib.mounting import analyze
-    from calib.worstcase import analyze_tolerance
+    from calib.analysis.mounting import analyze
+    from calib.analysis.worst_case import analyze_tolerance
 
     analyze(seq, prof, lat)  # warm caches (casadi step model, whitening) as a search loop would
     return [
@@ -232,9 +232,9 @@ MC_SEQUENCES = ("paper-9pos", "paper-9pos-turns", "designed-15min", "designed-30
 
 def monte_carlo(n: int, workers: int, prof, lat, sequences=MC_SEQUENCES) -> None:
     """N simulate -> calibrate trials per shipped sequence against the predicted sigmas."""
-    from calib import params as P
-    from calib.mounting import analyze
-    from calib.sequence import load_sequence
+    from calib.analysis.mounting import analyze
+    from calib.model import params as P
+    from calib.sequence.definition import load_sequence
     from seqdesign.montecarlo import run_trials
 
     for name in sequences:
@@ -277,8 +277,8 @@ def main() -> None:
     )
     args = ap.parse_args()
 
-    from calib.profiles import load_profile
-    from calib.sequence import load_sequence
+    from calib.noise.profiles import load_profile
+    from calib.sequence.definition import load_sequence
 
     tmp = Path(tempfile.mkdtemp(prefix="seqdesign-bench-"))
     seq, prof = load_sequence("paper-9pos"), load_profile("navigation")

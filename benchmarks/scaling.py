@@ -6,7 +6,7 @@
 
 For every rate and duration it simulates a run of the paper's 9 positions
 with the dwells stretched to the duration (Table 2 errors, mounting
-(1, -2, 3) deg, seed 7), streamed to NPZ (:mod:`calib.simstream`), then
+(1, -2, 3) deg, seed 7), streamed to NPZ (:mod:`calib.sim.to_disk`), then
 times ``seqdesign calibrate`` on it in a subprocess under ``/usr/bin/time -v``:
 wall time, CPU time (user + system: the machine is shared, CPU time is
 the steadier figure) and peak resident memory. With ``--base`` the same
@@ -94,7 +94,7 @@ def simulate(seq: Path, rate: float, run: Path) -> dict:
 def max_difference_sigma(new: Path, base: Path) -> float:
     """Largest |estimate difference| / sigma over the 21, from two result files."""
     sys.path.insert(0, str(ROOT))
-    from calib.result import CalibrationResult
+    from calib.calibration.result import CalibrationResult
 
     a, b = CalibrationResult.load(new), CalibrationResult.load(base)
     return float(max(abs(x - y) / s for x, y, s in zip(a.values, b.values, b.sigma, strict=True)))

@@ -16,7 +16,7 @@ import math
 import sys
 import time
 
-from calib.profiles import load_profile
+from calib.noise.profiles import load_profile
 from seqdesign.search import Constraints, SearchModel
 
 

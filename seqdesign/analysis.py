@@ -15,17 +15,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib import earth
-from calib import params as P
-from calib.bounds import Unreachable, accel_scale_bound, unreachable
+from calib.analysis.bounds import Unreachable, accel_scale_bound, unreachable
+from calib.analysis.worst_case import ExtrasCost, Robustness, analyze_extras, analyze_tolerance
 from calib.errors import CalibError
-from calib.extras import Extras, as_extras
-from calib.feedback import check_wander
-from calib.profiles import NoiseProfile, as_profile
-from calib.report import format_table, parameter_entries, worst
-from calib.requirements import PAPER, Requirements, load_requirements
-from calib.sequence import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, Sequence, load_sequence
-from calib.worstcase import ExtrasCost, Robustness, analyze_extras, analyze_tolerance
+from calib.model import params as P
+from calib.model.optional_terms import Extras, as_extras
+from calib.model.report import format_table, parameter_entries, worst
+from calib.model.requirements import PAPER, Requirements, load_requirements
+from calib.nav import earth
+from calib.noise.profiles import NoiseProfile, load_profile
+from calib.noise.wander import check_wander
+from calib.sequence.definition import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, Sequence, load_sequence
 
 from .separability import involvement, motion_hint, separable_combinations
 
@@ -118,7 +118,7 @@ class Analysis:
         return doc
 
     def unreachable(self) -> list[Unreachable]:
-        """The requirements no sequence of this length meets under this noise (:mod:`calib.bounds`)."""
+        """The requirements no sequence this long meets under this noise (:mod:`~calib.analysis.bounds`)."""
         g = earth.gravity(math.radians(self.latitude_deg), self.height_m)
         return unreachable(self.sequence.duration_s, self.profile, g, self.requirements)
 
@@ -197,7 +197,7 @@ def analyze(
     Analysis
     """
     seq = sequence if isinstance(sequence, Sequence) else load_sequence(sequence)
-    prof, extras = as_profile(profile), as_extras(extras)
+    prof, extras = load_profile(profile), as_extras(extras)
     req = load_requirements(requirements)
     if not 0.0 <= tolerance_deg <= 10.0:
         raise CalibError(f"tolerance {tolerance_deg} deg outside [0, 10]", "tolerance_deg")

@@ -27,28 +27,27 @@ from __future__ import annotations
 import warnings
 from pathlib import Path
 
-from calib.calibration import calibrate
-from calib.errormodel import ErrorModel
-from calib.gimbalfile import Gimbal
-from calib.params import PARAMETERS
-from calib.profilefit import METHOD, FittedProfile, fit_log
-from calib.profiles import NoiseProfile, load_profile
-from calib.requirements import load_requirements
-from calib.result import CalibrationResult
-from calib.review import review_run
+from calib.allan.profile_fit import METHOD, FittedProfile, fit_log
+from calib.calibration.entry import calibrate
+from calib.calibration.result import CalibrationResult
+from calib.fit.replay import review_run
+from calib.gimbal.description import Gimbal
+from calib.model.error_model import ErrorModel
+from calib.model.params import PARAMETERS
+from calib.model.requirements import load_requirements
+from calib.noise.profiles import NoiseProfile, load_profile
 from calib.runlog import read_run
-from calib.sequence import Sequence, load_sequence
-from calib.sim import SimConfig, simulate
+from calib.sequence.definition import Sequence, load_sequence
+from calib.sequence.kinematics import SimConfig
+from calib.sim.gimbal_run import simulate
 from viz.record import record_run
 
 from .analysis import Analysis, analyze, compare_text
-from .positions import Positions, as_gimbal
-from .positions import show_positions as show
+from .positions import Positions, as_gimbal, show_positions as show
 from .provenance import call_provenance
 from .repeatability import compare_results
-from .schedule import Schedule, read_schedule
-from .schedule import export_schedule as export
-from .search import Constraints, DesignReport, design_budgets, parse_node, resolve_gimbal
+from .schedule import Schedule, export_schedule as export, read_schedule
+from .search import Constraints, DesignReport, design_budgets, gimbal_constraints, parse_node
 
 __all__ = [
     "Analysis",
@@ -220,7 +219,7 @@ def design(
     if chosen is not None:
         if rate_dps is None and not isinstance(constraints, Constraints) and "rate_dps" not in base:
             fields["rate_dps"] = None  # the gimbal's own rate, as the CLI's default
-        _, fields = resolve_gimbal(as_gimbal(chosen), fields)
+        _, fields = gimbal_constraints(as_gimbal(chosen), fields)
     return design_budgets(
         budgets_min,
         fields,

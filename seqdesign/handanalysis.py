@@ -1,7 +1,7 @@
 """Predicted sigma of a run placed by hand, from its pose list, before anyone records it.
 
-The prediction is the fit's own covariance (:mod:`calib.handfit`) on the noise-free run the
-simulator makes of the poses (:mod:`calib.handsim`): the same rests, moves, weights and unknowns
+The prediction is the fit's own covariance (:mod:`calib.hand.joint_fit`) on the noise-free run the
+simulator makes of the poses (:mod:`calib.hand.simulate`): the same rests, moves, weights and unknowns
 the fit of the recording will have, so ``analyze`` and ``calibrate`` cannot disagree by
 construction, only by the recording differing from the plan. A hand places a pose within tens
 of degrees of where it was meant: the placement tolerance draws that many perturbed runs and
@@ -17,19 +17,19 @@ from pathlib import Path
 
 import numpy as np
 
-from calib import params as P
 from calib.errors import CalibError
-from calib.extras import Extras
-from calib.handfit import fit_by_hand
-from calib.handposes import AXES, PoseList, tipping_plan
-from calib.handrun import hand_fit_of
-from calib.handsim import simulate_by_hand
-from calib.profiles import NoiseProfile, white_part
-from calib.report import format_table, parameter_entries, worst
-from calib.requirements import Requirements
-from calib.sim import SimConfig
-from calib.strapdown import sample_intervals
-from calib.transform import rotvec_to_dcm
+from calib.hand.calibrate import hand_fit_of
+from calib.hand.joint_fit import fit_by_hand
+from calib.hand.poses import AXES, PoseList, tipping_plan
+from calib.hand.simulate import simulate_by_hand
+from calib.model import params as P
+from calib.model.optional_terms import Extras
+from calib.model.report import format_table, parameter_entries, worst
+from calib.model.requirements import Requirements
+from calib.nav.strapdown import sample_intervals
+from calib.nav.transform import rotvec_to_dcm
+from calib.noise.profiles import NoiseProfile, white_part
+from calib.sequence.kinematics import SimConfig
 
 ANALYSIS_RATE_HZ = 50.0  # noise-free: the information does not depend on it beyond rounding
 OVERSAMPLE = 2
@@ -234,10 +234,10 @@ def analyze_recording(
     """The prediction of a recorded hand run from its own rests and moves (as the fit finds them).
 
     The sigmas are the fit's covariance before any Birge inflation, with the model and the
-    weights `calib.handrun.hand_fit_of` chooses: what calibrating the recording reports.
+    weights `calib.hand.calibrate.hand_fit_of` chooses: what calibrating the recording reports.
     """
     ext = extras if extras is not None else Extras()
-    profile = white_part(profile)  # as calibrate weights it (calib.handrun.fit_checked)
+    profile = white_part(profile)  # as calibrate weights it (calib.hand.calibrate.fit_checked)
     # The fit calibrate makes (its model and weights chosen alike): the sigma it will report.
     hand, _, _ = hand_fit_of(run, site, profile, ext, True, requirements)
     rests = hand.data.rests

@@ -6,7 +6,7 @@ number of poses and, greedily, each next pose among a candidate set (the 6 faces
 ``3 sigma / requirement`` falls most (summed in logarithms over the 21), growing a seed of twelve
 poses that observes all 21; every pose is held equally long, the first as long as the static
 start asks. Each candidate plan is scored by the fast path of the
-fit's own information (:func:`calib.handinfo.plan_sigma`, within 1 % of the simulated
+fit's own information (:func:`calib.hand.predict.plan_sigma`, within 1 % of the simulated
 prediction) and the result by :func:`seqdesign.handanalysis.analyze_hand`.
 
 The physical bound of a gyro bias: every second of a run, at rest or turning, tells the bias
@@ -23,12 +23,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib import params as P
 from calib.errors import CalibError
-from calib.handinfo import plan_sigma
-from calib.handposes import AXES, PoseList, tip_to
-from calib.profiles import NoiseProfile
-from calib.requirements import Requirements
+from calib.hand.poses import AXES, PoseList, tip_to
+from calib.hand.predict import plan_sigma
+from calib.model import params as P
+from calib.model.requirements import Requirements
+from calib.noise.profiles import NoiseProfile
 
 
 def candidate_ups(kind: str) -> dict[str, np.ndarray]:

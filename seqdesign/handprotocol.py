@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.fileio import atomic_write_text
-from calib.handposes import PoseList
+from calib.hand.poses import PoseList
+from calib.io.files import atomic_write_text
 
 AXIS_NAMES = "xyz"
 

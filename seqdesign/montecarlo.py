@@ -12,13 +12,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.calibration import calibrate_run
-from calib.errormodel import ErrorModel
-from calib.extras import NONE as NO_EXTRAS
-from calib.extras import Extras, ExtraValues
-from calib.profiles import NoiseProfile
-from calib.sequence import Sequence
-from calib.sim import SimConfig, simulate
+from calib.calibration.entry import calibrate
+from calib.model.error_model import ErrorModel
+from calib.model.optional_terms import NONE as NO_EXTRAS, Extras, ExtraValues
+from calib.noise.profiles import NoiseProfile
+from calib.sequence.definition import Sequence
+from calib.sequence.kinematics import SimConfig
+from calib.sim.gimbal_run import simulate
 
 from .search.parallel import map_jobs
 
@@ -81,7 +81,7 @@ def one_trial(job: TrialJob) -> tuple[np.ndarray, np.ndarray, bool]:
         random_setup_deg=job.tolerance_deg if job.tolerance_deg > 0 else None,
         extra=job.extra,
     )
-    result = calibrate_run(
+    result = calibrate(
         run,
         job.fit_profile or job.profile,
         extras=job.extras,

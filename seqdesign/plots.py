@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib.bounds import accel_scale_bound
+from calib.analysis.bounds import accel_scale_bound
 from calib.errors import CalibError
-from calib.fileio import atomic_write_bytes
+from calib.io.files import atomic_write_bytes
 
 
 def pyplot():

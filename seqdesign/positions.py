@@ -12,11 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.encoders import RestPosition, rest_positions
 from calib.errors import CalibError
-from calib.gimbal import GimbalPlan, plan_sequence
-from calib.gimbalfile import DEFAULT_GIMBAL, Gimbal, builtin_gimbal_dir, load_gimbal
-from calib.sequence import Sequence, load_sequence
+from calib.gimbal.description import DEFAULT_GIMBAL, Gimbal, builtin_gimbal_dir, load_gimbal
+from calib.gimbal.encoders import RestPosition, rest_positions
+from calib.gimbal.rule import GimbalPlan, plan_sequence
+from calib.sequence.definition import Sequence, load_sequence
 
 LOCK_NOTE = (
     "GIMBAL LOCK: the middle gimbal is at +-90 deg, so the outer and inner axes coincide; "

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 from importlib.metadata import PackageNotFoundError, version
 
-from calib.fileio import sha256_file
-from calib.sequence import resolve_sequence_path
+from calib.io.files import sha256_file
+from calib.sequence.definition import resolve_sequence_path
 
 
 def tool_version() -> str:

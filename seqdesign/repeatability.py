@@ -24,8 +24,8 @@ import numpy as np
 from scipy.integrate import quad
 from scipy.stats import chi2
 
-from calib import params as P
-from calib.result import CalibrationResult
+from calib.calibration.result import CalibrationResult
+from calib.model import params as P
 
 LIMIT_SIGMA = 3.0  # a difference beyond 3 combined sigmas is flagged
 

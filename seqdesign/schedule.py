@@ -3,7 +3,7 @@
 The schedule is CSV: ``# key: value`` comment lines, then
 ``time_s,outer_deg,middle_deg,inner_deg,outer_dps,middle_dps,inner_dps``, one
 row per tick at ``rate_hz`` (plus the last instant of the sequence). The
-angles are the continuous encoder angles of :mod:`calib.gimbal`, so
+angles are the continuous encoder angles of :mod:`calib.gimbal.rule`, so
 replaying them through the gimbal rule gives the sequence's attitudes.
 """
 
@@ -15,12 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from calib.encoders import encoder_track
 from calib.errors import CalibError
-from calib.fileio import atomic_write_text
-from calib.gimbal import GimbalPlan, check_playable, plan_sequence
-from calib.gimbalfile import Gimbal
-from calib.sequence import Sequence, resolve_sequence_path
+from calib.gimbal.description import Gimbal
+from calib.gimbal.encoders import encoder_track
+from calib.gimbal.rule import GimbalPlan, check_playable, plan_sequence
+from calib.io.files import atomic_write_text
+from calib.sequence.definition import Sequence, resolve_sequence_path
 
 from .positions import as_gimbal, as_sequence
 from .provenance import call_provenance

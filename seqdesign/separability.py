@@ -1,7 +1,7 @@
 """What a rank-deficient sequence cannot separate, what it can, and what motion would help.
 
 The analyser finds the unobserved directions of the requirement-scaled
-information (:mod:`calib.information`). Here they are turned into what an
+information (:mod:`calib.model.information`). Here they are turned into what an
 engineer acts on: for the parameters that cannot be estimated on their own,
 the combinations of them that the sequence does determine (in the
 parameters' own units), and, per parameter, the motion that excites it.
@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib import params as P
-from calib.information import row_echelon
+from calib.model import params as P
+from calib.model.information import row_echelon
 
 AXES = "XYZ"
 INVOLVED = 0.01  # a parameter takes part in a null direction above this scaled component

@@ -18,28 +18,27 @@ from pathlib import Path
 
 import numpy as np
 
-from calib import params as P
-from calib.calibration import calibrate
-from calib.errormodel import ErrorModel, paper_table
+from calib.calibration.entry import calibrate
 from calib.errors import CalibError
-from calib.extras import NONE as NO_EXTRAS
-from calib.extras import Extras
-from calib.handplan import random_hand_plan, xsens_like_plan
-from calib.handposes import PoseList, tipping_plan
-from calib.handsim import simulate_by_hand, write_hand_run
-from calib.handtroubles import TroubleSpec
-from calib.profiles import NoiseProfile
-from calib.requirements import PAPER, Requirements
-from calib.requirements import grade_of as requirements_grade
+from calib.hand.plan import random_hand_plan, xsens_like_plan
+from calib.hand.poses import PoseList, tipping_plan
+from calib.hand.simulate import simulate_by_hand, write_hand_run
+from calib.hand.troubles import TroubleSpec
+from calib.model import params as P
+from calib.model.error_model import ErrorModel, paper_table
+from calib.model.optional_terms import NONE as NO_EXTRAS, Extras
+from calib.model.requirements import PAPER, Requirements, grade_of as requirements_grade
+from calib.nav.transform import rotvec_to_dcm
+from calib.noise.profiles import NoiseProfile
 from calib.runlog import read_run
-from calib.sequence import Sequence
-from calib.sim import SimConfig, simulate
-from calib.transform import rotvec_to_dcm
+from calib.sequence.definition import Sequence
+from calib.sequence.kinematics import SimConfig
+from calib.sim.gimbal_run import simulate
 
 from .search.parallel import map_jobs
 
 # The unit's errors before calibration, half-ranges in spec units, by grade (the profile's ARW
-# decides the grade: calib.requirements.GRADES, which also gives each its requirements).
+# decides the grade: calib.model.requirements.GRADES, which also gives each its requirements).
 # Navigation and tactical: twice the paper's Table 2 standard values, which are a navigation
 # unit's; MEMS: the sizes of an ADIS16405-class data sheet (gyro bias 1000 deg/h,
 # accelerometer bias 20 mg, scale factors 0.5 %, misalignments 1000 arcsec = 0.28 deg).
@@ -51,7 +50,7 @@ MEMS_MISALIGNMENT_ARCSEC = 1000.0
 def grade_of(profile: NoiseProfile) -> str:
     """``navigation``, ``tactical`` or ``mems``, from the gyro's angle random walk.
 
-    The grade the default requirements follow too (:func:`calib.requirements.grade_of`).
+    The grade the default requirements follow too (:func:`calib.model.requirements.grade_of`).
     """
     return requirements_grade(profile)[0].lower()
 
@@ -74,7 +73,7 @@ def chi2_band(n_runs: int, dof: int = P.N_PARAMS, probability: float = 0.99) -> 
 
 @dataclass(frozen=True)
 class HandShape:
-    """The runs placed by hand a by-hand verification draws (:mod:`calib.handplan`)."""
+    """The runs placed by hand a by-hand verification draws (:mod:`calib.hand.plan`)."""
 
     like: str | None = None  # "xsens": the shape of imu_tk's Xsens recording; None: random
     poses: int = 20

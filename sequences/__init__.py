@@ -1,1 +1,1 @@
-"""Sequence files shipped with the tool (data only; see calib.sequence)."""
+"""Sequence files shipped with the tool (data only; see calib.sequence.definition)."""

@@ -163,7 +163,7 @@ SETUP_DEG = (1.0, -2.0, 3.0)
 
 @pytest.fixture(scope="session")
 def paper_seq():
-    from calib.sequence import load_sequence
+    from calib.sequence.definition import load_sequence
 
     return load_sequence("paper-9pos")
 
@@ -171,9 +171,10 @@ def paper_seq():
 @pytest.fixture(scope="session")
 def clean_sim(paper_seq):
     """Error-free, noise-free paper-9pos at 40 deg, 200 Hz, setup (1, -2, 3) deg."""
-    from calib.errormodel import ErrorModel
-    from calib.profiles import load_profile
-    from calib.sim import SimConfig, simulate
+    from calib.model.error_model import ErrorModel
+    from calib.noise.profiles import load_profile
+    from calib.sequence.kinematics import SimConfig
+    from calib.sim.gimbal_run import simulate
 
     cfg = SimConfig(latitude_rad=math.radians(LAT_DEG))
     run, truth = simulate(

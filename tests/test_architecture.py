@@ -29,7 +29,7 @@ MAX_LINES = 500
 LAZY_ALLOWED = ("seqdesign/cli",)
 # The compiled kernels start numba (~1 s): imported where the Gauss-Markov paths call them, so
 # that the white-noise ones never pay for it.
-LAZY_TARGETS = {"calib.kernels"}
+LAZY_TARGETS = {"calib.noise.kernels"}
 
 
 def _modules() -> dict[str, Path]:
@@ -100,6 +100,81 @@ def test_layers_run_one_way():
     assert bad == []
 
 
+# calib's folders, bottom up: a module imports only from its own folder or the folders before it
+# in this list (calib/__init__.py draws the same map; docs/architecture.md names each in its table).
+CALIB_LAYERS = (
+    "errors", "io", "model", "noise", "nav", "sequence", "gimbal", "runlog", "allan",
+    "analysis", "fit", "sim", "hand", "calibration", "peers",
+)  # fmt: skip
+
+
+def _folder(module: str) -> str | None:
+    parts = module.split(".")
+    return parts[1] if parts[0] == "calib" and len(parts) > 1 else None
+
+
+def test_calib_folders_are_layered_one_way():
+    """No arrow runs back up between calib's folders; the simulator is below none of analysis and fit."""
+    up = sorted(
+        (a, b)
+        for a, b in _graph().edges
+        if (fa := _folder(a)) and (fb := _folder(b)) and CALIB_LAYERS.index(fa) < CALIB_LAYERS.index(fb)
+    )
+    assert up == []
+
+
+def test_calib_is_its_folders():
+    """Every module of calib lives in a folder of the map (``errors`` the one module beside them)."""
+    top = {p.stem for p in (REPO / "calib").glob("*.py")} - {"__init__"}
+    folders = {p.name for p in (REPO / "calib").iterdir() if (p / "__init__.py").exists()}
+    assert top == {"errors"}
+    assert folders | top == set(CALIB_LAYERS)
+
+
+def test_each_folder_has_a_public_face():
+    """Each folder's ``__init__`` says what it is and names what it offers; every name it offers exists."""
+    import importlib
+
+    for folder in CALIB_LAYERS:
+        if folder == "errors":
+            continue
+        package = importlib.import_module(f"calib.{folder}")
+        assert package.__doc__ and len(package.__doc__.split()) > 10, folder
+        assert package.__all__, folder
+        missing = [name for name in package.__all__ if not hasattr(package, name)]
+        assert missing == [], folder
+
+
+def test_no_two_modules_of_one_name():
+    """No module of calib shares its name with another, or with a folder of calib.
+
+    (The CLI names its modules after its commands, viz after what a recording shows: a module there
+    may share a name with the calib concept it serves.)
+    """
+    names: dict[str, list[str]] = {}
+    for module in MODULES:
+        if module.startswith("calib.") and MODULES[module].name != "__init__.py":
+            names.setdefault(module.rsplit(".", 1)[1], []).append(module)
+    twice = {n: m for n, m in names.items() if len(m) > 1 or (n in CALIB_LAYERS and n != "errors")}
+    assert twice == {}
+
+
+def test_the_architecture_page_names_every_folder():
+    """docs/architecture.md's table of folders names each of calib's folders, and nothing else."""
+    page = (REPO / "docs" / "architecture.md").read_text()
+    table = page[page.index("## The folders") :].split("\n## ")[0]
+    rows = [line.split("|")[1:4] for line in table.splitlines() if line.startswith("| `calib")]
+    named = [
+        folder.strip().strip("`").removeprefix("calib/").rstrip("/").removesuffix(".py")
+        for folder, _, _ in rows
+    ]
+    assert named == list(CALIB_LAYERS)  # in the layers' order
+    for folder, (_, _, modules) in zip(named, rows, strict=True):
+        if folder != "errors":
+            on_disk = {p.stem for p in (REPO / "calib" / folder).glob("*.py")} - {"__init__"}
+            assert set(modules.split()) == on_disk, folder
+
+
 def test_no_import_cycles():
     # A package's __init__ re-exporting its modules is not a cycle unless a module imports the
     # package back (then the order of imports decides whether a name exists yet).
@@ -160,9 +235,10 @@ def noisy_run(paper_seq):
     """paper-9pos with Table 2 errors and the navigation profile's noise."""
     import math
 
-    from calib.errormodel import ErrorModel
-    from calib.profiles import load_profile
-    from calib.sim import SimConfig, simulate
+    from calib.model.error_model import ErrorModel
+    from calib.noise.profiles import load_profile
+    from calib.sequence.kinematics import SimConfig
+    from calib.sim.gimbal_run import simulate
 
     run, _ = simulate(
         paper_seq,
@@ -177,7 +253,7 @@ def noisy_run(paper_seq):
 
 def test_cli_and_library_give_identical_sigmas(noisy_run, tmp_path):
     """The CLI's sigmas (Birge check included) are the library's, to the last digit."""
-    from calib.calibration import calibrate_run
+    from calib.calibration.entry import calibrate
     from calib.runlog import write_run
     from seqdesign.cli import main
 
@@ -187,7 +263,7 @@ def test_cli_and_library_give_identical_sigmas(noisy_run, tmp_path):
     res = CliRunner().invoke(main, ["calibrate", str(path), "--json"])
     assert res.exit_code == 0, res.output
     cli = json.loads(res.stdout)
-    lib = calibrate_run(run).to_json()
+    lib = calibrate(run).to_json()
     for name, e in lib["parameters"].items():
         assert cli["parameters"][name]["sigma"] == e["sigma"], name
         assert cli["parameters"][name]["value"] == e["value"], name
@@ -196,14 +272,14 @@ def test_cli_and_library_give_identical_sigmas(noisy_run, tmp_path):
 
 def test_library_result_carries_the_policy(noisy_run):
     """A notebook gets the Birge scale, convergence, correlation and gravity without the CLI."""
-    from calib.calibration import calibrate_run
-    from calib.profiles import NoiseProfile
+    from calib.calibration.entry import calibrate
+    from calib.noise.profiles import NoiseProfile
 
     run = noisy_run
     # Half the simulated noise density: chi2/dof ~ 4, so the sigmas must come back inflated
     # by its square root (the Birge ratio) straight from the library.
     half = NoiseProfile("half", 0.0005, 5.0)
-    res = calibrate_run(run, half)
+    res = calibrate(run, half)
     assert res.converged and 3.0 < res.chi2_per_dof < 5.0
     assert res.sigma_scale == pytest.approx(np.sqrt(res.chi2_per_dof))
     assert res.correlation.shape == (21, 21)

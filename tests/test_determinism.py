@@ -6,7 +6,7 @@ import os
 
 from click.testing import CliRunner
 
-from calib.fileio import sha256_file
+from calib.io.files import sha256_file
 from seqdesign.cli import main
 
 
@@ -53,7 +53,7 @@ def test_outputs_record_version_command_and_input_hashes(tmp_path):
     import tomllib
 
     from calib.runlog import read_run
-    from calib.sequence import resolve_sequence_path
+    from calib.sequence.definition import resolve_sequence_path
 
     _run_in(tmp_path, ["simulate", "paper-9pos", "--seed", "1", "--sample-rate-hz", "20", "-o", "run.csv"])
     _run_in(tmp_path, ["calibrate", "run.csv", "-o", "res.toml"])

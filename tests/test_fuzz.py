@@ -41,22 +41,21 @@ import numpy as np
 import pytest
 import tomli_w
 from click.testing import CliRunner
-from hypothesis import HealthCheck, given, settings
-from hypothesis import event as _hypothesis_event
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, event as _hypothesis_event, given, settings, strategies as st
 from hypothesis.control import currently_in_test_context
 
-from calib import params as P
-from calib.encoders import rest_positions
-from calib.errormodel import ErrorModel
+from calib.calibration.result import CalibrationResult
 from calib.errors import CalibError
-from calib.profiles import NoiseProfile, load_profile
-from calib.result import CalibrationResult
+from calib.gimbal.encoders import rest_positions
+from calib.model import params as P
+from calib.model.error_model import ErrorModel
+from calib.nav.transform import DIRECTIONS, attitude_from_directions, rotvec_to_dcm
+from calib.noise.profiles import NoiseProfile, load_profile
 from calib.runlog import Run, make_meta, read_run, write_run
-from calib.sequence import Sequence, load_sequence
-from calib.sim import SimConfig, Truth, simulate
-from calib.transform import DIRECTIONS, attitude_from_directions, rotvec_to_dcm
-from calib.truth import read_errors, read_truth, write_truth
+from calib.sequence.definition import Sequence, load_sequence
+from calib.sequence.kinematics import SimConfig
+from calib.sim.gimbal_run import Truth, simulate
+from calib.sim.truth import read_errors, read_truth, write_truth
 from seqdesign.cli import main
 from seqdesign.search.graph import attitude_of, flip_graph, parse_node
 
@@ -158,7 +157,7 @@ def bases(work) -> dict[str, bytes]:
     """The bytes of one valid file per reader, written by the tool's own writers."""
     out = {
         "sequence": (REPO / "sequences" / "paper-9pos.toml").read_bytes(),
-        "profile": (REPO / "calib" / "profiles" / "navigation.toml").read_bytes(),
+        "profile": (REPO / "calib" / "data" / "profiles" / "navigation.toml").read_bytes(),
     }
     (work / "short.toml").write_text(SHORT_SEQUENCE, encoding="utf-8")
     seq = load_sequence(work / "short.toml")

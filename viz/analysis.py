@@ -16,15 +16,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from calib import params as P
-from calib.report import worst
+from calib.model import params as P
+from calib.model.report import worst
 
 from .rrd import Writer
 from .scene import AXIS_COLORS, GALLERY_STEP, IMU_HALF_SIZE, SCENE_RATE_HZ, SCENE_STEP_DEG
 
 if TYPE_CHECKING:
-    from calib.observability import Observability
-    from calib.sequence import Sequence
+    from calib.analysis.observability import Observability
+    from calib.sequence.definition import Sequence
 
 
 @dataclass(frozen=True)
@@ -33,14 +33,14 @@ class AnalysisFigures:
 
     Attributes
     ----------
-    sequence : calib.sequence.Sequence
+    sequence : calib.sequence.definition.Sequence
     profile, requirements : str
         Names of the noise profile and of the requirement set.
     sigma, requirement, ratio : ndarray, shape (21,)
         Spec units: each parameter's worst sigma over the mounting box (inf:
         unobservable), its requirement, and ``3 sigma / requirement``.
     worst : dict
-        ``{"name", "ratio"}``: the largest finite ratio (:func:`calib.report.worst`).
+        ``{"name", "ratio"}``: the largest finite ratio (:func:`calib.model.report.worst`).
     rank : int
         Rank of the information at the nominal mounting.
     unobservable : list of str
@@ -51,7 +51,7 @@ class AnalysisFigures:
         Mountings evaluated over the box.
     searched : bool
         Whether IPOPT refined the worst parameter beyond those mountings.
-    drawn : calib.observability.Observability
+    drawn : calib.analysis.observability.Observability
         The mounting the scene, the gallery and the correlation matrix show:
         the one with the largest worst ratio.
     """

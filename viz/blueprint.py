@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from calib import params as P
+from calib.model import params as P
 
 from .charts import BAR_LENGTH, COLUMN_LABEL_LEVELS, COLUMN_LABEL_STEP, LABEL_LIFT, NAME_X, VALUE_GAP
 from .rrd import TIMELINE

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib import params as P
+from calib.model import params as P
 
 from .rrd import Writer
 

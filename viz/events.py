@@ -7,8 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.encoders import rest_positions
-from calib.sequence import timeline
+from calib.gimbal.encoders import rest_positions
+from calib.sequence.definition import timeline
 
 REST, FLIP = "rest", "flip"
 

@@ -45,7 +45,7 @@ Entity paths (run recording)::
                                             result, from its initial attitude, every sample
     residuals/after/noise_3sigma_mps        Scalars +3σ E, N, U, -3σ E, N, U: what the line above
                                             should stay inside if the calibration is right: the
-                                            predicted noise envelope (calib.review.velocity_noise_sigma,
+                                            predicted noise envelope (calib.fit.replay.velocity_noise_sigma,
                                             the result's profile), on the fit's grid (1 s at rest,
                                             0.1 s turning)
     attitude/gimbal_deg                     Scalars outer, middle, inner (the scene's angles)
@@ -101,10 +101,10 @@ from pathlib import Path
 
 import numpy as np
 
-from calib import earth
-from calib.encoders import rest_positions
-from calib.sequence import nominal_attitude, timeline
-from calib.transform import rotvec_to_dcm
+from calib.gimbal.encoders import rest_positions
+from calib.nav import earth
+from calib.nav.transform import rotvec_to_dcm
+from calib.sequence.definition import nominal_attitude, timeline
 
 from .analysis import about_analysis, analysis_figures, analysis_table, log_gallery, nominal_scene_times
 from .blueprint import analysis_blueprint, run_blueprint
@@ -127,15 +127,15 @@ def record_run(
         The log.
     path : str or os.PathLike
         The ``.rrd`` to write (atomically: complete or untouched).
-    review : calib.review.RunReview
-        Its motion and navigations (:func:`calib.review.review_run`): viz
+    review : calib.fit.replay.RunReview
+        Its motion and navigations (:func:`calib.fit.replay.review_run`): viz
         only logs what it is given.
-    sequence : calib.sequence.Sequence, optional
+    sequence : calib.sequence.definition.Sequence, optional
         The sequence the run followed: names the positions and flips, and
         gives the gimbal angles when the run has no encoder columns.
-    result : calib.result.CalibrationResult, optional
+    result : calib.calibration.result.CalibrationResult, optional
         Adds the results bars (the review carries its navigation).
-    truth : calib.sim.Truth, optional
+    truth : calib.sim.gimbal_run.Truth, optional
         Adds the errors against the truth; its mounting rotation places the base.
     name : str, optional
         Recording name (default: the run's source).

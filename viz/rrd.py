@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from calib.errors import CalibError
-from calib.fileio import default_mode, remove_quietly
+from calib.io.files import default_mode, remove_quietly
 
 TIMELINE = "time"
 APPLICATION_ID = "seqdesign"

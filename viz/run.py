@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib import params as P
-from calib.sequence import nominal_attitude, timeline
-from calib.transform import dcm_to_rotvec
+from calib.model import params as P
+from calib.nav.transform import dcm_to_rotvec
+from calib.sequence.definition import nominal_attitude, timeline
 
 from .rrd import Summary, Writer
 from .scene import AXIS_COLORS, SCENE_RATE_HZ, SCENE_STEP_DEG, gimbal_from_attitudes

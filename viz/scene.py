@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from calib.transform import gimbal_from_relative, rot_axis, unwrap_gimbal
+from calib.nav.transform import gimbal_from_relative, rot_axis, unwrap_gimbal
 
 from .events import FLIP, REST, Event, position_series, wrap_event
 from .rrd import Writer

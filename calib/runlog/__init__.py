@@ -22,11 +22,11 @@ column and the 0-based sample index), for NPZ the array element (``dv_mps[12, 1]
 or the metadata key.
 """
 
-from calib.runlog.checks import check_run
-from calib.runlog.chunks import READ_ROWS, nominal_period, read_chunks, read_meta
-from calib.runlog.clipping import describe_clipping
-from calib.runlog.conversion import Conversion, read_conversion
-from calib.runlog.format import (
+from .checks import check_run
+from .chunks import READ_ROWS, nominal_period, read_chunks, read_meta
+from .clipping import describe_clipping
+from .conversion import Conversion, read_conversion
+from .format import (
     DTHETA_COLUMNS,
     DV_COLUMNS,
     FORMAT,
@@ -35,8 +35,8 @@ from calib.runlog.format import (
     REQUIRED_META,
     TIME_COLUMN,
 )
-from calib.runlog.run import Run, make_meta
-from calib.runlog.runfile import read_run, write_run, write_windows
+from .run import Run, make_meta
+from .runfile import read_run, write_run, write_windows
 
 __all__ = [
     "DTHETA_COLUMNS",

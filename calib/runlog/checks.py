@@ -8,12 +8,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib.earth import HEIGHT_RANGE_M  # one source: the site limits of calib.earth
 from calib.errors import CalibError
-from calib.runlog import clock
-from calib.runlog.columns import time_unit_suspect
-from calib.runlog.format import ARRAY_COLUMNS, FORMAT, REQUIRED_META
-from calib.runlog.run import Run, meta_float
+from calib.nav.earth import HEIGHT_RANGE_M  # one source: the site limits of calib.nav.earth
+
+from . import clock
+from .columns import time_unit_suspect
+from .format import ARRAY_COLUMNS, FORMAT, REQUIRED_META
+from .run import Run, meta_float
 
 GAP_PERIODS = 2.0  # the typical time step must lie within [0.5, 2] nominal periods
 

@@ -1,6 +1,6 @@
 """Reading a run log a chunk at a time: its metadata, then blocks of samples.
 
-For the streamed calibration (:mod:`calib.chunks`), which never holds a run
+For the streamed calibration (:mod:`calib.fit.chunked`), which never holds a run
 whole: an NPZ's members are read as streams (stored or deflated, never loaded
 whole), a CSV's rows parsed a block at a time. The metadata is decoded as the
 whole-run readers decode it.
@@ -12,8 +12,9 @@ import math
 from pathlib import Path
 
 from calib.errors import CalibError
-from calib.runlog.csv import csv_chunks, csv_meta
-from calib.runlog.npz import npz_chunks, npz_meta
+
+from .csv import csv_chunks, csv_meta
+from .npz import npz_chunks, npz_meta
 
 READ_ROWS = 1 << 16
 

@@ -25,9 +25,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.motion import runs_of
-from calib.runlog.columns import QUANTITIES, SensorColumns
-from calib.runlog.conversion import Conversion
+from calib.sequence.motion import runs_of
+
+from .columns import QUANTITIES, SensorColumns
+from .conversion import Conversion
 
 FLAT_TOP_RAD_S = 5.0  # rad/s (286 deg/s): beyond a calibration gimbal, within a hand's turn
 FLAT_TOP_RUN = 2  # consecutive samples exactly at the largest magnitude

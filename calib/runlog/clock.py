@@ -21,8 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.errors import CalibError
-from calib.motion import runs_of
-from calib.runlog.countrule import counted_steps
+from calib.sequence.motion import runs_of
+
+from .countrule import counted_steps
 
 # Steps all within this of whole periods (and none zero) come from the IMU's own clock and are
 # counted step by step; a host's reception jitter goes beyond it.

@@ -39,8 +39,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.errors import CalibError
-from calib.params import DEG, STANDARD_GRAVITY
-from calib.runlog.format import GIMBAL_COLUMNS, TIME_COLUMN
+from calib.model.params import DEG, STANDARD_GRAVITY
+
+from .format import GIMBAL_COLUMNS, TIME_COLUMN
 
 AXES = ("x", "y", "z")
 

@@ -42,10 +42,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib.errors import CalibError
-from calib.fields import Fields, check_format_version
-from calib.params import DEG, STANDARD_GRAVITY
-from calib.runlog.columns import QUANTITIES, SensorColumns
-from calib.runlog.paths import read_bytes
+from calib.io.fields import Fields, check_format_version
+from calib.model.params import DEG, STANDARD_GRAVITY
+
+from .columns import QUANTITIES, SensorColumns
+from .paths import read_bytes
 
 SENSORS = ("gyro", "accel")
 SI_UNITS = {"gyro": "rad/s", "accel": "m/s^2"}

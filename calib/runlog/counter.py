@@ -18,7 +18,8 @@ from collections.abc import Callable
 import numpy as np
 
 from calib.errors import CalibError
-from calib.runlog.columns import COUNTER, IMU_LIKE_COUNT
+
+from .columns import COUNTER, IMU_LIKE_COUNT
 
 RATE_FIX = (
     "give the IMU's sample rate: sample_rate_hz (the CLI's --sample-rate-hz HZ) or a line "

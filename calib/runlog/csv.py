@@ -13,10 +13,11 @@ from dataclasses import replace
 import numpy as np
 
 from calib.errors import CalibError
-from calib.runlog.checks import check_meta, check_samples
-from calib.runlog.clipping import clip_mask, sensor_clipping
-from calib.runlog.clock import stamps_rate
-from calib.runlog.columns import (
+
+from .checks import check_meta, check_samples
+from .clipping import clip_mask, sensor_clipping
+from .clock import stamps_rate
+from .columns import (
     COUNTER,
     ColumnPlan,
     apply_column_map,
@@ -25,12 +26,12 @@ from calib.runlog.columns import (
     time_unit_suspect,
     to_increments,
 )
-from calib.runlog.conversion import Conversion, sensor_si
-from calib.runlog.counter import counter_suspect, counter_time
-from calib.runlog.format import ARRAY_COLUMNS, FORMAT, GIMBAL_COLUMNS, REQUIRED_COLUMNS, REQUIRED_META
-from calib.runlog.headerless import with_header
-from calib.runlog.paths import read_bytes
-from calib.runlog.run import Run, meta_float
+from .conversion import Conversion, sensor_si
+from .counter import counter_suspect, counter_time
+from .format import ARRAY_COLUMNS, FORMAT, GIMBAL_COLUMNS, REQUIRED_COLUMNS, REQUIRED_META
+from .headerless import with_header
+from .paths import read_bytes
+from .run import Run, meta_float
 
 
 class _CsvLocator:

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from calib.errors import CalibError
-from calib.runlog.format import FORMAT, GIMBAL_COLUMNS, REQUIRED_COLUMNS
+
+from .format import FORMAT, GIMBAL_COLUMNS, REQUIRED_COLUMNS
 
 
 def write_csv(handle, meta: dict[str, str], windows, gimbal: bool = False) -> int:

@@ -18,8 +18,9 @@ added, so that sample ``i`` ends its interval at ``(i + 1) / sample_rate_hz``
 from __future__ import annotations
 
 from calib.errors import CalibError
-from calib.runlog.columns import COUNTER, TIME_NAMES
-from calib.runlog.counter import RATE_FIX
+
+from .columns import COUNTER, TIME_NAMES
+from .counter import RATE_FIX
 
 EXAMPLE_MAP = "1=accel_x_mps2,2=accel_y_mps2,3=accel_z_mps2,4=gyro_x_radps,5=gyro_y_radps,6=gyro_z_radps"
 

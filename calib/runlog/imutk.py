@@ -21,13 +21,14 @@ import os
 import numpy as np
 
 from calib.errors import CalibError
-from calib.runlog.checks import check_meta, check_samples
-from calib.runlog.clipping import at_limits, clip_mask, flat_top
-from calib.runlog.clock import stamps_rate
-from calib.runlog.conversion import Conversion
-from calib.runlog.format import FORMAT
-from calib.runlog.paths import read_bytes
-from calib.runlog.run import Run
+
+from .checks import check_meta, check_samples
+from .clipping import at_limits, clip_mask, flat_top
+from .clock import stamps_rate
+from .conversion import Conversion
+from .format import FORMAT
+from .paths import read_bytes
+from .run import Run
 
 ROW = "t x y z"
 

@@ -19,10 +19,11 @@ from dataclasses import replace
 import numpy as np
 
 from calib.errors import CalibError
-from calib.runlog.checks import ArrayLocator, check_array_shape, check_meta, check_samples
-from calib.runlog.format import NPZ_ARRAYS
-from calib.runlog.paths import require_file
-from calib.runlog.run import Run
+
+from .checks import ArrayLocator, check_array_shape, check_meta, check_samples
+from .format import NPZ_ARRAYS
+from .paths import require_file
+from .run import Run
 
 # For the chunk reader, which reads members as streams.
 NPZ_FIX = "write the file with numpy.savez (time_s, dtheta_rad, dv_mps, meta), or use CSV"

@@ -24,8 +24,9 @@ import os
 import numpy as np
 
 from calib.errors import CalibError
-from calib.runlog.checks import check_run
-from calib.runlog.run import Run, make_meta
+
+from .checks import check_run
+from .run import Run, make_meta
 
 ARCSEC = math.pi / (180.0 * 3600.0)  # rad
 

@@ -8,9 +8,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.errors import CalibError
-from calib.runlog.clock import SampleClock
-from calib.runlog.conversion import Conversion
-from calib.runlog.format import FORMAT
+
+from .clock import SampleClock
+from .conversion import Conversion
+from .format import FORMAT
 
 
 @dataclass

@@ -11,18 +11,19 @@ from __future__ import annotations
 import os
 
 from calib.errors import CalibError
-from calib.fileio import atomic_write_file
-from calib.filekind import expect
-from calib.runlog import clock
-from calib.runlog.checks import check_run
-from calib.runlog.conversion import Conversion, as_conversion
-from calib.runlog.csv import read_csv
-from calib.runlog.csvwrite import check_meta_writable_as_csv, write_csv
-from calib.runlog.imutk import read_imutk
-from calib.runlog.npz import read_npz, write_npz
-from calib.runlog.paths import run_kind
-from calib.runlog.psins import read_psins
-from calib.runlog.run import Run
+from calib.io.files import atomic_write_file
+from calib.io.kinds import expect
+
+from . import clock
+from .checks import check_run
+from .conversion import Conversion, as_conversion
+from .csv import read_csv
+from .csvwrite import check_meta_writable_as_csv, write_csv
+from .imutk import read_imutk
+from .npz import read_npz, write_npz
+from .paths import run_kind
+from .psins import read_psins
+from .run import Run
 
 _NOT_WRITTEN = "the PSINS .imu format is read, not written"
 
@@ -155,7 +156,7 @@ def write_run(run: Run, path: str | os.PathLike) -> None:
 def write_windows(path: str | os.PathLike, meta: dict[str, str], windows) -> int:
     """Write a run given a block at a time atomically as ``.csv`` or ``.npz`` (by suffix).
 
-    For a run too long to hold in memory (:mod:`calib.simstream`): memory is
+    For a run too long to hold in memory (:mod:`calib.sim.to_disk`): memory is
     one block's. The samples are not checked, as `write_run` checks them.
 
     Parameters

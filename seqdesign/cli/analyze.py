@@ -101,13 +101,13 @@ def analyze(
             as_json,
             reading,
         )
-    from calib.profiles import as_profile
-    from calib.requirements import default_for
+    from calib.model.requirements import default_for
+    from calib.noise.profiles import load_profile
     from seqdesign.analysis import analyze as run_analysis
 
     if view_path and Path(view_path).suffix != ".rrd":
         raise CalibError(f"recording {view_path!r} must end in .rrd", "--view")
-    prof = as_profile(profile)
+    prof = load_profile(profile)
     requirements, chosen = default_for(prof, requirements)  # the profile's grade, when not given
     if chosen:
         info(chosen)
@@ -147,10 +147,10 @@ def _analyze_by_hand(
     path, profile, latitude, requirements, with_terms, placement_deg, placements, view_path, as_json, reading
 ):
     """``analyze --by-hand POSES`` (or a recorded LOG): the prediction of :mod:`seqdesign.handanalysis`."""
-    from calib.extras import as_extras
-    from calib.handposes import load_poses
-    from calib.profiles import as_profile
-    from calib.requirements import load_requirements
+    from calib.hand.poses import load_poses
+    from calib.model.optional_terms import as_extras
+    from calib.model.requirements import load_requirements
+    from calib.noise.profiles import load_profile
     from seqdesign.handanalysis import analyze_hand
 
     if view_path is not None:
@@ -158,8 +158,8 @@ def _analyze_by_hand(
             "--view is not recorded for a pose list", "--view", "leave out --view with --by-hand"
         )
     if not str(path).lower().endswith(".toml"):  # a recorded log: its own rests and moves
+        from calib.nav.site import site_of
         from calib.runlog import read_run
-        from calib.site import site_of
         from seqdesign.handanalysis import analyze_recording
 
         from .reading import hand_reading, run_notes
@@ -178,14 +178,14 @@ def _analyze_by_hand(
         result = analyze_recording(
             run,
             site_of(run, gravity),
-            as_profile(profile),
+            load_profile(profile),
             load_requirements(requirements or "mems"),
             as_extras(with_terms, by_hand=True),
         )
     else:
         result = analyze_hand(
             load_poses(path),
-            as_profile(profile),
+            load_profile(profile),
             load_requirements(requirements or "mems"),
             latitude_deg=45.0 if latitude is None else latitude,
             tolerance_deg=placement_deg,
@@ -214,11 +214,10 @@ def compare(sequences, profile, latitude, height, tolerance_deg, requirements, a
     side: each difference against the combined sigma, and a chi-square
     over all of them (the repeatability check of the paper's Table 3).
     """
-    from calib.filekind import kind_of
-    from calib.profiles import as_profile
-    from calib.requirements import default_for, load_requirements
-    from seqdesign.analysis import analyze as run_analysis
-    from seqdesign.analysis import compare_text, site_warnings
+    from calib.io.kinds import kind_of
+    from calib.model.requirements import default_for, load_requirements
+    from calib.noise.profiles import load_profile
+    from seqdesign.analysis import analyze as run_analysis, compare_text, site_warnings
 
     kinds = {kind_of(s) for s in sequences}
     if "result" in kinds:
@@ -237,7 +236,7 @@ def compare(sequences, profile, latitude, height, tolerance_deg, requirements, a
             click.echo(rep.to_text())
         return
 
-    prof = as_profile(profile)
+    prof = load_profile(profile)
     requirements, chosen = default_for(prof, requirements)  # the profile's grade, when not given
     if chosen:
         info(chosen)

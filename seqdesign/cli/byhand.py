@@ -1,4 +1,4 @@
-"""``seqdesign simulate --by-hand``: a calibration run placed by hand on a table (calib.handsim)."""
+"""``seqdesign simulate --by-hand``: a calibration run placed by hand on a table (calib.hand.simulate)."""
 
 from __future__ import annotations
 
@@ -35,9 +35,9 @@ def by_hand_refusals(sequence, given: dict) -> None:
 
 def _errors(errors_file, table2, random_errors, rng):
     """The injected errors: a file's, the paper's Table 2, drawn for a grade, or none."""
-    from calib.errormodel import ErrorModel
-    from calib.handsim import draw_errors
-    from calib.truth import read_errors
+    from calib.hand.simulate import draw_errors
+    from calib.model.error_model import ErrorModel
+    from calib.sim.truth import read_errors
 
     if sum(bool(x) for x in (errors_file, table2, random_errors)) > 1:
         raise CalibError("more than one of --errors, --table2, --random-errors given", None, "choose one")
@@ -59,13 +59,12 @@ def simulate_by_hand(output, profile, errors_file, table2, seed, site, noise_fre
     ``--by-hand`` options by name (the troubles' of :mod:`seqdesign.cli.handtroubles` too).
     """
     latitude, height, gravity_mps2, sample_rate_hz = site
-    from calib import earth
-    from calib.handplan import random_hand_plan, xsens_like_plan
-    from calib.handsim import simulate_by_hand as run_simulation
-    from calib.handsim import write_hand_run
-    from calib.profiles import load_profile
-    from calib.sequence import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
-    from calib.sim import SimConfig
+    from calib.hand.plan import random_hand_plan, xsens_like_plan
+    from calib.hand.simulate import simulate_by_hand as run_simulation, write_hand_run
+    from calib.nav import earth
+    from calib.noise.profiles import load_profile
+    from calib.sequence.definition import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
+    from calib.sequence.kinematics import SimConfig
 
     if Path(output).suffix.lower() not in (".csv", ".npz"):
         raise CalibError(

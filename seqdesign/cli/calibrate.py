@@ -1,6 +1,6 @@
 """``seqdesign calibrate``: the 21 parameters of a run log, read whole or chunk by chunk.
 
-Both readings go through :func:`calib.calibration.calibrate`, which applies
+Both readings go through :func:`calib.calibration.entry.calibrate`, which applies
 the policy once (site gravity, convergence refusal, Birge check).
 ``calibrate-stream`` is the same command with ``--stream`` on, kept (hidden)
 for the scripts that call it.
@@ -115,13 +115,12 @@ def calibrate(
     """Align, navigate on the stationary base and fit the 21 error parameters of
     RUN (CSV, CSV.GZ, NPZ or PSINS .imu) by iterated, noise-weighted least squares.
     """
-    from calib.calibration import calibrate as calibrate_source
-    from calib.calibration import reads_in_chunks
+    from calib.calibration.entry import calibrate as calibrate_source, reads_in_chunks
     from calib.errors import CalibError
-    from calib.extras import as_extras
-    from calib.profiles import as_profile
-    from calib.sequence import load_sequence
-    from calib.truth import read_truth, truth_path_for
+    from calib.model.optional_terms import as_extras
+    from calib.noise.profiles import load_profile
+    from calib.sequence.definition import load_sequence
+    from calib.sim.truth import read_truth, truth_path_for
 
     out_path = Path(output) if output else Path(run_path).with_name(Path(run_path).stem + ".result.toml")
     refuse_overwrite(
@@ -137,9 +136,9 @@ def calibrate(
         },
     )
     extras = as_extras(with_terms, by_hand=by_hand)
-    prof = as_profile(profile)
-    if not by_hand:  # a hand fit takes the mems requirements by default (calib.calibration)
-        from calib.requirements import default_for
+    prof = load_profile(profile)
+    if not by_hand:  # a hand fit takes the mems requirements by default (calib.calibration.entry)
+        from calib.model.requirements import default_for
 
         requirements, chosen = default_for(prof, requirements)  # the profile's grade, when not given
         if chosen:
@@ -201,7 +200,7 @@ def calibrate(
     )
     result.save(out_path)
     if correction_path:
-        from calib.correction import correction_of_result
+        from calib.calibration.correction import correction_of_result
 
         correction_of_result(result, run.conversion if run is not None else None, run_path).save(
             correction_path

@@ -49,9 +49,9 @@ def correct(
     """Apply the correction to every sample of LOG and write the calibrated log."""
     import numpy as np
 
-    from calib.correction import Correction, raw_samples
+    from calib.calibration.correction import Correction, raw_samples
+    from calib.nav.strapdown import sample_intervals
     from calib.runlog import Run, read_run, write_run
-    from calib.strapdown import sample_intervals
 
     from .reading import hand_reading
 

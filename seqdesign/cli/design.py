@@ -196,7 +196,7 @@ def design(
             protocol_path,
             as_json,
         )
-    from calib.fileio import check_writable_dir
+    from calib.io.files import check_writable_dir
     from seqdesign.search import design_budgets, parse_node
     from seqdesign.search.report import design_names
 
@@ -215,9 +215,9 @@ def design(
         and click.get_current_context().get_parameter_source("rate_dps") is click.core.ParameterSource.DEFAULT
     ):
         constraints["rate_dps"] = None  # the gimbal's own rate
-    from seqdesign.search import resolve_gimbal
+    from seqdesign.search import gimbal_constraints
 
-    _, constraints = resolve_gimbal(gimbal_file, constraints)  # refused before the search
+    _, constraints = gimbal_constraints(gimbal_file, constraints)  # refused before the search
     sweep = _budgets(budgets) if pareto else [budget_min]
     profile, requirements = _say_the_bounds(profile, requirements, latitude, sweep)
     base = name if name is not None else (_stem(output) if output else None)
@@ -266,16 +266,16 @@ def _say_the_bounds(profile, requirements, latitude, budgets_min):
     """The profile and the requirements to design for, after saying what no design can meet.
 
     Without ``--requirements`` the profile's grade gives them (and it is said). A
-    requirement that no sequence of a budget can meet (a bound of :mod:`calib.bounds`:
+    requirement that no sequence of a budget can meet (a bound of :mod:`calib.analysis.bounds`:
     a MEMS gyro's bias wander, gravity the only excitation of the accelerometer scale
     factors) is said before the minutes of search, with the length that would meet it.
     """
-    from calib import earth
-    from calib.bounds import unreachable
-    from calib.profiles import as_profile
-    from calib.requirements import default_for, load_requirements
+    from calib.analysis.bounds import unreachable
+    from calib.model.requirements import default_for, load_requirements
+    from calib.nav import earth
+    from calib.noise.profiles import load_profile
 
-    prof = as_profile(profile)
+    prof = load_profile(profile)
     requirements, chosen = default_for(prof, requirements)
     if chosen:
         info(chosen)

@@ -27,15 +27,15 @@ def design_by_hand(
     as_json,
 ) -> None:
     """Design, analyse (with a hand's placement error) and write the pose list and its protocol."""
-    from calib.extras import as_extras
-    from calib.fileio import atomic_write_text
-    from calib.profiles import as_profile
-    from calib.requirements import load_requirements
+    from calib.io.files import atomic_write_text
+    from calib.model.optional_terms import as_extras
+    from calib.model.requirements import load_requirements
+    from calib.noise.profiles import load_profile
     from seqdesign.handanalysis import analyze_hand
     from seqdesign.handdesign import design_hand
     from seqdesign.handprotocol import pose_toml, write_protocol
 
-    prof, req = as_profile(profile), load_requirements(requirements or "mems")
+    prof, req = load_profile(profile), load_requirements(requirements or "mems")
     extras = as_extras(with_terms, by_hand=True)
     out = Path(output or "hand.toml")
     info(f"designing a run placed by hand: {budget_min:g} min, profile {prof.name}, poses from {pose_set}")

@@ -36,7 +36,7 @@ def export(sequence, gimbal_file, output, rate_hz, as_json):
     A sequence the gimbal cannot play is refused, naming the step, the gimbal
     and the limit.
     """
-    from calib.gimbalfile import load_gimbal
+    from calib.gimbal.description import load_gimbal
     from seqdesign.schedule import check_rate_hz, export_schedule
 
     if Path(output).suffix.lower() != ".csv":

@@ -1,4 +1,4 @@
-"""The ``--by-hand`` options that add a real hand recording's troubles (calib.handtroubles).
+"""The ``--by-hand`` options that add a real hand recording's troubles (calib.hand.troubles).
 
 Shared by ``simulate --by-hand`` and ``verify --by-hand``: tremor of the poses held in the
 hand, host time stamps that jitter or count epoch milliseconds, a gyro g-sensitivity and a
@@ -121,9 +121,9 @@ def parse_g_sensitivity(text: str | None) -> float | tuple[float, ...] | None:
 
 
 def trouble_spec(values: dict):
-    """The :class:`calib.handtroubles.TroubleSpec` of the options' values; bad combinations refused."""
-    from calib.handtremor import SHAKE_MPS2
-    from calib.handtroubles import TroubleSpec
+    """The :class:`calib.hand.troubles.TroubleSpec` of the options' values; bad combinations refused."""
+    from calib.hand.tremor import SHAKE_MPS2
+    from calib.hand.troubles import TroubleSpec
 
     tremor = values["tremor_deg"]
     if not tremor:

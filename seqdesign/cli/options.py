@@ -2,14 +2,14 @@
 
 Each takes the help text of its command where the meaning differs (a latitude that
 overrides a sequence's, or fills in a logger's CSV); the name, type and limits are one.
-The site limits are calib.earth's, so the CLI refuses what the library would.
+The site limits are calib.nav.earth's, so the CLI refuses what the library would.
 """
 
 from __future__ import annotations
 
 import click
 
-from calib.earth import HEIGHT_RANGE_M, MAX_LATITUDE_DEG
+from calib.nav.earth import HEIGHT_RANGE_M, MAX_LATITUDE_DEG
 
 LATITUDE = click.FloatRange(-MAX_LATITUDE_DEG, MAX_LATITUDE_DEG)
 HEIGHT = click.FloatRange(*HEIGHT_RANGE_M)

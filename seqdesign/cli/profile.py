@@ -44,8 +44,8 @@ def fit(log, latitude, height, columns, output, name, plot, no_plot, as_json):
     range). The profile carries white noise and one GM; what it cannot carry is named
     (docs/profiles.md).
     """
+    from calib.allan.profile_fit import METHOD, FittedProfile, fit_profile, profile_doc, read_static_log
     from calib.errors import CalibError
-    from calib.profilefit import METHOD, FittedProfile, fit_profile, profile_doc, read_static_log
 
     if not output.lower().endswith(".toml"):
         raise CalibError("the profile must be a .toml file", output, "name it e.g. myimu.toml")

@@ -20,7 +20,7 @@ def show(sequence, gimbal_file, as_json):
     file or a shipped name such as paper-9pos), its gimbal angles (outer,
     middle, inner; continuous along the run) and its start and end times.
     """
-    from calib.gimbalfile import load_gimbal
+    from calib.gimbal.description import load_gimbal
     from seqdesign.positions import show_positions
 
     shown = show_positions(sequence, load_gimbal(gimbal_file))

@@ -18,9 +18,9 @@ from .handtroubles import given_troubles, trouble_options
 from .tools import emit_json, guarded, hidden_alias, info, provenance
 
 if TYPE_CHECKING:  # the machinery loads when a command runs, not for --help
-    from calib.errormodel import ErrorModel
-    from calib.profiles import NoiseProfile
-    from calib.sequence import Sequence
+    from calib.model.error_model import ErrorModel
+    from calib.noise.profiles import NoiseProfile
+    from calib.sequence.definition import Sequence
 
 
 @dataclass(frozen=True)
@@ -50,10 +50,10 @@ class _Setup:
                 "--setup-deg",
                 "the mounting tolerance of the conventions is +-3 deg",
             )
-        from calib.errormodel import ErrorModel
-        from calib.profiles import load_profile
-        from calib.sequence import load_sequence
-        from calib.truth import read_errors
+        from calib.model.error_model import ErrorModel
+        from calib.noise.profiles import load_profile
+        from calib.sequence.definition import load_sequence
+        from calib.sim.truth import read_errors
 
         seq = load_sequence(sequence)
         prof = load_profile(profile)
@@ -84,9 +84,9 @@ def _run_meta(prov: dict, profile_name: str) -> dict:
 
 
 def _simulate_streamed(setup: _Setup, cfg, output, setup_deg, seed, noise_free, as_json) -> None:
-    """``simulate --stream``: the run log written window by window (calib.simstream)."""
-    from calib.simstream import simulate_to_file
-    from calib.truth import truth_path_for, write_truth
+    """``simulate --stream``: the run log written window by window (calib.sim.to_disk)."""
+    from calib.sim.to_disk import simulate_to_file
+    from calib.sim.truth import truth_path_for, write_truth
 
     prov = setup.provenance()
     n, truth = simulate_to_file(
@@ -319,13 +319,13 @@ def simulate(
         )
     if sequence is None:
         raise click.UsageError("Missing argument 'SEQUENCE' (or give --by-hand).")
-    from calib.extras import parse_values
-    from calib.gimbal import check_playable, plan_sequence
-    from calib.gimbalfile import load_gimbal
+    from calib.gimbal.description import load_gimbal
+    from calib.gimbal.rule import check_playable, plan_sequence
+    from calib.model.optional_terms import parse_values
     from calib.runlog import write_run
-    from calib.sim import SimConfig
-    from calib.sim import simulate as run_simulation
-    from calib.truth import truth_path_for, write_truth
+    from calib.sequence.kinematics import SimConfig
+    from calib.sim.gimbal_run import simulate as run_simulation
+    from calib.sim.truth import truth_path_for, write_truth
     from seqdesign.analysis import resolve_site
 
     if stream:

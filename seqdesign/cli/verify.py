@@ -111,10 +111,10 @@ def verify(
     run reported and over `analyze`'s sigma (is the prediction right?), refusals and runs that did
     not converge. Identical with any --workers or --scheduler.
     """
-    from calib.errormodel import ErrorModel
-    from calib.profiles import as_profile
-    from calib.requirements import default_for, load_requirements
-    from calib.truth import read_errors
+    from calib.model.error_model import ErrorModel
+    from calib.model.requirements import default_for, load_requirements
+    from calib.noise.profiles import load_profile
+    from calib.sim.truth import read_errors
     from seqdesign.plots import verify_png
 
     if errors_file and table2:
@@ -128,7 +128,7 @@ def verify(
     if plot_path and Path(plot_path).suffix.lower() != ".png":
         raise CalibError(f"plot {plot_path!r} must end in .png", "--plot")
     # A unit placed by hand is judged by the mems requirements unless told otherwise, as calibrate does.
-    prof = as_profile(profile)
+    prof = load_profile(profile)
     if by_hand:
         req = load_requirements(requirements or "mems")
     else:
@@ -201,11 +201,11 @@ def _verify_sequence(
     gimbal_file,
 ):
     """The Monte Carlo of a gimbal sequence, held against ``analyze``'s worst-case sigma."""
-    from calib.extras import as_extras
-    from calib.gimbal import check_playable, plan_sequence
-    from calib.gimbalfile import load_gimbal
-    from calib.sequence import load_sequence
-    from calib.sim import SimConfig
+    from calib.gimbal.description import load_gimbal
+    from calib.gimbal.rule import check_playable, plan_sequence
+    from calib.model.optional_terms import as_extras
+    from calib.sequence.definition import load_sequence
+    from calib.sequence.kinematics import SimConfig
     from seqdesign.analysis import analyze, resolve_site
     from seqdesign.verify import verify as run_verify
 

@@ -34,10 +34,9 @@ def verify_by_hand(
     """
     import numpy as np
 
-    from calib.extras import as_extras
-    from calib.sim import SimConfig
-    from seqdesign.verify import HandShape
-    from seqdesign.verify import verify as run_verify
+    from calib.model.optional_terms import as_extras
+    from calib.sequence.kinematics import SimConfig
+    from seqdesign.verify import HandShape, verify as run_verify
 
     from .handtroubles import TROUBLE_DEFAULTS, trouble_spec
 
@@ -50,7 +49,7 @@ def verify_by_hand(
                 "--by-hand",
                 "give a pose list (docs/by-hand.md) with --by-hand, or a sequence without it",
             )
-        from calib.handposes import load_poses
+        from calib.hand.poses import load_poses
 
         pose_list = load_poses(sequence)
     if not by_hand:

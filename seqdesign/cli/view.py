@@ -2,7 +2,7 @@
 
 The command is a plain click command; ``seqdesign/cli.py`` registers it with
 ``main.add_command(view)``. The estimation work (motion, alignment,
-navigations) is :func:`calib.review.review_run`; :mod:`viz` only logs what
+navigations) is :func:`calib.fit.replay.review_run`; :mod:`viz` only logs what
 it is given. rerun itself is imported only inside the command.
 """
 
@@ -19,8 +19,7 @@ import click
 from calib.errors import CalibError
 
 from . import options
-from .tools import guarded, rerun_command
-from .tools import info as _info
+from .tools import guarded, info as _info, rerun_command
 
 # Exit code of `view --spawn` when there is no display: the recording is written, the viewer
 # is not opened (2 is kept for bad input, where nothing is written).
@@ -62,9 +61,9 @@ def _load_sequence(run, explicit, profile):
     if it names a shipped sequence that matches the log, else None. The log's turns are
     judged with ``profile``'s noise, as ``calibrate`` judges them.
     """
-    from calib.motion import check_sequence_matches, log_turns, sequence_motion
-    from calib.sequence import load_sequence
-    from calib.strapdown import sample_intervals
+    from calib.nav.strapdown import sample_intervals
+    from calib.sequence.definition import load_sequence
+    from calib.sequence.motion import check_sequence_matches, log_turns, sequence_motion
 
     name = explicit or run.sequence_name
     if not name:
@@ -92,8 +91,8 @@ def _load_result(run_path, explicit):
     A result whose provenance names a different run file (SHA-256) is refused
     when given explicitly and skipped with a warning when found by default.
     """
-    from calib.fileio import sha256_file
-    from calib.result import CalibrationResult
+    from calib.calibration.result import CalibrationResult
+    from calib.io.files import sha256_file
 
     path = Path(explicit) if explicit else _beside(run_path, ".result.toml")
     if not explicit and not path.exists():
@@ -174,11 +173,11 @@ def view(
     requirements (and against the truth of a simulated run).
     """
     from calib.runlog import read_run
-    from calib.truth import read_truth, truth_path_for
+    from calib.sim.truth import read_truth, truth_path_for
 
     out = Path(output) if output else _beside(run_path, ".rrd")
     _check_output(out)
-    from calib.review import motion_profile, review_run
+    from calib.fit.replay import motion_profile, review_run
 
     from .reading import hand_reading, run_notes
 

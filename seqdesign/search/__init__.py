@@ -11,7 +11,7 @@ whitening per candidate), :mod:`.gimbal` (what a real gimbal allows),
 from .beam import SearchModel, beam_search, brute_force
 from .constraints import Constraints, check_constraints, to_sequence
 from .design import DesignResult, design
-from .gimbal import resolve_gimbal
+from .gimbal import gimbal_constraints
 from .graph import Move, flip_graph, parse_node
 from .parallel import map_jobs
 from .pipeline import Progress
@@ -33,6 +33,6 @@ __all__ = [
     "flip_graph",
     "map_jobs",
     "parse_node",
-    "resolve_gimbal",
+    "gimbal_constraints",
     "to_sequence",
 ]

@@ -8,18 +8,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from calib import earth
-from calib.gmfilter import gm_start_covariance
-from calib.jacobian import N_UNKNOWN
-from calib.profiles import NoiseProfile
-from calib.requirements import PAPER, Requirements
-from calib.transform import AXES
+from calib.model.requirements import PAPER, Requirements
+from calib.nav import earth
+from calib.nav.jacobian import N_UNKNOWN
+from calib.nav.transform import AXES
+from calib.noise.gm_filter import gm_start_covariance
+from calib.noise.profiles import NoiseProfile
 
 from .constraints import Constraints, turn_rate, turn_seconds
 from .gimbal import at_home, home_reachable, next_encoders
 from .gm import SegmentColumns, fold, fold_block, segment_blocks, stack, start_state, then
-from .graph import Move, Node, apply_move, as_node, attitude_of, flip_graph
-from .graph import moves as all_moves
+from .graph import Move, Node, apply_move, as_node, attitude_of, flip_graph, moves as all_moves
 from .objective import score
 from .segments import (
     SEARCH_REST_INTERVALS,

@@ -6,10 +6,9 @@ import math
 from dataclasses import dataclass
 
 from calib.errors import CalibError
-from calib.gimbalfile import Gimbal
-from calib.sequence import Sequence, Step
-from calib.start import FIRST_REST_MARGIN_S, MIN_ALIGN_S
-from calib.transform import AXES
+from calib.gimbal.description import Gimbal
+from calib.nav.transform import AXES
+from calib.sequence.definition import FIRST_REST_MARGIN_S, MIN_ALIGN_S, Sequence, Step
 
 from .gimbal import move_profile
 from .graph import Move, Node, as_node

@@ -12,14 +12,13 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 
+from calib.analysis.worst_case import ExtrasCost, Robustness
 from calib.errors import CalibError
-from calib.extras import NONE as NO_EXTRAS
-from calib.extras import Extras
-from calib.feedback import check_wander
-from calib.profiles import NoiseProfile
-from calib.requirements import PAPER, Requirements
-from calib.sequence import Sequence
-from calib.worstcase import ExtrasCost, Robustness
+from calib.model.optional_terms import NONE as NO_EXTRAS, Extras
+from calib.model.requirements import PAPER, Requirements
+from calib.noise.profiles import NoiseProfile
+from calib.noise.wander import check_wander
+from calib.sequence.definition import Sequence
 
 from .beam import BeamJob, search_at_dwell
 from .constraints import Constraints, check_constraints, uniform_dwell
@@ -188,7 +187,7 @@ def design(
     """
     _check_design_args(c, objective)
     # A budget whose attitude wander the fit cannot follow would be designed for sigmas no
-    # calibration achieves (calib.feedback.MAX_WANDER_DEG).
+    # calibration achieves (calib.noise.wander.MAX_WANDER_DEG).
     check_wander(profile, c.budget_s, "--budget-min")
     t0 = time.perf_counter()
     site = (math.degrees(latitude_rad), height_m)  # written into the sequence: analyse it there

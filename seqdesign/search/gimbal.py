@@ -1,7 +1,7 @@
 """What the design search needs from a real gimbal (``design --gimbal FILE``).
 
 The search walks moves of whole quarter turns; with a gimbal each child is
-played by :func:`calib.gimbal.plan_move` from its parent's encoder state
+played by :func:`calib.gimbal.rule.plan_move` from its parent's encoder state
 (continuous angles, so winding counts) and dropped when the move breaks a
 limit (range, lock margin, rate, acceleration, or a lock counter-rotation
 longer than the shortest rest). A gimbal that must end at home only accepts
@@ -23,9 +23,9 @@ import math
 import numpy as np
 
 from calib.errors import CalibError
-from calib.gimbal import plan_move, plan_sequence
-from calib.gimbalfile import Gimbal, load_gimbal
-from calib.rateprofile import RateProfile
+from calib.gimbal.description import Gimbal, load_gimbal
+from calib.gimbal.rule import plan_move, plan_sequence
+from calib.sequence.rate_profile import RateProfile
 
 HOME_TOL_RAD = 1e-6  # encoder "at 0": grid moves land on multiples of pi/2 to rounding
 MAX_DESIGN_RATE_DPS = 100.0  # check_constraints' upper bound on --rate-dps
@@ -66,7 +66,7 @@ def gimbal_limits(gimbal: Gimbal, rate_dps: float | None, default_rate_dps: floa
     }
 
 
-def resolve_gimbal(gimbal, constraints: dict) -> tuple[Gimbal | None, dict]:
+def gimbal_constraints(gimbal, constraints: dict) -> tuple[Gimbal | None, dict]:
     """The gimbal (path, shipped name or :class:`Gimbal`) and the constraints with its limits.
 
     ``constraints['rate_dps'] = None`` means "the gimbal's own rate".
@@ -76,7 +76,7 @@ def resolve_gimbal(gimbal, constraints: dict) -> tuple[Gimbal | None, dict]:
         if out.get("rate_dps", 0) is None:
             out["rate_dps"] = 10.0
         return None, out
-    g = gimbal if isinstance(gimbal, Gimbal) else load_gimbal(gimbal)
+    g = load_gimbal(gimbal)
     return g, dict(constraints) | gimbal_limits(g, constraints.get("rate_dps")) | {"gimbal": g}
 
 

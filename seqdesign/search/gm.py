@@ -10,7 +10,7 @@ and a segment is folded by running the Riccati recursion and the whitening of
 the candidate's columns, batched over all candidates that take the same
 segment. The observation columns of a segment do not depend on ``P``: they are
 computed once per search (:func:`segment_columns`). The recursions are those
-of :func:`calib.noise.whitener` and :func:`calib.noise.whiten`, rearranged for
+of :func:`calib.noise.whitening.whitener` and :func:`calib.noise.whitening.whiten`, rearranged for
 speed (same arithmetic to rounding):
 
 - the state and velocity rows of the transition are one ``(s + 3, s)`` matrix
@@ -18,7 +18,7 @@ speed (same arithmetic to rounding):
   gives the predicted covariance, the innovation covariance and their
   cross term in two products;
 - the 3 x 3 innovation covariance is factored in closed form
-  (:func:`calib.noise.cholesky_inverse_3`, no LAPACK call per candidate);
+  (:func:`calib.noise.whitening.cholesky_inverse_3`, no LAPACK call per candidate);
 - the whitened rows of every interval are kept and the information is one
   product ``W' W`` per segment.
 """
@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.noise import cholesky_inverse_3, filter_order, interval_models
+from calib.noise.whitening import cholesky_inverse_3, filter_order, interval_models
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ import networkx as nx
 import numpy as np
 
 from calib.errors import CalibError
-from calib.transform import AXES, attitude_from_directions, directions_of, rot_axis
+from calib.nav.transform import AXES, attitude_from_directions, directions_of, rot_axis
 
 Node = tuple[str, str, str]
 

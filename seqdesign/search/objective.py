@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib import params as P
 from calib.errors import CalibError
-from calib.information import inverse_diagonal, marginal
-from calib.requirements import PAPER, Requirements
+from calib.model import params as P
+from calib.model.information import inverse_diagonal, marginal
+from calib.model.requirements import PAPER, Requirements
 
 PRIOR_RATIO = 1e4  # partial walks: a prior of 1e4 x each requirement keeps them rankable
 OBJECTIVES = ("worst", "D", "A", "E")
@@ -36,7 +36,7 @@ def score(
     if objective in ("worst", "A"):
         # With the prior, partial walks must stay rankable and the prior keeps M invertible:
         # a plain batched inverse (3x faster than eigh). Without it, the one observability
-        # rule of calib.information: inf for a walk that leaves a direction unobserved.
+        # rule of calib.model.information: inf for a walk that leaves a direction unobserved.
         d = np.einsum("...ii->...i", np.linalg.inv(M)) if prior else inverse_diagonal(M)
         return 3.0 * np.sqrt(d.max(axis=-1)) if objective == "worst" else d.sum(axis=-1)
     ev = np.linalg.eigvalsh(M)

@@ -15,16 +15,15 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from calib import params as P
+from calib.analysis.gm_mounting import release_caches
+from calib.analysis.worst_case import ExtrasCost, Robustness, analyze_extras, analyze_tolerance
 from calib.errors import CalibError
-from calib.extras import NONE as NO_EXTRAS
-from calib.extras import Extras
-from calib.gimbal import plan_sequence
-from calib.gmmounting import release_caches
-from calib.profiles import NoiseProfile
-from calib.requirements import PAPER, Requirements
-from calib.sequence import Sequence
-from calib.worstcase import ExtrasCost, Robustness, analyze_extras, analyze_tolerance
+from calib.gimbal.rule import plan_sequence
+from calib.model import params as P
+from calib.model.optional_terms import NONE as NO_EXTRAS, Extras
+from calib.model.requirements import PAPER, Requirements
+from calib.noise.profiles import NoiseProfile
+from calib.sequence.definition import Sequence
 
 from .constraints import Constraints, to_sequence, turn_seconds
 from .graph import Move

@@ -7,13 +7,14 @@ import math
 
 import numpy as np
 
-from calib import earth, ipopt
-from calib import params as P
-from calib.gmfilter import gm_start_covariance
-from calib.information import inverse_diagonal
-from calib.jacobian import N_UNKNOWN
-from calib.profiles import NoiseProfile
-from calib.requirements import PAPER, Requirements
+from calib.analysis import ipopt
+from calib.model import params as P
+from calib.model.information import inverse_diagonal
+from calib.model.requirements import PAPER, Requirements
+from calib.nav import earth
+from calib.nav.jacobian import N_UNKNOWN
+from calib.noise.gm_filter import gm_start_covariance
+from calib.noise.profiles import NoiseProfile
 
 from .constraints import Constraints, turn_rate, turn_seconds
 from .gm import SegmentBlock, fold, fold_block, segment_blocks, stack, start_state

@@ -12,17 +12,16 @@ import math
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
-from calib import earth
-from calib.bounds import accel_scale_bound
+from calib.analysis.bounds import accel_scale_bound
+from calib.analysis.worst_case import analyze_tolerance
 from calib.errors import CalibError
-from calib.extras import NONE as NO_EXTRAS
-from calib.extras import Extras, parse_groups
-from calib.fileio import atomic_write_text, sha256_file
-from calib.gimbalfile import Gimbal
-from calib.profiles import NoiseProfile, as_profile
-from calib.requirements import PAPER, Requirements, load_requirements
-from calib.sequence import load_sequence, save_sequence
-from calib.worstcase import analyze_tolerance
+from calib.gimbal.description import Gimbal
+from calib.io.files import atomic_write_text, sha256_file
+from calib.model.optional_terms import NONE as NO_EXTRAS, Extras, parse_groups
+from calib.model.requirements import PAPER, Requirements, load_requirements
+from calib.nav import earth
+from calib.noise.profiles import NoiseProfile, load_profile
+from calib.sequence.definition import load_sequence, save_sequence
 
 from ..plots import pareto_png
 from .constraints import Constraints, check_constraints
@@ -254,7 +253,7 @@ def design_budgets(
         A :class:`seqdesign.search.Constraints` (its ``budget_s`` is replaced by each
         budget), or a dict of its fields other than the budget (start, end, max_flips,
         axes, max_quarters, rate_dps, min/max dwell; a gimbal and its move limits from
-        :func:`seqdesign.search.gimbal.resolve_gimbal`). Default: ``Constraints()``'s.
+        :func:`seqdesign.search.gimbal.gimbal_constraints`). Default: ``Constraints()``'s.
         ``seqdesign.api.design`` also takes them as keywords and resolves a gimbal's name.
     profile : NoiseProfile or str
         The noise the design is optimised for.
@@ -292,7 +291,7 @@ def design_budgets(
             f.name: getattr(constraints, f.name) for f in fields(Constraints) if f.name != "budget_s"
         }
     constraints = dict(constraints or {})
-    prof = as_profile(profile)
+    prof = load_profile(profile)
     req = load_requirements(requirements)
     ext = extras if isinstance(extras, Extras) else Extras(parse_groups(extras))
     earth.check_site(latitude_deg, 0.0)

@@ -26,9 +26,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib import earth
-from calib import params as P
-from calib.jacobian import (
+from calib.model import params as P
+from calib.nav import earth
+from calib.nav.jacobian import (
     N_UNKNOWN,
     ObservationGrid,
     moment_inputs,
@@ -37,11 +37,11 @@ from calib.jacobian import (
     state_matrix,
     trajectory_moments,
 )
-from calib.noise import interval_models, noise_model, whiten, whitener
-from calib.profiles import NoiseProfile
-from calib.sequence import Timeline, nominal_attitude
-from calib.sim import body_integrals
-from calib.transform import AXES
+from calib.nav.transform import AXES
+from calib.noise.profiles import NoiseProfile
+from calib.noise.whitening import interval_models, noise_model, whiten, whitener
+from calib.sequence.definition import Timeline, nominal_attitude
+from calib.sequence.kinematics import body_integrals
 
 from .gm import SegmentColumns, noise_blocks
 from .graph import attitude_of
@@ -189,7 +189,7 @@ def rest_steady_state(
     rest is then taken at the identity attitude, which makes the result the covariance
     with the biases in the navigation frame: :func:`start_covariance` rotates it into
     any attitude's body frame (the model is rotation-invariant in that frame, see
-    :func:`calib.noise.gm_interval_nav`).
+    :func:`calib.noise.whitening.gm_interval_nav`).
     """
     T = np.full(40 * SEARCH_REST_INTERVALS, dwell_s / SEARCH_REST_INTERVALS)
     C = np.broadcast_to(np.eye(3), (len(T), 3, 3)) if profile.has_gauss_markov else None

@@ -1,0 +1,240 @@
+"""A calibration as the correction a user applies: ``calibrated = M (raw - b)`` per sensor.
+
+What imu_tk and imucal hand out, in the units the log was recorded in (counts
+when the log is raw counts read with a nominal conversion, else SI), with the
+1-sigma of every element propagated from the fit's covariance. The gyro's
+g-sensitivity, when fitted, is removed with the calibrated specific force::
+
+    f = M_a (raw_a - b_a)                       # m/s^2
+    w = M_g (raw_g - b_g - G f)                 # rad/s
+
+From the 21-parameter model (``w_meas = A_g w + b_g + G_si f``, with the log's
+per-axis nominal conversion ``raw = k * w_meas + z``): ``M_g = A_g^-1 diag(1/k)``,
+``b_g = z + k * b_g_si``, ``G = diag(k) G_si``; the accelerometer alike without G.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from calib.errors import CalibError
+from calib.io.fields import FORMAT_VERSION, Fields, check_format_version
+from calib.io.files import atomic_write_text, load_toml
+from calib.model import params as P
+from calib.model.error_model import ErrorModel
+from calib.nav.strapdown import sample_intervals
+
+SENSORS = ("gyro", "accel")
+SI_UNIT = {"gyro": "rad/s", "accel": "m/s^2"}
+
+
+@dataclass(frozen=True)
+class SensorCorrection:
+    """``calibrated = M (raw - b)`` for one sensor triad.
+
+    Attributes
+    ----------
+    M : ndarray, shape (3, 3)
+        SI per raw unit.
+    b : ndarray, shape (3,)
+        Raw units.
+    sigma_M, sigma_b : ndarray
+        1-sigma of each element (nan where not known).
+    raw_unit : str
+        ``counts``, ``rad/s`` or ``m/s^2``.
+    """
+
+    M: np.ndarray
+    b: np.ndarray
+    sigma_M: np.ndarray
+    sigma_b: np.ndarray
+    raw_unit: str
+
+
+@dataclass(frozen=True)
+class Correction:
+    """Both triads' corrections and the gyro's g-sensitivity (raw gyro units per m/s^2), or None."""
+
+    gyro: SensorCorrection
+    accel: SensorCorrection
+    g_sensitivity: np.ndarray | None = None
+    sigma_g_sensitivity: np.ndarray | None = None
+    source: str = ""
+
+    def apply(self, raw_gyro: np.ndarray, raw_accel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Calibrated rates (rad/s) and specific force (m/s^2) of ``(n, 3)`` raw samples."""
+        f = (np.asarray(raw_accel, dtype=float) - self.accel.b) @ self.accel.M.T
+        g = np.asarray(raw_gyro, dtype=float) - self.gyro.b
+        if self.g_sensitivity is not None:
+            g = g - f @ self.g_sensitivity.T
+        return g @ self.gyro.M.T, f
+
+    def to_dict(self) -> dict:
+        doc: dict = {"format_version": FORMAT_VERSION, "kind": "correction", "source": self.source}
+        for name, c in (("gyro", self.gyro), ("accel", self.accel)):
+            doc[name] = {
+                "raw_unit": c.raw_unit,
+                "calibrated_unit": SI_UNIT[name],
+                "M": [[float(x) for x in row] for row in c.M],
+                "b": [float(x) for x in c.b],
+                "sigma_M": [[float(x) for x in row] for row in c.sigma_M],
+                "sigma_b": [float(x) for x in c.sigma_b],
+            }
+        if self.g_sensitivity is not None:
+            doc["gyro"]["G"] = [[float(x) for x in row] for row in self.g_sensitivity]
+            sg = self.sigma_g_sensitivity if self.sigma_g_sensitivity is not None else np.full((3, 3), np.nan)
+            doc["gyro"]["sigma_G"] = [[float(x) for x in row] for row in sg]
+        return doc
+
+    def save(self, path: str | Path) -> None:
+        """Write the correction TOML (``docs/by-hand.md``); nothing is written on a failure."""
+        atomic_write_text(path, _to_toml(self.to_dict()))
+
+    @classmethod
+    def load(cls, path: str | Path) -> Correction:
+        doc = load_toml(path)
+        where = str(path)
+        check_format_version(doc, "correction", where)
+        if doc.get("kind") != "correction":
+            raise CalibError(
+                "is not a correction file (kind = 'correction')",
+                where,
+                "give the file calibrate --correction wrote",
+            )
+        parts = {}
+        for name in SENSORS:
+            table = doc.get(name)
+            if not isinstance(table, dict):
+                raise CalibError(
+                    f"has no [{name}] table", where, "give the file calibrate --correction wrote"
+                )
+            f = Fields(table, f"{where} [{name}]")
+            raw_unit = f.string("raw_unit", "counts")
+            parts[name] = SensorCorrection(
+                _matrix(table, "M", where, name),
+                np.array(f.numbers("b", length=3, fix="give x, y, z")),
+                _matrix(table, "sigma_M", where, name, allow_nan=True),
+                np.array(f.numbers("sigma_b", length=3, finite=False, fix="give x, y, z")),
+                raw_unit,
+            )
+        G = _matrix(doc["gyro"], "G", where, "gyro") if "G" in doc["gyro"] else None
+        sG = (
+            _matrix(doc["gyro"], "sigma_G", where, "gyro", allow_nan=True)
+            if "sigma_G" in doc["gyro"]
+            else None
+        )
+        return cls(parts["gyro"], parts["accel"], G, sG, str(doc.get("source", "")))
+
+
+def correction_from_parameters(
+    values: np.ndarray,
+    covariance: np.ndarray,
+    g_sensitivity: np.ndarray | None = None,
+    sigma_g_sensitivity: np.ndarray | None = None,
+    gyro_conversion: tuple[np.ndarray, np.ndarray] | None = None,
+    accel_conversion: tuple[np.ndarray, np.ndarray] | None = None,
+    source: str = "",
+) -> Correction:
+    """The correction of 21 parameters (SI) and their covariance.
+
+    ``*_conversion`` is the log's nominal ``(zero_counts, counts_per_si)`` per
+    axis when it was raw counts (the correction is then in counts), else None.
+    """
+    values = np.asarray(values, dtype=float)
+    cov = np.asarray(covariance, dtype=float)
+
+    def elements(v: np.ndarray) -> np.ndarray:
+        model = ErrorModel(v)
+        out = []
+        for sensor, conv in (("gyro", gyro_conversion), ("accel", accel_conversion)):
+            zero, k = conv if conv is not None else (np.zeros(3), np.ones(3))
+            A = model.gyro_matrix if sensor == "gyro" else model.accel_matrix
+            bias = model.gyro_bias if sensor == "gyro" else model.accel_bias
+            out += [(np.linalg.inv(A) / k[None, :]).ravel(), zero + k * bias]
+        return np.concatenate(out)
+
+    e0 = elements(values)
+    # Central differences at a step well inside the model's linear range and far above rounding.
+    J = np.empty((len(e0), P.N_PARAMS))
+    for i in range(P.N_PARAMS):
+        step = 1e-6 * max(abs(values[i]), 1e-3 * P.PARAMETERS[i].si_per_unit)
+        d = np.zeros(P.N_PARAMS)
+        d[i] = step
+        J[:, i] = (elements(values + d) - elements(values - d)) / (2 * step)
+    finite = np.all(np.isfinite(cov), axis=1)
+    c = np.where(np.outer(finite, finite), cov, 0.0)
+    sigma = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", J, c, J), 0.0))
+    sigma[np.any(J[:, ~finite] != 0, axis=1)] = np.nan  # rests on a parameter not estimated
+
+    parts = []
+    for s, (sensor, conv) in enumerate((("gyro", gyro_conversion), ("accel", accel_conversion))):
+        o = 12 * s
+        parts.append(
+            SensorCorrection(
+                e0[o : o + 9].reshape(3, 3),
+                e0[o + 9 : o + 12],
+                sigma[o : o + 9].reshape(3, 3),
+                sigma[o + 9 : o + 12],
+                "counts" if conv is not None else SI_UNIT[sensor],
+            )
+        )
+    G = sG = None
+    if g_sensitivity is not None:
+        k = gyro_conversion[1] if gyro_conversion is not None else np.ones(3)
+        G = k[:, None] * np.asarray(g_sensitivity, dtype=float)
+        if sigma_g_sensitivity is not None:
+            sG = k[:, None] * np.asarray(sigma_g_sensitivity, dtype=float)
+    return Correction(parts[0], parts[1], G, sG, source)
+
+
+def correction_of_result(result, conversion=None, source: str = "") -> Correction:
+    """The correction of a :class:`~calib.calibration.result.CalibrationResult`; in counts when read
+    through a nominal ``conversion`` (:class:`calib.runlog.conversion.Conversion`).
+    """
+    G = sG = None
+    if "g-sensitivity" in result.extras.groups:
+        part = result.extras.index("g-sensitivity")
+        G = np.asarray(result.extra_values)[part].reshape(3, 3)
+        sG = np.asarray(result.extra_sigma)[part].reshape(3, 3)
+    convs: list[tuple[np.ndarray, np.ndarray] | None] = [None, None]
+    if conversion is not None:
+        convs = [(conversion.zero_counts[s], conversion.counts_per_unit[s]) for s in SENSORS]
+    return correction_from_parameters(result.values, result.covariance, G, sG, convs[0], convs[1], source)
+
+
+def raw_samples(run, correction: Correction, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """The log's samples in the units ``correction`` takes: counts, or rad/s and m/s^2."""
+    dt = sample_intervals(run.time_s)[:, None]
+    rate, force = run.dtheta_rad / dt, run.dv_mps / dt
+    if "counts" not in (correction.gyro.raw_unit, correction.accel.raw_unit):
+        return rate, force
+    if run.conversion is None:
+        raise CalibError(
+            "the correction takes raw counts (it was made from a log in counts), but this log was read in SI",
+            where,
+            "read the log with the --conversion file it was calibrated with",
+        )
+    return run.conversion.to_counts(rate, "gyro"), run.conversion.to_counts(force, "accel")
+
+
+def _matrix(table: dict, key: str, where: str, name: str, allow_nan: bool = False) -> np.ndarray:
+    rows = table.get(key)
+    try:
+        M = np.array(rows, dtype=float)
+    except (TypeError, ValueError):
+        M = np.zeros(0)
+    if M.shape != (3, 3) or (not allow_nan and not np.all(np.isfinite(M))):
+        raise CalibError(
+            f"{key} must be 3 rows of 3 numbers", f"{where} [{name}]", "give the matrix row by row"
+        )
+    return M
+
+
+def _to_toml(doc: dict) -> str:
+    import tomli_w  # only when a correction is written
+
+    head = "# calibrated = M (raw - b) per sensor; the gyro's: M (raw - b - G f), f the calibrated accel\n"
+    return head + tomli_w.dumps(doc)

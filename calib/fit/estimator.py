@@ -1,0 +1,499 @@
+"""Iterated least squares for the 21 parameters from a run (the paper's 2.3.1-2.3.5).
+
+Each iteration compensates the raw increments with the current estimate,
+navigates on the stationary base, and fits the navigation velocity errors
+with the linearised model of :mod:`calib.nav.jacobian` weighted by the exact
+noise structure of :mod:`calib.noise.whitening` (a Gauss-Newton step of the GLS
+problem). The unknowns are the 21 parameters, the initial attitude error
+and any optional terms switched on (:mod:`calib.model.optional_terms`); nothing about the
+heading is assumed: the first guess comes from levelling and gyrocompassing
+on the first rest. A profile with Gauss-Markov bias instability re-weights
+the observations along the navigated attitude.
+
+The run is streamed (:mod:`calib.nav.chunk_pass`): each navigation is one pass over
+the samples, a chunk at a time, that leaves only per-interval quantities,
+and :func:`fit_intervals` navigates only while a step can still matter.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from calib.errors import CalibError
+from calib.model import optional_terms as X, params as P
+from calib.model.error_model import ErrorModel
+from calib.model.information import UNKNOWN_NAMES
+from calib.model.optional_terms import Extras
+from calib.model.requirements import PAPER, Requirements
+from calib.nav import earth
+from calib.nav.chunk_pass import array_chunks, chunk_cuts, navigate_pass
+from calib.nav.jacobian import (
+    PHI0,
+    ObservationGrid,
+    default_grid,
+    observation_jacobian,
+    observation_matrix,
+    sensitivities,
+    state_matrix,
+)
+from calib.nav.site import Site
+from calib.nav.strapdown import navigate, sample_intervals
+from calib.nav.transform import rotvec_to_dcm
+from calib.noise.frame import model_frame, noise_stale, to_frame
+from calib.noise.profiles import NoiseProfile
+from calib.noise.wander import check_wander
+from calib.noise.whitening import noise_model, whiten
+from calib.sequence.inferred import infer_sequence
+from calib.sequence.motion import Segmentation, detect_motion
+
+from . import sanity
+from .feedback import MAX_ITERATIONS, FeedbackSchedule
+from .gyrocompass import rests_in_memory
+from .solution import (
+    Fit,
+    apply_step,
+    fit_result,
+    history_entry,
+    nominal_judge,
+    scaled_design,
+    solve_information,
+)
+from .start import check_first_rest, mean_rest_rate, start_attitude
+
+# Past the third iteration the Jacobian is rebuilt only while the last step exceeded this many
+# sigmas: below it the linearisation error is far below the convergence tolerance.
+RELINEARISE_STEP_SIGMA = 0.1
+
+
+def check_run(
+    dtheta_m: np.ndarray,
+    dv_m: np.ndarray,
+    dt: np.ndarray,
+    latitude_rad: float,
+    gravity_mps2: float,
+    profile: NoiseProfile,
+    moving: np.ndarray | None,
+    where: str,
+    requirements: Requirements = PAPER,
+    max_rate_rad_s: float | None = sanity.MAX_PLAUSIBLE_RATE,
+) -> Segmentation:
+    """Refuse a log the fit cannot use, naming why; return where it turns.
+
+    What is plausible follows the unit's class (its profile and requirements):
+    a MEMS unit's biases of 1000 deg/h and 20 mg are not a log in wrong units.
+    ``max_rate_rad_s`` is the fastest plausible turn (`calib.fit.sanity.check_rates`):
+    a gimbal's by default; a run turned by hand gives its sensor's range, or None.
+    """
+    sanity.check_latitude(latitude_rad, where)
+    sanity.check_rates(dtheta_m, dt, where, max_rate_rad_s)
+    seg = detect_motion(dtheta_m, dt, where, arw=profile.arw)
+    if moving is not None:
+        seg = Segmentation(moving=moving, first_rest_end=int(np.argmax(moving)))
+    check_first_rest(dtheta_m, dv_m, dt, slice(0, seg.first_rest_end), gravity_mps2, where, requirements)
+    sanity.check_saturation(dtheta_m, dv_m, where)
+    sanity.check_rests(dv_m, dt, seg.moving, profile.vrw, where)
+    return seg
+
+
+@dataclass
+class _Problem:
+    """The fixed data of one fit: the log, its site, the observation grid and the unknowns."""
+
+    time_s: np.ndarray
+    dtheta_m: np.ndarray
+    dv_m: np.ndarray
+    dt: np.ndarray
+    latitude_rad: float
+    gravity_mps2: float
+    profile: NoiseProfile
+    extras: Extras
+    grid: ObservationGrid
+    where: str
+
+    @property
+    def t_nav(self) -> np.ndarray:
+        return np.concatenate([[self.time_s[0] - self.dt[0]], self.time_s])
+
+    def compensate_and_navigate(self, values, extra_values, C0, turn, feedback=None):
+        """Compensate the raw increments with the current estimate (and feedback) and navigate."""
+        model = ErrorModel(values)
+        dth, dvv = model.compensate(self.dtheta_m, self.dv_m, self.dt)
+        if self.extras.n:
+            dvv = X.compensate(
+                self.extras.unpack(extra_values),
+                dth,
+                self.dv_m,
+                self.dt,
+                lambda x: model.compensate(self.dtheta_m, x, self.dt)[1],
+                turn,
+            )
+        if feedback is not None:  # after the extra terms, as calib.nav.chunk_pass applies it
+            b = self.grid.bounds  # b[0] = 0 and b[-1] = n: every sample is in an interval
+            dth = dth + np.repeat(feedback.body_rate, np.diff(b), axis=0) * self.dt[:, None]
+        nav = navigate(dth, dvv, self.time_s, C0, self.latitude_rad, self.gravity_mps2, t0=self.t_nav[0])
+        return dth, dvv, nav
+
+    def observations(self, nav, Phi_vv, it: int, feedback_dv=None, hint: str = "") -> np.ndarray:
+        """Velocity changes over the observation intervals, less the noise model's prediction."""
+        y = nav.v_n[self.grid.bounds]
+        return _observations(y if feedback_dv is None else y - feedback_dv, Phi_vv, it, self.where, hint)
+
+
+def fit_run(
+    time_s: np.ndarray,
+    dtheta_m: np.ndarray,
+    dv_m: np.ndarray,
+    latitude_rad: float,
+    gravity_mps2: float,
+    profile: NoiseProfile,
+    moving: np.ndarray | None = None,
+    max_iterations: int | None = None,
+    tol_sigma: float = 1e-3,
+    where: str = "run",
+    extras: Extras = X.NONE,
+    partial: bool = False,
+    requirements: Requirements = PAPER,
+    sequence=None,
+    renavigate: str = "when-needed",
+    max_rate_rad_s: float | None = sanity.MAX_PLAUSIBLE_RATE,
+) -> Fit:
+    """Identify the 21 parameters, the initial attitude and any optional terms from raw increments.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,)
+        End time of each sample.
+    dtheta_m, dv_m : ndarray, shape (n, 3)
+        Raw (uncompensated) increments.
+    latitude_rad, gravity_mps2 : float
+        The site.
+    profile : NoiseProfile
+        Weights the observations and scales the covariance.
+    moving : ndarray of bool, optional
+        Which samples turn (from the sequence); detected from the gyros if None.
+    max_iterations : int, optional
+        Gauss-Newton iterations at most. Default: :data:`MAX_ITERATIONS`, or
+        :data:`~calib.fit.feedback.WANDER_MAX_ITERATIONS` for a run whose attitude noise needs
+        the feedback of :func:`attitude_feedback`.
+    tol_sigma : float
+        Converged when every correction is below this fraction of its sigma.
+    where : str
+        Names the log in refusals.
+    extras : Extras
+        Optional terms (:mod:`calib.model.optional_terms`) to estimate with the 21.
+    partial : bool
+        Fit the estimable part of a run that leaves directions unobserved
+        instead of refusing it (:func:`solve_information`).
+    requirements : Requirements
+        Scale the unknowns, and so decide what counts as observed
+        (:mod:`calib.model.information`).
+    sequence : Sequence, optional
+        The nominal sequence: on a run that leaves directions unobserved it
+        decides which parameters are estimable, as the analyser does.
+        Default: inferred from the navigation (:mod:`calib.sequence.inferred`).
+    renavigate : {"when-needed", "always"}
+        "when-needed" (default): stream the run through :func:`fit_intervals`,
+        which navigates only while a step could still move the estimate by
+        ``tol_sigma``; "always": the reference loop that re-navigates the
+        whole run in memory at every iteration (for tests and benchmarks).
+    max_rate_rad_s : float or None
+        The fastest plausible turn (:func:`calib.fit.sanity.check_rates`): a gimbal's by
+        default; a run turned by hand gives its sensor's range, or None for no check.
+
+    Returns
+    -------
+    Fit
+    """
+    if renavigate not in ("when-needed", "always"):
+        raise ValueError(f"renavigate must be 'when-needed' or 'always', not {renavigate!r}")
+    dt = sample_intervals(time_s)
+    seg = check_run(
+        dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, moving, where, requirements, max_rate_rad_s
+    )
+    grid = default_grid(seg.moving, 1.0 / np.median(dt))
+    first = slice(0, seg.first_rest_end)
+    start, C0 = start_attitude(
+        (dtheta_m[first], dv_m[first], dt[first]),
+        mean_rest_rate(dtheta_m, dt, seg.moving),
+        functools.partial(rests_in_memory, dtheta_m, dt, seg.moving),
+        latitude_rad,
+    )
+    judge = nominal_judge(
+        functools.partial(
+            _run_sequence,
+            sequence,
+            time_s,
+            dtheta_m,
+            dv_m,
+            dt,
+            seg.moving,
+            C0,
+            start,
+            latitude_rad,
+            gravity_mps2,
+        ),
+        latitude_rad,
+        profile,
+        extras,
+        requirements,
+    )
+    options = dict(
+        extras=extras,
+        partial=partial,
+        requirements=requirements,
+        max_iterations=max_iterations,
+        tol_sigma=tol_sigma,
+        where=where,
+        start=start,
+        judge=judge,
+    )
+    if renavigate == "always":
+        pb = _Problem(time_s, dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, extras, grid, where)
+        return _fit_renavigating(pb, C0, **options)
+    site, t0 = Site(latitude_rad, gravity_mps2), float(time_s[0] - dt[0])
+    cuts = chunk_cuts(grid)
+    del dt, seg  # whole-run temporaries: the passes need one chunk at a time
+    return fit_intervals(
+        lambda: array_chunks(time_s, dtheta_m, dv_m, t0, cuts), grid, site, t0, C0, profile, **options
+    )
+
+
+def _fit_renavigating(
+    pb: _Problem,
+    C0: np.ndarray,
+    extras: Extras,
+    partial: bool,
+    requirements: Requirements,
+    max_iterations: int | None,
+    tol_sigma: float,
+    where: str,
+    start: np.ndarray | None = None,
+    judge=None,
+) -> Fit:
+    """The reference loop: re-navigate the whole run in memory at every iteration.
+
+    It is the reference for the streamed loop's navigation shortcut (navigate
+    only while a step can matter) and its per-interval arithmetic, not for a
+    different iteration: the attitude feedback and the steps about it follow
+    the same :class:`FeedbackSchedule`.
+    """
+    latitude_rad, gravity_mps2, profile, grid, dt = (
+        pb.latitude_rad,
+        pb.gravity_mps2,
+        pb.profile,
+        pb.grid,
+        pb.dt,
+    )
+    A, T = state_matrix(latitude_rad, gravity_mps2), np.diff(pb.t_nav[grid.bounds])
+    mid = (grid.bounds[:-1] + grid.bounds[1:]) // 2
+    values = np.zeros(P.N_PARAMS) if start is None else start.copy()
+    extra_values = np.zeros(extras.n)
+    names = UNKNOWN_NAMES + extras.names
+    omega_ie_n = earth.omega_ie_n(latitude_rad)
+    # Until the first navigation, the Earth's turn as seen at the start attitude.
+    turn = X.earth_turn(np.broadcast_to(C0, (len(dt), 3, 3)), omega_ie_n, dt)
+    history: list[dict] = []
+    noise, sol, converged, feedback, noise_C = None, None, False, None, None
+    check_wander(profile, float(T.sum()), where)
+    schedule = FeedbackSchedule.for_run(profile, float(T.sum()), gravity_mps2)
+    for it in range(1, schedule.limit(max_iterations) + 1):
+        dth, dvv, nav = pb.compensate_and_navigate(values, extra_values, C0, turn, feedback)
+        if extras.n:  # the Earth's turn in the body, for the next compensation
+            turn = X.earth_turn(0.5 * (nav.C_b_n[1:] + nav.C_b_n[:-1]), omega_ie_n, dt)
+        rebuild = (
+            noise is None
+            or (profile.has_gauss_markov and it <= 3)
+            or noise_stale(profile, noise_C, nav.C_b_n[mid])
+        )
+        if rebuild:
+            # Gauss-Markov bias noise enters through the attitude (C_b_n b): its weights follow
+            # the navigated attitude (calib.noise.frame), and the Jacobian with them.
+            # Phi_vv does not depend on it.
+            noise_C = nav.C_b_n[mid]
+            noise = noise_model(A, T, profile, C_b_n=noise_C)
+        assert noise is not None  # built on the first pass (rebuild is true while it is None)
+        fb_dv: np.ndarray | None = None if feedback is None else feedback.dv_along(nav.C_b_n[mid], A, T)
+        # Observations and Jacobian in the frame the noise model was built in (heading_turn).
+        R, C_model = model_frame(profile, noise_C, nav.C_b_n[mid])
+        z = to_frame(R, pb.observations(nav, noise.Phi_vv, it, fb_dv, schedule.divergence_hint()))
+        if rebuild or _relinearise(it, sol, history):
+            # The Jacobian changes little once the big errors are compensated; while steps are
+            # still large (a MEMS unit's percent-level errors) it follows them. A partial fit's
+            # covariance is sensitive to where its nearly-null directions lie, so it follows
+            # the trajectory to the end.
+            H = observation_jacobian(
+                nav.C_b_n, dth, dvv, nav.time_s, grid, latitude_rad, gravity_mps2, noise.Phi_vv, extras
+            )
+            H = to_frame(R, H)
+            Hs, D = scaled_design(whiten(noise.whitener, H), extras, requirements)
+            sol = solve_information(Hs.T @ Hs, where, names, partial, judge)
+            cov = sol.covariance * np.outer(D, D)
+        zw = whiten(noise.whitener, z[:, :, None]).reshape(-1)
+        delta, resid = schedule.step(Hs, D, zw, sol, cov, it)
+        values, extra_values = apply_step(values, extra_values, delta, sol, D)
+        C0 = rotvec_to_dcm(delta[PHI0]) @ C0
+        history.append(history_entry(it, delta, cov, resid, sol) | schedule.record())
+        step = history[-1]["max_step_sigma"]
+        if step < tol_sigma and not schedule.pending():
+            converged = True
+            break
+        feedback = schedule.update(it, step, feedback, noise, z, H, delta, A, T, C_model)
+    if not converged and (why := schedule.why_not_converged()):
+        history[-1]["why_not_converged"] = why
+    z, H = to_frame(R.T, z), to_frame(R.T, H)  # back in the navigation frame
+    return fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, converged, extras)
+
+
+def fit_intervals(
+    chunks,
+    grid,
+    site: Site,
+    t0: float,
+    C0: np.ndarray,
+    profile: NoiseProfile,
+    extras: Extras = X.NONE,
+    partial: bool = False,
+    requirements: Requirements = PAPER,
+    max_iterations: int | None = None,
+    tol_sigma: float = 1e-3,
+    where: str = "run",
+    start: np.ndarray | None = None,
+    judge=None,
+) -> Fit:
+    """The Gauss-Newton loop on per-interval quantities, navigating only when it must.
+
+    ``chunks()`` gives the run again, chunk by chunk (:mod:`calib.nav.chunk_pass`);
+    each navigation is one pass over it (:func:`calib.nav.chunk_pass.navigate_pass`)
+    that leaves only per-interval quantities. As in the reference loop the
+    Jacobian is re-evaluated along the navigations of the first three
+    iterations and kept after. The loop stops re-navigating when the next
+    step cannot reach ``tol_sigma`` (:func:`_record`): the estimate is then
+    converged without another pass (the test suite checks it against the
+    reference loop). A run whose gyro noise walks the attitude far enough for
+    gravity to leak through at second order gets the attitude feedback on the
+    schedule both loops share (:class:`FeedbackSchedule`, docs/grades.md);
+    every other run is fitted exactly as without it.
+    """
+    A, names = state_matrix(site.latitude_rad, site.gravity_mps2), UNKNOWN_NAMES + extras.names
+    values = np.zeros(P.N_PARAMS) if start is None else start.copy()
+    extra_values = np.zeros(extras.n)
+    history: list[dict] = []
+    noise, sol, turn, feedback, schedule, noise_C = None, None, None, None, None, None
+    it, limit, stale, rebuilt = 0, max_iterations or MAX_ITERATIONS, False, 0
+    while it < limit:
+        it += 1
+        # A noise model found stale on a pass without the Jacobian is rebuilt on the next, with it.
+        want_H = _relinearise(it, sol, history) or stale
+        data = navigate_pass(
+            chunks(),
+            grid,
+            site,
+            t0,
+            values,
+            extra_values,
+            C0,
+            turn,
+            extras,
+            with_moments=want_H,
+            gyro_correction=None if feedback is None else feedback.body_rate,
+        )
+        turn, T = data.turn, np.diff(data.t_bounds)
+        if schedule is None:  # (the run's length is known after its first pass)
+            check_wander(profile, float(T.sum()), where)
+            schedule = FeedbackSchedule.for_run(profile, float(T.sum()), site.gravity_mps2)
+            limit = schedule.limit(max_iterations)
+        stale = noise_stale(profile, noise_C, data.C_mid)
+        if noise is None or (profile.has_gauss_markov and it <= 3) or (stale and want_H):
+            noise_C, stale, rebuilt = data.C_mid, False, it
+            noise = noise_model(A, T, profile, C_b_n=noise_C)
+        y = data.y if feedback is None else data.y - feedback.dv_along(data.C_mid, A, T)
+        R, C_model = model_frame(profile, noise_C, data.C_mid)
+        z = to_frame(R, _observations(y, noise.Phi_vv, it, where, schedule.divergence_hint()))
+        if want_H:
+            H, Hs, D, zw = _pass_design(data, T, site, noise, z, extras, requirements, R)
+            sol = solve_information(Hs.T @ Hs, where, names, partial, judge)
+            cov = sol.covariance * np.outer(D, D)
+        else:
+            zw = whiten(noise.whitener, z[:, :, None]).reshape(-1)
+        delta, resid = schedule.step(Hs, D, zw, sol, cov, it)
+        values, extra_values = apply_step(values, extra_values, delta, sol, D)
+        C0 = rotvec_to_dcm(delta[PHI0]) @ C0
+        # The weights changed with a rebuilt noise model: no geometric bound across it.
+        settled = schedule.settled(it) and it > rebuilt + 1
+        step, bound = _record(history, history_entry(it, delta, cov, resid, sol) | schedule.record(), settled)
+        if (step < tol_sigma or bound < tol_sigma) and not schedule.pending() and not stale:
+            z, H = to_frame(R.T, z), to_frame(R.T, H)
+            return fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, True, extras)
+        feedback = schedule.update(it, step, feedback, noise, z, H, delta, A, T, C_model)
+    if schedule is not None and (why := schedule.why_not_converged()):
+        history[-1]["why_not_converged"] = why
+    z, H = to_frame(R.T, z), to_frame(R.T, H)
+    return fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, False, extras)
+
+
+def _pass_design(data, T, site: Site, noise, z, extras: Extras, requirements: Requirements, R):
+    """A pass's Jacobian (in the frame ``R`` turns to), its whitened and scaled form, and the
+    whitened observations.
+    """
+    H = observation_matrix(
+        sensitivities(data.moments, T, site.latitude_rad, site.gravity_mps2, data.extra), noise.Phi_vv
+    )
+    H = to_frame(R, H)
+    # H and z share the whitening filter: one recursion for both.
+    Hz = whiten(noise.whitener, np.concatenate([H, z[:, :, None]], axis=2))
+    Hs, D = scaled_design(Hz[:, :, :-1], extras, requirements)
+    return H, Hs, D, Hz[:, :, -1].reshape(-1)
+
+
+def _record(history: list, entry: dict, settled: bool) -> tuple[float, float]:
+    """Append an iteration of the streamed loop, with its bound on the next step (sigmas).
+
+    Geometric convergence holds from the step after the feedback was last
+    moved: after steps ``s_prev``, ``s`` the next one is at most ``s * (s / s_prev)``.
+    """
+    step = entry["max_step_sigma"]
+    bound = step * step / history[-1]["max_step_sigma"] if history and settled else math.inf
+    history.append({**entry, "next_step_bound_sigma": float(bound)})
+    return step, bound
+
+
+def _observations(y: np.ndarray, Phi_vv: np.ndarray, it: int, where: str, hint: str) -> np.ndarray:
+    """Velocity changes over the observation intervals, less the noise model's prediction."""
+    z = y[1:] - np.einsum("kij,kj->ki", Phi_vv, y[:-1])
+    if not np.all(np.isfinite(z)) or np.abs(y).max() > 1e5:
+        raise CalibError(
+            f"the fit diverged at iteration {it} (navigation velocity {np.abs(y).max():.3g} m/s)",
+            where,
+            hint,
+        )
+    return z
+
+
+def _relinearise(it: int, sol, history: list) -> bool:
+    """Whether this iteration re-evaluates the Jacobian.
+
+    It changes little once the big errors are compensated, so after the third
+    iteration only while steps are still large (a MEMS unit's percent-level
+    errors); a partial fit's covariance is sensitive to where its nearly-null
+    directions lie, so it follows the trajectory to the end.
+    """
+    return (
+        sol is None
+        or it <= 3
+        or bool(sol.null_directions)
+        or bool(history)
+        and history[-1]["max_step_sigma"] > RELINEARISE_STEP_SIGMA
+    )
+
+
+def _run_sequence(sequence, time_s, dtheta_m, dv_m, dt, moving, C0, start, latitude_rad, gravity_mps2):
+    """The sequence given, else the one read off a navigation of the log (:mod:`calib.sequence.inferred`)."""
+    if sequence is not None:
+        return sequence
+    dth = dtheta_m - start[P.GYRO_BIAS] * dt[:, None]
+    nav = navigate(dth, dv_m, time_s, C0, latitude_rad, gravity_mps2)
+    return infer_sequence(nav.C_b_n, dtheta_m, moving, dt)

@@ -1,0 +1,432 @@
+"""The 21 parameters of a run placed by hand: rests and moves, fitted together.
+
+A person turns the unit between still poses, fast and about any axis, and
+carries it on the way: its velocity is zero only at the rests. The fit uses
+what holds whatever the hand did:
+
+* at each rest ``r``, the mean specific force and the mean rate are gravity
+  and the Earth rate seen in the rest's attitude ``C_r`` through the sensor
+  errors: ``f = A_a C_r^T (0, 0, g) + b_a``, ``w = A_g C_r^T omega_ie + b_g``,
+  weighted by the profile's VRW and ARW over the rest's length;
+* across each move, the compensated gyro increments chained by the coning rule
+  (:mod:`calib.hand.moves`) turn ``C_r`` into ``C_{r+1}`` (with the Earth's turn
+  over the move), weighted by the ARW over the move's length. The accelerometers
+  during a move (the hand's translation) are not used.
+
+The unknowns are the 21, each rest's attitude and the horizontal Earth rate in
+the first rest's heading frame (a MEMS gyro cannot see it: it carries the prior
+of an unknown heading, each component ``Omega cos(lat) / sqrt(2)``; a
+navigation-grade one finds it, gyrocompassing). The first rest's heading is
+the frame's, so its attitude has two unknowns (tilts), the others three.
+Gauss-Newton iterates from a start built by chaining the moves and levelling
+each rest on its accelerometers, until each step is below 1e-3 sigma.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from calib.errors import CalibError
+from calib.model import params as P
+from calib.model.error_model import ErrorModel, error_matrix_jacobian
+from calib.model.information import scaled_inverse
+from calib.model.optional_terms import G_SENSITIVITY_SI_PER_UNIT
+from calib.model.requirements import PAPER, Requirements
+from calib.nav import earth
+from calib.nav.transform import dcm_to_rotvec, rotvec_to_dcm, skew
+from calib.noise.profiles import NoiseProfile
+
+from .data import HandData, hand_data
+from .moves import move_rotation, move_sensitivity, right_jacobian_inverse
+from .poses import tip_to
+from .weights import Weights, component_sizes, components, redundancy, refuted, reweighted
+
+N = P.N_PARAMS
+N_GS = 9  # the gyro g-sensitivity matrix, when fitted
+MAX_ITERATIONS = 30
+MAX_REWEIGHTS = 12  # the weights settle in 3-6 rounds on the real recordings
+STEP_TOL_SIGMA = 1e-3
+ATTITUDE_SCALE = 1e-3  # rad: the size an attitude unknown is judged at by the observability rule
+_ACCEL_DA = error_matrix_jacobian("accel")
+_GYRO_DA = error_matrix_jacobian("gyro")
+
+
+@dataclass
+class HandFit:
+    """The fit's result (SI).
+
+    ``covariance`` is over all unknowns (:class:`Layout`); ``rest_chi2`` and ``move_chi2`` are each
+    observation group's whitened residual power (6 and 3 scalars).
+    """
+
+    values: np.ndarray
+    g_sensitivity: np.ndarray | None  # (3, 3) (rad/s)/(m/s^2), when fitted
+    covariance: np.ndarray
+    C_rest: np.ndarray  # (K, 3, 3) body to ENU at each rest
+    earth_rate_h: np.ndarray  # (2,) horizontal Earth rate in the first rest's heading frame
+    converged: bool
+    iterations: int
+    chi2: float
+    dof: int
+    rest_chi2: np.ndarray
+    move_chi2: np.ndarray
+    residual_rms_mps2: float
+    data: HandData
+    layout: Layout
+    estimable: np.ndarray  # over the 21 and the g-sensitivity
+    null_directions: list = field(default_factory=list)
+    history: list = field(default_factory=list)
+    weights: Weights = field(default_factory=Weights)
+    log_likelihood: float = 0.0  # Gaussian, at the weights earned (up to a constant): compares models
+    weight_sizes: dict = field(default_factory=dict)  # the non-white components in the user's units
+
+    @property
+    def chi2_per_dof(self) -> float:
+        return self.chi2 / max(self.dof, 1)
+
+    @property
+    def n_observations(self) -> int:
+        return self.dof + len(self.covariance)
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Where each unknown sits: ``[21, g-sensitivity (9 or none), h_E, h_N, rest 0's two tilts,
+    three per further rest]``.
+    """
+
+    rests: int
+    g_sensitivity: bool
+
+    @property
+    def gs(self) -> slice:
+        return slice(N, N + (N_GS if self.g_sensitivity else 0))
+
+    @property
+    def h(self) -> slice:
+        return slice(self.gs.stop, self.gs.stop + 2)
+
+    @property
+    def n(self) -> int:
+        return self.h.stop + 2 + 3 * (self.rests - 1)
+
+    def columns(self, r: int) -> tuple[np.ndarray, np.ndarray]:
+        """Columns of rest ``r``'s attitude unknowns and the map from them to its 3-vector."""
+        first = self.h.stop
+        if r == 0:
+            return np.array([first, first + 1]), np.eye(3)[:, :2]
+        c = first + 2 + 3 * (r - 1)
+        return np.arange(c, c + 3), np.eye(3)
+
+    def names(self) -> tuple:
+        gs = [f"gs{i}{m}" for i in "xyz" for m in "xyz"] if self.g_sensitivity else []
+        rest = [f"rest0_tilt_{a}" for a in "EN"]
+        rest += [f"rest{r}_{a}" for r in range(1, self.rests) for a in "ENU"]
+        return (*P.NAMES, *gs, "earth_rate_E", "earth_rate_N", *rest)
+
+
+def _compensated(dtheta, dv, dt, sl: slice, model: ErrorModel, G: np.ndarray):
+    """A move's gyro increments less bias and g-sensitivity, through ``A_g^-1``; its specific-force
+    increments through the accelerometer errors; and the compensated sample before the move.
+    """
+    A_inv = np.linalg.inv(model.gyro_matrix)
+    idx = np.arange(sl.start - 1, sl.stop)
+    dv_true = np.linalg.solve(model.accel_matrix, (dv[idx] - model.accel_bias * dt[idx, None]).T).T
+    dth = (dtheta[idx] - model.gyro_bias * dt[idx, None] - dv_true @ G.T) @ A_inv.T
+    return dth[1:], dv_true[1:], dth[0], A_inv
+
+
+def _start(data: HandData, dtheta, dv, dt, values, G, omega_n) -> np.ndarray:
+    """Rest attitudes chained through the moves, each levelled on its accelerometers."""
+    model = ErrorModel(values)
+    C = np.empty((data.count, 3, 3))
+    C[0] = tip_to(np.eye(3), data.rest_force[0])
+    for r, sl in enumerate(data.move_slices):
+        prev = C[r]
+        if data.move_used[r]:
+            dth, _, before, _ = _compensated(dtheta, dv, dt, sl, model, G)
+            R, _, _ = move_rotation(dth, before)
+            prev = rotvec_to_dcm(-omega_n * dt[sl].sum()) @ C[r] @ R
+        C[r + 1] = tip_to(prev, data.rest_force[r + 1])
+    return C
+
+
+@dataclass
+class FitState:
+    """The unknowns of one iteration (SI): the 21, the g-sensitivity, the Earth rate, the attitudes."""
+
+    values: np.ndarray  # (21,)
+    G: np.ndarray  # (3, 3) gyro g-sensitivity, (rad/s)/(m/s^2)
+    h: np.ndarray  # (2,)
+    C: np.ndarray  # (K, 3, 3)
+
+    def omega_n(self, latitude_rad: float) -> np.ndarray:
+        return np.array([self.h[0], self.h[1], earth.RATE * math.sin(latitude_rad)])
+
+    def update(self, step: np.ndarray, layout: Layout) -> None:
+        self.values = self.values + step[:N]
+        if layout.g_sensitivity:
+            self.G = self.G + step[layout.gs].reshape(3, 3)
+        self.h = self.h + step[layout.h]
+        for r in range(layout.rests):
+            cols, Smap = layout.columns(r)
+            self.C[r] = rotvec_to_dcm(Smap @ step[cols]) @ self.C[r]
+
+
+def linearise(
+    data: HandData,
+    dtheta,
+    dv,
+    dt,
+    state: FitState,
+    layout: Layout,
+    latitude_rad,
+    g,
+    profile,
+    heading_prior=True,
+):
+    """Residuals, their sigmas, the Jacobian of the predictions, and each row's group."""
+    model = ErrorModel(state.values)
+    A_g, A_a, G, C = model.gyro_matrix, model.accel_matrix, state.G, state.C
+    omega_n = state.omega_n(latitude_rad)
+    f_n = earth.specific_force_n(g)
+    rows, res, sig, group = [], [], [], []
+
+    def add(jac, r, s, grp):
+        rows.append(jac)
+        res.append(r)
+        sig.append(s)
+        group.append(grp)
+
+    for r in range(data.count):
+        cols, Smap = layout.columns(r)
+        T = data.rest_time_s[r]
+        u_f, u_w = C[r].T @ f_n, C[r].T @ omega_n
+        J = np.zeros((3, layout.n))
+        J[:, :N] = np.einsum("pjk,k->jp", _ACCEL_DA, u_f)
+        J[:, P.ACCEL_BIAS] = np.eye(3)
+        J[:, cols] = (A_a @ C[r].T @ skew(f_n)) @ Smap
+        noise_f, noise_w = data.rest_noise[r]
+        add(
+            J,
+            data.rest_force[r] - (A_a @ u_f + model.accel_bias),
+            noise_f * profile.vrw / math.sqrt(T),
+            ("force", r),
+        )
+        J = np.zeros((3, layout.n))
+        J[:, :N] = np.einsum("pjk,k->jp", _GYRO_DA, u_w)
+        J[:, P.GYRO_BIAS] = np.eye(3)
+        if layout.g_sensitivity:
+            J[:, layout.gs] = np.kron(np.eye(3), u_f)
+        J[:, layout.h] = A_g @ C[r].T[:, :2]
+        J[:, cols] = (A_g @ C[r].T @ skew(omega_n) + G @ C[r].T @ skew(f_n)) @ Smap
+        pred = A_g @ u_w + model.gyro_bias + G @ u_f
+        add(J, data.rest_rate[r] - pred, noise_w * profile.arw / math.sqrt(T), ("rate", r))
+    for r, sl in enumerate(data.move_slices):
+        if not data.move_used[r]:
+            continue
+        dth, dv_true, before, A_inv = _compensated(dtheta, dv, dt, sl, model, G)
+        R, Q, phi = move_rotation(dth, before)
+        T = float(dt[sl].sum())
+        R_E = rotvec_to_dcm(-omega_n * T)
+        E = R.T @ C[r].T @ R_E.T @ C[r + 1]
+        G_b, G_A, G_G = move_sensitivity(dth, dt[sl], A_inv, R, Q, phi, dv_true)
+        J = np.zeros((3, layout.n))
+        J[:, :N] = E.T @ np.einsum("ajk,pjk->ap", G_A, _GYRO_DA)
+        J[:, P.GYRO_BIAS] = E.T @ G_b
+        if layout.g_sensitivity:
+            J[:, layout.gs] = E.T @ G_G.reshape(3, 9)
+        J[:, layout.h] = T * C[r + 1].T[:, :2]
+        c0, S0 = layout.columns(r)
+        c1, S1 = layout.columns(r + 1)
+        J[:, c0] = -(C[r + 1].T @ R_E) @ S0
+        J[:, c1] = C[r + 1].T @ S1
+        e0 = dcm_to_rotvec(E)
+        # Each unknown turns E on its right (E exp(x)): the residual moves by J_r^-1(e0) x.
+        add(right_jacobian_inverse(e0) @ J, -e0, profile.arw * math.sqrt(T), ("move", r))
+    if heading_prior:  # the prior of an unknown heading on the horizontal Earth rate
+        J = np.zeros((2, layout.n))
+        J[:, layout.h] = np.eye(2)
+        add(J, -state.h, earth.RATE * math.cos(latitude_rad) / math.sqrt(2.0), ("prior", 0))
+    jac = np.vstack(rows)
+    e = np.concatenate(res)
+    s = np.concatenate([np.full(len(x), sg) for x, sg in zip(res, sig, strict=True)])
+    groups = [grp for x, grp in zip(res, group, strict=True) for _ in range(len(x))]
+    return e, s, jac, groups
+
+
+def unknown_scales(layout: Layout, req: Requirements, latitude_rad: float) -> np.ndarray:
+    """The size each unknown is judged at: requirements, 10 deg/h/g, the Earth rate, a milliradian."""
+    scale = np.full(layout.n, ATTITUDE_SCALE)
+    scale[:N] = req.si
+    scale[layout.gs] = 10.0 * G_SENSITIVITY_SI_PER_UNIT
+    scale[layout.h] = earth.RATE * max(math.cos(latitude_rad), 0.1)
+    return scale
+
+
+def fit_by_hand(
+    time_s,
+    dtheta,
+    dv,
+    dt,
+    latitude_rad: float,
+    gravity_mps2: float,
+    profile: NoiseProfile,
+    *,
+    g_sensitivity: bool = False,
+    clipped=None,
+    requirements: Requirements = PAPER,
+    partial: bool = False,
+    heading_prior: bool = True,
+    earn_weights: bool = True,
+    weights: Weights | None = None,
+    loosen: float = 1.0,
+    where: str = "run",
+) -> HandFit:
+    """Fit the 21 parameters of a run placed by hand (see the module's model).
+
+    Parameters
+    ----------
+    time_s, dt : ndarray, shape (n,)
+        Sample ends and intervals, s.
+    dtheta, dv : ndarray, shape (n, 3)
+        Gyro and accelerometer increments, rad and m/s.
+    latitude_rad, gravity_mps2 : float
+        The site.
+    profile : NoiseProfile
+        White noise that finds the rests and weights the fit.
+    g_sensitivity : bool
+        Also fit the gyros' rate per specific force (9 terms, ``w_meas = A_g w + b_g + G f``).
+    clipped : ndarray of bool, shape (n,), optional
+        Samples at the sensor's range: a move holding one is not used.
+    requirements : Requirements
+        Scales the observability rule.
+    partial : bool
+        Fit the estimable parameters of a run that leaves some unobserved instead of refusing it.
+    heading_prior : bool
+        Weight the horizontal Earth rate by the prior of an unknown heading (off: only the
+        gyros tell it, as for a noise-free run whose exact recovery a test checks).
+    earn_weights : bool
+        Give each group of observations the noise its residuals show, and an outlying block
+        its own (:mod:`calib.hand.weights`); off: the profile's weights (or ``weights``) as
+        they are.
+    weights : Weights, optional
+        The weights to start from (default: the profile's).
+    loosen : float
+        Multiplies the rest finder's thresholds (poses held in the hand).
+    where : str
+        The run's name in messages.
+    """
+    if profile.has_gauss_markov:
+        raise CalibError(
+            f"profile {profile.name!r} has a Gauss-Markov bias; the fit of a run placed by hand "
+            "weights rests and moves with white noise only",
+            where,
+            "give its white part (calib.noise.profiles.white_part; calibrate does so itself)",
+        )
+    data = hand_data(dtheta, dv, dt, profile, clipped, where, loosen)
+    layout = Layout(data.count, g_sensitivity)
+    values = np.zeros(N)
+    values[P.GYRO_BIAS] = np.average(data.rest_rate, axis=0, weights=data.rest_time_s)
+    G = np.zeros((3, 3))
+    omega_n = np.array([0.0, 0.0, earth.RATE * math.sin(latitude_rad)])
+    state = FitState(values, G, np.zeros(2), _start(data, dtheta, dv, dt, values, G, omega_n))
+    scale = unknown_scales(layout, requirements, latitude_rad)
+    names = layout.names()
+    args = (data, dtheta, dv, dt)
+    site = (latitude_rad, gravity_mps2, profile, heading_prior)
+    history: list = []
+    weights = Weights() if weights is None else weights
+    converged = False
+    for rounds in range(MAX_REWEIGHTS if earn_weights else 1):
+        converged = _gauss_newton(args, state, layout, site, weights, scale, names, history)
+        if not earn_weights:
+            break
+        e, s, jac, labels = linearise(*args, state, layout, *site)
+        shapes = components(labels, s, data.move_turn_rad)
+        Jw = jac / weights.sigma(shapes, s, labels)[:, None] * scale
+        inv = scaled_inverse(Jw.T @ Jw, names=names)
+        red = redundancy(Jw, inv.covariance)
+        if not weights.earning and not weights.block and rounds == 0:
+            outliers = reweighted(weights, e, red, labels, shapes, s).block
+            weights = Weights(earning=refuted(e, red, labels, s, outliers))
+        new = reweighted(weights, e, red, labels, shapes, s)
+        done = new.settled(weights, shapes, s, labels)
+        weights = new
+        if done:
+            break
+    e, s, jac, labels = linearise(*args, state, layout, *site)
+    shapes = components(labels, s, data.move_turn_rad)
+    s = weights.sigma(shapes, s, labels)
+    Jw = jac / s[:, None] * scale
+    inv = scaled_inverse(Jw.T @ Jw, names=names)
+    estimable = inv.estimable[: layout.h.start]
+    if not estimable.all() and not partial:
+        raise CalibError(
+            "the poses do not separate every parameter: not estimable "
+            + ", ".join(n for n, ok in zip(names, estimable, strict=False) if not ok)
+            + "; unobserved combinations: "
+            + "; ".join(inv.null_directions()),
+            where,
+            "add poses that excite them (other faces up, turns about other axes), or --partial",
+        )
+    z2 = (e / s) ** 2
+    kind = np.array([g[0] for g in labels])
+    index = np.array([g[1] for g in labels])
+    at_rest = (kind == "force") | (kind == "rate")
+    rest_chi2 = np.bincount(index[at_rest], z2[at_rest], minlength=data.count)
+    move_chi2 = np.bincount(index[kind == "move"], z2[kind == "move"], minlength=data.count - 1)
+    move_chi2[~data.move_used] = np.nan
+    force_rows = np.flatnonzero(kind == "force")
+    return HandFit(
+        values=state.values,
+        g_sensitivity=state.G if g_sensitivity else None,
+        covariance=scale[:, None] * inv.covariance * scale[None, :],
+        C_rest=state.C.copy(),
+        earth_rate_h=state.h,
+        converged=converged,
+        iterations=len(history),
+        chi2=float(z2.sum()),
+        log_likelihood=float(-0.5 * z2.sum() - np.log(s).sum()),
+        dof=len(e) - inv.rank,
+        rest_chi2=rest_chi2,
+        move_chi2=move_chi2,
+        residual_rms_mps2=float(np.sqrt(np.mean(e[force_rows] ** 2))),
+        data=data,
+        layout=layout,
+        estimable=estimable,
+        null_directions=inv.null_directions(),
+        history=history,
+        weights=weights,
+        weight_sizes=component_sizes(weights, shapes, labels, data.move_turn_rad),
+    )
+
+
+def _gauss_newton(
+    args: tuple[Any, Any, Any, Any],
+    state: FitState,
+    layout: Layout,
+    site: tuple[Any, Any, Any, Any],
+    weights: Weights,
+    scale,
+    names,
+    history,
+) -> bool:
+    """Iterate the unknowns at fixed weights until every step is below `STEP_TOL_SIGMA`."""
+    for _ in range(MAX_ITERATIONS):
+        e, s, jac, labels = linearise(*args, state, layout, *site)
+        s = weights.sigma(components(labels, s, args[0].move_turn_rad), s, labels)
+        Jw = jac / s[:, None] * scale
+        inv = scaled_inverse(Jw.T @ Jw, names=names)
+        step = scale * (inv.covariance @ (Jw.T @ (e / s)))
+        sigma = scale * np.sqrt(np.diag(inv.covariance))
+        state.update(step, layout)
+        max_step = float(np.max(np.abs(step) / np.where(sigma > 0, sigma, np.inf)))
+        history.append({"iteration": len(history) + 1, "max_step_sigma": max_step})
+        if max_step < STEP_TOL_SIGMA:
+            return True
+    return False

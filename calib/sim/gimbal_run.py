@@ -1,0 +1,193 @@
+"""Run simulator: exact IMU increments of a sequence on a stationary base.
+
+The body turns at constant rate about one body axis per flip, on a base
+mounted with a small rotation ``R_setup`` and fixed to the rotating Earth.
+Gyro increments integrate ``C_n_b omega_ie_n + rate * axis`` and velocity
+increments integrate ``C_n_b [0, 0, g]`` in closed form over every sample
+(splitting samples at segment boundaries), so they are exact to rounding.
+The 21 errors and any optional terms (:mod:`calib.model.optional_terms`) are applied to
+the increments, then the noise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from calib.gimbal.description import DEFAULT_GIMBAL
+from calib.gimbal.encoders import encoder_track
+from calib.gimbal.rule import plan_sequence
+from calib.model import optional_terms as X
+from calib.model.error_model import ErrorModel
+from calib.model.optional_terms import ExtraValues
+from calib.nav import earth
+from calib.nav.transform import rotvec_to_dcm
+from calib.noise.gauss_markov import gauss_markov
+from calib.noise.profiles import NoiseProfile
+from calib.runlog import Run, make_meta
+from calib.sequence.definition import Sequence, timeline
+from calib.sequence.kinematics import SimConfig, body_integrals, true_increments
+
+if TYPE_CHECKING:
+    from calib.runlog import Run
+
+
+@dataclass(frozen=True)
+class Truth:
+    """What a simulated run really contains (the truth file of ``docs/formats.md``)."""
+
+    errors: ErrorModel
+    setup_rotvec: np.ndarray  # rad, ENU rotation vector of R_setup
+    flip_errors_deg: np.ndarray  # per step
+    profile: str
+    seed: int | None
+    noise: bool
+    extra: ExtraValues | None = None  # optional terms of calib.model.optional_terms, None when all off
+
+    @property
+    def R_setup(self) -> np.ndarray:
+        return rotvec_to_dcm(self.setup_rotvec)
+
+
+def encoder_angles(
+    seq: Sequence, time_s: np.ndarray, gimbal=None, played: Sequence | None = None
+) -> np.ndarray:
+    """Gimbal encoder angles (deg, continuous) at each sample.
+
+    The gimbal sits on the base, so the mounting rotation does not enter.
+    ``seq`` (the nominal sequence) decides which gimbal plays each flip and
+    any lock counter-rotation (:mod:`calib.gimbal.rule`); ``played`` (default
+    ``seq``) is what was really played, e.g. with flip errors.
+    """
+    plan = plan_sequence(seq, gimbal or DEFAULT_GIMBAL)
+    angles, _ = encoder_track(plan, played if played is not None else seq, time_s)
+    return np.degrees(angles) + 0.0  # no negative zeros
+
+
+def add_noise(
+    dtheta: np.ndarray, dv: np.ndarray, dt: np.ndarray, profile: NoiseProfile, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """The profile's white noise and any Gauss-Markov bias instability, added to increments."""
+    if profile.has_gauss_markov:
+        # Bias instability: a stationary first-order Gauss-Markov bias, constant over a sample.
+        dtheta = (
+            dtheta
+            + gauss_markov(len(dt), dt, profile.gyro_gm_sigma, profile.gyro_bias_correlation_s, rng)
+            * dt[:, None]
+        )
+        dv = (
+            dv
+            + gauss_markov(len(dt), dt, profile.accel_gm_sigma, profile.accel_bias_correlation_s, rng)
+            * dt[:, None]
+        )
+    sq = np.sqrt(dt)[:, None]
+    dtheta = dtheta + profile.arw * sq * rng.standard_normal(dtheta.shape)
+    dv = dv + profile.vrw * sq * rng.standard_normal(dv.shape)
+    return dtheta, dv
+
+
+def run_meta(cfg: SimConfig, sequence_name: str | None, **extra: str) -> dict[str, str]:
+    """The run log's metadata for a simulated site (:func:`calib.runlog.make_meta`): the sequence it
+    played (None for a run placed by hand) and any ``extra`` keys.
+    """
+    return make_meta(
+        math.degrees(cfg.latitude_rad),
+        cfg.height_m,
+        cfg.sample_rate_hz,
+        gravity_mps2=cfg.gravity_mps2,
+        sequence=sequence_name,
+        **extra,
+    )
+
+
+def simulate(
+    seq: Sequence,
+    cfg: SimConfig,
+    errors: ErrorModel,
+    profile: NoiseProfile,
+    setup_rotvec=(0.0, 0.0, 0.0),
+    flip_error_deg: float = 0.0,
+    noise: bool = True,
+    seed: int | None = None,
+    random_setup_deg: float | None = None,
+    extra: ExtraValues | None = None,
+    gimbal=None,
+) -> tuple[Run, Truth]:
+    """Simulate a calibration run.
+
+    Parameters
+    ----------
+    seq : Sequence
+    cfg : SimConfig
+    errors : ErrorModel
+        Injected deterministic errors.
+    profile : NoiseProfile
+        White noise and any Gauss-Markov bias instability (ignored when
+        ``noise`` is False).
+    setup_rotvec : array_like
+        Base mounting rotation vector (E, N, U), rad.
+    flip_error_deg : float
+        Each flip misses its angle by a uniform random amount within +-this.
+    noise : bool
+    seed : int or None
+    random_setup_deg : float or None
+        If given, draw each setup component uniformly within +-this (deg).
+    extra : ExtraValues, optional
+        The optional terms of :mod:`calib.model.optional_terms` (lever arms, quadratic
+        accelerometer terms, gyro-accelerometer time offset).
+    gimbal : calib.gimbal.rule.Gimbal, optional
+        Plays the encoder channels (lock counter-rotations at its limits);
+        default: slip rings, no limits.
+
+    Returns
+    -------
+    run : Run
+    truth : Truth
+    """
+    rng = np.random.default_rng(seed)
+    flip_errors = (
+        rng.uniform(-flip_error_deg, flip_error_deg, len(seq.steps))
+        if flip_error_deg > 0
+        else np.zeros(len(seq.steps))
+    )
+    if random_setup_deg is not None:
+        setup_rotvec = np.radians(rng.uniform(-random_setup_deg, random_setup_deg, 3))
+    setup_rotvec = np.asarray(setup_rotvec, dtype=float)
+    real = seq.with_flip_errors(flip_errors)
+    tl = timeline(real)
+    R = rotvec_to_dcm(setup_rotvec)
+    time_s, dtheta, dv = true_increments(tl, R, cfg)
+    dt = np.diff(np.concatenate([[0.0], time_s]))
+    extra = extra if extra is not None else ExtraValues()
+    if extra.time_offset_s != 0.0:
+        # The accelerometers integrate over windows shifted by the offset: exact, as above.
+        _, E = body_integrals(tl, time_s - extra.time_offset_s)
+        # body_integrals starts the first window at 0; the IMU rested there before the run.
+        E[0] += extra.time_offset_s * tl.C0[0].T
+        dv = E @ (R.T @ earth.specific_force_n(cfg.gravity))
+    dtheta_m, _ = errors.apply(dtheta, dv, dt)
+    dv = X.apply(extra, dtheta, dv, dt, lambda x: errors.apply(dtheta, x, dt)[1])
+    dtheta = dtheta_m
+    if noise:
+        dtheta, dv = add_noise(dtheta, dv, dt, profile, rng)
+
+    run = Run(
+        time_s=time_s,
+        dtheta_rad=dtheta,
+        dv_mps=dv,
+        meta=run_meta(cfg, seq.name),
+        gimbal_deg=encoder_angles(seq, time_s, gimbal, played=real),
+    )
+    truth = Truth(
+        errors=errors,
+        setup_rotvec=setup_rotvec,
+        flip_errors_deg=flip_errors,
+        profile=profile.name,
+        seed=seed,
+        noise=noise,
+        extra=extra if extra.active else None,
+    )
+    return run, truth

@@ -1,0 +1,272 @@
+"""Calibrating runs placed by hand end to end: the simulator's runs, the correction, the refusals.
+
+The simulator (:mod:`calib.hand.simulate`) is independent of the fit: it integrates a
+closed-form trajectory (wobbling turn axes, a carried translation) ten times finer
+than the output rate by Gauss-Legendre quadrature. Recovering its errors to a tenth
+of a sigma is the proof that the fit's integration rule (interval increments, the
+two-sample coning correction) is good enough at the hand's rates.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from realdata import FERRARIS, XSENS
+
+from calib.calibration.correction import Correction, correction_of_result, raw_samples
+from calib.calibration.entry import calibrate
+from calib.errors import CalibError
+from calib.hand.plan import HandPlan, random_hand_plan, xsens_like_plan
+from calib.hand.simulate import draw_errors, simulate_by_hand
+from calib.model import params as P
+from calib.noise.profiles import load_profile
+from calib.runlog import Run
+from calib.sequence.kinematics import SimConfig
+from seqdesign.cli import main
+from seqdesign.verify import error_half_range
+
+MEMS = load_profile("mems")
+CONFIG = SimConfig(latitude_rad=np.radians(45.4), height_m=0.0, sample_rate_hz=100.0, gravity_mps2=9.81744)
+
+
+def _noise_free(plan: HandPlan, seed: int, oversample: int = 10) -> tuple[Run, np.ndarray]:
+    errors = draw_errors(error_half_range("mems"), np.random.default_rng(seed))
+    run, truth = simulate_by_hand(plan, CONFIG, errors, None, oversample=oversample)
+    return run, truth.errors.values
+
+
+@pytest.mark.parametrize("peak_rate_dps", [300.0, 1000.0])
+def test_fast_hand_moves_are_integrated_to_a_tenth_of_a_sigma(peak_rate_dps):
+    # Truth at 10x the output rate, turns peaking at 1000 deg/s (0.17 rad per sample) with a
+    # wobbling axis: the fit's rule must leave every parameter within 0.1 sigma (the sigmas of
+    # the mems profile, what a user would be told).
+    plan = xsens_like_plan(np.random.default_rng(4), peak_rate_dps=peak_rate_dps)
+    run, truth = _noise_free(plan, 4)
+    result = calibrate(run, MEMS, by_hand=True, requirements="mems")
+    z = (result.values - truth) / result.sigma
+    assert result.converged
+    assert np.max(np.abs(z)) < 0.1, dict(zip(P.NAMES, np.round(z, 3), strict=True))
+
+
+def test_the_correction_applied_leaves_nothing_to_calibrate(tmp_path):
+    # calibrated = M (raw - b) from the fit, applied to the log, then calibrated again: every
+    # parameter is zero within a hundredth of its sigma (noise-free, so only the rule's error).
+    plan = random_hand_plan(14, np.random.default_rng(8), peak_rate_dps=500.0)
+    run, truth = _noise_free(plan, 8)
+    result = calibrate(run, MEMS, by_hand=True, requirements="mems")
+    correction = correction_of_result(result)
+    path = tmp_path / "c.toml"
+    correction.save(path)
+    loaded = Correction.load(path)
+    assert np.allclose(loaded.gyro.M, correction.gyro.M, rtol=0, atol=0)
+    rate, force = loaded.apply(*raw_samples(run, loaded, "run"))
+    dt = np.diff(np.concatenate([[run.time_s[0] - 0.01], run.time_s]))[:, None]
+    again = calibrate(
+        Run(run.time_s, rate * dt, force * dt, run.meta), MEMS, by_hand=True, requirements="mems"
+    )
+    assert np.max(np.abs(again.values / again.sigma)) < 0.02
+    # M is the inverse of the fitted (I + S + M): the accelerometer's against its truth to 1e-3 sigma.
+    A = np.eye(3) + 0
+    for p in P.PARAMETERS[P.ACCEL_SCALE] + P.PARAMETERS[P.ACCEL_MISALIGNMENT]:
+        A[p.row, p.col] += truth[p.index]
+    assert np.allclose(correction.accel.M @ A, np.eye(3), atol=1e-5)
+
+
+def test_a_correction_in_counts_needs_the_conversion():
+    plan = random_hand_plan(6, np.random.default_rng(1))
+    run, _ = _noise_free(plan, 1)
+    correction = correction_of_result(calibrate(run, MEMS, by_hand=True, requirements="mems", partial=True))
+    counts = Correction(
+        correction.gyro.__class__(
+            *[getattr(correction.gyro, f) for f in ("M", "b", "sigma_M", "sigma_b")], "counts"
+        ),
+        correction.accel,
+    )
+    with pytest.raises(CalibError, match="counts"):
+        raw_samples(run, counts, "run.csv")
+
+
+def test_too_few_poses_are_refused_naming_what_is_not_estimable():
+    # Three rests: 9 accelerometer unknowns cannot come from three gravity directions.
+    plan = random_hand_plan(3, np.random.default_rng(2))
+    run, _ = _noise_free(plan, 2)
+    with pytest.raises(CalibError, match="not estimable") as err:
+        calibrate(run, MEMS, by_hand=True, requirements="mems")
+    assert "add poses" in str(err.value.fix)
+
+
+def test_cli_calibrates_a_simulated_hand_run_and_writes_its_correction(tmp_path):
+    runner = CliRunner()
+    run_path = tmp_path / "hand.csv"
+    res = runner.invoke(
+        main,
+        [
+            "simulate",
+            "--by-hand",
+            "--poses",
+            "12",
+            "--profile",
+            "mems",
+            "--random-errors",
+            "mems",
+            "--seed",
+            "5",
+        ]
+        + ["-o", str(run_path)],
+    )
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(
+        main,
+        ["calibrate", str(run_path), "--by-hand", "--profile", "mems", "--requirements", "mems", "--json"]
+        + ["--correction", str(tmp_path / "c.toml")],
+    )
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["fit"]["converged"] and len(doc["by_hand"]["rests"]) == 12
+    assert len(doc["by_hand"]["moves"]) == 11
+    # With the simulator's truth beside it: the NEES of an honest fit, well inside chi2(21)'s 99.9 %.
+    assert doc["nees"] < 46.8
+    out = tmp_path / "calibrated.csv"
+    res = runner.invoke(
+        main, ["correct", str(run_path), "--correction", str(tmp_path / "c.toml"), "-o", str(out)]
+    )
+    assert res.exit_code == 0, res.output
+    assert out.exists()
+
+
+def test_cli_refuses_by_hand_with_a_sequence_or_stream(tmp_path):
+    runner = CliRunner()
+    run_path = tmp_path / "hand.csv"
+    runner.invoke(main, ["simulate", "--by-hand", "--poses", "5", "--noise-free", "-o", str(run_path)])
+    for extra in (["--stream"], ["--sequence", "paper-9pos"], ["--with", "lever-arm"]):
+        res = runner.invoke(
+            main, ["calibrate", str(run_path), "--by-hand", "-o", str(tmp_path / "r.toml")] + extra
+        )
+        assert res.exit_code != 0
+        assert "Traceback" not in res.output and "error:" in res.output
+        assert not (tmp_path / "r.toml").exists()
+
+
+FERRARIS_COLUMNS = (
+    "n_samples=counter,gyr_x=gyro_x_dps,gyr_y=gyro_y_dps,gyr_z=gyro_z_dps,"
+    "acc_x=accel_x_mps2,acc_y=accel_y_mps2,acc_z=accel_z_mps2"
+)
+
+
+def test_imu_tk_recording_calibrates_as_it_is(tmp_path):
+    # imu_tk's two files in raw counts with the datasheet values, through the CLI: all rests of
+    # the recording (a 52 s start and 37 poses) and every move before the clipped end are used,
+    # and with the gyro g-sensitivity the residuals are the profile's noise (chi2/dof near 1;
+    # 16 without the term: the docs' evidence for it).
+    d = XSENS
+    res = CliRunner().invoke(
+        main,
+        ["calibrate", str(d / "xsens_acc.mat.gz"), "--gyro-file", str(d / "xsens_gyro.mat.gz")]
+        + ["--conversion", str(d / "xsens-nominal-values.txt"), "--by-hand", "--profile", "mems"]
+        + ["--latitude", "45.4", "--height", "0", "--with", "g-sensitivity", "--json"]
+        + ["-o", str(tmp_path / "x.toml"), "--correction", str(tmp_path / "x.correction.toml")],
+    )
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["fit"]["converged"]
+    assert len(doc["by_hand"]["rests"]) == 38
+    assert all(m["used"] for m in doc["by_hand"]["moves"])
+    assert 0.7 < doc["fit"]["chi2_per_dof"] < 1.5
+    assert doc["gravity"]["value_mps2"] == pytest.approx(9.81744)
+    # The correction is in counts: a gyro at rest near the 16-bit zero, scale ~1/4770 rad/s per count.
+    c = Correction.load(tmp_path / "x.correction.toml")
+    assert c.gyro.raw_unit == "counts"
+    assert np.allclose(np.diag(c.gyro.M), 1 / 4770, rtol=0.01)
+    assert np.allclose(c.gyro.b, 32768, atol=400)
+
+
+def test_imucal_recording_calibrates_by_its_sample_counter(tmp_path):
+    # The Ferraris session: six faces and three turns about vertical axes, read by its counter
+    # at 102.4 Hz. Each of imucal's six annotated faces lies inside one of the rests found.
+    path = FERRARIS / "example_ferraris_session.csv"
+    res = CliRunner().invoke(
+        main,
+        ["calibrate", str(path), "--columns", FERRARIS_COLUMNS, "--sample-rate-hz", "102.4", "--by-hand"]
+        + ["--profile", "mems", "--latitude", "49.6", "--height", "300", "--gravity", "9.81", "--json"]
+        + ["-o", str(tmp_path / "f.toml")],
+    )
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["fit"]["converged"]
+    rests = [(r["start_s"], r["end_s"]) for r in doc["by_hand"]["rests"]]
+    sections = json.loads((path.parent / "example_ferraris_session_list.json").read_text())
+    for name in ("x_p", "x_a", "y_p", "y_a", "z_p", "z_a"):
+        a, b = sections[name]["start"] / 102.4, sections[name]["end"] / 102.4
+        assert any(lo <= a and b <= hi for lo, hi in rests), name
+    # At the profile's weights its fast flips leave chi2/dof 3.4; the weights the residuals earn
+    # bring it to 1 (each group's variance over its redundancy), and the flip that fits worst
+    # (move 2, chi2 41 over 3 at the profile's weights) is weighted by its own residual.
+    assert 0.7 <= doc["fit"]["chi2_per_dof"] <= 1.5
+    assert 2 in [o["index"] for o in doc["by_hand"]["weights"]["outliers"] if o["kind"] == "move"]
+    # The gyro's g-sensitivity is tested and not chosen: every element within 1.3 sigma of zero.
+    assert doc["by_hand"]["model"][0] == {
+        **doc["by_hand"]["model"][0],
+        "term": "g-sensitivity",
+        "fitted": False,
+    }
+
+
+def test_analyze_of_a_recording_is_the_sigma_calibrating_it_reports(tmp_path):
+    # From the recording's own rests and moves: the prediction is the fit's covariance, so it is
+    # what calibrate reports (its chi2/dof 1.03 is below the Birge limit: no inflation either side).
+    d = XSENS
+    reading = [
+        "--gyro-file",
+        str(d / "xsens_gyro.mat.gz"),
+        "--conversion",
+        str(d / "xsens-nominal-values.txt"),
+    ]
+    reading += [
+        "--profile",
+        "mems",
+        "--latitude",
+        "45.4",
+        "--height",
+        "0",
+        "--with",
+        "g-sensitivity",
+        "--json",
+    ]
+    runner = CliRunner()
+    res = runner.invoke(main, ["analyze", str(d / "xsens_acc.mat.gz"), "--by-hand", *reading])
+    assert res.exit_code == 0, res.output
+    predicted = json.loads(res.stdout)
+    res = runner.invoke(
+        main,
+        ["calibrate", str(d / "xsens_acc.mat.gz"), "--by-hand", *reading, "-o", str(tmp_path / "r.toml")],
+    )
+    achieved = json.loads(res.stdout)
+    assert predicted["recorded"] and predicted["n_poses"] == 38
+    for name in P.NAMES:
+        assert predicted["parameters"][name]["sigma"] == pytest.approx(
+            achieved["parameters"][name]["sigma"], rel=0.1
+        )
+
+
+def test_verify_a_pose_list_against_its_prediction(tmp_path):
+    # The Monte Carlo of a pose list is held against analyze --by-hand's prediction: the column
+    # the random-pose verification leaves empty is filled, and a few runs stay honest.
+    poses = tmp_path / "poses.toml"
+    ups = ["+z", "+x", "[1, 1, 0]", "+y", "[0, 1, 1]", "-z", "[-1, 0, -1]", "-x", "[-1, -1, 0]", "-y"]
+    ups += ["[0, -1, 1]", "[1, 0, 1]", "+z"]
+    poses.write_text(
+        'name = "twelve"\nfirst_rest_s = 30\n'
+        + "".join(
+            f"[[pose]]\nup = {u if u.startswith('[') else repr(u).replace(chr(39), chr(34))}\n" for u in ups
+        )
+    )
+    res = CliRunner().invoke(
+        main, ["verify", str(poses), "--by-hand", "--profile", "mems", "--runs", "3", "--seed", "2", "--json"]
+    )
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["requirements"] == "mems" and doc["converged"] == 3
+    assert all(e["predicted_sigma"] is not None for e in doc["parameters"].values())

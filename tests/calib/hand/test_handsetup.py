@@ -1,0 +1,187 @@
+"""The setup of a hand run checked by physics before the fit: each mistake named, or put right.
+
+Every check rests on a fact that needs no calibration: at rest the accelerometers
+read gravity, and across a move the gyro's turn carries the gravity direction of
+one rest onto the next's. A log whose labels contradict either is refused with the
+likely mistake (or put right under ``fix_units``); a recording carried by hand is
+refused by the gimbal fit naming ``--by-hand``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from realdata import REPO
+
+from calib.calibration.entry import calibrate
+from calib.errors import CalibError
+from calib.hand.plan import xsens_like_plan
+from calib.hand.setup import carried_by_hand, diagnose
+from calib.hand.simulate import simulate_by_hand
+from calib.model.error_model import ErrorModel
+from calib.noise.profiles import load_profile
+from calib.runlog import write_run
+from calib.sequence.kinematics import SimConfig
+from calib.sim.log_mistakes import (
+    accel_in_g,
+    axes_swapped,
+    axis_flipped,
+    gyro_accel_swapped,
+    gyro_in_deg,
+    rate_mislabelled,
+)
+from seqdesign.cli import main
+
+LAT = math.radians(45.0)
+RATE_HZ = 100.0
+
+
+@pytest.fixture(scope="module")
+def hand_run():
+    """An Xsens-shaped hand run of a MEMS unit (errors of MEMS size, the mems profile's noise)."""
+    rng = np.random.default_rng(21)
+    values = np.zeros(21)
+    values[0:3] = np.radians([0.2, -0.3, 0.1])  # gyro biases, deg/s
+    values[3:6] = [3e-3, -2e-3, 4e-3]  # gyro scale factors: unlike, below a per cent
+    values[12:15] = [0.05, -0.03, 0.08]
+    values[15:18] = [2e-3, 3e-3, -1e-3]
+    cfg = SimConfig(latitude_rad=LAT, height_m=0.0, sample_rate_hz=RATE_HZ)
+    run, truth = simulate_by_hand(xsens_like_plan(rng), cfg, ErrorModel(values), load_profile("mems"), seed=4)
+    return run, cfg.gravity
+
+
+def test_a_log_as_labelled_has_no_mistake(hand_run):
+    run, g = hand_run
+    assert diagnose(run, g) == []
+    assert carried_by_hand(run) is not None  # carried 0.3 m on each move: a hand's
+
+
+@pytest.mark.parametrize(
+    ("mistake", "said"),
+    [
+        (accel_in_g, "the accelerometer is in g and read as m/s^2"),
+        (gyro_in_deg, "the gyro is in deg/s and read as rad/s"),
+        (gyro_accel_swapped, "the gyro and accelerometer columns are swapped"),
+        (lambda r: axes_swapped(r, "gyro", ("x", "y")), "x and y swapped"),
+        (lambda r: axis_flipped(r, "gyro", "z"), "z sign flipped"),
+    ],
+)
+def test_each_unit_mistake_is_named(hand_run, mistake, said):
+    run, g = hand_run
+    found = diagnose(mistake(run), g)
+    assert len(found) == 1 and said in found[0].what, found
+
+
+@pytest.mark.parametrize("mistake", [accel_in_g, gyro_in_deg, gyro_accel_swapped])
+def test_fix_units_puts_the_mistake_right(hand_run, mistake):
+    run, g = hand_run
+    with pytest.raises(CalibError, match="--fix-units"):
+        calibrate(mistake(run), "mems", by_hand=True)
+    fixed = calibrate(mistake(run), "mems", by_hand=True, fix_units=True)
+    plain = calibrate(run, "mems", by_hand=True)
+    assert any(line.startswith("fixed: ") for line in fixed.by_hand.notes)
+    # Put right exactly (a unit factor or a swap): the fit of the log as it should have been.
+    assert np.max(np.abs(fixed.values - plain.values) / plain.sigma) < 1e-6
+
+
+@pytest.mark.slow
+def test_a_wrong_rate_shows_as_three_gyro_scale_factors_alike(hand_run):
+    # A rate-writing logger at 102.4 Hz read as 100 Hz: every increment 2.4 % too large. The
+    # fit would take it for three scale factors of +2.4 %; a MEMS gyro's are below 1 % and unlike.
+    run, _ = hand_run
+    wrong = rate_mislabelled(run, RATE_HZ / 1.024)
+    with pytest.raises(CalibError, match=r"sample rate is likely 10[01]\.\d+ Hz, not the 97\.656 Hz"):
+        calibrate(wrong, "mems", by_hand=True)
+    fixed = calibrate(wrong, "mems", by_hand=True, fix_units=True)
+    plain = calibrate(run, "mems", by_hand=True)
+    # Put right at the rate the data say: a common gyro scale factor and a rate error are one
+    # thing, so the fixed fit's three scale factors average zero, and their differences (the
+    # unit's own, unlike) are the log's within their sigma.
+    assert abs(np.mean(fixed.values[3:6])) < 1e-4
+    spread_fixed = fixed.values[3:6] - np.mean(fixed.values[3:6])
+    spread_plain = plain.values[3:6] - np.mean(plain.values[3:6])
+    assert np.all(np.abs(spread_fixed - spread_plain) < 3 * plain.sigma[3:6])
+
+
+def test_a_gimbal_run_is_not_taken_for_a_hand(tmp_path):
+    from calib.sequence.definition import load_sequence
+    from calib.sim.gimbal_run import simulate
+
+    cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=100.0)
+    run, _ = simulate(load_sequence("paper-9pos"), cfg, ErrorModel.zero(), load_profile("mems"), seed=1)
+    assert carried_by_hand(run) is None
+
+
+def test_cli_refuses_a_hand_recording_in_the_gimbal_fit_naming_by_hand(hand_run, tmp_path):
+    run, _ = hand_run
+    path = tmp_path / "hand.npz"
+    write_run(run, path)
+    out = tmp_path / "hand.result.toml"
+    res = CliRunner().invoke(main, ["calibrate", str(path), "--profile", "mems", "-o", str(out)])
+    assert res.exit_code == 2 and "--by-hand" in res.output and "Traceback" not in res.output
+    assert not out.exists()
+
+
+def test_cli_names_the_mistake_and_fix_units_puts_it_right(hand_run, tmp_path):
+    run, _ = hand_run
+    path = tmp_path / "g.npz"
+    write_run(accel_in_g(run), path)
+    out = tmp_path / "g.result.toml"
+    args = ["calibrate", str(path), "--by-hand", "--profile", "mems", "-o", str(out)]
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 2 and "in g and read as m/s^2" in res.output and not out.exists()
+    res = CliRunner().invoke(main, [*args, "--fix-units"])
+    assert res.exit_code == 0, res.output
+    assert "fixed: " in res.output and out.exists()
+
+
+def test_a_static_log_gets_the_one_diagnosis_of_the_gimbal_path(tmp_path):
+    seq = tmp_path / "static.toml"
+    seq.write_text(
+        'name = "static"\nstart = ["east", "south", "down"]\ninitial_dwell_s = 60\n'
+        '[[step]]\naxis = "Z"\nangle_deg = 0.001\ndwell_s = 0\n'
+    )
+    run_path = tmp_path / "static.npz"
+    runner = CliRunner()
+    res = runner.invoke(
+        main, ["simulate", str(seq), "--profile", "mems", "--sample-rate-hz", "100", "-o", str(run_path)]
+    )
+    assert res.exit_code == 0, res.output
+    for extra in (["--by-hand"], []):
+        res = runner.invoke(
+            main, ["calibrate", str(run_path), "--profile", "mems", *extra, "-o", str(tmp_path / "r.toml")]
+        )
+        assert res.exit_code == 2 and "it is a static log; use it with `seqdesign profile fit`" in res.output
+        assert "Traceback" not in res.output and not (tmp_path / "r.toml").exists()
+
+
+def test_a_profile_with_a_gauss_markov_bias_weights_a_hand_fit_by_its_white_part(hand_run, tmp_path):
+    from calib.noise.profiles import load_profile, white_part
+
+    run, _ = hand_run
+    path = tmp_path / "hand.npz"
+    write_run(run, path)
+    gm = REPO / "benchmarks" / "profiles" / "adis16405.toml"
+    assert load_profile(gm).has_gauss_markov
+    out = tmp_path / "r.toml"
+    res = CliRunner().invoke(
+        main, ["calibrate", str(path), "--by-hand", "--profile", str(gm), "-o", str(out)]
+    )
+    assert res.exit_code == 0, res.output
+    assert "its white part weights the fit" in res.output
+    white = white_part(load_profile(gm))
+    assert not white.has_gauss_markov and white.gyro_arw_dph == load_profile(gm).gyro_arw_dph
+
+
+def test_a_long_refusal_is_printed_within_400_characters(tmp_path):
+    from calib.errors import CalibError
+    from seqdesign.cli.tools import MAX_MESSAGE, refusal_line
+
+    deep = tmp_path.joinpath(*["a-long-folder-name"] * 12) / "run.csv"
+    exc = CalibError("x" * 250, f"{deep}, line 4, column t", "give the IMU's rate (--sample-rate-hz)")
+    line = refusal_line(exc)
+    assert len(line) <= MAX_MESSAGE and line.startswith("run.csv, line 4")
+    assert line.endswith("(--sample-rate-hz))")

@@ -1,0 +1,119 @@
+"""Weights the data earn and a model the data choose (calib.hand.weights, calib.hand.calibrate).
+
+Simulated hand runs whose truth is known: noise the profile states keeps the profile's
+weights and the 21 alone; noise twice the profile's earns a white factor of 2; a move
+that does not fit is weighted by its own residual and spoils nothing; a gyro
+g-sensitivity is fitted when it is there and not when it is not.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+
+from calib.calibration.entry import calibrate
+from calib.hand.plan import xsens_like_plan
+from calib.hand.simulate import simulate_by_hand
+from calib.hand.troubles import HandTroubles, g_sensitivity_from_dphg
+from calib.model.error_model import ErrorModel
+from calib.noise.profiles import load_profile
+from calib.sequence.kinematics import SimConfig
+
+MEMS = load_profile("mems")
+CFG = SimConfig(latitude_rad=math.radians(45.0), height_m=0.0, sample_rate_hz=100.0)
+VALUES = np.zeros(21)
+VALUES[0:3] = np.radians([0.2, -0.3, 0.1])
+VALUES[3:6] = [3e-3, -2e-3, 4e-3]
+VALUES[12:15] = [0.05, -0.03, 0.08]
+VALUES[15:18] = [2e-3, 3e-3, -1e-3]
+
+
+def _run(seed: int, profile=MEMS, troubles=None):
+    plan = xsens_like_plan(np.random.default_rng(seed))
+    run, _ = simulate_by_hand(plan, CFG, ErrorModel(VALUES), profile, seed=seed + 1000, troubles=troubles)
+    return run
+
+
+def test_noise_the_profile_states_keeps_its_weights_and_the_21_alone():
+    result = calibrate(_run(1), MEMS, by_hand=True)
+    doc = result.by_hand.choices
+    assert doc["weights"]["white_factor"] == {"force": 1.0, "rate": 1.0, "move": 1.0}
+    assert doc["model"][0]["fitted"] is False and doc["model"][0]["how"] == "tested"
+    # chi2/dof of white noise: 1 within a few sqrt(2/dof) (dof about 300).
+    assert 0.75 < result.chi2_per_dof < 1.25
+
+
+def test_noise_twice_the_profiles_earns_a_factor_of_two():
+    loud = dataclasses.replace(
+        MEMS, gyro_arw_dph=2.0 * MEMS.gyro_arw_dph, accel_vrw_ug=2.0 * MEMS.accel_vrw_ug, name="loud"
+    )
+    result = calibrate(_run(2, profile=loud), MEMS, by_hand=True)
+    white = result.by_hand.choices["weights"]["white_factor"]
+    # Each group earns the 2 (a rest's own wander beyond white noise, calib.hand.data, is a trembling
+    # pose's, not a louder white noise). A factor is known to about 1/sqrt(2 r) of itself (r its
+    # redundancy, 70-110 per group here: 7-9 %); 25 % is about three of those.
+    for group in ("force", "rate", "move"):
+        assert white[group] == pytest.approx(2.0, rel=0.25), (group, white)
+    assert 0.75 < result.chi2_per_dof < 1.25
+    # The sigmas carry it: every error within 4 of them (21 normal draws stay within 4 with 99.9 %;
+    # at the profile's weights the moves' sigmas would be half what they are).
+    assert np.all(np.abs(result.values - VALUES) < 4 * result.sigma)
+
+
+def test_a_move_that_does_not_fit_is_weighted_by_its_own_residual_and_spoils_nothing():
+    run = _run(3)
+    clean = calibrate(run, MEMS, by_hand=True)
+    # A 2 deg turn about x slipped into the middle of move 10 (a logger glitch, a bump).
+    start, end = clean.by_hand.move_s[9]
+    k = int(np.searchsorted(run.time_s, 0.5 * (start + end)))
+    dtheta = run.dtheta_rad.copy()
+    dtheta[k, 0] += math.radians(2.0)
+    bent = dataclasses.replace(run, dtheta_rad=dtheta)
+    earned = calibrate(bent, MEMS, by_hand=True)
+    outliers = earned.by_hand.choices["weights"]["outliers"]
+    assert [o["index"] for o in outliers if o["kind"] == "move"] == [10]
+    # The accelerometer's nine stay where the clean run put them (a tenth of a sigma); at the
+    # profile's weights the bent move pulls them further.
+    accel = slice(12, 21)
+    moved = np.abs(earned.values[accel] - clean.values[accel]) / clean.sigma[accel]
+    assert moved.max() < 0.1, np.round(moved, 3)
+
+
+@pytest.mark.slow
+def test_a_g_sensitivity_that_is_there_is_fitted_and_recovered():
+    G = g_sensitivity_from_dphg([300, -200, 150, 100, -250, 200, -150, 120, 280])
+    result = calibrate(_run(4, troubles=HandTroubles(g_sensitivity=G)), MEMS, by_hand=True)
+    model = result.by_hand.choices["model"][0]
+    assert model["fitted"] is True and model["p"] < 1e-3
+    part = result.extras.index("g-sensitivity")
+    fitted = np.asarray(result.extra_values)[part]
+    sigma = np.asarray(result.extra_sigma)[part]
+    # Each of the nine within 4 sigma of the truth (36 draws of a normal stay within 4 with 99.8 %).
+    assert np.all(np.abs(fitted - G.reshape(9)) < 4 * sigma)
+
+
+@pytest.mark.slow
+def test_monte_carlo_of_trembling_jittering_g_sensitive_hand_runs_is_honest():
+    # Eight Xsens-shaped hand runs, each with its own MEMS errors, poses held in a trembling hand
+    # (0.2 deg), a g-sensitivity of up to 300 deg/h/g and host stamps up to 12 ms late (read back
+    # from a file as a user's log is), calibrated with the defaults (the model and the weights the
+    # data choose). The mean NEES of 8 honest runs of 21 parameters lies in the 99 % band of
+    # chi2(168)/8; the 50-run figures are in BENCHMARKS.md.
+    from click.testing import CliRunner
+    from scipy.stats import chi2
+
+    from seqdesign.cli import main
+
+    args = ["verify", "--by-hand", "--like", "xsens", "--profile", "mems", "--requirements", "mems"]
+    args += ["--runs", "8", "--workers", "1", "--sample-rate-hz", "100", "--seed", "1", "--json"]
+    args += ["--tremor-deg", "0.2", "--g-sensitivity-dphg", "300", "--stamp-jitter-ms", "12"]
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["converged"] == 8 and not doc["refused"]
+    lo, hi = chi2.ppf([0.005, 0.995], 8 * 21) / 8
+    assert lo < doc["nees"]["mean"] < hi, doc["nees"]
