@@ -6,14 +6,14 @@ DEMO := demo-out
 # Two workers on the 2-core machine: the suite is CPU-bound, one test per core.
 PYTEST := $(BIN)/python -m pytest -q -n 2 -p no:cacheprovider
 
-.PHONY: demo test test-slow test-all lint bench venv clean
+.PHONY: demo test test-slow test-all lint docs bench venv clean
 
 # setuptools' notice that every editable install gets ("be careful with folders named as the
 # package") is information, not a problem of this project: filtered by its exact words.
 $(BIN)/seqdesign: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	PYTHONWARNINGS="ignore:Editable installation:UserWarning" $(BIN)/pip install --quiet -e '.[test,dask,plot]'
+	PYTHONWARNINGS="ignore:Editable installation:UserWarning" $(BIN)/pip install --quiet -e '.[test,dask,plot,docs]'
 	touch $@
 
 venv: $(BIN)/seqdesign
@@ -43,8 +43,16 @@ test-slow: venv
 # Everything: the fast suite, then the slow tests (what CI runs).
 test-all: test test-slow
 
+# The API reference from the docstrings (Sphinx, sources in docs/api/) into docs/_build/html:
+# every warning an error, every cross-reference resolved (nitpicky). The module pages are
+# generated afresh from the packages each time, so a moved module leaves no stale page.
+docs: venv
+	rm -rf docs/_build docs/api/generated
+	$(BIN)/python -m sphinx -b html -n -W --keep-going -q docs/api docs/_build/html
+	@echo "API reference: docs/_build/html/index.html"
+
 bench: venv
 	$(BIN)/python benchmarks/run_all.py
 
 clean:
-	rm -rf $(VENV) $(DEMO)
+	rm -rf $(VENV) $(DEMO) docs/_build docs/api/generated

@@ -1,7 +1,7 @@
 """Prove a sequence before the hardware turns: N simulated runs, each calibrated, against the prediction.
 
 Each run draws its own unit (the 21 errors of the profile's grade, uniform within the sizes of
-:data:`ERROR_HALF_RANGE`, or the fixed errors a user gives), its base mounting within the
+:func:`error_half_range`, or the fixed errors a user gives), its base mounting within the
 tolerance, its flip errors and its noise, from ``seed + run``; it is simulated and calibrated
 exactly as ``simulate`` and ``calibrate`` do. The report says whether the sigmas the estimator
 reports are honest (mean NEES against its chi-square band), whether the errors it makes are the

@@ -83,7 +83,7 @@ class Observability:
         return rho
 
     def correlated_pairs(self, limit: float = CORRELATION_LIMIT) -> list[tuple[str, str, float]]:
-        """Pairs of estimable parameters with |rho| above ``limit``, strongest first."""
+        """Pairs of estimable parameters with ``|rho|`` above ``limit``, strongest first."""
         rho = self.correlation
         out = [
             (P.NAMES[i], P.NAMES[j], float(rho[i, j]))

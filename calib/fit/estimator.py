@@ -177,7 +177,7 @@ def fit_run(
         Which samples turn (from the sequence); detected from the gyros if None.
     max_iterations : int, optional
         Gauss-Newton iterations at most. Default: :data:`MAX_ITERATIONS`, or
-        :data:`WANDER_MAX_ITERATIONS` for a run whose attitude noise needs
+        :data:`~calib.fit.feedback.WANDER_MAX_ITERATIONS` for a run whose attitude noise needs
         the feedback of :func:`attitude_feedback`.
     tol_sigma : float
         Converged when every correction is below this fraction of its sigma.

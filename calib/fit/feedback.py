@@ -119,7 +119,7 @@ def attitude_feedback(
     (:mod:`calib.noise.whitening`), which a MEMS gyro's noise walks by degrees over a
     run: gravity then leaks through at second order, ``g phi^2 / 2``, tens of
     times the accelerometer-bias resolution, and the fit is biased. The
-    smoothed noise ``phi_hat`` given the fit's residuals (:func:`calib.noise.whitening.smooth`)
+    smoothed noise ``phi_hat`` given the fit's residuals (:func:`calib.noise.smoother.smooth`)
     is taken out of the next navigation by a gyro correction, and its
     first-order effect on the velocity is added back to the observations: to
     first order nothing changes (the same GLS problem), while the neglected

@@ -33,11 +33,11 @@ def _decorrelated(models: list[IntervalModel]):
 def smooth(models: list[IntervalModel], z: np.ndarray, P0: np.ndarray | None = None) -> np.ndarray:
     """Smoothed filter states ``s_0 .. s_K`` given every observation (Rauch-Tung-Striebel).
 
-    The same model as :func:`whitener`: ``z_k = F_vs s_k + w_v`` observes the
+    The same model as :func:`~calib.noise.whitener`: ``z_k = F_vs s_k + w_v`` observes the
     state at the start of interval ``k``. This is the noise part of the
     attitude error (and the GM biases) that best explains the residuals
     ``z`` (K, 3) of a fit: the estimator feeds it back into its reference
-    trajectory (:func:`calib.fit.estimator.attitude_feedback`). Returns (K + 1, s).
+    trajectory (:func:`calib.fit.feedback.attitude_feedback`). Returns (K + 1, s).
     """
     F, F_vs, J, Qw, Qvv = _decorrelated(models)
     K, s = len(models), F.shape[-1]

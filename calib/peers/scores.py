@@ -52,7 +52,7 @@ def rest_means(x: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class ForceSpread:
-    """|calibrated specific force| over the pose means, m/s^2.
+    """``|calibrated specific force|`` over the pose means, m/s^2.
 
     Attributes
     ----------
@@ -69,7 +69,7 @@ class ForceSpread:
 
 
 def force_spread(force: np.ndarray, start: np.ndarray, end: np.ndarray) -> ForceSpread:
-    """The spread of |f| over the rests' means of calibrated specific force ``force`` (n, 3)."""
+    """The spread of ``|f|`` over the rests' means of calibrated specific force ``force`` (n, 3)."""
     mag = np.linalg.norm(rest_means(force, start, end), axis=1)
     return ForceSpread(mag, float(mag.mean()), float(mag.std()), float(mag.max() - mag.min()))
 

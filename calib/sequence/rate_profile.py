@@ -65,7 +65,7 @@ class Pieces:
 
     @property
     def peak_accel(self) -> float:
-        """Largest |acceleration| (rad/s^2); the constant profile's rate steps are infinite."""
+        """Largest ``|acceleration|`` (rad/s^2); the constant profile's rate steps are infinite."""
         ends = self.accel0 + self.jerk * self.duration
         return float(max(np.max(np.abs(self.accel0)), np.max(np.abs(ends))))
 

@@ -6,7 +6,7 @@ new run and leaves its argument alone; the run's metadata keeps claiming the cor
 units. A logger that writes rates (deg/s, g) and one that writes increments make the same
 mistakes here: a unit's factor multiplies increments and rates alike.
 
-* :func:`accel_in_g`: the accelerometer wrote g, the column says m/s^2 (|f| at rest reads 1);
+* :func:`accel_in_g`: the accelerometer wrote g, the column says m/s^2 (``|f|`` at rest reads 1);
 * :func:`gyro_in_deg`: the gyro wrote deg/s (deg), the column says rad/s (x 57.3);
 * :func:`gyro_accel_swapped`: the two triads' columns exchanged;
 * :func:`axes_swapped`: two axes of one sensor exchanged (a left-handed triad);
