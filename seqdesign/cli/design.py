@@ -197,7 +197,7 @@ def design(
             as_json,
         )
     from calib.io.files import check_writable_dir
-    from seqdesign.search import design_budgets, parse_node
+    from seqdesign.search import DesignOptions, design_budgets, parse_node
     from seqdesign.search.report import design_names
 
     constraints = dict(
@@ -234,10 +234,7 @@ def design(
             info(f"designing {names[b]} for {b:g} min (objective {objective}) ...")
         lines(b, report)
 
-    report = design_budgets(
-        sweep,
-        constraints,
-        profile,
+    chosen = DesignOptions(
         latitude_deg=latitude,
         objective=objective,
         tolerance_deg=tolerance_deg,
@@ -245,11 +242,10 @@ def design(
         refine=not no_refine,
         workers=workers,
         scheduler=scheduler,
-        progress=progress,
         requirements=requirements,
         extras=with_terms,
-        name=base,
     )
+    report = design_budgets(sweep, constraints, profile, chosen, progress=progress, name=base)
     _refuse_unobservable(report, requirements)
     for row in report.rows:
         report.save_design(row, paths[row.budget_min], provenance())
