@@ -179,23 +179,25 @@ def design(
     write it as a sequence file with its provenance.
     """
     if by_hand:
+        from seqdesign.handdesign import HandDesignOptions
+
         from .designhand import design_by_hand
 
-        return design_by_hand(
-            budget_min,
-            move_s,
-            min_hold_s,
-            first_rest_s,
-            pose_set,
-            profile,
-            latitude,
-            requirements,
-            with_terms,
-            output,
-            name,
-            protocol_path,
-            as_json,
+        hand = HandDesignOptions(
+            move_s=move_s,
+            min_hold_s=min_hold_s,
+            first_rest_s=first_rest_s,
+            pose_set=pose_set,
+            latitude_deg=latitude,
         )
+        doc, text = design_by_hand(
+            budget_min, hand, profile, requirements, with_terms, output, name, protocol_path
+        )
+        if as_json:
+            emit_json(doc)
+            return
+        click.echo(text)
+        return
     from calib.io.files import check_writable_dir
     from seqdesign.search import DesignOptions, design_budgets, parse_node
     from seqdesign.search.report import design_names
