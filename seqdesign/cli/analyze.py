@@ -62,6 +62,7 @@ TOLERANCE = click.FloatRange(0.0, 10.0)
 @options.log_sample_rate()
 @options.as_json
 @guarded
+# over 8 parameters: a click command, whose options arrive one parameter each
 def analyze(
     sequence,
     profile,

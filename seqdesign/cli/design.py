@@ -140,6 +140,7 @@ PROGRESS_EVERY_S = 2.0  # at most one progress line this often, besides each pha
 @options.as_json
 @options.gimbal("Only moves this gimbal plays; --rate-dps defaults to its rate.")
 @guarded
+# over 8 parameters: a click command, whose options arrive one parameter each
 def design(
     budget_min,
     max_flips,

@@ -79,6 +79,7 @@ from .tools import emit_json, guarded, info
 @click.option("--plot", "plot_path", metavar="FILE.png", help="Also draw the RMS ratios per parameter (PNG).")
 @options.as_json
 @guarded
+# over 8 parameters: a click command, whose options arrive one parameter each
 def verify(
     sequence,
     profile,
