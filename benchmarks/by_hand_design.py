@@ -30,8 +30,8 @@ from calib.nav.site import site_of
 from calib.noise.profiles import load_profile
 from calib.runlog import read_run
 from calib.sequence.kinematics import SimConfig
-from seqdesign.handanalysis import analyze_hand
-from seqdesign.handdesign import design_hand
+from seqdesign.handanalysis import Placement, analyze_hand
+from seqdesign.handdesign import HandDesignOptions, design_hand
 from seqdesign.verify import error_half_range
 
 DATA = Path(__file__).resolve().parents[1] / "tests" / "data" / "realdata" / "imu_tk-xsens"
@@ -79,11 +79,15 @@ def main() -> None:
     rows = []
     t0 = time.time()
     own = recording_poses()
-    design = design_hand(own.duration_s, MEMS, REQ, first_rest_s=float(own.hold_s[0]), name="xsens-length")
+    design = design_hand(
+        own.duration_s, MEMS, REQ, HandDesignOptions(first_rest_s=float(own.hold_s[0])), name="xsens-length"
+    )
     t_design = time.time() - t0
     for label, poses in (("the recording's own poses", own), ("design of its length", design.poses)):
         planned = analyze_hand(poses, MEMS, REQ, latitude_deg=45.4, cure=False)
-        placed = analyze_hand(poses, MEMS, REQ, latitude_deg=45.4, tolerance_deg=PLACEMENT_DEG, cure=False)
+        placed = analyze_hand(
+            poses, MEMS, REQ, latitude_deg=45.4, placement=Placement(PLACEMENT_DEG), cure=False
+        )
         mc = monte_carlo(poses, args.runs)
         rows.append(
             (

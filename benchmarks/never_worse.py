@@ -14,7 +14,7 @@ import argparse
 import sys
 import time
 
-from seqdesign.search import design_budgets
+from seqdesign.search import DesignOptions, design_budgets
 
 VARIANTS = {"default": {}, "--beam-width 20": {"beam_width": 20}, "--no-refine": {"refine": False}}
 
@@ -36,7 +36,7 @@ def main() -> None:
         worst = {}
         for label, kw in VARIANTS.items():
             cpu = time.process_time()
-            rep = design_budgets([b], {}, args.profile, extras=args.with_terms, **kw)
+            rep = design_budgets([b], {}, args.profile, DesignOptions(extras=args.with_terms, **kw))
             cpu = time.process_time() - cpu
             r = rep.rows[0].result
             worst[label] = r.worst_ratio

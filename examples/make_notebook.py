@@ -93,7 +93,8 @@ seconds. The CLI's `seqdesign design --budget-min 2 --gimbal cable-wrap --beam-w
     ),
     (
         "code",
-        """report = sd.design([2], gimbal="cable-wrap", beam_width=8, max_quarters=3, min_dwell_s=10)
+        """constraints = {"max_quarters": 3, "min_dwell_s": 10}  # as sd.Constraints' fields
+report = sd.design([2], constraints, options=sd.DesignOptions(beam_width=8), gimbal="cable-wrap")
 print(report.to_text())
 seq = report.rows[0].result.sequence""",
     ),

@@ -3,7 +3,7 @@
 >>> from seqdesign import api as sd
 >>> analysis = sd.analyze("paper-9pos", tolerance_deg=3.0)  # an Analysis       (seqdesign analyze)
 >>> print(analysis.to_text())
->>> report = sd.design([2], beam_width=8, gimbal="cable-wrap")  # a DesignReport (seqdesign design)
+>>> report = sd.design([2], options=sd.DesignOptions(beam_width=8), gimbal="cable-wrap")  # (seqdesign design)
 >>> seq = report.rows[0].result.sequence
 >>> shown = sd.show(seq, gimbal="cable-wrap")              # rest positions     (seqdesign show)
 >>> schedule = sd.export(seq, gimbal="cable-wrap")         # encoder commands   (seqdesign export)
@@ -47,12 +47,20 @@ from .positions import Positions, as_gimbal, show_positions as show
 from .provenance import call_provenance
 from .repeatability import compare_results
 from .schedule import Schedule, export_schedule as export, read_schedule
-from .search import Constraints, DesignReport, design_budgets, gimbal_constraints, parse_node
+from .search import (
+    Constraints,
+    DesignOptions,
+    DesignReport,
+    design_budgets,
+    gimbal_constraints,
+    parse_node,
+)
 
 __all__ = [
     "Analysis",
     "CalibrationResult",
     "Constraints",
+    "DesignOptions",
     "DesignReport",
     "ErrorModel",
     "FittedProfile",
@@ -128,31 +136,16 @@ def design(
     budgets_min,
     constraints: Constraints | dict | None = None,
     profile: NoiseProfile | str = "navigation",
+    options: DesignOptions | None = None,
     *,
-    latitude_deg: float = 40.0,
-    objective: str = "worst",
-    tolerance_deg: float = 3.0,
-    beam_width: int = 200,
-    refine: bool = True,
-    workers: int = 1,
-    scheduler: str | None = None,
     progress=None,
-    requirements=None,
-    extras=None,
-    start: str | tuple | None = None,
-    end: str | tuple | None = None,
-    max_flips: int | None = None,
-    axes: str | None = None,
-    max_quarters: int | None = None,
-    rate_dps: float | None = None,
-    min_dwell_s: float | None = None,
-    max_dwell_s: float | None = None,
     gimbal: Gimbal | str | Path | None = None,
 ) -> DesignReport:
     """Design one sequence per time budget: what ``seqdesign design`` finds.
 
-    ``sd.design([10], min_dwell_s=10, gimbal="cable-wrap", profile="mems")`` is
-    ``seqdesign design --budget-min 10 --min-dwell-s 10 --gimbal cable-wrap --profile mems``.
+    ``sd.design([10], {"min_dwell_s": 10}, "mems", gimbal="cable-wrap")`` is
+    ``seqdesign design --budget-min 10 --min-dwell-s 10 --gimbal cable-wrap --profile mems``;
+    ``sd.design([2], options=sd.DesignOptions(beam_width=8))`` is ``--beam-width 8``.
 
     Parameters
     ----------
@@ -160,42 +153,21 @@ def design(
         Total time budgets, minutes (one design each).
     constraints : Constraints or dict, optional
         What is fixed about the design, as a :class:`seqdesign.search.Constraints` (its
-        ``budget_s`` is ignored) or a dict of its fields; the keywords below override it.
+        ``budget_s`` is ignored) or a dict of some of its fields (the others its defaults,
+        the CLI's): ``start`` and ``end`` where body X, Y, Z point (``"east,up,south"`` or a
+        tuple), ``max_flips``, ``axes`` (``"XYZ"``), ``max_quarters``, ``rate_dps`` (with a
+        gimbal and no rate: the gimbal's own), ``min_dwell_s``, ``max_dwell_s``, ``gimbal``.
     profile : NoiseProfile or str
         The noise the design is optimised for (``navigation``, ``mems``, a file).
-    latitude_deg : float
-        Site latitude, deg.
-    objective : str
-        ``worst`` (worst 3 sigma/requirement), or ``D``, ``A``, ``E``-optimal.
-    tolerance_deg : float
-        Mounting box half-width, deg; designs are scored at its worst case.
-    beam_width : int
-        Candidates kept per depth of the beam search (fewer: faster, perhaps worse).
-    refine : bool
-        Refine the winner's dwells with IPOPT.
-    workers, scheduler : int, str (optional)
-        Local processes; or a dask.distributed scheduler address.
+    options : DesignOptions, optional
+        Latitude, objective, tolerance, beam width, refinement, workers or scheduler,
+        requirements and extra terms (:class:`seqdesign.search.DesignOptions`; default: its
+        defaults, the CLI's).
     progress : callable, optional
-        ``progress(budget_min, message, steps)`` as the search advances.
-    requirements : Requirements or str, optional
-        The objective's requirements (default: the paper's).
-    extras : Extras or str, optional
-        Terms fitted beside the 21: ``lever-arm,k2,time-offset`` or ``all``.
-    start, end : str or tuple of str, optional
-        Where body X, Y, Z point at the start (default ``"east,up,south"``) and, if given,
-        at the end.
-    max_flips : int, optional
-        Most moves (default 60; the budget ends most walks sooner).
-    axes : str, optional
-        Body axes the gimbal may turn about (default ``"XYZ"``).
-    max_quarters : int, optional
-        Longest move in quarter turns (default 5).
-    rate_dps : float, optional
-        Rotation rate, deg/s (default 10, or the gimbal's own rate with ``gimbal``).
-    min_dwell_s, max_dwell_s : float, optional
-        Shortest and longest rest, s (default 10 and 300).
+        ``progress(budget_min, report)`` as the search advances.
     gimbal : Gimbal, str or Path, optional
-        Only moves this gimbal plays (a file or a shipped name: ``cable-wrap``, ``slip-rings``).
+        Only moves this gimbal plays (a file or a shipped name: ``cable-wrap``, ``slip-rings``);
+        overrides the constraints' own.
 
     Returns
     -------
@@ -203,38 +175,19 @@ def design(
         ``.rows[i].result.sequence`` each design; ``.to_text()``, ``.to_json()``,
         ``.save_design(row, path, provenance)``.
     """
-    base = dict(constraints or {}) if not isinstance(constraints, Constraints) else _fields(constraints)
-    given = {
-        "start": None if start is None else parse_node(start, "start") if isinstance(start, str) else start,
-        "end": None if end is None else parse_node(end, "end") if isinstance(end, str) else end,
-        "max_flips": max_flips,
-        "axes": None if axes is None else axes.upper(),
-        "max_quarters": max_quarters,
-        "rate_dps": rate_dps,
-        "min_dwell_s": min_dwell_s,
-        "max_dwell_s": max_dwell_s,
-    }
-    fields = base | {k: v for k, v in given.items() if v is not None}
+    typed = isinstance(constraints, Constraints)
+    fields = _fields(constraints) if isinstance(constraints, Constraints) else dict(constraints or {})
+    for end in ("start", "end"):
+        if isinstance(fields.get(end), str):
+            fields[end] = parse_node(fields[end], end)
+    if isinstance(fields.get("axes"), str):
+        fields["axes"] = fields["axes"].upper()
     chosen = gimbal if gimbal is not None else fields.pop("gimbal", None)
     if chosen is not None:
-        if rate_dps is None and not isinstance(constraints, Constraints) and "rate_dps" not in base:
+        if not typed and "rate_dps" not in fields:
             fields["rate_dps"] = None  # the gimbal's own rate, as the CLI's default
         _, fields = gimbal_constraints(as_gimbal(chosen), fields)
-    return design_budgets(
-        budgets_min,
-        fields,
-        profile,
-        latitude_deg=latitude_deg,
-        objective=objective,
-        tolerance_deg=tolerance_deg,
-        beam_width=beam_width,
-        refine=refine,
-        workers=workers,
-        scheduler=scheduler,
-        progress=progress,
-        requirements=requirements,
-        extras=extras,
-    )
+    return design_budgets(budgets_min, fields, profile, options, progress=progress)
 
 
 def _fields(c: Constraints) -> dict:

@@ -172,19 +172,58 @@ class HandAnalysis:
         return "\n".join(lines)
 
 
+@dataclass(frozen=True)
+class Placement:
+    """How far a hand places each pose from the plan, and how that is sampled.
+
+    Attributes
+    ----------
+    deg : float
+        Each pose within this many degrees of the plan, each axis (0: as planned).
+    samples : int
+        Placements drawn within it; the sigmas reported are the worst over them.
+    seed : int
+        Seed of the draws.
+    """
+
+    deg: float = 0.0
+    samples: int = 10
+    seed: int = 0
+
+
 def analyze_hand(
     poses: PoseList,
     profile: NoiseProfile,
     requirements: Requirements,
     *,
     latitude_deg: float = 45.0,
-    tolerance_deg: float = 0.0,
-    samples: int = 10,
-    seed: int = 0,
+    placement: Placement | None = None,
     extras: Extras | None = None,
     cure: bool = True,
 ) -> HandAnalysis:
-    """Predict the sigmas a recording of ``poses`` will give (see the module)."""
+    """Predict the sigmas a recording of ``poses`` will give (see the module).
+
+    Parameters
+    ----------
+    poses : PoseList
+        The planned poses, holds and moves.
+    profile, requirements : NoiseProfile, Requirements
+        The unit's white noise and the scale its sigmas are judged at.
+    latitude_deg : float
+        Site latitude, deg.
+    placement : Placement, optional
+        The hand's placement error (default: none, the poses as planned).
+    extras : Extras, optional
+        Terms fitted beside the 21 (``g-sensitivity`` is the one a hand run's prediction models).
+    cure : bool
+        Also find the face that, added as one more pose, helps most.
+
+    Returns
+    -------
+    HandAnalysis
+    """
+    placement = placement or Placement()
+    tolerance_deg, samples = placement.deg, placement.samples
     if profile.has_gauss_markov:
         raise CalibError(
             f"profile {profile.name!r} has a Gauss-Markov bias; runs placed by hand are analysed with "
@@ -197,7 +236,7 @@ def analyze_hand(
     nominal = predict(poses.plan(), profile, requirements, lat, g_sens)
     worst_sigma = nominal.sigma.copy()
     n = samples if tolerance_deg > 0 else 0
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(placement.seed)
     for _ in range(n):
         worst_sigma = np.maximum(
             worst_sigma,

@@ -107,23 +107,66 @@ def _worst(sigma: np.ndarray, requirements: Requirements) -> float:
     return float(np.max(requirements.ratio(sigma)))
 
 
+@dataclass(frozen=True)
+class HandDesignOptions:
+    """How a run placed by hand is planned: the defaults of ``seqdesign design --by-hand``.
+
+    Attributes
+    ----------
+    move_s : float
+        How long a move from one pose to the next takes, s.
+    min_hold_s : float
+        Shortest hold, s.
+    first_rest_s : float
+        The static start, s.
+    pose_set : str
+        Candidate poses: ``grid`` (faces, edges and corners of a box), ``cube`` or ``icosahedron``.
+    latitude_deg : float
+        Site latitude, deg.
+    """
+
+    move_s: float = 3.0
+    min_hold_s: float = 5.0
+    first_rest_s: float = 30.0
+    pose_set: str = "grid"
+    latitude_deg: float = 45.0
+
+
 def design_hand(
     budget_s: float,
     profile: NoiseProfile,
     requirements: Requirements,
+    options: HandDesignOptions | None = None,
     *,
-    move_s: float = 3.0,
-    min_hold_s: float = 5.0,
-    first_rest_s: float = 30.0,
-    pose_set: str = "grid",
-    latitude_deg: float = 45.0,
     counts: tuple[int, ...] | None = None,
     g_sensitivity: bool = False,
     name: str = "hand",
 ) -> HandDesign:
-    """The best equal-hold plan found within ``budget_s`` (see the module)."""
-    ups = candidate_ups(pose_set)
-    lat = math.radians(latitude_deg)
+    """The best equal-hold plan found within ``budget_s`` (see the module).
+
+    Parameters
+    ----------
+    budget_s : float
+        The run's length, s.
+    profile, requirements : NoiseProfile, Requirements
+        The unit's white noise and the scale its sigmas are judged at.
+    options : HandDesignOptions, optional
+        Move, hold and start lengths, the candidate poses and the latitude (default: its defaults).
+    counts : tuple of int, optional
+        Pose counts to try (default: four from the seed's to the most the budget holds).
+    g_sensitivity : bool
+        Fit the gyros' g-sensitivity too.
+    name : str
+        The plan's name.
+
+    Returns
+    -------
+    HandDesign
+    """
+    options = options or HandDesignOptions()
+    move_s, min_hold_s, first_rest_s = options.move_s, options.min_hold_s, options.first_rest_s
+    ups = candidate_ups(options.pose_set)
+    lat = math.radians(options.latitude_deg)
     room = budget_s - first_rest_s
     n_max = int(room // (min_hold_s + move_s))
     if n_max < len(SEED):

@@ -15,6 +15,7 @@ import math
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -349,50 +350,78 @@ def _figure(x: float | None, width: int, spec: str) -> str:
     return f"{'-':>{width}}" if x is None else f"{x:{width}{spec}}"
 
 
+@dataclass(frozen=True)
+class VerifyOptions:
+    """How a Monte Carlo of runs is drawn and fitted: the defaults of ``seqdesign verify``.
+
+    Attributes
+    ----------
+    runs : int
+        How many runs (run ``i`` from seed ``seed + i``).
+    seed : int
+        Seed of run 0.
+    tolerance_deg : float
+        Each run's base mounting drawn within this box, deg.
+    flip_error_deg : float
+        Flips missing their angle by up to this much, deg.
+    extras : Extras
+        What the fit estimates beside the 21.
+    requirements : Requirements
+        The scale the fit judges observability in.
+    workers : int
+        Local processes.
+    scheduler : str, optional
+        A dask.distributed scheduler address (or client) instead (:func:`map_jobs`).
+    """
+
+    runs: int = 50
+    seed: int = 0
+    tolerance_deg: float = 3.0
+    flip_error_deg: float = 0.5
+    extras: Extras = NO_EXTRAS
+    requirements: Requirements = PAPER
+    workers: int = 1
+    scheduler: Any = None
+
+
 def verify(
     seq: Sequence | None,
     profile: NoiseProfile,
-    runs: int,
+    options: VerifyOptions | None = None,
     *,
     config: SimConfig,
     predicted_sigma: np.ndarray,
     errors: ErrorModel | None = None,
-    tolerance_deg: float = 3.0,
-    flip_error_deg: float = 0.5,
-    seed: int = 0,
-    extras: Extras = NO_EXTRAS,
-    requirements: Requirements = PAPER,
-    workers: int = 1,
-    scheduler=None,
     hand: HandShape | None = None,
     progress=None,
 ) -> Verification:
-    """Simulate and calibrate ``runs`` runs of ``seq`` (run ``i`` from seed ``seed + i``).
+    """Simulate and calibrate ``options.runs`` runs of ``seq`` (run ``i`` from seed ``options.seed + i``).
 
     Parameters
     ----------
     seq, profile : Sequence, NoiseProfile
         What is played and the noise it is simulated and calibrated with.
-    runs : int
-        How many runs.
+    options : VerifyOptions, optional
+        Runs, seed, mounting box, flip errors, extra terms, requirements, workers or scheduler
+        (default: its defaults).
     config : SimConfig
         Site, gravity and sample rate of the simulated runs.
     predicted_sigma : ndarray, shape (21,)
         The analyser's sigma (SI) the runs are held against.
     errors : ErrorModel, optional
         Fixed errors of every run; default: drawn per run within the profile's grade.
-    tolerance_deg, flip_error_deg : float
-        Base mounting drawn within this box; flips missing their angle by up to this much.
-    extras, requirements : Extras, Requirements
-        What the fit estimates beside the 21, and the scale it judges observability in.
-    workers, scheduler : int, str (optional)
-        Local processes, or a dask.distributed scheduler address (:func:`map_jobs`).
     hand : HandShape, optional
         Runs placed by hand of this shape instead of ``seq`` (then None): each run draws its
         own poses, moves and noise; there is no analyser's prediction (``predicted_sigma`` nan).
     progress : callable, optional
         ``progress(done, runs)`` as runs finish (:func:`map_jobs`).
+
+    Returns
+    -------
+    Verification
     """
+    o = options or VerifyOptions()
+    runs, seed, requirements = o.runs, o.seed, o.requirements
     grade = grade_of(profile)
     half = error_half_range(grade)
     jobs = [
@@ -402,15 +431,15 @@ def verify(
             config,
             errors,
             half,
-            tolerance_deg,
-            flip_error_deg,
+            o.tolerance_deg,
+            o.flip_error_deg,
             seed + i,
-            extras,
+            o.extras,
             requirements,
             hand,
         )
         for i in range(runs)
     ]
     done = None if progress is None else (lambda n: progress(n, runs))
-    outcomes = tuple(map_jobs(one_run, jobs, workers, scheduler, done=done))
+    outcomes = tuple(map_jobs(one_run, jobs, o.workers, o.scheduler, done=done))
     return Verification(seq, profile, requirements, grade, np.asarray(predicted_sigma, float), outcomes, hand)

@@ -246,7 +246,7 @@ def _api_design() -> dict:
     from seqdesign import api as sd
 
     constraints = {"min_dwell_s": 10.0}
-    report = sd.design([2.0], constraints, "navigation", beam_width=8)
+    report = sd.design([2.0], constraints, "navigation", sd.DesignOptions(beam_width=8))
     return scrub(report.to_json())
 
 

@@ -62,6 +62,7 @@ TOLERANCE = click.FloatRange(0.0, 10.0)
 @options.log_sample_rate()
 @options.as_json
 @guarded
+# over 8 parameters: a click command, whose options arrive one parameter each
 def analyze(
     sequence,
     profile,
@@ -89,18 +90,15 @@ def analyze(
     if by_hand:
         reading = dict(latitude_deg=latitude, height_m=height, columns=columns, gyro_file=gyro_file)
         reading |= dict(conversion=conversion, sample_rate_hz=sample_rate_hz, gravity_mps2=gravity_mps2)
-        return _analyze_by_hand(
-            sequence,
-            profile,
-            latitude,
-            requirements,
-            with_terms,
-            placement_deg,
-            placements,
-            view_path,
-            as_json,
-            reading,
-        )
+        from seqdesign.handanalysis import Placement
+
+        placement = Placement(placement_deg, placements)
+        hand = _analyze_by_hand(sequence, profile, requirements, with_terms, placement, view_path, reading)
+        if as_json:
+            emit_json(hand.to_json())
+            return
+        click.echo(hand.to_text())
+        return
     from calib.model.requirements import default_for
     from calib.noise.profiles import load_profile
     from seqdesign.analysis import analyze as run_analysis
@@ -143,10 +141,12 @@ def analyze(
         )
 
 
-def _analyze_by_hand(
-    path, profile, latitude, requirements, with_terms, placement_deg, placements, view_path, as_json, reading
-):
-    """``analyze --by-hand POSES`` (or a recorded LOG): the prediction of :mod:`seqdesign.handanalysis`."""
+def _analyze_by_hand(path, profile, requirements, with_terms, placement, view_path, reading):
+    """``analyze --by-hand POSES`` (or a recorded LOG): the prediction of :mod:`seqdesign.handanalysis`.
+
+    ``placement`` a :class:`seqdesign.handanalysis.Placement`, ``reading`` the log's reading options
+    by name (its ``latitude_deg`` also the site of a pose list); returns the analysis.
+    """
     from calib.hand.poses import load_poses
     from calib.model.optional_terms import as_extras
     from calib.model.requirements import load_requirements
@@ -187,15 +187,11 @@ def _analyze_by_hand(
             load_poses(path),
             load_profile(profile),
             load_requirements(requirements or "mems"),
-            latitude_deg=45.0 if latitude is None else latitude,
-            tolerance_deg=placement_deg,
-            samples=placements,
+            latitude_deg=45.0 if reading["latitude_deg"] is None else reading["latitude_deg"],
+            placement=placement,
             extras=as_extras(with_terms, by_hand=True),
         )
-    if as_json:
-        emit_json(result.to_json())
-        return
-    click.echo(result.to_text())
+    return result
 
 
 @click.command(short_help="Compare sequences side by side, or two calibrations of one unit.")

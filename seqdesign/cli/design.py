@@ -140,6 +140,7 @@ PROGRESS_EVERY_S = 2.0  # at most one progress line this often, besides each pha
 @options.as_json
 @options.gimbal("Only moves this gimbal plays; --rate-dps defaults to its rate.")
 @guarded
+# over 8 parameters: a click command, whose options arrive one parameter each
 def design(
     budget_min,
     max_flips,
@@ -179,25 +180,27 @@ def design(
     write it as a sequence file with its provenance.
     """
     if by_hand:
+        from seqdesign.handdesign import HandDesignOptions
+
         from .designhand import design_by_hand
 
-        return design_by_hand(
-            budget_min,
-            move_s,
-            min_hold_s,
-            first_rest_s,
-            pose_set,
-            profile,
-            latitude,
-            requirements,
-            with_terms,
-            output,
-            name,
-            protocol_path,
-            as_json,
+        hand = HandDesignOptions(
+            move_s=move_s,
+            min_hold_s=min_hold_s,
+            first_rest_s=first_rest_s,
+            pose_set=pose_set,
+            latitude_deg=latitude,
         )
+        doc, text = design_by_hand(
+            budget_min, hand, profile, requirements, with_terms, output, name, protocol_path
+        )
+        if as_json:
+            emit_json(doc)
+            return
+        click.echo(text)
+        return
     from calib.io.files import check_writable_dir
-    from seqdesign.search import design_budgets, parse_node
+    from seqdesign.search import DesignOptions, design_budgets, parse_node
     from seqdesign.search.report import design_names
 
     constraints = dict(
@@ -234,10 +237,7 @@ def design(
             info(f"designing {names[b]} for {b:g} min (objective {objective}) ...")
         lines(b, report)
 
-    report = design_budgets(
-        sweep,
-        constraints,
-        profile,
+    chosen = DesignOptions(
         latitude_deg=latitude,
         objective=objective,
         tolerance_deg=tolerance_deg,
@@ -245,11 +245,10 @@ def design(
         refine=not no_refine,
         workers=workers,
         scheduler=scheduler,
-        progress=progress,
         requirements=requirements,
         extras=with_terms,
-        name=base,
     )
+    report = design_budgets(sweep, constraints, profile, chosen, progress=progress, name=base)
     _refuse_unobservable(report, requirements)
     for row in report.rows:
         report.save_design(row, paths[row.budget_min], provenance())

@@ -35,6 +35,7 @@ def _plot_path(output: str, plot: str | None) -> Path:
 @click.option("--no-plot", is_flag=True, help="Draw no PNG.")
 @options.as_json
 @guarded
+# over 8 parameters: a click command, whose options arrive one parameter each
 def fit(log, latitude, height, columns, output, name, plot, no_plot, as_json):
     """Fit the noise of a static LOG (CSV, CSV.GZ, NPZ or PSINS .imu; docs/logs-columns.md) and
     write a profile the other commands accept (--profile OUTPUT).

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import click
@@ -78,6 +79,7 @@ from .tools import emit_json, guarded, info
 @click.option("--plot", "plot_path", metavar="FILE.png", help="Also draw the RMS ratios per parameter (PNG).")
 @options.as_json
 @guarded
+# over 8 parameters: a click command, whose options arrive one parameter each
 def verify(
     sequence,
     profile,
@@ -116,6 +118,7 @@ def verify(
     from calib.noise.profiles import load_profile
     from calib.sim.truth import read_errors
     from seqdesign.plots import verify_png
+    from seqdesign.verify import VerifyOptions
 
     if errors_file and table2:
         raise CalibError("--errors and --table2 both given", None, "choose one")
@@ -137,42 +140,24 @@ def verify(
             info(chosen)
         req = load_requirements(requirements)
     errors = read_errors(errors_file) if errors_file else ErrorModel.from_table2() if table2 else None
+    # each path reads --with as its own fit does (a hand run's groups are not a gimbal run's)
+    chosen = VerifyOptions(
+        runs=runs,
+        seed=seed or 0,
+        tolerance_deg=tolerance_deg,
+        flip_error_deg=flip_error_deg,
+        requirements=req,
+        workers=workers,
+        scheduler=scheduler,
+    )
+    where = (latitude, height, gravity_mps2, sample_rate_hz)
     if by_hand or sequence is None:
         from .verifyhand import verify_by_hand
 
-        result = verify_by_hand(
-            sequence,
-            prof,
-            req,
-            with_terms,
-            runs,
-            workers,
-            scheduler,
-            (latitude, height, gravity_mps2),
-            sample_rate_hz,
-            seed,
-            errors,
-            (like, poses, peak_rate_dps, by_hand, placement_deg),
-            troubles,
-            progress=RunsProgress(),
-        )
+        shape = (like, poses, peak_rate_dps, by_hand, placement_deg, troubles)
+        result = verify_by_hand(sequence, prof, chosen, with_terms, where, errors, shape, RunsProgress())
     else:
-        result = _verify_sequence(
-            sequence,
-            prof,
-            req,
-            with_terms,
-            runs,
-            workers,
-            scheduler,
-            (latitude, height, gravity_mps2),
-            sample_rate_hz,
-            seed,
-            tolerance_deg,
-            flip_error_deg,
-            errors,
-            gimbal_file,
-        )
+        result = _verify_sequence(sequence, prof, chosen, with_terms, where, errors, gimbal_file)
     doc = result.to_json()
     if plot_path:
         verify_png(result, plot_path)
@@ -184,23 +169,12 @@ def verify(
     click.echo(result.to_text())
 
 
-def _verify_sequence(
-    sequence,
-    prof,
-    req,
-    with_terms,
-    runs,
-    workers,
-    scheduler,
-    site,
-    sample_rate_hz,
-    seed,
-    tolerance_deg,
-    flip_error_deg,
-    errors,
-    gimbal_file,
-):
-    """The Monte Carlo of a gimbal sequence, held against ``analyze``'s worst-case sigma."""
+def _verify_sequence(sequence, prof, options, with_terms, where, errors, gimbal_file):
+    """The Monte Carlo of a gimbal sequence, held against ``analyze``'s worst-case sigma.
+
+    ``options`` a :class:`seqdesign.verify.VerifyOptions` (its extras read here from ``with_terms``),
+    ``where`` ``(latitude, height, gravity_mps2, sample_rate_hz)`` as given.
+    """
     from calib.gimbal.description import load_gimbal
     from calib.gimbal.rule import check_playable, plan_sequence
     from calib.model.optional_terms import as_extras
@@ -209,7 +183,7 @@ def _verify_sequence(
     from seqdesign.analysis import analyze, resolve_site
     from seqdesign.verify import verify as run_verify
 
-    latitude, height, gravity_mps2 = site
+    latitude, height, gravity_mps2, sample_rate_hz = where
     seq = load_sequence(sequence)
     gimbal = load_gimbal(gimbal_file)
     check_playable(plan_sequence(seq, gimbal), f"{sequence} on gimbal {gimbal.name!r}")
@@ -219,28 +193,21 @@ def _verify_sequence(
         prof,
         latitude_deg=lat,
         height_m=h,
-        tolerance_deg=tolerance_deg,
+        tolerance_deg=options.tolerance_deg,
         extras=with_terms,
-        requirements=req,
+        requirements=options.requirements,
     )
     config = SimConfig(
         latitude_rad=math.radians(lat), height_m=h, sample_rate_hz=sample_rate_hz, gravity_mps2=gravity_mps2
     )
-    info(f"verifying {seq.name}: {runs} runs, profile {prof.name}")
+    info(f"verifying {seq.name}: {options.runs} runs, profile {prof.name}")
     return run_verify(
         seq,
         prof,
-        runs,
+        replace(options, extras=as_extras(with_terms)),
         config=config,
         predicted_sigma=prediction.robustness.per_parameter_worst_sigma,
         errors=errors,
-        tolerance_deg=tolerance_deg,
-        flip_error_deg=flip_error_deg,
-        seed=seed or 0,
-        extras=as_extras(with_terms),
-        requirements=req,
-        workers=workers,
-        scheduler=scheduler,
         progress=RunsProgress(),
     )
 

@@ -3,44 +3,33 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 from calib.errors import CalibError
 
 from .tools import info
 
 
-def verify_by_hand(
-    sequence,
-    prof,
-    req,
-    with_terms,
-    runs,
-    workers,
-    scheduler,
-    site,
-    sample_rate_hz,
-    seed,
-    errors,
-    shape,
-    troubles=None,
-    progress=None,
-):
-    """Simulate and calibrate ``runs`` runs placed by hand (``verify`` reports them).
+def verify_by_hand(sequence, prof, options, with_terms, where, errors, shape, progress=None):
+    """Simulate and calibrate ``options.runs`` runs placed by hand (``verify`` reports them).
 
-    ``site`` is ``(latitude, height, gravity_mps2)`` as given, ``shape`` ``(like, poses,
-    peak_rate_dps, by_hand, placement_deg)``, ``troubles`` the trouble options by name
-    (:mod:`seqdesign.cli.handtroubles`); a SEQUENCE given with ``--by-hand`` is a pose list,
-    whose runs are held against ``analyze --by-hand``'s prediction.
+    ``options`` is a :class:`seqdesign.verify.VerifyOptions` (its runs, seed, requirements,
+    workers and scheduler; a hand run has no mounting box nor flip error, and reads ``with_terms``
+    as a hand fit's), ``where`` ``(latitude, height, gravity_mps2, sample_rate_hz)`` as given,
+    ``shape`` ``(like, poses, peak_rate_dps, by_hand, placement_deg, troubles)``, ``troubles``
+    the trouble options by name (:mod:`seqdesign.cli.handtroubles`; None: their defaults); a
+    SEQUENCE given with ``--by-hand`` is a pose list, whose runs are held against
+    ``analyze --by-hand``'s prediction.
     """
     import numpy as np
 
-    from calib.model.optional_terms import as_extras
+    from calib.model.optional_terms import NONE as NO_EXTRAS, as_extras
     from calib.sequence.kinematics import SimConfig
     from seqdesign.verify import HandShape, verify as run_verify
 
     from .handtroubles import TROUBLE_DEFAULTS, trouble_spec
 
-    like, poses, peak_rate_dps, by_hand, placement_deg = shape
+    like, poses, peak_rate_dps, by_hand, placement_deg, troubles = shape
     pose_list = None
     if sequence is not None:
         if not by_hand or not str(sequence).lower().endswith(".toml"):
@@ -58,7 +47,7 @@ def verify_by_hand(
         )
     spec = trouble_spec(troubles or TROUBLE_DEFAULTS)
     extras = as_extras(with_terms, by_hand=True)
-    latitude, height, gravity_mps2 = site
+    latitude, height, gravity_mps2, sample_rate_hz = where
     lat = 45.0 if latitude is None else latitude
     config = SimConfig(
         latitude_rad=math.radians(lat),
@@ -77,25 +66,25 @@ def verify_by_hand(
     )
     predicted = np.full(21, np.nan)
     if pose_list is not None:  # the analyser's prediction the runs are held against
-        from seqdesign.handanalysis import analyze_hand
+        from seqdesign.handanalysis import Placement, analyze_hand
 
         predicted = analyze_hand(
-            pose_list, prof, req, latitude_deg=lat, tolerance_deg=placement_deg, extras=extras, cure=False
+            pose_list,
+            prof,
+            options.requirements,
+            latitude_deg=lat,
+            placement=Placement(placement_deg),
+            extras=extras,
+            cure=False,
         ).worst_sigma
-    info(f"verifying {hand.name}: {runs} runs, profile {prof.name}")
+    info(f"verifying {hand.name}: {options.runs} runs, profile {prof.name}")
     return run_verify(
         None,
         prof,
-        runs,
+        replace(options, tolerance_deg=0.0, flip_error_deg=0.0, extras=NO_EXTRAS),
         config=config,
         predicted_sigma=predicted,
         errors=errors,
-        tolerance_deg=0.0,
-        flip_error_deg=0.0,
-        seed=seed or 0,
-        requirements=req,
-        workers=workers,
-        scheduler=scheduler,
         hand=hand,
         progress=progress,
     )

@@ -150,6 +150,7 @@ def _load_result(run_path, explicit):
 )
 @options.as_json
 @guarded
+# over 8 parameters: a click command, whose options arrive one parameter each
 def view(
     run_path,
     sequence,

@@ -9,7 +9,7 @@ whitening per candidate), :mod:`.gimbal` (what a real gimbal allows),
 """
 
 from .beam import SearchModel, beam_search, brute_force
-from .constraints import Constraints, check_constraints, to_sequence
+from .constraints import Constraints, DesignOptions, check_constraints, to_sequence
 from .design import DesignResult, design
 from .gimbal import gimbal_constraints
 from .graph import Move, flip_graph, parse_node
@@ -19,6 +19,7 @@ from .report import DesignReport, design_budgets, design_rate_dps
 
 __all__ = [
     "Constraints",
+    "DesignOptions",
     "DesignReport",
     "DesignResult",
     "Move",

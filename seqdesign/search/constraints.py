@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 from calib.errors import CalibError
 from calib.gimbal.description import Gimbal
+from calib.model.optional_terms import Extras, parse_groups
+from calib.model.requirements import Requirements, load_requirements
 from calib.nav.transform import AXES
 from calib.sequence.definition import FIRST_REST_MARGIN_S, MIN_ALIGN_S, Sequence, Step
 
@@ -32,6 +35,49 @@ class Constraints:
     accel_dps2: float | None = None  # every move a trapezoid (None: constant rate)
     jerk_dps3: float | None = None  # and an S-curve
     gimbal: Gimbal | None = None  # only moves it plays (seqdesign.search.gimbal)
+
+
+@dataclass(frozen=True)
+class DesignOptions:
+    """How a design is scored and searched: the defaults of ``seqdesign design`` and ``seqdesign.api.design``.
+
+    Attributes
+    ----------
+    latitude_deg : float
+        Site latitude, deg (the site's height is 0).
+    objective : str
+        ``worst`` (worst 3 sigma/requirement), or ``D``, ``A``, ``E``-optimal.
+    tolerance_deg : float
+        Mounting box half-width, deg; designs are re-scored at its worst case.
+    beam_width : int
+        Candidates kept per depth of the beam search (fewer: faster, perhaps worse).
+    refine : bool
+        Refine the winner's dwells with IPOPT.
+    workers : int
+        Local processes.
+    scheduler : str, optional
+        A dask.distributed scheduler address (or client) instead of local processes.
+    requirements : Requirements or str, optional
+        The objective's requirements (default: the paper's).
+    extras : Extras or str, optional
+        Terms fitted beside the 21 (``--with``: ``lever-arm,k2,time-offset`` or ``all``); the
+        objective is then the worst ratio of the 21 with them fitted.
+    """
+
+    latitude_deg: float = 40.0
+    objective: str = "worst"
+    tolerance_deg: float = 3.0
+    beam_width: int = 200
+    refine: bool = True
+    workers: int = 1
+    scheduler: Any = None
+    requirements: Requirements | str | None = None
+    extras: Extras | str | None = None
+
+    def judged_by(self) -> tuple[Requirements, Extras]:
+        """The requirements and the extra terms as objects (names and files read)."""
+        extras = self.extras if isinstance(self.extras, Extras) else Extras(parse_groups(self.extras))
+        return load_requirements(self.requirements), extras
 
 
 def turn_seconds(mv: Move, c: Constraints) -> float:

@@ -14,14 +14,14 @@ from dataclasses import dataclass, replace
 
 from calib.analysis.worst_case import ExtrasCost, Robustness
 from calib.errors import CalibError
-from calib.model.optional_terms import NONE as NO_EXTRAS, Extras
-from calib.model.requirements import PAPER, Requirements
+from calib.nav import earth
+from calib.nav.site import Site
 from calib.noise.profiles import NoiseProfile
 from calib.noise.wander import check_wander
 from calib.sequence.definition import Sequence
 
 from .beam import BeamJob, search_at_dwell
-from .constraints import Constraints, check_constraints, uniform_dwell
+from .constraints import Constraints, DesignOptions, check_constraints, uniform_dwell
 from .gimbal import check_sequence_plays
 from .objective import OBJECTIVES
 from .parallel import map_jobs, worker_pool
@@ -161,50 +161,75 @@ def _search(base: BeamJob, workers, scheduler, progress):
 def design(
     c: Constraints,
     profile: NoiseProfile,
-    latitude_rad: float,
+    options: DesignOptions | None = None,
+    *,
     height_m: float = 0.0,
-    objective: str = "worst",
-    tolerance_deg: float = 3.0,
-    beam_width: int = 200,
     keep: int = 4,
-    refine: bool = True,
     name: str = "designed",
-    workers: int = 1,
-    scheduler=None,
     progress=None,
-    requirements: Requirements = PAPER,
-    extras: Extras = NO_EXTRAS,
 ) -> DesignResult:
     """Search walks, re-score every candidate exactly over the tolerance box, refine the best.
 
     The candidates are the beams' finalists and their motif repetitions; each is
-    re-scored exactly (27 box points, ``extras`` fitted beside the 21), the best is
+    re-scored exactly (27 box points, ``options.extras`` fitted beside the 21), the best is
     IPOPT-refined. What ``--beam-width 20`` and ``--no-refine`` would answer comes from the
     same beams and gets the same final check; the best final figure wins
     (:func:`seqdesign.search.pipeline.select`).
-    ``progress(report)``: a :class:`~seqdesign.search.pipeline.Progress` at each phase's
-    start and as it goes (search, screen, box, refine, check, done).
+
+    Parameters
+    ----------
+    c : Constraints
+        What is fixed about the design (its ``budget_s`` the budget).
+    profile : NoiseProfile
+        The noise the design is optimised for.
+    options : DesignOptions, optional
+        Site latitude, objective, tolerance, beam width, refinement, workers, requirements
+        and extra terms.
+    height_m : float
+        Site height, m.
+    keep : int
+        Finalists each beam hands to the exact re-scoring.
+    name : str
+        The designed sequence's name.
+    progress : callable, optional
+        ``progress(report)``: a :class:`~seqdesign.search.pipeline.Progress` at each phase's
+        start and as it goes (search, screen, box, refine, check, done).
+
+    Returns
+    -------
+    DesignResult
     """
+    options = options or DesignOptions()
+    objective, tolerance_deg, workers, scheduler = (
+        options.objective,
+        options.tolerance_deg,
+        options.workers,
+        options.scheduler,
+    )
+    requirements, extras = options.judged_by()
     _check_design_args(c, objective)
     # A budget whose attitude wander the fit cannot follow would be designed for sigmas no
     # calibration achieves (calib.noise.wander.MAX_WANDER_DEG).
     check_wander(profile, c.budget_s, "--budget-min")
     t0 = time.perf_counter()
+    latitude_rad = math.radians(options.latitude_deg)
     site = (math.degrees(latitude_rad), height_m)  # written into the sequence: analyse it there
     # one beam per search dwell and width (_search sets them)
-    base = BeamJob(c, math.nan, latitude_rad, height_m, profile, objective, beam_width, keep, requirements)
+    base = BeamJob(
+        c, math.nan, latitude_rad, height_m, profile, objective, options.beam_width, keep, requirements
+    )
     results, evaluated, narrow = _search(base, workers, scheduler, progress)
     search_seconds = time.perf_counter() - t0
     scorer = ExactScorer(c, name, site, profile, latitude_rad, height_m, requirements, extras)
     batch = max(workers, SCHEDULER_BATCH if scheduler else 1)
     exact = ExactScores(scorer, workers, scheduler)
+    scoring = Site(latitude_rad, earth.gravity(latitude_rad, height_m), "normal")
 
     def refine_best(best: Finalist) -> list[Finalist]:
         return refined(
             best,
             c,
-            latitude_rad,
-            height_m,
+            scoring,
             profile,
             objective,
             requirements,
@@ -215,9 +240,9 @@ def design(
     # One pool of workers for every exact-scoring round (parallel.worker_pool); not for the
     # search, whose workers cache every segment of the walk graph (~1 GB each at 30 min)
     with worker_pool(workers if scheduler is None else 1):
-        pipeline = Pipeline(c, exact, tolerance_deg, batch, progress, refine_best if refine else None)
+        pipeline = Pipeline(c, exact, tolerance_deg, batch, progress, refine_best if options.refine else None)
         n_boxed: list[Finalist] | None = None
-        if narrow is not None and refine and workers > 1 and scheduler is None:
+        if narrow is not None and options.refine and workers > 1 and scheduler is None:
             # The wide beams' refinement (serial IPOPT in this process) beside the narrow beams'
             # screen and box (on the workers): the same jobs, the same answers, no idle core.
             boxed = pipeline.boxed_pool(results)

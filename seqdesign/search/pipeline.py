@@ -22,6 +22,7 @@ from calib.gimbal.rule import plan_sequence
 from calib.model import params as P
 from calib.model.optional_terms import NONE as NO_EXTRAS, Extras
 from calib.model.requirements import PAPER, Requirements
+from calib.nav.site import Site
 from calib.noise.profiles import NoiseProfile
 from calib.sequence.definition import Sequence
 
@@ -355,15 +356,16 @@ def boxed(screened, exact: ExactScores, tolerance_deg, progress, batch: int = 1)
     return by_order(pool)
 
 
-def refined(best: Finalist, c, latitude_rad, height_m, profile, objective, requirements, exact, progress):
+def refined(best: Finalist, c, site: Site, profile, objective, requirements, exact, progress):
     """The best candidate with IPOPT-refined dwells, exactly re-scored ([] if unchanged).
 
-    ``exact(walk, dwells)`` is the :class:`ExactScore` over the box.
+    ``site`` the latitude and gravity the search scores at; ``exact(walk, dwells)`` is the
+    :class:`ExactScore` over the box.
     """
     if progress:
         progress(Progress("refine", f"refining the dwells of {best.label} with IPOPT", 0, 1, 0, best.ratio))
     new_dwells, _, _ = refine_dwells(
-        best.walk, c, best.dwells[0], latitude_rad, height_m, profile, objective, requirements, best.repeats
+        best.walk, c, best.dwells[0], site, profile, objective, requirements, best.repeats
     )
     if tuple(new_dwells) == best.dwells:
         if progress:

@@ -11,8 +11,8 @@ from calib.analysis import ipopt
 from calib.model import params as P
 from calib.model.information import inverse_diagonal
 from calib.model.requirements import PAPER, Requirements
-from calib.nav import earth
 from calib.nav.jacobian import N_UNKNOWN
+from calib.nav.site import Site
 from calib.noise.gm_filter import gm_start_covariance
 from calib.noise.profiles import NoiseProfile
 
@@ -158,8 +158,7 @@ def refine_dwells(
     walk,
     c: Constraints,
     dwell0: float,
-    latitude_rad: float,
-    height_m: float,
+    site: Site,
     profile: NoiseProfile,
     objective: str = "worst",
     requirements: Requirements = PAPER,
@@ -175,11 +174,12 @@ def refine_dwells(
     smooth in epigraph form), ``sum(dwells) + turns <= budget`` and the dwell bounds;
     ratios from a casadi Callback over the search model.
 
+    ``site`` is the latitude and gravity the search scores at (normal gravity at its height).
     Returns the dwells, the objective with uniform dwells and after.
     """
     import casadi as ca
 
-    g = earth.gravity(latitude_rad, height_m)
+    latitude_rad, g = site.latitude_rad, site.gravity_mps2
     P_ss = rest_steady_state(latitude_rad, g, profile, dwell0)
     groups = dwell_groups(len(walk), repeats)
     n = int(groups.max()) + 1

@@ -17,14 +17,14 @@ from calib.analysis.worst_case import analyze_tolerance
 from calib.errors import CalibError
 from calib.gimbal.description import Gimbal
 from calib.io.files import atomic_write_text, sha256_file
-from calib.model.optional_terms import NONE as NO_EXTRAS, Extras, parse_groups
-from calib.model.requirements import PAPER, Requirements, load_requirements
+from calib.model.optional_terms import NONE as NO_EXTRAS, Extras
+from calib.model.requirements import PAPER, Requirements
 from calib.nav import earth
 from calib.noise.profiles import NoiseProfile, load_profile
 from calib.sequence.definition import load_sequence, save_sequence
 
 from ..plots import pareto_png
-from .constraints import Constraints, check_constraints
+from .constraints import Constraints, DesignOptions, check_constraints
 from .design import DesignResult, design
 
 
@@ -230,17 +230,9 @@ def design_budgets(
     budgets_min,
     constraints: Constraints | dict | None = None,
     profile: NoiseProfile | str = "navigation",
+    options: DesignOptions | None = None,
     *,
-    latitude_deg: float = 40.0,
-    objective: str = "worst",
-    tolerance_deg: float = 3.0,
-    beam_width: int = 200,
-    refine: bool = True,
-    workers: int = 1,
-    scheduler: str | None = None,
     progress=None,
-    requirements=None,
-    extras=None,
     name: str | None = None,
 ) -> DesignReport:
     """Design one sequence per budget.
@@ -254,30 +246,17 @@ def design_budgets(
         budget), or a dict of its fields other than the budget (start, end, max_flips,
         axes, max_quarters, rate_dps, min/max dwell; a gimbal and its move limits from
         :func:`seqdesign.search.gimbal.gimbal_constraints`). Default: ``Constraints()``'s.
-        ``seqdesign.api.design`` also takes them as keywords and resolves a gimbal's name.
+        ``seqdesign.api.design`` also takes them as a dict of names and resolves a gimbal's name.
     profile : NoiseProfile or str
         The noise the design is optimised for.
-    latitude_deg : float
-        Site latitude.
-    objective : str
-        ``worst``, ``D``, ``A`` or ``E``.
-    tolerance_deg : float
-        Mounting box half-width; designs are re-scored at its worst case.
-    beam_width : int
-        Candidates kept per depth.
-    refine : bool
-        Refine the winner's dwells with IPOPT.
-    workers, scheduler : int, str (optional)
-        Local processes; or a dask.distributed scheduler address.
+    options : DesignOptions, optional
+        Site latitude, objective, tolerance, beam width, refinement, workers or scheduler,
+        requirements and extra terms (:class:`seqdesign.search.DesignOptions`; default: its
+        defaults, the CLI's).
     progress : callable, optional
         ``progress(budget_min, report)`` as the search advances, ``report`` a
         :class:`seqdesign.search.Progress` (phase, work done of the phase's total,
         candidates scored, best figure so far).
-    requirements : Requirements or str, optional
-        The objective's requirements (default: the paper's).
-    extras : Extras or str, optional
-        Terms fitted beside the 21 (``--with``: ``lever-arm,k2,time-offset`` or
-        ``all``); the objective is then the worst ratio of the 21 with them fitted.
     name : str, optional
         The designs' sequence name (:func:`design_names`: ``<name>-<budget>min`` each
         when there are several budgets; default ``designed-<budget>min``).
@@ -292,8 +271,10 @@ def design_budgets(
         }
     constraints = dict(constraints or {})
     prof = load_profile(profile)
-    req = load_requirements(requirements)
-    ext = extras if isinstance(extras, Extras) else Extras(parse_groups(extras))
+    options = options or DesignOptions()
+    req, ext = options.judged_by()
+    options = replace(options, requirements=req, extras=ext)
+    latitude_deg, tolerance_deg = options.latitude_deg, options.tolerance_deg
     earth.check_site(latitude_deg, 0.0)
     lat = math.radians(latitude_deg)
     g = earth.gravity(lat)
@@ -306,19 +287,10 @@ def design_budgets(
         res = design(
             c,
             prof,
-            lat,
-            0.0,
-            objective,
-            tolerance_deg,
-            beam_width,
+            options,
             keep=4,
-            refine=refine,
             name=names[b],
-            workers=workers,
-            scheduler=scheduler,
             progress=None if progress is None else (lambda r, b=b: progress(b, r)),
-            requirements=req,
-            extras=ext,
         )
         T = res.sequence.duration_s
         rows.append(
@@ -333,7 +305,7 @@ def design_budgets(
     return DesignReport(
         rows,
         prof,
-        objective,
+        options.objective,
         tolerance_deg,
         latitude_deg,
         paper_T,

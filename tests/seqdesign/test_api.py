@@ -136,12 +136,12 @@ def test_profile_fit_with_the_height_given_warns_nothing(static_csv):
     assert fitted.fit.name == "static"
 
 
-DESIGN = dict(beam_width=8, max_quarters=3)  # a few seconds: quarter, half and three-quarter turns
+NARROW = sd.DesignOptions(beam_width=8)  # with at most 3 quarter turns: a few seconds
 
 
 @pytest.fixture(scope="module")
 def keyword_design():
-    return sd.design([2], gimbal="cable-wrap", **DESIGN)
+    return sd.design([2], {"max_quarters": 3}, options=NARROW, gimbal="cable-wrap")
 
 
 def _designs(report) -> list[dict]:
@@ -174,16 +174,15 @@ def test_design_is_the_cli_design(keyword_design, tmp_path):
 def test_design_keywords_equal_the_dict_and_the_typed_constraints(keyword_design):
     from calib.gimbal.description import load_gimbal
 
-    as_dict = sd.design([2], {"max_quarters": 3, "rate_dps": None, "gimbal": "cable-wrap"}, beam_width=8)
+    as_dict = sd.design([2], {"max_quarters": 3, "rate_dps": None, "gimbal": "cable-wrap"}, options=NARROW)
     typed = sd.design(
-        [2], sd.Constraints(max_quarters=3, rate_dps=20.0, gimbal=load_gimbal("cable-wrap")), beam_width=8
+        [2], sd.Constraints(max_quarters=3, rate_dps=20.0, gimbal=load_gimbal("cable-wrap")), options=NARROW
     )
     assert _designs(as_dict) == _designs(keyword_design) == _designs(typed)
 
 
-def test_design_keywords_override_the_constraints():
-    base = sd.Constraints(min_dwell_s=10.0, max_quarters=5, axes="XYZ")
-    report = sd.design([2], base, beam_width=8, max_quarters=3, axes="zy", min_dwell_s=12.0)
+def test_design_reads_the_dict_as_the_cli_reads_its_options():
+    report = sd.design([2], {"max_quarters": 3, "axes": "zy", "min_dwell_s": 12.0}, options=NARROW)
     steps = report.rows[0].result.sequence.steps
     assert {s.axis for s in steps} <= {"Y", "Z"}
     assert all(abs(s.angle_deg) <= 270.0 for s in steps)
@@ -196,7 +195,7 @@ def test_design_keywords_override_the_constraints():
         (lambda: sd.show("paper-9pos", gimbal="no-such-gimbal"), "gimbal"),
         (lambda: sd.export("paper-9pos", rate_hz=0.5), "rate_hz"),
         (lambda: sd.export("paper-9pos").save("commands.txt"), "commands.txt"),
-        (lambda: sd.design([2], start="east,up,up"), "start"),
+        (lambda: sd.design([2], {"start": "east,up,up"}), "start"),
         (lambda: sd.design([2], gimbal="no-such-gimbal"), "gimbal"),
     ],
 )

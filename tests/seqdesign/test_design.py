@@ -250,11 +250,12 @@ def test_sigma_gradient_matches_finite_differences():
 def test_design_with_terms_scores_the_21_with_them_fitted():
     from calib.analysis.worst_case import analyze_extras
     from calib.model.optional_terms import Extras
-    from seqdesign.search import design
+    from seqdesign.search import DesignOptions, design
 
     c = Constraints(budget_s=360.0, max_flips=3, max_quarters=2, min_dwell_s=10.0)
     ext = Extras(("lever-arm",))
-    res = design(c, PROFILE, LAT, 0.0, tolerance_deg=1.0, beam_width=10, keep=1, refine=False, extras=ext)
+    options = DesignOptions(latitude_deg=40.0, tolerance_deg=1.0, beam_width=10, refine=False, extras=ext)
+    res = design(c, PROFILE, options, keep=1)
     cost = analyze_extras(res.sequence, PROFILE, LAT, ext, 0.0, 1.0, search=True)
     # the objective is the worst 3 sigma/requirement of the 21 with the lever arms fitted,
     # as `analyze --with` reports it (same 27 box points and the same IPOPT search inside
@@ -269,13 +270,12 @@ def test_more_effort_never_gives_a_worse_answer():
     # Issue 12 point 6: the answer is the best exactly re-scored candidate seen, and the
     # default beam runs a narrow beam too, so it cannot lose to --beam-width 20 or to
     # --no-refine. A 5-min budget with 3 single quarter turns keeps this short.
-    from seqdesign.search import design
+    from seqdesign.search import DesignOptions, design
 
     c = Constraints(budget_s=300.0, max_flips=3, max_quarters=1, min_dwell_s=10.0)
-    kw = dict(tolerance_deg=3.0, keep=1)
-    default = design(c, PROFILE, LAT, 0.0, beam_width=60, refine=True, **kw)
-    narrow = design(c, PROFILE, LAT, 0.0, beam_width=20, refine=True, **kw)
-    unrefined = design(c, PROFILE, LAT, 0.0, beam_width=60, refine=False, **kw)
+    default = design(c, PROFILE, DesignOptions(beam_width=60), keep=1)
+    narrow = design(c, PROFILE, DesignOptions(beam_width=20), keep=1)
+    unrefined = design(c, PROFILE, DesignOptions(beam_width=60, refine=False), keep=1)
     assert default.worst_ratio <= narrow.worst_ratio + 1e-12
     assert default.worst_ratio <= unrefined.worst_ratio + 1e-12
 
@@ -286,12 +286,11 @@ def test_whole_design_on_two_workers_equals_the_serial_one():
     # arithmetic in another process must give the same walk, dwells and figures, bit for bit.
     # (Two workers may re-score a candidate the serial run skips as unable to win, so the
     # list of finalists may be longer; its best is the same.)
-    from seqdesign.search import design
+    from seqdesign.search import DesignOptions, design
 
     c = Constraints(budget_s=300.0, max_flips=3, max_quarters=1, min_dwell_s=10.0)
-    kw = dict(tolerance_deg=3.0, keep=1, beam_width=30, refine=True)
-    serial = design(c, PROFILE, LAT, 0.0, **kw)
-    parallel = design(c, PROFILE, LAT, 0.0, workers=2, **kw)
+    serial = design(c, PROFILE, DesignOptions(beam_width=30), keep=1)
+    parallel = design(c, PROFILE, DesignOptions(beam_width=30, workers=2), keep=1)
     assert serial.sequence.steps == parallel.sequence.steps
     assert serial.finalists[0] == parallel.finalists[0]
     assert set(serial.finalists) <= set(parallel.finalists)
@@ -304,18 +303,17 @@ def test_whole_design_on_a_dask_cluster_equals_the_serial_one():
     # The exact re-scoring goes to the cluster too (a picklable ExactScorer through
     # client.map): same walk, dwells and figures as the serial run, bit for bit.
     distributed = pytest.importorskip("dask.distributed")
-    from seqdesign.search import design
+    from seqdesign.search import DesignOptions, design
 
     c = Constraints(budget_s=300.0, max_flips=3, max_quarters=1, min_dwell_s=10.0)
-    kw = dict(tolerance_deg=3.0, keep=1, beam_width=30, refine=True)
-    serial = design(c, PROFILE, LAT, 0.0, **kw)
+    serial = design(c, PROFILE, DesignOptions(beam_width=30), keep=1)
     with (
         distributed.LocalCluster(
             n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
         ) as cluster,
         distributed.Client(cluster) as client,
     ):
-        remote = design(c, PROFILE, LAT, 0.0, scheduler=client, **kw)
+        remote = design(c, PROFILE, DesignOptions(beam_width=30, scheduler=client), keep=1)
     assert serial.sequence.steps == remote.sequence.steps
     assert (serial.worst_ratio, serial.worst_name) == (remote.worst_ratio, remote.worst_name)
     assert serial.finalists[0] == remote.finalists[0]

@@ -24,7 +24,7 @@ from calib.noise.profiles import load_profile
 from calib.sequence.kinematics import SimConfig
 from seqdesign.cli import main
 from seqdesign.handanalysis import analyze_hand
-from seqdesign.handdesign import design_hand
+from seqdesign.handdesign import HandDesignOptions, design_hand
 from seqdesign.handprotocol import pose_toml, protocol_markdown
 from seqdesign.verify import error_half_range
 
@@ -93,7 +93,7 @@ def test_six_faces_tipped_over_edges_leave_gyro_terms_unobserved_and_name_a_cure
     cube = 'name = "cube"\nfirst_rest_s = 30\n' + "".join(
         f'[[pose]]\nup = "{u}"\n' for u in ("+z", "+x", "+y", "-z", "-x", "-y", "+z")
     )
-    result = analyze_hand(load_poses(_write(tmp_path, cube)), MEMS, REQ, tolerance_deg=0.0)
+    result = analyze_hand(load_poses(_write(tmp_path, cube)), MEMS, REQ)
     doc = result.to_json()
     assert "sgx" in doc["not_estimable"] and "bax" not in doc["not_estimable"]
     assert doc["unobserved_directions"] and doc["cure"]["add_pose_up"] in {"+x", "-x", "+y", "-y", "+z", "-z"}
@@ -108,7 +108,7 @@ def test_the_prediction_is_what_calibrating_noisy_runs_of_the_poses_achieves(tmp
     # its own (calib.hand.weights). The RMS error over the predicted sigma is 1 within
     # its sampling spread: sqrt(chi2(40)/40) lies in [0.67, 1.36] with 99.9 % per parameter.
     poses = load_poses(_write(tmp_path, TWELVE))
-    predicted = analyze_hand(poses, MEMS, REQ, tolerance_deg=0.0, cure=False).nominal.sigma
+    predicted = analyze_hand(poses, MEMS, REQ, cure=False).nominal.sigma
     config = SimConfig(latitude_rad=math.radians(45.0), height_m=0.0, sample_rate_hz=100.0)
     errors, reported = [], []
     for seed in range(40):
@@ -159,12 +159,12 @@ def test_a_hand_design_observes_all_and_respects_the_bias_bound(tmp_path):
     # A 3.5 min plan with a 20 s start: every parameter estimable, no worse than its seed alone,
     # and no gyro bias better than ARW / sqrt(duration) (every second tells the bias through the
     # ARW alone: the bound no plan beats).
-    design = design_hand(210.0, MEMS, REQ, first_rest_s=20.0, counts=(13,))
+    design = design_hand(210.0, MEMS, REQ, HandDesignOptions(first_rest_s=20.0), counts=(13,))
     assert np.all(np.isfinite(design.sigma))
     bound = MEMS.arw / math.sqrt(design.poses.duration_s)
     assert np.all(design.sigma[P.GYRO_BIAS] >= bound * (1 - 1e-9))
     assert design.bias_bound_ratio <= design.worst_ratio
-    seed_only = design_hand(210.0, MEMS, REQ, first_rest_s=20.0, counts=(12,))
+    seed_only = design_hand(210.0, MEMS, REQ, HandDesignOptions(first_rest_s=20.0), counts=(12,))
     assert design.worst_ratio <= seed_only.worst_ratio * 1.05
     # The pose list it writes reads back as the same plan, and the protocol numbers every pose.
     path = _write(tmp_path, pose_toml(design.poses, "a test"), "design.toml")

@@ -15,7 +15,7 @@ from calib.noise.profiles import load_profile
 from calib.sequence.definition import load_sequence
 from calib.sequence.kinematics import SimConfig
 from seqdesign.cli import main
-from seqdesign.verify import chi2_band, error_half_range, grade_of, verify
+from seqdesign.verify import VerifyOptions, chi2_band, error_half_range, grade_of, verify
 
 # 50 Hz keeps each run under a second; white noise, so the sigmas do not depend on the rate
 # beyond the sample count (the prediction is the same continuous-time information).
@@ -61,17 +61,16 @@ def test_workers_and_a_dask_cluster_give_the_serial_answer():
     kw = dict(
         config=SimConfig(latitude_rad=math.radians(40.0), sample_rate_hz=20.0),
         predicted_sigma=np.ones(P.N_PARAMS),
-        seed=11,
     )
-    serial = verify(seq, prof, 2, **kw).to_json()
-    assert verify(seq, prof, 2, workers=2, **kw).to_json() == serial
+    serial = verify(seq, prof, VerifyOptions(runs=2, seed=11), **kw).to_json()
+    assert verify(seq, prof, VerifyOptions(runs=2, seed=11, workers=2), **kw).to_json() == serial
     with (
         distributed.LocalCluster(
             n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
         ) as cluster,
         distributed.Client(cluster) as client,
     ):
-        assert verify(seq, prof, 2, scheduler=client, **kw).to_json() == serial
+        assert verify(seq, prof, VerifyOptions(runs=2, seed=11, scheduler=client), **kw).to_json() == serial
 
 
 def test_verify_writes_a_plot_and_refuses_bad_options(tmp_path):
