@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from calib.calibration.correction import Correction, correction_from_parameters
-from calib.calibration.entry import calibrate
+from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.hand.rests import find_rests
 from calib.nav.strapdown import sample_intervals
 from calib.noise.profiles import load_profile
@@ -143,8 +143,7 @@ def ours(rec: Recording, partial: bool = False) -> tuple[Correction, object]:
         by_hand=True,
         extras="g-sensitivity",
         requirements="mems",
-        gravity_mps2=rec.gravity,
-        partial=partial,
+        options=CalibrateOptions(gravity_mps2=rec.gravity, partial=partial),
     )
     G = res.extra_values.reshape(3, 3)
     c = correction_from_parameters(
@@ -286,7 +285,9 @@ def _brief(s: HandScore) -> str:
 def why_lines(x, rx, c_ours, c_tk, f, rf, c_fo, c_ic) -> list[str]:
     """The g-sensitivity's share on the Xsens; both tools on imucal's own six faces."""
     out = ["", "### Checks behind the findings", ""]
-    no_g = calibrate(x.run, "mems", by_hand=True, requirements="mems", gravity_mps2=x.gravity)
+    no_g = calibrate(
+        x.run, "mems", by_hand=True, requirements="mems", options=CalibrateOptions(gravity_mps2=x.gravity)
+    )
     c_no_g = correction_from_parameters(
         no_g.values, no_g.covariance, None, None, x.gyro_conversion, x.accel_conversion
     )

@@ -41,7 +41,7 @@ from by_hand import (
 )
 
 from calib.calibration.correction import correction_from_parameters
-from calib.calibration.entry import calibrate
+from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.errors import CalibError
 from calib.hand.rests import find_rests
 from calib.nav.strapdown import sample_intervals
@@ -104,7 +104,9 @@ def mikoff(name: str) -> Recording:
 
 def ours_on(rec: Recording, part: Run):
     """Our default hand fit of a part, as a correction in the recording's raw units."""
-    res = calibrate(part, "mems", by_hand=True, requirements="mems", gravity_mps2=rec.gravity)
+    res = calibrate(
+        part, "mems", by_hand=True, requirements="mems", options=CalibrateOptions(gravity_mps2=rec.gravity)
+    )
     G = sG = None
     if "g-sensitivity" in res.extras.groups:  # chosen by the data: part of the correction
         part_gs = res.extras.index("g-sensitivity")

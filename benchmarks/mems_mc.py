@@ -27,7 +27,7 @@ import numpy as np
 from scipy.stats import chi2
 
 import calib  # noqa: F401  (BLAS threads)
-from calib.calibration.entry import calibrate
+from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.errors import CalibError
 from calib.model import params as P
 from calib.model.error_model import ErrorModel
@@ -67,7 +67,7 @@ def one_run(args):
     )
     t0 = time.process_time()
     try:
-        res = calibrate(run, prof, requirements="mems", require_convergence=False)
+        res = calibrate(run, prof, requirements="mems", options=CalibrateOptions(require_convergence=False))
     except CalibError as e:  # a refusal is a failed run, counted and named, not a crash
         print(f"seed {seed}: {e}", flush=True)
         return None, None, False, 0, time.process_time() - t0, seed

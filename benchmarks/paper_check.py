@@ -18,6 +18,7 @@ import calib  # noqa: F401  (BLAS threads)
 from calib.fit.estimator import fit_run
 from calib.model import params as P
 from calib.model.error_model import ErrorModel, paper_table
+from calib.nav.site import Site
 from calib.noise.profiles import load_profile
 from calib.sequence.definition import load_sequence
 from calib.sequence.kinematics import SimConfig
@@ -33,7 +34,7 @@ def main() -> None:
     cfg = SimConfig(latitude_rad=lat)
     truth = ErrorModel.from_table2()
     run, _ = simulate(seq, cfg, truth, prof, setup_rotvec=np.radians([1.0, -2.0, 3.0]), seed=args.seed)
-    fit = fit_run(run.time_s, run.dtheta_rad, run.dv_mps, lat, cfg.gravity, prof)
+    fit = fit_run(run, Site(lat, cfg.gravity), prof)
     err = P.from_si(fit.values - truth.values)
     sig = P.from_si(fit.sigma)
     paper_err = paper_table("table2_simulation", "paper_error")

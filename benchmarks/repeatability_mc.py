@@ -31,7 +31,7 @@ import numpy as np
 from scipy.stats import chi2, kstest
 
 import calib  # noqa: F401  (BLAS threads)
-from calib.calibration.entry import calibrate
+from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.errors import CalibError
 from calib.model import params as P
 from calib.model.error_model import ErrorModel
@@ -72,7 +72,7 @@ def one_run(args):
     )
     t0 = time.process_time()
     try:
-        res = calibrate(run, prof, requirements="mems", require_convergence=False)
+        res = calibrate(run, prof, requirements="mems", options=CalibrateOptions(require_convergence=False))
     except CalibError as e:
         print(f"seed {seed}: {e}", flush=True)
         return None, seed, time.process_time() - t0

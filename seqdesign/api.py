@@ -13,6 +13,7 @@
 >>> run = sd.read_run("demo-out/run.npz")
 >>> result = sd.calibrate(run, profile="navigation")       # a CalibrationResult (seqdesign calibrate)
 >>> big = sd.calibrate("long.npz", stream=True)            # the same, read chunk by chunk
+>>> surveyed = sd.calibrate(run, options=sd.CalibrateOptions(gravity_mps2=9.80665))  # the rarer choices
 >>> sd.record(run, "run.rrd", result=result)              # a rerun recording  (seqdesign view)
 >>> fitted = sd.profile_fit("static.csv", height_m=1100)   # a FittedProfile    (seqdesign profile fit)
 >>> fitted.save("myimu.toml")
@@ -28,7 +29,7 @@ import warnings
 from pathlib import Path
 
 from calib.allan.profile_fit import METHOD, FittedProfile, fit_log
-from calib.calibration.entry import calibrate
+from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.calibration.result import CalibrationResult
 from calib.fit.replay import review_run
 from calib.gimbal.description import Gimbal
@@ -58,6 +59,7 @@ from .search import (
 
 __all__ = [
     "Analysis",
+    "CalibrateOptions",
     "CalibrationResult",
     "Constraints",
     "DesignOptions",

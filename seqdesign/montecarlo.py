@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.calibration.entry import calibrate
+from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.model.error_model import ErrorModel
 from calib.model.optional_terms import NONE as NO_EXTRAS, Extras, ExtraValues
 from calib.noise.profiles import NoiseProfile
@@ -85,7 +85,7 @@ def one_trial(job: TrialJob) -> tuple[np.ndarray, np.ndarray, bool]:
         run,
         job.fit_profile or job.profile,
         extras=job.extras,
-        require_convergence=False,
+        options=CalibrateOptions(require_convergence=False),
         requirements=job.requirements,
     )
     return result.values - job.errors.values, result.covariance, result.converged

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from calib.calibration.entry import calibrate
+from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.errors import CalibError
 from calib.hand.plan import random_hand_plan, xsens_like_plan
 from calib.hand.poses import PoseList, tipping_plan
@@ -177,7 +177,11 @@ def one_run(job: VerifyJob) -> RunOutcome:
     )
     try:
         result = calibrate(
-            run, job.profile, extras=job.extras, require_convergence=False, requirements=job.requirements
+            run,
+            job.profile,
+            extras=job.extras,
+            options=CalibrateOptions(require_convergence=False),
+            requirements=job.requirements,
         )
     except CalibError as exc:
         return RunOutcome(job.seed, None, None, False, str(exc))
@@ -200,7 +204,7 @@ def _one_hand_run(job: VerifyJob, errors: ErrorModel, rng: np.random.Generator) 
             job.profile,
             by_hand=True,
             extras="g-sensitivity" if job.hand.g_sensitivity else None,
-            require_convergence=False,
+            options=CalibrateOptions(require_convergence=False),
             requirements=job.requirements,
         )
     except CalibError as exc:

@@ -19,6 +19,8 @@ from calib.calibration.correction import (
     raw_samples,
 )
 from calib.calibration.entry import (
+    CALIBRATE,
+    CalibrateOptions,
     calibrate,
     check_streamable,
     rate_limit,
@@ -29,6 +31,8 @@ from calib.calibration.entry import (
 from calib.calibration.result import CalibrationResult
 
 __all__ = [
+    "CALIBRATE",
+    "CalibrateOptions",
     "CalibrationResult",
     "Correction",
     "SensorCorrection",

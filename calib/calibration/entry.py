@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +24,7 @@ import numpy as np
 from calib.errors import CalibError
 from calib.fit.chunked import fit_file, run_header
 from calib.fit.estimator import fit_run
+from calib.fit.options import FitOptions
 from calib.fit.sanity import MAX_PLAUSIBLE_RATE, GyroUnitError, explain_gyro_unit
 from calib.fit.solution import Fit
 from calib.hand.calibrate import as_fit, fit_checked, summary_of
@@ -48,6 +49,54 @@ BIRGE_LIMIT = 1.2
 # samples and the navigation's temporaries take about ten times the file's size in memory.
 STREAM_BYTES = 256 << 20
 CHUNK_KINDS = (".npz", ".csv")  # what the chunked reader reads (imu-run/1 CSV, numpy NPZ)
+
+
+@dataclass(frozen=True)
+class CalibrateOptions:
+    """What else :func:`calib.calibration.entry.calibrate` is told about a run and its result.
+
+    Parameters
+    ----------
+    partial : bool
+        Fit the estimable part of a run that leaves directions unobserved,
+        reporting the rest as not estimable, instead of refusing it.
+    require_convergence : bool
+        Refuse a fit that did not converge (the CLI writes no result then).
+    gravity_mps2 : float, optional
+        Surveyed gravity at the site; wins over the log's and over the
+        normal-gravity model (a gravity error of dg/g is a common
+        accelerometer scale-factor error no sequence can separate).
+    allow_gaps : bool
+        Reading a file whole: repair dropped and duplicated samples.
+    latitude_deg, height_m : float, optional
+        Reading a file whole: the site of a logger's CSV that lacks it.
+    provenance : dict
+        Stored in the result as it is.
+    without : str, optional
+        A run placed by hand: optional terms never fitted (``"g-sensitivity"``).
+    fix_units : bool
+        A run placed by hand whose labels its data contradict (an accelerometer in g read
+        as m/s^2, deg/s read as rad/s, swapped or flipped axes, a wrong rate;
+        :mod:`calib.hand.setup`) is put right and fitted, saying so, instead of refused.
+    """
+
+    partial: bool = False
+    require_convergence: bool = True
+    gravity_mps2: float | None = None
+    allow_gaps: bool = False
+    latitude_deg: float | None = None
+    height_m: float | None = None
+    provenance: dict = field(default_factory=dict)
+    without: str | None = None
+    fix_units: bool = False
+
+    @property
+    def reading(self) -> dict:
+        """The in-memory reader's options (:func:`calib.runlog.read_run`)."""
+        return dict(allow_gaps=self.allow_gaps, latitude_deg=self.latitude_deg, height_m=self.height_m)
+
+
+CALIBRATE = CalibrateOptions()  # the defaults
 
 
 def reads_in_chunks(path, stream: bool | None = None, **reading) -> bool:
@@ -105,22 +154,17 @@ def calibrate(
     source,
     profile: NoiseProfile | str = "navigation",
     *,
-    stream: bool | None = None,
-    sequence=None,
-    extras: Extras | str | None = None,
-    partial: bool = False,
-    require_convergence: bool = True,
-    requirements=None,
-    gravity_mps2: float | None = None,
-    allow_gaps: bool = False,
-    latitude_deg: float | None = None,
-    height_m: float | None = None,
-    provenance: dict | None = None,
     by_hand: bool = False,
-    without: str | None = None,
-    fix_units: bool = False,
+    requirements=None,
+    extras: Extras | str | None = None,
+    sequence=None,
+    stream: bool | None = None,
+    options: CalibrateOptions = CALIBRATE,
 ) -> CalibrationResult:
     """Fit the 21 parameters (and any optional terms) of a run log.
+
+    The choices a notebook makes most are keywords; the rest is one
+    :class:`calib.calibration.entry.CalibrateOptions` (``options=CalibrateOptions(partial=True)``).
 
     Parameters
     ----------
@@ -129,44 +173,27 @@ def calibrate(
         :func:`calib.sim.gimbal_run.simulate`), or its file.
     profile : NoiseProfile or str
         Weights the fit and scales the sigmas.
-    stream : bool, optional
-        For a file: read it chunk by chunk (True), whole (False), or by
-        :func:`reads_in_chunks`'s rule (None). Both readings fit the same
-        samples with the same estimator.
-    sequence : calib.sequence.definition.Sequence, optional
-        The sequence the run followed: its flips mark where the log turns
-        (refused if they are not where the gyros turn). Default: detected.
-    extras : Extras or str, optional
-        Optional terms to fit beside the 21 (``"lever-arm,k2"``, ``"all"``).
-    partial : bool
-        Fit the estimable part of a run that leaves directions unobserved,
-        reporting the rest as not estimable, instead of refusing it.
-    require_convergence : bool
-        Refuse a fit that did not converge (the CLI writes no result then).
-    requirements : Requirements or str, optional
-        What the ratios are judged against (default: the paper's; ``mems`` for a run placed by hand).
-    gravity_mps2 : float, optional
-        Surveyed gravity at the site; wins over the log's and over the
-        normal-gravity model (a gravity error of dg/g is a common
-        accelerometer scale-factor error no sequence can separate).
-    allow_gaps : bool
-        Reading a file whole: repair dropped and duplicated samples.
-    latitude_deg, height_m : float, optional
-        Reading a file whole: the site of a logger's CSV that lacks it.
-    provenance : dict, optional
-        Stored in the result as it is.
     by_hand : bool
         The run was placed by hand (no gimbal, no sequence): fitted from its
         rests and the moves between them (:mod:`calib.hand.joint_fit`); read whole.
         Its optional term (the gyro g-sensitivity) is fitted when the data need
-        it (:func:`calib.hand.calibrate.hand_fit_of`) unless ``extras`` or ``without``
+        it (:func:`calib.hand.calibrate.hand_fit_of`) unless ``extras`` or ``options.without``
         names it.
-    without : str, optional
-        A run placed by hand: optional terms never fitted (``"g-sensitivity"``).
-    fix_units : bool
-        A run placed by hand whose labels its data contradict (an accelerometer in g read
-        as m/s^2, deg/s read as rad/s, swapped or flipped axes, a wrong rate;
-        :mod:`calib.hand.setup`) is put right and fitted, saying so, instead of refused.
+    requirements : Requirements or str, optional
+        What the ratios are judged against (default: the paper's; ``mems`` for a run placed by hand).
+    extras : Extras or str, optional
+        Optional terms to fit beside the 21 (``"lever-arm,k2"``, ``"all"``).
+    sequence : calib.sequence.definition.Sequence, optional
+        The sequence the run followed: its flips mark where the log turns
+        (refused if they are not where the gyros turn). Default: detected.
+    stream : bool, optional
+        For a file: read it chunk by chunk (True), whole (False), or by
+        :func:`reads_in_chunks`'s rule (None). Both readings fit the same
+        samples with the same estimator.
+    options : CalibrateOptions
+        The rest: ``partial``, ``require_convergence``, the surveyed ``gravity_mps2``,
+        the whole reader's ``allow_gaps``, ``latitude_deg`` and ``height_m``, the
+        ``provenance`` stored, and a hand run's ``without`` and ``fix_units``.
 
     Returns
     -------
@@ -179,43 +206,32 @@ def calibrate(
     # every sigma would be "weak" (beyond 1000 requirements) and nothing estimable.
     req = load_requirements(requirements if requirements is not None or not by_hand else "mems")
     if by_hand:
-        return _by_hand(
-            source,
-            prof,
-            (extras, tuple(g for g in (without or "").split(",") if g), fix_units),
-            partial,
-            require_convergence,
-            req,
-            gravity_mps2,
-            provenance,
-            stream,
-            dict(allow_gaps=allow_gaps, latitude_deg=latitude_deg, height_m=height_m),
-            sequence,
-        )
-    if without:
+        return _by_hand(source, prof, extras, req, sequence, stream, options)
+    if options.without:
         raise CalibError(
             "--without chooses the optional terms of a run placed by hand",
             str(getattr(source, "source", source)),
             "leave it out (a gimbal run fits only the terms --with names), or add --by-hand",
         )
-    model = dict(extras=extras, partial=partial, requirements=req, sequence=sequence)
+    fit_options = FitOptions(extras=extras, partial=options.partial, requirements=req)
+    provenance, gravity_mps2 = options.provenance, options.gravity_mps2
     if isinstance(source, (str, os.PathLike)):
-        reading: dict[str, Any] = dict(allow_gaps=allow_gaps, latitude_deg=latitude_deg, height_m=height_m)
+        reading: dict[str, Any] = options.reading
         if reads_in_chunks(source, stream, **reading):
             site = site_of(run_header(source), gravity_mps2)
-            fit, where = fit_file(source, site, prof, **model), str(source)
-            return _checked_result(fit, where, require_convergence, prof, site, provenance, req)
+            fit, where = fit_file(source, site, prof, sequence, options=fit_options), str(source)
+            return _checked_result(fit, where, options.require_convergence, prof, site, provenance, req)
 
         source = read_run(source, **reading)
     elif stream:
         raise ValueError("a run in memory is calibrated in memory: stream applies to a file")
     site = site_of(source, gravity_mps2)
-    fit = _fit_in_memory(source, site, prof, **model)
-    provenance = {**(provenance or {}), "samples": samples_fingerprint(source)}
-    return _checked_result(fit, source.source, require_convergence, prof, site, provenance, req)
+    fit = _fit_in_memory(source, site, prof, sequence, fit_options)
+    provenance = {**provenance, "samples": samples_fingerprint(source)}
+    return _checked_result(fit, source.source, options.require_convergence, prof, site, provenance, req)
 
 
-def _fit_in_memory(run, site: Site, profile: NoiseProfile, sequence, **model) -> Fit:
+def _fit_in_memory(run, site: Site, profile: NoiseProfile, sequence, options: FitOptions) -> Fit:
     """The estimator on a run held whole; a sequence's flips mark where it turns.
 
     A run whose fast turns carry the unit (:func:`calib.hand.setup.carried_by_hand`) was turned
@@ -238,42 +254,21 @@ def _fit_in_memory(run, site: Site, profile: NoiseProfile, sequence, **model) ->
             sequence, log_turns(run.dtheta_rad, dt, profile.arw, run.source), moving, dt, run.source
         )
     try:
-        return fit_run(
-            run.time_s,
-            run.dtheta_rad,
-            run.dv_mps,
-            site.latitude_rad,
-            site.gravity_mps2,
-            profile,
-            moving=moving,
-            where=run.source,
-            sequence=sequence,
-            max_rate_rad_s=rate_limit(run),
-            **model,
-        )
+        options = replace(options, max_rate_rad_s=rate_limit(run))
+        return fit_run(run, site, profile, moving=moving, sequence=sequence, options=options)
     except GyroUnitError as exc:  # told in the terms of the file's gyro columns (rates, not dtheta)
         raise explain_gyro_unit(exc, run.gyro_columns) from None
 
 
 def _by_hand(
-    source,
-    prof,
-    terms,
-    partial,
-    require_convergence,
-    req,
-    gravity_mps2,
-    provenance,
-    stream,
-    reading,
-    sequence,
+    source, prof, extras: Extras, req: Requirements, sequence, stream, options: CalibrateOptions
 ) -> CalibrationResult:
     """A run placed by hand, read whole: its fit, checked as a gimbal run's.
 
-    ``terms`` is the optional terms forced in (Extras) and out (names), and whether to put
-    right the setup mistakes the data show (``--fix-units``).
+    The optional terms are forced in by ``extras`` and out by ``options.without``;
+    ``options.fix_units`` puts right the setup mistakes the data show (``--fix-units``).
     """
-    *terms, fix_units = terms
+    terms = (extras, tuple(g for g in (options.without or "").split(",") if g))
     if sequence is not None:
         raise CalibError(
             "a run placed by hand follows no sequence file",
@@ -283,12 +278,14 @@ def _by_hand(
     if isinstance(source, (str, os.PathLike)):
         if stream:
             raise CalibError("a run placed by hand is read whole", str(source), "leave out --stream")
-        source = read_run(source, **reading)
-    site = site_of(source, gravity_mps2)
-    hand, extras, choice, source, notes = fit_checked(source, site, prof, terms, partial, req, fix_units)
+        source = read_run(source, **options.reading)
+    site = site_of(source, options.gravity_mps2)
+    hand, extras, choice, source, notes = fit_checked(
+        source, site, prof, terms, options.partial, req, options.fix_units
+    )
     fit = as_fit(hand, extras)
-    provenance = {**(provenance or {}), "samples": samples_fingerprint(source)}
-    result = _checked_result(fit, source.source, require_convergence, prof, site, provenance, req)
+    provenance = {**options.provenance, "samples": samples_fingerprint(source)}
+    result = _checked_result(fit, source.source, options.require_convergence, prof, site, provenance, req)
     return replace(result, by_hand=summary_of(hand, source, choice, tuple(notes)))
 
 

@@ -11,6 +11,8 @@ Modules:
   MEMS unit's)
 - :mod:`calib.fit.gyrocompass`: Gyro bias and heading together from every rest of a run (a MEMS
   unit's start)
+- :mod:`calib.fit.options`: The estimator's options as one value: what is fitted, how far and how it
+  iterates
 - :mod:`calib.fit.replay`: What a recording of a run shows that has to be computed: motion,
   alignment, navigations
 - :mod:`calib.fit.sanity`: Physical sanity checks of a run before calibrating it
@@ -36,6 +38,7 @@ from calib.fit.gyrocompass import (
     rest_rates,
     rests_in_memory,
 )
+from calib.fit.options import FIT, FitOptions
 from calib.fit.replay import RunReview, motion_profile, result_profile, review_run, velocity_noise_sigma
 from calib.fit.sanity import (
     GyroUnitError,
@@ -73,7 +76,9 @@ from calib.fit.start import (
 __all__ = [
     "AttitudeFeedback",
     "FeedbackSchedule",
+    "FIT",
     "Fit",
+    "FitOptions",
     "GyroUnitError",
     "Rests",
     "RunReview",

@@ -27,9 +27,7 @@ import math
 import numpy as np
 
 from calib.errors import CalibError
-from calib.model.optional_terms import NONE as NO_EXTRAS, Extras
-from calib.model.requirements import PAPER, Requirements
-from calib.nav.chunk_pass import Chunk, chunk_cuts, quat_scan
+from calib.nav.chunk_pass import Chunk, Passes, chunk_cuts, quat_scan
 from calib.nav.jacobian import default_grid
 from calib.nav.site import Site
 from calib.nav.transform import quat_mult, quat_to_dcm, rotvec_to_quat
@@ -54,6 +52,7 @@ from calib.sequence.motion import (
 from . import sanity
 from .estimator import fit_intervals
 from .gyrocompass import Rests
+from .options import FIT, FitOptions
 from .solution import nominal_judge
 from .start import check_first_rest, start_attitude
 
@@ -274,13 +273,9 @@ def fit_file(
     path,
     site: Site,
     profile: NoiseProfile,
-    extras: Extras = NO_EXTRAS,
-    partial: bool = False,
-    requirements: Requirements = PAPER,
     sequence=None,
     rows: int = READ_ROWS,
-    max_iterations: int | None = None,
-    tol_sigma: float = 1e-3,
+    options: FitOptions = FIT,
 ):
     """:func:`calib.fit.estimator.fit_run` of a run log read from disk chunk by chunk.
 
@@ -289,34 +284,33 @@ def fit_file(
     A ``sequence`` marks where the run turns and decides, on a run that
     leaves directions unobserved, what is estimable (none given: nothing
     decides, as a navigation of the whole run would be needed to infer it).
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The log (``.npz`` or ``imu-run/1`` CSV).
+    site : Site
+    profile : NoiseProfile
+    sequence : Sequence, optional
+    rows : int
+        Samples read at a time.
+    options : FitOptions
+        What is fitted and how; the streamed loop is the only one here and the
+        rate check is not made (``renavigate`` and ``max_rate_rad_s`` are not used).
     """
     where = str(path)
     moving, t_start, period = survey(path, profile, rows, where)
     nominal = nominal_period(read_meta(path), where)
     if sequence is not None:
         moving = sequence_motion_file(path, rows, where, nominal, sequence, moving, t_start)
-    start, C0 = file_start(path, moving, rows, where, nominal, site, profile, requirements)
+    start = file_start(path, moving, rows, where, nominal, site, profile, options.requirements)
     grid = default_grid(moving, 1.0 / period)
     del moving
     cuts = chunk_cuts(grid)
     judge = (
         None
         if sequence is None
-        else nominal_judge(lambda: sequence, site.latitude_rad, profile, extras, requirements)
+        else nominal_judge(lambda: sequence, site.latitude_rad, profile, options.extras, options.requirements)
     )
-    return fit_intervals(
-        lambda: aligned(read_chunks(path, rows), cuts, t_start),
-        grid,
-        site,
-        t_start,
-        C0,
-        profile,
-        extras=extras,
-        partial=partial,
-        requirements=requirements,
-        max_iterations=max_iterations,
-        tol_sigma=tol_sigma,
-        where=where,
-        start=start,
-        judge=judge,
-    )
+    passes = Passes(lambda: aligned(read_chunks(path, rows), cuts, t_start), grid, t_start)
+    return fit_intervals(passes, site, profile, start, options, where=where, judge=judge)

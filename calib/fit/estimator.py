@@ -28,9 +28,9 @@ from calib.model import optional_terms as X, params as P
 from calib.model.error_model import ErrorModel
 from calib.model.information import UNKNOWN_NAMES
 from calib.model.optional_terms import Extras
-from calib.model.requirements import PAPER, Requirements
+from calib.model.requirements import Requirements
 from calib.nav import earth
-from calib.nav.chunk_pass import array_chunks, chunk_cuts, navigate_pass
+from calib.nav.chunk_pass import Estimate, Passes, array_chunks, chunk_cuts, navigate_pass
 from calib.nav.jacobian import (
     PHI0,
     ObservationGrid,
@@ -53,6 +53,7 @@ from calib.sequence.motion import Segmentation, detect_motion
 from . import sanity
 from .feedback import MAX_ITERATIONS, FeedbackSchedule
 from .gyrocompass import rests_in_memory
+from .options import FIT, FitOptions
 from .solution import (
     Fit,
     apply_step,
@@ -70,30 +71,45 @@ RELINEARISE_STEP_SIGMA = 0.1
 
 
 def check_run(
-    dtheta_m: np.ndarray,
-    dv_m: np.ndarray,
+    run,
     dt: np.ndarray,
-    latitude_rad: float,
-    gravity_mps2: float,
+    site: Site,
     profile: NoiseProfile,
     moving: np.ndarray | None,
-    where: str,
-    requirements: Requirements = PAPER,
-    max_rate_rad_s: float | None = sanity.MAX_PLAUSIBLE_RATE,
+    options: FitOptions = FIT,
 ) -> Segmentation:
     """Refuse a log the fit cannot use, naming why; return where it turns.
 
-    What is plausible follows the unit's class (its profile and requirements):
+    What is plausible follows the unit's class (its profile and ``options.requirements``):
     a MEMS unit's biases of 1000 deg/h and 20 mg are not a log in wrong units.
-    ``max_rate_rad_s`` is the fastest plausible turn (`calib.fit.sanity.check_rates`):
+    ``options.max_rate_rad_s`` is the fastest plausible turn (`calib.fit.sanity.check_rates`):
     a gimbal's by default; a run turned by hand gives its sensor's range, or None.
+
+    Parameters
+    ----------
+    run : calib.runlog.Run
+        The log (its ``dtheta_rad``, ``dv_mps`` and ``source``, which names it in refusals).
+    dt : ndarray, shape (n,)
+        Its sample intervals.
+    site : Site
+    profile : NoiseProfile
+    moving : ndarray of bool or None
+        Which samples turn; detected from the gyros if None.
+    options : FitOptions
+
+    Returns
+    -------
+    Segmentation
     """
-    sanity.check_latitude(latitude_rad, where)
-    sanity.check_rates(dtheta_m, dt, where, max_rate_rad_s)
+    dtheta_m, dv_m, where = run.dtheta_rad, run.dv_mps, run.source
+    sanity.check_latitude(site.latitude_rad, where)
+    sanity.check_rates(dtheta_m, dt, where, options.max_rate_rad_s)
     seg = detect_motion(dtheta_m, dt, where, arw=profile.arw)
     if moving is not None:
         seg = Segmentation(moving=moving, first_rest_end=int(np.argmax(moving)))
-    check_first_rest(dtheta_m, dv_m, dt, slice(0, seg.first_rest_end), gravity_mps2, where, requirements)
+    check_first_rest(
+        dtheta_m, dv_m, dt, slice(0, seg.first_rest_end), site.gravity_mps2, where, options.requirements
+    )
     sanity.check_saturation(dtheta_m, dv_m, where)
     sanity.check_rests(dv_m, dt, seg.moving, profile.vrw, where)
     return seg
@@ -107,8 +123,7 @@ class _Problem:
     dtheta_m: np.ndarray
     dv_m: np.ndarray
     dt: np.ndarray
-    latitude_rad: float
-    gravity_mps2: float
+    site: Site
     profile: NoiseProfile
     extras: Extras
     grid: ObservationGrid
@@ -134,7 +149,8 @@ class _Problem:
         if feedback is not None:  # after the extra terms, as calib.nav.chunk_pass applies it
             b = self.grid.bounds  # b[0] = 0 and b[-1] = n: every sample is in an interval
             dth = dth + np.repeat(feedback.body_rate, np.diff(b), axis=0) * self.dt[:, None]
-        nav = navigate(dth, dvv, self.time_s, C0, self.latitude_rad, self.gravity_mps2, t0=self.t_nav[0])
+        site = self.site
+        nav = navigate(dth, dvv, self.time_s, C0, site.latitude_rad, site.gravity_mps2, t0=self.t_nav[0])
         return dth, dvv, nav
 
     def observations(self, nav, Phi_vv, it: int, feedback_dv=None, hint: str = "") -> np.ndarray:
@@ -144,136 +160,70 @@ class _Problem:
 
 
 def fit_run(
-    time_s: np.ndarray,
-    dtheta_m: np.ndarray,
-    dv_m: np.ndarray,
-    latitude_rad: float,
-    gravity_mps2: float,
+    run,
+    site: Site,
     profile: NoiseProfile,
+    *,
     moving: np.ndarray | None = None,
-    max_iterations: int | None = None,
-    tol_sigma: float = 1e-3,
-    where: str = "run",
-    extras: Extras = X.NONE,
-    partial: bool = False,
-    requirements: Requirements = PAPER,
     sequence=None,
-    renavigate: str = "when-needed",
-    max_rate_rad_s: float | None = sanity.MAX_PLAUSIBLE_RATE,
+    options: FitOptions = FIT,
 ) -> Fit:
     """Identify the 21 parameters, the initial attitude and any optional terms from raw increments.
 
     Parameters
     ----------
-    time_s : ndarray, shape (n,)
-        End time of each sample.
-    dtheta_m, dv_m : ndarray, shape (n, 3)
-        Raw (uncompensated) increments.
-    latitude_rad, gravity_mps2 : float
-        The site.
+    run : calib.runlog.Run
+        The log in memory: its ``time_s`` (end time of each sample), raw
+        (uncompensated) ``dtheta_rad`` and ``dv_mps``, and ``source``, which
+        names it in refusals.
+    site : Site
+        Its latitude and gravity.
     profile : NoiseProfile
         Weights the observations and scales the covariance.
     moving : ndarray of bool, optional
         Which samples turn (from the sequence); detected from the gyros if None.
-    max_iterations : int, optional
-        Gauss-Newton iterations at most. Default: :data:`MAX_ITERATIONS`, or
-        :data:`~calib.fit.feedback.WANDER_MAX_ITERATIONS` for a run whose attitude noise needs
-        the feedback of :func:`attitude_feedback`.
-    tol_sigma : float
-        Converged when every correction is below this fraction of its sigma.
-    where : str
-        Names the log in refusals.
-    extras : Extras
-        Optional terms (:mod:`calib.model.optional_terms`) to estimate with the 21.
-    partial : bool
-        Fit the estimable part of a run that leaves directions unobserved
-        instead of refusing it (:func:`solve_information`).
-    requirements : Requirements
-        Scale the unknowns, and so decide what counts as observed
-        (:mod:`calib.model.information`).
     sequence : Sequence, optional
         The nominal sequence: on a run that leaves directions unobserved it
         decides which parameters are estimable, as the analyser does.
         Default: inferred from the navigation (:mod:`calib.sequence.inferred`).
-    renavigate : {"when-needed", "always"}
-        "when-needed" (default): stream the run through :func:`fit_intervals`,
-        which navigates only while a step could still move the estimate by
-        ``tol_sigma``; "always": the reference loop that re-navigates the
-        whole run in memory at every iteration (for tests and benchmarks).
-    max_rate_rad_s : float or None
-        The fastest plausible turn (:func:`calib.fit.sanity.check_rates`): a gimbal's by
-        default; a run turned by hand gives its sensor's range, or None for no check.
+    options : FitOptions
+        What is fitted and how (:class:`calib.fit.options.FitOptions`): ``renavigate``
+        "when-needed" streams the run through :func:`fit_intervals`, "always" runs the
+        reference loop that re-navigates the whole run in memory at every iteration.
 
     Returns
     -------
     Fit
     """
-    if renavigate not in ("when-needed", "always"):
-        raise ValueError(f"renavigate must be 'when-needed' or 'always', not {renavigate!r}")
+    time_s, dtheta_m, dv_m, where = run.time_s, run.dtheta_rad, run.dv_mps, run.source
     dt = sample_intervals(time_s)
-    seg = check_run(
-        dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, moving, where, requirements, max_rate_rad_s
-    )
+    seg = check_run(run, dt, site, profile, moving, options)
     grid = default_grid(seg.moving, 1.0 / np.median(dt))
     first = slice(0, seg.first_rest_end)
-    start, C0 = start_attitude(
+    start = start_attitude(
         (dtheta_m[first], dv_m[first], dt[first]),
         mean_rest_rate(dtheta_m, dt, seg.moving),
         functools.partial(rests_in_memory, dtheta_m, dt, seg.moving),
-        latitude_rad,
+        site.latitude_rad,
     )
     judge = nominal_judge(
-        functools.partial(
-            _run_sequence,
-            sequence,
-            time_s,
-            dtheta_m,
-            dv_m,
-            dt,
-            seg.moving,
-            C0,
-            start,
-            latitude_rad,
-            gravity_mps2,
-        ),
-        latitude_rad,
+        functools.partial(_run_sequence, sequence, run, dt, seg.moving, start, site),
+        site.latitude_rad,
         profile,
-        extras,
-        requirements,
+        options.extras,
+        options.requirements,
     )
-    options = dict(
-        extras=extras,
-        partial=partial,
-        requirements=requirements,
-        max_iterations=max_iterations,
-        tol_sigma=tol_sigma,
-        where=where,
-        start=start,
-        judge=judge,
-    )
-    if renavigate == "always":
-        pb = _Problem(time_s, dtheta_m, dv_m, dt, latitude_rad, gravity_mps2, profile, extras, grid, where)
-        return _fit_renavigating(pb, C0, **options)
-    site, t0 = Site(latitude_rad, gravity_mps2), float(time_s[0] - dt[0])
+    if options.renavigate == "always":
+        pb = _Problem(time_s, dtheta_m, dv_m, dt, site, profile, options.extras, grid, where)
+        return _fit_renavigating(pb, start, options, judge)
+    t0 = float(time_s[0] - dt[0])
     cuts = chunk_cuts(grid)
     del dt, seg  # whole-run temporaries: the passes need one chunk at a time
-    return fit_intervals(
-        lambda: array_chunks(time_s, dtheta_m, dv_m, t0, cuts), grid, site, t0, C0, profile, **options
-    )
+    passes = Passes(lambda: array_chunks(time_s, dtheta_m, dv_m, t0, cuts), grid, t0)
+    return fit_intervals(passes, site, profile, start, options, where=where, judge=judge)
 
 
-def _fit_renavigating(
-    pb: _Problem,
-    C0: np.ndarray,
-    extras: Extras,
-    partial: bool,
-    requirements: Requirements,
-    max_iterations: int | None,
-    tol_sigma: float,
-    where: str,
-    start: np.ndarray | None = None,
-    judge=None,
-) -> Fit:
+def _fit_renavigating(pb: _Problem, start: tuple, options: FitOptions, judge=None) -> Fit:
     """The reference loop: re-navigate the whole run in memory at every iteration.
 
     It is the reference for the streamed loop's navigation shortcut (navigate
@@ -281,16 +231,13 @@ def _fit_renavigating(
     different iteration: the attitude feedback and the steps about it follow
     the same :class:`FeedbackSchedule`.
     """
-    latitude_rad, gravity_mps2, profile, grid, dt = (
-        pb.latitude_rad,
-        pb.gravity_mps2,
-        pb.profile,
-        pb.grid,
-        pb.dt,
-    )
+    latitude_rad, gravity_mps2 = pb.site.latitude_rad, pb.site.gravity_mps2
+    profile, grid, dt, where = pb.profile, pb.grid, pb.dt, pb.where
+    extras, requirements, partial = options.extras, options.requirements, options.partial
+    first, C0 = start
     A, T = state_matrix(latitude_rad, gravity_mps2), np.diff(pb.t_nav[grid.bounds])
     mid = (grid.bounds[:-1] + grid.bounds[1:]) // 2
-    values = np.zeros(P.N_PARAMS) if start is None else start.copy()
+    values = np.zeros(P.N_PARAMS) if first is None else first.copy()
     extra_values = np.zeros(extras.n)
     names = UNKNOWN_NAMES + extras.names
     omega_ie_n = earth.omega_ie_n(latitude_rad)
@@ -300,7 +247,7 @@ def _fit_renavigating(
     noise, sol, converged, feedback, noise_C = None, None, False, None, None
     check_wander(profile, float(T.sum()), where)
     schedule = FeedbackSchedule.for_run(profile, float(T.sum()), gravity_mps2)
-    for it in range(1, schedule.limit(max_iterations) + 1):
+    for it in range(1, schedule.limit(options.max_iterations) + 1):
         dth, dvv, nav = pb.compensate_and_navigate(values, extra_values, C0, turn, feedback)
         if extras.n:  # the Earth's turn in the body, for the next compensation
             turn = X.earth_turn(0.5 * (nav.C_b_n[1:] + nav.C_b_n[:-1]), omega_ie_n, dt)
@@ -338,35 +285,29 @@ def _fit_renavigating(
         C0 = rotvec_to_dcm(delta[PHI0]) @ C0
         history.append(history_entry(it, delta, cov, resid, sol) | schedule.record())
         step = history[-1]["max_step_sigma"]
-        if step < tol_sigma and not schedule.pending():
+        if step < options.tol_sigma and not schedule.pending():
             converged = True
             break
-        feedback = schedule.update(it, step, feedback, noise, z, H, delta, A, T, C_model)
+        feedback = schedule.update(it, step, feedback, noise, (z, H, delta), A, T, C_model)
     if not converged and (why := schedule.why_not_converged()):
         history[-1]["why_not_converged"] = why
     z, H = to_frame(R.T, z), to_frame(R.T, H)  # back in the navigation frame
-    return fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, converged, extras)
+    return fit_result((values, extra_values, C0), cov, sol, (z, H, delta), history, converged, extras)
 
 
 def fit_intervals(
-    chunks,
-    grid,
+    passes: Passes,
     site: Site,
-    t0: float,
-    C0: np.ndarray,
     profile: NoiseProfile,
-    extras: Extras = X.NONE,
-    partial: bool = False,
-    requirements: Requirements = PAPER,
-    max_iterations: int | None = None,
-    tol_sigma: float = 1e-3,
+    start: tuple,
+    options: FitOptions = FIT,
+    *,
     where: str = "run",
-    start: np.ndarray | None = None,
     judge=None,
 ) -> Fit:
     """The Gauss-Newton loop on per-interval quantities, navigating only when it must.
 
-    ``chunks()`` gives the run again, chunk by chunk (:mod:`calib.nav.chunk_pass`);
+    ``passes.chunks()`` gives the run again, chunk by chunk (:mod:`calib.nav.chunk_pass`);
     each navigation is one pass over it (:func:`calib.nav.chunk_pass.navigate_pass`)
     that leaves only per-interval quantities. As in the reference loop the
     Jacobian is re-evaluated along the navigations of the first three
@@ -377,9 +318,33 @@ def fit_intervals(
     gravity to leak through at second order gets the attitude feedback on the
     schedule both loops share (:class:`FeedbackSchedule`, docs/grades.md);
     every other run is fitted exactly as without it.
+
+    Parameters
+    ----------
+    passes : calib.nav.chunk_pass.Passes
+        The run, read again at every navigation.
+    site : Site
+    profile : NoiseProfile
+    start : tuple of ndarray
+        Where Gauss-Newton starts: the 21's first values (None: zeros) and the attitude
+        when the run began (:func:`calib.fit.start.start_attitude`).
+    options : FitOptions
+        What is fitted and how (``renavigate`` and ``max_rate_rad_s`` are not used here).
+    where : str
+        Names the log in refusals.
+    judge : callable, optional
+        Decides what is estimable on a run that leaves directions unobserved
+        (:func:`calib.fit.solution.nominal_judge`).
+
+    Returns
+    -------
+    Fit
     """
+    extras, requirements, partial = options.extras, options.requirements, options.partial
+    max_iterations, tol_sigma = options.max_iterations, options.tol_sigma
+    first, C0 = start
     A, names = state_matrix(site.latitude_rad, site.gravity_mps2), UNKNOWN_NAMES + extras.names
-    values = np.zeros(P.N_PARAMS) if start is None else start.copy()
+    values = np.zeros(P.N_PARAMS) if first is None else first.copy()
     extra_values = np.zeros(extras.n)
     history: list[dict] = []
     noise, sol, turn, feedback, schedule, noise_C = None, None, None, None, None, None
@@ -388,19 +353,9 @@ def fit_intervals(
         it += 1
         # A noise model found stale on a pass without the Jacobian is rebuilt on the next, with it.
         want_H = _relinearise(it, sol, history) or stale
-        data = navigate_pass(
-            chunks(),
-            grid,
-            site,
-            t0,
-            values,
-            extra_values,
-            C0,
-            turn,
-            extras,
-            with_moments=want_H,
-            gyro_correction=None if feedback is None else feedback.body_rate,
-        )
+        gyro_correction: np.ndarray | None = None if feedback is None else feedback.body_rate
+        estimate = Estimate(values, C0, extras, extra_values, turn, gyro_correction)
+        data = navigate_pass(passes, site, estimate, with_moments=want_H)
         turn, T = data.turn, np.diff(data.t_bounds)
         if schedule is None:  # (the run's length is known after its first pass)
             check_wander(profile, float(T.sum()), where)
@@ -427,12 +382,12 @@ def fit_intervals(
         step, bound = _record(history, history_entry(it, delta, cov, resid, sol) | schedule.record(), settled)
         if (step < tol_sigma or bound < tol_sigma) and not schedule.pending() and not stale:
             z, H = to_frame(R.T, z), to_frame(R.T, H)
-            return fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, True, extras)
-        feedback = schedule.update(it, step, feedback, noise, z, H, delta, A, T, C_model)
+            return fit_result((values, extra_values, C0), cov, sol, (z, H, delta), history, True, extras)
+        feedback = schedule.update(it, step, feedback, noise, (z, H, delta), A, T, C_model)
     if schedule is not None and (why := schedule.why_not_converged()):
         history[-1]["why_not_converged"] = why
     z, H = to_frame(R.T, z), to_frame(R.T, H)
-    return fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, False, extras)
+    return fit_result((values, extra_values, C0), cov, sol, (z, H, delta), history, False, extras)
 
 
 def _pass_design(data, T, site: Site, noise, z, extras: Extras, requirements: Requirements, R):
@@ -490,10 +445,11 @@ def _relinearise(it: int, sol, history: list) -> bool:
     )
 
 
-def _run_sequence(sequence, time_s, dtheta_m, dv_m, dt, moving, C0, start, latitude_rad, gravity_mps2):
+def _run_sequence(sequence, run, dt, moving, start: tuple, site: Site):
     """The sequence given, else the one read off a navigation of the log (:mod:`calib.sequence.inferred`)."""
     if sequence is not None:
         return sequence
-    dth = dtheta_m - start[P.GYRO_BIAS] * dt[:, None]
-    nav = navigate(dth, dv_m, time_s, C0, latitude_rad, gravity_mps2)
-    return infer_sequence(nav.C_b_n, dtheta_m, moving, dt)
+    values, C0 = start
+    dth = run.dtheta_rad - values[P.GYRO_BIAS] * dt[:, None]
+    nav = navigate(dth, run.dv_mps, run.time_s, C0, site.latitude_rad, site.gravity_mps2)
+    return infer_sequence(nav.C_b_n, run.dtheta_rad, moving, dt)

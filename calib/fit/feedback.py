@@ -265,13 +265,14 @@ class FeedbackSchedule:
     def moved_at(self, it: int) -> None:
         self.updates, self.moved = self.updates + 1, it
 
-    def update(self, it: int, step: float, feedback, noise, z, H, delta, A, T, C_mid):
+    def update(self, it: int, step: float, feedback, noise, last: tuple, A, T, C_mid):
         """The feedback after iteration ``it``: re-estimated from the fit's residual
-        ``z - H delta`` when :meth:`due`, else ``feedback`` unchanged.
+        ``z - H delta`` (``last = (z, H, delta)``) when :meth:`due`, else ``feedback`` unchanged.
         """
         if not self.due(step, it):
             return feedback
         self.moved_at(it)
+        z, H, delta = last
         return attitude_feedback(noise, z - np.einsum("kin,n->ki", H, delta), A, T, C_mid)
 
     def settled(self, it: int) -> bool:

@@ -202,8 +202,24 @@ def apply_step(values, extra_values, delta, sol, D):
     return values, extra_values
 
 
-def fit_result(values, extra_values, C0, cov, sol, z, H, delta, history, converged, extras) -> Fit:
-    """The :class:`Fit` both loops end with; the residual is after the last correction (m/s)."""
+def fit_result(estimate: tuple, cov, sol, last: tuple, history, converged, extras) -> Fit:
+    """The :class:`Fit` both loops end with; the residual is after the last correction (m/s).
+
+    Parameters
+    ----------
+    estimate : tuple
+        ``(values, extra_values, C0)``: the 21, the optional terms and the attitude the run began at.
+    cov : ndarray
+        The unknowns' covariance.
+    sol : Solution
+    last : tuple
+        ``(z, H, delta)``: the last iteration's observations, Jacobian and step.
+    history : list of dict
+    converged : bool
+    extras : Extras
+    """
+    values, extra_values, C0 = estimate
+    z, H, delta = last
     z_fit = z - np.einsum("kin,n->ki", H, delta)
     return Fit(
         values=values,

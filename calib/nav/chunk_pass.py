@@ -24,7 +24,8 @@ products and sums in the same order (bit-identical).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -50,6 +51,56 @@ class Chunk:
     dtheta_m: np.ndarray  # (n, 3)
     dv_m: np.ndarray  # (n, 3)
     t_before: float  # end of sample start - 1 (for the first chunk: when the run began)
+
+
+@dataclass(frozen=True)
+class Passes:
+    """A run read again at every pass, chunk by chunk.
+
+    Parameters
+    ----------
+    chunks : callable
+        ``chunks()`` gives the run again, in order, as :class:`Chunk` values cut at
+        interval ends (:func:`chunk_cuts`).
+    grid : ObservationGrid
+        The observation intervals the pass reduces the run to.
+    t0 : float
+        When the first sample began (the navigation's time origin).
+    """
+
+    chunks: Callable[[], Iterable[Chunk]]
+    grid: ObservationGrid
+    t0: float
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """What a pass compensates the raw increments with, and the attitude it starts from.
+
+    Parameters
+    ----------
+    values : ndarray, shape (21,)
+        The current estimate of the 21 (SI).
+    C_b_n0 : ndarray, shape (3, 3)
+        Attitude when the run began.
+    extras : Extras
+        The optional terms switched on.
+    extra_values : ndarray, shape (extras.n,)
+        Their current estimate.
+    turn : ndarray, shape (n, 3) or None
+        The Earth's turn in the body per sample for the time-offset term
+        (from the previous pass); None: as seen at ``C_b_n0``. Used only with optional terms.
+    gyro_correction : ndarray, shape (K, 3), optional
+        A body rate (rad/s) per interval added to the compensated gyro increments:
+        the estimator's attitude feedback (:func:`calib.fit.feedback.attitude_feedback`).
+    """
+
+    values: np.ndarray
+    C_b_n0: np.ndarray
+    extras: Extras = X.NONE
+    extra_values: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    turn: np.ndarray | None = None
+    gyro_correction: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -318,49 +369,27 @@ def _extra_moments(C_mid, dth_ctx, dvv_ctx, h_ctx, turn, S3, extras: Extras, sit
     return np.einsum("sm,kmc->ksc", G, mom)
 
 
-def navigate_pass(
-    chunks,
-    grid: ObservationGrid,
-    site: Site,
-    t0: float,
-    values: np.ndarray,
-    extra_values: np.ndarray,
-    C_b_n0: np.ndarray,
-    turn: np.ndarray | None,
-    extras: Extras = X.NONE,
-    with_moments: bool = True,
-    gyro_correction: np.ndarray | None = None,
-) -> PassResult:
+def navigate_pass(run: Passes, site: Site, estimate: Estimate, with_moments: bool = True) -> PassResult:
     """Compensate, navigate and reduce a run to its per-interval quantities in one pass.
 
     Parameters
     ----------
-    chunks : iterable of Chunk
-        The run in order, cut at interval ends (:func:`chunk_cuts`).
-    grid : ObservationGrid
+    run : Passes
+        The run, read once more by this pass.
     site : Site
-    t0 : float
-        When the first sample began (the navigation's time origin).
-    values, extra_values : ndarray
-        The current estimate (SI) that compensates the raw increments.
-    C_b_n0 : ndarray, shape (3, 3)
-        Attitude when the run began.
-    turn : ndarray, shape (n, 3) or None
-        The Earth's turn in the body per sample for the time-offset term
-        (from the previous pass); None: as seen at ``C_b_n0``. Used only with optional terms.
-    extras : Extras
+    estimate : Estimate
+        What compensates the raw increments, and the attitude the run began at.
     with_moments : bool
         Skip the moments (and the optional terms' inputs) when the Jacobian is not wanted.
-    gyro_correction : ndarray, shape (K, 3), optional
-        A body rate (rad/s) per interval added to the compensated gyro increments:
-        the estimator's attitude feedback (:func:`calib.fit.feedback.attitude_feedback`).
     """
+    grid, t0, extras, extra_values = run.grid, run.t0, estimate.extras, estimate.extra_values
+    turn, gyro_correction = estimate.turn, estimate.gyro_correction
     b, K = grid.bounds, grid.n_intervals
-    model, carry = ErrorModel(values), _Carry(C_b_n0, site.omega_ie_n)
+    model, carry = ErrorModel(estimate.values), _Carry(estimate.C_b_n0, site.omega_ie_n)
     y, t_bounds, C_mid = np.zeros((K + 1, 3)), np.full(K + 1, t0), np.empty((K, 3, 3))
     moments, extra = np.empty((K, N_MOMENTS)) if with_moments else None, np.zeros((K, 6, extras.n))
     turn_out = np.empty((b[-1], 3)) if extras.n else None
-    for ch in chunks:
+    for ch in run.chunks():
         m = len(ch.time_s)
         t = np.concatenate([[ch.t_before], ch.time_s]) - t0
         dt = np.diff(t)

@@ -88,6 +88,7 @@ from .tools import emit_json, guarded, hidden_alias, info, provenance, refuse_ov
 )
 @options.as_json
 @guarded
+# over 8 parameters: a click command takes one parameter per option it declares
 def calibrate(
     run_path,
     sequence,
@@ -115,7 +116,7 @@ def calibrate(
     """Align, navigate on the stationary base and fit the 21 error parameters of
     RUN (CSV, CSV.GZ, NPZ or PSINS .imu) by iterated, noise-weighted least squares.
     """
-    from calib.calibration.entry import calibrate as calibrate_source, reads_in_chunks
+    from calib.calibration.entry import CalibrateOptions, calibrate as calibrate_source, reads_in_chunks
     from calib.errors import CalibError
     from calib.model.optional_terms import as_extras
     from calib.noise.profiles import load_profile
@@ -179,23 +180,25 @@ def calibrate(
         stream=run is None,
         sequence=seq,
         extras=extras,
-        partial=partial,
         requirements=requirements,
-        gravity_mps2=gravity_mps2,
         by_hand=by_hand,
-        without=without_terms,
-        fix_units=fix_units,
-        provenance=provenance(
-            {
-                "run": run_path,
-                "sequence": sequence,
-                "truth": truth_path,
-                "profile": profile if Path(profile).exists() else None,
-                "requirements": requirements if requirements and Path(requirements).exists() else None,
-            },
-            sequence=sequence,
-            profile=prof.name,
-            **({} if run is not None else {"reader": "chunks"}),
+        options=CalibrateOptions(
+            partial=partial,
+            gravity_mps2=gravity_mps2,
+            without=without_terms,
+            fix_units=fix_units,
+            provenance=provenance(
+                {
+                    "run": run_path,
+                    "sequence": sequence,
+                    "truth": truth_path,
+                    "profile": profile if Path(profile).exists() else None,
+                    "requirements": requirements if requirements and Path(requirements).exists() else None,
+                },
+                sequence=sequence,
+                profile=prof.name,
+                **({} if run is not None else {"reader": "chunks"}),
+            ),
         ),
     )
     result.save(out_path)

@@ -34,6 +34,7 @@ from .tools import emit_json, guarded, info, refuse_overwrite
 @options.log_sample_rate()
 @options.as_json
 @guarded
+# over 8 parameters: a click command takes one parameter per option it declares
 def correct(
     run_path,
     correction_path,

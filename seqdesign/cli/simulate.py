@@ -249,6 +249,7 @@ HAND_DEFAULTS = {
 @trouble_options
 @options.as_json
 @guarded
+# over 8 parameters: a click command takes one parameter per option it declares
 def simulate(
     sequence,
     output,

@@ -11,6 +11,7 @@ from calib.analysis.worst_case import analyze_tolerance
 from calib.fit.estimator import fit_run
 from calib.model import params as P
 from calib.model.error_model import ErrorModel
+from calib.nav.site import Site
 from calib.noise.profiles import NoiseProfile, load_profile
 from calib.sequence.definition import load_sequence
 from calib.sequence.kinematics import SimConfig
@@ -62,7 +63,7 @@ def test_noise_free_recovery_under_the_gm_weighting():
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=50.0)
     truth = ErrorModel.from_table2()
     run, _ = simulate(load_sequence("paper-9pos"), cfg, truth, GM, noise=False)
-    fit = fit_run(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, GM)
+    fit = fit_run(run, Site(LAT, cfg.gravity), GM)
     assert fit.converged
     assert np.all(np.abs(fit.values - truth.values) < P.REQUIREMENTS_SI / 20.0)
 
@@ -79,7 +80,7 @@ def test_gm_weighting_gives_honest_sigmas_and_ignoring_it_does_not():
     for seed in range(12):
         run, _ = simulate(seq, cfg, truth, GM, noise=True, seed=100 + seed)
         for key, prof in (("gm", GM), ("white", WHITE)):
-            fit = fit_run(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, prof)
+            fit = fit_run(run, Site(LAT, cfg.gravity), prof)
             e = fit.values - truth.values
             nees[key].append(e @ np.linalg.solve(fit.covariance[:21, :21], e))
     assert 13.5 < np.mean(nees["gm"]) < 28.5, np.mean(nees["gm"])

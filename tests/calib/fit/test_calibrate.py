@@ -12,6 +12,7 @@ from click.testing import CliRunner
 from calib.fit.estimator import fit_run
 from calib.model import params as P
 from calib.model.error_model import ErrorModel
+from calib.nav.site import Site
 from calib.noise.profiles import load_profile
 from calib.runlog import read_run, write_run
 from calib.sequence.definition import load_sequence
@@ -33,7 +34,7 @@ def noise_free_fit(paper):
     cfg = SimConfig(latitude_rad=LAT)
     truth = ErrorModel.from_table2()
     run, _ = simulate(paper, cfg, truth, load_profile("navigation"), setup_rotvec=SETUP, noise=False)
-    fit = fit_run(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, load_profile("navigation"))
+    fit = fit_run(run, Site(LAT, cfg.gravity), load_profile("navigation"))
     return fit, truth, run
 
 
@@ -78,7 +79,7 @@ def test_any_heading_works(paper):
     run, _ = simulate(
         paper, cfg, truth, load_profile("navigation"), setup_rotvec=np.radians([0.5, 1.0, 130.0]), noise=False
     )
-    fit = fit_run(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, load_profile("navigation"))
+    fit = fit_run(run, Site(LAT, cfg.gravity), load_profile("navigation"))
     assert fit.converged
     assert np.all(np.abs(fit.values - truth.values) < P.REQUIREMENTS_SI / 20.0)
 

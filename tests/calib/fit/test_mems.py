@@ -192,10 +192,12 @@ def test_rest_gyrocompass_finds_bias_and_heading_through_a_mems_bias():
     # the Earth rate's own average over them.
     from calib.fit.estimator import fit_run
     from calib.fit.gyrocompass import rest_gyrocompass
+    from calib.fit.options import FitOptions
     from calib.fit.start import coarse_alignment, start_values
     from calib.model import params as P
     from calib.model.error_model import ErrorModel
     from calib.model.requirements import load_requirements
+    from calib.nav.site import Site
     from calib.nav.strapdown import sample_intervals
     from calib.nav.transform import dcm_to_rotvec
     from calib.sequence.definition import load_sequence
@@ -222,13 +224,10 @@ def test_rest_gyrocompass_finds_bias_and_heading_through_a_mems_bias():
     deg_h = np.degrees(np.abs(bias - errors.values[P.GYRO_BIAS])) * 3600.0
     assert deg_h.max() < 1.0, deg_h
     exact = fit_run(
-        run.time_s,
-        run.dtheta_rad,
-        run.dv_mps,
-        LAT,
-        cfg.gravity,
+        run,
+        Site(LAT, cfg.gravity),
         load_profile("tactical"),
-        requirements=load_requirements("mems"),
+        options=FitOptions(requirements=load_requirements("mems")),
     ).C_b_n0
     assert np.degrees(np.linalg.norm(dcm_to_rotvec(C0 @ exact.T))) < 3.0
 
@@ -323,9 +322,11 @@ def test_streamed_mems_fit_equals_renavigating_fit(profile):
     # the noise model's frame and rebuild it on the same tilt.
 
     from calib.fit.estimator import fit_run
+    from calib.fit.options import FitOptions
     from calib.model import params as P
     from calib.model.error_model import ErrorModel
     from calib.model.requirements import load_requirements
+    from calib.nav.site import Site
     from calib.sequence.definition import load_sequence
     from calib.sequence.kinematics import SimConfig
     from calib.sim.gimbal_run import simulate
@@ -338,10 +339,10 @@ def test_streamed_mems_fit_equals_renavigating_fit(profile):
         prof = load_profile(bench / "profiles" / "adis16405.toml")
         seq = load_sequence(bench / "sequences" / "adis16405-8min.toml")
     run, _ = simulate(seq, cfg, errors, prof, seed=5, random_setup_deg=3.0, flip_error_deg=0.5)
-    args = (run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, prof)
+    args = (run, Site(LAT, cfg.gravity), prof)
     req = load_requirements("mems")
-    ref = fit_run(*args, requirements=req, renavigate="always")
-    fit = fit_run(*args, requirements=req)
+    ref = fit_run(*args, options=FitOptions(requirements=req, renavigate="always"))
+    fit = fit_run(*args, options=FitOptions(requirements=req))
     assert ref.converged and fit.converged
     assert np.all(np.abs(fit.values - ref.values) <= 1e-3 * ref.sigma)
     assert fit.iterations <= ref.iterations
@@ -382,6 +383,7 @@ def test_calibrate_stream_gives_a_mems_run_the_calibrate_start(tmp_path):
     # to 1e-3 sigma (measured: 1e-9), at the default chunk and at 1000-sample chunks that cut
     # the run's rests, flips and smoothing windows in 34 places.
     from calib.fit.chunked import fit_file, survey
+    from calib.fit.options import FitOptions
     from calib.model.error_model import ErrorModel
     from calib.model.requirements import load_requirements
     from calib.nav.site import Site
@@ -411,8 +413,8 @@ def test_calibrate_stream_gives_a_mems_run_the_calibrate_start(tmp_path):
         run,
         Site(LAT, out["calibrate"]["gravity"]["value_mps2"]),
         prof,
-        requirements=load_requirements("mems"),
         rows=1000,
+        options=FitOptions(requirements=load_requirements("mems")),
     )
     assert fit.converged
     sigma = np.array([p["sigma"] for p in out["calibrate"]["parameters"].values()])
@@ -498,7 +500,7 @@ def test_gyro_bias_sigma_under_a_gauss_markov_gyro_respects_the_bound_of_a_const
     # one at every flip and reported 10 deg/h where this bound is 41 deg/h (errors 3-7 sigma).
     import dataclasses
 
-    from calib.calibration.entry import calibrate
+    from calib.calibration.entry import CalibrateOptions, calibrate
     from calib.model import params as P
     from calib.model.error_model import ErrorModel
     from calib.model.requirements import load_requirements
@@ -517,7 +519,9 @@ def test_gyro_bias_sigma_under_a_gauss_markov_gyro_respects_the_bound_of_a_const
     # 100 Hz as the ADIS16405 logs (at 20 Hz this draw happened to start near its heading)
     cfg = SimConfig(latitude_rad=LAT, height_m=0.0, sample_rate_hz=100.0)
     run, _ = simulate(seq, cfg, errors, prof, flip_error_deg=0.5, seed=1, random_setup_deg=3.0)
-    result = calibrate(run, prof, require_convergence=False, requirements=load_requirements("mems"))
+    result = calibrate(
+        run, prof, options=CalibrateOptions(require_convergence=False), requirements=load_requirements("mems")
+    )
     T, tau = run.time_s[-1] - run.time_s[0], prof.gyro_bias_correlation_s
     bound = prof.gyro_gm_sigma / math.sqrt(1.0 + T / (2.0 * tau))
     # The bound ignores the white noise and the rests' dynamics, both of which only add variance;
@@ -537,7 +541,7 @@ def test_a_fit_follows_a_mems_gyro_that_walks_the_attitude_13_degrees():
 
     from scipy.stats import chi2 as chi2_dist
 
-    from calib.calibration.entry import calibrate
+    from calib.calibration.entry import CalibrateOptions, calibrate
     from calib.model import params as P
     from calib.model.error_model import ErrorModel
     from calib.model.requirements import load_requirements
@@ -555,7 +559,9 @@ def test_a_fit_follows_a_mems_gyro_that_walks_the_attitude_13_degrees():
     run, truth = simulate(seq, cfg, errors, prof, flip_error_deg=0.5, seed=2, random_setup_deg=3.0)
     T = run.time_s[-1] - run.time_s[0]
     assert math.degrees(math.sqrt(tilt_variance(prof, T))) > 13.0  # the case this test is about
-    result = calibrate(run, prof, require_convergence=False, requirements=load_requirements("mems"))
+    result = calibrate(
+        run, prof, options=CalibrateOptions(require_convergence=False), requirements=load_requirements("mems")
+    )
     assert result.converged
     err = result.values - truth.errors.values
     assert np.all(np.abs(err) < 4.5 * result.sigma), err / result.sigma

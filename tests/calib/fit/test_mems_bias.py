@@ -16,7 +16,7 @@ import math
 import numpy as np
 import pytest
 
-from calib.calibration.entry import calibrate
+from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.model import params as P
 from calib.model.error_model import ErrorModel
 from calib.noise.profiles import load_profile
@@ -49,7 +49,7 @@ def even_part():
             dtheta_rad=clean.dtheta_rad + sign * (noisy.dtheta_rad - clean.dtheta_rad),
             dv_mps=clean.dv_mps + sign * (noisy.dv_mps - clean.dv_mps),
         )
-        res = calibrate(run, prof, requirements="mems", require_convergence=False)
+        res = calibrate(run, prof, requirements="mems", options=CalibrateOptions(require_convergence=False))
         assert res.converged
         z.append((res.values - truth.errors.values) / res.sigma)
     return (z[0] + z[1]) / 2.0

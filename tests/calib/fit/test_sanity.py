@@ -125,18 +125,14 @@ def test_rest_that_moves_is_refused(good_run, tmp_path):
 
 def test_fit_stopped_early_reports_not_converged(good_run):
     from calib.fit.estimator import fit_run
+    from calib.fit.options import FitOptions
+    from calib.nav.site import Site
 
     # One Gauss-Newton step cannot absorb the ~15 deg gyrocompassing error that Table 2's
     # 3 deg/h gyro bias causes: the fit must say it has not converged (the CLI then
     # refuses to write a result) rather than return numbers as if it had.
     fit = fit_run(
-        good_run.time_s,
-        good_run.dtheta_rad,
-        good_run.dv_mps,
-        LAT,
-        9.8016969,
-        load_profile("navigation"),
-        max_iterations=1,
+        good_run, Site(LAT, 9.8016969), load_profile("navigation"), options=FitOptions(max_iterations=1)
     )
     assert not fit.converged
     assert fit.history[-1]["max_step_sigma"] > 1.0

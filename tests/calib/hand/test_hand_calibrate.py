@@ -17,7 +17,7 @@ from click.testing import CliRunner
 from realdata import FERRARIS, XSENS
 
 from calib.calibration.correction import Correction, correction_of_result, raw_samples
-from calib.calibration.entry import calibrate
+from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.errors import CalibError
 from calib.hand.plan import HandPlan, random_hand_plan, xsens_like_plan
 from calib.hand.simulate import draw_errors, simulate_by_hand
@@ -78,7 +78,9 @@ def test_the_correction_applied_leaves_nothing_to_calibrate(tmp_path):
 def test_a_correction_in_counts_needs_the_conversion():
     plan = random_hand_plan(6, np.random.default_rng(1))
     run, _ = _noise_free(plan, 1)
-    correction = correction_of_result(calibrate(run, MEMS, by_hand=True, requirements="mems", partial=True))
+    correction = correction_of_result(
+        calibrate(run, MEMS, by_hand=True, requirements="mems", options=CalibrateOptions(partial=True))
+    )
     counts = Correction(
         correction.gyro.__class__(
             *[getattr(correction.gyro, f) for f in ("M", "b", "sigma_M", "sigma_b")], "counts"

@@ -16,7 +16,7 @@ import pytest
 from click.testing import CliRunner
 from realdata import REPO
 
-from calib.calibration.entry import calibrate
+from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.errors import CalibError
 from calib.hand.plan import xsens_like_plan
 from calib.hand.setup import carried_by_hand, diagnose
@@ -80,7 +80,7 @@ def test_fix_units_puts_the_mistake_right(hand_run, mistake):
     run, g = hand_run
     with pytest.raises(CalibError, match="--fix-units"):
         calibrate(mistake(run), "mems", by_hand=True)
-    fixed = calibrate(mistake(run), "mems", by_hand=True, fix_units=True)
+    fixed = calibrate(mistake(run), "mems", by_hand=True, options=CalibrateOptions(fix_units=True))
     plain = calibrate(run, "mems", by_hand=True)
     assert any(line.startswith("fixed: ") for line in fixed.by_hand.notes)
     # Put right exactly (a unit factor or a swap): the fit of the log as it should have been.
@@ -95,7 +95,7 @@ def test_a_wrong_rate_shows_as_three_gyro_scale_factors_alike(hand_run):
     wrong = rate_mislabelled(run, RATE_HZ / 1.024)
     with pytest.raises(CalibError, match=r"sample rate is likely 10[01]\.\d+ Hz, not the 97\.656 Hz"):
         calibrate(wrong, "mems", by_hand=True)
-    fixed = calibrate(wrong, "mems", by_hand=True, fix_units=True)
+    fixed = calibrate(wrong, "mems", by_hand=True, options=CalibrateOptions(fix_units=True))
     plain = calibrate(run, "mems", by_hand=True)
     # Put right at the rate the data say: a common gyro scale factor and a rate error are one
     # thing, so the fixed fit's three scale factors average zero, and their differences (the

@@ -13,10 +13,12 @@ import pytest
 
 from calib.errors import CalibError
 from calib.fit.estimator import fit_run
+from calib.fit.options import FitOptions
 from calib.model import params as P
 from calib.model.error_model import ErrorModel
 from calib.model.optional_terms import GROUP_NAMES, Extras, ExtraValues, parse_groups
 from calib.nav import earth
+from calib.nav.site import Site
 from calib.nav.transform import dcm_to_rotvec, rotvec_to_dcm
 from calib.noise.profiles import load_profile
 from calib.sequence.definition import load_sequence, timeline
@@ -145,9 +147,7 @@ def all_on_fit():
     extra = ExtraValues.from_units(ALL_ON)
     setup = np.radians([1.0, -2.0, 3.0])
     run, _ = _run(extra, cfg, truth, setup)
-    fit = fit_run(
-        run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, PROFILE, extras=Extras(GROUP_NAMES)
-    )
+    fit = fit_run(run, Site(LAT, cfg.gravity), PROFILE, options=FitOptions(extras=Extras(GROUP_NAMES)))
     return fit, truth, extra, setup
 
 
@@ -176,7 +176,7 @@ def test_ignoring_the_extra_terms_biases_the_fit():
     # more than its requirement (the "~90 ug at 10 deg/s for 3 cm").
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=50.0)
     run, _ = _run(ExtraValues.from_units({"rxx": 3.0, "ryy": 3.0, "rzz": 3.0}), cfg)
-    fit = fit_run(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, PROFILE)
+    fit = fit_run(run, Site(LAT, cfg.gravity), PROFILE)
     assert np.max(np.abs(fit.values) / P.REQUIREMENTS_SI) > 1.0
 
 

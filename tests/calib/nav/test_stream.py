@@ -11,6 +11,7 @@ import pytest
 from click.testing import CliRunner
 
 from calib.fit.estimator import fit_run
+from calib.fit.options import FitOptions
 from calib.fit.start import coarse_alignment
 from calib.model import optional_terms as X
 from calib.model.error_model import ErrorModel
@@ -86,10 +87,12 @@ def test_streamed_pass_is_the_whole_run_navigation(paper):
     C_mid = 0.5 * (nav.C_b_n[1:] + nav.C_b_n[:-1])
     turn = X.earth_turn(C_mid, earth.omega_ie_n(LAT), dt)
 
-    chunks = stream.array_chunks(run.time_s, run.dtheta_rad, run.dv_mps, t0, stream.chunk_cuts(grid, 300))
-    out = stream.navigate_pass(
-        chunks, grid, Site(LAT, cfg.gravity), t0, np.zeros(21), np.zeros(extras.n), C0, turn, extras
+    cuts = stream.chunk_cuts(grid, 300)
+    passes = stream.Passes(
+        lambda: stream.array_chunks(run.time_s, run.dtheta_rad, run.dv_mps, t0, cuts), grid, t0
     )
+    estimate = stream.Estimate(np.zeros(21), C0, extras, np.zeros(extras.n), turn)
+    out = stream.navigate_pass(passes, Site(LAT, cfg.gravity), estimate)
 
     def rel(a, b):
         return np.abs(a - b).max() / np.abs(b).max()
@@ -110,8 +113,8 @@ def test_streamed_fit_equals_renavigating_fit(paper, noise):
     # Each then sits within tol_sigma of the same fixed point, so they agree to tol_sigma.
     run, cfg = _run(paper, 50.0, noise)
     prof = load_profile("navigation")
-    args = (run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, prof)
-    ref = fit_run(*args, renavigate="always")
+    args = (run, Site(LAT, cfg.gravity), prof)
+    ref = fit_run(*args, options=FitOptions(renavigate="always"))
     fit = fit_run(*args)
     assert ref.converged and fit.converged
     assert np.all(np.abs(fit.values - ref.values) <= 1e-3 * ref.sigma)
@@ -124,9 +127,9 @@ def test_streamed_fit_equals_renavigating_fit(paper, noise):
 def test_streamed_fit_with_a_real_units_terms_equals_renavigating_fit(paper):
     run, cfg = _run(paper, 50.0, noise=True, extra=EXTRA)
     prof, extras = load_profile("navigation"), X.Extras(X.parse_groups("all"))
-    args = (run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, prof)
-    ref = fit_run(*args, extras=extras, renavigate="always")
-    fit = fit_run(*args, extras=extras)
+    args = (run, Site(LAT, cfg.gravity), prof)
+    ref = fit_run(*args, options=FitOptions(extras=extras, renavigate="always"))
+    fit = fit_run(*args, options=FitOptions(extras=extras))
     assert ref.converged and fit.converged
     assert np.all(np.abs(fit.values - ref.values) <= 1e-3 * ref.sigma)
     assert np.all(np.abs(fit.extra_values - ref.extra_values) <= 1e-3 * ref.extra_sigma)
@@ -214,7 +217,7 @@ def short_files(paper, tmp_path_factory):
     paths = [folder / "run.npz", folder / "run.csv"]
     for p in paths:
         write_run(run, p)
-    fit = fit_run(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, load_profile("navigation"))
+    fit = fit_run(run, Site(LAT, cfg.gravity), load_profile("navigation"))
     return paths, fit, cfg
 
 
@@ -223,6 +226,7 @@ def test_calibrating_from_disk_in_chunks_equals_calibrating_in_memory(short_file
     # Same samples, same chunk cuts at interval ends, same passes: the same numbers,
     # whatever the reading block (here 7777 rows, which never falls on a cut).
     from calib.fit.chunked import fit_file
+    from calib.nav.site import Site
 
     paths, fit, cfg = short_files
     for p in paths:

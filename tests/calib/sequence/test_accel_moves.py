@@ -10,8 +10,10 @@ import pytest
 from scipy.integrate import quad
 
 from calib.fit.estimator import fit_run
+from calib.fit.options import FitOptions
 from calib.model import params as P
 from calib.model.error_model import ErrorModel
+from calib.nav.site import Site
 from calib.nav.strapdown import navigate
 from calib.noise.profiles import load_profile
 from calib.sequence.definition import load_sequence, nominal_attitude, sequence_from_dict, timeline
@@ -165,7 +167,7 @@ def noise_free_accel_fit():
     cfg = SimConfig(latitude_rad=LAT)
     truth = ErrorModel.from_table2()
     run, _ = simulate(seq, cfg, truth, load_profile("navigation"), setup_rotvec=SETUP, noise=False)
-    fit = fit_run(run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, load_profile("navigation"))
+    fit = fit_run(run, Site(LAT, cfg.gravity), load_profile("navigation"))
     return fit, truth, run
 
 
@@ -232,9 +234,7 @@ def test_lever_arms_recovered_on_accelerating_moves():
         seq, cfg, truth, load_profile("navigation"), setup_rotvec=SETUP, noise=False, extra=extra
     )
     ex = Extras(("lever-arm",))
-    fit = fit_run(
-        run.time_s, run.dtheta_rad, run.dv_mps, LAT, cfg.gravity, load_profile("navigation"), extras=ex
-    )
+    fit = fit_run(run, Site(LAT, cfg.gravity), load_profile("navigation"), options=FitOptions(extras=ex))
     assert fit.converged
     err = np.abs(fit.values - truth.values) / P.REQUIREMENTS_SI
     assert err.max() < 1.0 / 20.0, P.NAMES[int(np.argmax(err))]
