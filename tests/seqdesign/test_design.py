@@ -79,7 +79,12 @@ def test_dask_local_cluster_gives_the_serial_result():
     serial = map_jobs(search_at_dwell, jobs)
     with (
         distributed.LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+            # ":0": a free port; two clusters in two test workers both asked for dask's 8787, and
+            # the loser's fallback left its first socket open (a ResourceWarning, an error here)
+            n_workers=2,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=":0",
         ) as cluster,
         distributed.Client(cluster) as client,
     ):
@@ -309,7 +314,12 @@ def test_whole_design_on_a_dask_cluster_equals_the_serial_one():
     serial = design(c, PROFILE, DesignOptions(beam_width=30), keep=1)
     with (
         distributed.LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+            # ":0": a free port; two clusters in two test workers both asked for dask's 8787, and
+            # the loser's fallback left its first socket open (a ResourceWarning, an error here)
+            n_workers=2,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=":0",
         ) as cluster,
         distributed.Client(cluster) as client,
     ):

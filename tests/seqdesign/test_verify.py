@@ -66,7 +66,12 @@ def test_workers_and_a_dask_cluster_give_the_serial_answer():
     assert verify(seq, prof, VerifyOptions(runs=2, seed=11, workers=2), **kw).to_json() == serial
     with (
         distributed.LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+            # ":0": a free port; two clusters in two test workers both asked for dask's 8787, and
+            # the loser's fallback left its first socket open (a ResourceWarning, an error here)
+            n_workers=2,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=":0",
         ) as cluster,
         distributed.Client(cluster) as client,
     ):
