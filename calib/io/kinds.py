@@ -13,15 +13,18 @@ from pathlib import Path
 
 from calib.errors import CalibError
 
-# For each TOML kind, a key or table that marks it (checked in this order).
+# For each TOML kind, a key or table that marks it (checked in this order). A result is
+# marked first by its [parameters]; its [initial_attitude] alone marks it only after every
+# other kind, so that a sequence which borrowed that table is still read as a sequence.
 _TOML_MARKS = (
-    ("result", ("parameters", "initial_attitude")),
+    ("result", ("parameters",)),
     ("truth", ("errors",)),
     ("poses", ("pose",)),  # before sequence: its keys (hold_s) are no sequence's
     ("sequence", ("step", "start")),
     ("requirements", ("requirements",)),
     ("profile", ("gyro_arw_dph", "accel_vrw_ug")),
     ("gimbal", ("outer", "middle", "inner")),
+    ("result", ("initial_attitude",)),
 )
 _WHAT = {
     "result": "a calibration result (what calibrate writes)",

@@ -90,6 +90,33 @@ def test_any_other_unknown_key_is_a_warning_not_a_refusal(tmp_path):
     assert "warning:" in res.stderr and "'operator' is not a sequence key" in res.stderr
 
 
+def test_a_sequence_with_a_stray_result_table_is_still_a_sequence(tmp_path):
+    """A hand-typed sequence that borrows ``[initial_attitude]`` from a result is a sequence with
+    an unknown key (its ``start`` and ``[[step]]`` say so), not "a calibration result"."""
+    path = tmp_path / "s.toml"
+    path.write_text(
+        SEQ.format(rate_key="rate_dps") + "[initial_attitude]\nC_b_n = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]\n"
+    )
+    res = CliRunner().invoke(main, ["show", str(path)])
+    assert res.exit_code == 0, res.output
+    assert "calibration result" not in res.output
+    assert "'initial_attitude' is not a sequence key" in res.stderr
+
+
+def test_a_result_missing_its_parameters_is_still_named_a_result(files, tmp_path):
+    """The other way round: a result whose ``[parameters]`` table was cut is still a result."""
+    kept, inside = [], False
+    for line in (files / "r.result.toml").read_text().splitlines():
+        if line.startswith("["):
+            inside = line.startswith("[parameters")
+        if not inside:
+            kept.append(line)
+    assert "[initial_attitude]" in kept and not any("parameters" in ln for ln in kept)
+    path = tmp_path / "cut.result.toml"
+    path.write_text("\n".join(kept) + "\n")
+    refused(tmp_path, ["show", str(path)], "this is a calibration result")
+
+
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     folder = tmp_path_factory.mktemp("kinds")
