@@ -175,6 +175,27 @@ def test_the_architecture_page_names_every_folder():
             assert set(modules.split()) == on_disk, folder
 
 
+def folder_arrows() -> str:
+    """calib's folders top down, each with the folders its modules import (also top down)."""
+    imports: dict[str, set[str]] = {folder: set() for folder in CALIB_LAYERS}
+    for a, b in _graph().edges:
+        if (fa := _folder(a)) and (fb := _folder(b)) and fa != fb:
+            imports[fa].add(fb)
+    down = CALIB_LAYERS[::-1]
+    width = max(map(len, down))
+    return "\n".join(
+        f"{folder:<{width}} -> {' '.join(f for f in down if f in imports[folder])}".rstrip()
+        for folder in down
+    )
+
+
+def test_the_architecture_page_draws_the_folders_as_they_import():
+    """The drawing of who imports whom on docs/architecture.md is the import graph's, not a memory of it."""
+    page = (REPO / "docs" / "architecture.md").read_text()
+    drawn = page.split("<!-- folder-arrows -->\n```\n", 1)[1].split("\n```", 1)[0]
+    assert drawn == folder_arrows(), "redraw docs/architecture.md's block with:\n" + folder_arrows()
+
+
 def test_no_import_cycles():
     # A package's __init__ re-exporting its modules is not a cycle unless a module imports the
     # package back (then the order of imports decides whether a name exists yet).
