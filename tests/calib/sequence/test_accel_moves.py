@@ -129,7 +129,7 @@ def test_navigating_an_accelerating_run_holds_zero_velocity():
     tl = timeline(seq)
     cfg = SimConfig(latitude_rad=LAT)
     t, dtheta, dv = true_increments(tl, np.eye(3), cfg)
-    nav = navigate(dtheta, dv, t, seq.C_start, LAT, cfg.gravity, t0=0.0)
+    nav = navigate(dtheta, dv, t, seq.C_start, Site(LAT, cfg.gravity), t0=0.0)
     rest_ends = np.searchsorted(nav.time_s, tl.t1[tl.rest] - 1e-9)
     assert np.max(np.abs(nav.v_n[rest_ends])) < 1e-7
     assert np.max(np.abs(nav.v_n)) < 1e-5
