@@ -204,7 +204,7 @@ def test_analyser_models_accelerating_moves_as_the_estimator_sees_them(noise_fre
 
     fit, _, _ = noise_free_accel_fit
     seq = accelerating(load_sequence("paper-9pos"), 5.0, 10.0)
-    obs = analyze(seq, load_profile("navigation"), LAT, 0.0, SETUP)
+    obs = analyze(seq, load_profile("navigation"), Site.at(LAT), SETUP)
     assert np.allclose(obs.sigma, fit.sigma, rtol=0.01), np.round(obs.sigma / fit.sigma, 4)
 
 
