@@ -26,6 +26,7 @@ from scipy.stats import chi2
 import calib  # noqa: F401  (BLAS threads)
 from calib.analysis.mounting import analyze
 from calib.model import params as P
+from calib.nav.site import Site
 from calib.noise.profiles import load_profile
 from calib.sequence.definition import load_sequence
 from seqdesign.montecarlo import run_trials
@@ -50,7 +51,7 @@ def main() -> None:
     t = time.perf_counter()
     trials = run_trials(seq, prof, args.n, seed=2000, workers=args.workers)
     elapsed = time.perf_counter() - t
-    pred = analyze(seq, prof, math.radians(40.0))
+    pred = analyze(seq, prof, Site.at(math.radians(40.0)))
     lo, hi = chi2.ppf([0.005, 0.995], P.N_PARAMS * args.n) / args.n
     kind = "S-curve" if jerk else "trapezoid"
     print(

@@ -21,6 +21,7 @@ from calib.analysis.bounds import accel_scale_bound
 from calib.analysis.mounting import analyze
 from calib.model import params as P
 from calib.nav import earth
+from calib.nav.site import Site
 from calib.noise.profiles import load_profile
 from calib.sequence.definition import Sequence, Step
 
@@ -61,7 +62,7 @@ def main() -> None:
             for dwell in (float(d) for d in args.dwells.split(",")):
                 seq = cycling_sequence(budget * 60.0, dwell, rate)
                 T = seq.duration_s
-                ow, og = analyze(seq, white, LAT), analyze(seq, gm, LAT)
+                ow, og = analyze(seq, white, Site.at(LAT)), analyze(seq, gm, Site.at(LAT))
                 sa_w = max(ow.ratio[P.ACCEL_SCALE])
                 sa_g = max(og.ratio[P.ACCEL_SCALE])
                 b_w = accel_scale_bound(T, white, g)

@@ -123,17 +123,19 @@ def analysis_rows(seq, prof, lat) -> list:
     """The analyser in-process and through the CLI."""
     from calib.analysis.mounting import analyze
     from calib.analysis.worst_case import analyze_tolerance
+    from calib.nav.site import Site
 
-    analyze(seq, prof, lat)  # warm caches (casadi step model, whitening) as a search loop would
+    site = Site.at(lat)
+    analyze(seq, prof, site)  # warm caches (casadi step model, whitening) as a search loop would
     return [
         (
             "one analysis, nominal mounting, in-process (paper-9pos)",
-            best_of(lambda: analyze(seq, prof, lat)),
+            best_of(lambda: analyze(seq, prof, site)),
             "<= 10 ms",
         ),
         (
             "worst case over +-3 deg (27 mountings), in-process",
-            best_of(lambda: analyze_tolerance(seq, prof, lat, 0.0, 3.0), 2),
+            best_of(lambda: analyze_tolerance(seq, prof, site, 3.0), 2),
             "<= 2 s",
         ),
         (
@@ -151,10 +153,11 @@ def analysis_rows(seq, prof, lat) -> list:
 
 def search_rows(seq, prof, lat, tmp: Path) -> list:
     """The search loop: one candidate = a walk scored by the segment model; a whole design."""
+    from calib.nav.site import Site
     from seqdesign.search import Constraints, Move, SearchModel, beam_search
 
     c9 = Constraints(budget_s=1800.0, max_flips=8, max_quarters=1)
-    m9 = SearchModel.build(c9, 180.0, lat, 0.0, prof)
+    m9 = SearchModel.build(c9, 180.0, Site.at(lat), prof)
     walk = [Move(s.axis, 1 if s.angle_deg > 0 else -1, 1) for s in seq.steps]
 
     def score_walk():
@@ -172,7 +175,7 @@ def search_rows(seq, prof, lat, tmp: Path) -> list:
     ]
     c15 = Constraints(budget_s=900.0, max_flips=10, max_quarters=5)
     t = time.perf_counter()
-    m15 = SearchModel.build(c15, 57.3, lat, 0.0, prof)
+    m15 = SearchModel.build(c15, 57.3, Site.at(lat), prof)
     build = time.perf_counter() - t
     t = time.perf_counter()
     _, n = beam_search(m15, "worst", 200)
@@ -234,6 +237,7 @@ def monte_carlo(n: int, workers: int, prof, lat, sequences=MC_SEQUENCES) -> None
     """N simulate -> calibrate trials per shipped sequence against the predicted sigmas."""
     from calib.analysis.mounting import analyze
     from calib.model import params as P
+    from calib.nav.site import Site
     from calib.sequence.definition import load_sequence
     from seqdesign.montecarlo import run_trials
 
@@ -242,7 +246,7 @@ def monte_carlo(n: int, workers: int, prof, lat, sequences=MC_SEQUENCES) -> None
         t = time.perf_counter()
         trials = run_trials(s, prof, n, seed=1000, workers=workers)
         el = time.perf_counter() - t
-        pred = analyze(s, prof, lat)
+        pred = analyze(s, prof, Site.at(lat))
         print()
         print(
             f"Monte Carlo {name}: N = {n} (navigation profile, Table 2 errors, random "

@@ -16,6 +16,7 @@ import math
 import sys
 import time
 
+from calib.nav.site import Site
 from calib.noise.profiles import load_profile
 from seqdesign.search import Constraints, SearchModel
 
@@ -26,7 +27,7 @@ def main() -> None:
     terms = "all" if "--with" in sys.argv else "none"
     c = Constraints(budget_s=1800.0, max_flips=30, max_quarters=5, min_dwell_s=10.0)
     t = time.perf_counter()
-    model = SearchModel.build(c, 40.0, math.radians(40.0), 0.0, prof)
+    model = SearchModel.build(c, 40.0, Site.at(math.radians(40.0)), prof)
     build = time.perf_counter() - t
     parents = [model.start_candidate()]
     for _ in range(2):  # two steps to get a realistic beam of 200 distinct parents

@@ -23,6 +23,7 @@ from calib.model.optional_terms import Extras, as_extras
 from calib.model.report import format_table, parameter_entries, worst
 from calib.model.requirements import PAPER, Requirements, load_requirements
 from calib.nav import earth
+from calib.nav.site import Site
 from calib.noise.profiles import NoiseProfile, load_profile
 from calib.noise.wander import check_wander
 from calib.sequence.definition import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG, Sequence, load_sequence
@@ -119,8 +120,8 @@ class Analysis:
 
     def unreachable(self) -> list[Unreachable]:
         """The requirements no sequence this long meets under this noise (:mod:`~calib.analysis.bounds`)."""
-        g = earth.gravity(math.radians(self.latitude_deg), self.height_m)
-        return unreachable(self.sequence.duration_s, self.profile, g, self.requirements)
+        site = Site.at(math.radians(self.latitude_deg), self.height_m)
+        return unreachable(self.sequence.duration_s, self.profile, site.gravity_mps2, self.requirements)
 
     def to_text(self) -> str:
         """What ``analyze`` prints."""
@@ -204,12 +205,10 @@ def analyze(
     # Beyond the wander the linearised fit follows, no calibration achieves these sigmas.
     check_wander(prof, seq.duration_s, seq.name)
     lat, h = resolve_site(seq, latitude_deg, height_m)
-    lat_rad = math.radians(lat)
-    rob = analyze_tolerance(seq, prof, lat_rad, h, tolerance_deg, requirements=req, extras=extras)
-    bound = accel_scale_bound(seq.duration_s, prof, earth.gravity(lat_rad, h), req)
-    cost = (
-        analyze_extras(seq, prof, lat_rad, extras, h, tolerance_deg, req, search=True) if extras.n else None
-    )
+    site = Site.at(math.radians(lat), h)
+    rob = analyze_tolerance(seq, prof, site, tolerance_deg, requirements=req, extras=extras)
+    bound = accel_scale_bound(seq.duration_s, prof, site.gravity_mps2, req)
+    cost = analyze_extras(seq, prof, site, extras, tolerance_deg, req, search=True) if extras.n else None
     return Analysis(seq, prof, lat, h, rob, bound, cost, req)
 
 

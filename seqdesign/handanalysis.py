@@ -26,6 +26,7 @@ from calib.model import params as P
 from calib.model.optional_terms import Extras
 from calib.model.report import format_table, parameter_entries, worst
 from calib.model.requirements import Requirements
+from calib.nav.site import Site
 from calib.nav.strapdown import sample_intervals
 from calib.nav.transform import rotvec_to_dcm
 from calib.noise.profiles import NoiseProfile, white_part
@@ -45,19 +46,19 @@ class HandPrediction:
     null_directions: tuple
 
 
-def predict(
-    plan, profile: NoiseProfile, requirements: Requirements, latitude_rad: float, g_sensitivity: bool
-):
-    """The fit's covariance on the noise-free run of ``plan``."""
-    config = SimConfig(latitude_rad=latitude_rad, height_m=0.0, sample_rate_hz=ANALYSIS_RATE_HZ)
+def predict(plan, profile: NoiseProfile, requirements: Requirements, site: Site, g_sensitivity: bool):
+    """The fit's covariance on the noise-free run of ``plan`` at ``site``."""
+    config = SimConfig(
+        latitude_rad=site.latitude_rad, sample_rate_hz=ANALYSIS_RATE_HZ, gravity_mps2=site.gravity_mps2
+    )
     run, _ = simulate_by_hand(plan, config, oversample=OVERSAMPLE)
     fit = fit_by_hand(
         run.time_s,
         run.dtheta_rad,
         run.dv_mps,
         sample_intervals(run.time_s),
-        latitude_rad,
-        config.gravity,
+        site.latitude_rad,
+        site.gravity_mps2,
         profile,
         g_sensitivity=g_sensitivity,
         requirements=requirements,
@@ -232,15 +233,15 @@ def analyze_hand(
             "give a profile of white noise (ARW, VRW)",
         )
     g_sens = extras is not None and "g-sensitivity" in extras.groups
-    lat = math.radians(latitude_deg)
-    nominal = predict(poses.plan(), profile, requirements, lat, g_sens)
+    site = Site.at(math.radians(latitude_deg))  # a hand's table: normal gravity at 0 m
+    nominal = predict(poses.plan(), profile, requirements, site, g_sens)
     worst_sigma = nominal.sigma.copy()
     n = samples if tolerance_deg > 0 else 0
     rng = np.random.default_rng(placement.seed)
     for _ in range(n):
         worst_sigma = np.maximum(
             worst_sigma,
-            predict(perturbed(poses, tolerance_deg, rng), profile, requirements, lat, g_sens).sigma,
+            predict(perturbed(poses, tolerance_deg, rng), profile, requirements, site, g_sens).sigma,
         )
     best: tuple[str, float, int] | None = None
     if cure:
@@ -256,7 +257,7 @@ def analyze_hand(
                 ),
                 np.append(poses.move_s, poses.move_s[-1]),
             )
-            sigma = predict(extra.plan(), profile, requirements, lat, g_sens).sigma
+            sigma = predict(extra.plan(), profile, requirements, site, g_sens).sigma
             ratios = requirements.ratio(sigma)
             finite = np.isfinite(ratios)
             ranked.append(

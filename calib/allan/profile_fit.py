@@ -10,7 +10,6 @@ the comment the file opens with.
 
 from __future__ import annotations
 
-import math
 import tomllib
 from dataclasses import dataclass
 
@@ -19,7 +18,7 @@ import numpy as np
 from calib.errors import CalibError
 from calib.io.files import atomic_write_text
 from calib.model.params import DEG, DEG_PER_HOUR, MICRO_G
-from calib.nav import earth
+from calib.nav.site import site_of
 from calib.noise.profiles import NoiseProfile, _from_doc
 from calib.runlog import Run, read_run
 
@@ -155,9 +154,7 @@ def fit_profile(run: Run, name: str) -> ProfileFit:
             "record at least an hour at rest (bias instability needs hours)",
         )
     gyro_rate, force = run.dtheta_rad / dt, run.dv_mps / dt
-    latitude = math.radians(run.latitude_deg)
-    gravity = run.gravity_mps2 or earth.gravity(latitude, run.height_m)
-    level = static_level(gyro_rate, force, latitude, gravity)
+    level = static_level(gyro_rate, force, site_of(run))
     curves = {
         s: tuple(allan_deviation(x[:, j], dt) for j in range(3))
         for s, x in (("gyro", gyro_rate), ("accel", force))

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.nav import earth
+from calib.nav.site import Site
 
 
 @dataclass(frozen=True)
@@ -50,18 +51,15 @@ class StaticLevel:
     earth_rate_horizontal: float
 
 
-def static_level(
-    gyro_rate: np.ndarray, specific_force: np.ndarray, latitude_rad: float, gravity_mps2: float
-) -> StaticLevel:
+def static_level(gyro_rate: np.ndarray, specific_force: np.ndarray, site: Site) -> StaticLevel:
     """Biases of a static log (module docstring).
 
     Parameters
     ----------
     gyro_rate, specific_force : ndarray, shape (n, 3)
         Body-frame rates (rad/s) and specific force (m/s^2) of each sample.
-    latitude_rad : float
-    gravity_mps2 : float
-        Gravity at the site (normal gravity, or measured).
+    site : Site
+        Latitude and gravity of the site (normal gravity, or measured).
 
     Returns
     -------
@@ -69,6 +67,7 @@ def static_level(
     """
     mean_f = np.mean(specific_force, axis=0)
     up_b = mean_f / np.linalg.norm(mean_f)
+    latitude_rad, gravity_mps2 = site.latitude_rad, site.gravity_mps2
     vertical = earth.RATE * math.sin(latitude_rad)
     return StaticLevel(
         up_b=up_b,

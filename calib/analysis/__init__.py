@@ -68,6 +68,7 @@ from calib.analysis.nominal import (
 )
 from calib.analysis.observability import Observability, from_information
 from calib.analysis.worst_case import (
+    Evaluation,
     ExtrasCost,
     Robustness,
     analyze_extras,
@@ -79,6 +80,7 @@ from calib.analysis.worst_case import (
 
 __all__ = [
     "ExtraBasis",
+    "Evaluation",
     "ExtrasCost",
     "Function",
     "GmBasis",

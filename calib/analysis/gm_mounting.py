@@ -26,6 +26,7 @@ from calib.model import params as P
 from calib.model.optional_terms import NONE as NO_EXTRAS, Extras
 from calib.nav import earth
 from calib.nav.jacobian import ObservationGrid, propagate, sample_layout, state_matrix, step_model
+from calib.nav.site import Site
 from calib.nav.transform import rotvec_to_dcm
 from calib.noise.gm_filter import bias_turns, gm_start_covariance, gram_pass, mounted_turns, nav_table
 from calib.noise.profiles import NoiseProfile
@@ -72,15 +73,14 @@ class GmBasis:
 
 
 @functools.lru_cache(maxsize=2)  # ~200 MB for a 30-minute sequence: the last two analysed
-def gm_basis(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float = 0.0) -> GmBasis:
+def gm_basis(seq: Sequence, profile: NoiseProfile, site: Site) -> GmBasis:
     """Build (and cache) the :class:`GmBasis` of a sequence under a GM profile."""
-    g = earth.gravity(latitude_rad, height_m)
-    A = state_matrix(latitude_rad, g)
+    A = state_matrix(site)
     tl = timeline(seq)
     t_nav, bounds = nominal_samples(tl)
     T = np.diff(t_nav[bounds])
     Phi_vv = velocity_transitions(A, T, profile)
-    chunks = list(basis_chunks(seq, latitude_rad, height_m, Phi_vv, compiled=True))
+    chunks = list(basis_chunks(seq, site, Phi_vv, compiled=True))
     keep = chunks[-1][2]
     turns, turning = bias_turns(nominal_attitude(tl, t_nav)[(bounds[:-1] + bounds[1:]) // 2])
     F, Q, index = nav_table(A, T, profile)
@@ -88,8 +88,8 @@ def gm_basis(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m
         X=tuple(X for _, X, _ in chunks),
         column_basis=keep // P.N_PARAMS,
         column_param=keep % P.N_PARAMS,
-        omega_ie_n=earth.omega_ie_n(latitude_rad),
-        f_n=earth.specific_force_n(g),
+        omega_ie_n=site.omega_ie_n,
+        f_n=earth.specific_force_n(site.gravity_mps2),
         F=F,
         Q=Q,
         index=index,
@@ -260,8 +260,7 @@ class ExtraBasis:
 
     parts: tuple
     n: int
-    latitude_rad: float
-    gravity_mps2: float
+    site: Site
 
 
 def _interval_moments(x: np.ndarray, starts: np.ndarray, tau: np.ndarray) -> np.ndarray:
@@ -281,7 +280,7 @@ def _interval_moments(x: np.ndarray, starts: np.ndarray, tau: np.ndarray) -> np.
 
 
 @functools.lru_cache(maxsize=2)
-def extra_basis(seq: Sequence, latitude_rad: float, height_m: float, extras: Extras) -> ExtraBasis:
+def extra_basis(seq: Sequence, site: Site, extras: Extras) -> ExtraBasis:
     """Build (and cache) the :class:`ExtraBasis` of a sequence: one pass over its samples."""
     tl = timeline(seq)
     t_nav, bounds = nominal_samples(tl)
@@ -291,7 +290,7 @@ def extra_basis(seq: Sequence, latitude_rad: float, height_m: float, extras: Ext
     for columns, monomials, D in _sensitivity_coefficients(extras, flip, E, L.C_mid, L.h):
         Y = np.einsum("nbi,nicu->ncbu", L.C_mid, D).reshape(len(D), len(columns), -1)
         parts.append((columns, monomials, _interval_moments(Y, L.starts, L.tau)))
-    return ExtraBasis(tuple(parts), extras.n, latitude_rad, earth.gravity(latitude_rad, height_m))
+    return ExtraBasis(tuple(parts), extras.n, site)
 
 
 def extra_chunks(basis: GmBasis, xb: ExtraBasis, rotvecs: list):
@@ -306,7 +305,7 @@ def extra_chunks(basis: GmBasis, xb: ExtraBasis, rotvecs: list):
     R = np.array([rotvec_to_dcm(np.asarray(rv, dtype=float)) for rv in rotvecs])
     mono = _monomials(R, basis.omega_ie_n, basis.f_n)
     M, e = len(R), xb.n
-    G = step_model(float(xb.latitude_rad), float(xb.gravity_mps2)).extra_map
+    G = step_model(xb.site).extra_map
     # Each mounting's weight of basis moment (b, u) on navigation axis a: R[a, b] times monomial u.
     weights = [
         np.einsum("mab,mu->buam", R, mono[:, monomials]).reshape(3 * len(monomials), 3 * M)
@@ -322,9 +321,7 @@ def extra_chunks(basis: GmBasis, xb: ExtraBasis, rotvecs: list):
             weighted = (mom.reshape(-1, mom.shape[-1]) @ W).reshape(k, 2, len(columns), 3, M)
             moments[..., columns, :] = weighted.transpose(0, 1, 3, 2, 4)
         inputs = G @ moments.reshape(k, 6, e * M)
-        S_v, S = propagate(
-            inputs, basis.T[part], S, xb.latitude_rad, xb.gravity_mps2, return_final=True, compiled=True
-        )
+        S_v, S = propagate(inputs, basis.T[part], S, xb.site, return_final=True, compiled=True)
         H = S_v[1:] - basis.Phi_vv[part] @ S_v[:-1]  # calib.nav.jacobian.observation_matrix
         yield H.reshape(k, 3, e, M).transpose(0, 3, 1, 2)
 
@@ -335,15 +332,14 @@ def extra_columns(basis: GmBasis, xb: ExtraBasis, rotvecs: list) -> np.ndarray:
 
 
 def nominal_information(
-    seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float, extras: Extras = NO_EXTRAS
+    seq: Sequence, profile: NoiseProfile, site: Site, extras: Extras = NO_EXTRAS
 ) -> np.ndarray:
     """The nominal mounting's information alone under a GM profile (as :func:`~.nominal.information_one`).
 
     What a design's screen asks of every candidate: the same information as the
     direct evaluation to rounding, at about half its cost.
     """
-    nom = nominal_run(seq, latitude_rad, height_m, np.zeros(3))
-    return information_one(nom, profile, latitude_rad, earth.gravity(latitude_rad, height_m), extras)
+    return information_one(nominal_run(seq, site, np.zeros(3)), profile, site, extras)
 
 
 def box_points(tolerance_deg: float) -> list:
@@ -354,12 +350,7 @@ def box_points(tolerance_deg: float) -> list:
 
 @functools.lru_cache(maxsize=1)
 def box_informations(
-    seq: Sequence,
-    profile: NoiseProfile,
-    latitude_rad: float,
-    height_m: float,
-    tolerance_deg: float,
-    extras: Extras = NO_EXTRAS,
+    seq: Sequence, profile: NoiseProfile, site: Site, tolerance_deg: float, extras: Extras = NO_EXTRAS
 ) -> np.ndarray:
     """The informations (28, 24 + e, 24 + e) of the nominal mounting and the 27 box points.
 
@@ -369,8 +360,8 @@ def box_informations(
     information without the terms: :func:`calib.analysis.worst_case.analyze_tolerance` and
     :func:`calib.analysis.worst_case.analyze_extras` of the same terms share this pass (the last one is kept).
     """
-    basis = gm_basis(seq, profile, latitude_rad, height_m)
-    xb = extra_basis(seq, latitude_rad, height_m, extras) if extras.n else None
+    basis = gm_basis(seq, profile, site)
+    xb = extra_basis(seq, site, extras) if extras.n else None
     infos = informations(basis, [np.zeros(3)] + box_points(tolerance_deg), xb)
     infos.setflags(write=False)
     return infos

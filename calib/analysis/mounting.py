@@ -27,6 +27,7 @@ from calib.nav.jacobian import (
     sample_layout,
     step_model,
 )
+from calib.nav.site import Site
 from calib.nav.transform import rotvec_to_dcm, skew
 from calib.noise.profiles import NoiseProfile
 from calib.noise.whitening import Whitener, whiten
@@ -129,7 +130,7 @@ class SequenceModel:
     f_n: np.ndarray
     duration_s: float
     profile: str
-    source: tuple = ()  # (sequence, profile, latitude_rad, height_m) to rebuild X from
+    source: tuple = ()  # (sequence, profile, site) to rebuild X from
 
     @property
     def _X(self) -> np.ndarray:
@@ -233,8 +234,7 @@ def _basis_blocks(
     h: np.ndarray,
     tau: np.ndarray,
     starts: np.ndarray,
-    latitude_rad: float,
-    gravity_mps2: float,
+    site: Site,
 ) -> tuple[list, np.ndarray]:
     """How the 63 mounting basis terms feed ``d x_next / d params`` of every interval.
 
@@ -254,7 +254,7 @@ def _basis_blocks(
     keep : ndarray (n,) of int
         The columns formed, as ``basis_term * 21 + parameter``.
     """
-    G = step_model(float(latitude_rad), float(gravity_mps2)).input_map
+    G = step_model(site).input_map
     G = G.reshape(5, 36, N_UNKNOWN, 6)[:, :, : P.N_PARAMS]  # moment block, row, unknown, state
     GK = G[:, :27].reshape(5, 3, 3, 3, P.N_PARAMS, 6)  # block, a, i, m, p, s
     # A bias moment (sum tau^w C h) feeds the gyro bias channel of block w and, for w < 2,
@@ -303,9 +303,7 @@ def _chunk_inputs(blocks: list, intervals: slice, extra_columns: int) -> np.ndar
 CHUNK_INTERVALS = 512  # ~13 MB of inputs: buffers reused, not paged in afresh
 
 
-def basis_chunks(
-    seq: Sequence, latitude_rad: float, height_m: float, Phi_vv: np.ndarray, compiled: bool = False
-):
+def basis_chunks(seq: Sequence, site: Site, Phi_vv: np.ndarray, compiled: bool = False):
     """The kept basis columns and phi0's of ``H``, unwhitened, ``CHUNK_INTERVALS`` intervals at a time.
 
     Yields ``(intervals (slice), H_chunk (k, 3, n + 3), keep)``; propagation is a
@@ -314,81 +312,64 @@ def basis_chunks(
     :func:`calib.noise.whitening.velocity_transitions`, the same for every mounting); ``compiled``
     as in :func:`calib.nav.jacobian.propagate`.
     """
-    g = earth.gravity(latitude_rad, height_m)
     tl = timeline(seq)
     t_nav, bounds = nominal_samples(tl)
     flip, E = body_integrals(tl, t_nav[1:])
     C = nominal_attitude(tl, t_nav)
     L = sample_layout(C, t_nav, ObservationGrid(bounds))  # bounds cover every sample
     T = np.diff(t_nav[bounds])
-    blocks, keep = _basis_blocks(L.C_mid, flip, E, L.h, L.tau, L.starts, latitude_rad, g)
+    blocks, keep = _basis_blocks(L.C_mid, flip, E, L.h, L.tau, L.starts, site)
     S = np.zeros((6, len(keep) + 3))
     S[:3, -3:] = np.eye(3)
     for k0 in range(0, len(T), CHUNK_INTERVALS):
         part = slice(k0, k0 + CHUNK_INTERVALS)
         inputs = _chunk_inputs(blocks, part, 3)
-        S_v, S = propagate(inputs, T[part], S, latitude_rad, g, return_final=True, compiled=compiled)
+        S_v, S = propagate(inputs, T[part], S, site, return_final=True, compiled=compiled)
         yield part, observation_matrix(S_v, Phi_vv[part]), keep
 
 
-def _whitened_chunks(seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float):
+def _whitened_chunks(seq: Sequence, profile: NoiseProfile, site: Site):
     """The kept whitened columns and phi0's, ``CHUNK_INTERVALS`` intervals at a time.
 
     Yields ``(X_chunk (3k, n + 3), keep)``. Propagation and whitening are recursions
     over the intervals: their states are carried from chunk to chunk, so the chunks
     stacked are the whole-run ``X`` exactly, without holding it.
     """
-    g = earth.gravity(latitude_rad, height_m)
     tl = timeline(seq)
     t_nav, bounds = nominal_samples(tl)
-    noise = noise_along(t_nav, nominal_attitude(tl, t_nav), bounds, latitude_rad, g, profile)
+    noise = noise_along(t_nav, nominal_attitude(tl, t_nav), bounds, site, profile)
     w = noise.whitener
     state = None
-    for part, H, keep in basis_chunks(seq, latitude_rad, height_m, noise.Phi_vv):
+    for part, H, keep in basis_chunks(seq, site, noise.Phi_vv):
         w_part = Whitener(w.F_ss[part], w.F_vs[part], w.gain[part], w.L_inv[part], 0.0, w.P_end)
         Hw, state = whiten(w_part, H, state, return_final=True)
         yield Hw.reshape(-1, H.shape[-1]), keep
 
 
 @functools.lru_cache(maxsize=32)
-def sequence_model(
-    seq: Sequence, profile: NoiseProfile, latitude_rad: float, height_m: float = 0.0
-) -> SequenceModel:
+def sequence_model(seq: Sequence, profile: NoiseProfile, site: Site) -> SequenceModel:
     """Build (and cache) the mounting-independent model of a sequence."""
     gram: np.ndarray | float = 0.0
     # every chunk keeps the same columns: the last chunk's `keep` is used below
-    for Hw, keep in _whitened_chunks(seq, profile, latitude_rad, height_m):  # noqa: B007
+    for Hw, keep in _whitened_chunks(seq, profile, site):  # noqa: B007
         gram = gram + Hw.T @ Hw
-    g = earth.gravity(latitude_rad, height_m)
     return SequenceModel(
         gram=0.5 * (gram + np.transpose(gram)),
         column_basis=keep // P.N_PARAMS,
         column_param=keep % P.N_PARAMS,
-        omega_ie_n=earth.omega_ie_n(latitude_rad),
-        f_n=earth.specific_force_n(g),
+        omega_ie_n=site.omega_ie_n,
+        f_n=earth.specific_force_n(site.gravity_mps2),
         duration_s=seq.duration_s,
         profile=profile.name,
-        source=(seq, profile, latitude_rad, height_m),
+        source=(seq, profile, site),
     )
 
 
-def information(
-    seq: Sequence,
-    profile: NoiseProfile,
-    latitude_rad: float,
-    height_m: float = 0.0,
-    setup_rotvec=(0.0, 0.0, 0.0),
-) -> np.ndarray:
+def information(seq: Sequence, profile: NoiseProfile, site: Site, setup_rotvec=(0.0, 0.0, 0.0)) -> np.ndarray:
     """Fisher information (24 x 24, SI) of [21 parameters, phi0] for one base mounting."""
-    return sequence_model(seq, profile, latitude_rad, height_m).information(setup_rotvec)
+    return sequence_model(seq, profile, site).information(setup_rotvec)
 
 
-def analyze(
-    seq: Sequence,
-    profile: NoiseProfile,
-    latitude_rad: float,
-    height_m: float = 0.0,
-    setup_rotvec=(0.0, 0.0, 0.0),
-) -> Observability:
+def analyze(seq: Sequence, profile: NoiseProfile, site: Site, setup_rotvec=(0.0, 0.0, 0.0)) -> Observability:
     """Observability of a sequence at one base mounting."""
-    return sequence_model(seq, profile, latitude_rad, height_m).analyze(setup_rotvec)
+    return sequence_model(seq, profile, site).analyze(setup_rotvec)

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.model.optional_terms import NONE as NO_EXTRAS, Extras
-from calib.nav import earth
-from calib.nav.jacobian import MOVE_STEP_S, ObservationGrid, observation_jacobian, state_matrix
+from calib.nav.jacobian import MOVE_STEP_S, ObservationGrid, Trajectory, observation_jacobian, state_matrix
+from calib.nav.site import Site
 from calib.nav.transform import rotvec_to_dcm
 from calib.noise.gm_filter import bias_turns, gm_start_covariance, gram_one, nav_table
 from calib.noise.profiles import NoiseProfile
@@ -34,7 +34,7 @@ from calib.sequence.kinematics import SimConfig, true_increments
 
 
 @dataclass(frozen=True)
-class NominalRun:
+class NominalRun(Trajectory):
     """The error-free trajectory of a sequence, sampled for the linear model.
 
     Observation intervals are the estimator's while turning (``MOVE_STEP_S``)
@@ -42,14 +42,9 @@ class NominalRun:
     a few sub-samples per interval give the moments exactly but for the
     ``tau^2`` weighting of a term that is itself ``(omega_ie T)^2`` small;
     while turning, sub-samples are at most ``FLIP_SUBSAMPLE_DEG`` apart, so
-    the mid-sample attitude is good to ``(0.5 deg)^2 / 8 ~ 1e-5``.
+    the mid-sample attitude is good to ``(0.5 deg)^2 / 8 ~ 1e-5``. Its sample boundaries
+    ``time_nav`` start at 0.
     """
-
-    time_nav: np.ndarray  # (n + 1,) sample boundaries, 0 first
-    C_b_n: np.ndarray  # (n + 1, 3, 3)
-    dtheta: np.ndarray  # (n, 3)
-    dv: np.ndarray  # (n, 3)
-    grid: ObservationGrid
 
 
 ANALYSIS_REST_STEP_S = 5.0  # at rest; 1 s (the estimator's) changes no sigma by more than 0.2 %
@@ -84,11 +79,11 @@ def nominal_samples(tl) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(times), np.array(bounds)
 
 
-def nominal_run(seq: Sequence, latitude_rad: float, height_m: float, setup_rotvec) -> NominalRun:
+def nominal_run(seq: Sequence, site: Site, setup_rotvec) -> NominalRun:
     """The nominal trajectory of one mounting, sampled as the analyser samples it."""
     tl = timeline(seq)
     R = rotvec_to_dcm(np.asarray(setup_rotvec, dtype=float))
-    cfg = SimConfig(latitude_rad=latitude_rad, height_m=height_m)
+    cfg = SimConfig(latitude_rad=site.latitude_rad, gravity_mps2=site.gravity_mps2)
     t_nav, bounds = nominal_samples(tl)
     _, dtheta, dv = true_increments(tl, R, cfg, time_s=t_nav[1:])
     C = np.einsum("ij,njk->nik", R, nominal_attitude(tl, t_nav))
@@ -96,25 +91,14 @@ def nominal_run(seq: Sequence, latitude_rad: float, height_m: float, setup_rotve
 
 
 @functools.lru_cache(maxsize=64)
-def _noise(
-    T_bytes: bytes,
-    latitude_rad: float,
-    gravity_mps2: float,
-    profile: NoiseProfile,
-    C_bytes: bytes | None = None,
-):
+def _noise(T_bytes: bytes, site: Site, profile: NoiseProfile, C_bytes: bytes | None = None):
     """Whitening of an interval pattern (cached): see :func:`noise_along`."""
     C = None if C_bytes is None else np.frombuffer(C_bytes).reshape(-1, 3, 3)
-    return noise_model(state_matrix(latitude_rad, gravity_mps2), np.frombuffer(T_bytes), profile, C_b_n=C)
+    return noise_model(state_matrix(site), np.frombuffer(T_bytes), profile, C_b_n=C)
 
 
 def noise_along(
-    time_nav: np.ndarray,
-    C_b_n: np.ndarray,
-    bounds: np.ndarray,
-    latitude_rad: float,
-    gravity_mps2: float,
-    profile: NoiseProfile,
+    time_nav: np.ndarray, C_b_n: np.ndarray, bounds: np.ndarray, site: Site, profile: NoiseProfile
 ):
     """The noise model of a trajectory's intervals.
 
@@ -128,29 +112,21 @@ def noise_along(
     C = None
     if profile.has_gauss_markov:
         C = np.ascontiguousarray(C_b_n[(bounds[:-1] + bounds[1:]) // 2]).tobytes()
-    return _noise(T.tobytes(), latitude_rad, gravity_mps2, profile, C)
+    return _noise(T.tobytes(), site, profile, C)
 
 
 def information_along(
-    nom: NominalRun,
-    profile: NoiseProfile,
-    latitude_rad: float,
-    gravity_mps2: float,
-    extras: Extras = NO_EXTRAS,
+    nom: NominalRun, profile: NoiseProfile, site: Site, extras: Extras = NO_EXTRAS
 ) -> np.ndarray:
     """Fisher information (24 + e square, SI) of the shared model along one trajectory."""
-    noise = noise_along(nom.time_nav, nom.C_b_n, nom.grid.bounds, latitude_rad, gravity_mps2, profile)
-    H = _jacobian_along(nom, latitude_rad, gravity_mps2, noise.Phi_vv, extras)
+    noise = noise_along(nom.time_nav, nom.C_b_n, nom.grid.bounds, site, profile)
+    H = observation_jacobian(nom, site, noise.Phi_vv, extras)
     Hw = whiten(noise.whitener, H).reshape(-1, H.shape[-1])
     return Hw.T @ Hw
 
 
 def information_one(
-    nom: NominalRun,
-    profile: NoiseProfile,
-    latitude_rad: float,
-    gravity_mps2: float,
-    extras: Extras = NO_EXTRAS,
+    nom: NominalRun, profile: NoiseProfile, site: Site, extras: Extras = NO_EXTRAS
 ) -> np.ndarray:
     """:func:`information_along` of one trajectory under a GM profile, the filter in nav-frame coordinates.
 
@@ -160,30 +136,14 @@ def information_one(
     rounding at a fraction of the cost, for what evaluates one mounting at a time (a
     design's screen at the nominal mounting).
     """
-    A = state_matrix(latitude_rad, gravity_mps2)
+    A = state_matrix(site)
     bounds = nom.grid.bounds
     T = np.diff(nom.time_nav[bounds])
     Phi_vv = velocity_transitions(A, T, profile)
-    H = _jacobian_along(nom, latitude_rad, gravity_mps2, Phi_vv, extras, compiled=True)
+    H = observation_jacobian(nom, site, Phi_vv, extras, compiled=True)
     turns, turning = bias_turns(nom.C_b_n[(bounds[:-1] + bounds[1:]) // 2])
     F, Q, index = nav_table(A, T, profile)
     return gram_one(F, Q, index, turns, turning, H, gm_start_covariance(profile))
-
-
-def _jacobian_along(nom: NominalRun, latitude_rad, gravity_mps2, Phi_vv, extras, compiled=False):
-    """:func:`calib.nav.jacobian.observation_jacobian` along a nominal run (``compiled`` as there)."""
-    return observation_jacobian(
-        nom.C_b_n,
-        nom.dtheta,
-        nom.dv,
-        nom.time_nav,
-        nom.grid,
-        latitude_rad,
-        gravity_mps2,
-        Phi_vv,
-        extras,
-        compiled=compiled,
-    )
 
 
 BATCH_INTERVALS = 1024  # intervals of noise model held per mounting (~2.4 MB each)
@@ -203,11 +163,7 @@ def same_grid(noms: list[NominalRun]) -> bool:
 
 
 def information_along_many(
-    noms: list[NominalRun],
-    profile: NoiseProfile,
-    latitude_rad: float,
-    gravity_mps2: float,
-    extras: Extras = NO_EXTRAS,
+    noms: list[NominalRun], profile: NoiseProfile, site: Site, extras: Extras = NO_EXTRAS
 ) -> np.ndarray:
     """:func:`information_along` of several trajectories of one sequence, (M, n, n).
 
@@ -219,20 +175,12 @@ def information_along_many(
     Without GM, or if the grids differ, each is evaluated on its own.
     """
     if not profile.has_gauss_markov or not same_grid(noms):
-        return np.array([information_along(n, profile, latitude_rad, gravity_mps2, extras) for n in noms])
-    A = state_matrix(latitude_rad, gravity_mps2)
+        return np.array([information_along(n, profile, site, extras) for n in noms])
+    A = state_matrix(site)
     bounds, time_nav = noms[0].grid.bounds, noms[0].time_nav
     T = np.diff(time_nav[bounds])
     Phi_vv = velocity_transitions(A, T, profile)
-    X = np.stack(
-        [
-            observation_jacobian(
-                n.C_b_n, n.dtheta, n.dv, n.time_nav, n.grid, latitude_rad, gravity_mps2, Phi_vv, extras
-            )
-            for n in noms
-        ],
-        axis=1,
-    )
+    X = np.stack([observation_jacobian(n, site, Phi_vv, extras) for n in noms], axis=1)
     mid = (bounds[:-1] + bounds[1:]) // 2
     C_mid = [n.C_b_n[mid] for n in noms]
     M, c = len(noms), X.shape[-1]
@@ -266,8 +214,7 @@ BATCH_MOUNTINGS = 9  # mountings per pass of the GM noise filter: the 27 box poi
 def mounting_informations(
     seq: Sequence,
     profile: NoiseProfile,
-    latitude_rad: float,
-    height_m: float,
+    site: Site,
     rotvecs: list,
     extras: Extras = NO_EXTRAS,
     batch: int = BATCH_MOUNTINGS,
@@ -279,14 +226,13 @@ def mounting_informations(
     noise filter (:func:`information_along_many`); ``batch=1`` evaluates each on its
     own (:func:`information_along`), the reference the tests hold the batches to.
     """
-    g = earth.gravity(latitude_rad, height_m)
     rotvecs = list(rotvecs)
     size = max(1, batch)
     out: list[np.ndarray] = []
     for part in (rotvecs[i : i + size] for i in range(0, len(rotvecs), size)):
-        noms = [nominal_run(seq, latitude_rad, height_m, rv) for rv in part]
+        noms = [nominal_run(seq, site, rv) for rv in part]
         if batch > 1:
-            out.extend(information_along_many(noms, profile, latitude_rad, g, extras))
+            out.extend(information_along_many(noms, profile, site, extras))
         else:
-            out.extend(information_along(n, profile, latitude_rad, g, extras) for n in noms)
+            out.extend(information_along(n, profile, site, extras) for n in noms)
     return out

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -22,6 +22,7 @@ from calib.model.information import eliminate, projected_covariance, scaled_inve
 from calib.model.optional_terms import NONE as NO_EXTRAS, Extras
 from calib.model.requirements import PAPER, Requirements
 from calib.nav.jacobian import N_UNKNOWN, PHI0 as PHI0_IDX
+from calib.nav.site import Site
 from calib.noise.profiles import NoiseProfile
 from calib.sequence.definition import Sequence
 
@@ -37,6 +38,16 @@ from .gm_mounting import (
 from .mounting import SequenceModel, sequence_model
 from .nominal import BATCH_MOUNTINGS, mounting_informations
 from .observability import Observability, from_information
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """How a worst case's mountings are evaluated: the search's starts, the reference paths."""
+
+    starts: int = 2  # IPOPT starts of the white-noise search (its worst grid points)
+    # Mountings along their own trajectories sharing a pass of the noise filter (1: each alone).
+    batch: int = BATCH_MOUNTINGS
+    direct: bool = False  # GM: each mounting along its own trajectory, not the GM basis (the reference)
 
 
 @dataclass(frozen=True)
@@ -143,27 +154,19 @@ def search_worst_direct(
     return np.radians(np.array(key)), inside[key]
 
 
-def _evaluator(
-    seq: Sequence,
-    profile: NoiseProfile,
-    latitude_rad: float,
-    height_m: float,
-    requirements: Requirements,
-    batch: int = BATCH_MOUNTINGS,
-    direct: bool = False,
-):
+def _evaluator(seq: Sequence, profile: NoiseProfile, site: Site, requirements: Requirements, how: Evaluation):
     """``evaluate(rotvecs, nominal=None) -> [Observability]`` and the model steering the search.
 
     The model is the white path's :class:`calib.analysis.mounting.SequenceModel`, the GM
-    profile's :class:`calib.analysis.gm_mounting.GmBasis`, or None with ``direct``: each
-    mounting of a GM profile then evaluated along its own trajectory, ``batch`` at a
+    profile's :class:`calib.analysis.gm_mounting.GmBasis`, or None with ``how.direct``: each
+    mounting of a GM profile then evaluated along its own trajectory, ``how.batch`` at a
     time (the reference the GM basis is held to).
     """
-    if profile.has_gauss_markov and direct:
+    if profile.has_gauss_markov and how.direct:
         # Bias-instability weights depend on the mounting (measured: up to 4.7 % on a sigma
         # for designed-30min-9moves if the nominal weights are reused), so evaluate each directly.
         def evaluate_each(rotvecs, nominal=None):
-            infos = mounting_informations(seq, profile, latitude_rad, height_m, rotvecs, batch=batch)
+            infos = mounting_informations(seq, profile, site, rotvecs, batch=how.batch)
             return [
                 from_information(info, seq.duration_s, profile.name, rv, nominal, requirements)
                 for info, rv in zip(infos, rotvecs, strict=True)
@@ -171,7 +174,7 @@ def _evaluator(
 
         return evaluate_each, None
     if profile.has_gauss_markov:
-        basis = gm_basis(seq, profile, latitude_rad, height_m)
+        basis = gm_basis(seq, profile, site)
 
         def evaluate_gm(rotvecs, nominal=None):
             return [
@@ -180,7 +183,7 @@ def _evaluator(
             ]
 
         return evaluate_gm, basis
-    model = sequence_model(seq, profile, latitude_rad, height_m)
+    model = sequence_model(seq, profile, site)
 
     def evaluate(rotvecs, nominal=None):
         return [model.analyze(rv, nominal, requirements) for rv in rotvecs]
@@ -220,28 +223,25 @@ def box_interpolant_maximum(values: np.ndarray, tolerance_deg: float) -> tuple[n
 def analyze_tolerance(
     seq: Sequence,
     profile: NoiseProfile,
-    latitude_rad: float,
-    height_m: float = 0.0,
+    site: Site,
     tolerance_deg: float = 3.0,
     search: bool = True,
-    starts: int = 2,
     requirements: Requirements = PAPER,
-    batch: int = BATCH_MOUNTINGS,
-    direct: bool = False,
     extras: Extras = NO_EXTRAS,
+    how: Evaluation | None = None,
 ) -> Robustness:
-    """Worst case over the +-tolerance box of base mountings.
+    """Worst case over the +-tolerance box of base mountings at ``site``.
 
     The 27 corner/edge/face/centre points are evaluated; then, if ``search``,
     IPOPT maximises the sigma of the worst parameter, since the worst mounting
-    need not be a grid point: under white noise from its ``starts`` worst grid
+    need not be a grid point: under white noise from its ``how.starts`` worst grid
     points with the exact gradient of the mounting basis
     (:func:`search_worst_mounting`); under Gauss-Markov bias instability from its
     every mounting's information exact from the GM basis (:mod:`calib.analysis.gm_mounting`:
     the nominal and the 27 in one pass of the noise filter), the search steered by
     the 27 points' own values: where their interpolant peaks away from the points
     (:func:`box_interpolant_maximum`), one more exact evaluation.
-    ``direct`` evaluates each GM mounting along its own trajectory instead, ``batch``
+    ``how.direct`` evaluates each GM mounting along its own trajectory instead, ``how.batch``
     at a time (``batch=1``: one at a time), the search then steered by forward
     differences (:func:`search_worst_direct`): the reference the GM basis is held to.
     ``extras``, the optional terms :func:`analyze_extras` will be asked about next: under
@@ -250,12 +250,14 @@ def analyze_tolerance(
     """
     # One mounting alone costs less along its trajectory than through the GM basis (its
     # 543 columns): at zero tolerance the direct evaluation, the GM filter in one loop.
-    if tolerance_deg == 0 and profile.has_gauss_markov and not direct:
-        info = nominal_information(seq, profile, latitude_rad, height_m)
+    how = how or Evaluation()
+    if tolerance_deg == 0 and profile.has_gauss_markov and not how.direct:
+        info = nominal_information(seq, profile, site)
         nominal = from_information(info, seq.duration_s, profile.name, np.zeros(3), None, requirements)
         return Robustness(nominal, nominal, nominal.sigma, 1, 0.0)
-    direct = direct or tolerance_deg == 0
-    evaluate, model = _evaluator(seq, profile, latitude_rad, height_m, requirements, batch, direct)
+    if tolerance_deg == 0:
+        how = replace(how, direct=True)
+    evaluate, model = _evaluator(seq, profile, site, requirements, how)
     if tolerance_deg == 0:
         nominal = evaluate([np.zeros(3)])[0]
         return Robustness(nominal, nominal, nominal.sigma, 1, 0.0)
@@ -263,7 +265,7 @@ def analyze_tolerance(
     grid = [np.array(p) for p in itertools.product(levels, levels, levels)]
     if isinstance(model, GmBasis):  # the nominal and the 27 in one pass of the filter
         rotvecs = [np.zeros(3)] + [np.radians(p) for p in grid]
-        infos = box_informations(seq, profile, latitude_rad, height_m, tolerance_deg, extras)
+        infos = box_informations(seq, profile, site, tolerance_deg, extras)
         infos = infos[:, :N_UNKNOWN, :N_UNKNOWN]
         nominal = from_information(infos[0], seq.duration_s, profile.name, rotvecs[0], None, requirements)
         results = [
@@ -283,7 +285,7 @@ def analyze_tolerance(
     found = None
     if isinstance(model, SequenceModel):
         rotvec, sigma = search_worst_mounting(
-            model, index, [grid[i] for i in order[:starts]], tolerance_deg, requirements
+            model, index, [grid[i] for i in order[: how.starts]], tolerance_deg, requirements
         )
     elif isinstance(model, GmBasis):
         peak, _ = box_interpolant_maximum(sigmas[:, index], tolerance_deg)
@@ -376,12 +378,11 @@ def _extras_sigmas(
 def _extras_evaluator(
     seq: Sequence,
     profile: NoiseProfile,
-    latitude_rad: float,
+    site: Site,
     extras: Extras,
-    height_m: float,
     requirements: Requirements,
-    batch: int = BATCH_MOUNTINGS,
-    one: bool = False,
+    batch: int,
+    one: bool,
 ):
     """``evaluate(rotvecs) -> [(sigma of the 21 without, with, sigma of the extras)]`` (SI).
 
@@ -391,16 +392,16 @@ def _extras_evaluator(
     through :func:`calib.analysis.gm_mounting.nominal_information` (GM profile, zero tolerance).
     """
     if one:
-        nom_info = nominal_information(seq, profile, latitude_rad, height_m, extras)
+        nom_info = nominal_information(seq, profile, site, extras)
     else:
-        infos = mounting_informations(seq, profile, latitude_rad, height_m, [np.zeros(3)], extras, batch)
+        infos = mounting_informations(seq, profile, site, [np.zeros(3)], extras, batch)
         nom_info = infos[0]
     sigmas, nominal = _extras_sigmas(seq, profile, extras, requirements, nom_info)
 
     def evaluate(rotvecs):
         if len(rotvecs) == 1 and not np.any(rotvecs[0]):  # the nominal alone (a design's screen): as above
             return [sigmas(rotvecs[0], nom_info)]
-        infos = mounting_informations(seq, profile, latitude_rad, height_m, rotvecs, extras, batch)
+        infos = mounting_informations(seq, profile, site, rotvecs, extras, batch)
         return [sigmas(rv, info) for rv, info in zip(rotvecs, infos, strict=True)]
 
     return evaluate, nominal
@@ -409,9 +410,8 @@ def _extras_evaluator(
 def _gm_extras(
     seq: Sequence,
     profile: NoiseProfile,
-    latitude_rad: float,
+    site: Site,
     extras: Extras,
-    height_m: float,
     requirements: Requirements,
     tolerance_deg: float,
 ):
@@ -421,13 +421,13 @@ def _gm_extras(
     (:func:`calib.analysis.gm_mounting.box_informations`; the terms' columns: ``extra_basis``).
     """
     points = [np.radians(p) for p in itertools.product(*[(-tolerance_deg, 0.0, tolerance_deg)] * 3)]
-    basis = gm_basis(seq, profile, latitude_rad, height_m)
-    xb = extra_basis(seq, latitude_rad, height_m, extras)
+    basis = gm_basis(seq, profile, site)
+    xb = extra_basis(seq, site, extras)
 
     def infos_of(rotvecs):
         return informations(basis, rotvecs, xb)
 
-    infos = box_informations(seq, profile, latitude_rad, height_m, tolerance_deg, extras)
+    infos = box_informations(seq, profile, site, tolerance_deg, extras)
     sigmas, nominal = _extras_sigmas(seq, profile, extras, requirements, infos[0])
 
     def evaluate(rotvecs):
@@ -439,25 +439,23 @@ def _gm_extras(
 def analyze_extras(
     seq: Sequence,
     profile: NoiseProfile,
-    latitude_rad: float,
+    site: Site,
     extras: Extras,
-    height_m: float = 0.0,
     tolerance_deg: float = 3.0,
     requirements: Requirements = PAPER,
     search: bool = False,
-    batch: int = BATCH_MOUNTINGS,
-    direct: bool = False,
+    how: Evaluation | None = None,
 ) -> ExtrasCost:
-    """Sigma of the 21 with and without the optional terms, and theirs, worst over the box.
+    """Sigma of the 21 with and without the optional terms, and theirs, worst over the box at ``site``.
 
     Both figures come from the same 27 mountings (corners, edges, faces and
     centre of the box), so their ratio is the cost of the terms alone. Under white
     noise each is evaluated directly along its nominal trajectory (the optional
-    terms' moments are not in the 63-term mounting basis), ``batch`` at a time
+    terms' moments are not in the 63-term mounting basis), ``how.batch`` at a time
     (``batch=1``: one at a time, the unbatched reference); with ``search``, IPOPT
     then maximises the sigma (with the terms) of the worst of the 21 from its worst
     grid point (:func:`search_worst_direct`), and that mounting counts as a 28th.
-    Under Gauss-Markov bias instability (unless ``direct``, which keeps the above)
+    Under Gauss-Markov bias instability (unless ``how.direct``, which keeps the above)
     the 21 and phi0 come from the GM basis and only the terms' columns from each
     trajectory, the nominal and the 27 whitened in one pass of the noise filter
     (:func:`calib.analysis.gm_mounting.informations`); the search is then the interpolant's
@@ -465,16 +463,13 @@ def analyze_extras(
     """
     levels = (-tolerance_deg, 0.0, tolerance_deg) if tolerance_deg > 0 else (0.0,)
     points = [np.radians(p) for p in itertools.product(levels, levels, levels)]
-    fast = profile.has_gauss_markov and not direct and tolerance_deg > 0
+    how = how or Evaluation()
+    fast = profile.has_gauss_markov and not how.direct and tolerance_deg > 0
     if fast:
-        evaluate, nominal, results = _gm_extras(
-            seq, profile, latitude_rad, extras, height_m, requirements, tolerance_deg
-        )
+        evaluate, nominal, results = _gm_extras(seq, profile, site, extras, requirements, tolerance_deg)
     else:
-        one = profile.has_gauss_markov and not direct and tolerance_deg == 0
-        evaluate, nominal = _extras_evaluator(
-            seq, profile, latitude_rad, extras, height_m, requirements, batch, one
-        )
+        one = profile.has_gauss_markov and not how.direct and tolerance_deg == 0
+        evaluate, nominal = _extras_evaluator(seq, profile, site, extras, requirements, how.batch, one)
         results = evaluate(points)
     searched = search and tolerance_deg > 0 and bool(nominal.estimable[: P.N_PARAMS].all())
     if searched and fast:

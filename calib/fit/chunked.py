@@ -207,7 +207,7 @@ def file_start(path, moving, rows, where, period, site: Site, profile, requireme
         lambda: Rests(
             T, turned / T[:, None], lambda bias: _rest_attitudes(path, rows, where, period, moving, bias)
         ),
-        site.latitude_rad,
+        site,
     )
 
 
@@ -310,7 +310,7 @@ def fit_file(
     judge = (
         None
         if sequence is None
-        else nominal_judge(lambda: sequence, site.latitude_rad, profile, options.extras, options.requirements)
+        else nominal_judge(lambda: sequence, site, profile, options.extras, options.requirements)
     )
     passes = Passes(lambda: aligned(read_chunks(path, rows), cuts, t_start), grid, t_start)
     return fit_intervals(passes, site, profile, start, options, where=where, judge=judge)

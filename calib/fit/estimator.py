@@ -29,11 +29,11 @@ from calib.model.error_model import ErrorModel
 from calib.model.information import UNKNOWN_NAMES
 from calib.model.optional_terms import Extras
 from calib.model.requirements import Requirements
-from calib.nav import earth
 from calib.nav.chunk_pass import Estimate, Passes, array_chunks, chunk_cuts, navigate_pass
 from calib.nav.jacobian import (
     PHI0,
     ObservationGrid,
+    Trajectory,
     default_grid,
     observation_jacobian,
     observation_matrix,
@@ -150,7 +150,7 @@ class _Problem:
             b = self.grid.bounds  # b[0] = 0 and b[-1] = n: every sample is in an interval
             dth = dth + np.repeat(feedback.body_rate, np.diff(b), axis=0) * self.dt[:, None]
         site = self.site
-        nav = navigate(dth, dvv, self.time_s, C0, site.latitude_rad, site.gravity_mps2, t0=self.t_nav[0])
+        nav = navigate(dth, dvv, self.time_s, C0, site, t0=self.t_nav[0])
         return dth, dvv, nav
 
     def observations(self, nav, Phi_vv, it: int, feedback_dv=None, hint: str = "") -> np.ndarray:
@@ -204,11 +204,11 @@ def fit_run(
         (dtheta_m[first], dv_m[first], dt[first]),
         mean_rest_rate(dtheta_m, dt, seg.moving),
         functools.partial(rests_in_memory, dtheta_m, dt, seg.moving),
-        site.latitude_rad,
+        site,
     )
     judge = nominal_judge(
         functools.partial(_run_sequence, sequence, run, dt, seg.moving, start, site),
-        site.latitude_rad,
+        site,
         profile,
         options.extras,
         options.requirements,
@@ -231,22 +231,22 @@ def _fit_renavigating(pb: _Problem, start: tuple, options: FitOptions, judge=Non
     different iteration: the attitude feedback and the steps about it follow
     the same :class:`FeedbackSchedule`.
     """
-    latitude_rad, gravity_mps2 = pb.site.latitude_rad, pb.site.gravity_mps2
+    site = pb.site
     profile, grid, dt, where = pb.profile, pb.grid, pb.dt, pb.where
     extras, requirements, partial = options.extras, options.requirements, options.partial
     first, C0 = start
-    A, T = state_matrix(latitude_rad, gravity_mps2), np.diff(pb.t_nav[grid.bounds])
+    A, T = state_matrix(site), np.diff(pb.t_nav[grid.bounds])
     mid = (grid.bounds[:-1] + grid.bounds[1:]) // 2
     values = np.zeros(P.N_PARAMS) if first is None else first.copy()
     extra_values = np.zeros(extras.n)
     names = UNKNOWN_NAMES + extras.names
-    omega_ie_n = earth.omega_ie_n(latitude_rad)
+    omega_ie_n = site.omega_ie_n
     # Until the first navigation, the Earth's turn as seen at the start attitude.
     turn = X.earth_turn(np.broadcast_to(C0, (len(dt), 3, 3)), omega_ie_n, dt)
     history: list[dict] = []
     noise, sol, converged, feedback, noise_C = None, None, False, None, None
     check_wander(profile, float(T.sum()), where)
-    schedule = FeedbackSchedule.for_run(profile, float(T.sum()), gravity_mps2)
+    schedule = FeedbackSchedule.for_run(profile, float(T.sum()), site.gravity_mps2)
     for it in range(1, schedule.limit(options.max_iterations) + 1):
         dth, dvv, nav = pb.compensate_and_navigate(values, extra_values, C0, turn, feedback)
         if extras.n:  # the Earth's turn in the body, for the next compensation
@@ -273,7 +273,7 @@ def _fit_renavigating(pb: _Problem, start: tuple, options: FitOptions, judge=Non
             # covariance is sensitive to where its nearly-null directions lie, so it follows
             # the trajectory to the end.
             H = observation_jacobian(
-                nav.C_b_n, dth, dvv, nav.time_s, grid, latitude_rad, gravity_mps2, noise.Phi_vv, extras
+                Trajectory(nav.time_s, nav.C_b_n, dth, dvv, grid), site, noise.Phi_vv, extras
             )
             H = to_frame(R, H)
             Hs, D = scaled_design(whiten(noise.whitener, H), extras, requirements)
@@ -343,7 +343,7 @@ def fit_intervals(
     extras, requirements, partial = options.extras, options.requirements, options.partial
     max_iterations, tol_sigma = options.max_iterations, options.tol_sigma
     first, C0 = start
-    A, names = state_matrix(site.latitude_rad, site.gravity_mps2), UNKNOWN_NAMES + extras.names
+    A, names = state_matrix(site), UNKNOWN_NAMES + extras.names
     values = np.zeros(P.N_PARAMS) if first is None else first.copy()
     extra_values = np.zeros(extras.n)
     history: list[dict] = []
@@ -394,9 +394,7 @@ def _pass_design(data, T, site: Site, noise, z, extras: Extras, requirements: Re
     """A pass's Jacobian (in the frame ``R`` turns to), its whitened and scaled form, and the
     whitened observations.
     """
-    H = observation_matrix(
-        sensitivities(data.moments, T, site.latitude_rad, site.gravity_mps2, data.extra), noise.Phi_vv
-    )
+    H = observation_matrix(sensitivities(data.moments, T, site, data.extra), noise.Phi_vv)
     H = to_frame(R, H)
     # H and z share the whitening filter: one recursion for both.
     Hz = whiten(noise.whitener, np.concatenate([H, z[:, :, None]], axis=2))
@@ -451,5 +449,5 @@ def _run_sequence(sequence, run, dt, moving, start: tuple, site: Site):
         return sequence
     values, C0 = start
     dth = run.dtheta_rad - values[P.GYRO_BIAS] * dt[:, None]
-    nav = navigate(dth, run.dv_mps, run.time_s, C0, site.latitude_rad, site.gravity_mps2)
+    nav = navigate(dth, run.dv_mps, run.time_s, C0, site)
     return infer_sequence(nav.C_b_n, run.dtheta_rad, moving, dt)

@@ -30,8 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.nav import earth
 from calib.nav.chunk_pass import quat_scan
+from calib.nav.site import Site
 from calib.nav.transform import quat_to_dcm, rotvec_to_quat
 from calib.sequence.motion import runs_of
 
@@ -76,7 +76,7 @@ def rest_gyrocompass(
     dt: np.ndarray,
     moving: np.ndarray,
     C_lev: np.ndarray,
-    latitude_rad: float,
+    site: Site,
     bias0: np.ndarray,
     passes: int = 2,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -84,32 +84,24 @@ def rest_gyrocompass(
 
     See :func:`gyrocompass_rests`; the rests' attitudes are integrated here.
     """
-    r = rests_in_memory(dtheta_m, dt, moving)
-    return gyrocompass_rests(r.attitudes, r.T, r.w, C_lev, latitude_rad, bias0, passes)
+    return gyrocompass_rests(rests_in_memory(dtheta_m, dt, moving), C_lev, site, bias0, passes)
 
 
 def gyrocompass_rests(
-    attitudes,
-    T: np.ndarray,
-    w: np.ndarray,
-    C_lev: np.ndarray,
-    latitude_rad: float,
-    bias0: np.ndarray,
-    passes: int = 2,
+    rests: Rests, C_lev: np.ndarray, site: Site, bias0: np.ndarray, passes: int = 2
 ) -> tuple[np.ndarray, np.ndarray]:
     """Gyro bias (rad/s) and start attitude ``C_b_n`` from the rests, by linear least squares.
 
     Parameters
     ----------
-    attitudes : callable
-        ``attitudes(bias)``: the body attitude at the middle of each rest
-        relative to the body at the run's start, ``(r, 3, 3)``, integrated
-        from the gyros compensated by ``bias`` (rad/s).
-    T, w : ndarray, shapes (r,) and (r, 3)
-        Each rest's length (s) and mean gyro rate (:func:`rest_rates`).
+    rests : Rests
+        Each rest's length and mean gyro rate, and ``attitudes(bias)``: the body
+        attitude at the middle of each rest relative to the body at the run's
+        start, integrated from the gyros compensated by ``bias`` (rad/s).
     C_lev : ndarray, shape (3, 3)
         The levelled start attitude (its heading is corrected).
-    latitude_rad : float
+    site : Site
+        Where the run was recorded: the Earth rate at its latitude.
     bias0 : ndarray, shape (3,)
         The bias that compensates the gyros for the first integration; each
         pass integrates again with the bias of the last.
@@ -118,11 +110,12 @@ def gyrocompass_rests(
     Each rest's mean rate is weighted by its length (its noise variance is
     ``arw^2 / T``).
     """
-    omega = earth.omega_ie_n(latitude_rad)
+    omega = site.omega_ie_n
     horizontal, up = float(np.hypot(omega[0], omega[1])), float(omega[2])
+    T, w = rests.T, rests.w
     bias = np.asarray(bias0, dtype=float)
     for _ in range(passes):
-        R = attitudes(bias)
+        R = rests.attitudes(bias)
         to_body = R.transpose(0, 2, 1) @ C_lev.T  # nav (levelled) -> body of each rest
         A = np.concatenate(
             [np.broadcast_to(np.eye(3), to_body.shape), horizontal * to_body[:, :, :2]], axis=2

@@ -26,7 +26,7 @@ import numpy as np
 from calib.errors import CalibError
 from calib.model.error_model import ErrorModel
 from calib.nav.jacobian import default_grid, state_matrix
-from calib.nav.site import site_of
+from calib.nav.site import Site, site_of
 from calib.nav.strapdown import Navigation, navigate, sample_intervals, start_time
 from calib.noise.profiles import DEFAULT_PROFILE, NoiseProfile, load_profile
 from calib.noise.whitening import interval_models
@@ -95,7 +95,6 @@ def review_run(
     """
     lat_deg = run.latitude_deg if latitude_deg is None else float(latitude_deg)
     site = site_of(run, gravity_mps2, lat_deg)
-    lat, g = site.latitude_rad, site.gravity_mps2
     dt = sample_intervals(run.time_s)
     t0 = start_time(run.time_s)
     dtheta, dv = run.dtheta_rad, run.dv_mps
@@ -110,21 +109,21 @@ def review_run(
     if dt[:first_rest_end].sum() >= MIN_ALIGN_S:
         first = slice(0, first_rest_end)
         C_align = coarse_alignment(dtheta[first], dv[first], dt[first])
-        before = navigate(dtheta, dv, run.time_s, C_align, lat, g, t0=t0)
+        before = navigate(dtheta, dv, run.time_s, C_align, site, t0=t0)
     else:
         notes.append(
             f"the run does not start with {MIN_ALIGN_S:g} s of rest: no coarse "
             "alignment, no velocity errors before calibration"
         )
-    review = RunReview(t0, dt, lat_deg, g, moving, before, None, notes)
+    review = RunReview(t0, dt, lat_deg, site.gravity_mps2, moving, before, None, notes)
     if result is not None:
         dth_c, dv_c = ErrorModel(result.values).compensate(dtheta, dv, dt)
-        review.after = navigate(dth_c, dv_c, run.time_s, result.C_b_n0, lat, g, t0=t0)
+        review.after = navigate(dth_c, dv_c, run.time_s, result.C_b_n0, site, t0=t0)
         profile, note = result_profile(result)
         if note:
             notes.append(note)
         review.noise_time, review.noise_sigma_v = _noise_envelope(
-            review.after, moving, run.sample_rate_hz, lat, g, profile
+            review.after, moving, run.sample_rate_hz, site, profile
         )
         review.noise_profile = profile.name
     return review
@@ -132,8 +131,7 @@ def review_run(
 
 def velocity_noise_sigma(
     T: np.ndarray,
-    latitude_rad: float,
-    gravity_mps2: float,
+    site: Site,
     profile: NoiseProfile,
     C_b_n: np.ndarray | None = None,
 ) -> np.ndarray:
@@ -148,7 +146,8 @@ def velocity_noise_sigma(
     ----------
     T : ndarray, shape (K,)
         Interval lengths, s.
-    latitude_rad, gravity_mps2 : float
+    site : Site
+        Latitude and gravity of the stationary base.
     profile : NoiseProfile
         ARW and VRW, and the GM bias instability if it has one.
     C_b_n : ndarray, shape (K, 3, 3), optional
@@ -173,7 +172,7 @@ def velocity_noise_sigma(
     itself, which absorbs the part of the noise that looks like its unknowns.
     """
     T = np.asarray(T, dtype=float)
-    models = interval_models(state_matrix(latitude_rad, gravity_mps2), T, profile, C_b_n)
+    models = interval_models(state_matrix(site), T, profile, C_b_n)
     n = models[0].Phi.shape[0] if models else 6
     P = np.zeros((n, n))
     out = np.zeros((len(T) + 1, 3))
@@ -195,10 +194,10 @@ def result_profile(result) -> tuple[NoiseProfile, str | None]:
 
 
 def _noise_envelope(
-    nav: Navigation, moving: np.ndarray, sample_rate_hz: float, lat: float, g: float, profile: NoiseProfile
+    nav: Navigation, moving: np.ndarray, sample_rate_hz: float, site: Site, profile: NoiseProfile
 ) -> tuple[np.ndarray, np.ndarray]:
     """Times (s since the start) and 1-sigma of :func:`velocity_noise_sigma` on the fit's grid."""
     b = default_grid(moving, sample_rate_hz).bounds
     t = nav.time_s - nav.time_s[0]
     C_mid = 0.5 * (nav.C_b_n[b[:-1]] + nav.C_b_n[b[1:]]) if profile.has_gauss_markov else None
-    return t[b], velocity_noise_sigma(np.diff(t[b]), lat, g, profile, C_mid)
+    return t[b], velocity_noise_sigma(np.diff(t[b]), site, profile, C_mid)

@@ -21,8 +21,8 @@ from calib.model import optional_terms as X, params as P
 from calib.model.information import UNKNOWN_NAMES, ScaledInverse, eliminate, scaled_inverse
 from calib.model.optional_terms import Extras
 from calib.model.requirements import PAPER, Requirements
-from calib.nav import earth
 from calib.nav.jacobian import N_UNKNOWN, PHI0
+from calib.nav.site import Site
 from calib.noise.profiles import NoiseProfile
 
 PHI0_SCALE = 1e-4  # rad, for scaling the normal equations only
@@ -162,11 +162,10 @@ def solve_information(
 
 
 def nominal_decision(
-    seq, latitude_rad: float, profile: NoiseProfile, extras: Extras, requirements: Requirements, names
+    seq, site: Site, profile: NoiseProfile, extras: Extras, requirements: Requirements, names
 ) -> ScaledInverse:
-    """What the error-free trajectory of ``seq`` observes, by :mod:`calib.model.information`'s rule."""
-    nom = nominal_run(seq, latitude_rad, 0.0, np.zeros(3))
-    info = information_along(nom, profile, latitude_rad, earth.gravity(latitude_rad), extras)
+    """What the error-free trajectory of ``seq`` at ``site`` observes, by :mod:`calib.model.information`."""
+    info = information_along(nominal_run(seq, site, np.zeros(3)), profile, site, extras)
     D = unknown_scale(extras, requirements)
     kept = [n for i, n in enumerate(names) if not P.N_PARAMS <= i < N_UNKNOWN]
     return scaled_inverse(eliminate(info * np.outer(D, D), PHI0), kept)
@@ -238,15 +237,17 @@ def fit_result(estimate: tuple, cov, sol, last: tuple, history, converged, extra
     )
 
 
-def nominal_judge(find_sequence, latitude_rad: float, profile: NoiseProfile, extras: Extras, requirements):
+def nominal_judge(find_sequence, site: Site, profile: NoiseProfile, extras: Extras, requirements):
     """A callable giving the nominal trajectory's observability decision, computed once.
 
     Called only when a run's own information leaves directions unobserved:
     the sequence ``find_sequence()`` returns (the one given, else one read off
     a navigation of the log, :mod:`calib.sequence.inferred`; None: no decision)
-    decides what is estimable, as the analyser does.
+    decides what is estimable, as the analyser does at the run's latitude and its
+    default height (normal gravity at 0 m, whatever gravity the fit itself uses).
     """
     memo = {}
+    at_latitude = Site.at(site.latitude_rad)
 
     def judge():
         if "inv" not in memo:
@@ -255,7 +256,7 @@ def nominal_judge(find_sequence, latitude_rad: float, profile: NoiseProfile, ext
                 None
                 if seq is None
                 else nominal_decision(
-                    seq, latitude_rad, profile, extras, requirements, UNKNOWN_NAMES + extras.names
+                    seq, at_latitude, profile, extras, requirements, UNKNOWN_NAMES + extras.names
                 )
             )
         return memo["inv"]

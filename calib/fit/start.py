@@ -17,10 +17,11 @@ from calib.errors import CalibError
 from calib.model import params as P
 from calib.model.requirements import PAPER, Requirements
 from calib.nav import earth
+from calib.nav.site import Site
 from calib.sequence.definition import MIN_ALIGN_S
 
 from . import sanity
-from .gyrocompass import Rests, gyrocompass_rests
+from .gyrocompass import gyrocompass_rests
 
 
 def coarse_alignment(dtheta: np.ndarray, dv: np.ndarray, dt: np.ndarray) -> np.ndarray:
@@ -93,7 +94,7 @@ def check_first_rest(
 
 
 def start_attitude(
-    first_rest: tuple[np.ndarray, np.ndarray, np.ndarray], mean_rate: np.ndarray, rests, latitude_rad: float
+    first_rest: tuple[np.ndarray, np.ndarray, np.ndarray], mean_rate: np.ndarray, rests, site: Site
 ) -> tuple[np.ndarray, np.ndarray]:
     """The start values of the 21 and ``C_b_n`` at the run's start.
 
@@ -106,14 +107,12 @@ def start_attitude(
     rests : callable
         ``rests()`` gives the run's :class:`calib.fit.gyrocompass.Rests`; called
         only when the gyro bias dwarfs the Earth rate.
-    latitude_rad : float
+    site : Site
+        Where the run was recorded (the Earth rate at its latitude).
     """
     dtheta, dv, dt = first_rest
     start = start_from_rests(mean_rate)
     C0 = coarse_alignment(dtheta - start[P.GYRO_BIAS] * dt[:, None], dv, dt)
     if np.any(start[P.GYRO_BIAS]):  # a bias beyond the Earth rate: bias and heading from all rests
-        r: Rests = rests()
-        start[P.GYRO_BIAS], C0 = gyrocompass_rests(
-            r.attitudes, r.T, r.w, C0, latitude_rad, start[P.GYRO_BIAS]
-        )
+        start[P.GYRO_BIAS], C0 = gyrocompass_rests(rests(), C0, site, start[P.GYRO_BIAS])
     return start, C0

@@ -365,7 +365,7 @@ def _extra_moments(C_mid, dth_ctx, dvv_ctx, h_ctx, turn, S3, extras: Extras, sit
     CD = np.einsum("nai,nic->nac", C_mid, D).reshape(m, -1)
     R = (S3[: 2 * Kc] @ CD).reshape(2, Kc, 3, extras.n)
     mom = np.concatenate([R[0], R[1]], axis=1)  # (Kc, 6, e)
-    G = step_model(float(site.latitude_rad), float(site.gravity_mps2)).extra_map
+    G = step_model(site).extra_map
     return np.einsum("sm,kmc->ksc", G, mom)
 
 

@@ -42,6 +42,7 @@ from calib.model import params as P
 from calib.model.optional_terms import NONE as NO_EXTRAS, Extras, dv_sensitivity, earth_turn
 
 from . import earth
+from .site import Site
 from .transform import skew
 
 N_UNKNOWN = P.N_PARAMS + 3  # the 21 parameters and the initial attitude error phi0
@@ -91,15 +92,30 @@ def default_grid(moving: np.ndarray, sample_rate_hz: float) -> ObservationGrid:
     )
 
 
-def state_matrix(latitude_rad: float, gravity_mps2: float) -> np.ndarray:
-    """Continuous error-state matrix ``A`` (6 x 6)."""
-    W = skew(earth.omega_ie_n(latitude_rad))
-    F = skew(earth.specific_force_n(gravity_mps2))
+def state_matrix(site: Site) -> np.ndarray:
+    """Continuous error-state matrix ``A`` (6 x 6) at a site (its latitude and gravity)."""
+    W = skew(earth.omega_ie_n(site.latitude_rad))
+    F = skew(earth.specific_force_n(site.gravity_mps2))
     A = np.zeros((6, 6))
     A[:3, :3] = -W
     A[3:, :3] = F
     A[3:, 3:] = -2.0 * W
     return A
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A trajectory the linear model is evaluated along (:func:`observation_jacobian`).
+
+    The estimator's is a navigation of the log, the analyser's a sequence's nominal
+    motion (:class:`calib.analysis.nominal.NominalRun`).
+    """
+
+    time_nav: np.ndarray  # (n + 1,) sample boundary times
+    C_b_n: np.ndarray  # (n + 1, 3, 3) attitude at the sample boundaries
+    dtheta: np.ndarray  # (n, 3) the samples' increments (compensated, as navigated)
+    dv: np.ndarray  # (n, 3)
+    grid: ObservationGrid
 
 
 @dataclass(frozen=True)
@@ -201,10 +217,15 @@ class StepModel:
     extra_map: np.ndarray  # (6, 6): [sum C D (3), sum tau C D (3)] -> d x_next / d q
 
 
-@functools.lru_cache(maxsize=16)
-def step_model(latitude_rad: float, gravity_mps2: float) -> StepModel:
+def step_model(site: Site) -> StepModel:
     """Build the symbolic interval step for a site and differentiate it (cached per site)."""
-    A = state_matrix(latitude_rad, gravity_mps2)
+    return _step_model(float(site.latitude_rad), float(site.gravity_mps2))
+
+
+@functools.lru_cache(maxsize=16)
+def _step_model(latitude_rad: float, gravity_mps2: float) -> StepModel:
+    """:func:`step_model`, cached on the numbers alone (a site's gravity source does not enter)."""
+    A = state_matrix(Site(latitude_rad, gravity_mps2))
     W = skew(earth.omega_ie_n(latitude_rad))
     F = skew(earth.specific_force_n(gravity_mps2))
     A2_vphi = -F @ W - 2.0 * W @ F
@@ -247,8 +268,7 @@ def propagate(
     inputs: np.ndarray,
     T: np.ndarray,
     S0: np.ndarray,
-    latitude_rad: float,
-    gravity_mps2: float,
+    site: Site,
     return_final: bool = False,
     compiled: bool = False,
 ):
@@ -269,7 +289,7 @@ def propagate(
     ndarray, shape (K + 1, 3, c)
         And, with ``return_final``, the whole final ``S`` (6, c).
     """
-    model = step_model(float(latitude_rad), float(gravity_mps2))
+    model = step_model(site)
     # Interval lengths repeat up to rounding; 1 ns changes Phi by ~1e-8 of its g T block.
     keys, index = np.unique(np.round(T, 9), return_inverse=True)
     Phis = [np.asarray(model.transition(t)) for t in keys]
@@ -289,9 +309,9 @@ def propagate(
     return (out, S) if return_final else out
 
 
-def moment_inputs(moments: np.ndarray, latitude_rad: float, gravity_mps2: float) -> np.ndarray:
+def moment_inputs(moments: np.ndarray, site: Site) -> np.ndarray:
     """``d x_next / d(params, phi0)`` of each interval from its moments: ``(..., 6, N_UNKNOWN)``."""
-    G = step_model(float(latitude_rad), float(gravity_mps2)).input_map
+    G = step_model(site).input_map
     lead = moments.shape[:-1]
     return (moments @ G).reshape(lead + (N_UNKNOWN, 6)).swapaxes(-1, -2)
 
@@ -301,8 +321,7 @@ def extra_inputs(
     dv: np.ndarray,
     layout: SampleLayout,
     extras: Extras,
-    latitude_rad: float,
-    gravity_mps2: float,
+    site: Site,
 ) -> np.ndarray:
     """``d x_next / d(extra parameters)`` of every interval: shape ``(K, 6, extras.n)``.
 
@@ -313,21 +332,20 @@ def extra_inputs(
     L, sl = layout, layout.samples
     if extras.n == 0:
         return np.zeros((len(L.starts), 6, 0))
-    turn = earth_turn(L.C_mid, earth.omega_ie_n(latitude_rad), L.h)
+    turn = earth_turn(L.C_mid, site.omega_ie_n, L.h)
     CD = np.einsum("nai,nic->nac", L.C_mid, dv_sensitivity(extras, dtheta[sl], dv[sl], L.h, turn))
     moments = np.concatenate(
         [np.add.reduceat(CD, L.starts, axis=0), np.add.reduceat(CD * L.tau[:, None, None], L.starts, axis=0)],
         axis=1,
     )
-    G = step_model(float(latitude_rad), float(gravity_mps2)).extra_map
+    G = step_model(site).extra_map
     return np.einsum("sm,kmc->ksc", G, moments)
 
 
 def sensitivities(
     moments: np.ndarray,
     T: np.ndarray,
-    latitude_rad: float,
-    gravity_mps2: float,
+    site: Site,
     extra: np.ndarray | None = None,
     compiled: bool = False,
 ) -> np.ndarray:
@@ -342,12 +360,12 @@ def sensitivities(
     (``(K, 6, e)`` from :func:`extra_inputs`) appends the optional terms' columns;
     ``compiled`` as in :func:`propagate`.
     """
-    inputs = moment_inputs(moments, latitude_rad, gravity_mps2)
+    inputs = moment_inputs(moments, site)
     if extra is not None and extra.shape[-1]:
         inputs = np.concatenate([inputs, extra], axis=2)
     S0 = np.zeros((6, inputs.shape[-1]))
     S0[:3, PHI0] = np.eye(3)
-    return propagate(inputs, T, S0, latitude_rad, gravity_mps2, compiled=compiled)
+    return propagate(inputs, T, S0, site, compiled=compiled)
 
 
 def observation_matrix(S_v: np.ndarray, Phi_vv: np.ndarray) -> np.ndarray:
@@ -356,13 +374,8 @@ def observation_matrix(S_v: np.ndarray, Phi_vv: np.ndarray) -> np.ndarray:
 
 
 def observation_jacobian(
-    C_b_n: np.ndarray,
-    dtheta: np.ndarray,
-    dv: np.ndarray,
-    time_nav: np.ndarray,
-    grid: ObservationGrid,
-    latitude_rad: float,
-    gravity_mps2: float,
+    trajectory: Trajectory,
+    site: Site,
     Phi_vv: np.ndarray,
     extras: Extras = NO_EXTRAS,
     compiled: bool = False,
@@ -374,9 +387,10 @@ def observation_jacobian(
     21 parameters, the initial attitude error, then the switched-on extras.
     ``compiled`` as in :func:`propagate`.
     """
-    layout = sample_layout(C_b_n, time_nav, grid)
-    moments = trajectory_moments(C_b_n, dtheta, dv, time_nav, grid, layout)
-    T = np.diff(time_nav[grid.bounds])
-    extra = extra_inputs(dtheta, dv, layout, extras, latitude_rad, gravity_mps2)
-    S_v = sensitivities(moments, T, latitude_rad, gravity_mps2, extra, compiled)
+    tr = trajectory
+    layout = sample_layout(tr.C_b_n, tr.time_nav, tr.grid)
+    moments = trajectory_moments(tr.C_b_n, tr.dtheta, tr.dv, tr.time_nav, tr.grid, layout)
+    T = np.diff(tr.time_nav[tr.grid.bounds])
+    extra = extra_inputs(tr.dtheta, tr.dv, layout, extras, site)
+    S_v = sensitivities(moments, T, site, extra, compiled)
     return observation_matrix(S_v, Phi_vv)

@@ -30,11 +30,26 @@ def ppm_per_mgal(gravity_mps2: float) -> float:
 
 @dataclass(frozen=True)
 class Site:
-    """Latitude (rad), gravity (m/s^2) and its source: "measured" (the log's or the user's) or "normal"."""
+    """Latitude (rad), gravity (m/s^2) and its source: "measured" (the log's or the user's) or "normal".
+
+    What travels where a site's latitude and gravity are needed together (the error model's
+    state matrix, the Jacobian, the analyser's and the design search's chains). Height is not
+    kept: the physics sees it only through normal gravity (:meth:`at`), and where a height is
+    recorded (a sequence file, a report) it stays a value of its own.
+    """
 
     latitude_rad: float
     gravity_mps2: float
     gravity_source: str = "measured"
+
+    @classmethod
+    def at(cls, latitude_rad: float, height_m: float = 0.0) -> Site:
+        """The site with WGS-84 normal gravity at ``latitude_rad`` (rad) and ``height_m`` (m).
+
+        The one way a latitude and a height become a :class:`Site`: gravity is
+        :func:`calib.nav.earth.gravity` of exactly these two values.
+        """
+        return cls(latitude_rad, earth.gravity(latitude_rad, height_m), "normal")
 
     @property
     def omega_ie_n(self) -> np.ndarray:
@@ -59,4 +74,4 @@ def site_of(run, gravity_mps2: float | None = None, latitude_deg: float | None =
         return Site(lat, float(gravity_mps2), "measured")
     if run.gravity_mps2 is not None:
         return Site(lat, float(run.gravity_mps2), "measured")
-    return Site(lat, earth.gravity(lat, run.height_m), "normal")
+    return Site.at(lat, run.height_m)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import earth
+from .site import Site
 from .transform import dcm_to_rotvec, prefix_product, quat_to_dcm, rotvec_to_dcm, rotvec_to_quat
 
 
@@ -96,8 +96,7 @@ def navigate(
     dv: np.ndarray,
     time_s: np.ndarray,
     C_b_n0: np.ndarray,
-    latitude_rad: float,
-    gravity_mps2: float,
+    site: Site,
     t0: float | None = None,
 ) -> Navigation:
     """Navigate on a stationary base from attitude ``C_b_n0`` at rest.
@@ -109,7 +108,8 @@ def navigate(
     time_s : ndarray, shape (n,)
     C_b_n0 : ndarray, shape (3, 3)
         Attitude at ``t0``.
-    latitude_rad, gravity_mps2 : float
+    site : Site
+        Latitude and gravity of the stationary base.
     t0 : float, optional
         Start time; default one nominal period before ``time_s[0]``.
 
@@ -121,7 +121,7 @@ def navigate(
         t0 = start_time(time_s)
     t = np.concatenate([[t0], time_s]) - t0
     dt = np.diff(t)
-    w_ie = earth.omega_ie_n(latitude_rad)
+    w_ie = site.omega_ie_n
 
     # Attitude in the inertially fixed copy of the start frame.
     q0 = rotvec_to_quat(dcm_to_rotvec(C_b_n0))
@@ -132,7 +132,7 @@ def navigate(
     # Velocity: rotate increments into n0, then into the Coriolis-free frame.
     dv_i = np.einsum("nij,nj->ni", C_b_i[:-1], sculling_dv(dtheta, dv))
     t_mid = 0.5 * (t[1:] + t[:-1])
-    g_n = np.array([0.0, 0.0, -gravity_mps2])
+    g_n = np.array([0.0, 0.0, -site.gravity_mps2])
     # v' = C f + g - 2 w x v;  w = R(2 W t) v  ->  w' = R(W t) (C_b_n0 f) + R(2 W t) g.
     dw = (
         np.einsum("nij,nj->ni", _earth_rotation(w_ie, t_mid, 1.0), dv_i)

@@ -9,9 +9,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib.model.requirements import PAPER, Requirements
-from calib.nav import earth
 from calib.nav.jacobian import N_UNKNOWN
-from calib.nav.transform import AXES
+from calib.nav.site import Site
 from calib.noise.gm_filter import gm_start_covariance
 from calib.noise.profiles import NoiseProfile
 
@@ -23,11 +22,13 @@ from .objective import score
 from .segments import (
     SEARCH_REST_INTERVALS,
     SegmentEffect,
+    rest_at,
     rest_steady_state,
     segment_columns,
     segment_effect,
     start_covariance,
     turn_columns,
+    turn_from,
 )
 
 
@@ -46,14 +47,52 @@ class Candidate:
     label: str = ""  # the moves' labels joined by spaces (the ranking's tie-break), grown move by move
 
 
+def _segments(c: Constraints, dwell_s: float, site: Site, profile: NoiseProfile, graph, moves):
+    """The initial rest's, every rest's and every turn's :class:`SegmentEffect` (white noise)."""
+    P_ss = rest_steady_state(site, profile, dwell_s)
+    rest = {
+        node: segment_effect(
+            rest_at(node, dwell_s),
+            site,
+            profile,
+            start_covariance(P_ss, attitude_of(node)),
+            SEARCH_REST_INTERVALS,
+        )
+        for node in graph.nodes
+    }
+    initial = segment_effect(
+        rest_at(c.start, dwell_s), site, profile, None, SEARCH_REST_INTERVALS, initial=True
+    )
+    turn = {}
+    for node in graph.nodes:
+        C = attitude_of(node)
+        for mv in moves:
+            seg = turn_from(node, mv, turn_seconds(mv, c), turn_rate(mv, c))
+            turn[(node, mv)] = segment_effect(seg, site, profile, start_covariance(P_ss, C))
+    return initial, rest, turn
+
+
+def _exact_segments(c: Constraints, dwell_s: float, site: Site, profile: NoiseProfile, graph, moves):
+    """The initial rest's, every rest's and every turn's observation columns (GM: exact noise)."""
+    rest = {
+        node: segment_columns(rest_at(node, dwell_s), site, profile, SEARCH_REST_INTERVALS)
+        for node in graph.nodes
+    }
+    turn = {
+        (node, mv): turn_columns(node, mv, turn_seconds(mv, c), turn_rate(mv, c), site, profile)
+        for node in graph.nodes
+        for mv in moves
+    }
+    return rest[as_node(c.start)], rest, turn
+
+
 @dataclass
 class SearchModel:
     """Everything a search at one dwell needs, precomputed."""
 
     constraints: Constraints
     dwell_s: float
-    latitude_rad: float
-    gravity_mps2: float
+    site: Site
     profile: NoiseProfile
     graph: object
     moves: list[Move]
@@ -68,96 +107,23 @@ class SearchModel:
         cls,
         c: Constraints,
         dwell_s: float,
-        latitude_rad: float,
-        height_m: float,
+        site: Site,
         profile: NoiseProfile,
         requirements: Requirements = PAPER,
     ) -> SearchModel:
-        g = earth.gravity(latitude_rad, height_m)
-        graph = flip_graph(c.start, c.axes)
-        if profile.has_gauss_markov:
-            return cls._build_exact(c, dwell_s, latitude_rad, g, profile, requirements, graph)
-        P_ss = rest_steady_state(latitude_rad, g, profile, dwell_s)
-        rest = {
-            node: segment_effect(
-                attitude_of(node),
-                dwell_s,
-                0.0,
-                -1,
-                latitude_rad,
-                g,
-                profile,
-                start_covariance(P_ss, attitude_of(node)),
-                SEARCH_REST_INTERVALS,
-            )
-            for node in graph.nodes
-        }
-        initial = segment_effect(
-            attitude_of(c.start),
-            dwell_s,
-            0.0,
-            -1,
-            latitude_rad,
-            g,
-            profile,
-            None,
-            SEARCH_REST_INTERVALS,
-            initial=True,
-        )
-        model = cls(
-            c,
-            dwell_s,
-            latitude_rad,
-            g,
-            profile,
-            graph,
-            all_moves(c.axes, c.max_quarters),
-            initial,
-            rest,
-            requirements=requirements,
-        )
-        for node in graph.nodes:
-            C = attitude_of(node)
-            for mv in model.moves:
-                model.turn[(node, mv)] = segment_effect(
-                    C,
-                    turn_seconds(mv, c),
-                    turn_rate(mv, c),
-                    AXES.index(mv.axis),
-                    latitude_rad,
-                    g,
-                    profile,
-                    start_covariance(P_ss, C),
-                )
-        return model
+        """The search model at one uniform dwell: every segment of the walk graph, precomputed.
 
-    @classmethod
-    def _build_exact(cls, c, dwell_s, latitude_rad, g, profile, requirements, graph):
-        rest = {
-            node: segment_columns(
-                attitude_of(node), dwell_s, 0.0, -1, latitude_rad, g, profile, SEARCH_REST_INTERVALS
-            )
-            for node in graph.nodes
-        }
-        model = cls(
-            c,
-            dwell_s,
-            latitude_rad,
-            g,
-            profile,
-            graph,
-            all_moves(c.axes, c.max_quarters),
-            rest[as_node(c.start)],
-            rest,
-            requirements=requirements,
-            exact_noise=True,
+        Under a GM profile the segments are observation columns, each candidate carrying
+        its filter covariance (:func:`_exact_segments`); else the segment matrices with
+        the filter at its rest steady state (:func:`_segments`).
+        """
+        graph = flip_graph(c.start, c.axes)
+        moves = all_moves(c.axes, c.max_quarters)
+        exact = profile.has_gauss_markov
+        initial, rest, turn = (_exact_segments if exact else _segments)(
+            c, dwell_s, site, profile, graph, moves
         )
-        for node in graph.nodes:
-            for mv in model.moves:
-                model.turn[(node, mv)] = turn_columns(
-                    node, mv, turn_seconds(mv, c), turn_rate(mv, c), latitude_rad, g, profile
-                )
-        return model
+        return cls(c, dwell_s, site, profile, graph, moves, initial, rest, turn, requirements, exact)
 
     def turn_time(self, mv: Move) -> float:
         return turn_seconds(mv, self.constraints)
@@ -355,8 +321,7 @@ class BeamJob:
 
     constraints: Constraints
     dwell_s: float
-    latitude_rad: float
-    height_m: float
+    site: Site
     profile: NoiseProfile
     objective: str
     beam_width: int | None
@@ -378,9 +343,7 @@ class BeamResult:
 def search_at_dwell(job: BeamJob) -> BeamResult:
     """Build the search model at the job's dwell and run its beam."""
     t = time.perf_counter()
-    model = SearchModel.build(
-        job.constraints, job.dwell_s, job.latitude_rad, job.height_m, job.profile, job.requirements
-    )
+    model = SearchModel.build(job.constraints, job.dwell_s, job.site, job.profile, job.requirements)
     finals, n = beam_search(model, job.objective, job.beam_width, job.keep)
     return BeamResult(
         job.dwell_s, [f.walk for f in finals], [f.score for f in finals], n, time.perf_counter() - t

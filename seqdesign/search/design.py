@@ -14,7 +14,6 @@ from dataclasses import dataclass, replace
 
 from calib.analysis.worst_case import ExtrasCost, Robustness
 from calib.errors import CalibError
-from calib.nav import earth
 from calib.nav.site import Site
 from calib.noise.profiles import NoiseProfile
 from calib.noise.wander import check_wander
@@ -213,17 +212,15 @@ def design(
     check_wander(profile, c.budget_s, "--budget-min")
     t0 = time.perf_counter()
     latitude_rad = math.radians(options.latitude_deg)
-    site = (math.degrees(latitude_rad), height_m)  # written into the sequence: analyse it there
+    written = (math.degrees(latitude_rad), height_m)  # written into the sequence: analyse it there
+    scoring = Site.at(latitude_rad, height_m)
     # one beam per search dwell and width (_search sets them)
-    base = BeamJob(
-        c, math.nan, latitude_rad, height_m, profile, objective, options.beam_width, keep, requirements
-    )
+    base = BeamJob(c, math.nan, scoring, profile, objective, options.beam_width, keep, requirements)
     results, evaluated, narrow = _search(base, workers, scheduler, progress)
     search_seconds = time.perf_counter() - t0
-    scorer = ExactScorer(c, name, site, profile, latitude_rad, height_m, requirements, extras)
+    scorer = ExactScorer(c, name, written, profile, scoring, requirements, extras)
     batch = max(workers, SCHEDULER_BATCH if scheduler else 1)
     exact = ExactScores(scorer, workers, scheduler)
-    scoring = Site(latitude_rad, earth.gravity(latitude_rad, height_m), "normal")
 
     def refine_best(best: Finalist) -> list[Finalist]:
         return refined(

@@ -126,8 +126,7 @@ def by_order(finalists) -> list[Finalist]:
 def _exact_worst(
     seq: Sequence,
     profile,
-    latitude_rad,
-    height_m,
+    site: Site,
     tolerance_deg,
     search,
     requirements: Requirements = PAPER,
@@ -141,15 +140,11 @@ def _exact_worst(
     sigma with and without the terms at the same mountings).
     """
     if extras.n:
-        cost = analyze_extras(
-            seq, profile, latitude_rad, extras, height_m, tolerance_deg, requirements, search=search
-        )
+        cost = analyze_extras(seq, profile, site, extras, tolerance_deg, requirements, search=search)
         r = requirements.ratio(cost.sigma_with)
         i = int(np.argmax(r))
         return float(r[i]), P.NAMES[i], None, cost
-    rob = analyze_tolerance(
-        seq, profile, latitude_rad, height_m, tolerance_deg, search=search, requirements=requirements
-    )
+    rob = analyze_tolerance(seq, profile, site, tolerance_deg, search=search, requirements=requirements)
     r = rob.per_parameter_worst_ratio
     i = int(np.argmax(r))
     return float(r[i]), P.NAMES[i], rob, None
@@ -163,25 +158,17 @@ class ExactScorer:
 
     c: Constraints
     name: str
-    site: tuple  # (latitude deg, height m), written into each sequence
+    written: tuple  # (latitude deg, height m), written into each sequence
     profile: NoiseProfile
-    latitude_rad: float
-    height_m: float
+    site: Site  # where it is scored: the latitude written, normal gravity at the height written
     requirements: Requirements
     extras: Extras
 
     def __call__(self, job: ExactJob) -> ExactScore:
-        seq = to_sequence(job.walk, self.c, list(job.dwells), self.name, None, *self.site)
+        seq = to_sequence(job.walk, self.c, list(job.dwells), self.name, None, *self.written)
         try:
             worst, wname, rob, cost = _exact_worst(
-                seq,
-                self.profile,
-                self.latitude_rad,
-                self.height_m,
-                job.tolerance_deg,
-                job.search,
-                self.requirements,
-                self.extras,
+                seq, self.profile, self.site, job.tolerance_deg, job.search, self.requirements, self.extras
             )
         finally:
             # each job scores its own sequence: its cached basis serves no later job, and the

@@ -18,10 +18,11 @@ from calib.noise.profiles import NoiseProfile
 
 from .constraints import Constraints, turn_rate, turn_seconds
 from .gm import SegmentBlock, fold, fold_block, segment_blocks, stack, start_state
-from .graph import apply_move, as_node, attitude_of, flip_graph
+from .graph import apply_move, as_node, flip_graph
 from .objective import scaled_marginal
 from .segments import (
     SEARCH_REST_INTERVALS,
+    rest_at,
     rest_columns,
     rest_steady_state,
     segment_effect,
@@ -32,58 +33,21 @@ from .segments import (
 
 
 def walk_information(
-    walk,
-    c: Constraints,
-    dwells,
-    latitude_rad: float,
-    gravity_mps2: float,
-    profile: NoiseProfile,
-    P_ss: np.ndarray,
+    walk, c: Constraints, dwells, site: Site, profile: NoiseProfile, P_ss: np.ndarray
 ) -> np.ndarray:
     """Search-model information of a walk with individual dwells (smooth in the dwells)."""
     graph = flip_graph(c.start, c.axes)
     node = as_node(c.start)
     if profile.has_gauss_markov:
-        return _walk_information_exact(walk, c, dwells, latitude_rad, gravity_mps2, profile)
-    e = segment_effect(
-        attitude_of(node),
-        dwells[0],
-        0.0,
-        -1,
-        latitude_rad,
-        gravity_mps2,
-        profile,
-        None,
-        SEARCH_REST_INTERVALS,
-        initial=True,
-    )
+        return _walk_information_exact(walk, c, dwells, site, profile)
+    e = segment_effect(rest_at(node, dwells[0]), site, profile, None, SEARCH_REST_INTERVALS, initial=True)
     X, N = e.B, e.M3
     for mv, d in zip(walk, dwells[1:], strict=True):
-        parts = [
-            turn_effect(
-                node,
-                mv,
-                turn_seconds(mv, c),
-                turn_rate(mv, c),
-                latitude_rad,
-                gravity_mps2,
-                profile,
-                P_ss.tobytes(),
-            )
-        ]
+        parts = [turn_effect(node, mv, turn_seconds(mv, c), turn_rate(mv, c), site, profile, P_ss.tobytes())]
         node = apply_move(graph, node, mv)
+        rest = rest_at(node, d)
         parts.append(
-            segment_effect(
-                attitude_of(node),
-                d,
-                0.0,
-                -1,
-                latitude_rad,
-                gravity_mps2,
-                profile,
-                start_covariance(P_ss, attitude_of(node)),
-                SEARCH_REST_INTERVALS,
-            )
+            segment_effect(rest, site, profile, start_covariance(P_ss, rest.C), SEARCH_REST_INTERVALS)
         )
         for eff in parts:
             XM2 = X.T @ eff.M2
@@ -92,11 +56,9 @@ def walk_information(
     return N
 
 
-def _walk_information_exact(
-    walk, c: Constraints, dwells, latitude_rad: float, gravity_mps2: float, profile: NoiseProfile
-) -> np.ndarray:
+def _walk_information_exact(walk, c: Constraints, dwells, site: Site, profile: NoiseProfile) -> np.ndarray:
     """:func:`walk_information` with the filter covariance carried along (GM profiles)."""
-    return walk_informations_exact(walk, c, [dwells], latitude_rad, gravity_mps2, profile)[0]
+    return walk_informations_exact(walk, c, [dwells], site, profile)[0]
 
 
 @functools.lru_cache(maxsize=8)
@@ -106,9 +68,9 @@ def _graph(start, axes: str):
 
 
 @functools.lru_cache(maxsize=4096)
-def turn_block(node, mv, duration, rate, latitude_rad, gravity_mps2, profile) -> SegmentBlock:
+def turn_block(node, mv, duration, rate, site: Site, profile) -> SegmentBlock:
     """A turn's :class:`SegmentBlock` from ``node`` (cached: every IPOPT evaluation folds the same turns)."""
-    cols = turn_columns(node, mv, duration, rate, latitude_rad, gravity_mps2, profile)
+    cols = turn_columns(node, mv, duration, rate, site, profile)
     return segment_blocks(stack([cols]))
 
 
@@ -116,8 +78,7 @@ def walk_informations_exact(
     walk,
     c: Constraints,
     dwell_sets,
-    latitude_rad: float,
-    gravity_mps2: float,
+    site: Site,
     profile: NoiseProfile,
     closed_form: bool = True,
 ) -> np.ndarray:
@@ -137,14 +98,12 @@ def walk_informations_exact(
     rows = np.arange(B)
 
     def rests(node, k):
-        return stack(
-            [rest_columns(node, float(d), latitude_rad, gravity_mps2, profile) for d in dwell_sets[:, k]]
-        )
+        return stack([rest_columns(node, float(d), site, profile) for d in dwell_sets[:, k]])
 
     X, N, Pc = fold(rests(node, 0), X, N, Pc, rows)
     first = np.zeros(B, dtype=int)
     for k, mv in enumerate(walk, start=1):
-        turn = (node, mv, turn_seconds(mv, c), turn_rate(mv, c), latitude_rad, gravity_mps2, profile)
+        turn = (node, mv, turn_seconds(mv, c), turn_rate(mv, c), site, profile)
         if closed_form:
             X, N, Pc = fold_block(turn_block(*turn), X, N, Pc, first)
         else:
@@ -179,8 +138,7 @@ def refine_dwells(
     """
     import casadi as ca
 
-    latitude_rad, g = site.latitude_rad, site.gravity_mps2
-    P_ss = rest_steady_state(latitude_rad, g, profile, dwell0)
+    P_ss = rest_steady_state(site, profile, dwell0)
     groups = dwell_groups(len(walk), repeats)
     n = int(groups.max()) + 1
     count = np.bincount(groups, minlength=n).astype(float)
@@ -190,9 +148,9 @@ def refine_dwells(
     def ratios_many(D):  # (B, n) dwell variables, s -> (B, 21) ratios
         sets = [list(d[groups]) for d in np.asarray(D, dtype=float)]
         if profile.has_gauss_markov:  # one batched fold for all (finite differences)
-            Ns = walk_informations_exact(walk, c, sets, latitude_rad, g, profile)
+            Ns = walk_informations_exact(walk, c, sets, site, profile)
         else:
-            Ns = [walk_information(walk, c, d, latitude_rad, g, profile, P_ss) for d in sets]
+            Ns = [walk_information(walk, c, d, site, profile, P_ss) for d in sets]
         return np.array(
             [3.0 * np.sqrt(inverse_diagonal(scaled_marginal(N, False, requirements))) for N in Ns]
         )

@@ -20,6 +20,7 @@ from calib.io.files import atomic_write_text, sha256_file
 from calib.model.optional_terms import NONE as NO_EXTRAS, Extras
 from calib.model.requirements import PAPER, Requirements
 from calib.nav import earth
+from calib.nav.site import Site
 from calib.noise.profiles import NoiseProfile, load_profile
 from calib.sequence.definition import load_sequence, save_sequence
 
@@ -215,14 +216,10 @@ def design_names(budgets_min, name: str | None = None) -> dict[float, str]:
     return {b: f"{name}-{b:g}min" for b in budgets_min}
 
 
-def paper_point(
-    profile: NoiseProfile, latitude_rad: float, tolerance_deg: float, requirements: Requirements = PAPER
-):
-    """The paper's sequence: duration and worst ratio over the 27 box points."""
+def paper_point(profile: NoiseProfile, site: Site, tolerance_deg: float, requirements: Requirements = PAPER):
+    """The paper's sequence at ``site``: duration and worst ratio over the 27 box points."""
     seq = load_sequence("paper-9pos")
-    rob = analyze_tolerance(
-        seq, profile, latitude_rad, 0.0, tolerance_deg, search=False, requirements=requirements
-    )
+    rob = analyze_tolerance(seq, profile, site, tolerance_deg, search=False, requirements=requirements)
     return seq.duration_s, float(rob.per_parameter_worst_ratio.max())
 
 
@@ -276,8 +273,8 @@ def design_budgets(
     options = replace(options, requirements=req, extras=ext)
     latitude_deg, tolerance_deg = options.latitude_deg, options.tolerance_deg
     earth.check_site(latitude_deg, 0.0)
-    lat = math.radians(latitude_deg)
-    g = earth.gravity(lat)
+    site = Site.at(math.radians(latitude_deg))  # the designs' too: DesignOptions carry no height
+    g = site.gravity_mps2
     budgets_min = list(budgets_min)
     names = design_names(budgets_min, name)
     rows = []
@@ -301,7 +298,7 @@ def design_budgets(
                 accel_scale_bound(T, prof, g, req, design_rate_dps(res.sequence)),
             )
         )
-    paper_T, paper_worst = paper_point(prof, lat, tolerance_deg, req)
+    paper_T, paper_worst = paper_point(prof, site, tolerance_deg, req)
     return DesignReport(
         rows,
         prof,

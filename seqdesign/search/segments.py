@@ -37,6 +37,7 @@ from calib.nav.jacobian import (
     state_matrix,
     trajectory_moments,
 )
+from calib.nav.site import Site
 from calib.nav.transform import AXES
 from calib.noise.profiles import NoiseProfile
 from calib.noise.whitening import interval_models, noise_model, whiten, whitener
@@ -65,31 +66,43 @@ class SegmentEffect:
     M3: np.ndarray  # (24, 24)
 
 
-def _segment_timeline(C: np.ndarray, duration: float, rate: float = 0.0, axis: int = -1) -> Timeline:
-    return Timeline(
-        t0=np.array([0.0]),
-        t1=np.array([duration]),
-        rate=np.array([rate]),
-        axis=np.array([axis]),
-        C0=C[None],
-        position=np.array([1]),
-        step=np.array([-1]),
-        C_end=C,
-    )
+@dataclass(frozen=True)
+class Segment:
+    """One rest or turn of a walk: what its matrices depend on besides the site and the noise."""
+
+    C: np.ndarray  # (3, 3) attitude at its start
+    duration: float  # s
+    rate: float = 0.0  # rad/s; 0: a rest
+    axis: int = -1  # the body axis turned about (-1: a rest)
+
+    def timeline(self) -> Timeline:
+        """The segment as a one-step :class:`calib.sequence.definition.Timeline`."""
+        return Timeline(
+            t0=np.array([0.0]),
+            t1=np.array([self.duration]),
+            rate=np.array([self.rate]),
+            axis=np.array([self.axis]),
+            C0=self.C[None],
+            position=np.array([1]),
+            step=np.array([-1]),
+            C_end=self.C,
+        )
 
 
-def _segment_inputs(
-    C: np.ndarray,
-    duration: float,
-    rate: float,
-    axis: int,
-    latitude_rad: float,
-    gravity_mps2: float,
-    profile: NoiseProfile,
-    n_intervals: int | None,
-):
+def rest_at(node, duration: float) -> Segment:
+    """A rest of ``duration`` s at grid attitude ``node``."""
+    return Segment(attitude_of(node), duration)
+
+
+def turn_from(node, mv, duration: float, rate: float) -> Segment:
+    """Move ``mv`` from grid attitude ``node``, ``duration`` s at ``rate`` rad/s."""
+    return Segment(attitude_of(node), duration, rate, AXES.index(mv.axis))
+
+
+def _segment_inputs(seg: Segment, site: Site, profile: NoiseProfile, n_intervals: int | None):
     """Model inputs (K, 6, 24), interval lengths and (with GM) mid-interval attitudes."""
-    tl = _segment_timeline(C, duration, rate, axis)
+    tl = seg.timeline()
+    duration, rate = seg.duration, seg.rate
     if n_intervals is None:
         n_intervals = max(1, int(round(duration / SEARCH_MOVE_STEP_S)))
     sub = (
@@ -99,11 +112,11 @@ def _segment_inputs(
     )
     t_nav = np.linspace(0.0, duration, n_intervals * sub + 1)
     flip, E = body_integrals(tl, t_nav[1:])
-    dtheta = flip + E @ earth.omega_ie_n(latitude_rad)
-    dv = E @ earth.specific_force_n(gravity_mps2)
+    dtheta = flip + E @ site.omega_ie_n
+    dv = E @ earth.specific_force_n(site.gravity_mps2)
     grid = ObservationGrid(np.arange(0, n_intervals * sub + 1, sub))
     moments = trajectory_moments(nominal_attitude(tl, t_nav), dtheta, dv, t_nav, grid)
-    inputs = moment_inputs(moments, latitude_rad, gravity_mps2)  # (K, 6, 24)
+    inputs = moment_inputs(moments, site)  # (K, 6, 24)
     T = np.diff(t_nav[grid.bounds])
     C_mid = None
     if profile.has_gauss_markov:  # bias-instability weights follow each interval's attitude
@@ -113,47 +126,32 @@ def _segment_inputs(
 
 
 def segment_columns(
-    C: np.ndarray,
-    duration: float,
-    rate: float,
-    axis: int,
-    latitude_rad: float,
-    gravity_mps2: float,
-    profile: NoiseProfile,
-    n_intervals: int | None = None,
+    seg: Segment, site: Site, profile: NoiseProfile, n_intervals: int | None = None
 ) -> SegmentColumns:
     """A segment's unwhitened observation columns and noise blocks (exact GM search)."""
-    inputs, T, C_mid = _segment_inputs(
-        C, duration, rate, axis, latitude_rad, gravity_mps2, profile, n_intervals
-    )
-    A6 = state_matrix(latitude_rad, gravity_mps2)
+    inputs, T, C_mid = _segment_inputs(seg, site, profile, n_intervals)
+    A6 = state_matrix(site)
     Phi_vv = np.array([m.Phi[3:6, 3:6] for m in interval_models(A6, T, profile, C_mid)])
     S0 = np.zeros((6, 6 + N_UNKNOWN))
     S0[:, :6] = np.eye(6)
     all_inputs = np.zeros((len(T), 6, 6 + N_UNKNOWN))
     all_inputs[:, :, 6:] = inputs
-    S_v, S_end = propagate(all_inputs, T, S0, latitude_rad, gravity_mps2, return_final=True)
+    S_v, S_end = propagate(all_inputs, T, S0, site, return_final=True)
     H = observation_matrix(S_v, Phi_vv)
     return SegmentColumns(H, S_end[:, :6], S_end[:, 6:], *noise_blocks(A6, T, profile, C_mid))
 
 
 def segment_effect(
-    C: np.ndarray,
-    duration: float,
-    rate: float,
-    axis: int,
-    latitude_rad: float,
-    gravity_mps2: float,
+    seg: Segment,
+    site: Site,
     profile: NoiseProfile,
     P0: np.ndarray | None,
     n_intervals: int | None = None,
     initial: bool = False,
 ) -> SegmentEffect:
-    """The segment matrices of one rest (``rate == 0``) or turn, by running the model on basis columns."""
-    inputs, T, C_mid = _segment_inputs(
-        C, duration, rate, axis, latitude_rad, gravity_mps2, profile, n_intervals
-    )
-    noise = noise_model(state_matrix(latitude_rad, gravity_mps2), T, profile, P0, C_mid)
+    """The segment matrices of one rest or turn, by running the model on basis columns."""
+    inputs, T, C_mid = _segment_inputs(seg, site, profile, n_intervals)
+    noise = noise_model(state_matrix(site), T, profile, P0, C_mid)
     # Columns: 6 + s homogeneous (unit S, unit filter state, no input; s = 3, or 9 with
     # Gauss-Markov biases), then the 24 unknowns' particular responses (zero start, this
     # segment's inputs). The same recursions as the analyser (propagate, whiten) run on
@@ -170,7 +168,7 @@ def segment_effect(
         phi0[:, 6:n_hom] = np.eye(n_s)
     all_inputs = np.zeros((len(T), 6, c))
     all_inputs[:, :, n_hom:] = inputs
-    S_v, S_end = propagate(all_inputs, T, S0, latitude_rad, gravity_mps2, return_final=True)
+    S_v, S_end = propagate(all_inputs, T, S0, site, return_final=True)
     w, phi_end = whiten(noise.whitener, observation_matrix(S_v, noise.Phi_vv), phi0, return_final=True)
     Wh, Wp = w[:, :, :n_hom], w[:, :, n_hom:]
     M1 = np.einsum("kia,kib->ab", Wh, Wh)
@@ -180,9 +178,7 @@ def segment_effect(
     return SegmentEffect(A=X[:, :n_hom], B=X[:, n_hom:], M1=M1, M2=M2, M3=M3)
 
 
-def rest_steady_state(
-    latitude_rad: float, gravity_mps2: float, profile: NoiseProfile, dwell_s: float
-) -> np.ndarray:
+def rest_steady_state(site: Site, profile: NoiseProfile, dwell_s: float) -> np.ndarray:
     """Noise-filter covariance after a long rest observed with the search's rest intervals.
 
     With Gauss-Markov biases the filter state is ``[phi, b_g, b_a]`` (body frame); the
@@ -193,7 +189,7 @@ def rest_steady_state(
     """
     T = np.full(40 * SEARCH_REST_INTERVALS, dwell_s / SEARCH_REST_INTERVALS)
     C = np.broadcast_to(np.eye(3), (len(T), 3, 3)) if profile.has_gauss_markov else None
-    return whitener(interval_models(state_matrix(latitude_rad, gravity_mps2), T, profile, C)).P_end
+    return whitener(interval_models(state_matrix(site), T, profile, C)).P_end
 
 
 def start_covariance(P_nav: np.ndarray, C_b_n: np.ndarray) -> np.ndarray:
@@ -210,34 +206,22 @@ def start_covariance(P_nav: np.ndarray, C_b_n: np.ndarray) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=4096)
-def rest_columns(node, duration, latitude_rad, gravity_mps2, profile):
+def rest_columns(node, duration, site: Site, profile):
     """A rest's observation columns at grid attitude ``node`` (cached: exact GM search)."""
-    return segment_columns(
-        attitude_of(node), duration, 0.0, -1, latitude_rad, gravity_mps2, profile, SEARCH_REST_INTERVALS
-    )
+    return segment_columns(rest_at(node, duration), site, profile, SEARCH_REST_INTERVALS)
 
 
 @functools.lru_cache(maxsize=4096)
-def turn_columns(node, mv, duration, rate, latitude_rad, gravity_mps2, profile):
+def turn_columns(node, mv, duration, rate, site: Site, profile):
     """A turn's observation columns from ``node`` (cached: exact GM search)."""
-    return segment_columns(
-        attitude_of(node),
-        duration,
-        rate,
-        AXES.index(mv.axis),
-        latitude_rad,
-        gravity_mps2,
-        profile,
-        max(1, int(round(duration / SEARCH_GM_MOVE_STEP_S))),
-    )
+    n_intervals = max(1, int(round(duration / SEARCH_GM_MOVE_STEP_S)))
+    return segment_columns(turn_from(node, mv, duration, rate), site, profile, n_intervals)
 
 
 @functools.lru_cache(maxsize=4096)
-def turn_effect(node, mv, duration, rate, latitude_rad, gravity_mps2, profile, P_bytes):
+def turn_effect(node, mv, duration, rate, site: Site, profile, P_bytes):
     """A turn's segment matrices from ``node``, the rest steady state ``P_ss`` as bytes (cached)."""
     n = int(round(math.sqrt(len(P_bytes) // 8)))
     P_ss = np.frombuffer(P_bytes).reshape(n, n)
-    C = attitude_of(node)
-    return segment_effect(
-        C, duration, rate, AXES.index(mv.axis), latitude_rad, gravity_mps2, profile, start_covariance(P_ss, C)
-    )
+    seg = turn_from(node, mv, duration, rate)
+    return segment_effect(seg, site, profile, start_covariance(P_ss, seg.C))

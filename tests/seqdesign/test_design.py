@@ -14,6 +14,7 @@ from calib.analysis.mounting import analyze
 from calib.analysis.worst_case import analyze_tolerance
 from calib.model import params as P
 from calib.model.requirements import PAPER
+from calib.nav.site import Site
 from calib.nav.transform import attitude_from_directions, rot_axis
 from calib.noise.profiles import load_profile
 from calib.sequence.definition import load_sequence
@@ -21,6 +22,7 @@ from seqdesign.cli import main
 from seqdesign.search import Constraints, Move, SearchModel, beam_search, brute_force, flip_graph, to_sequence
 
 LAT = math.radians(40.0)
+SITE = Site.at(LAT)
 ADIS = REPO / "benchmarks" / "profiles" / "adis16405.toml"
 PROFILE = load_profile("navigation")
 
@@ -42,7 +44,7 @@ def test_flip_graph_has_the_24_grid_attitudes_and_follows_the_flip_rule():
 @pytest.fixture(scope="module")
 def small_model():
     c = Constraints(budget_s=600.0, max_flips=2, max_quarters=2, min_dwell_s=30, max_dwell_s=300)
-    return SearchModel.build(c, 120.0, LAT, 0.0, PROFILE)
+    return SearchModel.build(c, 120.0, SITE, PROFILE)
 
 
 @pytest.mark.parametrize("objective", ["worst", "A", "D", "E"])
@@ -60,12 +62,12 @@ def test_search_model_agrees_with_the_exact_analyser():
     # runs the whole sequence. 2 % is far below the gaps between designs it ranks.
     paper = load_sequence("paper-9pos")
     c = Constraints(budget_s=1800.0, max_flips=8, max_quarters=1)
-    model = SearchModel.build(c, 180.0, LAT, 0.0, PROFILE)
+    model = SearchModel.build(c, 180.0, SITE, PROFILE)
     cand = model.start_candidate()
     for s in paper.steps:
         mv = Move(s.axis, 1 if s.angle_deg > 0 else -1, 1)
         cand = next(k for k in model.extend([cand], "worst") if k.walk[-1] == mv)
-    exact = analyze(paper, PROFILE, LAT).worst[1]
+    exact = analyze(paper, PROFILE, SITE).worst[1]
     assert cand.score == pytest.approx(exact, rel=0.02)
 
 
@@ -75,7 +77,7 @@ def test_dask_local_cluster_gives_the_serial_result():
     from seqdesign.search.parallel import map_jobs
 
     c = Constraints(budget_s=400.0, max_flips=2, max_quarters=1)
-    jobs = [BeamJob(c, d, LAT, 0.0, PROFILE, "worst", 20, 2, PAPER) for d in (60.0, 90.0)]
+    jobs = [BeamJob(c, d, SITE, PROFILE, "worst", 20, 2, PAPER) for d in (60.0, 90.0)]
     serial = map_jobs(search_at_dwell, jobs)
     with (
         distributed.LocalCluster(
@@ -100,7 +102,7 @@ def test_local_workers_give_the_serial_result():
     from seqdesign.search.parallel import map_jobs, worker_pool
 
     c = Constraints(budget_s=400.0, max_flips=2, max_quarters=1)
-    jobs = [BeamJob(c, d, LAT, 0.0, PROFILE, "worst", 20, 2, PAPER) for d in (60.0, 90.0)]
+    jobs = [BeamJob(c, d, SITE, PROFILE, "worst", 20, 2, PAPER) for d in (60.0, 90.0)]
     serial = map_jobs(search_at_dwell, jobs)
     parallel = map_jobs(search_at_dwell, jobs, workers=2)
     # the pool a design keeps for all its rounds: the same workers twice, the same answer
@@ -121,9 +123,9 @@ def test_shipped_designs_beat_the_paper_and_meet_the_targets(name, budget_s, tar
     profile, latitude 40 deg, worst case over +-3 deg), each better than paper-9pos."""
     seq = load_sequence(name)
     assert seq.duration_s <= budget_s + 1e-6
-    rob = analyze_tolerance(seq, PROFILE, LAT, 0.0, 3.0)
+    rob = analyze_tolerance(seq, PROFILE, SITE, 3.0)
     worst = rob.per_parameter_worst_ratio.max()
-    paper = analyze_tolerance(load_sequence("paper-9pos"), PROFILE, LAT, 0.0, 3.0, search=False)
+    paper = analyze_tolerance(load_sequence("paper-9pos"), PROFILE, SITE, 3.0, search=False)
     assert worst <= target
     assert worst < paper.per_parameter_worst_ratio.max()
     assert rob.worst.rank == 21
@@ -187,7 +189,7 @@ def test_cli_design_small_end_to_end(tmp_path):
     assert {s.dwell_s for s in seq.steps} == {seq.initial_dwell_s}
     assert seq.latitude_deg == 40.0 and seq.height_m == 0.0
     # The file's recorded score is the analyser's figure for the file's own sequence.
-    exact = analyze(seq, PROFILE, LAT).ratio.max()
+    exact = analyze(seq, PROFILE, SITE).ratio.max()
     assert doc["designs"][0]["worst"]["ratio"] == pytest.approx(exact, rel=1e-9)
 
 
@@ -213,14 +215,14 @@ def test_gm_search_score_equals_the_analyser():
     # pattern (12 per rest against 5 s; 1 s in turns against 0.5 s), worth < 1 % (issue 12).
     seq = load_sequence("paper-9pos")  # uniform 180 s dwells: the search's own model
     c = Constraints(budget_s=1800.0, max_flips=9, max_quarters=1)
-    model = SearchModel.build(c, seq.steps[0].dwell_s, LAT, 0.0, GM)
-    exact = analyze_tolerance(seq, GM, LAT, 0.0, 0.0).per_parameter_worst_ratio.max()
+    model = SearchModel.build(c, seq.steps[0].dwell_s, SITE, GM)
+    exact = analyze_tolerance(seq, GM, SITE, 0.0).per_parameter_worst_ratio.max()
     assert _fold_walk(model, seq) == pytest.approx(exact, rel=0.01)
 
 
 def test_gm_exhaustive_search_returns_the_brute_force_optimum():
     c = Constraints(budget_s=400.0, max_flips=2, max_quarters=1, axes="XY")
-    model = SearchModel.build(c, 90.0, LAT, 0.0, GM)
+    model = SearchModel.build(c, 90.0, SITE, GM)
     finals, n = beam_search(model, "worst", beam_width=None, keep=1)
     best = brute_force(model, 2, "worst")
     assert finals[0].walk == best.walk
@@ -234,7 +236,7 @@ def test_sigma_gradient_matches_finite_differences():
     # tolerance 1e-5 of that component.
     from calib.analysis.mounting import sequence_model
 
-    model = sequence_model(load_sequence("paper-9pos"), PROFILE, LAT)
+    model = sequence_model(load_sequence("paper-9pos"), PROFILE, SITE)
     theta = np.radians([1.0, -2.0, 2.5])
     for index in (5, 17):  # sgz, saz
         sigma, grad = model.sigma_gradient(theta, index)
@@ -261,7 +263,7 @@ def test_design_with_terms_scores_the_21_with_them_fitted():
     ext = Extras(("lever-arm",))
     options = DesignOptions(latitude_deg=40.0, tolerance_deg=1.0, beam_width=10, refine=False, extras=ext)
     res = design(c, PROFILE, options, keep=1)
-    cost = analyze_extras(res.sequence, PROFILE, LAT, ext, 0.0, 1.0, search=True)
+    cost = analyze_extras(res.sequence, PROFILE, SITE, ext, 1.0, search=True)
     # the objective is the worst 3 sigma/requirement of the 21 with the lever arms fitted,
     # as `analyze --with` reports it (same 27 box points and the same IPOPT search inside
     # the box, same arithmetic: equal to rounding)
@@ -358,7 +360,7 @@ def test_shipped_gm_designs_beat_the_white_noise_designs_on_the_real_unit(name, 
 
     seq = load_sequence(name)
     assert seq.duration_s <= budget_s + 1e-6
-    cost = analyze_extras(seq, GM, LAT, Extras(GROUP_NAMES), 0.0, 3.0)
+    cost = analyze_extras(seq, GM, SITE, Extras(GROUP_NAMES), 3.0)
     assert PAPER.ratio(cost.sigma_with).max() <= limit
     assert all(v == "observable" for v in cost.verdicts())
 
@@ -447,17 +449,15 @@ def test_refinement_jacobian_is_the_derivative_of_the_ratios():
 def test_batched_walk_information_equals_one_walk_at_a_time():
     # The GM refinement folds all finite-difference points at once; each row must be the
     # information of that dwell set alone (same arithmetic, batched: equal to rounding).
-    from calib.nav import earth
     from seqdesign.search.refine import _walk_information_exact, walk_informations_exact
 
     prof = load_profile("navigation-gm")
     c = Constraints(budget_s=600.0, min_dwell_s=10.0)
     walk = (Move("Z", 1, 5), Move("Y", 1, 5), Move("X", -1, 5))
-    g = earth.gravity(LAT)
     D = np.array([[10.0, 12.0, 15.0, 11.0], [30.0, 10.0, 10.0, 25.0], [10.0] * 4])
-    batched = walk_informations_exact(walk, c, D, LAT, g, prof)
+    batched = walk_informations_exact(walk, c, D, SITE, prof)
     for d, N in zip(D, batched, strict=True):
-        single = _walk_information_exact(walk, c, list(d), LAT, g, prof)
+        single = _walk_information_exact(walk, c, list(d), SITE, prof)
         assert np.allclose(N, single, rtol=1e-12, atol=1e-12 * np.abs(single).max())
 
 
@@ -466,16 +466,14 @@ def test_refinement_turns_in_closed_form_equal_the_interval_fold(name):
     # The refinement folds each turn through its segment block (Woodbury, built once)
     # instead of the Kalman loop over its intervals: the same information, variances to 1e-10.
     from calib.model.information import inverse_diagonal
-    from calib.nav import earth
     from seqdesign.search.refine import walk_informations_exact
 
     prof = load_profile(name)
     c = Constraints(budget_s=600.0, min_dwell_s=10.0)
     walk = (Move("Z", 1, 5), Move("Y", 1, 5), Move("X", -1, 5), Move("Z", -1, 2), Move("Y", 1, 3))
-    g = earth.gravity(LAT)
     D = np.array([[10.0, 12.0, 15.0, 11.0, 40.0, 20.0], [30.0, 10.0, 10.0, 25.0, 10.0, 100.0]])
-    fast = walk_informations_exact(walk, c, D, LAT, g, prof)
-    ref = walk_informations_exact(walk, c, D, LAT, g, prof, closed_form=False)
+    fast = walk_informations_exact(walk, c, D, SITE, prof)
+    ref = walk_informations_exact(walk, c, D, SITE, prof, closed_form=False)
     for a, b in zip(fast, ref, strict=True):
         d = np.sqrt(np.diag(b))
         assert np.max(np.abs(a - b) / np.outer(d, d)) < 1e-10

@@ -12,6 +12,7 @@ from realdata import REPO
 
 from calib.gimbal.description import gimbal_from_dict, load_gimbal
 from calib.gimbal.rule import check_playable, plan_sequence
+from calib.nav.site import Site
 from calib.noise.profiles import load_profile
 from calib.sequence.definition import load_sequence
 from seqdesign.cli import main
@@ -43,7 +44,7 @@ def test_limits_are_the_slowest_axis():
 
 def test_search_proposes_only_playable_walks_that_end_at_home():
     c = _tight_constraints()
-    model = SearchModel.build(c, 40.0, math.radians(40.0), 0.0, load_profile("navigation"))
+    model = SearchModel.build(c, 40.0, Site.at(math.radians(40.0)), load_profile("navigation"))
     finals, n = beam_search(model, "worst", beam_width=30, keep=5)
     assert finals and n > 0
     for f in finals:
@@ -62,7 +63,7 @@ def test_every_child_the_search_keeps_is_playable():
     # Not only the finals: every partial walk of every depth replays through plan_sequence
     # without a violation (end_at_home aside, which only complete walks must meet).
     c = _tight_constraints()
-    model = SearchModel.build(c, 40.0, math.radians(40.0), 0.0, load_profile("navigation"))
+    model = SearchModel.build(c, 40.0, Site.at(math.radians(40.0)), load_profile("navigation"))
     frontier = [model.start_candidate()]
     # From home the middle gimbal holds body X, and any X move brings it within 15 deg of
     # lock: refused. Y (inner) and Z (outer) moves of 270 deg go beyond +-180: refused.

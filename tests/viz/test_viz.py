@@ -30,6 +30,7 @@ from conftest import (
 from realdata import REPO
 
 from calib.fit.replay import review_run
+from calib.nav.site import Site
 
 RATE_HZ = 40.0  # a short, fast run: 67680 samples for the 28-min sequence
 N_SAMPLES = int(round((N_POS * DWELL_S + (N_POS - 1) * FLIP_S) * RATE_HZ))
@@ -689,11 +690,13 @@ def test_noise_sigma_matches_monte_carlo_spread():
     v = []
     for seed in range(40):
         run, truth = simulate(seq, cfg, ErrorModel(np.zeros(21)), profile, seed=seed)
-        nav = navigate(run.dtheta_rad, run.dv_mps, run.time_s, truth.R_setup @ seq.C_start, lat, cfg.gravity)
+        nav = navigate(
+            run.dtheta_rad, run.dv_mps, run.time_s, truth.R_setup @ seq.C_start, Site(lat, cfg.gravity)
+        )
         v.append(nav.v_n)
     v = np.array(v)
     t = nav.time_s - nav.time_s[0]
-    sigma = velocity_noise_sigma(np.full(int(round(t[-1])), 1.0), lat, cfg.gravity, profile)
+    sigma = velocity_noise_sigma(np.full(int(round(t[-1])), 1.0), Site(lat, cfg.gravity), profile)
     for when in (300, 900, 1690):
         rms = np.sqrt((v[:, int(np.argmin(np.abs(t - when)))] ** 2).mean(axis=0))
         ratio = rms / sigma[when]

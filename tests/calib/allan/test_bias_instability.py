@@ -26,8 +26,8 @@ def test_bias_instability_only_removes_information():
     # GM bias adds a positive semi-definite covariance to the observations, so no
     # parameter's predicted sigma may shrink; and it must cost something real.
     seq = load_sequence("paper-9pos")
-    white = analyze_tolerance(seq, WHITE, LAT, tolerance_deg=0.0).nominal.sigma
-    gm = analyze_tolerance(seq, GM, LAT, tolerance_deg=0.0).nominal.sigma
+    white = analyze_tolerance(seq, WHITE, Site.at(LAT), tolerance_deg=0.0).nominal.sigma
+    gm = analyze_tolerance(seq, GM, Site.at(LAT), tolerance_deg=0.0).nominal.sigma
     assert np.all(gm >= white * (1 - 1e-9))
     assert np.max(gm / white) > 1.1
 

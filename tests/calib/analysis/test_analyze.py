@@ -15,6 +15,7 @@ from calib.model import params as P
 from calib.model.error_model import ErrorModel
 from calib.nav import earth
 from calib.nav.jacobian import N_UNKNOWN, observation_jacobian, state_matrix
+from calib.nav.site import Site
 from calib.nav.strapdown import navigate
 from calib.nav.transform import rotvec_to_dcm
 from calib.noise.profiles import load_profile
@@ -25,6 +26,7 @@ from calib.sim.gimbal_run import simulate
 from seqdesign.cli import main
 
 LAT = math.radians(40.0)
+SITE = Site.at(LAT)
 SETUP = np.radians([1.0, -2.0, 3.0])
 RATE = 50.0  # Hz: the finite difference runs the whole pipeline 48 times
 
@@ -38,7 +40,7 @@ def _observations(seq, values, phi0, t_obs, Phi_vv):
     C_true = rotvec_to_dcm(SETUP) @ seq.C_start
     # C~ = (I - [phi x]) C  <=>  C~ = exp(-[phi x]) C to first order.
     C0 = rotvec_to_dcm(-phi0) @ C_true
-    nav = navigate(run.dtheta_rad, run.dv_mps, run.time_s, C0, LAT, cfg.gravity, t0=0.0)
+    nav = navigate(run.dtheta_rad, run.dv_mps, run.time_s, C0, Site(LAT, cfg.gravity), t0=0.0)
     y = nav.v_n[np.round(t_obs * RATE).astype(int)]
     return y[1:] - np.einsum("kij,kj->ki", Phi_vv, y[:-1])
 
@@ -46,13 +48,12 @@ def _observations(seq, values, phi0, t_obs, Phi_vv):
 def test_casadi_jacobian_matches_central_finite_difference():
     """Every column of H equals a central difference of simulate -> navigate to 1e-3 relative."""
     seq = load_sequence("paper-9pos")
-    g = earth.gravity(LAT)
-    nom = nominal_run(seq, LAT, 0.0, SETUP)  # the analyser's own sampling and intervals
+    nom = nominal_run(seq, SITE, SETUP)  # the analyser's own sampling and intervals
     t_obs = nom.time_nav[nom.grid.bounds]
     # Every interval end is a multiple of 0.02 s, so the 50 Hz pipeline samples it exactly.
     assert np.allclose(t_obs * RATE, np.round(t_obs * RATE), atol=1e-6)
-    Phi_vv = noise_model(state_matrix(LAT, g), np.diff(t_obs), load_profile("navigation")).Phi_vv
-    H = observation_jacobian(nom.C_b_n, nom.dtheta, nom.dv, nom.time_nav, nom.grid, LAT, g, Phi_vv)
+    Phi_vv = noise_model(state_matrix(SITE), np.diff(t_obs), load_profile("navigation")).Phi_vv
+    H = observation_jacobian(nom, SITE, Phi_vv)
     # Steps: the requirement of each parameter (the scale the fit resolves) and
     # 1e-5 rad of initial attitude. Central differences cancel the second order;
     # third-order terms are ~(1e-4 rad)^2 relative, rounding ~1e-16 / 1e-9 m/s.
@@ -73,7 +74,7 @@ def test_casadi_jacobian_matches_central_finite_difference():
 def test_paper_sequence_is_full_rank_and_matches_physical_bound():
     seq = load_sequence("paper-9pos")
     prof = load_profile("navigation")
-    obs = analyze(seq, prof, LAT)
+    obs = analyze(seq, prof, SITE)
     assert obs.rank == 21 and not obs.unobservable
     # Accelerometer scale factors cannot beat the gravity-only bound of conventions.md:
     # sigma >= VRW sqrt(3/T)/g for the best-served axis of the three together.
@@ -115,7 +116,7 @@ def test_gauss_markov_sequences_do_not_beat_the_rate_bound(name):
 
     seq = load_sequence(name)
     prof = load_profile("navigation-gm")
-    obs = analyze(seq, prof, LAT)
+    obs = analyze(seq, prof, SITE)
     bound = accel_scale_bound(seq.duration_s, prof, earth.gravity(LAT), rate_dps=design_rate_dps(seq))
     white = accel_scale_bound(seq.duration_s, prof, earth.gravity(LAT))
     assert bound > white  # the GM bias costs information at any finite rate
@@ -127,8 +128,8 @@ def test_sigma_scales_with_noise():
     seq = load_sequence("paper-9pos")
     from calib.noise.profiles import NoiseProfile
 
-    a = analyze(seq, NoiseProfile("a", 0.002, 20.0), LAT)
-    b = analyze(seq, NoiseProfile("b", 0.001, 10.0), LAT)
+    a = analyze(seq, NoiseProfile("a", 0.002, 20.0), SITE)
+    b = analyze(seq, NoiseProfile("b", 0.001, 10.0), SITE)
     assert np.allclose(a.sigma / b.sigma, 2.0, rtol=1e-6)
 
 
@@ -144,7 +145,7 @@ def test_single_axis_sequence_is_rank_deficient_and_names_directions():
         "step": [{"axis": "Z", "angle_deg": 90.0, "dwell_s": 60.0} for _ in range(4)],
     }
     seq = sequence_from_dict(doc, "spin")
-    obs = analyze(seq, load_profile("navigation"), LAT)
+    obs = analyze(seq, load_profile("navigation"), SITE)
     assert obs.rank < 21
     text = " ".join(obs.unobservable)
     for name in ("sax", "say", "saz"):
@@ -195,11 +196,10 @@ def test_mounting_basis_model_equals_direct_evaluation():
 
     seq = load_sequence("paper-9pos")
     prof = load_profile("navigation")
-    g = earth.gravity(LAT)
-    model = sequence_model(seq, prof, LAT, 0.0)
+    model = sequence_model(seq, prof, SITE)
     for setup in ([0.0, 0.0, 0.0], [1.0, -2.0, 3.0], [-3.0, 3.0, -3.0]):
         rv = np.radians(setup)
-        direct = information_along(nominal_run(seq, LAT, 0.0, rv), prof, LAT, g)
+        direct = information_along(nominal_run(seq, SITE, rv), prof, SITE)
         assert np.allclose(model.information(rv), direct, rtol=1e-10, atol=1e-10 * np.abs(direct).max())
 
 
@@ -270,9 +270,9 @@ def test_mounting_model_is_the_same_built_in_any_chunking(monkeypatch):
     seq, prof = load_sequence("paper-9pos"), load_profile("navigation")
     rv = np.radians([1.0, -2.0, 3.0])
     monkeypatch.setattr(O, "CHUNK_INTERVALS", 10**6)
-    whole = O.sequence_model.__wrapped__(seq, prof, LAT, 0.0).information(rv)
+    whole = O.sequence_model.__wrapped__(seq, prof, SITE).information(rv)
     monkeypatch.setattr(O, "CHUNK_INTERVALS", 7)
-    chunked = O.sequence_model.__wrapped__(seq, prof, LAT, 0.0).information(rv)
+    chunked = O.sequence_model.__wrapped__(seq, prof, SITE).information(rv)
     assert np.allclose(chunked, whole, rtol=1e-11, atol=1e-11 * np.abs(whole).max())
 
 
@@ -307,22 +307,22 @@ def test_gm_and_extras_worst_case_searches_are_exact_and_never_below_the_box():
     from calib.model.optional_terms import as_extras
 
     seq, gm = load_sequence("paper-9pos"), load_profile("navigation-gm")
-    box = analyze_tolerance(seq, gm, LAT, search=False)
-    found = analyze_tolerance(seq, gm, LAT, search=True)
+    box = analyze_tolerance(seq, gm, SITE, search=False)
+    found = analyze_tolerance(seq, gm, SITE, search=True)
     assert found.searched and not box.searched
     assert np.all(found.per_parameter_worst_sigma >= box.per_parameter_worst_sigma * (1 - 1e-12))
     assert found.worst.worst[1] >= box.worst.worst[1] * (1 - 1e-12)
     rv = found.worst.setup_rotvec
     direct = from_information(
-        information_along(nominal_run(seq, LAT, 0.0, rv), gm, LAT, earth.gravity(LAT)),
+        information_along(nominal_run(seq, SITE, rv), gm, SITE),
         seq.duration_s,
         gm.name,
         rv,
     )
     assert np.allclose(found.worst.sigma, direct.sigma, rtol=1e-12)
     extras = as_extras("all")
-    c_box = analyze_extras(seq, gm, LAT, extras, search=False)
-    c_found = analyze_extras(seq, gm, LAT, extras, search=True)
+    c_box = analyze_extras(seq, gm, SITE, extras, search=False)
+    c_found = analyze_extras(seq, gm, SITE, extras, search=True)
     assert c_found.searched and not c_box.searched
     for a, b in (
         (c_found.sigma_with, c_box.sigma_with),

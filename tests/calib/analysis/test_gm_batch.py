@@ -17,10 +17,11 @@ import pytest
 
 from calib.analysis import nominal as nominal_module
 from calib.analysis.nominal import information_along, information_along_many, nominal_run, same_grid
-from calib.analysis.worst_case import analyze_extras, analyze_tolerance
+from calib.analysis.worst_case import Evaluation, analyze_extras, analyze_tolerance
 from calib.model.optional_terms import as_extras
 from calib.nav import earth
 from calib.nav.jacobian import state_matrix
+from calib.nav.site import Site
 from calib.noise.profiles import load_profile
 from calib.noise.whitening import (
     filter_blocks,
@@ -33,6 +34,7 @@ from calib.noise.whitening import (
 from calib.sequence.definition import load_sequence
 
 LAT = math.radians(40.0)
+SITE = Site.at(LAT)
 G = earth.gravity(LAT)
 GM = load_profile("navigation-gm")
 MOUNTINGS = [
@@ -49,9 +51,9 @@ def _scaled_difference(N, N_ref):
 
 def test_the_interval_grid_does_not_depend_on_the_mounting():
     seq = load_sequence("designed-15min-gm")
-    noms = [nominal_run(seq, LAT, 0.0, rv) for rv in MOUNTINGS]
+    noms = [nominal_run(seq, SITE, rv) for rv in MOUNTINGS]
     assert same_grid(noms)
-    other = nominal_run(load_sequence("paper-9pos"), LAT, 0.0, MOUNTINGS[1])
+    other = nominal_run(load_sequence("paper-9pos"), SITE, MOUNTINGS[1])
     assert not same_grid([noms[0], other])
 
 
@@ -60,7 +62,7 @@ def test_whiten_batch_is_whitener_then_whiten():
     # own Riccati recursion and whitening. The operations are the same ones in the same
     # order; 1e-13 leaves room for a BLAS that orders a stacked product differently.
     rng = np.random.default_rng(3)
-    A, K, M, c = state_matrix(LAT, G), 40, 3, 5
+    A, K, M, c = state_matrix(SITE), 40, 3, 5
     T = rng.choice([0.5, 1.0, 5.0], size=K)
     C = [np.linalg.qr(rng.normal(size=(K, 3, 3)))[0] for _ in range(M)]
     C = [q * np.sign(np.linalg.det(q))[:, None, None] for q in C]
@@ -84,21 +86,20 @@ def test_information_along_many_equals_one_at_a_time(extras, monkeypatch):
     # a BLAS that orders a stacked 9 x 9 product differently.
     monkeypatch.setattr(nominal_module, "BATCH_INTERVALS", 7)
     seq, ex = load_sequence("paper-9pos"), as_extras(extras)
-    noms = [nominal_run(seq, LAT, 0.0, rv) for rv in MOUNTINGS]
-    reference = np.array([information_along(n, GM, LAT, G, ex) for n in noms])
-    batched = information_along_many(noms, GM, LAT, G, ex)
+    noms = [nominal_run(seq, SITE, rv) for rv in MOUNTINGS]
+    reference = np.array([information_along(n, GM, SITE, ex) for n in noms])
+    batched = information_along_many(noms, GM, SITE, ex)
     assert batched.shape == reference.shape
     assert _scaled_difference(batched, reference) < 1e-12
 
 
 def test_information_along_many_falls_back_when_grids_differ():
     noms = [
-        nominal_run(load_sequence(name), LAT, 0.0, MOUNTINGS[1])
-        for name in ("paper-9pos", "paper-9pos-turns")
+        nominal_run(load_sequence(name), SITE, MOUNTINGS[1]) for name in ("paper-9pos", "paper-9pos-turns")
     ]
-    many = information_along_many(noms, GM, LAT, G)
+    many = information_along_many(noms, GM, SITE)
     for N, nom in zip(many, noms, strict=True):
-        assert np.array_equal(N, information_along(nom, GM, LAT, G))
+        assert np.array_equal(N, information_along(nom, GM, SITE))
 
 
 @pytest.mark.slow
@@ -112,15 +113,15 @@ def test_analyze_tolerance_and_extras_batched_equal_unbatched():
     # measured with the Gram matrix summed in blocks: box points 1.7e-12 apart, the
     # searched worst sigma 9e-10.
     seq = load_sequence("paper-9pos")
-    one = analyze_tolerance(seq, GM, LAT, batch=1, direct=True)
-    many = analyze_tolerance(seq, GM, LAT, direct=True)
+    one = analyze_tolerance(seq, GM, SITE, how=Evaluation(batch=1, direct=True))
+    many = analyze_tolerance(seq, GM, SITE, how=Evaluation(direct=True))
     assert one.searched and many.searched
     np.testing.assert_allclose(many.nominal.sigma, one.nominal.sigma, rtol=1e-10)
     np.testing.assert_allclose(many.per_parameter_worst_sigma, one.per_parameter_worst_sigma, rtol=1e-10)
     np.testing.assert_allclose(many.worst.sigma, one.worst.sigma, rtol=1e-10)
     extras = as_extras("all")
-    one = analyze_extras(seq, GM, LAT, extras, search=True, batch=1)
-    many = analyze_extras(seq, GM, LAT, extras, search=True)
+    one = analyze_extras(seq, GM, SITE, extras, search=True, how=Evaluation(batch=1))
+    many = analyze_extras(seq, GM, SITE, extras, search=True)
     assert one.searched and many.searched
     for a, b in (
         (many.sigma_without, one.sigma_without),

@@ -20,15 +20,17 @@ from realdata import REPO
 from calib.analysis.gm_mounting import extra_basis, extra_columns, gm_basis, informations
 from calib.analysis.mounting import sequence_model
 from calib.analysis.nominal import information_along, information_one, nominal_run
-from calib.analysis.worst_case import analyze_extras, analyze_tolerance, box_interpolant_maximum
+from calib.analysis.worst_case import Evaluation, analyze_extras, analyze_tolerance, box_interpolant_maximum
 from calib.model.optional_terms import GROUP_NAMES, Extras
 from calib.nav import earth
 from calib.nav.jacobian import observation_jacobian
+from calib.nav.site import Site
 from calib.noise.gm_filter import MOUNTINGS_AT_ONCE
 from calib.noise.profiles import load_profile
 from calib.sequence.definition import load_sequence
 
 LAT = math.radians(40.0)
+SITE = Site.at(LAT)
 G = earth.gravity(LAT)
 ADIS = REPO / "benchmarks" / "profiles" / "adis16405.toml"
 PROFILES = ["navigation-gm", "mems", str(ADIS)]
@@ -61,12 +63,12 @@ def test_fast_sigma_equals_the_exact_evaluation(name):
     profile = load_profile(name)
     seq = load_sequence("paper-9pos")
     if profile.has_gauss_markov:
-        fast = informations(gm_basis(seq, profile, LAT, 0.0), MOUNTINGS)
+        fast = informations(gm_basis(seq, profile, SITE), MOUNTINGS)
     else:
-        model = sequence_model(seq, profile, LAT, 0.0)
+        model = sequence_model(seq, profile, SITE)
         fast = np.array([model.information(rv) for rv in MOUNTINGS])
     for rv, info in zip(MOUNTINGS, fast, strict=True):
-        exact = information_along(nominal_run(seq, LAT, 0.0, rv), profile, LAT, G)
+        exact = information_along(nominal_run(seq, SITE, rv), profile, SITE)
         np.testing.assert_allclose(_sigmas(info), _sigmas(exact), rtol=1e-9)
 
 
@@ -75,13 +77,11 @@ def test_terms_columns_from_the_basis_equal_each_trajectory():
     # offset), weighted per mounting, against the Jacobian along each mounting's own
     # trajectory. Measured: 4e-14 of each column's largest element.
     seq = load_sequence("paper-9pos")
-    basis = gm_basis(seq, load_profile("navigation-gm"), LAT, 0.0)
-    fast = extra_columns(basis, extra_basis(seq, LAT, 0.0, ALL), MOUNTINGS)
+    basis = gm_basis(seq, load_profile("navigation-gm"), SITE)
+    fast = extra_columns(basis, extra_basis(seq, SITE, ALL), MOUNTINGS)
     for m, rv in enumerate(MOUNTINGS):
-        nom = nominal_run(seq, LAT, 0.0, rv)
-        H = observation_jacobian(
-            nom.C_b_n, nom.dtheta, nom.dv, nom.time_nav, nom.grid, LAT, G, basis.Phi_vv, ALL
-        )
+        nom = nominal_run(seq, SITE, rv)
+        H = observation_jacobian(nom, SITE, basis.Phi_vv, ALL)
         exact = H[:, :, 24:]
         scale = np.abs(exact).max(axis=(0, 1))
         assert np.all(np.abs(fast[:, m] - exact).max(axis=(0, 1)) <= 1e-11 * scale)
@@ -93,9 +93,9 @@ def test_fast_sigma_with_the_terms_equals_the_exact_evaluation(name):
     # filter, against each mounting's own evaluation with the terms. Measured 8e-13 on a sigma.
     profile = load_profile(name)
     seq = load_sequence("paper-9pos")
-    fast = informations(gm_basis(seq, profile, LAT, 0.0), MOUNTINGS, extra_basis(seq, LAT, 0.0, ALL))
+    fast = informations(gm_basis(seq, profile, SITE), MOUNTINGS, extra_basis(seq, SITE, ALL))
     for rv, info in zip(MOUNTINGS, fast, strict=True):
-        exact = information_along(nominal_run(seq, LAT, 0.0, rv), profile, LAT, G, ALL)
+        exact = information_along(nominal_run(seq, SITE, rv), profile, SITE, ALL)
         sigma = [np.sqrt(np.diag(np.linalg.inv(i))) for i in (info, exact)]
         np.testing.assert_allclose(sigma[0], sigma[1], rtol=1e-9)
 
@@ -105,8 +105,8 @@ def test_the_box_pass_with_the_terms_leaves_the_21_as_they_are():
     # the same figures as without them (the filter whitens column by column).
     profile = load_profile("navigation-gm")
     seq = load_sequence("paper-9pos")
-    alone = analyze_tolerance(seq, profile, LAT, search=False)
-    shared = analyze_tolerance(seq, profile, LAT, search=False, extras=ALL)
+    alone = analyze_tolerance(seq, profile, SITE, search=False)
+    shared = analyze_tolerance(seq, profile, SITE, search=False, extras=ALL)
     np.testing.assert_allclose(shared.per_parameter_worst_sigma, alone.per_parameter_worst_sigma, rtol=1e-12)
     np.testing.assert_allclose(shared.nominal.sigma, alone.nominal.sigma, rtol=1e-12)
 
@@ -120,9 +120,9 @@ def test_one_mounting_filter_equals_the_exact_evaluation(name):
     seq = load_sequence("paper-9pos")
     for extras in (Extras(), ALL):
         for rv in MOUNTINGS[:2]:
-            nom = nominal_run(seq, LAT, 0.0, rv)
-            fast = information_one(nom, profile, LAT, G, extras)
-            exact = information_along(nom, profile, LAT, G, extras)
+            nom = nominal_run(seq, SITE, rv)
+            fast = information_one(nom, profile, SITE, extras)
+            exact = information_along(nom, profile, SITE, extras)
             sigma = [np.sqrt(np.diag(np.linalg.inv(i))) for i in (fast, exact)]
             np.testing.assert_allclose(sigma[0], sigma[1], rtol=1e-9)
 
@@ -132,11 +132,11 @@ def test_the_screen_at_the_nominal_mounting_equals_the_direct_evaluation():
     # one-mounting filter, against the direct evaluation they kept before.
     profile = load_profile(str(ADIS))
     seq = load_sequence("paper-9pos")
-    fast = analyze_tolerance(seq, profile, LAT, tolerance_deg=0.0)
-    ref = analyze_tolerance(seq, profile, LAT, tolerance_deg=0.0, direct=True)
+    fast = analyze_tolerance(seq, profile, SITE, tolerance_deg=0.0)
+    ref = analyze_tolerance(seq, profile, SITE, tolerance_deg=0.0, how=Evaluation(direct=True))
     np.testing.assert_allclose(fast.nominal.sigma, ref.nominal.sigma, rtol=1e-9)
-    fast_x = analyze_extras(seq, profile, LAT, ALL, tolerance_deg=0.0)
-    ref_x = analyze_extras(seq, profile, LAT, ALL, tolerance_deg=0.0, direct=True)
+    fast_x = analyze_extras(seq, profile, SITE, ALL, tolerance_deg=0.0)
+    ref_x = analyze_extras(seq, profile, SITE, ALL, tolerance_deg=0.0, how=Evaluation(direct=True))
     np.testing.assert_allclose(fast_x.sigma_with, ref_x.sigma_with, rtol=1e-9)
     np.testing.assert_allclose(fast_x.extra_sigma, ref_x.extra_sigma, rtol=1e-9)
 
@@ -147,8 +147,8 @@ def test_fast_extras_cost_equals_the_direct_evaluation():
     # every mounting evaluated along its own trajectory: the same box figures to rounding.
     profile = load_profile("navigation-gm")
     seq = load_sequence("paper-9pos")
-    fast = analyze_extras(seq, profile, LAT, ALL)
-    ref = analyze_extras(seq, profile, LAT, ALL, direct=True)
+    fast = analyze_extras(seq, profile, SITE, ALL)
+    ref = analyze_extras(seq, profile, SITE, ALL, how=Evaluation(direct=True))
     for a, b in ((fast.sigma_with, ref.sigma_with), (fast.sigma_without, ref.sigma_without)):
         np.testing.assert_allclose(a, b, rtol=1e-9)
     np.testing.assert_allclose(fast.extra_sigma, ref.extra_sigma, rtol=1e-9)
@@ -163,10 +163,10 @@ def test_fast_worst_case_equals_the_direct_search(name):
     # ratio within 0.5 % (the two searches may stop at different points of a flat top).
     profile = load_profile(name)
     seq = load_sequence("paper-9pos")
-    fast = analyze_tolerance(seq, profile, LAT)
-    ref = analyze_tolerance(seq, profile, LAT, direct=True)
-    box_fast = analyze_tolerance(seq, profile, LAT, search=False)
-    box_ref = analyze_tolerance(seq, profile, LAT, search=False, direct=True)
+    fast = analyze_tolerance(seq, profile, SITE)
+    ref = analyze_tolerance(seq, profile, SITE, how=Evaluation(direct=True))
+    box_fast = analyze_tolerance(seq, profile, SITE, search=False)
+    box_ref = analyze_tolerance(seq, profile, SITE, search=False, how=Evaluation(direct=True))
     np.testing.assert_allclose(
         box_fast.per_parameter_worst_sigma, box_ref.per_parameter_worst_sigma, rtol=1e-9
     )
@@ -203,12 +203,14 @@ def test_closed_form_segment_equals_the_interval_fold(name):
     # and states (after 0, 1 and 2 earlier segments), segments stacked over start attitudes.
     from calib.noise.gm_filter import gm_start_covariance
     from seqdesign.search.gm import fold, fold_block, segment_blocks, stack, start_state
-    from seqdesign.search.segments import segment_columns
+    from seqdesign.search.segments import Segment, segment_columns
 
     profile = load_profile(name)
     attitudes = _random_attitudes(5)
-    turn = stack([segment_columns(C, 45.0, math.radians(10.0), 1, LAT, G, profile, 45) for C in attitudes])
-    rest = stack([segment_columns(C, 30.0, 0.0, -1, LAT, G, profile, 12) for C in attitudes])
+    turn = stack(
+        [segment_columns(Segment(C, 45.0, math.radians(10.0), 1), SITE, profile, 45) for C in attitudes]
+    )
+    rest = stack([segment_columns(Segment(C, 30.0, 0.0, -1), SITE, profile, 12) for C in attitudes])
     X, N, P = (np.repeat(a[None], 3, axis=0) for a in start_state(gm_start_covariance(profile), 24))
     nodes = np.array([0, 1, 2])
     X, N, P = fold(rest, X, N, P, nodes)
@@ -230,12 +232,14 @@ def test_a_turn_then_its_rest_in_one_block_equals_the_two_folds(name):
     # same information, state and covariance as the Kalman loop over both, stacked nodes.
     from calib.noise.gm_filter import gm_start_covariance
     from seqdesign.search.gm import fold, fold_block, segment_blocks, stack, start_state, then
-    from seqdesign.search.segments import segment_columns
+    from seqdesign.search.segments import Segment, segment_columns
 
     profile = load_profile(name)
     attitudes = _random_attitudes(7)
-    turn = stack([segment_columns(C, 27.0, math.radians(10.0), 2, LAT, G, profile, 27) for C in attitudes])
-    rest = stack([segment_columns(C, 40.0, 0.0, -1, LAT, G, profile, 12) for C in attitudes[::-1]])
+    turn = stack(
+        [segment_columns(Segment(C, 27.0, math.radians(10.0), 2), SITE, profile, 27) for C in attitudes]
+    )
+    rest = stack([segment_columns(Segment(C, 40.0, 0.0, -1), SITE, profile, 12) for C in attitudes[::-1]])
     X, N, P = (np.repeat(a[None], 4, axis=0) for a in start_state(gm_start_covariance(profile), 24))
     nodes = np.array([0, 1, 2, 1])
     X, N, P = fold(rest, X, N, P, nodes)  # candidates with a history (different covariances)

@@ -100,7 +100,7 @@ def test_monte_carlo_statistical_honesty(name):
     ratio = trials.rms_error / trials.mean_sigma
     assert np.all((ratio >= 0.67) & (ratio <= 1.36)), dict(zip(P.NAMES, np.round(ratio, 2), strict=True))
     # The analyser's prediction (nominal mounting) must describe the same trials.
-    pred = analyze(paper, prof, LAT)
+    pred = analyze(paper, prof, Site.at(LAT))
     ratio_pred = trials.rms_error / pred.sigma
     assert np.all((ratio_pred >= 0.67) & (ratio_pred <= 1.36)), dict(
         zip(P.NAMES, np.round(ratio_pred, 2), strict=True)
@@ -246,5 +246,5 @@ def test_coarse_analysis_model_agrees_with_the_estimators_fine_one(noise_free_fi
     from calib.analysis.mounting import analyze
 
     fit, _, _ = noise_free_fit
-    obs = analyze(paper, load_profile("navigation"), LAT, 0.0, SETUP)
+    obs = analyze(paper, load_profile("navigation"), Site.at(LAT), SETUP)
     assert np.allclose(obs.sigma, fit.sigma, rtol=0.01), np.round(obs.sigma / fit.sigma, 4)

@@ -13,6 +13,7 @@ from scipy.stats import chi2
 
 from calib.fit.feedback import ATTITUDE_FEEDBACK_RATIO
 from calib.nav.jacobian import state_matrix
+from calib.nav.site import Site
 from calib.noise.profiles import load_profile
 from calib.noise.smoother import smooth
 from calib.noise.wander import attitude_wander_ratio
@@ -44,7 +45,7 @@ def test_smoother_is_the_conditional_mean_of_the_attitude_noise():
     # intervals mixed, with the noise of the interval shared by s and z (the correlation the
     # smoother decorrelates).
     models = interval_models(
-        state_matrix(LAT, G), np.array([1.0] * 12 + [0.1] * 5 + [1.0] * 9), load_profile("mems")
+        state_matrix(Site(LAT, G)), np.array([1.0] * 12 + [0.1] * 5 + [1.0] * 9), load_profile("mems")
     )
     Ms, Mz, Qw = _stacked(models)
     rng = np.random.default_rng(7)
@@ -220,7 +221,7 @@ def test_rest_gyrocompass_finds_bias_and_heading_through_a_mems_bias():
     start = start_values(run.dtheta_rad, dt, seg.moving)[P.GYRO_BIAS]
     first = slice(0, seg.first_rest_end)
     C_lev = coarse_alignment(run.dtheta_rad[first] - start * dt[first, None], run.dv_mps[first], dt[first])
-    bias, C0 = rest_gyrocompass(run.dtheta_rad, dt, seg.moving, C_lev, LAT, start)
+    bias, C0 = rest_gyrocompass(run.dtheta_rad, dt, seg.moving, C_lev, Site.at(LAT), start)
     deg_h = np.degrees(np.abs(bias - errors.values[P.GYRO_BIAS])) * 3600.0
     assert deg_h.max() < 1.0, deg_h
     exact = fit_run(

@@ -33,6 +33,7 @@ from calib.hand.plan import HandPlan, random_hand_plan, xsens_like_plan
 from calib.hand.simulate import draw_errors, simulate_by_hand, true_increments, write_hand_run
 from calib.hand.trajectory import hand_state, sensed
 from calib.model.error_model import ErrorModel
+from calib.nav.site import Site
 from calib.nav.strapdown import coning_rotvec, navigate
 from calib.nav.transform import quat_mult, quat_to_dcm, rotvec_to_quat
 from calib.noise.profiles import load_profile
@@ -163,7 +164,7 @@ def _end_velocities(plan: HandPlan, rate: float) -> np.ndarray:
         i1 = np.flatnonzero(t <= plan.rest_end_s[k] + 1e-9)[-1]
         i2 = np.flatnonzero(t - 1.0 / rate >= plan.rest_start_s[k + 1] - 1e-9)[0]
         sl = slice(i1 + 1, i2 + 1)
-        nav = navigate(dth[sl], dv[sl], t[sl], plan.C_b_n[k], LAT, G, t0=t[i1])
+        nav = navigate(dth[sl], dv[sl], t[sl], plan.C_b_n[k], Site(LAT, G), t0=t[i1])
         out.append(np.linalg.norm(nav.v_n[-1]))
     return np.array(out)
 

@@ -21,6 +21,7 @@ from calib.hand.plan import HandPlan, random_hand_plan
 from calib.hand.simulate import simulate_by_hand, true_increments, write_hand_run
 from calib.hand.tremor import Tremor, random_tremor
 from calib.hand.troubles import HandTroubles, TroubleSpec, g_sensitivity_from_dphg, troubles_from_table
+from calib.nav.site import Site
 from calib.nav.strapdown import coning_rotvec, navigate
 from calib.nav.transform import quat_mult, quat_to_dcm, rotvec_to_quat
 from calib.noise.profiles import load_profile
@@ -155,7 +156,7 @@ def _shake_errors(plan: HandPlan, tremor: Tremor, rate: float) -> tuple[np.ndarr
         idx = _inside(t, rate, a, a + 4.0)
         t0 = t[idx[0]] - 1.0 / rate
         C0 = plan.C_b_n[k] @ rodrigues(_theta(tremor, j, np.array([t0]))[0])
-        nav = navigate(dth[idx], dv[idx], t[idx], C0, LAT, G, t0=t0)
+        nav = navigate(dth[idx], dv[idx], t[idx], C0, Site(LAT, G), t0=t0)
         times = np.concatenate([[t0], t[idx]])
         w = 2 * np.pi * tremor.frequency_hz[j, 3:]
         arg = w * (times[:, None, None] - tremor.start_s[j]) + tremor.phase_rad[j, 3:]

@@ -183,7 +183,7 @@ def test_ignoring_the_extra_terms_biases_the_fit():
 def test_extra_columns_match_central_finite_difference():
     """Each extra column of H equals a central difference of simulate -> navigate (1e-3 rel)."""
     from calib.analysis.nominal import nominal_run
-    from calib.nav.jacobian import N_UNKNOWN, ObservationGrid, observation_jacobian, state_matrix
+    from calib.nav.jacobian import N_UNKNOWN, ObservationGrid, Trajectory, observation_jacobian, state_matrix
     from calib.nav.strapdown import navigate
     from calib.noise.whitening import noise_model
 
@@ -191,9 +191,9 @@ def test_extra_columns_match_central_finite_difference():
     rate = 50.0
     g = earth.gravity(LAT)
     setup = np.radians([1.0, -2.0, 3.0])
-    nom = nominal_run(seq, LAT, 0.0, setup)
+    nom = nominal_run(seq, Site.at(LAT), setup)
     t_obs = nom.time_nav[nom.grid.bounds]
-    Phi_vv = noise_model(state_matrix(LAT, g), np.diff(t_obs), PROFILE).Phi_vv
+    Phi_vv = noise_model(state_matrix(Site(LAT, g)), np.diff(t_obs), PROFILE).Phi_vv
     extras = Extras(GROUP_NAMES)
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=rate)
     C0 = rotvec_to_dcm(setup) @ seq.C_start
@@ -201,16 +201,18 @@ def test_extra_columns_match_central_finite_difference():
     # coarser sampling the lever arms' velocity steps sit in 0.05 s samples instead of
     # 0.02 s ones: their nav direction differs by w (0.05 - 0.02) / 2 = 2.6e-3 rad.)
     ref, _ = simulate(seq, cfg, ErrorModel.zero(), PROFILE, noise=False, setup_rotvec=setup)
-    nav = navigate(ref.dtheta_rad, ref.dv_mps, ref.time_s, C0, LAT, cfg.gravity, t0=0.0)
+    nav = navigate(ref.dtheta_rad, ref.dv_mps, ref.time_s, C0, Site(LAT, cfg.gravity), t0=0.0)
     grid = ObservationGrid(np.round(t_obs * rate).astype(int))
-    H = observation_jacobian(nav.C_b_n, ref.dtheta_rad, ref.dv_mps, nav.time_s, grid, LAT, g, Phi_vv, extras)
+    H = observation_jacobian(
+        Trajectory(nav.time_s, nav.C_b_n, ref.dtheta_rad, ref.dv_mps, grid), Site(LAT, g), Phi_vv, extras
+    )
     assert H.shape[-1] == N_UNKNOWN + extras.n
 
     def z(values):
         run, _ = simulate(
             seq, cfg, ErrorModel.zero(), PROFILE, noise=False, setup_rotvec=setup, extra=extras.unpack(values)
         )
-        nav = navigate(run.dtheta_rad, run.dv_mps, run.time_s, C0, LAT, cfg.gravity, t0=0.0)
+        nav = navigate(run.dtheta_rad, run.dv_mps, run.time_s, C0, Site(LAT, cfg.gravity), t0=0.0)
         y = nav.v_n[np.round(t_obs * rate).astype(int)]
         return y[1:] - np.einsum("kij,kj->ki", Phi_vv, y[:-1])
 
@@ -236,8 +238,8 @@ def test_analyser_with_extras_predicts_the_estimators_sigma(all_on_fit):
     from calib.analysis.nominal import information_along, nominal_run
 
     fit, _, _, setup = all_on_fit
-    nom = nominal_run(load_sequence("paper-9pos"), LAT, 0.0, setup)
-    info = information_along(nom, PROFILE, LAT, earth.gravity(LAT), Extras(GROUP_NAMES))
+    nom = nominal_run(load_sequence("paper-9pos"), Site.at(LAT), setup)
+    info = information_along(nom, PROFILE, Site.at(LAT), Extras(GROUP_NAMES))
     predicted = np.sqrt(np.diag(np.linalg.inv(info)))
     reported = np.sqrt(np.diag(fit.covariance))
     assert np.allclose(predicted, reported, rtol=0.01), np.max(np.abs(predicted / reported - 1))
@@ -247,7 +249,9 @@ def test_fitting_more_terms_never_shrinks_a_sigma():
     # Marginal variances can only grow when unknowns are added (Schur complement).
     from calib.analysis.worst_case import analyze_extras
 
-    cost = analyze_extras(load_sequence("paper-9pos"), PROFILE, LAT, Extras(("k2",)), tolerance_deg=0.0)
+    cost = analyze_extras(
+        load_sequence("paper-9pos"), PROFILE, Site.at(LAT), Extras(("k2",)), tolerance_deg=0.0
+    )
     assert np.all(cost.sigma_with >= cost.sigma_without * (1 - 1e-9))
     # K2 on the paper's sequence: y is up or down in 6 of 9 rests and level in 3, so k2y
     # trades with bay and saz/say only through the level rests: it must cost bay most.

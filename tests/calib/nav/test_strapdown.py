@@ -20,6 +20,7 @@ from conftest import (
     skew,
 )
 
+from calib.nav.site import Site
 from calib.nav.strapdown import navigate
 from calib.nav.transform import prefix_product, quat_mult, quat_to_dcm, rotvec_to_quat
 
@@ -36,8 +37,7 @@ def nav_of(run, C0, dtheta=None, dv=None):
         run.dv_mps if dv is None else dv,
         run.time_s,
         C0,
-        LAT,
-        G,
+        Site(LAT, G),
         t0=0.0,
     )
 

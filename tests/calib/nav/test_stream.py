@@ -79,11 +79,11 @@ def test_streamed_pass_is_the_whole_run_navigation(paper):
     first = slice(0, seg.first_rest_end)
     C0 = coarse_alignment(run.dtheta_rad[first], run.dv_mps[first], dt[first])
     t0 = run.time_s[0] - dt[0]
-    nav = navigate(run.dtheta_rad, run.dv_mps, run.time_s, C0, LAT, cfg.gravity, t0=t0)
+    nav = navigate(run.dtheta_rad, run.dv_mps, run.time_s, C0, Site(LAT, cfg.gravity), t0=t0)
     t_nav = np.concatenate([[t0], run.time_s])
     layout = sample_layout(nav.C_b_n, t_nav, grid)
     moments = trajectory_moments(nav.C_b_n, run.dtheta_rad, run.dv_mps, t_nav, grid, layout)
-    extra = extra_inputs(run.dtheta_rad, run.dv_mps, layout, extras, LAT, cfg.gravity)
+    extra = extra_inputs(run.dtheta_rad, run.dv_mps, layout, extras, Site(LAT, cfg.gravity))
     C_mid = 0.5 * (nav.C_b_n[1:] + nav.C_b_n[:-1])
     turn = X.earth_turn(C_mid, earth.omega_ie_n(LAT), dt)
 

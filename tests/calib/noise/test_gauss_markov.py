@@ -20,13 +20,14 @@ from scipy.linalg import block_diag, expm
 from calib.errors import CalibError
 from calib.model.params import MICRO_G
 from calib.nav.jacobian import state_matrix
+from calib.nav.site import Site
 from calib.noise.gauss_markov import gauss_markov
 from calib.noise.profiles import NoiseProfile, builtin_profiles, load_profile
 from calib.noise.whitening import noise_model, whiten
 
 LAT = math.radians(40.0)
 G = 9.80
-A6 = state_matrix(LAT, G)
+A6 = state_matrix(Site(LAT, G))
 
 
 # ---------------------------------------------------------------------------

@@ -14,6 +14,7 @@ import pytest
 
 from calib.nav import earth
 from calib.nav.jacobian import propagate, step_model
+from calib.nav.site import Site
 from calib.noise.gm_filter import MOUNTINGS_AT_ONCE, gram_one, gram_pass
 
 LAT = math.radians(40.0)
@@ -134,13 +135,13 @@ def test_compiled_propagation_equals_the_loop():
     T = rng.choice([0.1, 1.0, 10.0], size=300)
     inputs = rng.normal(size=(300, 6, 7))
     S0 = rng.normal(size=(6, 7))
-    out, S_end = propagate(inputs, T, S0, LAT, g, return_final=True, compiled=True)
-    model = step_model(LAT, g)
+    out, S_end = propagate(inputs, T, S0, Site(LAT, g), return_final=True, compiled=True)
+    model = step_model(Site(LAT, g))
     S, ref = S0.copy(), [S0[3:]]
     for t, u in zip(T, inputs, strict=True):
         S = np.asarray(model.transition(t)) @ S + u
         ref.append(S[3:])
     np.testing.assert_allclose(out, np.array(ref), rtol=1e-10, atol=1e-10 * np.abs(ref).max())
     np.testing.assert_allclose(S_end, S, rtol=1e-10, atol=1e-10 * np.abs(S).max())
-    loop = propagate(inputs, T, S0, LAT, g)
+    loop = propagate(inputs, T, S0, Site(LAT, g))
     np.testing.assert_allclose(out, loop, rtol=1e-12, atol=1e-12 * np.abs(loop).max())

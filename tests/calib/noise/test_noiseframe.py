@@ -15,6 +15,7 @@ from calib.fit.feedback import (
     limit_heading_step,
 )
 from calib.nav.jacobian import PHI0, state_matrix
+from calib.nav.site import Site
 from calib.nav.transform import rotvec_to_dcm, skew
 from calib.noise.frame import attitude_moved_deg, heading_turn, to_frame
 from calib.noise.profiles import load_profile
@@ -37,7 +38,7 @@ def test_a_noise_model_turned_about_the_vertical_is_the_observations_turned():
     # instead of rebuilding the model at every heading.
     rng = np.random.default_rng(3)
     K = 40
-    A, T = state_matrix(math.radians(90.0), G), np.full(K, 5.0)
+    A, T = state_matrix(Site(math.radians(90.0), G)), np.full(K, 5.0)
     C = _attitudes(rng, K)
     R = rotvec_to_dcm(np.array([0.0, 0.0, math.radians(70.0)]))
     profile = load_profile("navigation-gm")

@@ -129,7 +129,7 @@ def test_navigating_an_accelerating_run_holds_zero_velocity():
     tl = timeline(seq)
     cfg = SimConfig(latitude_rad=LAT)
     t, dtheta, dv = true_increments(tl, np.eye(3), cfg)
-    nav = navigate(dtheta, dv, t, seq.C_start, LAT, cfg.gravity, t0=0.0)
+    nav = navigate(dtheta, dv, t, seq.C_start, Site(LAT, cfg.gravity), t0=0.0)
     rest_ends = np.searchsorted(nav.time_s, tl.t1[tl.rest] - 1e-9)
     assert np.max(np.abs(nav.v_n[rest_ends])) < 1e-7
     assert np.max(np.abs(nav.v_n)) < 1e-5
@@ -204,7 +204,7 @@ def test_analyser_models_accelerating_moves_as_the_estimator_sees_them(noise_fre
 
     fit, _, _ = noise_free_accel_fit
     seq = accelerating(load_sequence("paper-9pos"), 5.0, 10.0)
-    obs = analyze(seq, load_profile("navigation"), LAT, 0.0, SETUP)
+    obs = analyze(seq, load_profile("navigation"), Site.at(LAT), SETUP)
     assert np.allclose(obs.sigma, fit.sigma, rtol=0.01), np.round(obs.sigma / fit.sigma, 4)
 
 
