@@ -90,11 +90,13 @@ def test_monte_carlo_statistical_honesty(name):
     """N = 50 noisy runs: mean NEES in the 99 % interval of chi2(1050)/50 and
     RMS(error)/mean(sigma) in [0.67, 1.36] for every parameter (99 % over 21 at N = 50)."""
     from calib.analysis.mounting import analyze
-    from seqdesign.montecarlo import run_trials
+    from seqdesign.montecarlo import TrialConfig, run_trials
 
     prof = load_profile("navigation")
     paper = load_sequence(name)
-    trials = run_trials(paper, prof, 50, seed=1000, tolerance_deg=3.0, flip_error_deg=0.5, workers=2)
+    trials = run_trials(
+        paper, prof, 50, seed=1000, config=TrialConfig(tolerance_deg=3.0, flip_error_deg=0.5), workers=2
+    )
     assert trials.converged.all()
     assert 18.1 <= trials.nees.mean() <= 24.2, trials.nees.mean()
     ratio = trials.rms_error / trials.mean_sigma
