@@ -18,7 +18,7 @@ from calib.model.optional_terms import NONE as NO_EXTRAS, Extras, ExtraValues
 from calib.noise.profiles import NoiseProfile
 from calib.sequence.definition import Sequence
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 
 from .search.parallel import map_jobs
 
@@ -111,10 +111,12 @@ def one_trial(job: TrialJob) -> tuple[np.ndarray, np.ndarray, bool]:
         cfg,
         c.true_errors,
         job.profile,
-        flip_error_deg=c.flip_error_deg,
-        noise=True,
-        seed=job.seed,
-        random_setup_deg=c.tolerance_deg if c.tolerance_deg > 0 else None,
+        options=SimOptions(
+            flip_error_deg=c.flip_error_deg,
+            noise=True,
+            seed=job.seed,
+            random_setup_deg=c.tolerance_deg if c.tolerance_deg > 0 else None,
+        ),
         extra=c.extra,
     )
     result = calibrate(

@@ -34,7 +34,7 @@ from calib.noise.profiles import NoiseProfile
 from calib.runlog import read_run
 from calib.sequence.definition import Sequence
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 
 from .search.parallel import map_jobs
 
@@ -170,10 +170,12 @@ def one_run(job: VerifyJob) -> RunOutcome:
         job.config,
         errors,
         job.profile,
-        flip_error_deg=job.flip_error_deg,
-        noise=True,
-        seed=job.seed,
-        random_setup_deg=job.tolerance_deg if job.tolerance_deg > 0 else None,
+        options=SimOptions(
+            flip_error_deg=job.flip_error_deg,
+            noise=True,
+            seed=job.seed,
+            random_setup_deg=job.tolerance_deg if job.tolerance_deg > 0 else None,
+        ),
     )
     try:
         result = calibrate(

@@ -85,19 +85,19 @@ def _run_meta(prov: dict, profile_name: str) -> dict:
 
 def _simulate_streamed(setup: _Setup, cfg, output, setup_deg, seed, noise_free, as_json) -> None:
     """``simulate --stream``: the run log written window by window (calib.sim.to_disk)."""
+    from calib.sim.gimbal_run import SimOptions
     from calib.sim.to_disk import simulate_to_file
     from calib.sim.truth import truth_path_for, write_truth
 
     prov = setup.provenance()
+    mounting = np.radians(setup_deg) if setup_deg else (0.0, 0.0, 0.0)
     n, truth = simulate_to_file(
         output,
         setup.seq,
         cfg,
         setup.errors,
         setup.profile,
-        np.radians(setup_deg) if setup_deg else (0.0, 0.0, 0.0),
-        noise=not noise_free,
-        seed=seed,
+        SimOptions(setup_rotvec=mounting, noise=not noise_free, seed=seed),
         meta_extra=_run_meta(prov, setup.profile.name),
     )
     truth_path = truth_path_for(output)
@@ -325,7 +325,7 @@ def simulate(
     from calib.model.optional_terms import parse_values
     from calib.runlog import write_run
     from calib.sequence.kinematics import SimConfig
-    from calib.sim.gimbal_run import simulate as run_simulation
+    from calib.sim.gimbal_run import SimOptions, simulate as run_simulation
     from calib.sim.truth import truth_path_for, write_truth
     from seqdesign.analysis import resolve_site
 
@@ -359,11 +359,13 @@ def simulate(
         cfg,
         errors,
         prof,
-        setup_rotvec=np.radians(setup_deg) if setup_deg else (0, 0, 0),
-        flip_error_deg=flip_error_deg,
-        noise=not noise_free,
-        seed=seed,
-        random_setup_deg=3.0 if random_setup else None,
+        SimOptions(
+            setup_rotvec=np.radians(setup_deg) if setup_deg else (0, 0, 0),
+            flip_error_deg=flip_error_deg,
+            noise=not noise_free,
+            seed=seed,
+            random_setup_deg=3.0 if random_setup else None,
+        ),
         extra=extra,
         gimbal=gimbal,
     )

@@ -17,7 +17,7 @@ from calib.noise.profiles import load_profile
 from calib.runlog import read_run, write_run
 from calib.sequence.definition import load_sequence
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 from seqdesign.cli import main
 
 LAT = math.radians(40.0)
@@ -33,7 +33,9 @@ def paper():
 def noise_free_fit(paper):
     cfg = SimConfig(latitude_rad=LAT)
     truth = ErrorModel.from_table2()
-    run, _ = simulate(paper, cfg, truth, load_profile("navigation"), setup_rotvec=SETUP, noise=False)
+    run, _ = simulate(
+        paper, cfg, truth, load_profile("navigation"), options=SimOptions(setup_rotvec=SETUP, noise=False)
+    )
     fit = fit_run(run, Site(LAT, cfg.gravity), load_profile("navigation"))
     return fit, truth, run
 
@@ -77,7 +79,11 @@ def test_any_heading_works(paper):
     cfg = SimConfig(latitude_rad=LAT)
     truth = ErrorModel.from_table2()
     run, _ = simulate(
-        paper, cfg, truth, load_profile("navigation"), setup_rotvec=np.radians([0.5, 1.0, 130.0]), noise=False
+        paper,
+        cfg,
+        truth,
+        load_profile("navigation"),
+        options=SimOptions(setup_rotvec=np.radians([0.5, 1.0, 130.0]), noise=False),
     )
     fit = fit_run(run, Site(LAT, cfg.gravity), load_profile("navigation"))
     assert fit.converged
