@@ -20,12 +20,14 @@ import numpy as np
 from calib.errors import CalibError
 from calib.hand.calibrate import hand_fit_of
 from calib.hand.joint_fit import fit_by_hand
+from calib.hand.options import HandFitOptions, HandSamples
 from calib.hand.poses import AXES, PoseList, tipping_plan
 from calib.hand.simulate import simulate_by_hand
 from calib.model import params as P
 from calib.model.optional_terms import Extras
 from calib.model.report import format_table, parameter_entries, worst
 from calib.model.requirements import Requirements
+from calib.nav.site import Site
 from calib.nav.strapdown import sample_intervals
 from calib.nav.transform import rotvec_to_dcm
 from calib.noise.profiles import NoiseProfile, white_part
@@ -51,20 +53,10 @@ def predict(
     """The fit's covariance on the noise-free run of ``plan``."""
     config = SimConfig(latitude_rad=latitude_rad, height_m=0.0, sample_rate_hz=ANALYSIS_RATE_HZ)
     run, _ = simulate_by_hand(plan, config, oversample=OVERSAMPLE)
-    fit = fit_by_hand(
-        run.time_s,
-        run.dtheta_rad,
-        run.dv_mps,
-        sample_intervals(run.time_s),
-        latitude_rad,
-        config.gravity,
-        profile,
-        g_sensitivity=g_sensitivity,
-        requirements=requirements,
-        partial=True,
-        earn_weights=False,  # a noise-free run: the profile's weights are the prediction's
-        where=plan_name(plan),
-    )
+    # A noise-free run: the profile's weights (not earned ones) are the prediction's.
+    options = HandFitOptions(g_sensitivity, requirements, partial=True, earn_weights=False)
+    site = Site(latitude_rad, config.gravity, "normal")
+    fit = fit_by_hand(HandSamples.of_run(run), site, profile, options, where=plan_name(plan))
     return prediction_of(fit)
 
 

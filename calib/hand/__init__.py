@@ -14,6 +14,8 @@ Modules:
   together
 - :mod:`calib.hand.moves`: The rotation over a move placed by hand, from the gyro increments, and
   its sensitivity
+- :mod:`calib.hand.options`: The hand fit's inputs as values: the samples it reads and the options
+  it is fitted with
 - :mod:`calib.hand.plan`: The plan of a calibration run placed by hand: rest attitudes, rests, moves
 - :mod:`calib.hand.poses`: A pose list for a run placed by hand: which face is up in each pose, how
   long it is held
@@ -42,6 +44,7 @@ from calib.hand.data import HandData, hand_data, rest_noise_factor
 from calib.hand.host_clock import epoch_ms, epoch_seconds, host_stamps, write_epoch_ms_csv
 from calib.hand.joint_fit import FitState, HandFit, Layout, fit_by_hand, linearise, unknown_scales
 from calib.hand.moves import move_rotation, move_sensitivity, right_jacobian, right_jacobian_inverse
+from calib.hand.options import HAND_FIT, HandFitOptions, HandSamples
 from calib.hand.plan import (
     HandPlan,
     bump,
@@ -105,10 +108,13 @@ from calib.hand.troubles import (
 from calib.hand.weights import Weights, component_sizes, components, redundancy, refuted, reweighted
 
 __all__ = [
+    "HAND_FIT",
     "FitState",
     "HandData",
     "HandFit",
+    "HandFitOptions",
     "HandPlan",
+    "HandSamples",
     "HandState",
     "HandSummary",
     "HandTroubles",
