@@ -46,7 +46,9 @@ from calib.hand.joint_fit import FitState, HandFit, Layout, fit_by_hand, lineari
 from calib.hand.moves import move_rotation, move_sensitivity, right_jacobian, right_jacobian_inverse
 from calib.hand.options import HAND_FIT, HandFitOptions, HandSamples
 from calib.hand.plan import (
+    HAND_PLAN,
     HandPlan,
+    PlanShape,
     bump,
     min_jerk,
     peak_factor,
@@ -71,6 +73,8 @@ from calib.hand.setup import (
     still_stretches,
 )
 from calib.hand.simulate import (
+    FROM_SEED,
+    HandStreams,
     HandTruth,
     draw_errors,
     hand_meta,
@@ -108,7 +112,9 @@ from calib.hand.troubles import (
 from calib.hand.weights import Weights, component_sizes, components, redundancy, refuted, reweighted
 
 __all__ = [
+    "FROM_SEED",
     "HAND_FIT",
+    "HAND_PLAN",
     "FitState",
     "HandData",
     "HandFit",
@@ -116,11 +122,13 @@ __all__ = [
     "HandPlan",
     "HandSamples",
     "HandState",
+    "HandStreams",
     "HandSummary",
     "HandTroubles",
     "HandTruth",
     "Layout",
     "Mistake",
+    "PlanShape",
     "PoseList",
     "Rests",
     "TermChoice",

@@ -309,9 +309,8 @@ def simulate(
         }
         by_hand_refusals(sequence, gimbal_run)
         site = (latitude, height, gravity_mps2, sample_rate_hz)
-        simulate_by_hand(
-            output, profile, errors_file, table2, seed, site, noise_free, as_json, hand | troubles
-        )
+        injected = (errors_file, table2)
+        simulate_by_hand(output, profile, injected, seed, site, noise_free, as_json, hand | troubles)
         return
     names = ["--" + k.replace("_", "-") for k, v in hand.items() if v != HAND_DEFAULTS[k]]
     if names := names + given_troubles(troubles):
