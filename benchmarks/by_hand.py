@@ -173,12 +173,10 @@ def scored(c: Correction, rec: Recording, start, end) -> HandScore:
         rec.raw_gyro,
         rec.raw_accel,
         rec.run.time_s,
-        start,
-        end,
+        (start, end),
         clipped=rec.clipped,
         latitude_deg=rec.latitude_deg,
-        gyro_zero=zero_g,
-        accel_zero=zero_a,
+        raw_zero=(zero_g, zero_a),
     )
 
 

@@ -19,8 +19,8 @@ import numpy as np
 
 from calib.errors import CalibError
 from calib.hand.calibrate import hand_fit_of
+from calib.hand.fit_options import HandFitOptions, HandSamples
 from calib.hand.joint_fit import fit_by_hand
-from calib.hand.options import HandFitOptions, HandSamples
 from calib.hand.poses import AXES, PoseList, tipping_plan
 from calib.hand.simulate import simulate_by_hand
 from calib.model import params as P

@@ -8,14 +8,14 @@ Modules:
   :mod:`calib.hand.joint_fit` as a calibration result
 - :mod:`calib.hand.data`: What a fit of a run placed by hand reads of it: its rests, their means and
   noise, its moves
+- :mod:`calib.hand.fit_options`: The hand fit's inputs as values: the samples it reads and the options
+  it is fitted with
 - :mod:`calib.hand.host_clock`: The time stamps a host writes: reception times of samples the IMU
   spaced evenly on its own clock
 - :mod:`calib.hand.joint_fit`: The 21 parameters of a run placed by hand: rests and moves, fitted
   together
 - :mod:`calib.hand.moves`: The rotation over a move placed by hand, from the gyro increments, and
   its sensitivity
-- :mod:`calib.hand.options`: The hand fit's inputs as values: the samples it reads and the options
-  it is fitted with
 - :mod:`calib.hand.plan`: The plan of a calibration run placed by hand: rest attitudes, rests, moves
 - :mod:`calib.hand.poses`: A pose list for a run placed by hand: which face is up in each pose, how
   long it is held
@@ -41,10 +41,10 @@ Modules:
 
 from calib.hand.calibrate import TermChoice, as_fit, fit_checked, hand_fit_of, summary_of
 from calib.hand.data import HandData, hand_data, rest_noise_factor
+from calib.hand.fit_options import HAND_FIT, HandFitOptions, HandSamples
 from calib.hand.host_clock import epoch_ms, epoch_seconds, host_stamps, write_epoch_ms_csv
 from calib.hand.joint_fit import FitState, HandFit, Layout, fit_by_hand, linearise, unknown_scales
 from calib.hand.moves import move_rotation, move_sensitivity, right_jacobian, right_jacobian_inverse
-from calib.hand.options import HAND_FIT, HandFitOptions, HandSamples
 from calib.hand.plan import (
     HAND_PLAN,
     HandPlan,

@@ -28,8 +28,8 @@ from calib.noise.profiles import NoiseProfile, white_part
 from calib.runlog import Run
 from calib.runlog.clipping import describe_clipping
 
+from .fit_options import HandFitOptions, HandSamples
 from .joint_fit import N_GS, HandFit, fit_by_hand
-from .options import HandFitOptions, HandSamples
 from .setup import check_setup, fixed, rate_mistake
 from .summary import HandSummary
 from .weights import Weights

@@ -41,8 +41,8 @@ from calib.nav.transform import dcm_to_rotvec, rotvec_to_dcm, skew
 from calib.noise.profiles import NoiseProfile
 
 from .data import HandData, hand_data
+from .fit_options import HAND_FIT, HandFitOptions, HandSamples
 from .moves import move_rotation, move_sensitivity, right_jacobian_inverse
-from .options import HAND_FIT, HandFitOptions, HandSamples
 from .poses import tip_to
 from .weights import Weights, component_sizes, components, redundancy, refuted, reweighted
 

@@ -24,8 +24,8 @@ from calib.nav.site import Site
 from calib.nav.transform import dcm_to_rotvec, rotvec_to_dcm
 from calib.noise.profiles import NoiseProfile
 
+from .fit_options import HandSamples
 from .joint_fit import FitState, HandData, Layout, linearise, unknown_scales
-from .options import HandSamples
 from .plan import min_jerk
 from .poses import TURN_FRACTION
 from .rests import Rests

@@ -12,7 +12,9 @@ Modules:
 """
 
 from calib.peers.imutk_method import (
+    IMUTK,
     ImuTkFit,
+    ImuTkOptions,
     carried_rotations,
     ellipsoid_start,
     fit_accel,
@@ -40,7 +42,9 @@ __all__ = [
     "Axes",
     "ForceSpread",
     "HandScore",
+    "IMUTK",
     "ImuTkFit",
+    "ImuTkOptions",
     "PoseToPose",
     "angle_between",
     "axes_of",

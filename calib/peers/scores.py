@@ -110,8 +110,7 @@ def pose_to_pose(
     rate: np.ndarray,
     force: np.ndarray,
     time_s: np.ndarray,
-    start: np.ndarray,
-    end: np.ndarray,
+    rests: tuple[np.ndarray, np.ndarray],
     clipped: np.ndarray | None = None,
     latitude_deg: float = 0.0,
 ) -> PoseToPose:
@@ -123,13 +122,14 @@ def pose_to_pose(
         Calibrated rates (rad/s) and specific force (m/s^2).
     time_s : ndarray, shape (n,)
         Sample ends, s (each rate times its interval is the sample's increment).
-    start, end : ndarray of int, shape (K,)
-        The rests, ``[start, end)``.
+    rests : (ndarray of int, ndarray of int), each shape (K,)
+        The rests' ``start`` and ``end``, ``[start, end)``.
     clipped : ndarray of bool, shape (n,), optional
         Samples at the sensor's range: a move holding one is left out.
     latitude_deg : float
         Only for the bound on the Earth's turn that is left out.
     """
+    start, end = rests
     dt = sample_intervals(np.asarray(time_s, dtype=float))
     dth = rate * dt[:, None]
     up = rest_means(force, start, end)
@@ -207,13 +207,11 @@ def score(
     raw_gyro: np.ndarray,
     raw_accel: np.ndarray,
     time_s: np.ndarray,
-    start: np.ndarray,
-    end: np.ndarray,
+    rests: tuple[np.ndarray, np.ndarray],
     *,
     clipped: np.ndarray | None = None,
     latitude_deg: float = 0.0,
-    gyro_zero: np.ndarray | None = None,
-    accel_zero: np.ndarray | None = None,
+    raw_zero: tuple[np.ndarray | None, np.ndarray | None] = (None, None),
 ) -> HandScore:
     """Score a correction on raw samples and given rests (the same rests for every tool).
 
@@ -225,23 +223,24 @@ def score(
         Raw rates and specific force, as logged (counts, deg/s, ...).
     time_s : ndarray, shape (n,)
         Sample ends, s.
-    start, end : ndarray of int, shape (K,)
-        The rests, ``[start, end)`` (:func:`calib.hand.rests.find_rests`).
+    rests : (ndarray of int, ndarray of int), each shape (K,)
+        The rests' ``start`` and ``end``, ``[start, end)`` (:func:`calib.hand.rests.find_rests`).
     clipped : ndarray of bool, shape (n,), optional
         Samples at the sensor's range (their moves are left out).
     latitude_deg : float
         For the bound on the Earth's turn left out.
-    gyro_zero, accel_zero : ndarray, shape (3,), optional
-        Raw zero of a nominal conversion, for the biases in SI.
+    raw_zero : (ndarray or None, ndarray or None), each shape (3,)
+        The gyro's and the accelerometer's raw zero of a nominal conversion, for the biases in SI.
 
     Returns
     -------
     HandScore
     """
     rate, force = correction.apply(raw_gyro, raw_accel)
+    gyro_zero, accel_zero = raw_zero
     return HandScore(
-        force_spread(force, start, end),
-        pose_to_pose(rate, force, time_s, start, end, clipped, latitude_deg),
+        force_spread(force, *rests),
+        pose_to_pose(rate, force, time_s, rests, clipped, latitude_deg),
         axes_of(correction.gyro, gyro_zero),
         axes_of(correction.accel, accel_zero),
         correction.source,

@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 
 from calib.errors import CalibError
+from calib.hand.fit_options import HandFitOptions, HandSamples
 from calib.hand.joint_fit import FitState, Layout, fit_by_hand, hand_data, linearise
 from calib.hand.moves import move_rotation, move_sensitivity
-from calib.hand.options import HandFitOptions, HandSamples
 from calib.hand.rests import find_rests
 from calib.model import params as P
 from calib.model.error_model import ErrorModel
