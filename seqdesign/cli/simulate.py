@@ -138,12 +138,7 @@ HAND_DEFAULTS = {
 @click.argument("sequence", required=False)
 @click.option("-o", "--output", required=True, help="Run log to write: .csv or .npz.")
 @options.profile()
-@click.option(
-    "--errors",
-    "errors_file",
-    type=click.Path(dir_okay=False),
-    help="TOML file with an [errors] table (spec names and units).",
-)
+@options.file_path("--errors", "errors_file", "TOML file with an [errors] table (spec names and units).")
 @click.option("--table2", is_flag=True, help="Inject the paper's Table 2 standard values.")
 @click.option(
     "--setup-deg", nargs=3, type=float, metavar="E N U", help="Base mounting rotation vector, degrees."

@@ -42,11 +42,10 @@ from .tools import emit_json, guarded, info
     show_default=True,
     help="Each flip misses its angle by up to this much (uniform).",
 )
-@click.option(
+@options.file_path(
     "--errors",
     "errors_file",
-    type=click.Path(dir_okay=False),
-    help="TOML file with an [errors] table: every run has these errors (default: each run draws a "
+    "TOML file with an [errors] table: every run has these errors (default: each run draws a "
     "unit of the profile's grade, see docs/verify.md).",
 )
 @click.option("--table2", is_flag=True, help="Every run has the paper's Table 2 standard errors.")
