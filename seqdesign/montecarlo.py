@@ -111,12 +111,7 @@ def one_trial(job: TrialJob) -> tuple[np.ndarray, np.ndarray, bool]:
         cfg,
         c.true_errors,
         job.profile,
-        options=SimOptions(
-            flip_error_deg=c.flip_error_deg,
-            noise=True,
-            seed=job.seed,
-            random_setup_deg=c.tolerance_deg if c.tolerance_deg > 0 else None,
-        ),
+        SimOptions.drawn(job.seed, c.tolerance_deg, c.flip_error_deg),
         extra=c.extra,
     )
     result = calibrate(

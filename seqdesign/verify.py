@@ -165,12 +165,7 @@ def one_run(job: VerifyJob) -> RunOutcome:
         job.config,
         errors,
         job.profile,
-        options=SimOptions(
-            flip_error_deg=job.flip_error_deg,
-            noise=True,
-            seed=job.seed,
-            random_setup_deg=job.tolerance_deg if job.tolerance_deg > 0 else None,
-        ),
+        SimOptions.drawn(job.seed, job.tolerance_deg, job.flip_error_deg),
     )
     try:
         result = calibrate(

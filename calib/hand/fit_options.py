@@ -57,9 +57,9 @@ class HandSamples:
     Parameters
     ----------
     dtheta, dv : ndarray, shape (n, 3)
-        Gyro and accelerometer increments, rad and m/s.
+        The gyros' (rad) and the accelerometers' (m/s) increment over each sample.
     dt : ndarray, shape (n,)
-        Sample intervals, s.
+        Each sample's interval, s.
     clipped : ndarray of bool, shape (n,), optional
         Samples at the sensor's range: a move holding one is not used.
     """

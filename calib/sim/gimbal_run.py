@@ -77,6 +77,14 @@ class SimOptions:
     seed: int | None = None
     random_setup_deg: float | None = None
 
+    @classmethod
+    def drawn(cls, seed: int | None, tolerance_deg: float, flip_error_deg: float) -> SimOptions:
+        """A Monte Carlo run's: noise, the mounting drawn within +-``tolerance_deg`` (0: none),
+        each flip missing by up to ``flip_error_deg``, all from ``seed``.
+        """
+        setup = tolerance_deg if tolerance_deg > 0 else None
+        return cls(flip_error_deg=flip_error_deg, noise=True, seed=seed, random_setup_deg=setup)
+
 
 SIM = SimOptions()  # the defaults: no mounting rotation, no flip errors, noise, no seed
 

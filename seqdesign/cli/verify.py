@@ -153,7 +153,8 @@ def verify(
     if by_hand or sequence is None:
         from .verifyhand import verify_by_hand
 
-        shape = (like, poses, peak_rate_dps, by_hand, placement_deg, troubles)
+        drawn = {"like": like, "poses": poses, "peak_rate_dps": peak_rate_dps, "placement_deg": placement_deg}
+        shape = (drawn, by_hand, troubles)
         result = verify_by_hand(sequence, prof, chosen, with_terms, where, errors, shape, RunsProgress())
     else:
         result = _verify_sequence(sequence, prof, chosen, with_terms, where, errors, gimbal_file)
