@@ -21,7 +21,7 @@ import numpy as np
 
 from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.errors import CalibError
-from calib.hand.plan import HAND_PLAN, random_hand_plan, xsens_like_plan
+from calib.hand.plan import HAND_PLAN, HAND_POSES, random_hand_plan, xsens_like_plan
 from calib.hand.poses import PoseList, tipping_plan
 from calib.hand.simulate import HandStreams, simulate_by_hand, write_hand_run
 from calib.hand.troubles import TroubleSpec
@@ -77,7 +77,7 @@ class HandShape:
     """The runs placed by hand a by-hand verification draws (:mod:`calib.hand.plan`)."""
 
     like: str | None = None  # "xsens": the shape of imu_tk's Xsens recording; None: random
-    poses: int = 20
+    poses: int = HAND_POSES
     peak_rate_dps: float | None = HAND_PLAN.peak_rate_dps
     translation_m: float = HAND_PLAN.translation_m
     wobble_deg: float = HAND_PLAN.wobble_deg

@@ -47,6 +47,7 @@ from calib.hand.joint_fit import FitState, HandFit, Layout, fit_by_hand, lineari
 from calib.hand.moves import move_rotation, move_sensitivity, right_jacobian, right_jacobian_inverse
 from calib.hand.plan import (
     HAND_PLAN,
+    HAND_POSES,
     HandPlan,
     PlanShape,
     bump,
@@ -115,6 +116,7 @@ __all__ = [
     "FROM_SEED",
     "HAND_FIT",
     "HAND_PLAN",
+    "HAND_POSES",
     "FitState",
     "HandData",
     "HandFit",

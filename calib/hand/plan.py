@@ -261,6 +261,7 @@ class PlanShape:
 
 
 HAND_PLAN = PlanShape()  # the defaults
+HAND_POSES = 20  # the rests of a random plan when not told (the CLI's --poses too)
 
 
 def random_hand_plan(n_poses: int, rng: np.random.Generator, shape: PlanShape = HAND_PLAN) -> HandPlan:

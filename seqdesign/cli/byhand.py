@@ -14,7 +14,6 @@ from calib.errors import CalibError
 from .handtroubles import TROUBLE_DEFAULTS, trouble_spec
 from .tools import emit_json, provenance
 
-DEFAULT_POSES = 20
 HAND_RATE_HZ = 100.0  # the rate of the hand-placed recordings (imu_tk's Xsens, imucal's)
 
 
@@ -62,7 +61,7 @@ def simulate_by_hand(output, profile, injected, seed, site, noise_free, as_json,
     """
     errors_file, table2 = injected
     latitude, height, gravity_mps2, sample_rate_hz = site
-    from calib.hand.plan import HAND_PLAN, random_hand_plan, xsens_like_plan
+    from calib.hand.plan import HAND_PLAN, HAND_POSES, random_hand_plan, xsens_like_plan
     from calib.hand.simulate import HandStreams, simulate_by_hand as run_simulation, write_hand_run
     from calib.nav import earth
     from calib.noise.profiles import load_profile
@@ -106,7 +105,7 @@ def simulate_by_hand(output, profile, injected, seed, site, noise_free, as_json,
     if hand["like"] == "xsens":
         plan = xsens_like_plan(plan_rng, shape)
     else:
-        n_poses = hand["poses"] if hand["poses"] is not None else DEFAULT_POSES
+        n_poses = hand["poses"] if hand["poses"] is not None else HAND_POSES
         plan = random_hand_plan(n_poses, plan_rng, shape)
     errors = _errors(errors_file, table2, hand["random_errors"], errors_rng)
     troubles = spec.draw(plan, trouble_rng)

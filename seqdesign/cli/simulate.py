@@ -118,18 +118,18 @@ def _simulate_streamed(setup: _Setup, cfg, output, setup_deg, seed, noise_free, 
     info(f"wrote {output} ({n} samples, {n / rate:.1f} s, profile {setup.profile.name}) and {truth_path}")
 
 
-# The --by-hand options and their defaults (given without --by-hand, they are refused).
-HAND_DEFAULTS = {
-    "poses": None,
-    "like": None,
-    "peak_rate_dps": None,
-    "translation_m": 0.3,
-    "wobble_deg": 10.0,
-    "oversample": 10,
-    "random_errors": None,
-    "rest_s": None,
-    "first_rest_s": None,
-}
+# The --by-hand options (given without --by-hand, that is away from their defaults, they are refused).
+HAND_OPTIONS = (
+    "poses",
+    "like",
+    "peak_rate_dps",
+    "translation_m",
+    "wobble_deg",
+    "oversample",
+    "random_errors",
+    "rest_s",
+    "first_rest_s",
+)
 
 
 @click.command(
@@ -388,5 +388,8 @@ def simulate(
             f"{'noise-free' if noise_free else 'profile ' + prof.name}) and {truth_path}"
         )
 
+
+# The --by-hand options' defaults, as the command declares them.
+HAND_DEFAULTS = {p.name: p.default for p in simulate.params if p.name in HAND_OPTIONS}
 
 simulate_stream = hidden_alias(simulate, "simulate-stream", "stream")
