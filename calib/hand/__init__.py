@@ -41,7 +41,7 @@ Modules:
 
 from calib.hand.calibrate import TermChoice, as_fit, fit_checked, hand_fit_of, summary_of
 from calib.hand.data import HandData, hand_data, rest_noise_factor
-from calib.hand.fit_options import HAND_FIT, HandFitOptions, HandSamples
+from calib.hand.fit_options import HAND_FIT, HAND_REQUIREMENTS, HandFitOptions, HandSamples
 from calib.hand.host_clock import epoch_ms, epoch_seconds, host_stamps, write_epoch_ms_csv
 from calib.hand.joint_fit import FitState, HandFit, Layout, fit_by_hand, linearise, unknown_scales
 from calib.hand.moves import move_rotation, move_sensitivity, right_jacobian, right_jacobian_inverse
@@ -117,6 +117,7 @@ __all__ = [
     "HAND_FIT",
     "HAND_PLAN",
     "HAND_POSES",
+    "HAND_REQUIREMENTS",
     "FitState",
     "HandData",
     "HandFit",

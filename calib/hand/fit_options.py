@@ -48,6 +48,10 @@ class HandFitOptions:
 
 
 HAND_FIT = HandFitOptions()  # the defaults
+# The requirements a unit placed by hand is judged by unless told (calibrate, analyze, verify,
+# design --by-hand): a hand-turned unit is a MEMS one, and judged by the paper's navigation-grade
+# requirements every sigma would be "weak" and nothing estimable.
+HAND_REQUIREMENTS = "mems"
 
 
 @dataclass(frozen=True)

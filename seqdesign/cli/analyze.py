@@ -143,6 +143,7 @@ def _analyze_by_hand(path, profile, requirements, with_terms, placement, view_pa
     (:class:`seqdesign.cli.options.LogReading`), ``site`` its ``latitude_deg``, ``height_m`` and
     ``gravity_mps2`` as given (the latitude also the site of a pose list); returns the analysis.
     """
+    from calib.hand.fit_options import HAND_REQUIREMENTS
     from calib.hand.poses import load_poses
     from calib.model.optional_terms import as_extras
     from calib.model.requirements import load_requirements
@@ -168,14 +169,14 @@ def _analyze_by_hand(path, profile, requirements, with_terms, placement, view_pa
             run,
             site_of(run, gravity),
             load_profile(profile),
-            load_requirements(requirements or "mems"),
+            load_requirements(requirements or HAND_REQUIREMENTS),
             as_extras(with_terms, by_hand=True),
         )
     else:
         result = analyze_hand(
             load_poses(path),
             load_profile(profile),
-            load_requirements(requirements or "mems"),
+            load_requirements(requirements or HAND_REQUIREMENTS),
             latitude_deg=45.0 if site["latitude_deg"] is None else site["latitude_deg"],
             placement=placement,
             extras=as_extras(with_terms, by_hand=True),

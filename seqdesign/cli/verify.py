@@ -132,7 +132,9 @@ def verify(
     # A unit placed by hand is judged by the mems requirements unless told otherwise, as calibrate does.
     prof = load_profile(profile)
     if by_hand:
-        req = load_requirements(requirements or "mems")
+        from calib.hand.fit_options import HAND_REQUIREMENTS
+
+        req = load_requirements(requirements or HAND_REQUIREMENTS)
     else:
         requirements, chosen = default_for(prof, requirements)  # the profile's grade, when not given
         if chosen:
