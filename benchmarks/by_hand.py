@@ -33,7 +33,7 @@ from calib.hand.rests import find_rests
 from calib.nav.strapdown import sample_intervals
 from calib.noise.profiles import load_profile
 from calib.peers.published import read_imu_tk, read_imucal
-from calib.peers.scores import HandScore, score
+from calib.peers.scores import HandScore, RestSpans, score
 from calib.runlog import Run, make_meta
 
 DATA = Path(os.environ.get("REALDATA", Path(__file__).resolve().parents[1] / "tests" / "data" / "realdata"))
@@ -172,13 +172,8 @@ def scored(c: Correction, rec: Recording, start, end) -> HandScore:
         c,
         rec.raw_gyro,
         rec.raw_accel,
-        rec.run.time_s,
-        start,
-        end,
-        clipped=rec.clipped,
-        latitude_deg=rec.latitude_deg,
-        gyro_zero=zero_g,
-        accel_zero=zero_a,
+        RestSpans(rec.run.time_s, start, end, rec.clipped, rec.latitude_deg),
+        raw_zero=(zero_g, zero_a),
     )
 
 

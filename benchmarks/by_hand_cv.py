@@ -46,7 +46,7 @@ from calib.errors import CalibError
 from calib.hand.rests import find_rests
 from calib.nav.strapdown import sample_intervals
 from calib.noise.profiles import load_profile
-from calib.peers.imutk_method import MIN_INTERVALS, imutk_calibrate
+from calib.peers.imutk_method import MIN_INTERVALS, ImuTkOptions, imutk_calibrate
 from calib.peers.published import read_imu_tk, read_imucal
 from calib.runlog import Run, read_run
 
@@ -131,12 +131,13 @@ def imutk_on(rec: Recording, part: Run, keep: np.ndarray):
     init = (int(r.start[i]), int(min(r.end[i], r.start[i] + INIT_CAP_S * rate)))
     t, g, a = part.time_s, rec.raw_gyro[keep], rec.raw_accel[keep]
     scale0 = 1.0 / rec.gyro_conversion[1]
-    kw = {"init": init, "gyro_scale0": scale0, "raw_units": ("raw", "raw")}
+    kw = {"init": init, "raw_units": ("raw", "raw")}
+    options = ImuTkOptions(gyro_scale0=scale0)
     try:
-        return imutk_calibrate(t, g, a, rec.gravity, **kw), ""
+        return imutk_calibrate(t, g, a, rec.gravity, options=options, **kw), ""
     except CalibError:  # too few poses for imu_tk's 12: as many as the 9 parameters, said
         try:
-            fit = imutk_calibrate(t, g, a, rec.gravity, min_intervals=9, **kw)
+            fit = imutk_calibrate(t, g, a, rec.gravity, options=replace(options, min_intervals=9), **kw)
         except CalibError:
             return None, "fewer than 9 static intervals"
         return fit, f"{len(fit.start)} intervals (<{MIN_INTERVALS})"

@@ -23,7 +23,7 @@ import numpy as np
 from calib.calibration.entry import calibrate
 from calib.hand.calibrate import hand_fit_of
 from calib.hand.poses import PoseList
-from calib.hand.simulate import draw_errors, simulate_by_hand
+from calib.hand.simulate import HandStreams, draw_errors, simulate_by_hand
 from calib.model.optional_terms import as_extras
 from calib.model.requirements import load_requirements
 from calib.nav.site import site_of
@@ -66,7 +66,7 @@ def monte_carlo(poses: PoseList, runs: int) -> float:
     for seed in range(runs):
         rng = np.random.default_rng(seed)
         truth = draw_errors(error_half_range("mems"), rng)
-        run, _ = simulate_by_hand(poses.plan(), config, truth, MEMS, rng=rng)
+        run, _ = simulate_by_hand(poses.plan(), config, truth, MEMS, streams=HandStreams(noise=rng))
         result = calibrate(run, MEMS, by_hand=True, requirements=REQ)
         errors.append(result.values - truth.values)
     return float(np.max(REQ.ratio(np.sqrt(np.mean(np.square(errors), axis=0)))))

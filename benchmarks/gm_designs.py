@@ -20,7 +20,7 @@ from calib.model import params as P
 from calib.model.optional_terms import GROUP_NAMES, Extras, ExtraValues
 from calib.noise.profiles import load_profile
 from calib.sequence.definition import load_sequence
-from seqdesign.montecarlo import run_trials
+from seqdesign.montecarlo import TrialConfig, run_trials
 
 
 def main() -> None:
@@ -35,9 +35,8 @@ def main() -> None:
     extras = Extras(GROUP_NAMES)
     typical = ExtraValues.from_units({p.name: p.scale for p in extras.parameters})
     t0 = time.perf_counter()
-    trials = run_trials(
-        seq, prof, args.n, seed=12000, workers=args.workers, extra=typical, extras=extras, fit_profile=prof
-    )
+    config = TrialConfig(extra=typical, extras=extras, fit_profile=prof)
+    trials = run_trials(seq, prof, args.n, seed=12000, config=config, workers=args.workers)
     nees = trials.nees.mean()
     lo, hi = chi2.ppf([0.005, 0.995], P.N_PARAMS * args.n) / args.n
     ratio = trials.rms_error / trials.mean_sigma

@@ -34,7 +34,7 @@ from calib.model.error_model import ErrorModel
 from calib.noise.profiles import load_profile
 from calib.sequence.definition import load_sequence
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 from seqdesign.verify import error_half_range
 
 SAMPLE_RATE_HZ = 100.0  # the rate of the ADIS16405 log in the shared realdata folder
@@ -60,10 +60,7 @@ def one_run(args):
         cfg,
         errors,
         prof,
-        noise=True,
-        seed=seed,
-        flip_error_deg=FLIP_ERROR_DEG,
-        random_setup_deg=SETUP_DEG,
+        options=SimOptions(flip_error_deg=FLIP_ERROR_DEG, noise=True, seed=seed, random_setup_deg=SETUP_DEG),
     )
     t0 = time.process_time()
     try:

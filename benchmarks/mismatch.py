@@ -24,7 +24,7 @@ from calib.model import params as P
 from calib.model.optional_terms import GROUP_NAMES, Extras, ExtraValues
 from calib.noise.profiles import load_profile
 from calib.sequence.definition import load_sequence
-from seqdesign.montecarlo import run_trials
+from seqdesign.montecarlo import TrialConfig, run_trials
 
 LEVER = {
     "rxx": 3.0,
@@ -73,18 +73,10 @@ def main() -> None:
         extra = ExtraValues.from_units(values) if values else None
         sim_profile = gm if with_gm else white
         off = run_trials(
-            seq, sim_profile, args.n, seed=2000, workers=args.workers, extra=extra, fit_profile=white
+            seq, sim_profile, args.n, 2000, TrialConfig(extra=extra, fit_profile=white), args.workers
         )
-        on = run_trials(
-            seq,
-            sim_profile,
-            args.n,
-            seed=2000,
-            workers=args.workers,
-            extra=extra,
-            extras=Extras(groups),
-            fit_profile=sim_profile,
-        )
+        fitted = TrialConfig(extra=extra, extras=Extras(groups), fit_profile=sim_profile)
+        on = run_trials(seq, sim_profile, args.n, 2000, fitted, args.workers)
         rows[label] = (summary(off), summary(on), groups, with_gm)
     elapsed = time.perf_counter() - t0
     print(

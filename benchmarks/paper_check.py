@@ -22,7 +22,7 @@ from calib.nav.site import Site
 from calib.noise.profiles import load_profile
 from calib.sequence.definition import load_sequence
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 
 
 def main() -> None:
@@ -33,7 +33,9 @@ def main() -> None:
     lat = math.radians(40.0)
     cfg = SimConfig(latitude_rad=lat)
     truth = ErrorModel.from_table2()
-    run, _ = simulate(seq, cfg, truth, prof, setup_rotvec=np.radians([1.0, -2.0, 3.0]), seed=args.seed)
+    run, _ = simulate(
+        seq, cfg, truth, prof, options=SimOptions(setup_rotvec=np.radians([1.0, -2.0, 3.0]), seed=args.seed)
+    )
     fit = fit_run(run, Site(lat, cfg.gravity), prof)
     err = P.from_si(fit.values - truth.values)
     sig = P.from_si(fit.sigma)

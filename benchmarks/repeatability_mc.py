@@ -38,7 +38,7 @@ from calib.model.error_model import ErrorModel
 from calib.noise.profiles import load_profile
 from calib.sequence.definition import load_sequence
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 from seqdesign.repeatability import Repeatability, weighted_chi2_sf
 from seqdesign.verify import error_half_range
 
@@ -68,7 +68,11 @@ def one_run(args):
     prof = load_profile("mems")
     cfg = SimConfig(latitude_rad=math.radians(LATITUDE_DEG), sample_rate_hz=SAMPLE_RATE_HZ)
     run, truth = simulate(
-        load_sequence(sequence), cfg, errors, prof, setup_rotvec=setup, flip_error_deg=flip_deg, seed=seed
+        load_sequence(sequence),
+        cfg,
+        errors,
+        prof,
+        options=SimOptions(setup_rotvec=setup, flip_error_deg=flip_deg, seed=seed),
     )
     t0 = time.process_time()
     try:

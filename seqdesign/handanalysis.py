@@ -19,6 +19,7 @@ import numpy as np
 
 from calib.errors import CalibError
 from calib.hand.calibrate import hand_fit_of
+from calib.hand.fit_options import HandFitOptions, HandSamples
 from calib.hand.joint_fit import fit_by_hand
 from calib.hand.poses import AXES, PoseList, tipping_plan
 from calib.hand.simulate import simulate_by_hand
@@ -52,20 +53,9 @@ def predict(plan, profile: NoiseProfile, requirements: Requirements, site: Site,
         latitude_rad=site.latitude_rad, sample_rate_hz=ANALYSIS_RATE_HZ, gravity_mps2=site.gravity_mps2
     )
     run, _ = simulate_by_hand(plan, config, oversample=OVERSAMPLE)
-    fit = fit_by_hand(
-        run.time_s,
-        run.dtheta_rad,
-        run.dv_mps,
-        sample_intervals(run.time_s),
-        site.latitude_rad,
-        site.gravity_mps2,
-        profile,
-        g_sensitivity=g_sensitivity,
-        requirements=requirements,
-        partial=True,
-        earn_weights=False,  # a noise-free run: the profile's weights are the prediction's
-        where=plan_name(plan),
-    )
+    # A noise-free run: the profile's weights (not earned ones) are the prediction's.
+    options = HandFitOptions(g_sensitivity, requirements, partial=True, earn_weights=False)
+    fit = fit_by_hand(HandSamples.of_run(run), site, profile, options, where=plan_name(plan))
     return prediction_of(fit)
 
 

@@ -8,7 +8,7 @@ serial result.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -18,7 +18,7 @@ from calib.model.optional_terms import NONE as NO_EXTRAS, Extras, ExtraValues
 from calib.noise.profiles import NoiseProfile
 from calib.sequence.definition import Sequence
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 
 from .search.parallel import map_jobs
 
@@ -51,44 +51,77 @@ class Trials:
 
 
 @dataclass(frozen=True)
+class TrialConfig:
+    """How each Monte Carlo trial is simulated and fitted (all but the sequence, profile and seed).
+
+    Parameters
+    ----------
+    latitude_deg : float
+        The simulated site's latitude.
+    errors : ErrorModel, optional
+        The true 21 of every trial. Default (None): Table 2's.
+    tolerance_deg : float
+        Each trial's base mounting is drawn within this many degrees (0: none).
+    flip_error_deg : float
+        Each flip's error, degrees.
+    extra : ExtraValues, optional
+        A real unit's optional terms added to the simulated runs.
+    extras : Extras
+        The groups the estimator fits with the 21 (the mismatch report: simulate
+        with them, calibrate without or with them).
+    fit_profile : NoiseProfile, optional
+        Weights the fit when it differs from the simulated noise.
+    requirements : Requirements, optional
+        Scale the fit (and so what it calls observable).
+    """
+
+    latitude_deg: float = 40.0
+    errors: ErrorModel | None = None
+    tolerance_deg: float = 3.0
+    flip_error_deg: float = 0.5
+    extra: ExtraValues | None = None
+    extras: Extras = NO_EXTRAS
+    fit_profile: NoiseProfile | None = None
+    requirements: object = None
+
+    @property
+    def true_errors(self) -> ErrorModel:
+        return self.errors if self.errors is not None else ErrorModel.from_table2()
+
+
+TRIALS = TrialConfig()  # the defaults
+
+
+@dataclass(frozen=True)
 class TrialJob:
     """One trial's inputs (picklable: run on a worker or a dask cluster)."""
 
     seq: Sequence
     profile: NoiseProfile
-    latitude_deg: float
-    errors: ErrorModel
-    tolerance_deg: float
-    flip_error_deg: float
+    config: TrialConfig  # with its errors resolved
     seed: int
-    extra: ExtraValues | None
-    extras: Extras
-    fit_profile: NoiseProfile | None
-    requirements: object = None
 
 
 def one_trial(job: TrialJob) -> tuple[np.ndarray, np.ndarray, bool]:
     """Simulate one run and calibrate it with the library call the CLI uses (same sigmas)."""
-    cfg = SimConfig(latitude_rad=math.radians(job.latitude_deg))
+    c = job.config
+    cfg = SimConfig(latitude_rad=math.radians(c.latitude_deg))
     run, truth = simulate(
         job.seq,
         cfg,
-        job.errors,
+        c.true_errors,
         job.profile,
-        flip_error_deg=job.flip_error_deg,
-        noise=True,
-        seed=job.seed,
-        random_setup_deg=job.tolerance_deg if job.tolerance_deg > 0 else None,
-        extra=job.extra,
+        SimOptions.drawn(job.seed, c.tolerance_deg, c.flip_error_deg),
+        extra=c.extra,
     )
     result = calibrate(
         run,
-        job.fit_profile or job.profile,
-        extras=job.extras,
+        c.fit_profile or job.profile,
+        extras=c.extras,
         options=CalibrateOptions(require_convergence=False),
-        requirements=job.requirements,
+        requirements=c.requirements,
     )
-    return result.values - job.errors.values, result.covariance, result.converged
+    return result.values - c.true_errors.values, result.covariance, result.converged
 
 
 def run_trials(
@@ -96,44 +129,18 @@ def run_trials(
     profile: NoiseProfile,
     n: int,
     seed: int = 0,
-    latitude_deg: float = 40.0,
-    errors: ErrorModel | None = None,
-    tolerance_deg: float = 3.0,
-    flip_error_deg: float = 0.5,
+    config: TrialConfig = TRIALS,
     workers: int = 1,
-    extra: ExtraValues | None = None,
-    extras: Extras = NO_EXTRAS,
-    fit_profile: NoiseProfile | None = None,
-    requirements=None,
     scheduler=None,
 ) -> Trials:
     """Simulate and calibrate ``n`` runs; trial ``i`` uses seed ``seed + i``.
 
-    ``extra`` adds a real unit's optional terms to the simulated runs;
-    ``extras`` names the groups the estimator fits with the 21 (the mismatch
-    report: simulate with them, calibrate without or with them);
-    ``fit_profile`` weights the fit when it differs from the simulated noise;
-    ``requirements`` scale the fit (and so what it calls observable);
+    ``config`` says how each is simulated and fitted (:class:`TrialConfig`);
     ``workers`` local processes, or ``scheduler`` a dask.distributed address or client
     (:func:`seqdesign.search.parallel.map_jobs`, as the design search).
     """
-    errors = errors if errors is not None else ErrorModel.from_table2()
-    jobs = [
-        TrialJob(
-            seq,
-            profile,
-            latitude_deg,
-            errors,
-            tolerance_deg,
-            flip_error_deg,
-            seed + i,
-            extra,
-            extras,
-            fit_profile,
-            requirements,
-        )
-        for i in range(n)
-    ]
+    config = replace(config, errors=config.true_errors)
+    jobs = [TrialJob(seq, profile, config, seed + i) for i in range(n)]
     out = map_jobs(one_trial, jobs, workers, scheduler)
     return Trials(
         errors=np.array([o[0] for o in out]),

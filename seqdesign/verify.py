@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -21,9 +21,9 @@ import numpy as np
 
 from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.errors import CalibError
-from calib.hand.plan import random_hand_plan, xsens_like_plan
+from calib.hand.plan import HAND_PLAN, HAND_POSES, random_hand_plan, xsens_like_plan
 from calib.hand.poses import PoseList, tipping_plan
-from calib.hand.simulate import simulate_by_hand, write_hand_run
+from calib.hand.simulate import HandStreams, simulate_by_hand, write_hand_run
 from calib.hand.troubles import TroubleSpec
 from calib.model import params as P
 from calib.model.error_model import ErrorModel, paper_table
@@ -34,7 +34,7 @@ from calib.noise.profiles import NoiseProfile
 from calib.runlog import read_run
 from calib.sequence.definition import Sequence
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 
 from .search.parallel import map_jobs
 
@@ -77,10 +77,10 @@ class HandShape:
     """The runs placed by hand a by-hand verification draws (:mod:`calib.hand.plan`)."""
 
     like: str | None = None  # "xsens": the shape of imu_tk's Xsens recording; None: random
-    poses: int = 20
-    peak_rate_dps: float | None = None
-    translation_m: float = 0.3
-    wobble_deg: float = 10.0
+    poses: int = HAND_POSES
+    peak_rate_dps: float | None = HAND_PLAN.peak_rate_dps
+    translation_m: float = HAND_PLAN.translation_m
+    wobble_deg: float = HAND_PLAN.wobble_deg
     g_sensitivity: bool = False  # fit the gyro g-sensitivity too (injected by troubles only)
     pose_list: PoseList | None = None  # a user's poses instead of random ones
     placement_deg: float = 0.0  # each pose of the pose list placed within this (each axis)
@@ -112,20 +112,15 @@ class HandShape:
             C = self.pose_list.attitudes()
             tilt = rng.uniform(-1.0, 1.0, (len(C), 3)) * np.radians(self.placement_deg)
             return tipping_plan(rotvec_to_dcm(tilt) @ C, self.pose_list.hold_s, self.pose_list.move_s)
-        if self.like == "xsens":
-            return xsens_like_plan(
-                rng,
-                translation_m=self.translation_m,
-                wobble_deg=self.wobble_deg,
-                peak_rate_dps=self.peak_rate_dps,
-            )
-        return random_hand_plan(
-            self.poses,
-            rng,
+        shape = replace(
+            HAND_PLAN,
             translation_m=self.translation_m,
             wobble_deg=self.wobble_deg,
             peak_rate_dps=self.peak_rate_dps,
         )
+        if self.like == "xsens":
+            return xsens_like_plan(rng, shape)
+        return random_hand_plan(self.poses, rng, shape)
 
 
 @dataclass(frozen=True)
@@ -170,10 +165,7 @@ def one_run(job: VerifyJob) -> RunOutcome:
         job.config,
         errors,
         job.profile,
-        flip_error_deg=job.flip_error_deg,
-        noise=True,
-        seed=job.seed,
-        random_setup_deg=job.tolerance_deg if job.tolerance_deg > 0 else None,
+        SimOptions.drawn(job.seed, job.tolerance_deg, job.flip_error_deg),
     )
     try:
         result = calibrate(
@@ -194,7 +186,7 @@ def _one_hand_run(job: VerifyJob, errors: ErrorModel, rng: np.random.Generator) 
     plan = job.hand.plan(rng)
     troubles = job.hand.troubles.draw(plan, rng)
     run, truth = simulate_by_hand(
-        plan, job.config, errors, job.profile, rng=rng, troubles=troubles, stamp_rng=rng
+        plan, job.config, errors, job.profile, troubles=troubles, streams=HandStreams(rng, rng)
     )
     try:
         if troubles.stamp_jitter_s or troubles.stamps != "seconds":

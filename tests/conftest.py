@@ -174,7 +174,7 @@ def clean_sim(paper_seq):
     from calib.model.error_model import ErrorModel
     from calib.noise.profiles import load_profile
     from calib.sequence.kinematics import SimConfig
-    from calib.sim.gimbal_run import simulate
+    from calib.sim.gimbal_run import SimOptions, simulate
 
     cfg = SimConfig(latitude_rad=math.radians(LAT_DEG))
     run, truth = simulate(
@@ -182,8 +182,6 @@ def clean_sim(paper_seq):
         cfg,
         ErrorModel.zero(),
         load_profile("navigation"),
-        setup_rotvec=np.radians(SETUP_DEG),
-        noise=False,
-        seed=1,
+        options=SimOptions(setup_rotvec=np.radians(SETUP_DEG), noise=False, seed=1),
     )
     return run, truth, cfg

@@ -213,6 +213,45 @@ def test_no_module_over_500_lines(package):
     assert long == {}
 
 
+MAX_PARAMETERS = 8
+OVER_8 = "# over 8 parameters:"
+
+
+def _parameter_count(f: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
+    """Parameters as a caller sees them: positional-only, ordinary, keyword-only, *args, **kwargs."""
+    a = f.args
+    names = [x.arg for x in (*a.posonlyargs, *a.args, *a.kwonlyargs)]
+    bound = 1 if names and names[0] in ("self", "cls") else 0
+    return len(names) - bound + (a.vararg is not None) + (a.kwarg is not None)
+
+
+def _over_8_without_a_reason() -> set[str]:
+    """Functions over 8 parameters whose reason is not written beside them."""
+    missing = set()
+    for package in LIBRARY:
+        for path in sorted((REPO / package).rglob("*.py")):
+            lines = path.read_text().splitlines()
+            for f in ast.walk(ast.parse("\n".join(lines))):
+                if not isinstance(f, ast.FunctionDef | ast.AsyncFunctionDef):
+                    continue
+                if _parameter_count(f) <= MAX_PARAMETERS:
+                    continue
+                name = f"{path.relative_to(REPO)}:{f.name}"
+                first = min([d.lineno for d in f.decorator_list] + [f.lineno])
+                # The 3 lines above the first decorator (or the def), and those among the decorators.
+                near = lines[max(first - 4, 0) : f.lineno - 1]
+                if not any(line.strip().startswith(OVER_8) for line in near):
+                    missing.add(name)
+    return missing
+
+
+def test_no_function_over_8_parameters_without_a_reason():
+    # Over 8 parameters, a call is a relayed list that an options object or a value (a Site, a
+    # config) should carry; where plain parameters are right (a numba kernel, a click command,
+    # a registry row), a comment `# over 8 parameters: <why>` above the def says so.
+    assert _over_8_without_a_reason() == set()
+
+
 def test_no_hidden_first_party_imports():
     hidden = {
         m: sorted(targets)
@@ -259,15 +298,14 @@ def noisy_run(paper_seq):
     from calib.model.error_model import ErrorModel
     from calib.noise.profiles import load_profile
     from calib.sequence.kinematics import SimConfig
-    from calib.sim.gimbal_run import simulate
+    from calib.sim.gimbal_run import SimOptions, simulate
 
     run, _ = simulate(
         paper_seq,
         SimConfig(latitude_rad=math.radians(40.0)),
         ErrorModel.from_table2(),
         load_profile("navigation"),
-        noise=True,
-        seed=5,
+        options=SimOptions(noise=True, seed=5),
     )
     return run
 

@@ -112,7 +112,7 @@ from .charts import labelled_bars, labelled_matrix
 from .events import motion_events, sequence_events
 from .fit import log_residuals, log_results
 from .rrd import Summary, Writer, recording_id
-from .run import about_run, log_attitude_error, log_signals, scene_frames
+from .run import RunContext, about_run, log_attitude_error, log_signals, scene_frames
 from .scene import gimbal_from_attitudes, gimbal_matrix, log_scene, scene_indices
 
 
@@ -174,8 +174,9 @@ def record_run(
         keep = scene_indices(t_rel, dtheta)
         t_scene = t_rel[keep]
         nav_best = nav_after if nav_after is not None else nav_before
+        context = RunContext(sequence, result, truth)
         angles, C_start, R_mount, scene_source, mount_source = scene_frames(
-            run, keep, t_scene, sequence, result, truth, nav_best, nav_after is not None, w
+            run, keep, t_scene, context, nav_best, nav_after is not None, w
         )
         log_scene(w, t_scene, angles, R_mount, C_start, g, events)
         if nav_after is not None and scene_source.startswith(("encoders", "sequence")):
@@ -187,7 +188,7 @@ def record_run(
         w.static(
             "about",
             w.rr.TextDocument(
-                about_run(run, review, t_rel, block, len(keep), sequence, result, truth, w.summary),
+                about_run(run, review, t_rel, block, len(keep), context, w.summary),
                 media_type="text/markdown",
             ),
         )

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from calib.model import params as P
@@ -11,7 +14,31 @@ from calib.sequence.definition import nominal_attitude, timeline
 from .rrd import Summary, Writer
 from .scene import AXIS_COLORS, SCENE_RATE_HZ, SCENE_STEP_DEG, gimbal_from_attitudes
 
+if TYPE_CHECKING:
+    from calib.calibration.result import CalibrationResult
+    from calib.sequence.definition import Sequence
+    from calib.sim.gimbal_run import Truth
+
 SIGNAL_RATE_HZ = 20.0  # raw signals shown as block means at about this rate
+
+
+@dataclass(frozen=True)
+class RunContext:
+    """What is known of a run besides its samples (each optional).
+
+    Parameters
+    ----------
+    sequence : calib.sequence.definition.Sequence, optional
+        The sequence the run followed.
+    result : calib.calibration.result.CalibrationResult, optional
+        Its calibration.
+    truth : calib.sim.gimbal_run.Truth, optional
+        What a simulated run really contains.
+    """
+
+    sequence: Sequence | None = None
+    result: CalibrationResult | None = None
+    truth: Truth | None = None
 
 
 def block_means(time_rel: np.ndarray, dt: np.ndarray, x: np.ndarray, block: int):
@@ -40,7 +67,7 @@ def log_attitude_error(w: Writer, t_scene: np.ndarray, C_nav: np.ndarray, C_scen
     w.series("attitude/nav_minus_gimbal_arcsec", t_scene, err / P.ARCSEC, "ENU", AXIS_COLORS)
 
 
-def scene_frames(run, keep, t_scene, sequence, result, truth, nav, calibrated, w):
+def scene_frames(run, keep, t_scene, context: RunContext, nav, calibrated, w):
     """Gimbal angles (rad), C_start, R_mount and where they came from, for the run's scene.
 
     Encoder and sequence angles are relative to the sequence's start attitude,
@@ -48,6 +75,7 @@ def scene_frames(run, keep, t_scene, sequence, result, truth, nav, calibrated, w
     initial attitude, else identity). Without a sequence the start attitude is
     the measured one (the navigation's first attitude, mounting included).
     """
+    sequence, result, truth = context.sequence, context.result, context.truth
     if run.gimbal_deg is not None:
         angles = np.radians(run.gimbal_deg[keep])
         source = "encoders (the run's outer_deg, middle_deg, inner_deg columns)"
@@ -106,10 +134,12 @@ def _about_envelope(review) -> list[str]:
     ]
 
 
-def about_run(run, review, t_rel, block, n_scene, sequence, result, truth, summary: Summary) -> str:
+def about_run(run, review, t_rel, block, n_scene, context: RunContext, summary: Summary) -> str:
     """The ``about`` document of a run recording: sources, time line, what is decimated, the scene
-    (``summary``: where the scene came from, and the notes).
+    (``context``: the sequence, result and truth given; ``summary``: where the scene came from, and
+    the notes).
     """
+    sequence, result, truth = context.sequence, context.result, context.truth
     fs, n = run.sample_rate_hz, run.n_samples
     lat_deg, g = review.latitude_deg, review.gravity_mps2
     scene_source, mount_source, notes = summary.scene_source, summary.mount_source, summary.notes

@@ -28,6 +28,7 @@ from calib.fit.options import FitOptions
 from calib.fit.sanity import MAX_PLAUSIBLE_RATE, GyroUnitError, explain_gyro_unit
 from calib.fit.solution import Fit
 from calib.hand.calibrate import as_fit, fit_checked, summary_of
+from calib.hand.fit_options import HAND_REQUIREMENTS
 from calib.hand.setup import carried_by_hand
 from calib.model import params as P
 from calib.model.optional_terms import Extras, as_extras
@@ -204,7 +205,7 @@ def calibrate(
     prof, extras = load_profile(profile), as_extras(extras, by_hand=by_hand)
     # A unit calibrated by hand is a MEMS unit: judged by the paper's navigation-grade requirements,
     # every sigma would be "weak" (beyond 1000 requirements) and nothing estimable.
-    req = load_requirements(requirements if requirements is not None or not by_hand else "mems")
+    req = load_requirements(requirements if requirements is not None or not by_hand else HAND_REQUIREMENTS)
     if by_hand:
         return _by_hand(source, prof, extras, req, sequence, stream, options)
     if options.without:

@@ -38,14 +38,14 @@ def encoder_track(plan: GimbalPlan, seq, time_s: np.ndarray) -> tuple[np.ndarray
     """
     t = np.asarray(time_s, dtype=float)
     angles, rates = np.zeros((len(t), 3)), np.zeros((len(t), 3))
+    track = (angles, rates)
     state, t0 = np.zeros(3), seq.initial_dwell_s
     for _k, (s, mv) in enumerate(zip(seq.steps, plan.moves, strict=True)):
         if mv.unlock_s > 0:
             assert mv.unlock_profile is not None  # plan_move sets it with any unlock time
             u = float(np.max(np.abs(mv.unlock)))
             _fill(
-                angles,
-                rates,
+                track,
                 t,
                 t0 - mv.unlock_s,
                 t0,
@@ -58,8 +58,7 @@ def encoder_track(plan: GimbalPlan, seq, time_s: np.ndarray) -> tuple[np.ndarray
         pieces = s.profile.pieces(math.radians(s.angle_deg))
         sign = 1.0 if s.angle_deg > 0 else -1.0
         end = _fill(
-            angles,
-            rates,
+            track,
             t,
             t0,
             t0 + s.duration_s,
@@ -73,9 +72,17 @@ def encoder_track(plan: GimbalPlan, seq, time_s: np.ndarray) -> tuple[np.ndarray
 
 
 def _fill(
-    angles, rates, t, t_a: float, t_b: float, state, direction, pieces: Pieces, combined: Move | None
+    track: tuple[np.ndarray, np.ndarray],
+    t,
+    t_a: float,
+    t_b: float,
+    state,
+    direction,
+    pieces: Pieces,
+    combined: Move | None,
 ) -> np.ndarray:
-    """Write one motion into the track from ``t_a`` on (later motions overwrite the hold)."""
+    """Write one motion into the track (angles, rates) from ``t_a`` on (later motions overwrite the hold)."""
+    angles, rates = track
     after = t >= t_a
     th, w = _piece_eval(pieces, t[after] - t_a)
     if combined is None:

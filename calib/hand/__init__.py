@@ -8,6 +8,8 @@ Modules:
   :mod:`calib.hand.joint_fit` as a calibration result
 - :mod:`calib.hand.data`: What a fit of a run placed by hand reads of it: its rests, their means and
   noise, its moves
+- :mod:`calib.hand.fit_options`: The hand fit's inputs as values: the samples it reads and the options
+  it is fitted with
 - :mod:`calib.hand.host_clock`: The time stamps a host writes: reception times of samples the IMU
   spaced evenly on its own clock
 - :mod:`calib.hand.joint_fit`: The 21 parameters of a run placed by hand: rests and moves, fitted
@@ -39,11 +41,15 @@ Modules:
 
 from calib.hand.calibrate import TermChoice, as_fit, fit_checked, hand_fit_of, summary_of
 from calib.hand.data import HandData, hand_data, rest_noise_factor
+from calib.hand.fit_options import HAND_FIT, HAND_REQUIREMENTS, HandFitOptions, HandSamples
 from calib.hand.host_clock import epoch_ms, epoch_seconds, host_stamps, write_epoch_ms_csv
 from calib.hand.joint_fit import FitState, HandFit, Layout, fit_by_hand, linearise, unknown_scales
 from calib.hand.moves import move_rotation, move_sensitivity, right_jacobian, right_jacobian_inverse
 from calib.hand.plan import (
+    HAND_PLAN,
+    HAND_POSES,
     HandPlan,
+    PlanShape,
     bump,
     min_jerk,
     peak_factor,
@@ -68,6 +74,8 @@ from calib.hand.setup import (
     still_stretches,
 )
 from calib.hand.simulate import (
+    FROM_SEED,
+    HandStreams,
     HandTruth,
     draw_errors,
     hand_meta,
@@ -105,16 +113,25 @@ from calib.hand.troubles import (
 from calib.hand.weights import Weights, component_sizes, components, redundancy, refuted, reweighted
 
 __all__ = [
+    "FROM_SEED",
+    "HAND_FIT",
+    "HAND_PLAN",
+    "HAND_POSES",
+    "HAND_REQUIREMENTS",
     "FitState",
     "HandData",
     "HandFit",
+    "HandFitOptions",
     "HandPlan",
+    "HandSamples",
     "HandState",
+    "HandStreams",
     "HandSummary",
     "HandTroubles",
     "HandTruth",
     "Layout",
     "Mistake",
+    "PlanShape",
     "PoseList",
     "Rests",
     "TermChoice",

@@ -12,7 +12,7 @@ chosen and the weights earned.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial as partial_fit
 
 import numpy as np
@@ -28,9 +28,11 @@ from calib.noise.profiles import NoiseProfile, white_part
 from calib.runlog import Run
 from calib.runlog.clipping import describe_clipping
 
+from .fit_options import HandFitOptions, HandSamples
 from .joint_fit import N_GS, HandFit, fit_by_hand
 from .setup import check_setup, fixed, rate_mistake
 from .summary import HandSummary
+from .weights import Weights
 
 G_SENSITIVITY = "g-sensitivity"  # the optional term a hand-placed run can fit
 # A term is chosen when its likelihood ratio passes this false-alarm rate: one recording in a
@@ -104,26 +106,19 @@ def hand_fit_of(
             run.source,
             "leave them out (g-sensitivity is the term a hand-placed run can fit)",
         )
-    dt = sample_intervals(run.time_s)
-    fit = partial_fit(
-        fit_by_hand,
-        run.time_s,
-        run.dtheta_rad,
-        run.dv_mps,
-        dt,
-        site.latitude_rad,
-        site.gravity_mps2,
-        profile,
-        clipped=None if run.clipped is None else run.clipped.any(axis=1),
-        requirements=req,
-        where=run.source,
-    )
     forced = G_SENSITIVITY in extras.groups or G_SENSITIVITY in without
     chosen = G_SENSITIVITY in extras.groups
-    found = None
+    samples = HandSamples.of_run(run)
+    base = HandFitOptions(requirements=req)
+
+    def fit_at(loosen: float, weights: Weights | None = None, **changes) -> HandFit:
+        options = replace(base, loosen=loosen, **changes)
+        return fit_by_hand(samples, site, profile, options, weights=weights, where=run.source)
+
+    loosen, found = base.loosen, None
     if earn_weights:  # poses held in the hand: the rest finder's thresholds chosen by the fit
-        loosen, found = _loosening(fit, chosen)
-        fit = partial_fit(fit, loosen=loosen)
+        loosen, found = _loosening(fit_at, chosen)
+    fit = partial_fit(fit_at, loosen)
     # The loosening's fit at its factor is this model's fit (the same inputs): not made again,
     # unless a refusal of what it leaves unestimated is owed.
     first = found if found is not None and (partial or found.estimable.all()) else None
@@ -164,7 +159,7 @@ def _loosening(fit, g_sensitivity: bool) -> tuple[float, HandFit | None]:
     rest_time = 0.0
     for loosen in LOOSENINGS:
         try:
-            hand = fit(g_sensitivity=g_sensitivity, partial=True, earn_weights=True, loosen=loosen)
+            hand = fit(loosen, g_sensitivity=g_sensitivity, partial=True, earn_weights=True)
         except CalibError:  # too few rests at these thresholds
             continue
         if not hand.estimable[: P.N_PARAMS].all():

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -35,12 +34,14 @@ from calib.model import params as P
 from calib.model.error_model import ErrorModel, error_matrix_jacobian
 from calib.model.information import scaled_inverse
 from calib.model.optional_terms import G_SENSITIVITY_SI_PER_UNIT
-from calib.model.requirements import PAPER, Requirements
+from calib.model.requirements import Requirements
 from calib.nav import earth
+from calib.nav.site import Site
 from calib.nav.transform import dcm_to_rotvec, rotvec_to_dcm, skew
 from calib.noise.profiles import NoiseProfile
 
 from .data import HandData, hand_data
+from .fit_options import HAND_FIT, HandFitOptions, HandSamples
 from .moves import move_rotation, move_sensitivity, right_jacobian_inverse
 from .poses import tip_to
 from .weights import Weights, component_sizes, components, redundancy, refuted, reweighted
@@ -179,21 +180,20 @@ class FitState:
 
 def linearise(
     data: HandData,
-    dtheta,
-    dv,
-    dt,
+    samples: HandSamples,
     state: FitState,
     layout: Layout,
-    latitude_rad,
-    g,
+    site: Site,
     profile,
     heading_prior=True,
 ):
     """Residuals, their sigmas, the Jacobian of the predictions, and each row's group."""
+    dtheta, dv, dt = samples.dtheta, samples.dv, samples.dt
+    latitude_rad = site.latitude_rad
     model = ErrorModel(state.values)
     A_g, A_a, G, C = model.gyro_matrix, model.accel_matrix, state.G, state.C
     omega_n = state.omega_n(latitude_rad)
-    f_n = earth.specific_force_n(g)
+    f_n = earth.specific_force_n(site.gravity_mps2)
     rows, res, sig, group = [], [], [], []
 
     def add(jac, r, s, grp):
@@ -269,55 +269,29 @@ def unknown_scales(layout: Layout, req: Requirements, latitude_rad: float) -> np
 
 
 def fit_by_hand(
-    time_s,
-    dtheta,
-    dv,
-    dt,
-    latitude_rad: float,
-    gravity_mps2: float,
+    samples: HandSamples,
+    site: Site,
     profile: NoiseProfile,
+    options: HandFitOptions = HAND_FIT,
     *,
-    g_sensitivity: bool = False,
-    clipped=None,
-    requirements: Requirements = PAPER,
-    partial: bool = False,
-    heading_prior: bool = True,
-    earn_weights: bool = True,
     weights: Weights | None = None,
-    loosen: float = 1.0,
     where: str = "run",
 ) -> HandFit:
     """Fit the 21 parameters of a run placed by hand (see the module's model).
 
     Parameters
     ----------
-    time_s, dt : ndarray, shape (n,)
-        Sample ends and intervals, s.
-    dtheta, dv : ndarray, shape (n, 3)
-        Gyro and accelerometer increments, rad and m/s.
-    latitude_rad, gravity_mps2 : float
-        The site.
+    samples : HandSamples
+        The run's increments, sample intervals and clipped samples.
+    site : Site
+        Latitude and gravity.
     profile : NoiseProfile
         White noise that finds the rests and weights the fit.
-    g_sensitivity : bool
-        Also fit the gyros' rate per specific force (9 terms, ``w_meas = A_g w + b_g + G f``).
-    clipped : ndarray of bool, shape (n,), optional
-        Samples at the sensor's range: a move holding one is not used.
-    requirements : Requirements
-        Scales the observability rule.
-    partial : bool
-        Fit the estimable parameters of a run that leaves some unobserved instead of refusing it.
-    heading_prior : bool
-        Weight the horizontal Earth rate by the prior of an unknown heading (off: only the
-        gyros tell it, as for a noise-free run whose exact recovery a test checks).
-    earn_weights : bool
-        Give each group of observations the noise its residuals show, and an outlying block
-        its own (:mod:`calib.hand.weights`); off: the profile's weights (or ``weights``) as
-        they are.
+    options : HandFitOptions
+        What is fitted and how (g-sensitivity, requirements, partial, heading prior,
+        earned weights, the rest finder's loosening).
     weights : Weights, optional
         The weights to start from (default: the profile's).
-    loosen : float
-        Multiplies the rest finder's thresholds (poses held in the hand).
     where : str
         The run's name in messages.
     """
@@ -328,25 +302,27 @@ def fit_by_hand(
             where,
             "give its white part (calib.noise.profiles.white_part; calibrate does so itself)",
         )
-    data = hand_data(dtheta, dv, dt, profile, clipped, where, loosen)
-    layout = Layout(data.count, g_sensitivity)
+    o = options
+    latitude_rad = site.latitude_rad
+    dtheta, dv, dt = samples.dtheta, samples.dv, samples.dt
+    data = hand_data(dtheta, dv, dt, profile, samples.clipped, where, o.loosen)
+    layout = Layout(data.count, o.g_sensitivity)
     values = np.zeros(N)
     values[P.GYRO_BIAS] = np.average(data.rest_rate, axis=0, weights=data.rest_time_s)
     G = np.zeros((3, 3))
     omega_n = np.array([0.0, 0.0, earth.RATE * math.sin(latitude_rad)])
     state = FitState(values, G, np.zeros(2), _start(data, dtheta, dv, dt, values, G, omega_n))
-    scale = unknown_scales(layout, requirements, latitude_rad)
+    scale = unknown_scales(layout, o.requirements, latitude_rad)
     names = layout.names()
-    args = (data, dtheta, dv, dt)
-    site = (latitude_rad, gravity_mps2, profile, heading_prior)
+    problem = (data, samples, layout, site, profile, o.heading_prior)
     history: list = []
     weights = Weights() if weights is None else weights
     converged = False
-    for rounds in range(MAX_REWEIGHTS if earn_weights else 1):
-        converged = _gauss_newton(args, state, layout, site, weights, scale, names, history)
-        if not earn_weights:
+    for rounds in range(MAX_REWEIGHTS if o.earn_weights else 1):
+        converged = _gauss_newton(problem, state, weights, scale, names, history)
+        if not o.earn_weights:
             break
-        e, s, jac, labels = linearise(*args, state, layout, *site)
+        e, s, jac, labels = _linearised(problem, state)
         shapes = components(labels, s, data.move_turn_rad)
         Jw = jac / weights.sigma(shapes, s, labels)[:, None] * scale
         inv = scaled_inverse(Jw.T @ Jw, names=names)
@@ -359,13 +335,13 @@ def fit_by_hand(
         weights = new
         if done:
             break
-    e, s, jac, labels = linearise(*args, state, layout, *site)
+    e, s, jac, labels = _linearised(problem, state)
     shapes = components(labels, s, data.move_turn_rad)
     s = weights.sigma(shapes, s, labels)
     Jw = jac / s[:, None] * scale
     inv = scaled_inverse(Jw.T @ Jw, names=names)
     estimable = inv.estimable[: layout.h.start]
-    if not estimable.all() and not partial:
+    if not estimable.all() and not o.partial:
         raise CalibError(
             "the poses do not separate every parameter: not estimable "
             + ", ".join(n for n, ok in zip(names, estimable, strict=False) if not ok)
@@ -384,7 +360,7 @@ def fit_by_hand(
     force_rows = np.flatnonzero(kind == "force")
     return HandFit(
         values=state.values,
-        g_sensitivity=state.G if g_sensitivity else None,
+        g_sensitivity=state.G if o.g_sensitivity else None,
         covariance=scale[:, None] * inv.covariance * scale[None, :],
         C_rest=state.C.copy(),
         earth_rate_h=state.h,
@@ -406,20 +382,18 @@ def fit_by_hand(
     )
 
 
-def _gauss_newton(
-    args: tuple[Any, Any, Any, Any],
-    state: FitState,
-    layout: Layout,
-    site: tuple[Any, Any, Any, Any],
-    weights: Weights,
-    scale,
-    names,
-    history,
-) -> bool:
+def _linearised(problem: tuple, state: FitState):
+    """:func:`linearise` of ``problem`` (data, samples, layout, site, profile, heading_prior) at ``state``."""
+    data, samples, layout, site, profile, heading_prior = problem
+    return linearise(data, samples, state, layout, site, profile, heading_prior)
+
+
+def _gauss_newton(problem: tuple, state: FitState, weights: Weights, scale, names, history) -> bool:
     """Iterate the unknowns at fixed weights until every step is below `STEP_TOL_SIGMA`."""
+    data, layout = problem[0], problem[2]
     for _ in range(MAX_ITERATIONS):
-        e, s, jac, labels = linearise(*args, state, layout, *site)
-        s = weights.sigma(components(labels, s, args[0].move_turn_rad), s, labels)
+        e, s, jac, labels = _linearised(problem, state)
+        s = weights.sigma(components(labels, s, data.move_turn_rad), s, labels)
         Jw = jac / s[:, None] * scale
         inv = scaled_inverse(Jw.T @ Jw, names=names)
         step = scale * (inv.covariance @ (Jw.T @ (e / s)))

@@ -19,7 +19,7 @@ Shapes of a move, as functions of its normalised time ``s`` in ``[0, 1]``:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -223,24 +223,12 @@ def perpendicular_axes(rotvec: np.ndarray, rng: np.random.Generator) -> np.ndarr
     return out
 
 
-def random_hand_plan(
-    n_poses: int,
-    rng: np.random.Generator,
-    rest_s: tuple[float, float] = (5.0, 12.0),
-    move_s: tuple[float, float] = (1.0, 3.0),
-    first_rest_s: float = 50.0,
-    min_step_deg: float = 30.0,
-    translation_m: float = 0.3,
-    wobble_deg: float = 10.0,
-    peak_rate_dps: float | None = None,
-) -> HandPlan:
-    """A random plan: poses uniform on SO(3), rests and moves of random length.
+@dataclass(frozen=True)
+class PlanShape:
+    """How a random plan placed by hand is shaped: its rests, moves, turns, carries and wobbles.
 
     Parameters
     ----------
-    n_poses : int
-        Number of rests ``K`` (the first one included).
-    rng : numpy.random.Generator
     rest_s : (float, float)
         Range of the rests after the first, uniform.
     move_s : (float, float)
@@ -261,14 +249,41 @@ def random_hand_plan(
         turns small and large angles in about the same time, 1 to 2 times the
         largest turn's); each turn lasts what its angle and wobble need at its
         rate, and a move is lengthened to hold a turn longer than it.
+    """
+
+    rest_s: tuple[float, float] = (5.0, 12.0)
+    move_s: tuple[float, float] = (1.0, 3.0)
+    first_rest_s: float = 50.0
+    min_step_deg: float = 30.0
+    translation_m: float = 0.3
+    wobble_deg: float = 10.0
+    peak_rate_dps: float | None = None
+
+
+HAND_PLAN = PlanShape()  # the defaults
+HAND_POSES = 20  # the rests of a random plan when not told (the CLI's --poses too)
+
+
+def random_hand_plan(n_poses: int, rng: np.random.Generator, shape: PlanShape = HAND_PLAN) -> HandPlan:
+    """A random plan: poses uniform on SO(3), rests and moves of random length.
+
+    Parameters
+    ----------
+    n_poses : int
+        Number of rests ``K`` (the first one included).
+    rng : numpy.random.Generator
+    shape : PlanShape
+        The rests', moves', turns', carries' and wobbles' sizes.
 
     Returns
     -------
     HandPlan
     """
+    rest_s, move_s, first_rest_s = shape.rest_s, shape.move_s, shape.first_rest_s
+    translation_m, wobble_deg, peak_rate_dps = shape.translation_m, shape.wobble_deg, shape.peak_rate_dps
     if n_poses < 1:
         raise ValueError("n_poses must be at least 1")
-    C = random_poses(n_poses, rng, min_step_deg)
+    C = random_poses(n_poses, rng, shape.min_step_deg)
     m = n_poses - 1
     rests = np.concatenate([[first_rest_s], rng.uniform(*rest_s, m)])
     moves = rng.uniform(*move_s, m)
@@ -293,28 +308,16 @@ XSENS_POSES = 38  # the long static start and 37 hand-placed poses
 XSENS_DURATION_S = 512.0
 
 
-def xsens_like_plan(
-    rng: np.random.Generator,
-    translation_m: float = 0.3,
-    wobble_deg: float = 10.0,
-    peak_rate_dps: float | None = None,
-) -> HandPlan:
+def xsens_like_plan(rng: np.random.Generator, shape: PlanShape = HAND_PLAN) -> HandPlan:
     """A plan shaped like imu_tk's Xsens recording (see ``docs/by-hand-sim.md``).
 
     A 52 s static start, then 37 poses held 5-12 s, moves of 2.5-5 s between them,
     512 s in all: the rests after the first are scaled by one common factor (a few
-    per cent) so that the run lasts exactly 512 s.
+    per cent) so that the run lasts exactly 512 s. ``shape`` gives the turns, carries
+    and wobbles; the rests and moves are the recording's.
     """
-    plan = random_hand_plan(
-        XSENS_POSES,
-        rng,
-        rest_s=(5.0, 12.0),
-        move_s=(2.5, 5.0),
-        first_rest_s=52.0,
-        translation_m=translation_m,
-        wobble_deg=wobble_deg,
-        peak_rate_dps=peak_rate_dps,
-    )
+    recording = replace(shape, rest_s=(5.0, 12.0), move_s=(2.5, 5.0), first_rest_s=52.0)
+    plan = random_hand_plan(XSENS_POSES, rng, recording)
     rests = plan.rest_s.copy()
     rests[1:] *= (XSENS_DURATION_S - rests[0] - plan.move_s.sum()) / rests[1:].sum()
     return HandPlan(

@@ -20,9 +20,11 @@ from calib.model import params as P
 from calib.model.information import scaled_inverse
 from calib.model.requirements import Requirements
 from calib.nav import earth
+from calib.nav.site import Site
 from calib.nav.transform import dcm_to_rotvec, rotvec_to_dcm
 from calib.noise.profiles import NoiseProfile
 
+from .fit_options import HandSamples
 from .joint_fit import FitState, HandData, Layout, linearise, unknown_scales
 from .plan import min_jerk
 from .poses import TURN_FRACTION
@@ -90,9 +92,9 @@ def plan_sigma(
     )
     layout = Layout(K, g_sensitivity)
     state = FitState(np.zeros(P.N_PARAMS), np.zeros((3, 3)), omega_n[:2].copy(), np.array(C_b_n, dtype=float))
-    _, s, jac, _ = linearise(
-        data, np.array(dtheta), np.array(dv), np.array(dt), state, layout, latitude_rad, g, profile
-    )
+    samples = HandSamples(np.array(dtheta), np.array(dv), np.array(dt))
+    site = Site(latitude_rad, g, "normal" if gravity_mps2 is None else "measured")
+    _, s, jac, _ = linearise(data, samples, state, layout, site, profile)
     scale = unknown_scales(layout, requirements, latitude_rad)
     Jw = jac / s[:, None] * scale
     M = Jw.T @ Jw

@@ -206,6 +206,25 @@ def hand_meta(cfg: SimConfig, plan: HandPlan) -> dict[str, str]:
     return run_meta(cfg, None, motion=MOTION, poses=str(plan.n_poses))
 
 
+@dataclass(frozen=True)
+class HandStreams:
+    """The random generators of a simulated run placed by hand, when not drawn from its seed.
+
+    Parameters
+    ----------
+    noise : numpy.random.Generator, optional
+        The noise's generator; default ``default_rng(seed)``.
+    stamps : numpy.random.Generator, optional
+        The host delays' generator (jittering stamps only); default: a stream spawned from ``seed``.
+    """
+
+    noise: np.random.Generator | None = None
+    stamps: np.random.Generator | None = None
+
+
+FROM_SEED = HandStreams()  # every draw from the seed
+
+
 def simulate_by_hand(
     plan: HandPlan,
     cfg: SimConfig,
@@ -213,9 +232,8 @@ def simulate_by_hand(
     profile: NoiseProfile | None = None,
     seed: int | None = None,
     oversample: int = 10,
-    rng: np.random.Generator | None = None,
     troubles: HandTroubles | None = None,
-    stamp_rng: np.random.Generator | None = None,
+    streams: HandStreams = FROM_SEED,
 ) -> tuple[Run, HandTruth]:
     """Simulate a run placed by hand.
 
@@ -232,13 +250,11 @@ def simulate_by_hand(
         Seed of the noise (recorded in the truth).
     oversample : int
         Pieces per sample interval of the quadrature (default 10).
-    rng : numpy.random.Generator, optional
-        The noise's generator instead of ``default_rng(seed)``.
     troubles : HandTroubles, optional
         Tremor, gyro g-sensitivity, a sample-clock rate error, host stamps
         (:mod:`calib.hand.troubles`); None: none, the run is the same to the last bit.
-    stamp_rng : numpy.random.Generator, optional
-        The host delays' generator (jittering stamps only); default: a stream spawned from ``seed``.
+    streams : HandStreams
+        The noise's and the host delays' generators instead of the seed's.
 
     Returns
     -------
@@ -258,10 +274,10 @@ def simulate_by_hand(
     dtheta, dv = errors.apply(dtheta, dv, dt)
     dtheta = apply_g_sensitivity(dtheta, dv_true, trouble.g_sensitivity)
     if profile is not None:
-        noise_rng = rng if rng is not None else np.random.default_rng(seed)
+        noise_rng = streams.noise if streams.noise is not None else np.random.default_rng(seed)
         dtheta, dv = add_noise(dtheta, dv, dt, profile, noise_rng)
     if trouble.any:
-        time_s, dtheta, dv = _as_logged(time_s, dtheta, dv, cfg.sample_rate_hz, trouble, seed, stamp_rng)
+        time_s, dtheta, dv = _as_logged(time_s, dtheta, dv, cfg.sample_rate_hz, trouble, seed, streams.stamps)
     run = Run(time_s=time_s, dtheta_rad=dtheta, dv_mps=dv, meta=hand_meta(cfg, plan))
     truth = HandTruth(
         errors=errors,

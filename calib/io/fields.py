@@ -81,24 +81,15 @@ class Fields:
             raise CalibError(f"'{key}' = {value:g}{unit} is outside {span}{unit}", self.here(key), fix)
         return value
 
-    def numbers(
-        self,
-        key: str,
-        default=_MISSING,
-        *,
-        length: int | None = None,
-        low: float | None = None,
-        high: float | None = None,
-        positive: bool = False,
-        finite: bool = True,
-        unit: str = "",
-        fix: str | None = None,
-    ) -> list[float]:
+    def numbers(self, key: str, default=_MISSING, *, length: int | None = None, **checks) -> list[float]:
         """An array of numbers, each checked as :meth:`number` checks one.
 
-        ``length`` (when given) is the array's required size. A refused item is
-        named by its index, ``key[i]``; ``fix`` is the advice every refusal carries.
+        ``length`` (when given) is the array's required size. ``checks`` are
+        :meth:`number`'s keywords (``low``, ``high``, ``positive``, ``finite``,
+        ``unit``, ``fix``), applied to each item; a refused item is named by its
+        index, ``key[i]``; ``fix`` is the advice every refusal carries.
         """
+        fix = checks.get("fix")
         if key not in self.table:
             if default is _MISSING:
                 raise CalibError(f"missing key '{key}'", self.where, fix or f"add '{key} = [<number>, ...]'")
@@ -110,10 +101,7 @@ class Fields:
                 f"'{key}' must be an array of {size}, got {reprlib.repr(raw)}", self.here(key), fix
             )
         items = Fields({f"{key}[{i}]": item for i, item in enumerate(raw)}, self.where)
-        return [
-            items.number(name, low=low, high=high, positive=positive, finite=finite, unit=unit, fix=fix)
-            for name in items.table
-        ]
+        return [items.number(name, **checks) for name in items.table]
 
     def integer(self, key: str, default=_MISSING, *, low: int | None = None) -> int:
         """A whole number (booleans refused)."""

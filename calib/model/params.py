@@ -74,6 +74,7 @@ def _table() -> tuple[Parameter, ...]:
     rows: list[Parameter] = []
     axes = "xyz"
 
+    # over 8 parameters: one registry row, a Parameter's fields in its order
     def add(name, group, unit, si, req, paper, sensor, kind, row, col):
         rows.append(Parameter(len(rows), name, group, unit, si, req, paper, sensor, kind, row, col))
 

@@ -28,6 +28,7 @@ def compiled_arg(a, dtype=float) -> np.ndarray:
     return np.require(a, dtype, ["C_CONTIGUOUS", "WRITEABLE", "ALIGNED"])
 
 
+# over 8 parameters: a numba kernel, which takes plain arrays (no objects) to compile once per layout
 @kernel
 def filter_columns(F, Q, index, turns, turning, X, P, state, E, U):  # pragma: no cover - compiled
     """The recursion of :func:`calib.noise.gm_filter.gram_pass`, mounting by mounting, interval by interval.
@@ -58,6 +59,7 @@ def filter_columns(F, Q, index, turns, turning, X, P, state, E, U):  # pragma: n
             _filter_step(Fk, state[m], X[k, m], S_inv, gain, pred, E[m, k], U[m, k])
 
 
+# over 8 parameters: a numba kernel, which takes plain arrays (no objects) to compile once per layout
 @kernel
 def filter_mountings(F, Q, index, turns, turning, X, P, state, E, U):  # pragma: no cover - compiled
     """:func:`filter_columns` with the covariance recursion of all mountings at once.

@@ -12,7 +12,9 @@ Modules:
 """
 
 from calib.peers.imutk_method import (
+    IMUTK,
     ImuTkFit,
+    ImuTkOptions,
     carried_rotations,
     ellipsoid_start,
     fit_accel,
@@ -27,6 +29,7 @@ from calib.peers.scores import (
     ForceSpread,
     HandScore,
     PoseToPose,
+    RestSpans,
     angle_between,
     axes_of,
     force_spread,
@@ -40,8 +43,11 @@ __all__ = [
     "Axes",
     "ForceSpread",
     "HandScore",
+    "IMUTK",
     "ImuTkFit",
+    "ImuTkOptions",
     "PoseToPose",
+    "RestSpans",
     "angle_between",
     "axes_of",
     "carried_rotations",

@@ -190,6 +190,31 @@ def fit_gyro(rate: np.ndarray, time_s: np.ndarray, ups: np.ndarray, spans, scale
     return sol.x, float(sol.cost)
 
 
+@dataclass(frozen=True)
+class ImuTkOptions:
+    """How imu_tk's method is run: its start, its static intervals, its residuals.
+
+    Parameters
+    ----------
+    gyro_scale0 : float or ndarray, shape (3,)
+        The gyro's nominal scale, rad/s per raw unit: the fit's start.
+    interval_samples : int
+        The shortest static interval kept, and the samples of each used as residuals.
+    use_means : bool
+        One residual per interval (its mean) instead of its first ``interval_samples`` samples.
+    min_intervals : int
+        The fewest static intervals a threshold must give (imu_tk's: :data:`MIN_INTERVALS`).
+    """
+
+    gyro_scale0: np.ndarray | float = 1.0
+    interval_samples: int = INTERVAL_SAMPLES
+    use_means: bool = False
+    min_intervals: int = MIN_INTERVALS
+
+
+IMUTK = ImuTkOptions()  # imu_tk's own settings
+
+
 def imutk_calibrate(
     time_s: np.ndarray,
     gyro: np.ndarray,
@@ -197,10 +222,7 @@ def imutk_calibrate(
     gravity: float,
     *,
     init: tuple[int, int],
-    gyro_scale0: np.ndarray | float = 1.0,
-    interval_samples: int = INTERVAL_SAMPLES,
-    use_means: bool = False,
-    min_intervals: int = MIN_INTERVALS,
+    options: ImuTkOptions = IMUTK,
     raw_units: tuple[str, str] = ("counts", "counts"),
     source: str = "imu_tk's method",
 ) -> ImuTkFit:
@@ -216,14 +238,9 @@ def imutk_calibrate(
         Local gravity, m/s^2.
     init : (int, int)
         The initial static period ``T_init``, samples ``[start, end)``.
-    gyro_scale0 : float or ndarray, shape (3,)
-        The gyro's nominal scale, rad/s per raw unit: the fit's start.
-    interval_samples : int
-        The shortest static interval kept, and the samples of each used as residuals.
-    use_means : bool
-        One residual per interval (its mean) instead of its first ``interval_samples`` samples.
-    min_intervals : int
-        The fewest static intervals a threshold must give (imu_tk's: :data:`MIN_INTERVALS`).
+    options : ImuTkOptions
+        The gyro's nominal scale (the fit's start), the static intervals kept and the
+        residuals taken of them.
     raw_units : (str, str)
         The gyro's and the accelerometer's raw unit, for the correction.
     source : str
@@ -237,6 +254,7 @@ def imutk_calibrate(
     CalibError
         When no threshold gives :data:`MIN_INTERVALS` static intervals.
     """
+    interval_samples, min_intervals = options.interval_samples, options.min_intervals
     time_s, gyro, accel = (np.asarray(a, dtype=float) for a in (time_s, gyro, accel))
     a0, a1 = init
     base = float(np.linalg.norm(accel[a0:a1].var(axis=0, ddof=1)))
@@ -250,7 +268,7 @@ def imutk_calibrate(
         if len(start) < min_intervals:
             continue
         means = np.array([accel[a:b].mean(axis=0) for a, b in zip(start, end, strict=True)])
-        samples = means if use_means else np.vstack([accel[a : a + interval_samples] for a in start])
+        samples = means if options.use_means else np.vstack([accel[a : a + interval_samples] for a in start])
         p, cost = fit_accel(samples, gravity, ellipsoid_start(means, gravity))
         costs[k] = cost
         if best is None or cost < best[1]:
@@ -268,7 +286,7 @@ def imutk_calibrate(
     ups = np.array([f[a:b].mean(axis=0) for a, b in zip(start, end, strict=True)])
     ups /= np.linalg.norm(ups, axis=1, keepdims=True)
     spans = [(int(e), int(s) - 1) for e, s in zip(end[:-1], start[1:], strict=True)]  # as imu_tk's
-    scale0 = np.broadcast_to(np.asarray(gyro_scale0, dtype=float), (3,)).copy()
+    scale0 = np.broadcast_to(np.asarray(options.gyro_scale0, dtype=float), (3,)).copy()
     pg, gcost = fit_gyro(gyro - bias, time_s, ups, spans, scale0)
     gyro_c = _triad(_gyro_T(pg[:6]), pg[6:], bias, raw_units[0])
     return ImuTkFit(Correction(gyro_c, accel_c, None, None, source), k, start, end, acost, gcost, costs)

@@ -106,31 +106,41 @@ class PoseToPose:
     max_deg: float
 
 
-def pose_to_pose(
-    rate: np.ndarray,
-    force: np.ndarray,
-    time_s: np.ndarray,
-    start: np.ndarray,
-    end: np.ndarray,
-    clipped: np.ndarray | None = None,
-    latitude_deg: float = 0.0,
-) -> PoseToPose:
+@dataclass(frozen=True)
+class RestSpans:
+    """Where a recording rests, as the scores read it (the same rests for every tool).
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,)
+        Sample ends, s (each rate times its interval is the sample's increment).
+    start, end : ndarray of int, shape (K,)
+        The rests, ``[start, end)`` (:func:`calib.hand.rests.find_rests`).
+    clipped : ndarray of bool, shape (n,), optional
+        Samples at the sensor's range: a move holding one is left out.
+    latitude_deg : float
+        Only for the bound on the Earth's turn that is left out.
+    """
+
+    time_s: np.ndarray
+    start: np.ndarray
+    end: np.ndarray
+    clipped: np.ndarray | None = None
+    latitude_deg: float = 0.0
+
+
+def pose_to_pose(rate: np.ndarray, force: np.ndarray, rests: RestSpans) -> PoseToPose:
     """Gravity at each rest carried to the next by the calibrated gyro, against the one measured there.
 
     Parameters
     ----------
     rate, force : ndarray, shape (n, 3)
         Calibrated rates (rad/s) and specific force (m/s^2).
-    time_s : ndarray, shape (n,)
-        Sample ends, s (each rate times its interval is the sample's increment).
-    start, end : ndarray of int, shape (K,)
-        The rests, ``[start, end)``.
-    clipped : ndarray of bool, shape (n,), optional
-        Samples at the sensor's range: a move holding one is left out.
-    latitude_deg : float
-        Only for the bound on the Earth's turn that is left out.
+    rests : RestSpans
+        The sample ends, the rests, the clipped samples and the latitude.
     """
-    dt = sample_intervals(np.asarray(time_s, dtype=float))
+    start, end, clipped = rests.start, rests.end, rests.clipped
+    dt = sample_intervals(np.asarray(rests.time_s, dtype=float))
     dth = rate * dt[:, None]
     up = rest_means(force, start, end)
     up = up / np.linalg.norm(up, axis=1, keepdims=True)
@@ -146,7 +156,7 @@ def pose_to_pose(
         # C(end) = C(start) R in a fixed frame: the vertical in the body turns by R^T.
         angle[r] = math.degrees(angle_between(R.T @ up[r], up[r + 1])[0])
         turn[r] = math.degrees(math.acos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)))
-        horizontal = earth.RATE * math.cos(math.radians(latitude_deg))
+        horizontal = earth.RATE * math.cos(math.radians(rests.latitude_deg))
         bound = max(bound, math.degrees(horizontal * float(dt[a:b].sum())))
     ok = angle[used]
     rms = float(np.sqrt(np.mean(ok**2))) if ok.size else math.nan
@@ -206,14 +216,8 @@ def score(
     correction: Correction,
     raw_gyro: np.ndarray,
     raw_accel: np.ndarray,
-    time_s: np.ndarray,
-    start: np.ndarray,
-    end: np.ndarray,
-    *,
-    clipped: np.ndarray | None = None,
-    latitude_deg: float = 0.0,
-    gyro_zero: np.ndarray | None = None,
-    accel_zero: np.ndarray | None = None,
+    rests: RestSpans,
+    raw_zero: tuple[np.ndarray | None, np.ndarray | None] = (None, None),
 ) -> HandScore:
     """Score a correction on raw samples and given rests (the same rests for every tool).
 
@@ -223,25 +227,21 @@ def score(
         The calibration, in the raw samples' units.
     raw_gyro, raw_accel : ndarray, shape (n, 3)
         Raw rates and specific force, as logged (counts, deg/s, ...).
-    time_s : ndarray, shape (n,)
-        Sample ends, s.
-    start, end : ndarray of int, shape (K,)
-        The rests, ``[start, end)`` (:func:`calib.hand.rests.find_rests`).
-    clipped : ndarray of bool, shape (n,), optional
-        Samples at the sensor's range (their moves are left out).
-    latitude_deg : float
-        For the bound on the Earth's turn left out.
-    gyro_zero, accel_zero : ndarray, shape (3,), optional
-        Raw zero of a nominal conversion, for the biases in SI.
+    rests : RestSpans
+        The sample ends, the rests, the clipped samples (their moves are left out) and the
+        latitude.
+    raw_zero : (ndarray or None, ndarray or None), each shape (3,)
+        The gyro's and the accelerometer's raw zero of a nominal conversion, for the biases in SI.
 
     Returns
     -------
     HandScore
     """
     rate, force = correction.apply(raw_gyro, raw_accel)
+    gyro_zero, accel_zero = raw_zero
     return HandScore(
-        force_spread(force, start, end),
-        pose_to_pose(rate, force, time_s, start, end, clipped, latitude_deg),
+        force_spread(force, rests.start, rests.end),
+        pose_to_pose(rate, force, rests),
         axes_of(correction.gyro, gyro_zero),
         axes_of(correction.accel, accel_zero),
         correction.source,

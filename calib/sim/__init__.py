@@ -12,7 +12,7 @@ Modules:
   (``--errors``)
 """
 
-from calib.sim.gimbal_run import Truth, add_noise, encoder_angles, run_meta, simulate
+from calib.sim.gimbal_run import SIM, SimOptions, Truth, add_noise, encoder_angles, run_meta, simulate
 from calib.sim.log_mistakes import (
     accel_in_g,
     axes_swapped,
@@ -32,6 +32,8 @@ from calib.sim.truth import (
 )
 
 __all__ = [
+    "SIM",
+    "SimOptions",
     "Truth",
     "accel_in_g",
     "add_noise",

@@ -52,6 +52,43 @@ class Truth:
         return rotvec_to_dcm(self.setup_rotvec)
 
 
+@dataclass(frozen=True)
+class SimOptions:
+    """What a simulated run draws and how its base is mounted (the site and sampling: ``SimConfig``).
+
+    Parameters
+    ----------
+    setup_rotvec : array_like
+        Base mounting rotation vector (E, N, U), rad.
+    flip_error_deg : float
+        Each flip misses its angle by a uniform random amount within +-this.
+    noise : bool
+        Add the profile's noise.
+    seed : int or None
+        Seeds the noise, the flip errors and a drawn mounting.
+    random_setup_deg : float or None
+        If given, draw each setup component uniformly within +-this (deg), instead of
+        ``setup_rotvec``.
+    """
+
+    setup_rotvec: tuple[float, float, float] | np.ndarray = (0.0, 0.0, 0.0)
+    flip_error_deg: float = 0.0
+    noise: bool = True
+    seed: int | None = None
+    random_setup_deg: float | None = None
+
+    @classmethod
+    def drawn(cls, seed: int | None, tolerance_deg: float, flip_error_deg: float) -> SimOptions:
+        """A Monte Carlo run's: noise, the mounting drawn within +-``tolerance_deg`` (0: none),
+        each flip missing by up to ``flip_error_deg``, all from ``seed``.
+        """
+        setup = tolerance_deg if tolerance_deg > 0 else None
+        return cls(flip_error_deg=flip_error_deg, noise=True, seed=seed, random_setup_deg=setup)
+
+
+SIM = SimOptions()  # the defaults: no mounting rotation, no flip errors, noise, no seed
+
+
 def encoder_angles(
     seq: Sequence, time_s: np.ndarray, gimbal=None, played: Sequence | None = None
 ) -> np.ndarray:
@@ -108,11 +145,7 @@ def simulate(
     cfg: SimConfig,
     errors: ErrorModel,
     profile: NoiseProfile,
-    setup_rotvec=(0.0, 0.0, 0.0),
-    flip_error_deg: float = 0.0,
-    noise: bool = True,
-    seed: int | None = None,
-    random_setup_deg: float | None = None,
+    options: SimOptions = SIM,
     extra: ExtraValues | None = None,
     gimbal=None,
 ) -> tuple[Run, Truth]:
@@ -126,15 +159,9 @@ def simulate(
         Injected deterministic errors.
     profile : NoiseProfile
         White noise and any Gauss-Markov bias instability (ignored when
-        ``noise`` is False).
-    setup_rotvec : array_like
-        Base mounting rotation vector (E, N, U), rad.
-    flip_error_deg : float
-        Each flip misses its angle by a uniform random amount within +-this.
-    noise : bool
-    seed : int or None
-    random_setup_deg : float or None
-        If given, draw each setup component uniformly within +-this (deg).
+        ``options.noise`` is False).
+    options : SimOptions
+        The base mounting, flip errors, noise and seed.
     extra : ExtraValues, optional
         The optional terms of :mod:`calib.model.optional_terms` (lever arms, quadratic
         accelerometer terms, gyro-accelerometer time offset).
@@ -147,14 +174,17 @@ def simulate(
     run : Run
     truth : Truth
     """
+    seed, noise, flip_error_deg = options.seed, options.noise, options.flip_error_deg
+    setup_rotvec = options.setup_rotvec
     rng = np.random.default_rng(seed)
     flip_errors = (
         rng.uniform(-flip_error_deg, flip_error_deg, len(seq.steps))
         if flip_error_deg > 0
         else np.zeros(len(seq.steps))
     )
-    if random_setup_deg is not None:
-        setup_rotvec = np.radians(rng.uniform(-random_setup_deg, random_setup_deg, 3))
+    if options.random_setup_deg is not None:
+        spread = options.random_setup_deg
+        setup_rotvec = np.radians(rng.uniform(-spread, spread, 3))
     setup_rotvec = np.asarray(setup_rotvec, dtype=float)
     real = seq.with_flip_errors(flip_errors)
     tl = timeline(real)

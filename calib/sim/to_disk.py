@@ -32,7 +32,7 @@ from calib.runlog import write_windows
 from calib.sequence.definition import Sequence, timeline
 from calib.sequence.kinematics import SimConfig, true_increments
 
-from .gimbal_run import Truth, run_meta
+from .gimbal_run import SIM, SimOptions, Truth, run_meta
 
 WINDOW_SAMPLES = 1 << 18  # 2 MB per column: I/O in large blocks, memory still small
 
@@ -42,12 +42,21 @@ def sample_windows(
     cfg: SimConfig,
     errors: ErrorModel,
     profile: NoiseProfile,
-    setup_rotvec=(0.0, 0.0, 0.0),
-    noise: bool = True,
-    seed: int | None = None,
+    options: SimOptions = SIM,
     window: int = WINDOW_SAMPLES,
 ):
-    """Yield ``(time_s, dtheta_m, dv_m)`` of consecutive windows of the run (IMU output)."""
+    """Yield ``(time_s, dtheta_m, dv_m)`` of consecutive windows of the run (IMU output).
+
+    ``options`` gives the base mounting, noise and seed; flip errors and a drawn
+    mounting are not streamed.
+    """
+    noise = options.noise
+    if options.flip_error_deg > 0 or options.random_setup_deg is not None:
+        raise CalibError(
+            "flip errors and a drawn mounting are not written a window at a time",
+            "simulate_to_file",
+            "give the mounting as setup_rotvec, or simulate in memory (calib.sim.gimbal_run.simulate)",
+        )
     if profile.has_gauss_markov and noise:
         raise CalibError(
             f"profile {profile.name!r} has Gauss-Markov bias instability, which the "
@@ -55,9 +64,9 @@ def sample_windows(
             "profile",
             "use a white-noise profile, or `seqdesign simulate` for this run",
         )
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(options.seed)
     tl = timeline(seq)
-    R = rotvec_to_dcm(np.asarray(setup_rotvec, dtype=float))
+    R = rotvec_to_dcm(np.asarray(options.setup_rotvec, dtype=float))
     rate = cfg.sample_rate_hz
     n = int(math.floor(tl.duration_s * rate + 1e-9))  # as calib.sequence.kinematics.uniform_times
     for a in range(0, n, window):
@@ -83,13 +92,14 @@ def simulate_to_file(
     cfg: SimConfig,
     errors: ErrorModel,
     profile: NoiseProfile,
-    setup_rotvec=(0.0, 0.0, 0.0),
-    noise: bool = True,
-    seed: int | None = None,
+    options: SimOptions = SIM,
     meta_extra: dict | None = None,
     window: int = WINDOW_SAMPLES,
 ) -> tuple[int, Truth]:
     """Simulate a run window by window into ``path`` (.npz or .csv); nothing is left half-written.
+
+    ``options`` gives the base mounting, noise and seed (:func:`sample_windows`);
+    ``meta_extra`` keys join the run log's metadata.
 
     Returns
     -------
@@ -102,14 +112,14 @@ def simulate_to_file(
     if kind not in (".npz", ".csv"):
         raise CalibError(f"unknown run format {target.suffix!r}", str(path), "name the file .csv or .npz")
     meta = run_meta(cfg, seq.name) | (meta_extra or {})
-    windows = sample_windows(seq, cfg, errors, profile, setup_rotvec, noise, seed, window)
+    windows = sample_windows(seq, cfg, errors, profile, options, window)
     n = write_windows(target, meta, windows)
     truth = Truth(
         errors=errors,
-        setup_rotvec=np.asarray(setup_rotvec, dtype=float),
+        setup_rotvec=np.asarray(options.setup_rotvec, dtype=float),
         flip_errors_deg=np.zeros(len(seq.steps)),
         profile=profile.name,
-        seed=seed,
-        noise=noise,
+        seed=options.seed,
+        noise=options.noise,
     )
     return n, truth

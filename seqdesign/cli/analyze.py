@@ -56,10 +56,7 @@ TOLERANCE = click.FloatRange(0.0, 10.0)
 )
 @options.height("--by-hand LOG: site height, m, for a logger's file that does not carry it.")
 @options.gravity("--by-hand LOG: surveyed site gravity, m/s^2.")
-@options.columns
-@options.gyro_file
-@options.conversion
-@options.log_sample_rate()
+@options.log_reading
 @options.as_json
 @guarded
 # over 8 parameters: a click command, whose options arrive one parameter each
@@ -76,10 +73,7 @@ def analyze(
     placements,
     height,
     gravity_mps2,
-    columns,
-    gyro_file,
-    conversion,
-    sample_rate_hz,
+    reading,
     as_json,
 ):
     """Fisher information of SEQUENCE under a noise profile: predicted sigma of
@@ -88,12 +82,13 @@ def analyze(
     worst case over the +-tolerance mounting box.
     """
     if by_hand:
-        reading = dict(latitude_deg=latitude, height_m=height, columns=columns, gyro_file=gyro_file)
-        reading |= dict(conversion=conversion, sample_rate_hz=sample_rate_hz, gravity_mps2=gravity_mps2)
+        site = dict(latitude_deg=latitude, height_m=height, gravity_mps2=gravity_mps2)
         from seqdesign.handanalysis import Placement
 
         placement = Placement(placement_deg, placements)
-        hand = _analyze_by_hand(sequence, profile, requirements, with_terms, placement, view_path, reading)
+        hand = _analyze_by_hand(
+            sequence, profile, requirements, with_terms, placement, view_path, reading, site
+        )
         if as_json:
             emit_json(hand.to_json())
             return
@@ -141,12 +136,14 @@ def analyze(
         )
 
 
-def _analyze_by_hand(path, profile, requirements, with_terms, placement, view_path, reading):
+def _analyze_by_hand(path, profile, requirements, with_terms, placement, view_path, reading, site):
     """``analyze --by-hand POSES`` (or a recorded LOG): the prediction of :mod:`seqdesign.handanalysis`.
 
     ``placement`` a :class:`seqdesign.handanalysis.Placement`, ``reading`` the log's reading options
-    by name (its ``latitude_deg`` also the site of a pose list); returns the analysis.
+    (:class:`seqdesign.cli.options.LogReading`), ``site`` its ``latitude_deg``, ``height_m`` and
+    ``gravity_mps2`` as given (the latitude also the site of a pose list); returns the analysis.
     """
+    from calib.hand.fit_options import HAND_REQUIREMENTS
     from calib.hand.poses import load_poses
     from calib.model.optional_terms import as_extras
     from calib.model.requirements import load_requirements
@@ -162,32 +159,25 @@ def _analyze_by_hand(path, profile, requirements, with_terms, placement, view_pa
         from calib.runlog import read_run
         from seqdesign.handanalysis import analyze_recording
 
-        from .reading import hand_reading, run_notes
+        from .reading import run_notes
 
-        hand = hand_reading(reading["gyro_file"], reading["conversion"], reading["sample_rate_hz"])
-        run = read_run(
-            path,
-            latitude_deg=reading["latitude_deg"],
-            height_m=reading["height_m"],
-            columns=reading["columns"],
-            **hand,
-        )
-        gravity, notes = run_notes(run, reading["gravity_mps2"])
+        run = read_run(path, latitude_deg=site["latitude_deg"], height_m=site["height_m"], **reading.reader)
+        gravity, notes = run_notes(run, site["gravity_mps2"])
         for note in notes:
             info(note)
         result = analyze_recording(
             run,
             site_of(run, gravity),
             load_profile(profile),
-            load_requirements(requirements or "mems"),
+            load_requirements(requirements or HAND_REQUIREMENTS),
             as_extras(with_terms, by_hand=True),
         )
     else:
         result = analyze_hand(
             load_poses(path),
             load_profile(profile),
-            load_requirements(requirements or "mems"),
-            latitude_deg=45.0 if reading["latitude_deg"] is None else reading["latitude_deg"],
+            load_requirements(requirements or HAND_REQUIREMENTS),
+            latitude_deg=45.0 if site["latitude_deg"] is None else site["latitude_deg"],
             placement=placement,
             extras=as_extras(with_terms, by_hand=True),
         )

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import click
@@ -13,7 +14,6 @@ from calib.errors import CalibError
 from .handtroubles import TROUBLE_DEFAULTS, trouble_spec
 from .tools import emit_json, provenance
 
-DEFAULT_POSES = 20
 HAND_RATE_HZ = 100.0  # the rate of the hand-placed recordings (imu_tk's Xsens, imucal's)
 
 
@@ -52,15 +52,17 @@ def _errors(errors_file, table2, random_errors, rng):
     return ErrorModel.zero()
 
 
-def simulate_by_hand(output, profile, errors_file, table2, seed, site, noise_free, as_json, hand) -> None:
+def simulate_by_hand(output, profile, injected, seed, site, noise_free, as_json, hand) -> None:
     """Simulate a run placed by hand and write the run log and its truth file (with the plan).
 
-    ``site`` is ``(latitude, height, gravity_mps2, sample_rate_hz)`` as given; ``hand`` the
-    ``--by-hand`` options by name (the troubles' of :mod:`seqdesign.cli.handtroubles` too).
+    ``injected`` is ``(errors_file, table2)`` (``--errors``, ``--table2``) as given; ``site``
+    ``(latitude, height, gravity_mps2, sample_rate_hz)``; ``hand`` the ``--by-hand`` options by
+    name (the troubles' of :mod:`seqdesign.cli.handtroubles` too).
     """
+    errors_file, table2 = injected
     latitude, height, gravity_mps2, sample_rate_hz = site
-    from calib.hand.plan import random_hand_plan, xsens_like_plan
-    from calib.hand.simulate import simulate_by_hand as run_simulation, write_hand_run
+    from calib.hand.plan import HAND_PLAN, HAND_POSES, random_hand_plan, xsens_like_plan
+    from calib.hand.simulate import HandStreams, simulate_by_hand as run_simulation, write_hand_run
     from calib.nav import earth
     from calib.noise.profiles import load_profile
     from calib.sequence.definition import DEFAULT_HEIGHT_M, DEFAULT_LATITUDE_DEG
@@ -98,13 +100,13 @@ def simulate_by_hand(output, profile, errors_file, table2, seed, site, noise_fre
     # are the same with and without this fourth stream).
     streams = np.random.SeedSequence(seed).spawn(4)
     plan_rng, errors_rng, noise_rng, trouble_rng = (np.random.default_rng(s) for s in streams)
-    shape = {k: hand[k] for k in ("translation_m", "wobble_deg", "peak_rate_dps")}
+    given = ("translation_m", "wobble_deg", "peak_rate_dps", "rest_s", "first_rest_s")
+    shape = replace(HAND_PLAN, **{k: hand[k] for k in given if hand[k] is not None})
     if hand["like"] == "xsens":
-        plan = xsens_like_plan(plan_rng, **shape)
+        plan = xsens_like_plan(plan_rng, shape)
     else:
-        n_poses = hand["poses"] if hand["poses"] is not None else DEFAULT_POSES
-        rests = {k: hand[k] for k in ("rest_s", "first_rest_s") if hand[k]}
-        plan = random_hand_plan(n_poses, plan_rng, **shape, **rests)
+        n_poses = hand["poses"] if hand["poses"] is not None else HAND_POSES
+        plan = random_hand_plan(n_poses, plan_rng, shape)
     errors = _errors(errors_file, table2, hand["random_errors"], errors_rng)
     troubles = spec.draw(plan, trouble_rng)
     cfg = SimConfig(
@@ -117,9 +119,8 @@ def simulate_by_hand(output, profile, errors_file, table2, seed, site, noise_fre
         None if noise_free else prof,
         seed=seed,
         oversample=hand["oversample"],
-        rng=noise_rng,
         troubles=troubles,
-        stamp_rng=trouble_rng,
+        streams=HandStreams(noise_rng, trouble_rng),
     )
     files = {"errors": errors_file, "profile": profile if Path(profile).exists() else None}
     prov = provenance(files, motion="by-hand", profile=prof.name)

@@ -21,18 +21,10 @@ from .tools import emit_json, guarded, hidden_alias, info, provenance, refuse_ov
 @click.option("--sequence", help="Sequence file the run followed (default: detect flips from the gyros).")
 @options.profile("Noise profile that weights the fit and scales the sigmas.")
 @click.option("-o", "--output", help="Result TOML (default: RUN with .result.toml).")
-@click.option(
-    "--truth",
-    "truth_path",
-    type=click.Path(dir_okay=False),
-    help="Truth file to compare with (default: RUN.truth.toml if it exists).",
+@options.file_path(
+    "--truth", "truth_path", "Truth file to compare with (default: RUN.truth.toml if it exists)."
 )
-@options.latitude("Site latitude, deg, for a logger's CSV that does not carry latitude_deg.")
-@options.height("Site height, m, for a logger's CSV that does not carry height_m.")
-@options.columns
-@options.gyro_file
-@options.conversion
-@options.log_sample_rate()
+@options.log_site_and_reading
 @click.option(
     "--allow-gaps", is_flag=True, help="Remove duplicated samples and fill samples dropped at rest."
 )
@@ -72,11 +64,10 @@ from .tools import emit_json, guarded, hidden_alias, info, provenance, refuse_ov
     "Give the unit's white-noise profile (--profile mems, or your own): the default navigation "
     "profile's noise is far below a hand-turned unit's and finds no rest.",
 )
-@click.option(
+@options.file_path(
     "--correction",
     "correction_path",
-    type=click.Path(dir_okay=False),
-    help="Also write the result as the correction a user applies, calibrated = M (raw - b) per "
+    "Also write the result as the correction a user applies, calibrated = M (raw - b) per "
     "sensor with its sigmas, in the log's units (counts for a log read through --conversion).",
 )
 @click.option(
@@ -97,10 +88,7 @@ def calibrate(
     truth_path,
     latitude,
     height,
-    columns,
-    gyro_file,
-    conversion,
-    sample_rate_hz,
+    reading,
     allow_gaps,
     with_terms,
     without_terms,
@@ -128,8 +116,8 @@ def calibrate(
         {"-o": out_path, "--correction": correction_path},
         {
             "RUN": run_path,
-            "--gyro-file": gyro_file,
-            "--conversion": conversion,
+            "--gyro-file": reading.gyro_file,
+            "--conversion": reading.conversion,
             "--sequence": sequence,
             "--truth": truth_path,
             "--profile": profile,
@@ -144,11 +132,10 @@ def calibrate(
         requirements, chosen = default_for(prof, requirements)  # the profile's grade, when not given
         if chosen:
             info(chosen)
-    reading = dict(allow_gaps=allow_gaps, latitude_deg=latitude, height_m=height)
-    from .reading import hand_reading, run_notes
+    site = dict(allow_gaps=allow_gaps, latitude_deg=latitude, height_m=height)
+    from .reading import run_notes
 
-    hand = hand_reading(gyro_file, conversion, sample_rate_hz)  # --gyro-file, --conversion, --sample-rate-hz
-    if (columns or hand) and stream:
+    if reading.logger and stream:
         raise CalibError(
             "--columns, --gyro-file, --conversion and --sample-rate-hz read a logger's file, which is "
             "read whole",
@@ -158,12 +145,12 @@ def calibrate(
     run = None
     if by_hand and stream:
         raise CalibError("a run placed by hand is read whole", run_path, "leave out --stream")
-    if not columns and not hand and not by_hand and reads_in_chunks(run_path, stream, **reading):
+    if not reading.logger and not by_hand and reads_in_chunks(run_path, stream, **site):
         info(f"calibrating {run_path} chunk by chunk, profile {prof.name}")
     else:
         from calib.runlog import read_run
 
-        run = read_run(run_path, **reading, columns=columns, **hand)
+        run = read_run(run_path, **site, **reading.reader)
         info(run.clock.summary())  # jitter, dropped and duplicated samples (calib.clock)
         gravity_mps2, notes = run_notes(run, gravity_mps2)  # a conversion file's gravity, clipping
         for note in notes:

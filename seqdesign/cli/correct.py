@@ -18,20 +18,11 @@ from .tools import emit_json, guarded, info, refuse_overwrite
 
 @click.command(short_help="Apply a calibration (calibrated = M (raw - b)) to a log.")
 @click.argument("run_path", metavar="LOG")
-@click.option(
-    "--correction",
-    "correction_path",
-    required=True,
-    type=click.Path(dir_okay=False),
-    help="Correction TOML (calibrate --correction writes it).",
+@options.file_path(
+    "--correction", "correction_path", "Correction TOML (calibrate --correction writes it).", required=True
 )
 @click.option("-o", "--output", required=True, help="Calibrated log to write (imu-run/1, .csv or .npz).")
-@options.latitude("Site latitude, deg, for a logger's CSV that does not carry latitude_deg.")
-@options.height("Site height, m, for a logger's CSV that does not carry height_m.")
-@options.columns
-@options.gyro_file
-@options.conversion
-@options.log_sample_rate()
+@options.log_site_and_reading
 @options.as_json
 @guarded
 # over 8 parameters: a click command takes one parameter per option it declares
@@ -41,10 +32,7 @@ def correct(
     output,
     latitude,
     height,
-    columns,
-    gyro_file,
-    conversion,
-    sample_rate_hz,
+    reading,
     as_json,
 ):
     """Apply the correction to every sample of LOG and write the calibrated log."""
@@ -54,20 +42,17 @@ def correct(
     from calib.nav.strapdown import sample_intervals
     from calib.runlog import Run, read_run, write_run
 
-    from .reading import hand_reading
-
     refuse_overwrite(
         {"-o": output},
         {
             "LOG": run_path,
             "--correction": correction_path,
-            "--gyro-file": gyro_file,
-            "--conversion": conversion,
+            "--gyro-file": reading.gyro_file,
+            "--conversion": reading.conversion,
         },
     )
     correction = Correction.load(correction_path)
-    reading = dict(latitude_deg=latitude, height_m=height, columns=columns)
-    run = read_run(run_path, **reading, **hand_reading(gyro_file, conversion, sample_rate_hz))
+    run = read_run(run_path, latitude_deg=latitude, height_m=height, **reading.reader)
     raw_gyro, raw_accel = raw_samples(run, correction, run_path)
     rate, force = correction.apply(raw_gyro, raw_accel)
     dt = sample_intervals(run.time_s)[:, None]

@@ -17,6 +17,7 @@ def design_by_hand(
     ``options`` is a :class:`seqdesign.handdesign.HandDesignOptions`; returns the ``--json``
     document and the text.
     """
+    from calib.hand.fit_options import HAND_REQUIREMENTS
     from calib.io.files import atomic_write_text
     from calib.model.optional_terms import as_extras
     from calib.model.requirements import load_requirements
@@ -25,7 +26,7 @@ def design_by_hand(
     from seqdesign.handdesign import design_hand
     from seqdesign.handprotocol import pose_toml, write_protocol
 
-    prof, req = load_profile(profile), load_requirements(requirements or "mems")
+    prof, req = load_profile(profile), load_requirements(requirements or HAND_REQUIREMENTS)
     extras = as_extras(with_terms, by_hand=True)
     out = Path(output or "hand.toml")
     poses_from = options.pose_set

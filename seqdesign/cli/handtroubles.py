@@ -25,55 +25,53 @@ TROUBLE_DEFAULTS = {
 }
 
 
+def _trouble(flag: str, **kw):
+    """One trouble option, its default the one :data:`TROUBLE_DEFAULTS` holds for its parameter."""
+    return click.option(flag, default=TROUBLE_DEFAULTS[flag[2:].replace("-", "_")], **kw)
+
+
 def trouble_options(command):
     """Add the trouble options to a command (into the parameters of :data:`TROUBLE_DEFAULTS`)."""
     options = [
-        click.option(
+        _trouble(
             "--tremor-deg",
             type=click.FloatRange(0.0, 5.0),
-            default=0.0,
             help="--by-hand: the poses are held in the hand; RMS tremor angle per axis, deg "
             "(a hand: 0.05-0.5; 3-12 Hz).",
         ),
-        click.option(
+        _trouble(
             "--hand-held-s",
             type=click.FloatRange(0.0, min_open=True),
-            default=None,
             help="--by-hand with --tremor-deg: only the poses that begin in the first this many "
             "seconds are held in the hand (default: all).",
         ),
-        click.option(
+        _trouble(
             "--shake-mps2",
             type=click.FloatRange(0.0, 5.0),
-            default=None,
             help="--by-hand with --tremor-deg: RMS shake acceleration per axis of a held pose, "
             "m/s^2 [default: 0.05].",
         ),
-        click.option(
+        _trouble(
             "--stamp-jitter-ms",
             type=click.FloatRange(0.0, 1000.0),
-            default=0.0,
             help="--by-hand: the time column holds a host's reception times, each sample up to "
             "this late (uniform), in order (default 0: the nominal sample times).",
         ),
-        click.option(
+        _trouble(
             "--stamps",
             type=click.Choice(["seconds", "epoch-ms"]),
-            default="seconds",
             help="--by-hand: the time column in float seconds from the start, or in integer "
             "UNIX milliseconds (a .csv time_ms column).",
         ),
-        click.option(
+        _trouble(
             "--g-sensitivity-dphg",
             metavar="S|G9",
-            default=None,
             help="--by-hand: gyro g-sensitivity, deg/h/g: one number S (each of the 9 terms drawn "
             "within +-S) or 9 comma-separated values gsxx,gsxy,...,gszz.",
         ),
-        click.option(
+        _trouble(
             "--rate-error",
             type=click.FloatRange(-0.2, 0.2),
-            default=0.0,
             help="--by-hand: the IMU samples this fraction faster than its nominal rate "
             "(0.01: 1 %); the log keeps the nominal rate.",
         ),

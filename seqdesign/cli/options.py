@@ -7,6 +7,9 @@ The site limits are calib.nav.earth's, so the CLI refuses what the library would
 
 from __future__ import annotations
 
+import functools
+from dataclasses import dataclass, fields
+
 import click
 
 from calib.nav.earth import HEIGHT_RANGE_M, MAX_LATITUDE_DEG
@@ -113,25 +116,30 @@ columns = click.option(
 )
 
 
-gyro_file = click.option(
+def file_path(flag: str, dest: str, help: str, **kw):
+    """An option that names a file (not a folder), into ``dest`` (``kw``: click's ``required``,
+    ``metavar``, ...).
+    """
+    return click.option(flag, dest, type=click.Path(dir_okay=False), help=help, **kw)
+
+
+gyro_file = file_path(
     "--gyro-file",
     "gyro_file",
-    type=click.Path(dir_okay=False),
+    "imu_tk's gyro file: RUN is then its accelerometer file, both 't x y z' rows in raw "
+    "counts without a header (give --conversion; docs/logs-columns.md).",
     default=None,
     metavar="FILE",
-    help="imu_tk's gyro file: RUN is then its accelerometer file, both 't x y z' rows in raw "
-    "counts without a header (give --conversion; docs/logs-columns.md).",
 )
 
-conversion = click.option(
+conversion = file_path(
     "--conversion",
     "conversion",
-    type=click.Path(dir_okay=False),
-    default=None,
-    metavar="FILE",
-    help="Nominal conversion of raw counts to SI (zero and counts per unit, per sensor and axis): "
+    "Nominal conversion of raw counts to SI (zero and counts per unit, per sensor and axis): "
     "a TOML with [gyro] and [accel], or imu_tk's nominal-values text. Needed by columns in "
     "counts (gyro_x_counts, accel_x_counts) and by --gyro-file.",
+    default=None,
+    metavar="FILE",
 )
 
 
@@ -147,3 +155,68 @@ def log_sample_rate(
         default=None,
         help=help,
     )
+
+
+def together(*decorators):
+    """One decorator that applies ``decorators`` as if listed in this order above a command."""
+
+    def apply(command):
+        for decorator in reversed(decorators):
+            command = decorator(command)
+        return command
+
+    return apply
+
+
+@dataclass(frozen=True)
+class LogReading:
+    """How a logger's file is read: ``--columns``, ``--gyro-file``, ``--conversion``,
+    ``--sample-rate-hz`` (None: not given).
+    """
+
+    columns: str | None = None
+    gyro_file: str | None = None
+    conversion: str | None = None
+    sample_rate_hz: float | None = None
+
+    @property
+    def by_hand(self) -> dict:
+        """The reader's keyword arguments of the last three options (empty when none is given)."""
+        given = {
+            "gyro_path": self.gyro_file,
+            "conversion": self.conversion,
+            "sample_rate_hz": self.sample_rate_hz,
+        }
+        return {key: value for key, value in given.items() if value is not None}
+
+    @property
+    def reader(self) -> dict:
+        """The keyword arguments of :func:`calib.runlog.read_run`: the columns and those given."""
+        return {"columns": self.columns, **self.by_hand}
+
+    @property
+    def logger(self) -> bool:
+        """Whether the file is a logger's own (any of the four given): it is read whole."""
+        return bool(self.columns or self.by_hand)
+
+
+def log_reading(command):
+    """``--columns``, ``--gyro-file``, ``--conversion`` and ``--sample-rate-hz``, given to the
+    command as one parameter ``reading`` (a :class:`LogReading`).
+    """
+    names = [f.name for f in fields(LogReading)]
+
+    @functools.wraps(command)
+    def run(*args, **kwargs):
+        kwargs["reading"] = LogReading(**{name: kwargs.pop(name) for name in names})
+        return command(*args, **kwargs)
+
+    return together(columns, gyro_file, conversion, log_sample_rate())(run)
+
+
+# The site of a logger's CSV that does not carry it, and how the file is read (calibrate, correct).
+log_site_and_reading = together(
+    latitude("Site latitude, deg, for a logger's CSV that does not carry latitude_deg."),
+    height("Site height, m, for a logger's CSV that does not carry height_m."),
+    log_reading,
+)

@@ -1,20 +1,15 @@
 """What a command says about a run read by hand's options: the conversion's gravity, clipping.
 
 ``calibrate`` and ``view`` read a run with ``--gyro-file``, ``--conversion`` and
-``--sample-rate-hz`` (:func:`calib.runlog.read_run`); these are the lines they
-print about it, and the gravity a conversion file states when the user gives none.
+``--sample-rate-hz`` (:class:`seqdesign.cli.options.LogReading`, :func:`calib.runlog.read_run`);
+these are the lines they print about it, and the gravity a conversion file states when the user
+gives none.
 """
 
 from __future__ import annotations
 
 from calib.runlog import Run
 from calib.runlog.clipping import describe_clipping
-
-
-def hand_reading(gyro_file, conversion, sample_rate_hz) -> dict:
-    """The reader's keyword arguments of the three options (empty when none is given)."""
-    given = {"gyro_path": gyro_file, "conversion": conversion, "sample_rate_hz": sample_rate_hz}
-    return {key: value for key, value in given.items() if value is not None}
 
 
 def run_notes(run: Run, gravity_mps2: float | None) -> tuple[float | None, list[str]]:

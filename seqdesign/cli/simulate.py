@@ -85,19 +85,19 @@ def _run_meta(prov: dict, profile_name: str) -> dict:
 
 def _simulate_streamed(setup: _Setup, cfg, output, setup_deg, seed, noise_free, as_json) -> None:
     """``simulate --stream``: the run log written window by window (calib.sim.to_disk)."""
+    from calib.sim.gimbal_run import SimOptions
     from calib.sim.to_disk import simulate_to_file
     from calib.sim.truth import truth_path_for, write_truth
 
     prov = setup.provenance()
+    mounting = np.radians(setup_deg) if setup_deg else (0.0, 0.0, 0.0)
     n, truth = simulate_to_file(
         output,
         setup.seq,
         cfg,
         setup.errors,
         setup.profile,
-        np.radians(setup_deg) if setup_deg else (0.0, 0.0, 0.0),
-        noise=not noise_free,
-        seed=seed,
+        SimOptions(setup_rotvec=mounting, noise=not noise_free, seed=seed),
         meta_extra=_run_meta(prov, setup.profile.name),
     )
     truth_path = truth_path_for(output)
@@ -118,18 +118,18 @@ def _simulate_streamed(setup: _Setup, cfg, output, setup_deg, seed, noise_free, 
     info(f"wrote {output} ({n} samples, {n / rate:.1f} s, profile {setup.profile.name}) and {truth_path}")
 
 
-# The --by-hand options and their defaults (given without --by-hand, they are refused).
-HAND_DEFAULTS = {
-    "poses": None,
-    "like": None,
-    "peak_rate_dps": None,
-    "translation_m": 0.3,
-    "wobble_deg": 10.0,
-    "oversample": 10,
-    "random_errors": None,
-    "rest_s": None,
-    "first_rest_s": None,
-}
+# The --by-hand options (given without --by-hand, that is away from their defaults, they are refused).
+HAND_OPTIONS = (
+    "poses",
+    "like",
+    "peak_rate_dps",
+    "translation_m",
+    "wobble_deg",
+    "oversample",
+    "random_errors",
+    "rest_s",
+    "first_rest_s",
+)
 
 
 @click.command(
@@ -138,12 +138,7 @@ HAND_DEFAULTS = {
 @click.argument("sequence", required=False)
 @click.option("-o", "--output", required=True, help="Run log to write: .csv or .npz.")
 @options.profile()
-@click.option(
-    "--errors",
-    "errors_file",
-    type=click.Path(dir_okay=False),
-    help="TOML file with an [errors] table (spec names and units).",
-)
+@options.file_path("--errors", "errors_file", "TOML file with an [errors] table (spec names and units).")
 @click.option("--table2", is_flag=True, help="Inject the paper's Table 2 standard values.")
 @click.option(
     "--setup-deg", nargs=3, type=float, metavar="E N U", help="Base mounting rotation vector, degrees."
@@ -309,9 +304,8 @@ def simulate(
         }
         by_hand_refusals(sequence, gimbal_run)
         site = (latitude, height, gravity_mps2, sample_rate_hz)
-        simulate_by_hand(
-            output, profile, errors_file, table2, seed, site, noise_free, as_json, hand | troubles
-        )
+        injected = (errors_file, table2)
+        simulate_by_hand(output, profile, injected, seed, site, noise_free, as_json, hand | troubles)
         return
     names = ["--" + k.replace("_", "-") for k, v in hand.items() if v != HAND_DEFAULTS[k]]
     if names := names + given_troubles(troubles):
@@ -325,7 +319,7 @@ def simulate(
     from calib.model.optional_terms import parse_values
     from calib.runlog import write_run
     from calib.sequence.kinematics import SimConfig
-    from calib.sim.gimbal_run import simulate as run_simulation
+    from calib.sim.gimbal_run import SimOptions, simulate as run_simulation
     from calib.sim.truth import truth_path_for, write_truth
     from seqdesign.analysis import resolve_site
 
@@ -359,11 +353,13 @@ def simulate(
         cfg,
         errors,
         prof,
-        setup_rotvec=np.radians(setup_deg) if setup_deg else (0, 0, 0),
-        flip_error_deg=flip_error_deg,
-        noise=not noise_free,
-        seed=seed,
-        random_setup_deg=3.0 if random_setup else None,
+        SimOptions(
+            setup_rotvec=np.radians(setup_deg) if setup_deg else (0, 0, 0),
+            flip_error_deg=flip_error_deg,
+            noise=not noise_free,
+            seed=seed,
+            random_setup_deg=3.0 if random_setup else None,
+        ),
         extra=extra,
         gimbal=gimbal,
     )
@@ -392,5 +388,8 @@ def simulate(
             f"{'noise-free' if noise_free else 'profile ' + prof.name}) and {truth_path}"
         )
 
+
+# The --by-hand options' defaults, as the command declares them.
+HAND_DEFAULTS = {p.name: p.default for p in simulate.params if p.name in HAND_OPTIONS}
 
 simulate_stream = hidden_alias(simulate, "simulate-stream", "stream")

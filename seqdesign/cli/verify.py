@@ -42,11 +42,10 @@ from .tools import emit_json, guarded, info
     show_default=True,
     help="Each flip misses its angle by up to this much (uniform).",
 )
-@click.option(
+@options.file_path(
     "--errors",
     "errors_file",
-    type=click.Path(dir_okay=False),
-    help="TOML file with an [errors] table: every run has these errors (default: each run draws a "
+    "TOML file with an [errors] table: every run has these errors (default: each run draws a "
     "unit of the profile's grade, see docs/verify.md).",
 )
 @click.option("--table2", is_flag=True, help="Every run has the paper's Table 2 standard errors.")
@@ -133,7 +132,9 @@ def verify(
     # A unit placed by hand is judged by the mems requirements unless told otherwise, as calibrate does.
     prof = load_profile(profile)
     if by_hand:
-        req = load_requirements(requirements or "mems")
+        from calib.hand.fit_options import HAND_REQUIREMENTS
+
+        req = load_requirements(requirements or HAND_REQUIREMENTS)
     else:
         requirements, chosen = default_for(prof, requirements)  # the profile's grade, when not given
         if chosen:
@@ -154,7 +155,8 @@ def verify(
     if by_hand or sequence is None:
         from .verifyhand import verify_by_hand
 
-        shape = (like, poses, peak_rate_dps, by_hand, placement_deg, troubles)
+        drawn = {"like": like, "poses": poses, "peak_rate_dps": peak_rate_dps, "placement_deg": placement_deg}
+        shape = (drawn, by_hand, troubles)
         result = verify_by_hand(sequence, prof, chosen, with_terms, where, errors, shape, RunsProgress())
     else:
         result = _verify_sequence(sequence, prof, chosen, with_terms, where, errors, gimbal_file)

@@ -16,8 +16,9 @@ def verify_by_hand(sequence, prof, options, with_terms, where, errors, shape, pr
     ``options`` is a :class:`seqdesign.verify.VerifyOptions` (its runs, seed, requirements,
     workers and scheduler; a hand run has no mounting box nor flip error, and reads ``with_terms``
     as a hand fit's), ``where`` ``(latitude, height, gravity_mps2, sample_rate_hz)`` as given,
-    ``shape`` ``(like, poses, peak_rate_dps, by_hand, placement_deg, troubles)``, ``troubles``
-    the trouble options by name (:mod:`seqdesign.cli.handtroubles`; None: their defaults); a
+    ``shape`` ``(drawn, by_hand, troubles)``: ``drawn`` the :class:`seqdesign.verify.HandShape`
+    fields given (``like``, ``poses``, ``peak_rate_dps``, ``placement_deg``), ``troubles`` the
+    trouble options by name (:mod:`seqdesign.cli.handtroubles`; None: their defaults); a
     SEQUENCE given with ``--by-hand`` is a pose list, whose runs are held against
     ``analyze --by-hand``'s prediction.
     """
@@ -29,7 +30,7 @@ def verify_by_hand(sequence, prof, options, with_terms, where, errors, shape, pr
 
     from .handtroubles import TROUBLE_DEFAULTS, trouble_spec
 
-    like, poses, peak_rate_dps, by_hand, placement_deg, troubles = shape
+    drawn, by_hand, troubles = shape
     pose_list = None
     if sequence is not None:
         if not by_hand or not str(sequence).lower().endswith(".toml"):
@@ -55,15 +56,7 @@ def verify_by_hand(sequence, prof, options, with_terms, where, errors, shape, pr
         sample_rate_hz=sample_rate_hz,
         gravity_mps2=gravity_mps2,
     )
-    hand = HandShape(
-        like=like,
-        poses=poses,
-        peak_rate_dps=peak_rate_dps,
-        g_sensitivity=bool(extras.groups),
-        pose_list=pose_list,
-        placement_deg=placement_deg,
-        troubles=spec,
-    )
+    hand = HandShape(**drawn, g_sensitivity=bool(extras.groups), pose_list=pose_list, troubles=spec)
     predicted = np.full(21, np.nan)
     if pose_list is not None:  # the analyser's prediction the runs are held against
         from seqdesign.handanalysis import Placement, analyze_hand
@@ -73,7 +66,7 @@ def verify_by_hand(sequence, prof, options, with_terms, where, errors, shape, pr
             prof,
             options.requirements,
             latitude_deg=lat,
-            placement=Placement(placement_deg),
+            placement=Placement(hand.placement_deg),
             extras=extras,
             cure=False,
         ).worst_sigma

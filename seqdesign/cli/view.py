@@ -114,17 +114,11 @@ def _load_result(run_path, explicit):
     help="Sequence the run followed (default: the run's 'sequence' key "
     "if it is a shipped sequence matching the log).",
 )
-@click.option(
-    "--result",
-    "result_path",
-    type=click.Path(dir_okay=False),
-    help="Calibration result (default: RUN.result.toml beside the run, if it exists).",
+@options.file_path(
+    "--result", "result_path", "Calibration result (default: RUN.result.toml beside the run, if it exists)."
 )
-@click.option(
-    "--truth",
-    "truth_path",
-    type=click.Path(dir_okay=False),
-    help="Truth file of a simulated run (default: RUN.truth.toml, if it exists).",
+@options.file_path(
+    "--truth", "truth_path", "Truth file of a simulated run (default: RUN.truth.toml, if it exists)."
 )
 @click.option("-o", "--output", help="Recording to write (default: RUN with .rrd).")
 @click.option(
@@ -136,10 +130,7 @@ def _load_result(run_path, explicit):
     "viewer asked for did not open; not 2, since the input was fine.",
 )
 @click.option("--allow-gaps", is_flag=True, help="Accept time gaps in the log.")
-@options.columns
-@options.gyro_file
-@options.conversion
-@options.log_sample_rate()
+@options.log_reading
 @options.latitude("Site latitude, deg, for a logger's file that does not carry latitude_deg.")
 @options.height("Site height, m, for a logger's file that does not carry height_m.")
 @click.option(
@@ -159,10 +150,7 @@ def view(
     output,
     spawn,
     allow_gaps,
-    columns,
-    gyro_file,
-    conversion,
-    sample_rate_hz,
+    reading,
     latitude,
     height,
     profile,
@@ -180,12 +168,9 @@ def view(
     _check_output(out)
     from calib.fit.replay import motion_profile, review_run
 
-    from .reading import hand_reading, run_notes
+    from .reading import run_notes
 
-    hand = hand_reading(gyro_file, conversion, sample_rate_hz)
-    run = read_run(
-        run_path, allow_gaps=allow_gaps, columns=columns, latitude_deg=latitude, height_m=height, **hand
-    )
+    run = read_run(run_path, allow_gaps=allow_gaps, latitude_deg=latitude, height_m=height, **reading.reader)
     for note in run_notes(run, None)[1]:  # clipped stretches (gravity: the review uses the run's)
         _info(note)
     result, used_result, result_note = _load_result(run_path, result_path)

@@ -23,7 +23,7 @@ from calib.noise.profiles import load_profile
 from calib.runlog import Run, write_run
 from calib.sequence.definition import load_sequence
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 from calib.sim.truth import write_truth
 
 
@@ -96,10 +96,7 @@ def bases_fixture(work) -> dict[str, bytes]:
         SimConfig(latitude_rad=math.radians(40.0), sample_rate_hz=10.0),
         ErrorModel.from_table2(),
         load_profile("navigation"),
-        setup_rotvec=np.radians([1.0, -2.0, 3.0]),
-        flip_error_deg=0.2,
-        noise=True,
-        seed=3,
+        options=SimOptions(setup_rotvec=np.radians([1.0, -2.0, 3.0]), flip_error_deg=0.2, noise=True, seed=3),
     )
     write_truth(work / "base.truth.toml", truth, {"tool_version": "fuzz"})
     out["truth"] = (work / "base.truth.toml").read_bytes()

@@ -16,7 +16,7 @@ from calib.noise.profiles import NoiseProfile, load_profile
 from calib.runlog import Run, write_run
 from calib.sequence.definition import Sequence, Step, load_sequence
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 from seqdesign import api as sd
 from seqdesign.cli import main
 
@@ -98,7 +98,11 @@ def static_csv(tmp_path_factory):
     """A static log as a logger writes it: no format line, no height (20 min at 50 Hz, white noise)."""
     seq = Sequence("static", ("east", "south", "down"), (Step("Z", 90.0, 10.0, 1.0),), initial_dwell_s=1200.0)
     run, _ = simulate(
-        seq, SimConfig(latitude_rad=math.radians(51.08), sample_rate_hz=50.0), ErrorModel.zero(), TRUE, seed=4
+        seq,
+        SimConfig(latitude_rad=math.radians(51.08), sample_rate_hz=50.0),
+        ErrorModel.zero(),
+        TRUE,
+        options=SimOptions(seed=4),
     )
     keep = run.time_s <= 1200.0
     meta = {k: v for k, v in run.meta.items() if k != "sequence"}

@@ -17,7 +17,7 @@ from calib.calibration.entry import calibrate
 from calib.errors import CalibError
 from calib.hand.poses import load_poses, tip_to
 from calib.hand.predict import plan_sigma
-from calib.hand.simulate import draw_errors, simulate_by_hand
+from calib.hand.simulate import HandStreams, draw_errors, simulate_by_hand
 from calib.model import params as P
 from calib.model.requirements import load_requirements
 from calib.noise.profiles import load_profile
@@ -114,7 +114,7 @@ def test_the_prediction_is_what_calibrating_noisy_runs_of_the_poses_achieves(tmp
     for seed in range(40):
         rng = np.random.default_rng(100 + seed)
         truth = draw_errors(error_half_range("mems"), rng)
-        run, _ = simulate_by_hand(poses.plan(), config, truth, MEMS, rng=rng)
+        run, _ = simulate_by_hand(poses.plan(), config, truth, MEMS, streams=HandStreams(noise=rng))
         result = calibrate(run, MEMS, by_hand=True, requirements=REQ)
         errors.append(result.values - truth.values)
         reported.append(result.sigma)

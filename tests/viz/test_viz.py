@@ -132,7 +132,7 @@ def sim():
     from calib.noise.profiles import load_profile
     from calib.sequence.definition import load_sequence
     from calib.sequence.kinematics import SimConfig
-    from calib.sim.gimbal_run import simulate
+    from calib.sim.gimbal_run import SimOptions, simulate
 
     seq = load_sequence("paper-9pos")
     run, truth = simulate(
@@ -140,7 +140,7 @@ def sim():
         SimConfig(math.radians(40.0), sample_rate_hz=RATE_HZ),
         ErrorModel.from_table2(),
         load_profile("navigation"),
-        seed=3,
+        options=SimOptions(seed=3),
     )
     assert run.n_samples == N_SAMPLES
     return seq, run, truth
@@ -683,13 +683,13 @@ def test_noise_sigma_matches_monte_carlo_spread():
     from calib.noise.profiles import load_profile
     from calib.sequence.definition import load_sequence
     from calib.sequence.kinematics import SimConfig
-    from calib.sim.gimbal_run import simulate
+    from calib.sim.gimbal_run import SimOptions, simulate
 
     seq, lat = load_sequence("paper-9pos"), math.radians(40.0)
     cfg, profile = SimConfig(lat, sample_rate_hz=10.0), load_profile("navigation")
     v = []
     for seed in range(40):
-        run, truth = simulate(seq, cfg, ErrorModel(np.zeros(21)), profile, seed=seed)
+        run, truth = simulate(seq, cfg, ErrorModel(np.zeros(21)), profile, options=SimOptions(seed=seed))
         nav = navigate(
             run.dtheta_rad, run.dv_mps, run.time_s, truth.R_setup @ seq.C_start, Site(lat, cfg.gravity)
         )
@@ -714,7 +714,7 @@ def test_calibrated_velocity_stays_inside_the_envelope():
     from calib.noise.profiles import load_profile
     from calib.sequence.definition import load_sequence
     from calib.sequence.kinematics import SimConfig
-    from calib.sim.gimbal_run import simulate
+    from calib.sim.gimbal_run import SimOptions, simulate
 
     seq = load_sequence("paper-9pos")
     inside = []
@@ -724,8 +724,7 @@ def test_calibrated_velocity_stays_inside_the_envelope():
             SimConfig(math.radians(40.0), sample_rate_hz=10.0),
             ErrorModel.from_table2(),
             load_profile("navigation"),
-            seed=seed,
-            random_setup_deg=3.0,
+            options=SimOptions(seed=seed, random_setup_deg=3.0),
         )
         review = review_run(run, calibrate(run, "navigation", sequence=seq))
         assert review.noise_profile == "navigation"

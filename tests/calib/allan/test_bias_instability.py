@@ -15,7 +15,7 @@ from calib.nav.site import Site
 from calib.noise.profiles import NoiseProfile, load_profile
 from calib.sequence.definition import load_sequence
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 
 LAT = math.radians(40.0)
 WHITE = load_profile("navigation")
@@ -44,8 +44,11 @@ def test_simulated_bias_wanders_with_the_profiles_sigma():
     )
     seq = load_sequence("paper-9pos")
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=20.0)
-    ref, _ = simulate(seq, cfg, ErrorModel.zero(), prof, noise=False)
-    runs = [simulate(seq, cfg, ErrorModel.zero(), prof, noise=True, seed=s)[0] for s in range(20)]
+    ref, _ = simulate(seq, cfg, ErrorModel.zero(), prof, options=SimOptions(noise=False))
+    runs = [
+        simulate(seq, cfg, ErrorModel.zero(), prof, options=SimOptions(noise=True, seed=s))[0]
+        for s in range(20)
+    ]
     n = int(170 * cfg.sample_rate_hz)
     d = np.stack([(r.dv_mps[:n] - ref.dv_mps[:n]) * cfg.sample_rate_hz for r in runs])
     # Sample means at t = 0 over 20 runs x 3 axes = 60 values of N(0, sigma^2):
@@ -62,7 +65,7 @@ def test_noise_free_recovery_under_the_gm_weighting():
     # The weights change, not the fixed point: a noise-free run still comes back exactly.
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=50.0)
     truth = ErrorModel.from_table2()
-    run, _ = simulate(load_sequence("paper-9pos"), cfg, truth, GM, noise=False)
+    run, _ = simulate(load_sequence("paper-9pos"), cfg, truth, GM, options=SimOptions(noise=False))
     fit = fit_run(run, Site(LAT, cfg.gravity), GM)
     assert fit.converged
     assert np.all(np.abs(fit.values - truth.values) < P.REQUIREMENTS_SI / 20.0)
@@ -78,7 +81,7 @@ def test_gm_weighting_gives_honest_sigmas_and_ignoring_it_does_not():
     truth = ErrorModel.from_table2()
     nees = {"gm": [], "white": []}
     for seed in range(12):
-        run, _ = simulate(seq, cfg, truth, GM, noise=True, seed=100 + seed)
+        run, _ = simulate(seq, cfg, truth, GM, options=SimOptions(noise=True, seed=100 + seed))
         for key, prof in (("gm", GM), ("white", WHITE)):
             fit = fit_run(run, Site(LAT, cfg.gravity), prof)
             e = fit.values - truth.values

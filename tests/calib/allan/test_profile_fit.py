@@ -16,7 +16,7 @@ from calib.noise.profiles import NoiseProfile, load_profile
 from calib.runlog import Run, read_run, write_run
 from calib.sequence.definition import Sequence, Step
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 from seqdesign.cli import main
 
 # The simulated unit: white noise and a first-order GM bias on every axis.
@@ -49,7 +49,7 @@ def static_log(path: Path, seed: int = 3) -> Path:
         SimConfig(latitude_rad=math.radians(51.08), sample_rate_hz=100.0),
         ErrorModel.zero(),
         TRUE,
-        seed=seed,
+        options=SimOptions(seed=seed),
     )
     keep = run.time_s <= STATIC_S
     meta = {k: v for k, v in run.meta.items() if k != "sequence"}

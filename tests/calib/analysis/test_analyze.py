@@ -22,7 +22,7 @@ from calib.noise.profiles import load_profile
 from calib.noise.whitening import noise_model
 from calib.sequence.definition import load_sequence, sequence_from_dict
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 from seqdesign.cli import main
 
 LAT = math.radians(40.0)
@@ -35,7 +35,11 @@ def _observations(seq, values, phi0, t_obs, Phi_vv):
     """Full nonlinear pipeline: simulate (errors injected) -> navigate raw data -> z."""
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=RATE)
     run, _ = simulate(
-        seq, cfg, ErrorModel(values), load_profile("navigation"), setup_rotvec=SETUP, noise=False
+        seq,
+        cfg,
+        ErrorModel(values),
+        load_profile("navigation"),
+        options=SimOptions(setup_rotvec=SETUP, noise=False),
     )
     C_true = rotvec_to_dcm(SETUP) @ seq.C_start
     # C~ = (I - [phi x]) C  <=>  C~ = exp(-[phi x]) C to first order.

@@ -17,7 +17,7 @@ from calib.noise.profiles import load_profile
 from calib.runlog import read_run, write_run
 from calib.sequence.definition import load_sequence
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 from seqdesign.cli import main
 
 LAT = math.radians(40.0)
@@ -33,7 +33,9 @@ def paper():
 def noise_free_fit(paper):
     cfg = SimConfig(latitude_rad=LAT)
     truth = ErrorModel.from_table2()
-    run, _ = simulate(paper, cfg, truth, load_profile("navigation"), setup_rotvec=SETUP, noise=False)
+    run, _ = simulate(
+        paper, cfg, truth, load_profile("navigation"), options=SimOptions(setup_rotvec=SETUP, noise=False)
+    )
     fit = fit_run(run, Site(LAT, cfg.gravity), load_profile("navigation"))
     return fit, truth, run
 
@@ -77,7 +79,11 @@ def test_any_heading_works(paper):
     cfg = SimConfig(latitude_rad=LAT)
     truth = ErrorModel.from_table2()
     run, _ = simulate(
-        paper, cfg, truth, load_profile("navigation"), setup_rotvec=np.radians([0.5, 1.0, 130.0]), noise=False
+        paper,
+        cfg,
+        truth,
+        load_profile("navigation"),
+        options=SimOptions(setup_rotvec=np.radians([0.5, 1.0, 130.0]), noise=False),
     )
     fit = fit_run(run, Site(LAT, cfg.gravity), load_profile("navigation"))
     assert fit.converged
@@ -90,11 +96,13 @@ def test_monte_carlo_statistical_honesty(name):
     """N = 50 noisy runs: mean NEES in the 99 % interval of chi2(1050)/50 and
     RMS(error)/mean(sigma) in [0.67, 1.36] for every parameter (99 % over 21 at N = 50)."""
     from calib.analysis.mounting import analyze
-    from seqdesign.montecarlo import run_trials
+    from seqdesign.montecarlo import TrialConfig, run_trials
 
     prof = load_profile("navigation")
     paper = load_sequence(name)
-    trials = run_trials(paper, prof, 50, seed=1000, tolerance_deg=3.0, flip_error_deg=0.5, workers=2)
+    trials = run_trials(
+        paper, prof, 50, seed=1000, config=TrialConfig(tolerance_deg=3.0, flip_error_deg=0.5), workers=2
+    )
     assert trials.converged.all()
     assert 18.1 <= trials.nees.mean() <= 24.2, trials.nees.mean()
     ratio = trials.rms_error / trials.mean_sigma

@@ -154,7 +154,7 @@ def test_mems_monte_carlo_nees_is_in_its_band():
     from calib.model.error_model import ErrorModel
     from calib.sequence.definition import load_sequence
     from calib.sequence.kinematics import SimConfig
-    from calib.sim.gimbal_run import simulate
+    from calib.sim.gimbal_run import SimOptions, simulate
 
     half = np.array(
         [
@@ -173,9 +173,7 @@ def test_mems_monte_carlo_nees_is_in_its_band():
             SimConfig(latitude_rad=LAT, sample_rate_hz=50.0),
             errors,
             prof,
-            seed=seed,
-            flip_error_deg=0.5,
-            random_setup_deg=3.0,
+            options=SimOptions(flip_error_deg=0.5, seed=seed, random_setup_deg=3.0),
         )
         res = calibrate(run, prof, requirements="mems")
         nees.append(res.nees(truth.errors.values))
@@ -204,7 +202,7 @@ def test_rest_gyrocompass_finds_bias_and_heading_through_a_mems_bias():
     from calib.sequence.definition import load_sequence
     from calib.sequence.kinematics import SimConfig
     from calib.sequence.motion import detect_motion
-    from calib.sim.gimbal_run import simulate
+    from calib.sim.gimbal_run import SimOptions, simulate
 
     errors = ErrorModel.from_units([MEMS_ERRORS[p.name] for p in P.PARAMETERS])
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=20.0)
@@ -213,8 +211,7 @@ def test_rest_gyrocompass_finds_bias_and_heading_through_a_mems_bias():
         cfg,
         errors,
         load_profile("mems"),
-        noise=False,
-        setup_rotvec=np.radians([2.0, -1.0, 40.0]),
+        options=SimOptions(setup_rotvec=np.radians([2.0, -1.0, 40.0]), noise=False),
     )
     dt = sample_intervals(run.time_s)
     seg = detect_motion(run.dtheta_rad, dt)
@@ -330,7 +327,7 @@ def test_streamed_mems_fit_equals_renavigating_fit(profile):
     from calib.nav.site import Site
     from calib.sequence.definition import load_sequence
     from calib.sequence.kinematics import SimConfig
-    from calib.sim.gimbal_run import simulate
+    from calib.sim.gimbal_run import SimOptions, simulate
 
     errors = ErrorModel.from_units([MEMS_ERRORS[p.name] for p in P.PARAMETERS])
     cfg, seq = SimConfig(latitude_rad=LAT, sample_rate_hz=20.0), load_sequence("paper-9pos")
@@ -339,7 +336,9 @@ def test_streamed_mems_fit_equals_renavigating_fit(profile):
         bench = REPO / "benchmarks"
         prof = load_profile(bench / "profiles" / "adis16405.toml")
         seq = load_sequence(bench / "sequences" / "adis16405-8min.toml")
-    run, _ = simulate(seq, cfg, errors, prof, seed=5, random_setup_deg=3.0, flip_error_deg=0.5)
+    run, _ = simulate(
+        seq, cfg, errors, prof, options=SimOptions(flip_error_deg=0.5, seed=5, random_setup_deg=3.0)
+    )
     args = (run, Site(LAT, cfg.gravity), prof)
     req = load_requirements("mems")
     ref = fit_run(*args, options=FitOptions(requirements=req, renavigate="always"))
@@ -507,7 +506,7 @@ def test_gyro_bias_sigma_under_a_gauss_markov_gyro_respects_the_bound_of_a_const
     from calib.model.requirements import load_requirements
     from calib.sequence.definition import load_sequence
     from calib.sequence.kinematics import SimConfig
-    from calib.sim.gimbal_run import simulate
+    from calib.sim.gimbal_run import SimOptions, simulate
     from seqdesign.verify import error_half_range
 
     bench = REPO / "benchmarks"
@@ -519,7 +518,9 @@ def test_gyro_bias_sigma_under_a_gauss_markov_gyro_respects_the_bound_of_a_const
     errors = ErrorModel.from_units(rng.uniform(-1.0, 1.0, P.N_PARAMS) * error_half_range("mems"))
     # 100 Hz as the ADIS16405 logs (at 20 Hz this draw happened to start near its heading)
     cfg = SimConfig(latitude_rad=LAT, height_m=0.0, sample_rate_hz=100.0)
-    run, _ = simulate(seq, cfg, errors, prof, flip_error_deg=0.5, seed=1, random_setup_deg=3.0)
+    run, _ = simulate(
+        seq, cfg, errors, prof, options=SimOptions(flip_error_deg=0.5, seed=1, random_setup_deg=3.0)
+    )
     result = calibrate(
         run, prof, options=CalibrateOptions(require_convergence=False), requirements=load_requirements("mems")
     )
@@ -549,7 +550,7 @@ def test_a_fit_follows_a_mems_gyro_that_walks_the_attitude_13_degrees():
     from calib.noise.wander import tilt_variance
     from calib.sequence.definition import load_sequence
     from calib.sequence.kinematics import SimConfig
-    from calib.sim.gimbal_run import simulate
+    from calib.sim.gimbal_run import SimOptions, simulate
     from seqdesign.verify import error_half_range
 
     prof = load_profile(REPO / "benchmarks" / "profiles" / "adis16405.toml")
@@ -557,7 +558,9 @@ def test_a_fit_follows_a_mems_gyro_that_walks_the_attitude_13_degrees():
     rng = np.random.default_rng(2)
     errors = ErrorModel.from_units(rng.uniform(-1.0, 1.0, P.N_PARAMS) * error_half_range("mems"))
     cfg = SimConfig(latitude_rad=LAT, height_m=0.0, sample_rate_hz=100.0)
-    run, truth = simulate(seq, cfg, errors, prof, flip_error_deg=0.5, seed=2, random_setup_deg=3.0)
+    run, truth = simulate(
+        seq, cfg, errors, prof, options=SimOptions(flip_error_deg=0.5, seed=2, random_setup_deg=3.0)
+    )
     T = run.time_s[-1] - run.time_s[0]
     assert math.degrees(math.sqrt(tilt_variance(prof, T))) > 13.0  # the case this test is about
     result = calibrate(

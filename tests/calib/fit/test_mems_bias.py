@@ -22,7 +22,7 @@ from calib.model.error_model import ErrorModel
 from calib.noise.profiles import load_profile
 from calib.sequence.definition import load_sequence
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 from seqdesign.verify import error_half_range
 
 SEED = 1400  # the first unit of benchmarks/mems_mc.py
@@ -39,9 +39,11 @@ def even_part():
     errors = ErrorModel.from_units(rng.uniform(-1.0, 1.0, P.N_PARAMS) * error_half_range("mems"))
     prof = load_profile("mems")
     cfg = SimConfig(latitude_rad=math.radians(40.0), sample_rate_hz=100.0)
-    kw = dict(seed=SEED, flip_error_deg=0.5, random_setup_deg=3.0)
-    clean, truth = simulate(load_sequence("paper-9pos"), cfg, errors, prof, noise=False, **kw)
-    noisy, _ = simulate(load_sequence("paper-9pos"), cfg, errors, prof, noise=True, **kw)
+    draw = SimOptions(seed=SEED, flip_error_deg=0.5, random_setup_deg=3.0)
+    clean, truth = simulate(
+        load_sequence("paper-9pos"), cfg, errors, prof, dataclasses.replace(draw, noise=False)
+    )
+    noisy, _ = simulate(load_sequence("paper-9pos"), cfg, errors, prof, draw)
     z = []
     for sign in (1.0, -1.0):
         run = dataclasses.replace(

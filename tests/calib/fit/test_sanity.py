@@ -13,7 +13,7 @@ from calib.noise.profiles import load_profile
 from calib.runlog import Run, write_run
 from calib.sequence.definition import sequence_from_dict
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 from seqdesign.cli import main
 
 LAT = math.radians(40.0)
@@ -46,7 +46,7 @@ def good_run():
         SimConfig(latitude_rad=LAT, sample_rate_hz=RATE),
         ErrorModel.from_table2(),
         load_profile("navigation"),
-        seed=5,
+        options=SimOptions(seed=5),
     )
     return run
 
@@ -154,7 +154,7 @@ def test_run_that_cannot_observe_parameters_is_refused_by_name(tmp_path):
         SimConfig(latitude_rad=LAT, sample_rate_hz=RATE),
         ErrorModel.zero(),
         load_profile("navigation"),
-        seed=2,
+        options=SimOptions(seed=2),
     )
     r, out = _calibrate(run, tmp_path, "spin.npz")
     assert r.exit_code == 2 and "cannot observe" in r.output

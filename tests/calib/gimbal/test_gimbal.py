@@ -310,11 +310,15 @@ def test_simulator_encoder_channels_contain_the_counter_rotation():
     from calib.model.error_model import ErrorModel
     from calib.noise.profiles import load_profile
     from calib.sequence.kinematics import SimConfig
-    from calib.sim.gimbal_run import simulate
+    from calib.sim.gimbal_run import SimOptions, simulate
 
     seq = lock_sequence()
     run, _ = simulate(
-        seq, SimConfig(latitude_rad=D(40)), ErrorModel.zero(), load_profile("navigation"), noise=False
+        seq,
+        SimConfig(latitude_rad=D(40)),
+        ErrorModel.zero(),
+        load_profile("navigation"),
+        options=SimOptions(noise=False),
     )
     ((_, t_a, t_b, _),) = plan_sequence(seq).unlocks
     inside = (run.time_s >= t_a - 1e-9) & (run.time_s <= t_b + 1e-9)  # 29..38 s: on samples
@@ -333,16 +337,14 @@ def test_encoders_with_flip_errors_step_no_faster_than_the_moves():
     from calib.model.error_model import ErrorModel
     from calib.noise.profiles import load_profile
     from calib.sequence.kinematics import SimConfig
-    from calib.sim.gimbal_run import simulate
+    from calib.sim.gimbal_run import SimOptions, simulate
 
     run, _ = simulate(
         load_sequence("designed-15min"),
         SimConfig(latitude_rad=D(40)),
         ErrorModel.zero(),
         load_profile("navigation"),
-        noise=False,
-        flip_error_deg=0.5,
-        seed=3,
+        options=SimOptions(flip_error_deg=0.5, noise=False, seed=3),
     )
     step = np.abs(np.diff(run.gimbal_deg, axis=0))
     assert np.max(step) <= 10.0 * 0.005 * (1 + 1e-9)

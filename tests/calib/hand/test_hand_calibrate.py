@@ -19,7 +19,7 @@ from realdata import FERRARIS, XSENS
 from calib.calibration.correction import Correction, correction_of_result, raw_samples
 from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.errors import CalibError
-from calib.hand.plan import HandPlan, random_hand_plan, xsens_like_plan
+from calib.hand.plan import HandPlan, PlanShape, random_hand_plan, xsens_like_plan
 from calib.hand.simulate import draw_errors, simulate_by_hand
 from calib.model import params as P
 from calib.noise.profiles import load_profile
@@ -43,7 +43,7 @@ def test_fast_hand_moves_are_integrated_to_a_tenth_of_a_sigma(peak_rate_dps):
     # Truth at 10x the output rate, turns peaking at 1000 deg/s (0.17 rad per sample) with a
     # wobbling axis: the fit's rule must leave every parameter within 0.1 sigma (the sigmas of
     # the mems profile, what a user would be told).
-    plan = xsens_like_plan(np.random.default_rng(4), peak_rate_dps=peak_rate_dps)
+    plan = xsens_like_plan(np.random.default_rng(4), PlanShape(peak_rate_dps=peak_rate_dps))
     run, truth = _noise_free(plan, 4)
     result = calibrate(run, MEMS, by_hand=True, requirements="mems")
     z = (result.values - truth) / result.sigma
@@ -54,7 +54,7 @@ def test_fast_hand_moves_are_integrated_to_a_tenth_of_a_sigma(peak_rate_dps):
 def test_the_correction_applied_leaves_nothing_to_calibrate(tmp_path):
     # calibrated = M (raw - b) from the fit, applied to the log, then calibrated again: every
     # parameter is zero within a hundredth of its sigma (noise-free, so only the rule's error).
-    plan = random_hand_plan(14, np.random.default_rng(8), peak_rate_dps=500.0)
+    plan = random_hand_plan(14, np.random.default_rng(8), PlanShape(peak_rate_dps=500.0))
     run, truth = _noise_free(plan, 8)
     result = calibrate(run, MEMS, by_hand=True, requirements="mems")
     correction = correction_of_result(result)

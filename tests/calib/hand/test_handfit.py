@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from calib.errors import CalibError
+from calib.hand.fit_options import HandFitOptions, HandSamples
 from calib.hand.joint_fit import FitState, Layout, fit_by_hand, hand_data, linearise
 from calib.hand.moves import move_rotation, move_sensitivity
 from calib.hand.rests import find_rests
@@ -23,6 +24,7 @@ from calib.model import params as P
 from calib.model.error_model import ErrorModel
 from calib.model.requirements import load_requirements
 from calib.nav import earth
+from calib.nav.site import Site
 from calib.nav.transform import dcm_to_rotvec, rotvec_to_dcm
 from calib.noise.profiles import NoiseProfile
 
@@ -146,7 +148,8 @@ def test_the_fit_jacobian_matches_finite_differences():
     # Near the truth, as a Gauss-Newton iterate is (the moves' rows are linearised about a small residual).
     C0 = np.array([rotvec_to_dcm(rng.normal(size=3) * 0.01) @ C for C in C_true])
     state = FitState(errors.values * 0.9, rng.normal(size=(3, 3)) * 1e-4, np.array([1e-5, 2e-5]), C0)
-    e, s, J, _ = linearise(data, dtheta, dv, dt, state, layout, LAT, G, PROFILE)
+    samples, site = HandSamples(dtheta, dv, dt), Site(LAT, G)
+    e, s, J, _ = linearise(data, samples, state, layout, site, PROFILE)
     scale = np.concatenate([np.abs(errors.values) + 1e-6, np.full(layout.n - 21, 1e-4)])
     for i in rng.choice(layout.n, 25, replace=False):
         step = np.zeros(layout.n)
@@ -155,8 +158,8 @@ def test_the_fit_jacobian_matches_finite_differences():
         minus = FitState(state.values.copy(), state.G.copy(), state.h.copy(), state.C.copy())
         plus.update(step, layout)
         minus.update(-step, layout)
-        ep = linearise(data, dtheta, dv, dt, plus, layout, LAT, G, PROFILE)[0]
-        em = linearise(data, dtheta, dv, dt, minus, layout, LAT, G, PROFILE)[0]
+        ep = linearise(data, samples, plus, layout, site, PROFILE)[0]
+        em = linearise(data, samples, minus, layout, site, PROFILE)[0]
         numeric = -(ep - em) / (2 * step[i])
         # The Jacobian is the prediction's (residual = data - prediction); the moves' rows drop the
         # coning term's derivative and the residual's own rotation (both second order): 1 %.
@@ -182,19 +185,8 @@ def test_a_noise_free_hand_run_is_recovered_exactly(g_sensitivity):
     G_true = rng.uniform(-1, 1, (3, 3)) * 300 * P.DEG_PER_HOUR / 9.8 if g_sensitivity else None
     time_s, dtheta, dv, dt, C_true = synthetic_hand_run(rng, errors, g_sens=G_true)
     # Without the heading prior: a prior is information, and pulls a noise-free estimate by a little.
-    fit = fit_by_hand(
-        time_s,
-        dtheta,
-        dv,
-        dt,
-        LAT,
-        G,
-        PROFILE,
-        g_sensitivity=g_sensitivity,
-        heading_prior=False,
-        requirements=MEMS_REQUIREMENTS,
-        where="synthetic",
-    )
+    options = HandFitOptions(g_sensitivity=g_sensitivity, heading_prior=False, requirements=MEMS_REQUIREMENTS)
+    fit = fit_by_hand(HandSamples(dtheta, dv, dt), Site(LAT, G), PROFILE, options, where="synthetic")
     assert fit.converged and fit.data.count == len(C_true)
     sigma = np.sqrt(np.diag(fit.covariance))[:21]
     # Noise free, what is left is the midpoint rules of the synthetic run (1e-8 rad per move

@@ -108,10 +108,12 @@ def test_a_wrong_rate_shows_as_three_gyro_scale_factors_alike(hand_run):
 
 def test_a_gimbal_run_is_not_taken_for_a_hand(tmp_path):
     from calib.sequence.definition import load_sequence
-    from calib.sim.gimbal_run import simulate
+    from calib.sim.gimbal_run import SimOptions, simulate
 
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=100.0)
-    run, _ = simulate(load_sequence("paper-9pos"), cfg, ErrorModel.zero(), load_profile("mems"), seed=1)
+    run, _ = simulate(
+        load_sequence("paper-9pos"), cfg, ErrorModel.zero(), load_profile("mems"), options=SimOptions(seed=1)
+    )
     assert carried_by_hand(run) is None
 
 

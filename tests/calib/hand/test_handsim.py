@@ -29,7 +29,7 @@ from conftest import (
     sensor_model,
 )
 
-from calib.hand.plan import HandPlan, random_hand_plan, xsens_like_plan
+from calib.hand.plan import HandPlan, PlanShape, random_hand_plan, xsens_like_plan
 from calib.hand.simulate import draw_errors, simulate_by_hand, true_increments, write_hand_run
 from calib.hand.trajectory import hand_state, sensed
 from calib.model.error_model import ErrorModel
@@ -48,7 +48,7 @@ G = 9.81744  # the Xsens recording's local gravity
 def _plan(seed: int = 3, peak_rate_dps: float | None = 1000.0, **kw) -> HandPlan:
     """A short plan: four poses, 1-2 s rests, fast turns."""
     args = dict(first_rest_s=1.0, rest_s=(1.0, 2.0), peak_rate_dps=peak_rate_dps) | kw
-    return random_hand_plan(4, np.random.default_rng(seed), **args)
+    return random_hand_plan(4, np.random.default_rng(seed), PlanShape(**args))
 
 
 def _rest_samples(plan: HandPlan, time_s: np.ndarray, rate: float, k: int) -> np.ndarray:
@@ -251,7 +251,7 @@ def test_the_same_seed_gives_the_same_run():
 
 @pytest.mark.parametrize("peak_dps", [1000.0, 2000.0])
 def test_the_peak_rate_reaches_the_requested_peak(peak_dps):
-    plan = random_hand_plan(12, np.random.default_rng(4), first_rest_s=2.0, peak_rate_dps=peak_dps)
+    plan = random_hand_plan(12, np.random.default_rng(4), PlanShape(first_rest_s=2.0, peak_rate_dps=peak_dps))
     s = np.linspace(0.0, 1.0, 100001)
     t = (plan.turn_start_s[:, None] + plan.turn_s[:, None] * s[None, :]).ravel()
     true_peak = np.degrees(np.linalg.norm(hand_state(plan, t).omega_nb_b, axis=1).max())
@@ -290,7 +290,7 @@ def test_random_poses_are_apart_and_moves_end_still():
 
 
 def test_translation_off_and_no_wobble():
-    plan = random_hand_plan(5, np.random.default_rng(2), translation_m=0.0, wobble_deg=0.0)
+    plan = random_hand_plan(5, np.random.default_rng(2), PlanShape(translation_m=0.0, wobble_deg=0.0))
     t = np.linspace(0.0, plan.duration_s, 5001)
     s = hand_state(plan, t)
     assert np.abs(s.p_n).max() == 0.0 and np.abs(s.a_n).max() == 0.0

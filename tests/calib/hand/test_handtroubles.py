@@ -17,7 +17,7 @@ from click.testing import CliRunner
 from conftest import DEG, DEG_PER_H, earth_rate_enu, log_so3, rodrigues
 
 from calib.hand.host_clock import EPOCH_MS, host_stamps
-from calib.hand.plan import HandPlan, random_hand_plan
+from calib.hand.plan import HandPlan, PlanShape, random_hand_plan
 from calib.hand.simulate import simulate_by_hand, true_increments, write_hand_run
 from calib.hand.tremor import Tremor, random_tremor
 from calib.hand.troubles import HandTroubles, TroubleSpec, g_sensitivity_from_dphg, troubles_from_table
@@ -36,7 +36,7 @@ CFG = SimConfig(latitude_rad=LAT, sample_rate_hz=RATE, gravity_mps2=G)
 def _plan(seed: int = 5, n: int = 4, **kw) -> HandPlan:
     """Long rests (a held pose's middle spans several seconds), fast fixed-axis turns."""
     args = dict(first_rest_s=12.0, rest_s=(8.0, 10.0), peak_rate_dps=600.0, wobble_deg=0.0) | kw
-    return random_hand_plan(n, np.random.default_rng(seed), **args)
+    return random_hand_plan(n, np.random.default_rng(seed), PlanShape(**args))
 
 
 def _inside(time_s: np.ndarray, rate: float, a: float, b: float) -> np.ndarray:
@@ -195,7 +195,7 @@ def test_only_the_poses_of_the_first_seconds_are_held():
     """Like mikoff's logs (the first 26 s in the hand, 1-6 s poses): the later rests are the table's
     to the last bit, and the moves' increments too."""
     plan = random_hand_plan(
-        12, np.random.default_rng(2), first_rest_s=3.0, rest_s=(1.0, 6.0), peak_rate_dps=500.0
+        12, np.random.default_rng(2), PlanShape(first_rest_s=3.0, rest_s=(1.0, 6.0), peak_rate_dps=500.0)
     )
     tremor = random_tremor(plan, np.random.default_rng(3), 0.3, hand_held_s=26.0)
     assert np.all(plan.rest_start_s[tremor.rest] < 26.0) and 0 < len(tremor.rest) < plan.n_poses

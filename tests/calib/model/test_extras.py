@@ -23,7 +23,7 @@ from calib.nav.transform import dcm_to_rotvec, rotvec_to_dcm
 from calib.noise.profiles import load_profile
 from calib.sequence.definition import load_sequence, timeline
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 from calib.sim.truth import read_truth, write_truth
 
 LAT = math.radians(40.0)
@@ -53,9 +53,8 @@ def _run(extra=None, cfg=CFG, errors=None, setup=(0.0, 0.0, 0.0)):
         cfg,
         errors or ErrorModel.zero(),
         PROFILE,
-        noise=False,
+        options=SimOptions(setup_rotvec=setup, noise=False),
         extra=extra,
-        setup_rotvec=setup,
     )
 
 
@@ -200,7 +199,9 @@ def test_extra_columns_match_central_finite_difference():
     # H along the 50 Hz run itself, as the estimator evaluates it. (Along the analyser's
     # coarser sampling the lever arms' velocity steps sit in 0.05 s samples instead of
     # 0.02 s ones: their nav direction differs by w (0.05 - 0.02) / 2 = 2.6e-3 rad.)
-    ref, _ = simulate(seq, cfg, ErrorModel.zero(), PROFILE, noise=False, setup_rotvec=setup)
+    ref, _ = simulate(
+        seq, cfg, ErrorModel.zero(), PROFILE, options=SimOptions(setup_rotvec=setup, noise=False)
+    )
     nav = navigate(ref.dtheta_rad, ref.dv_mps, ref.time_s, C0, Site(LAT, cfg.gravity), t0=0.0)
     grid = ObservationGrid(np.round(t_obs * rate).astype(int))
     H = observation_jacobian(
@@ -210,7 +211,12 @@ def test_extra_columns_match_central_finite_difference():
 
     def z(values):
         run, _ = simulate(
-            seq, cfg, ErrorModel.zero(), PROFILE, noise=False, setup_rotvec=setup, extra=extras.unpack(values)
+            seq,
+            cfg,
+            ErrorModel.zero(),
+            PROFILE,
+            options=SimOptions(setup_rotvec=setup, noise=False),
+            extra=extras.unpack(values),
         )
         nav = navigate(run.dtheta_rad, run.dv_mps, run.time_s, C0, Site(LAT, cfg.gravity), t0=0.0)
         y = nav.v_n[np.round(t_obs * rate).astype(int)]

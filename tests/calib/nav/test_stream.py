@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from calib.errors import CalibError
 from calib.fit.estimator import fit_run
 from calib.fit.options import FitOptions
 from calib.fit.start import coarse_alignment
@@ -25,7 +26,7 @@ from calib.runlog import read_run
 from calib.sequence.definition import load_sequence
 from calib.sequence.kinematics import SimConfig
 from calib.sequence.motion import detect_motion
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 from calib.sim.to_disk import simulate_to_file
 from seqdesign.cli import main
 
@@ -47,9 +48,7 @@ def _run(paper, rate_hz, noise, extra=None, seed=11):
         cfg,
         ErrorModel.from_table2(),
         load_profile("navigation"),
-        setup_rotvec=SETUP,
-        noise=noise,
-        seed=seed,
+        options=SimOptions(setup_rotvec=SETUP, noise=noise, seed=seed),
         extra=extra,
     )
     return run, cfg
@@ -141,10 +140,18 @@ def test_streamed_simulation_is_the_simulation(paper, tmp_path, suffix):
     # bit for bit, whatever the window (here 1000 samples: windows end inside flips).
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=20.0)
     prof = load_profile("navigation")
-    run, _ = simulate(paper, cfg, ErrorModel.from_table2(), prof, setup_rotvec=SETUP, noise=False)
+    run, _ = simulate(
+        paper, cfg, ErrorModel.from_table2(), prof, options=SimOptions(setup_rotvec=SETUP, noise=False)
+    )
     path = tmp_path / f"run{suffix}"
     n, truth = simulate_to_file(
-        path, paper, cfg, ErrorModel.from_table2(), prof, SETUP, noise=False, window=1000
+        path,
+        paper,
+        cfg,
+        ErrorModel.from_table2(),
+        prof,
+        SimOptions(setup_rotvec=SETUP, noise=False),
+        window=1000,
     )
     back = read_run(path)
     assert n == len(run.time_s)
@@ -161,9 +168,12 @@ def test_streamed_simulation_noise_has_the_profiles_density(paper, tmp_path):
     # ten of those.
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=20.0)
     prof = load_profile("tactical")
-    clean, _ = simulate(paper, cfg, ErrorModel.from_table2(), prof, setup_rotvec=SETUP, noise=False)
+    clean, _ = simulate(
+        paper, cfg, ErrorModel.from_table2(), prof, options=SimOptions(setup_rotvec=SETUP, noise=False)
+    )
     path = tmp_path / "run.npz"
-    simulate_to_file(path, paper, cfg, ErrorModel.from_table2(), prof, SETUP, noise=True, seed=3, window=5000)
+    draw = SimOptions(setup_rotvec=SETUP, noise=True, seed=3)
+    simulate_to_file(path, paper, cfg, ErrorModel.from_table2(), prof, draw, window=5000)
     run = read_run(path)
     dt = 1.0 / cfg.sample_rate_hz
     gyro = np.std(run.dtheta_rad - clean.dtheta_rad) / (prof.arw * math.sqrt(dt))
@@ -313,3 +323,14 @@ def test_cli_calibrate_stream_refuses_a_damaged_archive_and_a_missing_rate(paper
     r = CliRunner().invoke(main, ["calibrate-stream", str(tmp_path / "norate.csv")])
     assert r.exit_code == 2 and "sample_rate_hz" in r.output
     assert not (tmp_path / "norate.result.toml").exists()
+
+
+def test_streamed_simulation_refuses_the_draws_it_does_not_write(paper, tmp_path):
+    # Flip errors and a drawn mounting need the whole run: refused, and no file is left behind.
+    cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=20.0)
+    for draw in (SimOptions(flip_error_deg=0.5), SimOptions(random_setup_deg=3.0)):
+        with pytest.raises(CalibError, match="window at a time"):
+            simulate_to_file(
+                tmp_path / "run.npz", paper, cfg, ErrorModel.zero(), load_profile("navigation"), draw
+            )
+    assert not list(tmp_path.iterdir())

@@ -16,7 +16,7 @@ from calib.nav.strapdown import sample_intervals
 from calib.nav.transform import rotvec_to_dcm
 from calib.noise.profiles import load_profile
 from calib.peers.published import imucal_correction, parse_imu_tk, read_imu_tk, read_imucal
-from calib.peers.scores import axes_of, force_spread, pose_to_pose, score
+from calib.peers.scores import RestSpans, axes_of, force_spread, pose_to_pose, score
 
 G = 9.81
 RATE_HZ = 100.0
@@ -82,7 +82,7 @@ def raw_of(c: Correction, rate, force):
 def test_a_perfect_correction_scores_zero_spread_and_zero_angle():
     rate, force, t, start, end = synthetic_run()
     raw_g, raw_a = raw_of(TRUE, rate, force)
-    s = score(TRUE, raw_g, raw_a, t, start, end)
+    s = score(TRUE, raw_g, raw_a, RestSpans(t, start, end))
     assert s.spread.std < 1e-12 and s.spread.range < 1e-12
     assert s.spread.mean == pytest.approx(G, abs=1e-12)
     assert s.poses.used.all()
@@ -118,10 +118,10 @@ def test_a_gyro_scale_error_turns_the_vertical_by_the_error_times_the_angle():
     """
     rate, force, t, start, end = synthetic_run()
     e = 2e-3
-    s = pose_to_pose(rate * np.array([1.0 + e, 1.0, 1.0]), force, t, start, end)
+    s = pose_to_pose(rate * np.array([1.0 + e, 1.0, 1.0]), force, RestSpans(t, start, end))
     assert s.angle_deg[0] == pytest.approx(e * 90.0, rel=1e-6)
     assert s.angle_deg[2] < 1e-9  # about body z: x's scale plays no part
-    s = pose_to_pose(rate * np.array([1.0, 1.0 + e, 1.0]), force, t, start, end)
+    s = pose_to_pose(rate * np.array([1.0, 1.0 + e, 1.0]), force, RestSpans(t, start, end))
     assert s.angle_deg[1] < 1e-9
 
 
@@ -129,7 +129,7 @@ def test_moves_with_clipped_samples_are_left_out():
     rate, force, t, start, end = synthetic_run()
     clipped = np.zeros(len(t), dtype=bool)
     clipped[end[1] + 3] = True
-    s = pose_to_pose(rate, force, t, start, end, clipped, latitude_deg=45.0)
+    s = pose_to_pose(rate, force, RestSpans(t, start, end, clipped, latitude_deg=45.0))
     assert list(s.used) == [True, False, True, True]
     assert np.isnan(s.angle_deg[1]) and s.rms_deg < 1e-9
     # the Earth's turn left out over a 1 s move at 45 deg
@@ -264,7 +264,9 @@ def test_imu_tk_scored_on_its_log():
     dt = sample_intervals(t)
     p = load_profile("mems")
     rests = find_rests(rate * dt[:, None], nominal * dt[:, None], dt, p.arw, p.vrw)
-    s = score(read_imu_tk(d / "imu_tk-result.txt"), gyr[:, 1:], acc[:, 1:], t, rests.start, rests.end)
+    s = score(
+        read_imu_tk(d / "imu_tk-result.txt"), gyr[:, 1:], acc[:, 1:], RestSpans(t, rests.start, rests.end)
+    )
     assert rests.count > 30
     assert s.spread.mean == pytest.approx(9.81744, abs=0.002)
     assert s.spread.std < 0.002

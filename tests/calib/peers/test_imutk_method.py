@@ -10,7 +10,7 @@ import pytest
 from realdata import XSENS
 
 from calib.errors import CalibError
-from calib.peers.imutk_method import imutk_calibrate, static_intervals
+from calib.peers.imutk_method import ImuTkOptions, imutk_calibrate, static_intervals
 from calib.peers.published import read_imu_tk
 from calib.peers.scores import axes_of
 
@@ -73,7 +73,7 @@ def test_noise_free_errors_come_back_exactly():
     t, w, f = synthetic_run()
     raw_a = f @ np.linalg.inv(ACC_T @ np.diag(ACC_K)).T + ACC_B
     raw_g = w @ np.linalg.inv(GYRO_T @ np.diag(GYRO_K)).T + GYRO_B
-    fit = imutk_calibrate(t, raw_g, raw_a, G, init=(0, 2000), gyro_scale0=1 / 4770.0)
+    fit = imutk_calibrate(t, raw_g, raw_a, G, init=(0, 2000), options=ImuTkOptions(gyro_scale0=1 / 4770.0))
     assert len(fit.start) == 19  # the still start and every pose
     # Noise-free, |f| = g holds exactly at the truth, which is the unique least-squares minimum
     # (an upper-triangular T K is the one factor of M with |M x| fixed); what is left is the
@@ -108,7 +108,9 @@ def test_imu_tks_own_result_on_its_xsens_recording():
     acc = np.loadtxt(gzip.open(XSENS / "xsens_acc.mat.gz"))
     gyr = np.loadtxt(gzip.open(XSENS / "xsens_gyro.mat.gz"))
     # imu_tk's test program: T_init 5000 samples, gravity 9.81744, samples (not means).
-    fit = imutk_calibrate(acc[:, 0], gyr[:, 1:], acc[:, 1:], 9.81744, init=(0, 5001), gyro_scale0=1 / 4770)
+    fit = imutk_calibrate(
+        acc[:, 0], gyr[:, 1:], acc[:, 1:], 9.81744, init=(0, 5001), options=ImuTkOptions(gyro_scale0=1 / 4770)
+    )
     ref = read_imu_tk(XSENS / "imu_tk-result.txt")
     for name, scale_ppm, angle_arcsec in (("accel", 5.0, 1.0), ("gyro", 30.0, 10.0)):
         ours, theirs = axes_of(getattr(fit.correction, name)), axes_of(getattr(ref, name))

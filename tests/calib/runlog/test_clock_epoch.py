@@ -25,7 +25,7 @@ from calib.runlog import read_run
 from calib.runlog.clock import EPOCH_S, stamps_rate
 from calib.sequence.definition import load_sequence
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 
 RATE_HZ = 100.0
 EPOCH = 1_700_000_000
@@ -48,8 +48,7 @@ def files(tmp_path_factory) -> dict[str, Path]:
         SimConfig(latitude_rad=math.radians(45.0), height_m=100.0, sample_rate_hz=RATE_HZ),
         ErrorModel.from_table2(),
         load_profile("navigation"),
-        noise=True,
-        seed=7,
+        options=SimOptions(noise=True, seed=7),
     )
     dt = 1.0 / RATE_HZ
     body = [",".join(map(repr, r)) for r in np.hstack([run.dtheta_rad / dt, run.dv_mps / dt]).tolist()]

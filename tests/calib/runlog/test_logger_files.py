@@ -28,7 +28,7 @@ from calib.runlog.csv import time_in_seconds
 from calib.sequence.definition import sequence_from_dict
 from calib.sequence.kinematics import SimConfig
 from calib.sequence.motion import check_sequence_matches
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 from seqdesign.cli import main
 
 RATE_HZ = 100.0
@@ -55,9 +55,7 @@ def _simulate(rate_dps: float = 10.0) -> Run:
         SimConfig(latitude_rad=math.radians(LAT_DEG), sample_rate_hz=RATE_HZ),
         ErrorModel.from_table2(),
         load_profile("navigation"),
-        setup_rotvec=np.radians([1.0, -2.0, 3.0]),
-        noise=True,
-        seed=3,
+        options=SimOptions(setup_rotvec=np.radians([1.0, -2.0, 3.0]), noise=True, seed=3),
     )
     return run
 

@@ -27,7 +27,7 @@ from calib.runlog.clock import sample_clock
 from calib.sequence.definition import sequence_from_dict
 from calib.sequence.kinematics import SimConfig
 from calib.sequence.motion import sequence_motion
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 from calib.sim.truth import write_truth
 from seqdesign.cli import main
 
@@ -55,9 +55,7 @@ def _simulate(noise: bool, rate: float = RATE, errors: ErrorModel | None = None,
         cfg,
         errors,
         load_profile("navigation"),
-        setup_rotvec=np.radians(setup_deg),
-        noise=noise,
-        seed=11,
+        options=SimOptions(setup_rotvec=np.radians(setup_deg), noise=noise, seed=11),
     )
 
 

@@ -19,7 +19,7 @@ from calib.noise.profiles import load_profile
 from calib.sequence.definition import load_sequence, nominal_attitude, sequence_from_dict, timeline
 from calib.sequence.kinematics import SimConfig, true_increments
 from calib.sequence.rate_profile import RateProfile
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 
 LAT = math.radians(40.0)
 D = math.radians
@@ -166,7 +166,9 @@ def noise_free_accel_fit():
     seq = accelerating(load_sequence("paper-9pos"), 5.0, 10.0)
     cfg = SimConfig(latitude_rad=LAT)
     truth = ErrorModel.from_table2()
-    run, _ = simulate(seq, cfg, truth, load_profile("navigation"), setup_rotvec=SETUP, noise=False)
+    run, _ = simulate(
+        seq, cfg, truth, load_profile("navigation"), options=SimOptions(setup_rotvec=SETUP, noise=False)
+    )
     fit = fit_run(run, Site(LAT, cfg.gravity), load_profile("navigation"))
     return fit, truth, run
 
@@ -231,7 +233,12 @@ def test_lever_arms_recovered_on_accelerating_moves():
     cfg = SimConfig(latitude_rad=LAT)
     truth = ErrorModel.from_table2()
     run, _ = simulate(
-        seq, cfg, truth, load_profile("navigation"), setup_rotvec=SETUP, noise=False, extra=extra
+        seq,
+        cfg,
+        truth,
+        load_profile("navigation"),
+        options=SimOptions(setup_rotvec=SETUP, noise=False),
+        extra=extra,
     )
     ex = Extras(("lever-arm",))
     fit = fit_run(run, Site(LAT, cfg.gravity), load_profile("navigation"), options=FitOptions(extras=ex))

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.hand.plan import random_hand_plan
+from calib.hand.plan import PlanShape, random_hand_plan
 from calib.hand.simulate import simulate_by_hand
 from calib.nav.strapdown import coning_rotvec
 from calib.nav.transform import quat_mult, quat_to_dcm, rotvec_to_quat
@@ -32,7 +32,7 @@ RATE = 100.0
 @pytest.fixture(scope="module")
 def clean():
     plan = random_hand_plan(
-        6, np.random.default_rng(8), first_rest_s=5.0, rest_s=(3.0, 4.0), peak_rate_dps=400.0
+        6, np.random.default_rng(8), PlanShape(first_rest_s=5.0, rest_s=(3.0, 4.0), peak_rate_dps=400.0)
     )
     run, _ = simulate_by_hand(plan, SimConfig(latitude_rad=0.8, sample_rate_hz=RATE, gravity_mps2=G))
     return plan, run

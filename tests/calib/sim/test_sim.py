@@ -33,7 +33,7 @@ from calib.model.error_model import ErrorModel
 from calib.noise.profiles import load_profile
 from calib.sequence.definition import Sequence, Step
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import Truth, simulate
+from calib.sim.gimbal_run import SimOptions, Truth, simulate
 from calib.sim.truth import read_truth, write_truth
 
 FS = 200.0
@@ -70,9 +70,7 @@ def table2_sim(paper_seq):
         cfg,
         ErrorModel.from_table2(),
         load_profile("navigation"),
-        setup_rotvec=np.radians(SETUP_DEG),
-        noise=False,
-        seed=2,
+        options=SimOptions(setup_rotvec=np.radians(SETUP_DEG), noise=False, seed=2),
     )
 
 
@@ -84,9 +82,7 @@ def noisy_sim(paper_seq):
         cfg,
         ErrorModel.from_table2(),
         load_profile("navigation"),
-        setup_rotvec=np.radians(SETUP_DEG),
-        noise=True,
-        seed=7,
+        options=SimOptions(setup_rotvec=np.radians(SETUP_DEG), noise=True, seed=7),
     )
 
 
@@ -256,7 +252,11 @@ def test_flip_errors_realised_and_recorded(paper_seq):
     cfg = SimConfig(latitude_rad=LAT)
     A = 0.5
     run, truth = simulate(
-        paper_seq, cfg, ErrorModel.zero(), load_profile("navigation"), flip_error_deg=A, noise=False, seed=3
+        paper_seq,
+        cfg,
+        ErrorModel.zero(),
+        load_profile("navigation"),
+        options=SimOptions(flip_error_deg=A, noise=False, seed=3),
     )
     e = truth.flip_errors_deg
     assert e.shape == (len(paper_seq.steps),)
@@ -302,8 +302,7 @@ def short_sim(seed, **kw):
         SimConfig(latitude_rad=LAT),
         ErrorModel.from_table2(),
         load_profile("navigation"),
-        seed=seed,
-        **kw,
+        SimOptions(seed=seed, **kw),
     )
 
 
@@ -372,7 +371,11 @@ def test_encoder_angles_track_middle_gimbal_through_90():
         initial_dwell_s=5.0,
     )
     run, _ = simulate(
-        seq, SimConfig(latitude_rad=LAT), ErrorModel.zero(), load_profile("navigation"), noise=False
+        seq,
+        SimConfig(latitude_rad=LAT),
+        ErrorModel.zero(),
+        load_profile("navigation"),
+        options=SimOptions(noise=False),
     )
     # Continuous: one 5 ms sample moves a gimbal by at most 10 deg/s * 5 ms = 0.05 deg.
     jumps = np.abs(np.diff(run.gimbal_deg, axis=0)).max(0)
@@ -394,7 +397,11 @@ def test_flip_not_aligned_with_samples():
         name="odd", start=("east", "up", "south"), steps=(Step("X", 37.5, 7.0, 20.0),), initial_dwell_s=10.0
     )
     run, _ = simulate(
-        seq, SimConfig(latitude_rad=LAT), ErrorModel.zero(), load_profile("navigation"), noise=False
+        seq,
+        SimConfig(latitude_rad=LAT),
+        ErrorModel.zero(),
+        load_profile("navigation"),
+        options=SimOptions(noise=False),
     )
     assert run.time_s.size == math.floor((10.0 + 37.5 / 7.0 + 20.0) * FS)
     C0 = attitude("east", "up", "south")
@@ -420,7 +427,9 @@ def test_flip_not_aligned_with_samples():
 def test_site_latitude_height_and_measured_gravity(lat_deg, height, gravity):
     lat = math.radians(lat_deg)
     cfg = SimConfig(latitude_rad=lat, height_m=height, gravity_mps2=gravity)
-    run, _ = simulate(SHORT, cfg, ErrorModel.zero(), load_profile("navigation"), noise=False)
+    run, _ = simulate(
+        SHORT, cfg, ErrorModel.zero(), load_profile("navigation"), options=SimOptions(noise=False)
+    )
     g = gravity if gravity is not None else normal_gravity(lat, height)
     C = attitude(*SHORT.start)
     sel = run.time_s <= 5.0
@@ -437,8 +446,12 @@ def test_site_latitude_height_and_measured_gravity(lat_deg, height, gravity):
 
 def test_tactical_profile_noise_level():
     prof = load_profile("tactical")
-    noisy, _ = simulate(SHORT, SimConfig(latitude_rad=LAT), ErrorModel.zero(), prof, noise=True, seed=21)
-    clean, _ = simulate(SHORT, SimConfig(latitude_rad=LAT), ErrorModel.zero(), prof, noise=False, seed=21)
+    noisy, _ = simulate(
+        SHORT, SimConfig(latitude_rad=LAT), ErrorModel.zero(), prof, options=SimOptions(noise=True, seed=21)
+    )
+    clean, _ = simulate(
+        SHORT, SimConfig(latitude_rad=LAT), ErrorModel.zero(), prof, options=SimOptions(noise=False, seed=21)
+    )
     n = noisy.time_s.size
     # conventions.md: tactical = 0.05 deg/sqrt(h), 50 ug/sqrt(Hz). Sample std of n = 6600:
     # relative standard error 1/sqrt(2n) = 0.9 % -> 5 % tolerance (~5.7 sigma).

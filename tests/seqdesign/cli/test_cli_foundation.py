@@ -179,3 +179,20 @@ def test_errors_file_accepted(runner, tmp_path):
     std = table_column_units("table2_simulation", "standard")
     np.testing.assert_allclose(truth.errors.in_units(), [std[n] for n in SPEC_NAMES], rtol=1e-12)
     np.testing.assert_allclose(np.degrees(truth.setup_rotvec), [1, -2, 3], rtol=1e-12)
+
+
+def test_the_by_hand_options_default_to_the_library_s_values():
+    # The CLI starts without calib.hand (it would load scipy): its options declare the values the
+    # library's option objects hold, and this holds them to one another.
+    import inspect
+
+    from calib.hand.plan import HAND_PLAN, HAND_POSES
+    from calib.hand.simulate import simulate_by_hand
+    from seqdesign.cli.simulate import HAND_DEFAULTS
+    from seqdesign.cli.verify import verify
+
+    assert HAND_DEFAULTS["translation_m"] == HAND_PLAN.translation_m
+    assert HAND_DEFAULTS["wobble_deg"] == HAND_PLAN.wobble_deg
+    assert HAND_DEFAULTS["peak_rate_dps"] == HAND_PLAN.peak_rate_dps
+    assert HAND_DEFAULTS["oversample"] == inspect.signature(simulate_by_hand).parameters["oversample"].default
+    assert next(p.default for p in verify.params if p.name == "poses") == HAND_POSES
