@@ -24,7 +24,7 @@ from calib.calibration.entry import calibrate
 from calib.hand.calibrate import hand_fit_of
 from calib.hand.poses import PoseList
 from calib.hand.simulate import HandStreams, draw_errors, simulate_by_hand
-from calib.model.optional_terms import as_extras
+from calib.model.optional_terms import load_optional_terms
 from calib.model.requirements import load_requirements
 from calib.nav.site import site_of
 from calib.noise.profiles import load_profile
@@ -49,7 +49,14 @@ def recording_poses() -> PoseList:
         height_m=0.0,
     )
     fit, _, _ = hand_fit_of(
-        run, site_of(run, 9.81744), MEMS, as_extras(None, by_hand=True), False, REQ, ("g-sensitivity",), False
+        run,
+        site_of(run, 9.81744),
+        MEMS,
+        load_optional_terms(None, by_hand=True),
+        False,
+        REQ,
+        ("g-sensitivity",),
+        False,
     )
     rests = fit.data.rests
     period = float(np.median(np.diff(run.time_s)))

@@ -17,7 +17,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from calib.model import params as P
-from calib.model.optional_terms import GROUP_NAMES, Extras, ExtraValues
+from calib.model.optional_terms import GROUP_NAMES, OptionalTerms, OptionalTermValues
 from calib.noise.profiles import load_profile
 from calib.sequence.definition import load_sequence
 from seqdesign.montecarlo import TrialConfig, run_trials
@@ -32,8 +32,8 @@ def main() -> None:
     args = ap.parse_args()
     seq = load_sequence(args.sequence)
     prof = load_profile(args.profile)
-    extras = Extras(GROUP_NAMES)
-    typical = ExtraValues.from_units({p.name: p.scale for p in extras.parameters})
+    extras = OptionalTerms(GROUP_NAMES)
+    typical = OptionalTermValues.from_units({p.name: p.scale for p in extras.parameters})
     t0 = time.perf_counter()
     config = TrialConfig(extra=typical, extras=extras, fit_profile=prof)
     trials = run_trials(seq, prof, args.n, seed=12000, config=config, workers=args.workers)

@@ -21,7 +21,7 @@ import numpy as np
 
 import calib  # noqa: F401  (BLAS threads)
 from calib.model import params as P
-from calib.model.optional_terms import GROUP_NAMES, Extras, ExtraValues
+from calib.model.optional_terms import GROUP_NAMES, OptionalTerms, OptionalTermValues
 from calib.noise.profiles import load_profile
 from calib.sequence.definition import load_sequence
 from seqdesign.montecarlo import TrialConfig, run_trials
@@ -70,12 +70,12 @@ def main() -> None:
     rows = {}
     t0 = time.perf_counter()
     for label, (values, groups, with_gm) in CASES.items():
-        extra = ExtraValues.from_units(values) if values else None
+        extra = OptionalTermValues.from_units(values) if values else None
         sim_profile = gm if with_gm else white
         off = run_trials(
             seq, sim_profile, args.n, 2000, TrialConfig(extra=extra, fit_profile=white), args.workers
         )
-        fitted = TrialConfig(extra=extra, extras=Extras(groups), fit_profile=sim_profile)
+        fitted = TrialConfig(extra=extra, extras=OptionalTerms(groups), fit_profile=sim_profile)
         on = run_trials(seq, sim_profile, args.n, 2000, fitted, args.workers)
         rows[label] = (summary(off), summary(on), groups, with_gm)
     elapsed = time.perf_counter() - t0

@@ -16,10 +16,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.analysis.bounds import Unreachable, accel_scale_bound, unreachable
-from calib.analysis.worst_case import ExtrasCost, Robustness, analyze_extras, analyze_tolerance
+from calib.analysis.worst_case import OptionalTermsCost, Robustness, analyze_extras, analyze_tolerance
 from calib.errors import CalibError
 from calib.model import params as P
-from calib.model.optional_terms import Extras, as_extras
+from calib.model.optional_terms import OptionalTerms, load_optional_terms
 from calib.model.report import format_table, parameter_entries, worst
 from calib.model.requirements import PAPER, Requirements, load_requirements
 from calib.nav import earth
@@ -55,7 +55,7 @@ class Analysis:
     height_m: float
     robustness: Robustness
     bound: float
-    extras_cost: ExtrasCost | None = None
+    extras_cost: OptionalTermsCost | None = None
     requirements: Requirements = PAPER
 
     @property
@@ -173,7 +173,7 @@ def analyze(
     latitude_deg: float | None = None,
     height_m: float | None = None,
     tolerance_deg: float = 3.0,
-    extras: Extras | str | None = None,
+    extras: OptionalTerms | str | None = None,
     requirements: Requirements | str | None = None,
 ) -> Analysis:
     """Predict how well a sequence calibrates the 21 parameters.
@@ -188,7 +188,7 @@ def analyze(
         The site (default: the sequence's, else 40 deg and 0 m).
     tolerance_deg : float
         Half-width of the mounting box; figures are the worst over it.
-    extras : Extras or str, optional
+    extras : OptionalTerms or str, optional
         Also report what fitting these optional terms costs.
     requirements : Requirements or str, optional
         What the ratios are judged against (default: the paper's).
@@ -198,7 +198,7 @@ def analyze(
     Analysis
     """
     seq = sequence if isinstance(sequence, Sequence) else load_sequence(sequence)
-    prof, extras = load_profile(profile), as_extras(extras)
+    prof, extras = load_profile(profile), load_optional_terms(extras)
     req = load_requirements(requirements)
     if not 0.0 <= tolerance_deg <= 10.0:
         raise CalibError(f"tolerance {tolerance_deg} deg outside [0, 10]", "tolerance_deg")
@@ -319,7 +319,7 @@ def _verdict_line(doc: dict) -> str:
     )
 
 
-def _extras_doc(cost: ExtrasCost, requirements: Requirements) -> dict:
+def _extras_doc(cost: OptionalTermsCost, requirements: Requirements) -> dict:
     """``analyze --with``: the cost of the optional terms to each of the 21, and their sigma."""
     r0, r1 = requirements.ratio(cost.sigma_without), requirements.ratio(cost.sigma_with)
     params = {

@@ -24,7 +24,7 @@ from calib.hand.joint_fit import fit_by_hand
 from calib.hand.poses import AXES, PoseList, tipping_plan
 from calib.hand.simulate import simulate_by_hand
 from calib.model import params as P
-from calib.model.optional_terms import Extras
+from calib.model.optional_terms import OptionalTerms
 from calib.model.report import format_table, parameter_entries, worst
 from calib.model.requirements import Requirements
 from calib.nav.site import Site
@@ -189,7 +189,7 @@ def analyze_hand(
     *,
     latitude_deg: float = 45.0,
     placement: Placement | None = None,
-    extras: Extras | None = None,
+    extras: OptionalTerms | None = None,
     cure: bool = True,
 ) -> HandAnalysis:
     """Predict the sigmas a recording of ``poses`` will give (see the module).
@@ -204,7 +204,7 @@ def analyze_hand(
         Site latitude, deg.
     placement : Placement, optional
         The hand's placement error (default: none, the poses as planned).
-    extras : Extras, optional
+    extras : OptionalTerms, optional
         Terms fitted beside the 21 (``g-sensitivity`` is the one a hand run's prediction models).
     cure : bool
         Also find the face that, added as one more pose, helps most.
@@ -266,7 +266,7 @@ def analyze_recording(
     The sigmas are the fit's covariance before any Birge inflation, with the model and the
     weights `calib.hand.calibrate.hand_fit_of` chooses: what calibrating the recording reports.
     """
-    ext = extras if extras is not None else Extras()
+    ext = extras if extras is not None else OptionalTerms()
     profile = white_part(profile)  # as calibrate weights it (calib.hand.calibrate.fit_checked)
     # The fit calibrate makes (its model and weights chosen alike): the sigma it will report.
     hand, _, _ = hand_fit_of(run, site, profile, ext, True, requirements)

@@ -14,7 +14,7 @@ import numpy as np
 
 from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.model.error_model import ErrorModel
-from calib.model.optional_terms import NONE as NO_EXTRAS, Extras, ExtraValues
+from calib.model.optional_terms import NONE as NO_EXTRAS, OptionalTerms, OptionalTermValues
 from calib.noise.profiles import NoiseProfile
 from calib.sequence.definition import Sequence
 from calib.sequence.kinematics import SimConfig
@@ -64,9 +64,9 @@ class TrialConfig:
         Each trial's base mounting is drawn within this many degrees (0: none).
     flip_error_deg : float
         Each flip's error, degrees.
-    extra : ExtraValues, optional
+    extra : OptionalTermValues, optional
         A real unit's optional terms added to the simulated runs.
-    extras : Extras
+    extras : OptionalTerms
         The groups the estimator fits with the 21 (the mismatch report: simulate
         with them, calibrate without or with them).
     fit_profile : NoiseProfile, optional
@@ -79,8 +79,8 @@ class TrialConfig:
     errors: ErrorModel | None = None
     tolerance_deg: float = 3.0
     flip_error_deg: float = 0.5
-    extra: ExtraValues | None = None
-    extras: Extras = NO_EXTRAS
+    extra: OptionalTermValues | None = None
+    extras: OptionalTerms = NO_EXTRAS
     fit_profile: NoiseProfile | None = None
     requirements: object = None
 

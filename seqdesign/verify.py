@@ -27,7 +27,7 @@ from calib.hand.simulate import HandStreams, simulate_by_hand, write_hand_run
 from calib.hand.troubles import TroubleSpec
 from calib.model import params as P
 from calib.model.error_model import ErrorModel, paper_table
-from calib.model.optional_terms import NONE as NO_EXTRAS, Extras
+from calib.model.optional_terms import NONE as NO_EXTRAS, OptionalTerms
 from calib.model.requirements import PAPER, Requirements, grade_of as requirements_grade
 from calib.nav.transform import rotvec_to_dcm
 from calib.noise.profiles import NoiseProfile
@@ -135,7 +135,7 @@ class VerifyJob:
     tolerance_deg: float
     flip_error_deg: float
     seed: int
-    extras: Extras
+    extras: OptionalTerms
     requirements: Requirements
     hand: HandShape | None = None  # runs placed by hand instead of the sequence
 
@@ -360,7 +360,7 @@ class VerifyOptions:
         Each run's base mounting drawn within this box, deg.
     flip_error_deg : float
         Flips missing their angle by up to this much, deg.
-    extras : Extras
+    extras : OptionalTerms
         What the fit estimates beside the 21.
     requirements : Requirements
         The scale the fit judges observability in.
@@ -374,7 +374,7 @@ class VerifyOptions:
     seed: int = 0
     tolerance_deg: float = 3.0
     flip_error_deg: float = 0.5
-    extras: Extras = NO_EXTRAS
+    extras: OptionalTerms = NO_EXTRAS
     requirements: Requirements = PAPER
     workers: int = 1
     scheduler: Any = None

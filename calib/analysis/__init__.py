@@ -30,8 +30,8 @@ from calib.analysis.bounds import (
     unreachable,
 )
 from calib.analysis.gm_mounting import (
-    ExtraBasis,
     GmBasis,
+    OptionalTermsBasis,
     box_informations,
     box_points,
     extra_basis,
@@ -69,7 +69,7 @@ from calib.analysis.nominal import (
 from calib.analysis.observability import Observability, from_information
 from calib.analysis.worst_case import (
     Evaluation,
-    ExtrasCost,
+    OptionalTermsCost,
     Robustness,
     analyze_extras,
     analyze_tolerance,
@@ -79,9 +79,9 @@ from calib.analysis.worst_case import (
 )
 
 __all__ = [
-    "ExtraBasis",
+    "OptionalTermsBasis",
     "Evaluation",
-    "ExtrasCost",
+    "OptionalTermsCost",
     "Function",
     "GmBasis",
     "NominalRun",

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.model import params as P
-from calib.model.optional_terms import NONE as NO_EXTRAS, Extras
+from calib.model.optional_terms import NONE as NO_EXTRAS, OptionalTerms
 from calib.nav import earth
 from calib.nav.jacobian import ObservationGrid, propagate, sample_layout, state_matrix, step_model
 from calib.nav.site import Site
@@ -130,7 +130,7 @@ def whitened_grams(basis: GmBasis, rotvecs: list, columns) -> np.ndarray:
     return 0.5 * (gram + gram.transpose(0, 2, 1))
 
 
-def informations(basis: GmBasis, rotvecs: list, extra: ExtraBasis | None = None) -> np.ndarray:
+def informations(basis: GmBasis, rotvecs: list, extra: OptionalTermsBasis | None = None) -> np.ndarray:
     """The exact Fisher information (M, 24 [+ e], ...) of each mounting, in one pass of the filter.
 
     ``H`` of a mounting is ``X A(R)`` (:func:`calib.analysis.mounting.combination`), whose one
@@ -193,7 +193,7 @@ def _rate_steps(x: np.ndarray, h: np.ndarray) -> np.ndarray:
 
 
 def _sensitivity_coefficients(
-    extras: Extras, flip: np.ndarray, E: np.ndarray, C_mid: np.ndarray, h: np.ndarray
+    extras: OptionalTerms, flip: np.ndarray, E: np.ndarray, C_mid: np.ndarray, h: np.ndarray
 ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """:func:`calib.model.optional_terms.dv_sensitivity` of every mounting as polynomials in its monomials.
 
@@ -247,7 +247,7 @@ def _sensitivity_coefficients(
 
 
 @dataclass(frozen=True)
-class ExtraBasis:
+class OptionalTermsBasis:
     """The optional terms' interval moments for every mounting, as :class:`GmBasis` holds the 21's.
 
     ``parts`` per group: its columns among the extras', the monomials it uses
@@ -280,8 +280,8 @@ def _interval_moments(x: np.ndarray, starts: np.ndarray, tau: np.ndarray) -> np.
 
 
 @functools.lru_cache(maxsize=2)
-def extra_basis(seq: Sequence, site: Site, extras: Extras) -> ExtraBasis:
-    """Build (and cache) the :class:`ExtraBasis` of a sequence: one pass over its samples."""
+def extra_basis(seq: Sequence, site: Site, extras: OptionalTerms) -> OptionalTermsBasis:
+    """Build (and cache) the :class:`OptionalTermsBasis` of a sequence: one pass over its samples."""
     tl = timeline(seq)
     t_nav, bounds = nominal_samples(tl)
     flip, E = body_integrals(tl, t_nav[1:])
@@ -290,10 +290,10 @@ def extra_basis(seq: Sequence, site: Site, extras: Extras) -> ExtraBasis:
     for columns, monomials, D in _sensitivity_coefficients(extras, flip, E, L.C_mid, L.h):
         Y = np.einsum("nbi,nicu->ncbu", L.C_mid, D).reshape(len(D), len(columns), -1)
         parts.append((columns, monomials, _interval_moments(Y, L.starts, L.tau)))
-    return ExtraBasis(tuple(parts), extras.n, site)
+    return OptionalTermsBasis(tuple(parts), extras.n, site)
 
 
-def extra_chunks(basis: GmBasis, xb: ExtraBasis, rotvecs: list):
+def extra_chunks(basis: GmBasis, xb: OptionalTermsBasis, rotvecs: list):
     """The optional terms' columns of ``H`` of mountings, ``CHUNK_INTERVALS`` intervals at a time.
 
     Yields (k, M, 3, e). Each mounting's moments are its weights on the basis
@@ -326,13 +326,13 @@ def extra_chunks(basis: GmBasis, xb: ExtraBasis, rotvecs: list):
         yield H.reshape(k, 3, e, M).transpose(0, 3, 1, 2)
 
 
-def extra_columns(basis: GmBasis, xb: ExtraBasis, rotvecs: list) -> np.ndarray:
+def extra_columns(basis: GmBasis, xb: OptionalTermsBasis, rotvecs: list) -> np.ndarray:
     """The optional terms' columns of ``H`` (K, M, 3, e) of mountings (:func:`extra_chunks`, whole)."""
     return np.concatenate(list(extra_chunks(basis, xb, rotvecs)))
 
 
 def nominal_information(
-    seq: Sequence, profile: NoiseProfile, site: Site, extras: Extras = NO_EXTRAS
+    seq: Sequence, profile: NoiseProfile, site: Site, extras: OptionalTerms = NO_EXTRAS
 ) -> np.ndarray:
     """The nominal mounting's information alone under a GM profile (as :func:`~.nominal.information_one`).
 
@@ -350,7 +350,7 @@ def box_points(tolerance_deg: float) -> list:
 
 @functools.lru_cache(maxsize=1)
 def box_informations(
-    seq: Sequence, profile: NoiseProfile, site: Site, tolerance_deg: float, extras: Extras = NO_EXTRAS
+    seq: Sequence, profile: NoiseProfile, site: Site, tolerance_deg: float, extras: OptionalTerms = NO_EXTRAS
 ) -> np.ndarray:
     """The informations (28, 24 + e, 24 + e) of the nominal mounting and the 27 box points.
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib.model.optional_terms import NONE as NO_EXTRAS, Extras
+from calib.model.optional_terms import NONE as NO_EXTRAS, OptionalTerms
 from calib.nav.jacobian import MOVE_STEP_S, ObservationGrid, Trajectory, observation_jacobian, state_matrix
 from calib.nav.site import Site
 from calib.nav.transform import rotvec_to_dcm
@@ -116,7 +116,7 @@ def noise_along(
 
 
 def information_along(
-    nom: NominalRun, profile: NoiseProfile, site: Site, extras: Extras = NO_EXTRAS
+    nom: NominalRun, profile: NoiseProfile, site: Site, extras: OptionalTerms = NO_EXTRAS
 ) -> np.ndarray:
     """Fisher information (24 + e square, SI) of the shared model along one trajectory."""
     noise = noise_along(nom.time_nav, nom.C_b_n, nom.grid.bounds, site, profile)
@@ -126,7 +126,7 @@ def information_along(
 
 
 def information_one(
-    nom: NominalRun, profile: NoiseProfile, site: Site, extras: Extras = NO_EXTRAS
+    nom: NominalRun, profile: NoiseProfile, site: Site, extras: OptionalTerms = NO_EXTRAS
 ) -> np.ndarray:
     """:func:`information_along` of one trajectory under a GM profile, the filter in nav-frame coordinates.
 
@@ -163,7 +163,7 @@ def same_grid(noms: list[NominalRun]) -> bool:
 
 
 def information_along_many(
-    noms: list[NominalRun], profile: NoiseProfile, site: Site, extras: Extras = NO_EXTRAS
+    noms: list[NominalRun], profile: NoiseProfile, site: Site, extras: OptionalTerms = NO_EXTRAS
 ) -> np.ndarray:
     """:func:`information_along` of several trajectories of one sequence, (M, n, n).
 
@@ -216,7 +216,7 @@ def mounting_informations(
     profile: NoiseProfile,
     site: Site,
     rotvecs: list,
-    extras: Extras = NO_EXTRAS,
+    extras: OptionalTerms = NO_EXTRAS,
     batch: int = BATCH_MOUNTINGS,
 ) -> list[np.ndarray]:
     """Fisher information of each mounting, evaluated along its own nominal trajectory.

@@ -19,7 +19,7 @@ import numpy as np
 from calib.errors import CalibError
 from calib.model import params as P
 from calib.model.information import eliminate, projected_covariance, scaled_inverse
-from calib.model.optional_terms import NONE as NO_EXTRAS, Extras
+from calib.model.optional_terms import NONE as NO_EXTRAS, OptionalTerms
 from calib.model.requirements import PAPER, Requirements
 from calib.nav.jacobian import N_UNKNOWN, PHI0 as PHI0_IDX
 from calib.nav.site import Site
@@ -227,7 +227,7 @@ def analyze_tolerance(
     tolerance_deg: float = 3.0,
     search: bool = True,
     requirements: Requirements = PAPER,
-    extras: Extras = NO_EXTRAS,
+    extras: OptionalTerms = NO_EXTRAS,
     how: Evaluation | None = None,
 ) -> Robustness:
     """Worst case over the +-tolerance box of base mountings at ``site``.
@@ -312,12 +312,12 @@ def analyze_tolerance(
 
 
 @dataclass(frozen=True)
-class ExtrasCost:
+class OptionalTermsCost:
     """What fitting a real unit's optional terms costs the 21, worst over the mounting box.
 
     Attributes
     ----------
-    extras : Extras
+    extras : OptionalTerms
     sigma_without, sigma_with : ndarray (21,)
         Each parameter's worst sigma over the box (SI) without and with the terms.
     extra_sigma : ndarray (e,)
@@ -327,7 +327,7 @@ class ExtrasCost:
     points : int
     """
 
-    extras: Extras
+    extras: OptionalTerms
     sigma_without: np.ndarray
     sigma_with: np.ndarray
     extra_sigma: np.ndarray
@@ -349,7 +349,7 @@ class ExtrasCost:
 
 
 def _extras_sigmas(
-    seq: Sequence, profile: NoiseProfile, extras: Extras, requirements: Requirements, nom_info
+    seq: Sequence, profile: NoiseProfile, extras: OptionalTerms, requirements: Requirements, nom_info
 ):
     """``sigmas(rotvec, info) -> (sigma of the 21 without, with, sigma of the extras)`` (SI).
 
@@ -379,7 +379,7 @@ def _extras_evaluator(
     seq: Sequence,
     profile: NoiseProfile,
     site: Site,
-    extras: Extras,
+    extras: OptionalTerms,
     requirements: Requirements,
     batch: int,
     one: bool,
@@ -411,7 +411,7 @@ def _gm_extras(
     seq: Sequence,
     profile: NoiseProfile,
     site: Site,
-    extras: Extras,
+    extras: OptionalTerms,
     requirements: Requirements,
     tolerance_deg: float,
 ):
@@ -440,12 +440,12 @@ def analyze_extras(
     seq: Sequence,
     profile: NoiseProfile,
     site: Site,
-    extras: Extras,
+    extras: OptionalTerms,
     tolerance_deg: float = 3.0,
     requirements: Requirements = PAPER,
     search: bool = False,
     how: Evaluation | None = None,
-) -> ExtrasCost:
+) -> OptionalTermsCost:
     """Sigma of the 21 with and without the optional terms, and theirs, worst over the box at ``site``.
 
     Both figures come from the same 27 mountings (corners, edges, faces and
@@ -490,6 +490,6 @@ def analyze_extras(
         )
         results.extend(evaluate([rotvec]))
     without, with_, extra = (np.max([r[i] for r in results], axis=0) for i in range(3))
-    return ExtrasCost(
+    return OptionalTermsCost(
         extras, without, with_, extra, nominal.null_directions(), len(points), tolerance_deg, searched
     )

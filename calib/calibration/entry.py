@@ -31,7 +31,7 @@ from calib.hand.calibrate import as_fit, fit_checked, summary_of
 from calib.hand.fit_options import HAND_REQUIREMENTS
 from calib.hand.setup import carried_by_hand
 from calib.model import params as P
-from calib.model.optional_terms import Extras, as_extras
+from calib.model.optional_terms import OptionalTerms, load_optional_terms
 from calib.model.requirements import PAPER, Requirements, load_requirements
 from calib.nav.site import Site, site_of
 from calib.nav.strapdown import sample_intervals
@@ -157,7 +157,7 @@ def calibrate(
     *,
     by_hand: bool = False,
     requirements=None,
-    extras: Extras | str | None = None,
+    extras: OptionalTerms | str | None = None,
     sequence=None,
     stream: bool | None = None,
     options: CalibrateOptions = CALIBRATE,
@@ -182,7 +182,7 @@ def calibrate(
         names it.
     requirements : Requirements or str, optional
         What the ratios are judged against (default: the paper's; ``mems`` for a run placed by hand).
-    extras : Extras or str, optional
+    extras : OptionalTerms or str, optional
         Optional terms to fit beside the 21 (``"lever-arm,k2"``, ``"all"``).
     sequence : calib.sequence.definition.Sequence, optional
         The sequence the run followed: its flips mark where the log turns
@@ -202,7 +202,7 @@ def calibrate(
         With the Birge-checked sigmas, the correlation of the 21, the site
         gravity and the fit's health.
     """
-    prof, extras = load_profile(profile), as_extras(extras, by_hand=by_hand)
+    prof, extras = load_profile(profile), load_optional_terms(extras, by_hand=by_hand)
     # A unit calibrated by hand is a MEMS unit: judged by the paper's navigation-grade requirements,
     # every sigma would be "weak" (beyond 1000 requirements) and nothing estimable.
     req = load_requirements(requirements if requirements is not None or not by_hand else HAND_REQUIREMENTS)
@@ -262,7 +262,7 @@ def _fit_in_memory(run, site: Site, profile: NoiseProfile, sequence, options: Fi
 
 
 def _by_hand(
-    source, prof, extras: Extras, req: Requirements, sequence, stream, options: CalibrateOptions
+    source, prof, extras: OptionalTerms, req: Requirements, sequence, stream, options: CalibrateOptions
 ) -> CalibrationResult:
     """A run placed by hand, read whole: its fit, checked as a gimbal run's.
 

@@ -19,7 +19,7 @@ from calib.io.fields import FORMAT_VERSION, Fields, check_format_version
 from calib.io.files import atomic_write_text, load_toml, toml_number
 from calib.model import params as P
 from calib.model.error_model import ErrorModel
-from calib.model.optional_terms import GROUPS, NONE as NO_EXTRAS, Extras, parse_groups
+from calib.model.optional_terms import GROUPS, NONE as NO_EXTRAS, OptionalTerms, parse_groups
 from calib.model.report import extra_entries, format_table, parameter_entries, worst
 from calib.model.requirements import PAPER, Requirements, requirements_from_dict
 from calib.nav.site import ppm_per_mgal
@@ -52,7 +52,7 @@ class CalibrationResult:
         Correlation of the 21 (0 in the rows of parameters not estimable).
     provenance : dict
         Tool version, command and input hashes.
-    extras : Extras
+    extras : OptionalTerms
         Optional terms fitted with the 21 (:mod:`calib.model.optional_terms`); saved after
         the 21 in ``[parameters]`` and named in ``[fit] extras``.
     extra_values, extra_sigma : ndarray, shape (extras.n,)
@@ -87,7 +87,7 @@ class CalibrationResult:
     chi2_per_dof: float = float("nan")
     correlation: np.ndarray | None = None
     provenance: dict = field(default_factory=dict)
-    extras: Extras = NO_EXTRAS
+    extras: OptionalTerms = NO_EXTRAS
     extra_values: np.ndarray = field(default_factory=lambda: np.zeros(0))
     extra_sigma: np.ndarray = field(default_factory=lambda: np.zeros(0))
     sigma_scale: float = 1.0
@@ -413,11 +413,11 @@ def _strings(fit: Fields, key: str) -> list[str]:
     return raw
 
 
-def _read_extras(fit: Fields, where: str) -> Extras:
+def _read_extras(fit: Fields, where: str) -> OptionalTerms:
     groups = fit.table.get("extras", [])
     if not isinstance(groups, list) or not all(isinstance(g, str) for g in groups):
         raise CalibError("must be a list of names", f"{where}: [fit] extras")
-    return Extras(parse_groups(",".join(groups), f"{where}: [fit] extras", allowed=tuple(GROUPS)))
+    return OptionalTerms(parse_groups(",".join(groups), f"{where}: [fit] extras", allowed=tuple(GROUPS)))
 
 
 def _matrix(rows, n: int) -> np.ndarray | None:

@@ -27,7 +27,7 @@ from calib.errors import CalibError
 from calib.model import optional_terms as X, params as P
 from calib.model.error_model import ErrorModel
 from calib.model.information import UNKNOWN_NAMES
-from calib.model.optional_terms import Extras
+from calib.model.optional_terms import OptionalTerms
 from calib.model.requirements import Requirements
 from calib.nav.chunk_pass import Estimate, Passes, array_chunks, chunk_cuts, navigate_pass
 from calib.nav.jacobian import (
@@ -125,7 +125,7 @@ class _Problem:
     dt: np.ndarray
     site: Site
     profile: NoiseProfile
-    extras: Extras
+    extras: OptionalTerms
     grid: ObservationGrid
     where: str
 
@@ -390,7 +390,7 @@ def fit_intervals(
     return fit_result((values, extra_values, C0), cov, sol, (z, H, delta), history, False, extras)
 
 
-def _pass_design(data, T, site: Site, noise, z, extras: Extras, requirements: Requirements, R):
+def _pass_design(data, T, site: Site, noise, z, extras: OptionalTerms, requirements: Requirements, R):
     """A pass's Jacobian (in the frame ``R`` turns to), its whitened and scaled form, and the
     whitened observations.
     """

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from calib.model import optional_terms as X
-from calib.model.optional_terms import Extras
+from calib.model.optional_terms import OptionalTerms
 from calib.model.requirements import PAPER, Requirements
 
 from .sanity import MAX_PLAUSIBLE_RATE
@@ -24,7 +24,7 @@ class FitOptions:
 
     Parameters
     ----------
-    extras : Extras
+    extras : OptionalTerms
         Optional terms (:mod:`calib.model.optional_terms`) to estimate with the 21.
     partial : bool
         Fit the estimable part of a run that leaves directions unobserved
@@ -50,7 +50,7 @@ class FitOptions:
         A run in memory only.
     """
 
-    extras: Extras = X.NONE
+    extras: OptionalTerms = X.NONE
     partial: bool = False
     requirements: Requirements = PAPER
     max_iterations: int | None = None

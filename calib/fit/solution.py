@@ -19,7 +19,7 @@ from calib.analysis.nominal import information_along, nominal_run
 from calib.errors import CalibError
 from calib.model import optional_terms as X, params as P
 from calib.model.information import UNKNOWN_NAMES, ScaledInverse, eliminate, scaled_inverse
-from calib.model.optional_terms import Extras
+from calib.model.optional_terms import OptionalTerms
 from calib.model.requirements import PAPER, Requirements
 from calib.nav.jacobian import N_UNKNOWN, PHI0
 from calib.nav.site import Site
@@ -48,7 +48,7 @@ class Fit:
     chi2_per_dof: float
     n_observations: int
     history: list = field(default_factory=list)
-    extras: Extras = X.NONE
+    extras: OptionalTerms = X.NONE
     extra_values: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (e,) SI
     estimable: np.ndarray | None = None  # (21 + e,) bool, over [params, extras]
     null_directions: list = field(default_factory=list)
@@ -84,12 +84,12 @@ def param_index(n_total: int) -> np.ndarray:
     return np.r_[0 : P.N_PARAMS, N_UNKNOWN:n_total]
 
 
-def unknown_scale(extras: Extras = X.NONE, requirements: Requirements = PAPER) -> np.ndarray:
+def unknown_scale(extras: OptionalTerms = X.NONE, requirements: Requirements = PAPER) -> np.ndarray:
     """The scale of [21 parameters, phi0, extras]: the requirements, PHI0_SCALE, the extras' sizes."""
     return np.concatenate([requirements.si, np.full(3, PHI0_SCALE), extras.scale_si])
 
 
-def scaled_design(Hw: np.ndarray, extras: Extras = X.NONE, requirements: Requirements = PAPER):
+def scaled_design(Hw: np.ndarray, extras: OptionalTerms = X.NONE, requirements: Requirements = PAPER):
     """Whitened observation matrix with columns in units of the requirements, and the scale.
 
     The optional terms are scaled by their typical size (:mod:`calib.model.optional_terms`).
@@ -162,7 +162,7 @@ def solve_information(
 
 
 def nominal_decision(
-    seq, site: Site, profile: NoiseProfile, extras: Extras, requirements: Requirements, names
+    seq, site: Site, profile: NoiseProfile, extras: OptionalTerms, requirements: Requirements, names
 ) -> ScaledInverse:
     """What the error-free trajectory of ``seq`` at ``site`` observes, by :mod:`calib.model.information`."""
     info = information_along(nominal_run(seq, site, np.zeros(3)), profile, site, extras)
@@ -215,7 +215,7 @@ def fit_result(estimate: tuple, cov, sol, last: tuple, history, converged, extra
         ``(z, H, delta)``: the last iteration's observations, Jacobian and step.
     history : list of dict
     converged : bool
-    extras : Extras
+    extras : OptionalTerms
     """
     values, extra_values, C0 = estimate
     z, H, delta = last
@@ -237,7 +237,7 @@ def fit_result(estimate: tuple, cov, sol, last: tuple, history, converged, extra
     )
 
 
-def nominal_judge(find_sequence, site: Site, profile: NoiseProfile, extras: Extras, requirements):
+def nominal_judge(find_sequence, site: Site, profile: NoiseProfile, extras: OptionalTerms, requirements):
     """A callable giving the nominal trajectory's observability decision, computed once.
 
     Called only when a run's own information leaves directions unobserved:

@@ -21,7 +21,7 @@ from scipy.stats import chi2 as chi2_distribution
 from calib.errors import CalibError
 from calib.fit.solution import Fit
 from calib.model import params as P
-from calib.model.optional_terms import Extras
+from calib.model.optional_terms import OptionalTerms
 from calib.nav.site import Site
 from calib.nav.strapdown import sample_intervals
 from calib.noise.profiles import NoiseProfile, white_part
@@ -86,12 +86,12 @@ def hand_fit_of(
     run: Run,
     site: Site,
     profile: NoiseProfile,
-    extras: Extras,
+    extras: OptionalTerms,
     partial: bool,
     req,
     without: tuple = (),
     earn_weights: bool = True,
-) -> tuple[HandFit, Extras, TermChoice]:
+) -> tuple[HandFit, OptionalTerms, TermChoice]:
     """The fit of a run placed by hand, read as it is, with the g-sensitivity chosen by the data.
 
     Unless ``extras`` forces it in or ``without`` out, the gyro g-sensitivity is
@@ -138,7 +138,7 @@ def hand_fit_of(
         return plain, extras, choice
     if not partial and not test.estimable.all():
         test = fit(g_sensitivity=True, partial=False, earn_weights=earn_weights, weights=plain.weights)
-    return test, Extras((*extras.groups, G_SENSITIVITY)), choice
+    return test, OptionalTerms((*extras.groups, G_SENSITIVITY)), choice
 
 
 def _loosening(fit, g_sensitivity: bool) -> tuple[float, HandFit | None]:
@@ -181,10 +181,10 @@ def fit_checked(
     partial: bool,
     req,
     fix_units: bool = False,
-) -> tuple[HandFit, Extras, TermChoice, Run, list]:
+) -> tuple[HandFit, OptionalTerms, TermChoice, Run, list]:
     """The setup checked (:mod:`calib.hand.setup`), the fit with its model chosen, the rate checked.
 
-    ``terms`` is the optional terms forced in (Extras) and out (names). Returns the fit, its
+    ``terms`` is the optional terms forced in (OptionalTerms) and out (names). Returns the fit, its
     terms, the choice, the run as fitted (put right under ``fix_units``) and what was put right.
     """
     extras, without = terms
@@ -213,7 +213,7 @@ def fit_checked(
     return hand, used, choice, run, notes
 
 
-def as_fit(hand: HandFit, extras: Extras) -> Fit:
+def as_fit(hand: HandFit, extras: OptionalTerms) -> Fit:
     """The estimator's :class:`calib.fit.solution.Fit` of a hand fit (what the result is built from)."""
     lay = hand.layout
     n_keep = lay.gs.stop

@@ -52,7 +52,7 @@ from .params import DEG_PER_HOUR, MICRO_G, STANDARD_GRAVITY
 
 
 @dataclass(frozen=True)
-class ExtraParameter:
+class OptionalParameter:
     """One optional parameter.
 
     Attributes
@@ -93,10 +93,10 @@ K2_SI_PER_UG_PER_G2 = MICRO_G / STANDARD_GRAVITY**2  # 1 ug/g^2 in 1/(m/s^2)
 G_SENSITIVITY_SI_PER_UNIT = DEG_PER_HOUR / STANDARD_GRAVITY  # 1 deg/h/g in (rad/s)/(m/s^2)
 
 
-def _table() -> dict[str, tuple[ExtraParameter, ...]]:
+def _table() -> dict[str, tuple[OptionalParameter, ...]]:
     axes = "xyz"
     lever = tuple(
-        ExtraParameter(
+        OptionalParameter(
             f"r{axes[i]}{axes[m]}",
             "lever-arm",
             "cm",
@@ -111,7 +111,7 @@ def _table() -> dict[str, tuple[ExtraParameter, ...]]:
         for m in range(3)
     )
     k2 = tuple(
-        ExtraParameter(
+        OptionalParameter(
             f"k2{axes[i]}",
             "k2",
             "ug/g^2",
@@ -125,7 +125,7 @@ def _table() -> dict[str, tuple[ExtraParameter, ...]]:
         for i in range(3)
     )
     offset = (
-        ExtraParameter(
+        OptionalParameter(
             "dt_ga",
             "time-offset",
             "ms",
@@ -136,7 +136,7 @@ def _table() -> dict[str, tuple[ExtraParameter, ...]]:
         ),
     )
     g_sensitivity = tuple(
-        ExtraParameter(
+        OptionalParameter(
             f"gs{axes[i]}{axes[m]}",
             "g-sensitivity",
             "deg/h/g",
@@ -153,7 +153,7 @@ def _table() -> dict[str, tuple[ExtraParameter, ...]]:
     return {"lever-arm": lever, "k2": k2, "time-offset": offset, "g-sensitivity": g_sensitivity}
 
 
-GROUPS: dict[str, tuple[ExtraParameter, ...]] = _table()
+GROUPS: dict[str, tuple[OptionalParameter, ...]] = _table()
 # The groups of a gimbal run (simulated, analysed, designed and fitted alike; ``all``).
 GROUP_NAMES: tuple[str, ...] = ("lever-arm", "k2", "time-offset")
 # Fitted on runs placed by hand only: a MEMS gyro's rate per g of specific force
@@ -183,13 +183,13 @@ def parse_groups(
 
 
 @dataclass(frozen=True)
-class Extras:
+class OptionalTerms:
     """The switched-on groups and their parameters, in canonical order."""
 
     groups: tuple[str, ...] = ()
 
     @property
-    def parameters(self) -> tuple[ExtraParameter, ...]:
+    def parameters(self) -> tuple[OptionalParameter, ...]:
         return tuple(p for g in self.groups for p in GROUPS[g])
 
     @property
@@ -216,10 +216,10 @@ class Extras:
             start += len(GROUPS[g])
         return slice(0, 0)
 
-    def unpack(self, values: np.ndarray) -> ExtraValues:
-        """SI values of the switched-on parameters -> :class:`ExtraValues` (others zero)."""
+    def unpack(self, values: np.ndarray) -> OptionalTermValues:
+        """SI values of the switched-on parameters -> :class:`OptionalTermValues` (others zero)."""
         v = np.asarray(values, dtype=float)
-        out = ExtraValues()
+        out = OptionalTermValues()
         if "lever-arm" in self.groups:
             out = out.replace(lever_arm_m=v[self.index("lever-arm")].reshape(3, 3))
         if "k2" in self.groups:
@@ -228,7 +228,7 @@ class Extras:
             out = out.replace(time_offset_s=float(v[self.index("time-offset")][0]))
         return out
 
-    def pack(self, values: ExtraValues) -> np.ndarray:
+    def pack(self, values: OptionalTermValues) -> np.ndarray:
         parts = {
             "lever-arm": values.lever_arm_m.reshape(9),
             "k2": values.k2,
@@ -242,11 +242,11 @@ class Extras:
         )
 
 
-NONE = Extras()
+NONE = OptionalTerms()
 
 
 @dataclass(frozen=True)
-class ExtraValues:
+class OptionalTermValues:
     """Values of every optional term (SI); zero means off.
 
     Attributes
@@ -263,14 +263,14 @@ class ExtraValues:
     k2: np.ndarray = field(default_factory=lambda: np.zeros(3))
     time_offset_s: float = 0.0
 
-    def replace(self, **kw) -> ExtraValues:
+    def replace(self, **kw) -> OptionalTermValues:
         d: dict[str, Any] = {
             "lever_arm_m": self.lever_arm_m,
             "k2": self.k2,
             "time_offset_s": self.time_offset_s,
         }
         d.update(kw)
-        return ExtraValues(
+        return OptionalTermValues(
             np.asarray(d["lever_arm_m"], dtype=float).reshape(3, 3),
             np.asarray(d["k2"], dtype=float).reshape(3),
             float(d["time_offset_s"]),
@@ -291,7 +291,7 @@ class ExtraValues:
 
     def in_units(self) -> dict[str, float]:
         """Every parameter by name, in its report unit."""
-        full = Extras(GROUP_NAMES)
+        full = OptionalTerms(GROUP_NAMES)
         return {
             p.name: float(v / p.si_per_unit) for p, v in zip(full.parameters, full.pack(self), strict=True)
         }
@@ -299,8 +299,8 @@ class ExtraValues:
     @classmethod
     def from_units(
         cls, by_name: dict[str, float], where: str = "extra terms (the CLI's --extra)"
-    ) -> ExtraValues:
-        full = Extras(GROUP_NAMES)
+    ) -> OptionalTermValues:
+        full = OptionalTerms(GROUP_NAMES)
         known = {p.name: p for p in full.parameters}
         unknown = sorted(set(by_name) - set(known))
         if unknown:
@@ -319,10 +319,10 @@ class ExtraValues:
         return full.unpack(v)
 
 
-def parse_values(text: str | None, where: str = "extra terms (the CLI's --extra)") -> ExtraValues:
-    """``"rxx=3,k2y=20,dt_ga=0.5"`` (report units) -> :class:`ExtraValues`."""
+def parse_values(text: str | None, where: str = "extra terms (the CLI's --extra)") -> OptionalTermValues:
+    """``"rxx=3,k2y=20,dt_ga=0.5"`` (report units) -> :class:`OptionalTermValues`."""
     if not text:
-        return ExtraValues()
+        return OptionalTermValues()
     values = {}
     for item in (t.strip() for t in text.split(",")):
         if not item:
@@ -337,7 +337,7 @@ def parse_values(text: str | None, where: str = "extra terms (the CLI's --extra)
                 f"{item!r} is not name=number", where, "e.g. rxx=3,k2y=20,dt_ga=0.5 (cm, ug/g^2, ms)"
             )
         values[name.strip()] = number
-    return ExtraValues.from_units(values, where)
+    return OptionalTermValues.from_units(values, where)
 
 
 def sample_rates(dtheta: np.ndarray, h: np.ndarray) -> np.ndarray:
@@ -377,7 +377,7 @@ def lever(lever_arm_m: np.ndarray, dtheta: np.ndarray, h: np.ndarray) -> np.ndar
 
 
 def apply(
-    values: ExtraValues, dtheta_true: np.ndarray, dv_shift: np.ndarray, h: np.ndarray, accel_apply
+    values: OptionalTermValues, dtheta_true: np.ndarray, dv_shift: np.ndarray, h: np.ndarray, accel_apply
 ) -> np.ndarray:
     """Accelerometer output from true gyro increments and (time-shifted) true velocity increments.
 
@@ -389,7 +389,7 @@ def apply(
 
 
 def compensate(
-    values: ExtraValues,
+    values: OptionalTermValues,
     dtheta: np.ndarray,
     dv_m: np.ndarray,
     h: np.ndarray,
@@ -420,7 +420,11 @@ def earth_turn(C_b_n_mid: np.ndarray, omega_ie_n: np.ndarray, h: np.ndarray) -> 
 
 
 def dv_sensitivity(
-    extras: Extras, dtheta: np.ndarray, dv: np.ndarray, h: np.ndarray, earth_dtheta: np.ndarray | float = 0.0
+    extras: OptionalTerms,
+    dtheta: np.ndarray,
+    dv: np.ndarray,
+    h: np.ndarray,
+    earth_dtheta: np.ndarray | float = 0.0,
 ) -> np.ndarray:
     """``d dv_meas / d(extra parameters, SI)`` per sample: shape (n, 3, extras.n)."""
     n = len(h)
@@ -439,10 +443,13 @@ def dv_sensitivity(
     return D
 
 
-def as_extras(extras: Extras | str | None, by_hand: bool = False) -> Extras:
-    """Optional terms from an :class:`Extras`, a ``--with`` string or None (``by_hand``: a hand run's)."""
+def load_optional_terms(extras: OptionalTerms | str | None, by_hand: bool = False) -> OptionalTerms:
+    """Optional terms from an :class:`OptionalTerms`, a ``--with`` string or None.
+
+    ``by_hand``: only the groups a run placed by hand may ask for.
+    """
     allowed = HAND_GROUP_NAMES if by_hand else GROUP_NAMES
-    if isinstance(extras, Extras):
+    if isinstance(extras, OptionalTerms):
         parse_groups(",".join(extras.groups), allowed=allowed)  # refuses a group this run cannot fit
         return extras
-    return Extras(parse_groups(extras, allowed=allowed)) if extras else NONE
+    return OptionalTerms(parse_groups(extras, allowed=allowed)) if extras else NONE

@@ -31,7 +31,7 @@ import numpy as np
 
 from calib.model import optional_terms as X
 from calib.model.error_model import ErrorModel
-from calib.model.optional_terms import Extras
+from calib.model.optional_terms import OptionalTerms
 
 from .jacobian import N_MOMENTS, ObservationGrid, step_model
 from .site import Site
@@ -83,7 +83,7 @@ class Estimate:
         The current estimate of the 21 (SI).
     C_b_n0 : ndarray, shape (3, 3)
         Attitude when the run began.
-    extras : Extras
+    extras : OptionalTerms
         The optional terms switched on.
     extra_values : ndarray, shape (extras.n,)
         Their current estimate.
@@ -97,7 +97,7 @@ class Estimate:
 
     values: np.ndarray
     C_b_n0: np.ndarray
-    extras: Extras = X.NONE
+    extras: OptionalTerms = X.NONE
     extra_values: np.ndarray = field(default_factory=lambda: np.zeros(0))
     turn: np.ndarray | None = None
     gyro_correction: np.ndarray | None = None
@@ -252,7 +252,7 @@ class _Carry:
         return self._inverses
 
 
-def _compensate(ch: Chunk, dt, model: ErrorModel, extras: Extras, extra_values, turn, carry):
+def _compensate(ch: Chunk, dt, model: ErrorModel, extras: OptionalTerms, extra_values, turn, carry):
     """Compensated increments of a chunk; with optional terms, the sample before is context."""
     if not extras.n:  # the inverse error matrices once per pass, not a solve per chunk
         Eg_inv, Ea_inv = carry.inverses(model)
@@ -356,7 +356,7 @@ def _moments(C_mid, dth, dvv, h, lb, t):
     return out
 
 
-def _extra_moments(C_mid, dth_ctx, dvv_ctx, h_ctx, turn, S3, extras: Extras, site: Site):
+def _extra_moments(C_mid, dth_ctx, dvv_ctx, h_ctx, turn, S3, extras: OptionalTerms, site: Site):
     """Inputs of the optional terms per interval (as :func:`calib.nav.jacobian.extra_inputs`)."""
     m, Kc = len(C_mid), S3.shape[0] // 3
     skip = len(h_ctx) - m

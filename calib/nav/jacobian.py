@@ -39,7 +39,7 @@ import casadi as ca
 import numpy as np
 
 from calib.model import params as P
-from calib.model.optional_terms import NONE as NO_EXTRAS, Extras, dv_sensitivity, earth_turn
+from calib.model.optional_terms import NONE as NO_EXTRAS, OptionalTerms, dv_sensitivity, earth_turn
 
 from . import earth
 from .site import Site
@@ -320,7 +320,7 @@ def extra_inputs(
     dtheta: np.ndarray,
     dv: np.ndarray,
     layout: SampleLayout,
-    extras: Extras,
+    extras: OptionalTerms,
     site: Site,
 ) -> np.ndarray:
     """``d x_next / d(extra parameters)`` of every interval: shape ``(K, 6, extras.n)``.
@@ -377,7 +377,7 @@ def observation_jacobian(
     trajectory: Trajectory,
     site: Site,
     Phi_vv: np.ndarray,
-    extras: Extras = NO_EXTRAS,
+    extras: OptionalTerms = NO_EXTRAS,
     compiled: bool = False,
 ) -> np.ndarray:
     """``H`` of every interval along a trajectory, shape ``(K, 3, N_UNKNOWN + extras.n)``.

@@ -22,7 +22,7 @@ from calib.gimbal.encoders import encoder_track
 from calib.gimbal.rule import plan_sequence
 from calib.model import optional_terms as X
 from calib.model.error_model import ErrorModel
-from calib.model.optional_terms import ExtraValues
+from calib.model.optional_terms import OptionalTermValues
 from calib.nav import earth
 from calib.nav.transform import rotvec_to_dcm
 from calib.noise.gauss_markov import gauss_markov
@@ -45,7 +45,7 @@ class Truth:
     profile: str
     seed: int | None
     noise: bool
-    extra: ExtraValues | None = None  # optional terms of calib.model.optional_terms, None when all off
+    extra: OptionalTermValues | None = None  # optional terms of calib.model.optional_terms, None when all off
 
     @property
     def R_setup(self) -> np.ndarray:
@@ -146,7 +146,7 @@ def simulate(
     errors: ErrorModel,
     profile: NoiseProfile,
     options: SimOptions = SIM,
-    extra: ExtraValues | None = None,
+    extra: OptionalTermValues | None = None,
     gimbal=None,
 ) -> tuple[Run, Truth]:
     """Simulate a calibration run.
@@ -162,7 +162,7 @@ def simulate(
         ``options.noise`` is False).
     options : SimOptions
         The base mounting, flip errors, noise and seed.
-    extra : ExtraValues, optional
+    extra : OptionalTermValues, optional
         The optional terms of :mod:`calib.model.optional_terms` (lever arms, quadratic
         accelerometer terms, gyro-accelerometer time offset).
     gimbal : calib.gimbal.rule.Gimbal, optional
@@ -191,7 +191,7 @@ def simulate(
     R = rotvec_to_dcm(setup_rotvec)
     time_s, dtheta, dv = true_increments(tl, R, cfg)
     dt = np.diff(np.concatenate([[0.0], time_s]))
-    extra = extra if extra is not None else ExtraValues()
+    extra = extra if extra is not None else OptionalTermValues()
     if extra.time_offset_s != 0.0:
         # The accelerometers integrate over windows shifted by the offset: exact, as above.
         _, E = body_integrals(tl, time_s - extra.time_offset_s)

@@ -12,7 +12,7 @@ from calib.io.fields import FORMAT_VERSION, Fields, check_format_version
 from calib.io.files import atomic_write_text, load_toml, toml_number
 from calib.model import params as P
 from calib.model.error_model import ErrorModel
-from calib.model.optional_terms import ExtraValues
+from calib.model.optional_terms import OptionalTermValues
 
 from .gimbal_run import Truth
 
@@ -119,7 +119,7 @@ def _extra(table, where: str):
     if not isinstance(table, dict):
         raise CalibError("must be a table of name = value", here)
     values = {k: _finite(v, f"{here} {k}") for k, v in table.items()}
-    extra = ExtraValues.from_units(values, here)
+    extra = OptionalTermValues.from_units(values, here)
     return extra if extra.active else None
 
 

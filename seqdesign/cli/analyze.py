@@ -145,7 +145,7 @@ def _analyze_by_hand(path, profile, requirements, with_terms, placement, view_pa
     """
     from calib.hand.fit_options import HAND_REQUIREMENTS
     from calib.hand.poses import load_poses
-    from calib.model.optional_terms import as_extras
+    from calib.model.optional_terms import load_optional_terms
     from calib.model.requirements import load_requirements
     from calib.noise.profiles import load_profile
     from seqdesign.handanalysis import analyze_hand
@@ -170,7 +170,7 @@ def _analyze_by_hand(path, profile, requirements, with_terms, placement, view_pa
             site_of(run, gravity),
             load_profile(profile),
             load_requirements(requirements or HAND_REQUIREMENTS),
-            as_extras(with_terms, by_hand=True),
+            load_optional_terms(with_terms, by_hand=True),
         )
     else:
         result = analyze_hand(
@@ -179,7 +179,7 @@ def _analyze_by_hand(path, profile, requirements, with_terms, placement, view_pa
             load_requirements(requirements or HAND_REQUIREMENTS),
             latitude_deg=45.0 if site["latitude_deg"] is None else site["latitude_deg"],
             placement=placement,
-            extras=as_extras(with_terms, by_hand=True),
+            extras=load_optional_terms(with_terms, by_hand=True),
         )
     return result
 

@@ -106,7 +106,7 @@ def calibrate(
     """
     from calib.calibration.entry import CalibrateOptions, calibrate as calibrate_source, reads_in_chunks
     from calib.errors import CalibError
-    from calib.model.optional_terms import as_extras
+    from calib.model.optional_terms import load_optional_terms
     from calib.noise.profiles import load_profile
     from calib.sequence.definition import load_sequence
     from calib.sim.truth import read_truth, truth_path_for
@@ -124,7 +124,7 @@ def calibrate(
             "--requirements": requirements,
         },
     )
-    extras = as_extras(with_terms, by_hand=by_hand)
+    extras = load_optional_terms(with_terms, by_hand=by_hand)
     prof = load_profile(profile)
     if not by_hand:  # a hand fit takes the mems requirements by default (calib.calibration.entry)
         from calib.model.requirements import default_for

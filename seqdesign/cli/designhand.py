@@ -19,7 +19,7 @@ def design_by_hand(
     """
     from calib.hand.fit_options import HAND_REQUIREMENTS
     from calib.io.files import atomic_write_text
-    from calib.model.optional_terms import as_extras
+    from calib.model.optional_terms import load_optional_terms
     from calib.model.requirements import load_requirements
     from calib.noise.profiles import load_profile
     from seqdesign.handanalysis import Placement, analyze_hand
@@ -27,7 +27,7 @@ def design_by_hand(
     from seqdesign.handprotocol import pose_toml, write_protocol
 
     prof, req = load_profile(profile), load_requirements(requirements or HAND_REQUIREMENTS)
-    extras = as_extras(with_terms, by_hand=True)
+    extras = load_optional_terms(with_terms, by_hand=True)
     out = Path(output or "hand.toml")
     poses_from = options.pose_set
     info(f"designing a run placed by hand: {budget_min:g} min, profile {prof.name}, poses from {poses_from}")

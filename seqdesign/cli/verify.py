@@ -179,7 +179,7 @@ def _verify_sequence(sequence, prof, options, with_terms, where, errors, gimbal_
     """
     from calib.gimbal.description import load_gimbal
     from calib.gimbal.rule import check_playable, plan_sequence
-    from calib.model.optional_terms import as_extras
+    from calib.model.optional_terms import load_optional_terms
     from calib.sequence.definition import load_sequence
     from calib.sequence.kinematics import SimConfig
     from seqdesign.analysis import analyze, resolve_site
@@ -206,7 +206,7 @@ def _verify_sequence(sequence, prof, options, with_terms, where, errors, gimbal_
     return run_verify(
         seq,
         prof,
-        replace(options, extras=as_extras(with_terms)),
+        replace(options, extras=load_optional_terms(with_terms)),
         config=config,
         predicted_sigma=prediction.robustness.per_parameter_worst_sigma,
         errors=errors,

@@ -24,7 +24,7 @@ def verify_by_hand(sequence, prof, options, with_terms, where, errors, shape, pr
     """
     import numpy as np
 
-    from calib.model.optional_terms import NONE as NO_EXTRAS, as_extras
+    from calib.model.optional_terms import NONE as NO_EXTRAS, load_optional_terms
     from calib.sequence.kinematics import SimConfig
     from seqdesign.verify import HandShape, verify as run_verify
 
@@ -47,7 +47,7 @@ def verify_by_hand(sequence, prof, options, with_terms, where, errors, shape, pr
             "no SEQUENCE given", "verify", "give a sequence, or --by-hand for runs placed by hand"
         )
     spec = trouble_spec(troubles or TROUBLE_DEFAULTS)
-    extras = as_extras(with_terms, by_hand=True)
+    extras = load_optional_terms(with_terms, by_hand=True)
     latitude, height, gravity_mps2, sample_rate_hz = where
     lat = 45.0 if latitude is None else latitude
     config = SimConfig(

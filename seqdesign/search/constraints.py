@@ -8,7 +8,7 @@ from typing import Any
 
 from calib.errors import CalibError
 from calib.gimbal.description import Gimbal
-from calib.model.optional_terms import Extras, parse_groups
+from calib.model.optional_terms import OptionalTerms, parse_groups
 from calib.model.requirements import Requirements, load_requirements
 from calib.nav.transform import AXES
 from calib.sequence.definition import FIRST_REST_MARGIN_S, MIN_ALIGN_S, Sequence, Step
@@ -59,7 +59,7 @@ class DesignOptions:
         A dask.distributed scheduler address (or client) instead of local processes.
     requirements : Requirements or str, optional
         The objective's requirements (default: the paper's).
-    extras : Extras or str, optional
+    extras : OptionalTerms or str, optional
         Terms fitted beside the 21 (``--with``: ``lever-arm,k2,time-offset`` or ``all``); the
         objective is then the worst ratio of the 21 with them fitted.
     """
@@ -72,11 +72,15 @@ class DesignOptions:
     workers: int = 1
     scheduler: Any = None
     requirements: Requirements | str | None = None
-    extras: Extras | str | None = None
+    extras: OptionalTerms | str | None = None
 
-    def judged_by(self) -> tuple[Requirements, Extras]:
+    def judged_by(self) -> tuple[Requirements, OptionalTerms]:
         """The requirements and the extra terms as objects (names and files read)."""
-        extras = self.extras if isinstance(self.extras, Extras) else Extras(parse_groups(self.extras))
+        extras = (
+            self.extras
+            if isinstance(self.extras, OptionalTerms)
+            else OptionalTerms(parse_groups(self.extras))
+        )
         return load_requirements(self.requirements), extras
 
 

@@ -12,7 +12,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 
-from calib.analysis.worst_case import ExtrasCost, Robustness
+from calib.analysis.worst_case import OptionalTermsCost, Robustness
 from calib.errors import CalibError
 from calib.nav.site import Site
 from calib.noise.profiles import NoiseProfile
@@ -57,7 +57,7 @@ class DesignResult:
     search_seconds: float
     finalists: list[Finalist]  # every candidate re-scored over the box, best first
     robustness: Robustness | None  # of the 21 alone (None with --with)
-    extras_cost: ExtrasCost | None = None  # of the winner when --with was given
+    extras_cost: OptionalTermsCost | None = None  # of the winner when --with was given
     repeats: int = 1  # how many times the winner plays its motif
 
 

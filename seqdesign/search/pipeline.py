@@ -16,11 +16,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from calib.analysis.gm_mounting import release_caches
-from calib.analysis.worst_case import ExtrasCost, Robustness, analyze_extras, analyze_tolerance
+from calib.analysis.worst_case import OptionalTermsCost, Robustness, analyze_extras, analyze_tolerance
 from calib.errors import CalibError
 from calib.gimbal.rule import plan_sequence
 from calib.model import params as P
-from calib.model.optional_terms import NONE as NO_EXTRAS, Extras
+from calib.model.optional_terms import NONE as NO_EXTRAS, OptionalTerms
 from calib.model.requirements import PAPER, Requirements
 from calib.nav.site import Site
 from calib.noise.profiles import NoiseProfile
@@ -106,7 +106,7 @@ class ExactScore:
     ratio: float  # worst 3 sigma / requirement of the 21 (with the extras fitted)
     worst_name: str  # the parameter it belongs to
     robustness: Robustness | None  # None with extras, or kept only after a search
-    extras_cost: ExtrasCost | None  # with extras
+    extras_cost: OptionalTermsCost | None  # with extras
     sequence: Sequence
 
 
@@ -130,13 +130,13 @@ def _exact_worst(
     tolerance_deg,
     search,
     requirements: Requirements = PAPER,
-    extras: Extras = NO_EXTRAS,
+    extras: OptionalTerms = NO_EXTRAS,
 ):
     """Worst 3 sigma/requirement of the 21 over the box, with ``extras`` fitted beside them.
 
     The same figures as ``seqdesign analyze`` (with ``--with``): with ``search``, IPOPT
     then looks inside the box from its worst point. Returns ``(ratio, parameter, Robustness
-    or None, ExtrasCost or None)``: with ``extras`` the ExtrasCost alone (it holds the 21's
+    or None, OptionalTermsCost or None)``: with ``extras`` the OptionalTermsCost alone (it holds the 21's
     sigma with and without the terms at the same mountings).
     """
     if extras.n:
@@ -162,7 +162,7 @@ class ExactScorer:
     profile: NoiseProfile
     site: Site  # where it is scored: the latitude written, normal gravity at the height written
     requirements: Requirements
-    extras: Extras
+    extras: OptionalTerms
 
     def __call__(self, job: ExactJob) -> ExactScore:
         seq = to_sequence(job.walk, self.c, list(job.dwells), self.name, None, *self.written)

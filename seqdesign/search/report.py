@@ -17,7 +17,7 @@ from calib.analysis.worst_case import analyze_tolerance
 from calib.errors import CalibError
 from calib.gimbal.description import Gimbal
 from calib.io.files import atomic_write_text, sha256_file
-from calib.model.optional_terms import NONE as NO_EXTRAS, Extras
+from calib.model.optional_terms import NONE as NO_EXTRAS, OptionalTerms
 from calib.model.requirements import PAPER, Requirements
 from calib.nav import earth
 from calib.nav.site import Site
@@ -51,7 +51,7 @@ class DesignReport:
     paper_duration_s: float
     paper_worst_ratio: float
     requirements: Requirements = PAPER
-    extras: Extras = NO_EXTRAS
+    extras: OptionalTerms = NO_EXTRAS
     gimbal: Gimbal | None = None  # the moves were planned on (design --gimbal)
 
     def to_json(self) -> dict:

@@ -256,11 +256,11 @@ def test_sigma_gradient_matches_finite_differences():
 @pytest.mark.slow
 def test_design_with_terms_scores_the_21_with_them_fitted():
     from calib.analysis.worst_case import analyze_extras
-    from calib.model.optional_terms import Extras
+    from calib.model.optional_terms import OptionalTerms
     from seqdesign.search import DesignOptions, design
 
     c = Constraints(budget_s=360.0, max_flips=3, max_quarters=2, min_dwell_s=10.0)
-    ext = Extras(("lever-arm",))
+    ext = OptionalTerms(("lever-arm",))
     options = DesignOptions(latitude_deg=40.0, tolerance_deg=1.0, beam_width=10, refine=False, extras=ext)
     res = design(c, PROFILE, options, keep=1)
     cost = analyze_extras(res.sequence, PROFILE, SITE, ext, 1.0, search=True)
@@ -356,11 +356,11 @@ def test_shipped_gm_designs_beat_the_white_noise_designs_on_the_real_unit(name, 
     worst over +-3 deg), <= 1.95 within 15 min and <= 1.40 within 30 min (the white-noise
     designs the issue measured, 9 moves each, reached 2.53 and 2.26 there)."""
     from calib.analysis.worst_case import analyze_extras
-    from calib.model.optional_terms import GROUP_NAMES, Extras
+    from calib.model.optional_terms import GROUP_NAMES, OptionalTerms
 
     seq = load_sequence(name)
     assert seq.duration_s <= budget_s + 1e-6
-    cost = analyze_extras(seq, GM, SITE, Extras(GROUP_NAMES), 3.0)
+    cost = analyze_extras(seq, GM, SITE, OptionalTerms(GROUP_NAMES), 3.0)
     assert PAPER.ratio(cost.sigma_with).max() <= limit
     assert all(v == "observable" for v in cost.verdicts())
 

@@ -308,7 +308,7 @@ def test_gm_and_extras_worst_case_searches_are_exact_and_never_below_the_box():
     from calib.analysis.nominal import information_along
     from calib.analysis.observability import from_information
     from calib.analysis.worst_case import analyze_extras, analyze_tolerance
-    from calib.model.optional_terms import as_extras
+    from calib.model.optional_terms import load_optional_terms
 
     seq, gm = load_sequence("paper-9pos"), load_profile("navigation-gm")
     box = analyze_tolerance(seq, gm, SITE, search=False)
@@ -324,7 +324,7 @@ def test_gm_and_extras_worst_case_searches_are_exact_and_never_below_the_box():
         rv,
     )
     assert np.allclose(found.worst.sigma, direct.sigma, rtol=1e-12)
-    extras = as_extras("all")
+    extras = load_optional_terms("all")
     c_box = analyze_extras(seq, gm, SITE, extras, search=False)
     c_found = analyze_extras(seq, gm, SITE, extras, search=True)
     assert c_found.searched and not c_box.searched

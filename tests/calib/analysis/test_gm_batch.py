@@ -18,7 +18,7 @@ import pytest
 from calib.analysis import nominal as nominal_module
 from calib.analysis.nominal import information_along, information_along_many, nominal_run, same_grid
 from calib.analysis.worst_case import Evaluation, analyze_extras, analyze_tolerance
-from calib.model.optional_terms import as_extras
+from calib.model.optional_terms import load_optional_terms
 from calib.nav import earth
 from calib.nav.jacobian import state_matrix
 from calib.nav.site import Site
@@ -85,7 +85,7 @@ def test_information_along_many_equals_one_at_a_time(extras, monkeypatch):
     # operations in the same order (measured: identical bits here); 1e-12 leaves room for
     # a BLAS that orders a stacked 9 x 9 product differently.
     monkeypatch.setattr(nominal_module, "BATCH_INTERVALS", 7)
-    seq, ex = load_sequence("paper-9pos"), as_extras(extras)
+    seq, ex = load_sequence("paper-9pos"), load_optional_terms(extras)
     noms = [nominal_run(seq, SITE, rv) for rv in MOUNTINGS]
     reference = np.array([information_along(n, GM, SITE, ex) for n in noms])
     batched = information_along_many(noms, GM, SITE, ex)
@@ -119,7 +119,7 @@ def test_analyze_tolerance_and_extras_batched_equal_unbatched():
     np.testing.assert_allclose(many.nominal.sigma, one.nominal.sigma, rtol=1e-10)
     np.testing.assert_allclose(many.per_parameter_worst_sigma, one.per_parameter_worst_sigma, rtol=1e-10)
     np.testing.assert_allclose(many.worst.sigma, one.worst.sigma, rtol=1e-10)
-    extras = as_extras("all")
+    extras = load_optional_terms("all")
     one = analyze_extras(seq, GM, SITE, extras, search=True, how=Evaluation(batch=1))
     many = analyze_extras(seq, GM, SITE, extras, search=True)
     assert one.searched and many.searched

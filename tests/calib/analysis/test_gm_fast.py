@@ -21,7 +21,7 @@ from calib.analysis.gm_mounting import extra_basis, extra_columns, gm_basis, inf
 from calib.analysis.mounting import sequence_model
 from calib.analysis.nominal import information_along, information_one, nominal_run
 from calib.analysis.worst_case import Evaluation, analyze_extras, analyze_tolerance, box_interpolant_maximum
-from calib.model.optional_terms import GROUP_NAMES, Extras
+from calib.model.optional_terms import GROUP_NAMES, OptionalTerms
 from calib.nav import earth
 from calib.nav.jacobian import observation_jacobian
 from calib.nav.site import Site
@@ -48,7 +48,7 @@ MOUNTINGS = [
     )
 ]
 assert len(MOUNTINGS) >= MOUNTINGS_AT_ONCE
-ALL = Extras(GROUP_NAMES)
+ALL = OptionalTerms(GROUP_NAMES)
 
 
 def _sigmas(info):
@@ -118,7 +118,7 @@ def test_one_mounting_filter_equals_the_exact_evaluation(name):
     # against the body-frame filter along the same trajectory. Measured 1e-14 on a sigma.
     profile = load_profile(name)
     seq = load_sequence("paper-9pos")
-    for extras in (Extras(), ALL):
+    for extras in (OptionalTerms(), ALL):
         for rv in MOUNTINGS[:2]:
             nom = nominal_run(seq, SITE, rv)
             fast = information_one(nom, profile, SITE, extras)

@@ -33,7 +33,7 @@ from seqdesign.cli import main
 LAT = math.radians(40.0)
 SETUP = np.radians([1.0, -2.0, 3.0])
 # A real unit's terms, each well above its sigma, so that every compensation path is exercised.
-EXTRA = X.ExtraValues.from_units({"rxx": 3.0, "ryy": -2.0, "k2z": 20.0, "dt_ga": 0.5})
+EXTRA = X.OptionalTermValues.from_units({"rxx": 3.0, "ryy": -2.0, "k2z": 20.0, "dt_ga": 0.5})
 
 
 @pytest.fixture(scope="module")
@@ -71,7 +71,7 @@ def test_streamed_pass_is_the_whole_run_navigation(paper):
     # and lever-arm context are carried across chunk ends hundreds of times. The pass is
     # the same arithmetic re-associated: differences are rounding, ~n eps of each quantity.
     run, cfg = _run(paper, 50.0, noise=True, extra=EXTRA)
-    extras = X.Extras(X.parse_groups("all"))
+    extras = X.OptionalTerms(X.parse_groups("all"))
     dt = sample_intervals(run.time_s)
     seg = detect_motion(run.dtheta_rad, dt)
     grid = default_grid(seg.moving, 50.0)
@@ -125,7 +125,7 @@ def test_streamed_fit_equals_renavigating_fit(paper, noise):
 @pytest.mark.slow
 def test_streamed_fit_with_a_real_units_terms_equals_renavigating_fit(paper):
     run, cfg = _run(paper, 50.0, noise=True, extra=EXTRA)
-    prof, extras = load_profile("navigation"), X.Extras(X.parse_groups("all"))
+    prof, extras = load_profile("navigation"), X.OptionalTerms(X.parse_groups("all"))
     args = (run, Site(LAT, cfg.gravity), prof)
     ref = fit_run(*args, options=FitOptions(extras=extras, renavigate="always"))
     fit = fit_run(*args, options=FitOptions(extras=extras))

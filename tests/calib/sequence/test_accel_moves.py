@@ -215,7 +215,7 @@ def test_lever_arms_recovered_on_accelerating_moves():
     # The lever arms' tangential term now acts over the S-curve's ramps instead of in a single
     # sample: simulated and fitted with the same term, a noise-free run must come back within
     # 1/20 of each requirement and of 1 cm per lever-arm component.
-    from calib.model.optional_terms import Extras, ExtraValues
+    from calib.model.optional_terms import OptionalTerms, OptionalTermValues
 
     lever = {
         "rxx": 3.0,
@@ -228,7 +228,7 @@ def test_lever_arms_recovered_on_accelerating_moves():
         "rzy": 2.5,
         "rzz": 3.5,
     }  # cm
-    extra = ExtraValues.from_units(lever)
+    extra = OptionalTermValues.from_units(lever)
     seq = accelerating(load_sequence("paper-9pos"), 5.0, 10.0)
     cfg = SimConfig(latitude_rad=LAT)
     truth = ErrorModel.from_table2()
@@ -240,7 +240,7 @@ def test_lever_arms_recovered_on_accelerating_moves():
         options=SimOptions(setup_rotvec=SETUP, noise=False),
         extra=extra,
     )
-    ex = Extras(("lever-arm",))
+    ex = OptionalTerms(("lever-arm",))
     fit = fit_run(run, Site(LAT, cfg.gravity), load_profile("navigation"), options=FitOptions(extras=ex))
     assert fit.converged
     err = np.abs(fit.values - truth.values) / P.REQUIREMENTS_SI

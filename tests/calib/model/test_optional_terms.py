@@ -16,7 +16,7 @@ from calib.fit.estimator import fit_run
 from calib.fit.options import FitOptions
 from calib.model import params as P
 from calib.model.error_model import ErrorModel
-from calib.model.optional_terms import GROUP_NAMES, Extras, ExtraValues, parse_groups
+from calib.model.optional_terms import GROUP_NAMES, OptionalTerms, OptionalTermValues, parse_groups
 from calib.nav import earth
 from calib.nav.site import Site
 from calib.nav.transform import dcm_to_rotvec, rotvec_to_dcm
@@ -62,7 +62,7 @@ def test_k2_adds_k2_g_squared_on_the_vertical_axis_at_rest():
     # First rest: Y up (f_y = g), X and Z level (f = 0). k2 in ug/g^2 -> k2 * 1e-6 * g^2 / g0.
     k2 = np.array([100.0, 200.0, 300.0])
     base, _ = _run()
-    run, _ = _run(ExtraValues.from_units(dict(zip(["k2x", "k2y", "k2z"], k2, strict=True))))
+    run, _ = _run(OptionalTermValues.from_units(dict(zip(["k2x", "k2y", "k2z"], k2, strict=True))))
     g = earth.gravity(LAT)
     rest = slice(10, int(170 * CFG.sample_rate_hz))
     dt = 1.0 / CFG.sample_rate_hz
@@ -77,7 +77,7 @@ def test_time_offset_shifts_the_accelerometer_windows():
     # d (f_before - f_after) in the body frame (the windows telescope); at rest nothing moves.
     d = 1e-3
     base, _ = _run()
-    run, _ = _run(ExtraValues.from_units({"dt_ga": d * 1e3}))
+    run, _ = _run(OptionalTermValues.from_units({"dt_ga": d * 1e3}))
     tl = timeline(load_sequence("paper-9pos"))
     fs = CFG.sample_rate_hz
     f_n = np.array([0.0, 0.0, earth.gravity(LAT)])
@@ -102,7 +102,7 @@ def test_lever_arms_centripetal_and_tangential():
     #    step in the flip's first sample, and -w ryx in the first sample after it.
     rxx, ryx = 0.03, 0.02
     base, _ = _run()
-    run, _ = _run(ExtraValues.from_units({"rxx": rxx * 100, "ryx": ryx * 100}))
+    run, _ = _run(OptionalTermValues.from_units({"rxx": rxx * 100, "ryx": ryx * 100}))
     d = run.dv_mps - base.dv_mps
     fs = CFG.sample_rate_hz
     w = math.radians(10.0)
@@ -119,7 +119,7 @@ def test_lever_arms_centripetal_and_tangential():
 
 
 def test_truth_records_the_extra_terms(tmp_path):
-    _, truth = _run(ExtraValues.from_units(ALL_ON))
+    _, truth = _run(OptionalTermValues.from_units(ALL_ON))
     write_truth(tmp_path / "t.toml", truth)
     back = read_truth(tmp_path / "t.toml").extra
     assert {k: v for k, v in back.in_units().items()} == pytest.approx(ALL_ON)
@@ -134,19 +134,19 @@ def test_bad_extra_names_and_sizes_are_refused():
     assert parse_groups("time-offset,k2") == ("k2", "time-offset")  # canonical order
     assert parse_groups("all") == GROUP_NAMES
     with pytest.raises(CalibError, match="unknown extra parameter"):
-        ExtraValues.from_units({"rxq": 1.0})
+        OptionalTermValues.from_units({"rxq": 1.0})
     with pytest.raises(CalibError, match="beyond the plausible"):
-        ExtraValues.from_units({"rxx": 500.0})
+        OptionalTermValues.from_units({"rxx": 500.0})
 
 
 @pytest.fixture(scope="module")
 def all_on_fit():
     cfg = SimConfig(latitude_rad=LAT)  # 200 Hz: the estimator's grid as in real use
     truth = ErrorModel.from_table2()
-    extra = ExtraValues.from_units(ALL_ON)
+    extra = OptionalTermValues.from_units(ALL_ON)
     setup = np.radians([1.0, -2.0, 3.0])
     run, _ = _run(extra, cfg, truth, setup)
-    fit = fit_run(run, Site(LAT, cfg.gravity), PROFILE, options=FitOptions(extras=Extras(GROUP_NAMES)))
+    fit = fit_run(run, Site(LAT, cfg.gravity), PROFILE, options=FitOptions(extras=OptionalTerms(GROUP_NAMES)))
     return fit, truth, extra, setup
 
 
@@ -159,8 +159,8 @@ def test_noise_free_recovery_with_every_extra_term_on(all_on_fit):
     assert fit.converged
     err = np.abs(fit.values - truth.values) / P.REQUIREMENTS_SI
     assert err.max() < 1.0 / 20.0, P.NAMES[int(np.argmax(err))]
-    # Extras back to 1/20 of the sizes that scale them (1 cm, 10 ug/g^2, 0.1 ms).
-    ex = Extras(GROUP_NAMES)
+    # OptionalTerms back to 1/20 of the sizes that scale them (1 cm, 10 ug/g^2, 0.1 ms).
+    ex = OptionalTerms(GROUP_NAMES)
     got = (fit.extra_values - ex.pack(extra)) / ex.scale_si
     assert np.abs(got).max() < 1.0 / 20.0, ex.names[int(np.argmax(np.abs(got)))]
     C_true = rotvec_to_dcm(setup) @ load_sequence("paper-9pos").C_start
@@ -174,7 +174,7 @@ def test_ignoring_the_extra_terms_biases_the_fit():
     # The same run fitted with the 21 only: a lever arm of a few cm must bias something by
     # more than its requirement (the "~90 ug at 10 deg/s for 3 cm").
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=50.0)
-    run, _ = _run(ExtraValues.from_units({"rxx": 3.0, "ryy": 3.0, "rzz": 3.0}), cfg)
+    run, _ = _run(OptionalTermValues.from_units({"rxx": 3.0, "ryy": 3.0, "rzz": 3.0}), cfg)
     fit = fit_run(run, Site(LAT, cfg.gravity), PROFILE)
     assert np.max(np.abs(fit.values) / P.REQUIREMENTS_SI) > 1.0
 
@@ -193,7 +193,7 @@ def test_extra_columns_match_central_finite_difference():
     nom = nominal_run(seq, Site.at(LAT), setup)
     t_obs = nom.time_nav[nom.grid.bounds]
     Phi_vv = noise_model(state_matrix(Site(LAT, g)), np.diff(t_obs), PROFILE).Phi_vv
-    extras = Extras(GROUP_NAMES)
+    extras = OptionalTerms(GROUP_NAMES)
     cfg = SimConfig(latitude_rad=LAT, sample_rate_hz=rate)
     C0 = rotvec_to_dcm(setup) @ seq.C_start
     # H along the 50 Hz run itself, as the estimator evaluates it. (Along the analyser's
@@ -245,7 +245,7 @@ def test_analyser_with_extras_predicts_the_estimators_sigma(all_on_fit):
 
     fit, _, _, setup = all_on_fit
     nom = nominal_run(load_sequence("paper-9pos"), Site.at(LAT), setup)
-    info = information_along(nom, PROFILE, Site.at(LAT), Extras(GROUP_NAMES))
+    info = information_along(nom, PROFILE, Site.at(LAT), OptionalTerms(GROUP_NAMES))
     predicted = np.sqrt(np.diag(np.linalg.inv(info)))
     reported = np.sqrt(np.diag(fit.covariance))
     assert np.allclose(predicted, reported, rtol=0.01), np.max(np.abs(predicted / reported - 1))
@@ -256,7 +256,7 @@ def test_fitting_more_terms_never_shrinks_a_sigma():
     from calib.analysis.worst_case import analyze_extras
 
     cost = analyze_extras(
-        load_sequence("paper-9pos"), PROFILE, Site.at(LAT), Extras(("k2",)), tolerance_deg=0.0
+        load_sequence("paper-9pos"), PROFILE, Site.at(LAT), OptionalTerms(("k2",)), tolerance_deg=0.0
     )
     assert np.all(cost.sigma_with >= cost.sigma_without * (1 - 1e-9))
     # K2 on the paper's sequence: y is up or down in 6 of 9 rests and level in 3, so k2y

@@ -10,7 +10,7 @@ from click.testing import CliRunner
 from refusals import refused
 
 from calib.calibration.result import CalibrationResult
-from calib.model.optional_terms import GROUP_NAMES, Extras
+from calib.model.optional_terms import GROUP_NAMES, OptionalTerms
 from seqdesign.cli import main
 
 
@@ -41,11 +41,11 @@ def test_calibrate_with_terms_lists_them_after_the_21_and_round_trips(runner, tm
     assert res.exit_code == 0, res.output
     doc = json.loads(res.stdout)
     names = list(doc["parameters"])
-    extras = Extras(GROUP_NAMES)
+    extras = OptionalTerms(GROUP_NAMES)
     assert names[21:] == list(extras.names)  # after the 21, in canonical order
     assert doc["parameters"]["rxx"]["unit"] == "cm"
     assert doc["parameters"]["dt_ga"]["unit"] == "ms"
-    # Noise-free: the simulated terms come back (1/20 of their typical sizes; see test_extras).
+    # Noise-free: the simulated terms come back (1/20 of their typical sizes; see test_optional_terms).
     assert doc["parameters"]["rxx"]["value"] == pytest.approx(3.0, abs=0.05)
     assert doc["parameters"]["k2y"]["value"] == pytest.approx(20.0, abs=0.5)
     assert doc["parameters"]["dt_ga"]["value"] == pytest.approx(0.5, abs=0.005)
