@@ -30,8 +30,8 @@ from calib.nav.site import site_of
 from calib.noise.profiles import load_profile
 from calib.runlog import read_run
 from calib.sequence.kinematics import SimConfig
-from seqdesign.handanalysis import Placement, analyze_hand
-from seqdesign.handdesign import HandDesignOptions, design_hand
+from seqdesign.hand.pose_search import HandDesignOptions, design_hand
+from seqdesign.hand.prediction import Placement, analyze_hand
 from seqdesign.verify import error_half_range
 
 DATA = Path(__file__).resolve().parents[1] / "tests" / "data" / "realdata" / "imu_tk-xsens"

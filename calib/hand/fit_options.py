@@ -1,7 +1,7 @@
 """The hand fit's inputs as values: the samples it reads and the options it is fitted with.
 
 :class:`HandFitOptions` travels from :func:`calib.hand.calibrate.hand_fit_of` (and
-:mod:`seqdesign.handanalysis`) down to :func:`calib.hand.joint_fit.fit_by_hand`; its
+:mod:`seqdesign.hand.prediction`) down to :func:`calib.hand.joint_fit.fit_by_hand`; its
 defaults are written here once. :class:`HandSamples` is a run's increments as the fit
 reads them.
 """

@@ -5,7 +5,7 @@ recording of a plan would give it at the truth (no errors): each rest's mean spe
 rate (gravity and the Earth rate in the rest's attitude) and each move's gyro increments along its
 tip, sampled finely enough for the move's sensitivity (the rotation is exact whatever the
 sampling). The rests gain the still ends of the moves and lose :data:`TRIM_S` at each end to the
-rest finder, and the moves the reverse, as on the simulator's run. ``seqdesign.handanalysis``
+rest finder, and the moves the reverse, as on the simulator's run. ``seqdesign.hand.prediction``
 predicts through the simulator and the rest finder; this is the design search's fast path,
 checked against it in the tests (1.5 %).
 """

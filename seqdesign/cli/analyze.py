@@ -83,7 +83,7 @@ def analyze(
     """
     if by_hand:
         site = dict(latitude_deg=latitude, height_m=height, gravity_mps2=gravity_mps2)
-        from seqdesign.handanalysis import Placement
+        from seqdesign.hand.prediction import Placement
 
         placement = Placement(placement_deg, placements)
         hand = _analyze_by_hand(
@@ -137,9 +137,9 @@ def analyze(
 
 
 def _analyze_by_hand(path, profile, requirements, with_terms, placement, view_path, reading, site):
-    """``analyze --by-hand POSES`` (or a recorded LOG): the prediction of :mod:`seqdesign.handanalysis`.
+    """``analyze --by-hand POSES`` (or a recorded LOG): the prediction of :mod:`seqdesign.hand.prediction`.
 
-    ``placement`` a :class:`seqdesign.handanalysis.Placement`, ``reading`` the log's reading options
+    ``placement`` a :class:`seqdesign.hand.prediction.Placement`, ``reading`` the log's reading options
     (:class:`seqdesign.cli.options.LogReading`), ``site`` its ``latitude_deg``, ``height_m`` and
     ``gravity_mps2`` as given (the latitude also the site of a pose list); returns the analysis.
     """
@@ -148,7 +148,7 @@ def _analyze_by_hand(path, profile, requirements, with_terms, placement, view_pa
     from calib.model.optional_terms import load_optional_terms
     from calib.model.requirements import load_requirements
     from calib.noise.profiles import load_profile
-    from seqdesign.handanalysis import analyze_hand
+    from seqdesign.hand.prediction import analyze_hand
 
     if view_path is not None:
         raise CalibError(
@@ -157,7 +157,7 @@ def _analyze_by_hand(path, profile, requirements, with_terms, placement, view_pa
     if not str(path).lower().endswith(".toml"):  # a recorded log: its own rests and moves
         from calib.nav.site import site_of
         from calib.runlog import read_run
-        from seqdesign.handanalysis import analyze_recording
+        from seqdesign.hand.prediction import analyze_recording
 
         from .reading import run_notes
 

@@ -180,7 +180,7 @@ def design(
     write it as a sequence file with its provenance.
     """
     if by_hand:
-        from seqdesign.handdesign import HandDesignOptions
+        from seqdesign.hand.pose_search import HandDesignOptions
 
         from .designhand import design_by_hand
 

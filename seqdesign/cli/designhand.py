@@ -14,7 +14,7 @@ def design_by_hand(
 ) -> tuple[dict, str]:
     """Design, analyse (with a hand's placement error) and write the pose list and its protocol.
 
-    ``options`` is a :class:`seqdesign.handdesign.HandDesignOptions`; returns the ``--json``
+    ``options`` is a :class:`seqdesign.hand.pose_search.HandDesignOptions`; returns the ``--json``
     document and the text.
     """
     from calib.hand.fit_options import HAND_REQUIREMENTS
@@ -22,9 +22,9 @@ def design_by_hand(
     from calib.model.optional_terms import load_optional_terms
     from calib.model.requirements import load_requirements
     from calib.noise.profiles import load_profile
-    from seqdesign.handanalysis import Placement, analyze_hand
-    from seqdesign.handdesign import design_hand
-    from seqdesign.handprotocol import pose_toml, write_protocol
+    from seqdesign.hand.pose_search import design_hand
+    from seqdesign.hand.prediction import Placement, analyze_hand
+    from seqdesign.hand.protocol import pose_toml, write_protocol
 
     prof, req = load_profile(profile), load_requirements(requirements or HAND_REQUIREMENTS)
     extras = load_optional_terms(with_terms, by_hand=True)

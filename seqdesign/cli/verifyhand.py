@@ -59,7 +59,7 @@ def verify_by_hand(sequence, prof, options, with_terms, where, errors, shape, pr
     hand = HandShape(**drawn, g_sensitivity=bool(extras.groups), pose_list=pose_list, troubles=spec)
     predicted = np.full(21, np.nan)
     if pose_list is not None:  # the analyser's prediction the runs are held against
-        from seqdesign.handanalysis import Placement, analyze_hand
+        from seqdesign.hand.prediction import Placement, analyze_hand
 
         predicted = analyze_hand(
             pose_list,

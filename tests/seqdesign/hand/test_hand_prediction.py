@@ -23,9 +23,9 @@ from calib.model.requirements import load_requirements
 from calib.noise.profiles import load_profile
 from calib.sequence.kinematics import SimConfig
 from seqdesign.cli import main
-from seqdesign.handanalysis import analyze_hand
-from seqdesign.handdesign import HandDesignOptions, design_hand
-from seqdesign.handprotocol import pose_toml, protocol_markdown
+from seqdesign.hand.pose_search import HandDesignOptions, design_hand
+from seqdesign.hand.prediction import analyze_hand
+from seqdesign.hand.protocol import pose_toml, protocol_markdown
 from seqdesign.verify import error_half_range
 
 MEMS = load_profile("mems")

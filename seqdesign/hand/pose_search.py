@@ -7,7 +7,7 @@ number of poses and, greedily, each next pose among a candidate set (the 6 faces
 poses that observes all 21; every pose is held equally long, the first as long as the static
 start asks. Each candidate plan is scored by the fast path of the
 fit's own information (:func:`calib.hand.predict.plan_sigma`, within 1 % of the simulated
-prediction) and the result by :func:`seqdesign.handanalysis.analyze_hand`.
+prediction) and the result by :func:`seqdesign.hand.prediction.analyze_hand`.
 
 The physical bound of a gyro bias: every second of a run, at rest or turning, tells the bias
 through the ARW alone, so no plan of ``T`` seconds does better than ``ARW / sqrt(T)`` on any
