@@ -28,7 +28,14 @@ from calib.nav import earth
 from calib.nav.jacobian import ObservationGrid, propagate, sample_layout, state_matrix, step_model
 from calib.nav.site import Site
 from calib.nav.transform import rotvec_to_dcm
-from calib.noise.gm_filter import bias_turns, gm_start_covariance, gram_pass, mounted_turns, nav_table
+from calib.noise.gm_filter import (
+    NavTable,
+    bias_turns,
+    gm_start_covariance,
+    gram_pass,
+    mounted_turns,
+    nav_table,
+)
 from calib.noise.profiles import NoiseProfile
 from calib.noise.whitening import velocity_transitions
 from calib.sequence.definition import Sequence, nominal_attitude, timeline
@@ -45,8 +52,8 @@ class GmBasis:
     ``X`` holds the kept basis columns and phi0's of ``H`` for every interval, in
     chunks of ``CHUNK_INTERVALS`` intervals (:func:`calib.analysis.mounting.basis_chunks`: kept
     as they come, since one array of a 30-min run's ~200 MB cost more to allocate and
-    fill than any use of it); ``F``, ``Q`` and ``index`` the distinct
-    interval models (:func:`calib.noise.gm_filter.nav_table`); ``turns`` the nominal
+    fill than any use of it); ``table`` the distinct interval models and which one
+    each interval has (:func:`calib.noise.gm_filter.nav_table`); ``turns`` the nominal
     attitude's turn between consecutive intervals (:func:`calib.noise.gm_filter.bias_turns`),
     exactly the identity where ``turning`` is False.
     """
@@ -56,9 +63,7 @@ class GmBasis:
     column_param: np.ndarray  # (n,) int
     omega_ie_n: np.ndarray
     f_n: np.ndarray
-    F: np.ndarray  # (u, 12, 9)
-    Q: np.ndarray  # (u, 12, 12)
-    index: np.ndarray  # (K,) int
+    table: NavTable  # the K intervals' models
     turns: np.ndarray  # (K, 3, 3)
     turning: np.ndarray  # (K,) bool
     P0: np.ndarray  # (9, 9) filter covariance at the start
@@ -83,16 +88,13 @@ def gm_basis(seq: Sequence, profile: NoiseProfile, site: Site) -> GmBasis:
     chunks = list(basis_chunks(seq, site, Phi_vv, compiled=True))
     keep = chunks[-1][2]
     turns, turning = bias_turns(nominal_attitude(tl, t_nav)[(bounds[:-1] + bounds[1:]) // 2])
-    F, Q, index = nav_table(A, T, profile)
     return GmBasis(
         X=tuple(X for _, X, _ in chunks),
         column_basis=keep // P.N_PARAMS,
         column_param=keep % P.N_PARAMS,
         omega_ie_n=site.omega_ie_n,
         f_n=earth.specific_force_n(site.gravity_mps2),
-        F=F,
-        Q=Q,
-        index=index,
+        table=nav_table(A, T, profile),
         turns=turns,
         turning=turning,
         P0=gm_start_covariance(profile),
@@ -122,9 +124,7 @@ def whitened_grams(basis: GmBasis, rotvecs: list, columns) -> np.ndarray:
         if state is None:
             state = np.zeros((len(R), s, X.shape[-1]))
         turns = mounted_turns(basis.turns[part], R)
-        g, P_, state = gram_pass(
-            basis.F, basis.Q, basis.index[part], turns, basis.turning[part], X, P_, state
-        )
+        g, P_, state = gram_pass(basis.table.part(part), turns, basis.turning[part], X, P_, state)
         gram = g if gram is None else gram + g
     assert gram is not None
     return 0.5 * (gram + gram.transpose(0, 2, 1))

@@ -142,8 +142,7 @@ def information_one(
     Phi_vv = velocity_transitions(A, T, profile)
     H = observation_jacobian(nom, site, Phi_vv, extras, compiled=True)
     turns, turning = bias_turns(nom.C_b_n[(bounds[:-1] + bounds[1:]) // 2])
-    F, Q, index = nav_table(A, T, profile)
-    return gram_one(F, Q, index, turns, turning, H, gm_start_covariance(profile))
+    return gram_one(nav_table(A, T, profile), turns, turning, H, gm_start_covariance(profile))
 
 
 BATCH_INTERVALS = 1024  # intervals of noise model held per mounting (~2.4 MB each)

@@ -26,6 +26,7 @@ Modules:
 from calib.noise.frame import attitude_moved_deg, heading_turn, model_frame, noise_stale, to_frame
 from calib.noise.gauss_markov import gauss_markov
 from calib.noise.gm_filter import (
+    NavTable,
     bias_turns,
     gm_start_covariance,
     gram_one,
@@ -57,6 +58,7 @@ from calib.noise.whitening import (
 )
 
 __all__ = [
+    "NavTable",
     "IntervalModel",
     "NoiseModel",
     "NoiseProfile",

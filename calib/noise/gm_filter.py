@@ -15,6 +15,8 @@ so the information is the body-frame filter's, to rounding.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .profiles import NoiseProfile
@@ -23,13 +25,12 @@ from .whitening import filter_order, gm_bias_covariance, gm_interval_nav, rotati
 STATES = 9  # [phi, b_g, b_a]: phi, then body-fixed 3-vectors (every one turns with the body)
 
 
-def nav_table(
-    A: np.ndarray, T: np.ndarray, profile: NoiseProfile
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The distinct navigation-frame GM models of a run's intervals, in the filter's order.
+@dataclass(frozen=True)
+class NavTable:
+    """The distinct navigation-frame GM models of a run's intervals, and which one each has.
 
-    Returns
-    -------
+    Attributes
+    ----------
     F : ndarray, shape (u, 12, 9)
         ``[F_ss; F_vs]`` of each distinct interval length: the rows of the filter
         state, then of the observed velocity; the columns of the filter state.
@@ -38,6 +39,18 @@ def nav_table(
     index : ndarray, shape (K,) of int
         Which model each interval has.
     """
+
+    F: np.ndarray
+    Q: np.ndarray
+    index: np.ndarray
+
+    def part(self, intervals: slice) -> NavTable:
+        """The table of some of the intervals (the models shared, the index cut)."""
+        return NavTable(self.F, self.Q, self.index[intervals])
+
+
+def nav_table(A: np.ndarray, T: np.ndarray, profile: NoiseProfile) -> NavTable:
+    """The distinct navigation-frame GM models of a run's intervals, in the filter's order."""
     key = np.ascontiguousarray(A, dtype=float).tobytes()
     keys, index = np.unique(np.round(np.asarray(T, dtype=float), 6), return_inverse=True)
     order = filter_order(STATES)
@@ -46,7 +59,7 @@ def nav_table(
         Phi, q = gm_interval_nav(key, float(t), profile)
         F.append(Phi[order][:, order][:, :STATES])
         Q.append(q[order][:, order])
-    return np.array(F), np.array(Q), index
+    return NavTable(np.array(F), np.array(Q), index)
 
 
 def bias_turns(C_mid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -86,9 +99,7 @@ MOUNTINGS_AT_ONCE = 6
 
 
 def gram_pass(
-    F: np.ndarray,
-    Q: np.ndarray,
-    index: np.ndarray,
+    table: NavTable,
     turns: np.ndarray,
     turning: np.ndarray,
     X: np.ndarray,
@@ -105,8 +116,8 @@ def gram_pass(
 
     Parameters
     ----------
-    F, Q, index : ndarray
-        :func:`nav_table` of these intervals (``index`` into ``F`` and ``Q``).
+    table : NavTable
+        :func:`nav_table` of these intervals (:meth:`NavTable.part` of a run's).
     turns : ndarray, shape (k, M, 3, 3)
         :func:`mounted_turns` of these intervals.
     turning : ndarray of bool, shape (k,)
@@ -139,7 +150,7 @@ def gram_pass(
     state = np.array(state, dtype=float, order="C")  # copies the filter updates
     E = np.empty((M, n_k, 3, c))  # mounting-major: each mounting's rows one block for the product
     U = np.empty((M, n_k, 3, c))
-    models = compiled_arg(F), compiled_arg(Q), compiled_arg(index, np.int64)
+    models = compiled_arg(table.F), compiled_arg(table.Q), compiled_arg(table.index, np.int64)
     columns = compiled_arg(turning, np.bool_), compiled_arg(X)
     if M >= MOUNTINGS_AT_ONCE:  # the mountings on the last axis of the turns and the covariance
         P = np.array(np.moveaxis(P, 0, -1), dtype=float, order="C")
@@ -154,19 +165,13 @@ def gram_pass(
 
 
 def gram_one(
-    F: np.ndarray,
-    Q: np.ndarray,
-    index: np.ndarray,
-    turns: np.ndarray,
-    turning: np.ndarray,
-    X: np.ndarray,
-    P: np.ndarray,
+    table: NavTable, turns: np.ndarray, turning: np.ndarray, X: np.ndarray, P: np.ndarray
 ) -> np.ndarray:
     """:func:`gram_pass` of one mounting over a whole run from a zero state: its Gram matrix (c, c).
 
     ``turns`` (K, 3, 3) and ``X`` (K, 3, c) are this mounting's; ``P`` (s, s) the
     covariance before the first interval.
     """
-    s, c = F.shape[-1], X.shape[-1]
-    gram, _, _ = gram_pass(F, Q, index, turns[:, None], turning, X[:, None], P[None], np.zeros((1, s, c)))
+    s, c = table.F.shape[-1], X.shape[-1]
+    gram, _, _ = gram_pass(table, turns[:, None], turning, X[:, None], P[None], np.zeros((1, s, c)))
     return gram[0]

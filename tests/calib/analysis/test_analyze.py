@@ -211,7 +211,7 @@ def test_cli_analyze_view_writes_a_recording_of_the_analysis(tmp_path, monkeypat
     # rerun writes analytics under HOME: keep it in the test's folder.
     for var in ("HOME", "XDG_CONFIG_HOME", "XDG_DATA_HOME", "XDG_CACHE_HOME"):
         monkeypatch.setenv(var, str(tmp_path / "home"))
-    from test_viz import bars  # rerun's BarChart values read back from the recording
+    from recordings import bars  # rerun's BarChart values read back from the recording
 
     from viz.rrd import read_recording
 

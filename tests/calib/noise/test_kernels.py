@@ -15,7 +15,7 @@ import pytest
 from calib.nav import earth
 from calib.nav.jacobian import propagate, step_model
 from calib.nav.site import Site
-from calib.noise.gm_filter import MOUNTINGS_AT_ONCE, gram_one, gram_pass
+from calib.noise.gm_filter import MOUNTINGS_AT_ONCE, NavTable, gram_one, gram_pass
 
 LAT = math.radians(40.0)
 
@@ -75,7 +75,7 @@ def test_compiled_filter_equals_the_textbook_filter(seed, M):
     # one Gram product at the end): agreement to rounding over 40 intervals; 1e-9 relative
     # is far below any figure the analyser prints and far above double rounding here.
     F, Q, index, turns, turning, X, P, state = _random_filter_inputs(seed, M=M)
-    gram, P_end, state_end = gram_pass(F, Q, index, turns, turning, X, P, state)
+    gram, P_end, state_end = gram_pass(NavTable(F, Q, index), turns, turning, X, P, state)
     for m in range(X.shape[1]):
         ref = _reference_filter(F, Q, index, turns[:, m], turning, X[:, m], P[m], state[m])
         np.testing.assert_allclose(gram[m], ref[0], rtol=1e-9, atol=1e-9 * np.abs(ref[0]).max())
@@ -87,10 +87,10 @@ def test_the_two_kernels_give_the_same_bits():
     # filter_mountings is filter_columns with the covariance loops turned inside out: each
     # operation the same, in the same order, so each figure the same to the last bit.
     F, Q, index, turns, turning, X, P, state = _random_filter_inputs(4, M=MOUNTINGS_AT_ONCE)
-    at_once = gram_pass(F, Q, index, turns, turning, X, P, state)
+    at_once = gram_pass(NavTable(F, Q, index), turns, turning, X, P, state)
     cut = MOUNTINGS_AT_ONCE // 2  # two batches below the threshold: the one-by-one kernel
     halves = [
-        gram_pass(F, Q, index, turns[:, h], turning, X[:, h], P[h], state[h])
+        gram_pass(NavTable(F, Q, index), turns[:, h], turning, X[:, h], P[h], state[h])
         for h in (np.s_[:cut], np.s_[cut:])
     ]
     for whole, *parts in zip(at_once, *halves, strict=True):
@@ -99,8 +99,8 @@ def test_the_two_kernels_give_the_same_bits():
 
 def test_one_mounting_from_rest_is_the_batched_filter():
     F, Q, index, turns, turning, X, P, _ = _random_filter_inputs(3, M=1)
-    gram, _, _ = gram_pass(F, Q, index, turns, turning, X, P, np.zeros((1, 9, X.shape[-1])))
-    one = gram_one(F, Q, index, turns[:, 0], turning, X[:, 0], P[0])
+    gram, _, _ = gram_pass(NavTable(F, Q, index), turns, turning, X, P, np.zeros((1, 9, X.shape[-1])))
+    one = gram_one(NavTable(F, Q, index), turns[:, 0], turning, X[:, 0], P[0])
     np.testing.assert_allclose(one, gram[0], rtol=1e-12)
 
 
@@ -112,13 +112,11 @@ def test_the_compiled_filter_refuses_an_innovation_covariance_that_is_not_positi
     Q = -np.eye(12)[None]
     X, turns = np.ones((2, 3, 4)), np.broadcast_to(np.eye(3), (2, 3, 3))
     with pytest.raises(np.linalg.LinAlgError):
-        gram_one(F, Q, np.zeros(2, int), turns, np.zeros(2, bool), X, np.eye(9))
+        gram_one(NavTable(F, Q, np.zeros(2, int)), turns, np.zeros(2, bool), X, np.eye(9))
     M = MOUNTINGS_AT_ONCE  # and the kernel that filters many mountings at once
     with pytest.raises(np.linalg.LinAlgError):
         gram_pass(
-            F,
-            Q,
-            np.zeros(2, int),
+            NavTable(F, Q, np.zeros(2, int)),
             np.broadcast_to(np.eye(3), (2, M, 3, 3)),
             np.zeros(2, bool),
             np.ones((2, M, 3, 4)),
