@@ -131,13 +131,14 @@ def imutk_on(rec: Recording, part: Run, keep: np.ndarray):
     init = (int(r.start[i]), int(min(r.end[i], r.start[i] + INIT_CAP_S * rate)))
     t, g, a = part.time_s, rec.raw_gyro[keep], rec.raw_accel[keep]
     scale0 = 1.0 / rec.gyro_conversion[1]
-    kw = {"init": init, "raw_units": ("raw", "raw")}
     options = ImuTkOptions(gyro_scale0=scale0)
+    raw = ("raw", "raw")
     try:
-        return imutk_calibrate(t, g, a, rec.gravity, options=options, **kw), ""
+        return imutk_calibrate(t, g, a, rec.gravity, options=options, init=init, raw_units=raw), ""
     except CalibError:  # too few poses for imu_tk's 12: as many as the 9 parameters, said
         try:
-            fit = imutk_calibrate(t, g, a, rec.gravity, options=replace(options, min_intervals=9), **kw)
+            fewer = replace(options, min_intervals=9)
+            fit = imutk_calibrate(t, g, a, rec.gravity, options=fewer, init=init, raw_units=raw)
         except CalibError:
             return None, "fewer than 9 static intervals"
         return fit, f"{len(fit.start)} intervals (<{MIN_INTERVALS})"

@@ -75,8 +75,8 @@ def main() -> None:
         off = run_trials(
             seq, sim_profile, args.n, 2000, TrialConfig(extra=extra, fit_profile=white), args.workers
         )
-        fitted = TrialConfig(extra=extra, extras=OptionalTerms(groups), fit_profile=sim_profile)
-        on = run_trials(seq, sim_profile, args.n, 2000, fitted, args.workers)
+        fitted_config = TrialConfig(extra=extra, extras=OptionalTerms(groups), fit_profile=sim_profile)
+        on = run_trials(seq, sim_profile, args.n, 2000, fitted_config, args.workers)
         rows[label] = (summary(off), summary(on), groups, with_gm)
     elapsed = time.perf_counter() - t0
     print(

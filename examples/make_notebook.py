@@ -127,11 +127,10 @@ errors and the `navigation` noise profile, then calibrate it. With your own log,
     ),
     (
         "code",
-        """from calib.sim import SimOptions  # the run's draws: mounting, flip errors, noise, seed
-
-site = sd.SimConfig(latitude_rad=math.radians(40.0), sample_rate_hz=100.0)
+        """site = sd.SimConfig(latitude_rad=math.radians(40.0), sample_rate_hz=100.0)
 errors, noise = sd.ErrorModel.from_table2(), sd.load_profile("navigation")
-run, truth = sd.simulate(seq, site, errors, noise, SimOptions(seed=1), gimbal=shown.gimbal)
+draws = sd.SimOptions(seed=1)  # the run's draws: mounting, flip errors, noise, seed
+run, truth = sd.simulate(seq, site, errors, noise, draws, gimbal=shown.gimbal)
 result = sd.calibrate(run, profile="navigation")
 estimates = result.to_json()["parameters"]
 true_values = truth.errors.in_units()

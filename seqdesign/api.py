@@ -40,7 +40,7 @@ from calib.noise.profiles import NoiseProfile, load_profile
 from calib.runlog import read_run
 from calib.sequence.definition import Sequence, load_sequence
 from calib.sequence.kinematics import SimConfig
-from calib.sim.gimbal_run import simulate
+from calib.sim.gimbal_run import SimOptions, simulate
 from viz.record import record_run
 
 from .analysis import Analysis, analyze, compare_text
@@ -71,6 +71,7 @@ __all__ = [
     "Schedule",
     "Sequence",
     "SimConfig",
+    "SimOptions",
     "analyze",
     "calibrate",
     "compare_results",

@@ -5,7 +5,8 @@ A sequence's figures are quoted at the worst base mounting within ``+-tolerance_
 what fitting a real unit's optional terms costs them. Under white noise each mounting comes from
 the mounting basis (:mod:`calib.analysis.mounting`), with an exact sigma gradient; with Gauss-Markov
 bias instability from the GM basis (:mod:`calib.analysis.gm_mounting`), the optional terms' columns
-too; white noise with optional terms, and ``direct``, along each mounting's own nominal trajectory.
+too; white noise with optional terms, and ``Evaluation.direct`` (``how=``), along each mounting's own
+nominal trajectory.
 """
 
 from __future__ import annotations

@@ -21,6 +21,8 @@ from calib.errors import CalibError
 from .files import toml_number
 
 _MISSING = object()
+# The keywords of Fields.number, which Fields.numbers passes on to each item.
+_NUMBER_CHECKS = frozenset({"low", "high", "positive", "finite", "unit", "fix"})
 REQUIRED = _MISSING  # "no default": a missing key is refused
 
 # The first format version of each file kind; files written before versions existed
@@ -89,6 +91,10 @@ class Fields:
         ``unit``, ``fix``), applied to each item; a refused item is named by its
         index, ``key[i]``; ``fix`` is the advice every refusal carries.
         """
+        if unknown := set(checks) - _NUMBER_CHECKS:  # a misspelt check would otherwise be ignored
+            raise TypeError(
+                f"numbers() got unknown checks {sorted(unknown)}; number() takes {sorted(_NUMBER_CHECKS)}"
+            )
         fix = checks.get("fix")
         if key not in self.table:
             if default is _MISSING:

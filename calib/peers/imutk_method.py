@@ -252,7 +252,8 @@ def imutk_calibrate(
     Raises
     ------
     CalibError
-        When no threshold gives :data:`MIN_INTERVALS` static intervals.
+        When no threshold gives ``options.min_intervals`` static intervals (default
+        :data:`MIN_INTERVALS`).
     """
     interval_samples, min_intervals = options.interval_samples, options.min_intervals
     time_s, gyro, accel = (np.asarray(a, dtype=float) for a in (time_s, gyro, accel))

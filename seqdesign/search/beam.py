@@ -132,7 +132,7 @@ class SearchModel:
         """After the initial rest (its effect already holds the run's start state)."""
         if self.exact_noise:
             X, N, P0 = start_state(gm_start_covariance(self.profile), N_UNKNOWN)
-            assert isinstance(self.initial, SegmentColumns)  # as _build_exact makes it
+            assert isinstance(self.initial, SegmentColumns)  # as _exact_segments makes it (SearchModel.build)
             X, N, P0 = fold(self.initial, X[None], N[None], P0[None])
             return Candidate(
                 walk=(),

@@ -1,5 +1,6 @@
 """Arrays of numbers read from TOML files (calib.io.fields.Fields.numbers) and their readers."""
 
+import inspect
 import math
 
 import numpy as np
@@ -43,6 +44,18 @@ def test_numbers_reads_what_number_reads():
     assert [Fields({"v": v}, "f").number("v") for v in (1, -2.5, 10)] == fields.numbers("x")
     with pytest.raises(CalibError, match="missing key 'y'"):
         fields.numbers("y")
+
+
+def test_numbers_refuses_a_check_that_number_does_not_take():
+    # A misspelt check ("hihg") would otherwise pass silently whenever the key is absent and a
+    # default given: the programmer's mistake is a TypeError at once, the key present or not.
+    fields = Fields({"x": [1.0]}, "f.toml")
+    for key in ("x", "absent"):
+        with pytest.raises(TypeError, match="hihg"):
+            fields.numbers(key, [], hihg=10.0)
+    # Every keyword number() takes is one numbers() passes on.
+    keywords = [n for n, p in inspect.signature(Fields.number).parameters.items() if p.kind is p.KEYWORD_ONLY]
+    assert fields.numbers("x", **dict.fromkeys(keywords, None) | {"positive": True, "finite": True}) == [1.0]
 
 
 def _truth_file(tmp_path, flips):
