@@ -40,14 +40,12 @@ def plan_sigma(
     move_s: np.ndarray,
     profile: NoiseProfile,
     requirements: Requirements,
-    latitude_rad: float,
+    site: Site,
     g_sensitivity: bool = False,
-    gravity_mps2: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Predicted sigma (SI, inf where not estimable) of the 21 and whether each is estimable."""
-    g = earth.gravity(latitude_rad) if gravity_mps2 is None else gravity_mps2
-    omega_n = earth.omega_ie_n(latitude_rad)
-    f_n = earth.specific_force_n(g)
+    """Predicted sigma (SI, inf where not estimable) of the 21 and whether each is estimable at ``site``."""
+    omega_n = site.omega_ie_n
+    f_n = earth.specific_force_n(site.gravity_mps2)
     K = len(C_b_n)
     # The hand is still for part of each move (reaching, letting go): the rest finder counts that
     # to the rests, and takes its reach from each end of the turn.
@@ -93,9 +91,8 @@ def plan_sigma(
     layout = Layout(K, g_sensitivity)
     state = FitState(np.zeros(P.N_PARAMS), np.zeros((3, 3)), omega_n[:2].copy(), np.array(C_b_n, dtype=float))
     samples = HandSamples(np.array(dtheta), np.array(dv), np.array(dt))
-    site = Site(latitude_rad, g, "normal" if gravity_mps2 is None else "measured")
     _, s, jac, _ = linearise(data, samples, state, layout, site, profile)
-    scale = unknown_scales(layout, requirements, latitude_rad)
+    scale = unknown_scales(layout, requirements, site.latitude_rad)
     Jw = jac / s[:, None] * scale
     M = Jw.T @ Jw
     # The rests' attitudes and the Earth rate eliminated first (Schur complement): the observability

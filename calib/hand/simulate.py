@@ -27,6 +27,7 @@ import numpy as np
 
 from calib.io.files import atomic_write_text
 from calib.model.error_model import ErrorModel
+from calib.nav.site import Site
 from calib.noise.profiles import NoiseProfile
 from calib.runlog import Run, write_run, write_windows
 from calib.sequence.kinematics import SimConfig
@@ -104,8 +105,7 @@ def quadrature(
 
 def true_increments(
     plan: HandPlan,
-    latitude_rad: float,
-    gravity_mps2: float,
+    site: Site,
     sample_rate_hz: float,
     oversample: int = 10,
     time_s: np.ndarray | None = None,
@@ -116,8 +116,8 @@ def true_increments(
     Parameters
     ----------
     plan : HandPlan
-    latitude_rad, gravity_mps2 : float
-        The site (gravity magnitude, m/s^2).
+    site : Site
+        Where the plan is played (its Earth rate and gravity).
     sample_rate_hz : float
     oversample : int
         Pieces per sample interval of the quadrature grid (default 10).
@@ -139,7 +139,7 @@ def true_increments(
     dtheta, dv = np.zeros((n, 3)), np.zeros((n, 3))
     for lo in range(0, len(t), CHUNK_NODES):
         sl = slice(lo, lo + CHUNK_NODES)
-        omega, f = sensed(hand_state(plan, t[sl], tremor), latitude_rad, gravity_mps2)
+        omega, f = sensed(hand_state(plan, t[sl], tremor), site)
         for i in range(3):
             dtheta[:, i] += np.bincount(sample[sl], w[sl] * omega[:, i], minlength=n)
             dv[:, i] += np.bincount(sample[sl], w[sl] * f[:, i], minlength=n)
@@ -266,9 +266,8 @@ def simulate_by_hand(
     errors = errors if errors is not None else ErrorModel.zero()
     trouble = troubles if troubles is not None else HandTroubles()
     rate_hz = cfg.sample_rate_hz * (1.0 + trouble.rate_error)  # the IMU's true rate
-    time_s, dtheta, dv = true_increments(
-        plan, cfg.latitude_rad, cfg.gravity, rate_hz, oversample=oversample, tremor=trouble.tremor
-    )
+    site = Site(cfg.latitude_rad, cfg.gravity)
+    time_s, dtheta, dv = true_increments(plan, site, rate_hz, oversample=oversample, tremor=trouble.tremor)
     dt = np.diff(np.concatenate([[0.0], time_s]))
     dv_true = dv
     dtheta, dv = errors.apply(dtheta, dv, dt)

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.nav import earth
+from calib.nav.site import Site
 from calib.nav.strapdown import cross3
 from calib.nav.transform import rotvec_to_dcm
 
@@ -116,11 +117,11 @@ def hand_state(plan: HandPlan, t: np.ndarray, tremor: Tremor | None = None) -> H
     return HandState(C_b_n=C, omega_nb_b=w_nb, p_n=p, v_n=v, a_n=a)
 
 
-def sensed(state: HandState, latitude_rad: float, gravity_mps2: float) -> tuple[np.ndarray, np.ndarray]:
-    """What ideal sensors see: ``omega_ib_b`` (rad/s) and ``f_b`` (m/s^2), shape (m, 3) each."""
-    w_ie = earth.omega_ie_n(latitude_rad)
+def sensed(state: HandState, site: Site) -> tuple[np.ndarray, np.ndarray]:
+    """What ideal sensors at ``site`` see: ``omega_ib_b`` (rad/s) and ``f_b`` (m/s^2), shape (m, 3) each."""
+    w_ie = site.omega_ie_n
     C_n_b = state.C_b_n.transpose(0, 2, 1)
     omega_ib = state.omega_nb_b + C_n_b @ w_ie
     f_n = state.a_n + 2.0 * cross3(np.broadcast_to(w_ie, state.v_n.shape), state.v_n)
-    f_n = f_n + earth.specific_force_n(gravity_mps2)
+    f_n = f_n + earth.specific_force_n(site.gravity_mps2)
     return omega_ib, np.einsum("nij,nj->ni", C_n_b, f_n)

@@ -28,6 +28,7 @@ from calib.hand.poses import AXES, PoseList, tip_to
 from calib.hand.predict import plan_sigma
 from calib.model import params as P
 from calib.model.requirements import Requirements
+from calib.nav.site import Site
 from calib.noise.profiles import NoiseProfile
 
 
@@ -166,7 +167,7 @@ def design_hand(
     options = options or HandDesignOptions()
     move_s, min_hold_s, first_rest_s = options.move_s, options.min_hold_s, options.first_rest_s
     ups = candidate_ups(options.pose_set)
-    lat = math.radians(options.latitude_deg)
+    site = Site.at(math.radians(options.latitude_deg))
     room = budget_s - first_rest_s
     n_max = int(room // (min_hold_s + move_s))
     if n_max < len(SEED):
@@ -204,7 +205,7 @@ def design_hand(
                     np.full(k - 1, move_s),
                     profile,
                     requirements,
-                    lat,
+                    site,
                     g_sensitivity,
                 )
                 scored.append((_score(sigma, requirements), cand))
@@ -213,7 +214,7 @@ def design_hand(
             C.append(tip_to(C[-1], ups[pick]))
         holds = np.array([first_rest_s] + [hold] * n)
         sigma, _ = plan_sigma(
-            np.array(C), holds, np.full(n, move_s), profile, requirements, lat, g_sensitivity
+            np.array(C), holds, np.full(n, move_s), profile, requirements, site, g_sensitivity
         )
         worst = _worst(sigma, requirements)
         if best is None or worst < best.worst_ratio:

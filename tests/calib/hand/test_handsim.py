@@ -63,7 +63,7 @@ def _rest_samples(plan: HandPlan, time_s: np.ndarray, rate: float, k: int) -> np
 def test_rests_sense_gravity_and_earth_rate():
     plan = _plan()
     rate = 100.0
-    t, dth, dv = true_increments(plan, LAT, G, rate)
+    t, dth, dv = true_increments(plan, Site(LAT, G), rate)
     up, w_ie = np.array([0.0, 0.0, G]), earth_rate_enu(LAT)
     for k in range(plan.n_poses):
         idx = _rest_samples(plan, t, rate, k)
@@ -124,7 +124,7 @@ def test_the_turn_axis_wobbles():
 
 def _move_rotation_errors(plan: HandPlan, rate: float, oversample: int = 10) -> np.ndarray:
     """Per move, the angle between the coning-integrated increments and the truth."""
-    t, dth, _ = true_increments(plan, LAT, G, rate, oversample)
+    t, dth, _ = true_increments(plan, Site(LAT, G), rate, oversample)
     out = []
     for k in range(plan.n_poses - 1):
         i1 = np.flatnonzero(t <= plan.rest_end_s[k] + 1e-9)[-1]  # a rest sample: the rule's first "prev"
@@ -148,8 +148,8 @@ def test_a_move_integrates_to_the_next_pose_at_third_order():
 
 def test_the_oversampled_quadrature_has_converged():
     plan = _plan(peak_rate_dps=2000.0)
-    _, dth10, dv10 = true_increments(plan, LAT, G, 100.0, oversample=10)
-    _, dth40, dv40 = true_increments(plan, LAT, G, 100.0, oversample=40)
+    _, dth10, dv10 = true_increments(plan, Site(LAT, G), 100.0, oversample=10)
+    _, dth40, dv40 = true_increments(plan, Site(LAT, G), 100.0, oversample=40)
     assert np.abs(dth10 - dth40).max() < 1e-12
     assert np.abs(dv10 - dv40).max() < 1e-12
 
@@ -158,7 +158,7 @@ def test_the_oversampled_quadrature_has_converged():
 
 
 def _end_velocities(plan: HandPlan, rate: float) -> np.ndarray:
-    t, dth, dv = true_increments(plan, LAT, G, rate)
+    t, dth, dv = true_increments(plan, Site(LAT, G), rate)
     out = []
     for k in range(plan.n_poses - 1):
         i1 = np.flatnonzero(t <= plan.rest_end_s[k] + 1e-9)[-1]
@@ -184,7 +184,7 @@ def test_a_fine_grid_integration_of_the_truth_returns_to_rest():
     for k in range(plan.n_poses - 1):
         t = np.linspace(plan.rest_end_s[k], plan.rest_start_s[k + 1], 20001)
         state = hand_state(plan, t)
-        _, f = sensed(state, LAT, G)
+        _, f = sensed(state, Site(LAT, G))
         acc = np.einsum("nij,nj->ni", state.C_b_n, f) - [0.0, 0.0, G]
         acc -= 2.0 * np.cross(earth_rate_enu(LAT), state.v_n)
         h = t[1] - t[0]
@@ -257,7 +257,7 @@ def test_the_peak_rate_reaches_the_requested_peak(peak_dps):
     true_peak = np.degrees(np.linalg.norm(hand_state(plan, t).omega_nb_b, axis=1).max())
     assert true_peak == pytest.approx(peak_dps, rel=1e-6)
     rate = 100.0
-    _, dth, _ = true_increments(plan, LAT, G, rate)
+    _, dth, _ = true_increments(plan, Site(LAT, G), rate)
     sampled = np.degrees(np.linalg.norm(dth, axis=1).max() * rate)
     # A sample's mean rate cannot exceed the peak; a 100 Hz sample of a 0.1-0.3 s turn loses < 1 %.
     assert peak_dps * 0.99 < sampled <= peak_dps * (1 + 1e-6) + np.degrees(W_EARTH)

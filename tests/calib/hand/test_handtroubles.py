@@ -67,7 +67,7 @@ def _coning_attitude(dtheta: np.ndarray) -> np.ndarray:
 def tremor_run():
     plan = _plan()
     tremor = random_tremor(plan, np.random.default_rng(1), tremor_deg=0.2)
-    t, dth, dv = true_increments(plan, LAT, G, RATE, tremor=tremor)
+    t, dth, dv = true_increments(plan, Site(LAT, G), RATE, tremor=tremor)
     return plan, tremor, t, dth, dv
 
 
@@ -120,7 +120,7 @@ def test_tremor_gyro_is_the_tremor_s_rate_sample_by_sample(tremor_run):
 def _held_attitude_errors(plan: HandPlan, tremor: Tremor, rate: float) -> tuple[np.ndarray, np.ndarray]:
     """Per held pose, over 5 s of its middle: the angle between the coning-integrated gyro and
     ``exp(-theta(a)) C_k^T R(w_ie dt) C_k exp(theta(b))``; and the angle the tremor turned."""
-    t, dth, _ = true_increments(plan, LAT, G, rate, tremor=tremor)
+    t, dth, _ = true_increments(plan, Site(LAT, G), rate, tremor=tremor)
     errors, turned = [], []
     for j, k in enumerate(tremor.rest):
         a, _ = _middle(tremor, j)
@@ -149,7 +149,7 @@ def test_tremor_gyro_integrates_to_the_held_attitude(tremor_run):
 def _shake_errors(plan: HandPlan, tremor: Tremor, rate: float) -> tuple[np.ndarray, np.ndarray]:
     """Per held pose, over 4 s of its middle: the navigator's velocity less the shake's ``q'(t)``
     (both from the window's start), largest; and the shake's largest velocity."""
-    t, dth, dv = true_increments(plan, LAT, G, rate, tremor=tremor)
+    t, dth, dv = true_increments(plan, Site(LAT, G), rate, tremor=tremor)
     errors, sizes = [], []
     for j, k in enumerate(tremor.rest):
         a, _ = _middle(tremor, j)
@@ -200,8 +200,8 @@ def test_only_the_poses_of_the_first_seconds_are_held():
     tremor = random_tremor(plan, np.random.default_rng(3), 0.3, hand_held_s=26.0)
     assert np.all(plan.rest_start_s[tremor.rest] < 26.0) and 0 < len(tremor.rest) < plan.n_poses
     assert np.all(tremor.rest == np.arange(len(tremor.rest)))
-    t, dth, dv = true_increments(plan, LAT, G, RATE, tremor=tremor)
-    _, dth0, dv0 = true_increments(plan, LAT, G, RATE)
+    t, dth, dv = true_increments(plan, Site(LAT, G), RATE, tremor=tremor)
+    _, dth0, dv0 = true_increments(plan, Site(LAT, G), RATE)
     held = np.zeros(len(t), bool)
     for a, b in zip(tremor.start_s, tremor.end_s, strict=True):
         held |= (t > a) & (t - 1.0 / RATE < b)
@@ -211,7 +211,7 @@ def test_only_the_poses_of_the_first_seconds_are_held():
 
 def test_tremor_quadrature_has_converged(tremor_run):
     plan, tremor, _, dth10, dv10 = tremor_run
-    _, dth40, dv40 = true_increments(plan, LAT, G, RATE, oversample=40, tremor=tremor)
+    _, dth40, dv40 = true_increments(plan, Site(LAT, G), RATE, oversample=40, tremor=tremor)
     assert np.abs(dth10 - dth40).max() < 1e-13 and np.abs(dv10 - dv40).max() < 1e-12
 
 

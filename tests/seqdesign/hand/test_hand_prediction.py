@@ -20,6 +20,7 @@ from calib.hand.predict import plan_sigma
 from calib.hand.simulate import HandStreams, draw_errors, simulate_by_hand
 from calib.model import params as P
 from calib.model.requirements import load_requirements
+from calib.nav.site import Site
 from calib.noise.profiles import load_profile
 from calib.sequence.kinematics import SimConfig
 from seqdesign.cli import main
@@ -150,7 +151,9 @@ def test_the_fast_information_is_the_simulated_prediction(tmp_path):
     # prediction through the simulator and the rest finder: 1.5 % (the rests' trimmed ends).
     poses = load_poses(_write(tmp_path, TWELVE))
     slow = analyze_hand(poses, MEMS, REQ, cure=False).nominal.sigma
-    fast, estimable = plan_sigma(poses.attitudes(), poses.hold_s, poses.move_s, MEMS, REQ, math.radians(45.0))
+    fast, estimable = plan_sigma(
+        poses.attitudes(), poses.hold_s, poses.move_s, MEMS, REQ, Site.at(math.radians(45.0))
+    )
     assert estimable.all()
     assert np.allclose(fast, slow, rtol=0.015)
 
