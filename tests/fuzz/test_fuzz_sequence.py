@@ -10,51 +10,13 @@ import math
 
 import tomli_w
 from fuzz_fixtures import bases_fixture, report_tally, work_fixture  # noqa: F401 (fixtures)
-from fuzz_text import (
-    KEYS,
-    TEXT,
-    TOML_RULES,
-    VALUES,
-    _doc,
-    extreme_numbers,
-    hostile_toml,
-    mutate_doc,
-    mutate_tokens,
-    toml_bytes,
-)
-from fuzzing import _encodings, budget, case_file, fuzz_case, mutate_bytes, valid_sequence
+from fuzz_text import TEXT, _doc, mutate_doc, toml_bytes
+from fuzz_toml_reader import toml_reader_cases
+from fuzzing import budget, case_file, fuzz_case, valid_sequence
 from hypothesis import given, strategies as st
 
 from calib.nav.transform import DIRECTIONS
 from calib.sequence.definition import load_sequence
-
-
-@budget(300)
-@given(data=st.data())
-def test_mutated_bytes(data, bases, work):
-    fuzz_case("sequence", work, mutate_bytes(data, bases["sequence"]))
-
-
-def test_encodings_and_degenerate_files(bases, work):
-    for _name, data in _encodings(bases["sequence"]).items():
-        fuzz_case("sequence", work, data)
-
-
-@budget(400)
-@given(data=st.data())
-def test_toml_token_mutations(data, bases, work):
-    fuzz_case("sequence", work, mutate_tokens(data, bases["sequence"], TOML_RULES))
-
-
-def test_extreme_numbers(bases, work):
-    """Every number of a valid file, in turn, replaced by extreme and special values."""
-    extreme_numbers("sequence", bases, work)
-
-
-def test_hostile_toml(bases, work):
-    """Documents that break the TOML parser itself, alone and replacing each number."""
-    hostile_toml("sequence", bases, work)
-
 
 # ---------------------------------------------------------------------------
 # Random sequence documents (random steps, and schema-aware edits)
@@ -102,33 +64,28 @@ STEPS = st.fixed_dictionaries(
 )
 
 
-@budget(600)
-@given(data=st.data())
-def test_sequence_documents(data, bases, work):
-    """Random steps (unknown axes, any angle, any rate/dwell) and random edits."""
-    doc = _doc(bases["sequence"])
-    if data.draw(st.booleans(), label="random steps"):
-        doc["step"] = data.draw(st.lists(STEPS, max_size=6), label="steps")
-        doc["start"] = data.draw(
-            st.one_of(
-                st.just(["east", "up", "south"]),
-                st.lists(st.sampled_from(list(DIRECTIONS) + ["EAST", "sky", " up"]), min_size=0, max_size=4),
-            ),
-            label="start",
-        )
-    if data.draw(st.booleans(), label="edit"):
-        doc = mutate_doc(data, doc, STEPS)
-    encoded = toml_bytes(doc)
-    if encoded is not None:
-        fuzz_case("sequence", work, encoded)
-
-
-@budget(200)
-@given(doc=st.dictionaries(KEYS, VALUES, max_size=8))
-def test_toml_from_scratch(doc, work):
-    encoded = toml_bytes(doc)
-    if encoded is not None:
-        fuzz_case("sequence", work, encoded)
+class TestSequence(toml_reader_cases("sequence")):
+    @budget(600)
+    @given(data=st.data())
+    def test_toml_documents(self, data, bases, work):
+        """Random steps (unknown axes, any angle, any rate/dwell) and random edits."""
+        doc = _doc(bases["sequence"])
+        if data.draw(st.booleans(), label="random steps"):
+            doc["step"] = data.draw(st.lists(STEPS, max_size=6), label="steps")
+            doc["start"] = data.draw(
+                st.one_of(
+                    st.just(["east", "up", "south"]),
+                    st.lists(
+                        st.sampled_from(list(DIRECTIONS) + ["EAST", "sky", " up"]), min_size=0, max_size=4
+                    ),
+                ),
+                label="start",
+            )
+        if data.draw(st.booleans(), label="edit"):
+            doc = mutate_doc(data, doc, STEPS)
+        encoded = toml_bytes(doc)
+        if encoded is not None:
+            fuzz_case("sequence", work, encoded)
 
 
 # ---------------------------------------------------------------------------
