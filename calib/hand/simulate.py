@@ -266,8 +266,9 @@ def simulate_by_hand(
     errors = errors if errors is not None else ErrorModel.zero()
     trouble = troubles if troubles is not None else HandTroubles()
     rate_hz = cfg.sample_rate_hz * (1.0 + trouble.rate_error)  # the IMU's true rate
-    site = Site(cfg.latitude_rad, cfg.gravity)
-    time_s, dtheta, dv = true_increments(plan, site, rate_hz, oversample=oversample, tremor=trouble.tremor)
+    time_s, dtheta, dv = true_increments(
+        plan, cfg.site, rate_hz, oversample=oversample, tremor=trouble.tremor
+    )
     dt = np.diff(np.concatenate([[0.0], time_s]))
     dv_true = dv
     dtheta, dv = errors.apply(dtheta, dv, dt)

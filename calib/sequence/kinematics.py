@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.nav import earth
+from calib.nav.site import Site
 
 from .definition import Timeline
 
@@ -33,6 +34,11 @@ class SimConfig:
         if self.gravity_mps2 is not None:
             return self.gravity_mps2
         return earth.gravity(self.latitude_rad, self.height_m)
+
+    @property
+    def site(self) -> Site:
+        """The site of the run: its latitude and gravity (given, else WGS-84 normal gravity)."""
+        return Site(self.latitude_rad, self.gravity, "normal" if self.gravity_mps2 is None else "measured")
 
 
 GAUSS_NODES = 8  # per sub-interval of an accelerating move; see _cos_sin_integrals
