@@ -51,3 +51,18 @@ def test_a_gravity_error_is_a_common_scale_factor_error_no_fit_notices(run):
     assert wrong["fit"]["residual_rms_mps"] < 1e-6  # a perfect fit either way
     # 1 mGal = 1e-5 m/s^2 moves each scale factor by 1e-5 / g.
     assert right["gravity"]["ppm_per_mgal"] == pytest.approx(1e-5 / g0 * 1e6, rel=1e-9)
+
+
+def test_a_simulated_run_s_site_carries_its_gravity_and_where_it_came_from():
+    """``SimConfig.site``: WGS-84 normal gravity at the latitude and height unless one is given."""
+    from calib.sequence.kinematics import SimConfig
+
+    lat = math.radians(52.0)
+    normal = SimConfig(latitude_rad=lat, height_m=1000.0).site
+    # the conventions' formula typed in from conventions.md, not the code's own earth.gravity
+    assert normal.gravity_mps2 == pytest.approx(normal_gravity(lat, 1000.0), rel=1e-12)
+    assert normal.gravity_source == "normal" and normal.latitude_rad == lat
+    measured = SimConfig(latitude_rad=lat, height_m=1000.0, gravity_mps2=9.81).site
+    assert measured.gravity_mps2 == 9.81 and measured.gravity_source == "measured"
+    # the Earth rate at the site: 15.04 deg/h, its vertical part sin(lat) of it
+    assert measured.omega_ie_n[2] == pytest.approx(7.292115e-5 * math.sin(lat), rel=1e-6)
