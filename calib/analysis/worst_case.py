@@ -51,6 +51,9 @@ class Evaluation:
     direct: bool = False  # GM: each mounting along its own trajectory, not the GM basis (the reference)
 
 
+EVALUATION = Evaluation()  # the defaults
+
+
 @dataclass(frozen=True)
 class Robustness:
     """Observability over the +-tolerance box of base mountings."""
@@ -229,7 +232,7 @@ def analyze_tolerance(
     search: bool = True,
     requirements: Requirements = PAPER,
     extras: OptionalTerms = NO_EXTRAS,
-    how: Evaluation | None = None,
+    how: Evaluation = EVALUATION,
 ) -> Robustness:
     """Worst case over the +-tolerance box of base mountings at ``site``.
 
@@ -251,7 +254,6 @@ def analyze_tolerance(
     """
     # One mounting alone costs less along its trajectory than through the GM basis (its
     # 543 columns): at zero tolerance the direct evaluation, the GM filter in one loop.
-    how = how or Evaluation()
     if tolerance_deg == 0 and profile.has_gauss_markov and not how.direct:
         info = nominal_information(seq, profile, site)
         nominal = from_information(info, seq.duration_s, profile.name, np.zeros(3), None, requirements)
@@ -445,7 +447,7 @@ def analyze_extras(
     tolerance_deg: float = 3.0,
     requirements: Requirements = PAPER,
     search: bool = False,
-    how: Evaluation | None = None,
+    how: Evaluation = EVALUATION,
 ) -> OptionalTermsCost:
     """Sigma of the 21 with and without the optional terms, and theirs, worst over the box at ``site``.
 
@@ -464,7 +466,6 @@ def analyze_extras(
     """
     levels = (-tolerance_deg, 0.0, tolerance_deg) if tolerance_deg > 0 else (0.0,)
     points = [np.radians(p) for p in itertools.product(levels, levels, levels)]
-    how = how or Evaluation()
     fast = profile.has_gauss_markov and not how.direct and tolerance_deg > 0
     if fast:
         evaluate, nominal, results = _gm_extras(seq, profile, site, extras, requirements, tolerance_deg)

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -314,7 +315,7 @@ def fit_by_hand(
     state = FitState(values, G, np.zeros(2), _start(data, dtheta, dv, dt, values, G, omega_n))
     scale = unknown_scales(layout, o.requirements, latitude_rad)
     names = layout.names()
-    problem = (data, samples, layout, site, profile, o.heading_prior)
+    problem = _Problem(data, samples, layout, site, profile, o.heading_prior)
     history: list = []
     weights = Weights() if weights is None else weights
     converged = False
@@ -322,7 +323,7 @@ def fit_by_hand(
         converged = _gauss_newton(problem, state, weights, scale, names, history)
         if not o.earn_weights:
             break
-        e, s, jac, labels = _linearised(problem, state)
+        e, s, jac, labels = problem.linearised(state)
         shapes = components(labels, s, data.move_turn_rad)
         Jw = jac / weights.sigma(shapes, s, labels)[:, None] * scale
         inv = scaled_inverse(Jw.T @ Jw, names=names)
@@ -335,7 +336,7 @@ def fit_by_hand(
         weights = new
         if done:
             break
-    e, s, jac, labels = _linearised(problem, state)
+    e, s, jac, labels = problem.linearised(state)
     shapes = components(labels, s, data.move_turn_rad)
     s = weights.sigma(shapes, s, labels)
     Jw = jac / s[:, None] * scale
@@ -382,17 +383,28 @@ def fit_by_hand(
     )
 
 
-def _linearised(problem: tuple, state: FitState):
-    """:func:`linearise` of ``problem`` (data, samples, layout, site, profile, heading_prior) at ``state``."""
-    data, samples, layout, site, profile, heading_prior = problem
-    return linearise(data, samples, state, layout, site, profile, heading_prior)
+class _Problem(NamedTuple):
+    """What stays fixed while the hand fit iterates: the data, its layout of unknowns, the site."""
+
+    data: HandData
+    samples: HandSamples
+    layout: Layout
+    site: Site
+    profile: NoiseProfile
+    heading_prior: bool
+
+    def linearised(self, state: FitState):
+        """:func:`linearise` of the problem at ``state``."""
+        return linearise(
+            self.data, self.samples, state, self.layout, self.site, self.profile, self.heading_prior
+        )
 
 
-def _gauss_newton(problem: tuple, state: FitState, weights: Weights, scale, names, history) -> bool:
+def _gauss_newton(problem: _Problem, state: FitState, weights: Weights, scale, names, history) -> bool:
     """Iterate the unknowns at fixed weights until every step is below `STEP_TOL_SIGMA`."""
-    data, layout = problem[0], problem[2]
+    data, layout = problem.data, problem.layout
     for _ in range(MAX_ITERATIONS):
-        e, s, jac, labels = _linearised(problem, state)
+        e, s, jac, labels = problem.linearised(state)
         s = weights.sigma(components(labels, s, data.move_turn_rad), s, labels)
         Jw = jac / s[:, None] * scale
         inv = scaled_inverse(Jw.T @ Jw, names=names)
