@@ -217,17 +217,12 @@ class StepModel:
     extra_map: np.ndarray  # (6, 6): [sum C D (3), sum tau C D (3)] -> d x_next / d q
 
 
+@functools.lru_cache(maxsize=16)
 def step_model(site: Site) -> StepModel:
     """Build the symbolic interval step for a site and differentiate it (cached per site)."""
-    return _step_model(float(site.latitude_rad), float(site.gravity_mps2))
-
-
-@functools.lru_cache(maxsize=16)
-def _step_model(latitude_rad: float, gravity_mps2: float) -> StepModel:
-    """:func:`step_model`, cached on the numbers alone (a site's gravity source does not enter)."""
-    A = state_matrix(Site(latitude_rad, gravity_mps2))
-    W = skew(earth.omega_ie_n(latitude_rad))
-    F = skew(earth.specific_force_n(gravity_mps2))
+    A = state_matrix(site)
+    W = skew(site.omega_ie_n)
+    F = skew(earth.specific_force_n(site.gravity_mps2))
     A2_vphi = -F @ W - 2.0 * W @ F
 
     def accel_input(a0, a1):

@@ -12,7 +12,7 @@ a common accelerometer scale-factor error ``dg / g`` no sequence separates
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -40,7 +40,9 @@ class Site:
 
     latitude_rad: float
     gravity_mps2: float
-    gravity_source: str = "measured"
+    # Where the gravity came from is a label, not physics: two sites of the same numbers are the
+    # same site to every computation and cache keyed on one.
+    gravity_source: str = field(default="measured", compare=False)
 
     @classmethod
     def at(cls, latitude_rad: float, height_m: float = 0.0) -> Site:

@@ -13,6 +13,8 @@ import click
 
 from calib.errors import CalibError
 
+from .options import together
+
 # Each option's parameter name and its default (given without --by-hand, they are refused).
 TROUBLE_DEFAULTS = {
     "tremor_deg": 0.0,
@@ -76,9 +78,7 @@ def trouble_options(command):
             "(0.01: 1 %); the log keeps the nominal rate.",
         ),
     ]
-    for option in reversed(options):
-        command = option(command)
-    return command
+    return together(*options)(command)
 
 
 def given_troubles(values: dict) -> list[str]:

@@ -23,8 +23,8 @@ from .segments import (
     SEARCH_REST_INTERVALS,
     SegmentEffect,
     rest_at,
+    rest_columns,
     rest_steady_state,
-    segment_columns,
     segment_effect,
     start_covariance,
     turn_columns,
@@ -74,10 +74,7 @@ def _segments(c: Constraints, dwell_s: float, site: Site, profile: NoiseProfile,
 
 def _exact_segments(c: Constraints, dwell_s: float, site: Site, profile: NoiseProfile, graph, moves):
     """The initial rest's, every rest's and every turn's observation columns (GM: exact noise)."""
-    rest = {
-        node: segment_columns(rest_at(node, dwell_s), site, profile, SEARCH_REST_INTERVALS)
-        for node in graph.nodes
-    }
+    rest = {node: rest_columns(node, dwell_s, site, profile) for node in graph.nodes}
     turn = {
         (node, mv): turn_columns(node, mv, turn_seconds(mv, c), turn_rate(mv, c), site, profile)
         for node in graph.nodes

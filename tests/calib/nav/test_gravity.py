@@ -66,3 +66,14 @@ def test_a_simulated_run_s_site_carries_its_gravity_and_where_it_came_from():
     assert measured.gravity_mps2 == 9.81 and measured.gravity_source == "measured"
     # the Earth rate at the site: 15.04 deg/h, its vertical part sin(lat) of it
     assert measured.omega_ie_n[2] == pytest.approx(7.292115e-5 * math.sin(lat), rel=1e-6)
+
+
+def test_where_gravity_came_from_does_not_make_another_site():
+    """The source is a label: the same latitude and gravity are one site to every cache keyed on it."""
+    from calib.nav.jacobian import step_model
+    from calib.nav.site import Site
+
+    normal, measured = Site(0.7, 9.80, "normal"), Site(0.7, 9.80, "measured")
+    assert normal == measured and hash(normal) == hash(measured)
+    assert step_model(normal) is step_model(measured)  # built once, not once per label
+    assert Site(0.7, 9.81) != normal  # a different gravity is a different site
