@@ -35,6 +35,8 @@ Modules:
   instead of set on a table
 - :mod:`calib.hand.troubles`: What real hand recordings suffer from, for the simulator of runs
   placed by hand
+- :mod:`calib.hand.weak`: The directions a hand fit leaves weak, in a user's words: parameters, or
+  rests turning together
 - :mod:`calib.hand.weights`: Weights that the data earn: variance components of a fit of a run
   placed by hand
 """

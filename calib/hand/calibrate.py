@@ -258,7 +258,12 @@ def summary_of(hand: HandFit, run: Run, choice: TermChoice | None = None, notes:
         move_chi2=hand.move_chi2,
         clipped=tuple(describe_clipping(run)),
         chi2_per_dof=hand.chi2_per_dof,
-        notes=(*notes, *(() if choice is None else (choice.line(),)), *hand.weights.lines(hand.weight_sizes)),
-        choices={"weights": hand.weights.to_json(hand.weight_sizes)}
+        notes=(
+            *notes,
+            *(() if choice is None else (choice.line(),)),
+            *hand.weights.lines(hand.weight_sizes),
+            *hand.loose_rests,
+        ),
+        choices={"weights": hand.weights.to_json(hand.weight_sizes), "loose_rests": list(hand.loose_rests)}
         | ({} if choice is None else {"model": [choice.to_json()]}),
     )

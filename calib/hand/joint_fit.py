@@ -45,6 +45,7 @@ from .data import HandData, hand_data
 from .fit_options import HAND_FIT, HandFitOptions, HandSamples
 from .moves import move_rotation, move_sensitivity, right_jacobian_inverse
 from .poses import tip_to
+from .weak import split_weak
 from .weights import Weights, component_sizes, components, redundancy, refuted, reweighted
 
 N = P.N_PARAMS
@@ -80,7 +81,8 @@ class HandFit:
     data: HandData
     layout: Layout
     estimable: np.ndarray  # over the 21 and the g-sensitivity
-    null_directions: list = field(default_factory=list)
+    null_directions: list = field(default_factory=list)  # over the parameters' names alone
+    loose_rests: list = field(default_factory=list)  # blocks of rests no fitting move ties (calib.hand.weak)
     history: list = field(default_factory=list)
     weights: Weights = field(default_factory=Weights)
     log_likelihood: float = 0.0  # Gaussian, at the weights earned (up to a constant): compares models
@@ -342,12 +344,13 @@ def fit_by_hand(
     Jw = jac / s[:, None] * scale
     inv = scaled_inverse(Jw.T @ Jw, names=names)
     estimable = inv.estimable[: layout.h.start]
+    unobserved, loose = split_weak(inv, layout.h.start, [layout.columns(r)[0] for r in range(data.count)])
     if not estimable.all() and not o.partial:
         raise CalibError(
             "the poses do not separate every parameter: not estimable "
             + ", ".join(n for n, ok in zip(names, estimable, strict=False) if not ok)
             + "; unobserved combinations: "
-            + "; ".join(inv.null_directions()),
+            + "; ".join(unobserved),
             where,
             "add poses that excite them (other faces up, turns about other axes), or --partial",
         )
@@ -376,7 +379,8 @@ def fit_by_hand(
         data=data,
         layout=layout,
         estimable=estimable,
-        null_directions=inv.null_directions(),
+        null_directions=unobserved,
+        loose_rests=loose,
         history=history,
         weights=weights,
         weight_sizes=component_sizes(weights, shapes, labels, data.move_turn_rad),

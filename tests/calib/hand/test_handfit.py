@@ -228,3 +228,32 @@ def test_too_few_rests_are_refused_saying_why():
     dv = np.tile([0.0, 0.0, G * h], (n, 1))
     with pytest.raises(CalibError, match="rest"):
         find_rests(dtheta, dv, np.full(n, h), PROFILE.arw, PROFILE.vrw, "spin.csv")
+
+
+def test_poses_that_never_tip_x_are_refused_naming_parameters_not_states():
+    # Rests 90 deg apart about the body x axis, turned about x alone: gravity never lies along x
+    # and the gyro never turns about y or z, so the x accelerometer's scale factor and the gyro's
+    # y and z scale factors cannot be seen. The refusal names parameter combinations only (the
+    # fit's own state names mean nothing to a user).
+    h = 1.0 / RATE_HZ
+    omega_n, f_n = earth.omega_ie_n(LAT), earth.specific_force_n(G)
+    dth, dvs = [], []
+    w_b = np.array([math.radians(90.0) / 0.5, 0.0, 0.0])
+    for k in range(8):
+        C = rotvec_to_dcm(np.array([math.radians(90.0 * k), 0.0, 0.0]))
+        dth.append(np.tile(C.T @ omega_n * h, (400, 1)))
+        dvs.append(np.tile(C.T @ f_n * h, (400, 1)))
+        if k < 7:
+            tt = (np.arange(50) + 0.5) * h
+            Ct = C @ rotvec_to_dcm(np.outer(tt, w_b))
+            dth.append((w_b + np.einsum("nji,j->ni", Ct, omega_n)) * h)
+            dvs.append(np.einsum("nji,j->ni", Ct, f_n) * h)
+    dtheta, dv = np.vstack(dth), np.vstack(dvs)
+    options = HandFitOptions(requirements=MEMS_REQUIREMENTS)
+    with pytest.raises(CalibError, match="do not separate every parameter") as refused:
+        samples = HandSamples(dtheta, dv, np.full(len(dv), h))
+        fit_by_hand(samples, Site(LAT, G), PROFILE, options, where="x.csv")
+    said = str(refused.value)
+    combinations = said.split("unobserved combinations: ")[1]
+    assert "sax" in combinations and "sgy" in combinations and "sgz" in combinations, said
+    assert "rest" not in combinations and "earth_rate" not in combinations, said

@@ -83,6 +83,39 @@ def test_a_move_that_does_not_fit_is_weighted_by_its_own_residual_and_spoils_not
     assert moved.max() < 0.1, np.round(moved, 3)
 
 
+def test_two_recordings_spliced_leave_the_second_a_loose_block_named_in_rests_not_states():
+    # Two runs of the same unit spliced end to end: the "move" across the seam jumps between
+    # unrelated attitudes, so it is weighted out by its own residual and nothing ties the second
+    # run's heading to the first's (gravity cannot see a turn about the vertical). That block is
+    # named by its rests; the 21 do not depend on it (none unobserved, each within 4 sigma of the
+    # truth: 21 normal draws stay within 4 with 99.9 %), and no line names a fitted state.
+    from calib.hand.plan import random_hand_plan
+
+    parts = []
+    for seed in (5, 6):
+        plan = random_hand_plan(10, np.random.default_rng(seed))
+        parts.append(simulate_by_hand(plan, CFG, ErrorModel(VALUES), MEMS, seed=seed + 1000)[0])
+    a, b = parts
+    period = float(np.median(np.diff(a.time_s)))
+    spliced = dataclasses.replace(
+        a,
+        time_s=np.concatenate([a.time_s, b.time_s - b.time_s[0] + a.time_s[-1] + period]),
+        dtheta_rad=np.vstack([a.dtheta_rad, b.dtheta_rad]),
+        dv_mps=np.vstack([a.dv_mps, b.dv_mps]),
+    )
+    result = calibrate(spliced, MEMS, by_hand=True)
+    seam = [o["index"] for o in result.by_hand.choices["weights"]["outliers"] if o["kind"] == "move"]
+    assert seam == [10]
+    assert result.by_hand.choices["loose_rests"] == [
+        "rests 11-20 turn together about the vertical: no move that fits ties them to the others "
+        "(the parameters do not depend on it)"
+    ]
+    assert not result.null_directions and not result.not_estimable
+    assert np.all(np.abs(result.values - VALUES) < 4 * result.sigma)
+    said = " ".join([*result.by_hand.lines(), *result.warnings()])
+    assert "rest11_" not in said and "_U" not in said, said
+
+
 @pytest.mark.slow
 def test_a_g_sensitivity_that_is_there_is_fitted_and_recovered():
     G = g_sensitivity_from_dphg([300, -200, 150, 100, -250, 200, -150, 120, 280])
