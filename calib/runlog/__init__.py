@@ -12,8 +12,9 @@ The one owner of the run-log format: its name, metadata and columns
 for hand recordings, a sample counter in place of the time
 (:mod:`~calib.runlog.counter`), a text log without a header (:mod:`~calib.runlog.headerless`),
 raw counts and their nominal conversion
-(:mod:`~calib.runlog.conversion`), imu_tk's two files (:mod:`~calib.runlog.imutk`)
-and clipped stretches (:mod:`~calib.runlog.clipping`). CSV writing is
+(:mod:`~calib.runlog.conversion`), imu_tk's two files (:mod:`~calib.runlog.imutk`),
+two files on two clocks (:mod:`~calib.runlog.streams`) and clipped stretches
+(:mod:`~calib.runlog.clipping`). CSV writing is
 :mod:`~calib.runlog.csvwrite`.
 
 Every refusal is a `CalibError` naming the file and where in it the problem is:

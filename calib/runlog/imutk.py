@@ -5,8 +5,10 @@ two whitespace-separated text files without a header, one row per sample::
 
     2.9840000e-02   3.3108000e+04   3.3329000e+04   3.6429000e+04
 
-time in seconds, then the three axes in raw converter counts. The files
-share their time stamps (checked to half a period, row by row). The counts
+time in seconds, then the three axes in raw converter counts. Files that
+share their time stamps (as many rows, each pair within half a period) are
+read row for row; others each on its own clock, the accelerometer carried
+onto the gyro's samples (:mod:`calib.runlog.streams`). The counts
 become SI through a nominal conversion (:mod:`calib.runlog.conversion`), the
 time stamps go through the sample clock (:mod:`calib.runlog.clock`) as a
 CSV's do. Each row is one IMU sample over one nominal period, so its
@@ -29,6 +31,7 @@ from .conversion import Conversion
 from .format import FORMAT
 from .paths import read_bytes
 from .run import Run
+from .streams import Stream, two_clocks
 
 ROW = "t x y z"
 
@@ -78,8 +81,8 @@ def read_imutk(
     Raises
     ------
     CalibError
-        On a missing conversion or site, a row that is not four numbers, files of
-        different lengths or whose stamps differ by more than half a period.
+        On a missing conversion or site, a row that is not four numbers, or files
+        with no common time.
     """
     acc_name, gyro_name = str(acc_path), str(gyro_path)
     if conversion is None:
@@ -92,27 +95,26 @@ def read_imutk(
         )
     acc, acc_lines = _table(acc_name)
     gyro, gyro_lines = _table(gyro_name)
-    if len(acc) != len(gyro):
-        short, n = (acc_name, len(acc)) if len(acc) < len(gyro) else (gyro_name, len(gyro))
-        raise CalibError(
-            f"the accelerometer file has {len(acc)} rows and the gyro file {len(gyro)}",
-            f"{short}, after line {int((acc_lines if short == acc_name else gyro_lines)[n - 1])}",
-            "give the two files of one recording (they share their time stamps)",
-        )
-    meta = _meta(options, acc[:, 0], acc_name, conversion)
     locate = _TwoFiles(acc_name, gyro_name, acc_lines, gyro_lines)
+    if not _row_for_row(acc[:, 0], gyro[:, 0], options.get("sample_rate_hz")):
+        # Each file on its own clock (another rate, other stamps, other rows): the
+        # accelerometer's increments are carried onto the gyro's samples.
+        meta = _meta(options, gyro[:, 0], acc_name, conversion)
+        check_meta(meta, locate)
+        rate = conversion.to_si(gyro[:, 1:], "gyro")
+        gyro_clipped = at_limits(gyro[:, 1:], conversion.range_counts) | flat_top(rate)
+        run = two_clocks(
+            Stream(acc_name, acc[:, 0], acc_lines, conversion.to_si(acc[:, 1:], "accel"),
+                   at_limits(acc[:, 1:], conversion.range_counts)),
+            Stream(gyro_name, gyro[:, 0], gyro_lines, rate, gyro_clipped),
+            meta,
+            allow_gaps,
+        )  # fmt: skip
+        run.conversion = conversion
+        return run
+    meta = _meta(options, acc[:, 0], acc_name, conversion)
     check_meta(meta, locate)
     period = 1.0 / float(meta["sample_rate_hz"])
-    apart = np.flatnonzero(np.abs(acc[:, 0] - gyro[:, 0]) > 0.5 * period)
-    if apart.size:
-        i = int(apart[0])
-        raise CalibError(
-            f"the time stamps differ: {acc[i, 0]!r} s in the accelerometer file, {gyro[i, 0]!r} s in the "
-            f"gyro file, more than half a period ({0.5 * period:g} s)"
-            + (f" ({apart.size} such rows in all)" if apart.size > 1 else ""),
-            f"{acc_name}, line {int(acc_lines[i])}; {gyro_name}, line {int(gyro_lines[i])} (sample {i})",
-            "give the two files of one recording, row for row",
-        )
     rate = conversion.to_si(gyro[:, 1:], "gyro")
     clipped = clip_mask(
         at_limits(gyro[:, 1:], conversion.range_counts) | flat_top(rate),
@@ -130,6 +132,14 @@ def read_imutk(
     )
     run.clock = check_samples(run, locate, allow_gaps, "time_s")
     return run
+
+
+def _row_for_row(acc_s: np.ndarray, gyro_s: np.ndarray, rate_hz: float | None) -> bool:
+    """Whether the two files share their stamps: as many rows, each pair within half a period."""
+    if len(acc_s) != len(gyro_s) or len(acc_s) < 2:
+        return False
+    rate = rate_hz if rate_hz is not None else stamps_rate(acc_s)
+    return bool(np.all(np.abs(acc_s - gyro_s) <= 0.5 / rate))
 
 
 def _table(name: str) -> tuple[np.ndarray, np.ndarray]:

@@ -19,7 +19,7 @@ def run_notes(run: Run, gravity_mps2: float | None) -> tuple[float | None, list[
     in the run, a conversion file's stated local gravity is used, and said.
     Each clipped stretch is named (:func:`calib.runlog.clipping.describe_clipping`).
     """
-    notes = []
+    notes = [run.meta["streams"]] if "streams" in run.meta else []  # two files on two clocks
     if gravity_mps2 is None and run.gravity_mps2 is None and run.conversion is not None:
         stated = run.conversion.gravity_mps2
         if stated is not None:

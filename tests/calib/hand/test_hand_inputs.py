@@ -319,17 +319,12 @@ def test_imu_tk_refusals_name_the_files_and_rows(tmp_path):
     assert "raw counts" in line and "--conversion FILE" in line, line
     line = _refusal(acc, "--gyro-file", gyro, "--conversion", conversion)
     assert "do not say the site" in line and "--latitude" in line, line
-    # Stamps that differ by more than half a period, named in both files.
+    # Files of two recordings (no common time) are refused naming both.
     rows = gyro.read_text().splitlines()
-    rows[40] = rows[40].replace(f"{t[40]:.7e}", f"{t[40] + 0.006:.7e}", 1)
-    bad = _write(tmp_path / "gyro_bad.mat", "\n".join(rows) + "\n")
-    line = _refusal(acc, *SITE_CLI, "--gyro-file", bad, "--conversion", conversion)
-    assert "time stamps differ" in line and "acc.mat, line 41" in line and "gyro_bad.mat, line 41" in line, (
-        line
-    )
-    short = _write(tmp_path / "gyro_short.mat", "\n".join(rows[:-3]) + "\n")
-    line = _refusal(acc, *SITE_CLI, "--gyro-file", short, "--conversion", conversion)
-    assert "has 800 rows and the gyro file 797" in line, line
+    later = [f"{float(r.split()[0]) + 100.0:.7e} " + " ".join(r.split()[1:]) for r in rows]
+    apart = _write(tmp_path / "gyro_later.mat", "\n".join(later) + "\n")
+    line = _refusal(acc, *SITE_CLI, "--gyro-file", apart, "--conversion", conversion)
+    assert "do not overlap" in line and "acc.mat" in line and "gyro_later.mat" in line, line
     rows[7] = "  1.0   2.0   x"
     broken = _write(tmp_path / "gyro_broken.mat", "\n".join(rows) + "\n")
     line = _refusal(acc, *SITE_CLI, "--gyro-file", broken, "--conversion", conversion)
