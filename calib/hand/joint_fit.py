@@ -53,6 +53,8 @@ N_GS = 9  # the gyro g-sensitivity matrix, when fitted
 MAX_ITERATIONS = 30
 MAX_REWEIGHTS = 12  # the weights settle in 3-6 rounds on the real recordings
 STEP_TOL_SIGMA = 1e-3
+GROSS_TILT_DEG = 5.0  # gross_tilt_rad: a chained move missing its next rest's gravity by more is no move
+GROSS_FRACTION = 0.1  # ... plus this fraction of the angle turned
 ATTITUDE_SCALE = 1e-3  # rad: the size an attitude unknown is judged at by the observability rule
 _ACCEL_DA = error_matrix_jacobian("accel")
 _GYRO_DA = error_matrix_jacobian("gyro")
@@ -144,19 +146,42 @@ def _compensated(dtheta, dv, dt, sl: slice, model: ErrorModel, G: np.ndarray):
     return dth[1:], dv_true[1:], dth[0], A_inv
 
 
-def _start(data: HandData, dtheta, dv, dt, values, G, omega_n) -> np.ndarray:
-    """Rest attitudes chained through the moves, each levelled on its accelerometers."""
+def gross_tilt_rad(turn_rad: float) -> float:
+    """The largest tilt a gyro-chained move may miss the next rest's gravity by and still be a move.
+
+    A MEMS gyro's scale and axis errors (a few per cent, `calib.hand.setup` refuses a common
+    2 %) tilt a turn's end by a few per cent of its angle; `GROSS_FRACTION` of it plus
+    `GROSS_TILT_DEG` is far beyond that. A miss beyond it is no move of this unit: two
+    recordings spliced, samples lost in a turn.
+    """
+    return math.radians(GROSS_TILT_DEG) + GROSS_FRACTION * turn_rad
+
+
+def _start(data: HandData, dtheta, dv, dt, values, G, omega_n) -> tuple[np.ndarray, dict]:
+    """Rest attitudes chained through the moves, each levelled on its accelerometers.
+
+    A move whose chained attitude misses the next rest's gravity by more than
+    :func:`gross_tilt_rad` is not chained through (the rests after it start from their
+    own gravity alone). Returns the attitudes and each such move's miss, rad.
+    """
     model = ErrorModel(values)
     C = np.empty((data.count, 3, 3))
     C[0] = tip_to(np.eye(3), data.rest_force[0])
+    gross = {}
     for r, sl in enumerate(data.move_slices):
         prev = C[r]
         if data.move_used[r]:
             dth, _, before, _ = _compensated(dtheta, dv, dt, sl, model, G)
             R, _, _ = move_rotation(dth, before)
-            prev = rotvec_to_dcm(-omega_n * dt[sl].sum()) @ C[r] @ R
+            chained = rotvec_to_dcm(-omega_n * dt[sl].sum()) @ C[r] @ R
+            up = data.rest_force[r + 1] / np.linalg.norm(data.rest_force[r + 1])
+            miss = math.acos(float(np.clip((chained @ up)[2], -1.0, 1.0)))
+            if miss > gross_tilt_rad(float(data.move_turn_rad[r])):
+                gross[r] = miss
+            else:
+                prev = chained
         C[r + 1] = tip_to(prev, data.rest_force[r + 1])
-    return C
+    return C, gross
 
 
 @dataclass
@@ -314,12 +339,22 @@ def fit_by_hand(
     values[P.GYRO_BIAS] = np.average(data.rest_rate, axis=0, weights=data.rest_time_s)
     G = np.zeros((3, 3))
     omega_n = np.array([0.0, 0.0, earth.RATE * math.sin(latitude_rad)])
-    state = FitState(values, G, np.zeros(2), _start(data, dtheta, dv, dt, values, G, omega_n))
+    C_start, gross = _start(data, dtheta, dv, dt, values, G, omega_n)
+    state = FitState(values, G, np.zeros(2), C_start)
     scale = unknown_scales(layout, o.requirements, latitude_rad)
     names = layout.names()
     problem = _Problem(data, samples, layout, site, profile, o.heading_prior)
     history: list = []
-    weights = Weights() if weights is None else weights
+    preset: set = set()
+    if weights is None:
+        # A gross move is weighted by its miss from the first step: at the profile's weights its
+        # tens of degrees would drag every unknown before the outlier test could see it.
+        weights = Weights()
+        if o.earn_weights:
+            for r, miss in gross.items():
+                move_sigma = profile.arw * math.sqrt(float(dt[data.move_slices[r]].sum()))
+                weights.block[("move", r)] = max(miss / move_sigma, 1.0)
+            preset = set(weights.block)
     converged = False
     for rounds in range(MAX_REWEIGHTS if o.earn_weights else 1):
         converged = _gauss_newton(problem, state, weights, scale, names, history)
@@ -330,7 +365,7 @@ def fit_by_hand(
         Jw = jac / weights.sigma(shapes, s, labels)[:, None] * scale
         inv = scaled_inverse(Jw.T @ Jw, names=names)
         red = redundancy(Jw, inv.covariance)
-        if not weights.earning and not weights.block and rounds == 0:
+        if not weights.earning and set(weights.block) <= preset and rounds == 0:
             outliers = reweighted(weights, e, red, labels, shapes, s).block
             weights = Weights(earning=refuted(e, red, labels, s, outliers))
         new = reweighted(weights, e, red, labels, shapes, s)
