@@ -14,7 +14,10 @@ mems` and the site):
 * ``halves swapped``: the second half, then the first (two sessions spliced in one file: the move
   across the seam jumps between unrelated attitudes);
 * ``acc 1/2 rate, own stamps``: the accelerometer's samples summed in pairs and stamped 3 ms
-  late, the gyro's as they are, as two imu_tk text files (two clocks).
+  late, the gyro's as they are, as two imu_tk text files (two clocks);
+* ``two CSV files``: each sensor its own CSV, as a phone's logger writes them: the gyro in
+  deg/s on epoch-ns stamps jittering by up to 3 ms, the accelerometer in g, summed in pairs
+  and stamped 4 ms late.
 
 and two mistakes, which must be refused naming them: the accelerometer in g labelled m/s^2,
 and the gyro's x axis sign-flipped.
@@ -52,7 +55,15 @@ FERRARIS = (
     "acc_x=accel_x_mps2,acc_y=accel_y_mps2,acc_z=accel_z_mps2"
 )
 G0 = 9.80665
-COMPARABLE = {"50 Hz", "25 Hz", "epoch ns", "g, deg/s", "halves swapped", "acc 1/2 rate, own stamps"}
+COMPARABLE = {
+    "50 Hz",
+    "25 Hz",
+    "epoch ns",
+    "g, deg/s",
+    "halves swapped",
+    "acc 1/2 rate, own stamps",
+    "two CSV files",
+}
 
 
 def recordings() -> dict:
@@ -99,6 +110,15 @@ def write_csv(path: Path, t, w, f, units=("s", "radps", "mps2")) -> None:
     path.write_text(",".join(header) + "\n" + "\n".join(rows) + "\n")
 
 
+def write_sensor(path: Path, sensor: str, t, values, unit: str) -> None:
+    """One sensor's CSV file: integer epoch nanoseconds and its three axes."""
+    stamps = (np.rint(t * 1e9) + 1_700_000_000_000_000_000).astype(np.int64).astype(str)
+    body = np.char.mod("%.9g", values)
+    rows = [",".join([s, *r]) for s, r in zip(stamps, body, strict=True)]
+    header = ["time_ns"] + [f"{sensor}_{a}_{unit}" for a in "xyz"]
+    path.write_text(",".join(header) + "\n" + "\n".join(rows) + "\n")
+
+
 def summed(t, w, f, k: int):
     """Every ``k`` samples as one (rates and forces averaged, stamped at the last one's end)."""
     n = len(t) // k * k
@@ -141,6 +161,14 @@ def variants(run, tmp: Path, name: str, reading: dict) -> list:
                 + ["--conversion", str(reading["conversion"])],
             )
         )
+    # A phone's or a driver's logger: each sensor its own CSV file, the gyro in deg/s on epoch-ns
+    # stamps jittering by up to 3 ms, the accelerometer in g at half rate, stamped 4 ms late.
+    jitter = np.random.default_rng(1).uniform(0.0, 0.003, len(t))
+    acc_t, _, acc_f = summed(t, w, f, 2)
+    gyro_csv, acc_csv = tmp / f"{name}-Gyroscope.csv", tmp / f"{name}-Accelerometer.csv"
+    write_sensor(gyro_csv, "gyro", t + jitter, np.degrees(w), "dps")
+    write_sensor(acc_csv, "accel", acc_t + 0.004, acc_f / G0, "g")
+    out.append(("two CSV files", [str(acc_csv), "--gyro-file", str(gyro_csv)]))
     csv("mistake: accel in g as m/s^2", t, w, f / G0)
     csv("mistake: gyro x flipped", t, w * [-1.0, 1.0, 1.0], f)
     return out

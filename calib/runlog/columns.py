@@ -125,6 +125,43 @@ def plan_columns(names: list[str], where: str) -> ColumnPlan:
         duplicate, a sensor given twice (as rates and as increments) or
         missing axes; the message names the column.
     """
+    found, seen = _scan(names, where)
+    return ColumnPlan(
+        time=_time_position(seen, names, where),
+        gyro=_sensor("gyro", found, names, where),
+        accel=_sensor("accel", found, names, where),
+        time_name=_time_name(seen),
+    )
+
+
+def plan_one_sensor(names: list[str], sensor: str, where: str) -> tuple[int, str, SensorColumns]:
+    """The time column and one sensor's columns of a file that holds that sensor alone.
+
+    For loggers that write the gyro and the accelerometer to two files
+    (:mod:`calib.runlog.csvpair`). Returns the time column's position, its name
+    (``time_s`` ... ``time_ns``) and the sensor's columns; refuses what
+    :func:`plan_columns` refuses, and a file that holds the other sensor too.
+    """
+    found, seen = _scan(names, where)
+    other = "accel" if sensor == "gyro" else "gyro"
+    both = [q for q, (s, _, _) in QUANTITIES.items() if s == other and q in found]
+    if both:
+        column = next(iter(found[both[0]].values()))[0]
+        raise CalibError(
+            f"the {_SENSOR_WORDS[sensor]} file also holds the {_SENSOR_WORDS[other]} ('{column}')",
+            where,
+            "give one file with both sensors (no second file), or each sensor's file alone",
+        )
+    return _time_position(seen, names, where), _time_name(seen), _sensor(sensor, found, names, where)
+
+
+_SENSOR_WORDS = {"gyro": "gyro", "accel": "accelerometer"}
+
+
+def _scan(names: list[str], where: str) -> tuple[dict, dict[str, int]]:
+    """The grammar's columns in a header: ``found[quantity][axis] = (name, position, SI per unit)``
+    and every name's first position; refuses a duplicate or a unit the grammar lacks.
+    """
     found: dict[str, dict[str, tuple[str, int, float]]] = {}
     seen: dict[str, int] = {}
     for position, column in enumerate(names):
@@ -154,6 +191,15 @@ def plan_columns(names: list[str], where: str) -> ColumnPlan:
                 + f", e.g. {EXAMPLE_HEADER}",
             )
         found.setdefault(quantity, {})[axis] = (column, position, units[unit])
+    return found, seen
+
+
+def _time_name(seen: dict[str, int]) -> str:
+    return next(c for c in (*TIME_NAMES, COUNTER) if c in seen)
+
+
+def _time_position(seen: dict[str, int], names: list[str], where: str) -> int:
+    """The one time column's position; refuses none or two."""
     times = [c for c in (*TIME_NAMES, COUNTER) if c in seen]
     if not times:
         _missing([TIME_COLUMN], names, where)
@@ -161,12 +207,7 @@ def plan_columns(names: list[str], where: str) -> ColumnPlan:
         raise CalibError(
             f"the time is given twice, as '{times[0]}' and as '{times[1]}'", where, "keep one time column"
         )
-    return ColumnPlan(
-        time=seen[times[0]],
-        gyro=_sensor("gyro", found, names, where),
-        accel=_sensor("accel", found, names, where),
-        time_name=times[0],
-    )
+    return seen[times[0]]
 
 
 def _sensor(sensor: str, found: dict, names: list[str], where: str) -> SensorColumns:

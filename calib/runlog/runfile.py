@@ -18,6 +18,7 @@ from . import clock
 from .checks import check_run
 from .conversion import Conversion, as_conversion
 from .csv import read_csv
+from .csvpair import has_header, read_csv_pair
 from .csvwrite import check_meta_writable_as_csv, write_csv
 from .imutk import read_imutk
 from .npz import read_npz, write_npz
@@ -61,8 +62,10 @@ def read_run(
         ``"t=time_ms,gx=gyro_x_dps,gy=gyro_y_dps,gz=gyro_z_dps,ax=accel_x_g,ay=accel_y_g,az=accel_z_g"``
         or the same pairs as a dict; columns it does not name keep their names.
     gyro_path : str or os.PathLike, optional
-        imu_tk's gyro file (the CLI's ``--gyro-file``): ``path`` is then its
-        accelerometer file, both ``t x y z`` in raw counts (:mod:`calib.runlog.imutk`).
+        The gyro's own file (the CLI's ``--gyro-file``): ``path`` is then the
+        accelerometer's. Two CSV files with headers, each its time and its sensor
+        (:mod:`calib.runlog.csvpair`; ``columns`` maps both), or imu_tk's headerless
+        ``t x y z`` files in raw counts (:mod:`calib.runlog.imutk`).
     conversion : Conversion or str or os.PathLike, optional
         The nominal conversion of raw counts to SI, or its file (the CLI's
         ``--conversion``; :mod:`calib.runlog.conversion`): needed by columns in
@@ -91,6 +94,9 @@ def read_run(
     expect(path, "run")
     conversion = as_conversion(conversion)
     site = {"latitude_deg": latitude_deg, "height_m": height_m, "sample_rate_hz": sample_rate_hz}
+    if gyro_path is not None and has_header(path):
+        run = read_csv_pair(path, gyro_path, allow_gaps, site, columns, conversion)
+        return clock.settle(run, allow_gaps)
     if gyro_path is not None:
         if columns:
             raise CalibError(

@@ -126,8 +126,9 @@ def file_path(flag: str, dest: str, help: str, **kw):
 gyro_file = file_path(
     "--gyro-file",
     "gyro_file",
-    "imu_tk's gyro file: RUN is then its accelerometer file, both 't x y z' rows in raw "
-    "counts without a header (give --conversion; docs/logs-columns.md).",
+    "The gyro's own file: RUN is then the accelerometer's. Two CSV files with headers, each "
+    "its time and its sensor (--columns maps both), or imu_tk's 't x y z' rows in raw counts "
+    "without a header (give --conversion). Each is read on its own clock (docs/logs-columns.md).",
     default=None,
     metavar="FILE",
 )

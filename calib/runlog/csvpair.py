@@ -1,0 +1,202 @@
+"""Two CSV files, one per sensor: a logger that writes the gyro and the accelerometer apart.
+
+A phone's sensor logger, a camera's IMU driver or a bag exported topic by topic
+writes each sensor to its own file, each with its own header, rate and stamps::
+
+    Gyroscope.csv       time_ns,gyro_x_radps,gyro_y_radps,gyro_z_radps
+    Accelerometer.csv   time_ns,accel_x_mps2,accel_y_mps2,accel_z_mps2
+
+Each header follows the column grammar (:mod:`calib.runlog.columns`; one column map
+serves both files, each name found in one of them), each file holds its time and
+its one sensor, and each is read on its own clock: the accelerometer's increments
+are carried onto the gyro's samples (:mod:`calib.runlog.streams`). imu_tk's
+headerless text files take the other road (:mod:`calib.runlog.imutk`).
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from calib.errors import CalibError
+
+from .checks import check_meta
+from .clipping import sensor_clipping
+from .clock import stamps_rate
+from .columns import (
+    COUNTER,
+    TIME_UNITS,
+    SensorColumns,
+    apply_column_map,
+    parse_column_map,
+    plan_one_sensor,
+)
+from .conversion import Conversion, sensor_si
+from .csv import (
+    _check_field_counts,
+    _data_rows,
+    _decode_lines,
+    _fill_meta,
+    _parse_numbers,
+    _to_commas,
+    parse_preamble,
+    time_in_seconds,
+)
+from .paths import read_bytes
+from .run import Run
+from .streams import Stream, two_clocks
+
+_SITE = ("latitude_deg", "height_m")
+
+
+def has_header(path: str | os.PathLike) -> bool:
+    """Whether a text file's first row that is no comment names its columns (a field not a number)."""
+    lines = _decode_lines(read_bytes(path), str(path))
+    for line in lines:
+        stripped = line.strip()
+        if not stripped or stripped[0] in "#%":
+            continue
+        for field in stripped.replace(";", ",").replace("\t", ",").replace(" ", ",").split(","):
+            if not field:
+                continue
+            try:
+                float(field)
+            except ValueError:
+                return True
+        return False
+    return False
+
+
+class _SensorFile:
+    """One sensor's file as read: its metadata and where its keys are, the stream, its rate."""
+
+    def __init__(
+        self, path, sensor: str, mapping: dict[str, str], conversion: Conversion | None, rate_hz=None
+    ):
+        self.name = name = str(path)
+        lines = _decode_lines(read_bytes(path), name)
+        self.meta, self.key_lines, header_index = parse_preamble(lines, name)
+        lines = _to_commas(lines, header_index, name)
+        self.header_line = header_index + 1
+        where = f"{name}, line {self.header_line}"
+        own = [c.strip() for c in lines[header_index].split(",")]
+        names = apply_column_map(own, {k: v for k, v in mapping.items() if k in own}, where)
+        self.used = set(mapping) & set(own)
+        time_at, self.time_name, columns = plan_one_sensor(names, sensor, where)
+        if self.time_name == COUNTER:
+            raise CalibError(
+                "a sample counter gives no time, and two files are put on one time by their stamps",
+                where,
+                "give each file its time column (time_s, time_ms, time_us or time_ns)",
+            )
+        rows, self.row_lines = _data_rows(lines, header_index + 1)
+        if len(rows) < 2:
+            raise CalibError("the file has fewer than two data rows", where, "give the sensor's samples")
+        _check_field_counts(rows, self.row_lines, len(own), name)
+        data = _parse_numbers(rows, self.row_lines, [time_at, *columns.positions], own, name)
+        self.time_own_name = own[time_at]
+        ticks = TIME_UNITS[self.time_name.removeprefix("time_")]
+        self.time_s = time_in_seconds(data[:, 0], rows, time_at, ticks)
+        # The gyro's increments become rates over the rate the run is given (a stated one),
+        # the accelerometer's over its stamps' own.
+        period = 1.0 / (rate_hz or stamps_rate(self.time_s))
+        raw = data[:, 1:]
+        self.values = _si_rate(sensor_si(raw, columns, conversion, where), columns, period)
+        self.clipped = sensor_clipping(raw, columns, conversion, period)
+        self.counts = columns.is_counts
+
+    def stream(self) -> Stream:
+        return Stream(self.name, self.time_s, self.row_lines, self.values, self.clipped)
+
+
+def _si_rate(values: np.ndarray, columns: SensorColumns, period: float) -> np.ndarray:
+    """Rates (rad/s, m/s^2) from a sensor's columns (counts already in SI), rates or increments
+    over its period.
+    """
+    si = values * np.asarray(columns.si_per_unit)
+    return si if columns.is_rate else si / period
+
+
+def read_csv_pair(
+    acc_path: str | os.PathLike,
+    gyro_path: str | os.PathLike,
+    allow_gaps: bool,
+    options: dict,
+    columns: str | dict[str, str] | None,
+    conversion: Conversion | None,
+) -> Run:
+    """Read a logger's accelerometer and gyro CSV files into one run on the gyro's clock.
+
+    Parameters
+    ----------
+    acc_path, gyro_path : str or os.PathLike
+        The two files (gzip-compressed or not), each a header row, then its time and
+        its sensor's three axes (module docstring).
+    allow_gaps : bool
+        Fill samples either file lost at rest (`calib.runlog.clock.settle`).
+    options : dict
+        ``latitude_deg``, ``height_m`` and ``sample_rate_hz`` (the gyro's; default: its
+        stamps' rate) for files that do not state them.
+    columns : str or dict, optional
+        One column map for both files; each name must be in one of them.
+    conversion : Conversion, optional
+        For columns in raw counts.
+
+    Returns
+    -------
+    Run
+        With ``meta["streams"]`` saying how the two were put together.
+
+    Raises
+    ------
+    CalibError
+        On a file that does not hold its sensor alone with a time, site keys the two
+        files state differently, or files with no common time.
+    """
+    mapping = parse_column_map(columns, f"{acc_path}; {gyro_path}")
+    acc = _SensorFile(acc_path, "accel", mapping, conversion)
+    gyro = _SensorFile(gyro_path, "gyro", mapping, conversion, options.get("sample_rate_hz"))
+    unused = [k for k in mapping if k not in acc.used | gyro.used]
+    if unused:
+        raise CalibError(
+            "column map names " + ", ".join(f"'{k}'" for k in unused) + ", which neither file's header has",
+            f"{acc.name}; {gyro.name}",
+            "map the names the two header rows give (column names are case-sensitive)",
+        )
+    if conversion is not None and not (acc.counts or gyro.counts):
+        raise CalibError(
+            "a conversion file is given, and no column is in raw counts",
+            f"{acc.name}; {gyro.name}",
+            "leave out the conversion, or name the columns in counts (gyro_x_counts, accel_x_counts, ...)",
+        )
+    meta = dict(gyro.meta)
+    for key in _SITE:
+        if key in acc.meta and key in meta and acc.meta[key] != meta[key]:
+            raise CalibError(
+                f"the accelerometer's file says {key} = {acc.meta[key]} and the gyro's {meta[key]}",
+                f"{acc.name}, line {acc.key_lines[key]}; {gyro.name}, line {gyro.key_lines[key]}",
+                "correct the one that is wrong",
+            )
+        if key in acc.meta:
+            meta.setdefault(key, acc.meta[key])
+    _fill_meta(meta, options, gyro.time_s, gyro.name, gyro.header_line, (gyro.time_name, gyro.time_own_name))
+    check_meta(meta, _Place(gyro.name))
+    if conversion is not None:
+        meta.update(conversion.meta())
+    run = two_clocks(acc.stream(), gyro.stream(), meta, allow_gaps)
+    run.conversion = conversion
+    return run
+
+
+class _Place:
+    """Names a metadata key's place for :func:`calib.runlog.checks.check_meta`."""
+
+    def __init__(self, name: str):
+        self.name = name
+
+    def key(self, key: str) -> str:
+        return f"{self.name} (metadata '{key}')"
+
+    def sample(self, array: str, index: int, component: int | None = None) -> str:
+        return f"{self.name} (sample {index})"

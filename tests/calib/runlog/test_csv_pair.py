@@ -1,0 +1,125 @@
+"""Two CSV files, one per sensor (calib.runlog.csvpair), as a phone's or a driver's logger writes them.
+
+The physics held: written at one rate with one set of stamps the pair reads back as the one-file
+log of the same samples, exactly; at two rates, the gyro's samples are its own and a rest's mean
+specific force is the accelerometer's; a logger's mistakes are refused naming the file and the fix.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from refusals import refused
+
+from calib.runlog import read_run
+
+SITE = {"latitude_deg": 45.4, "height_m": 0.0}
+EPOCH_NS = 1_700_000_000_000_000_000
+G0 = 9.80665
+
+
+def _samples(n: int = 3000, rate_hz: float = 100.0):
+    """A unit at rest for 10 s, turning about a tilted axis for 10 s, at rest again: rates, forces."""
+    rng = np.random.default_rng(11)
+    t = np.arange(1, n + 1) / rate_hz
+    w = np.zeros((n, 3))
+    turning = (t > 10.0) & (t <= 20.0)
+    w[turning] = np.radians([20.0, -10.0, 30.0]) * np.sin(np.pi * (t[turning] - 10.0) / 10.0)[:, None]
+    w += rng.normal(scale=1e-3, size=(n, 3))
+    f = np.array([0.3, -0.2, 9.79]) + rng.normal(scale=0.02, size=(n, 3))
+    return t, w, f
+
+
+def _write(path: Path, header: str, stamps_ns: np.ndarray, values: np.ndarray) -> None:
+    body = np.char.mod("%.12g", values)
+    rows = [",".join([str(s), *r]) for s, r in zip(stamps_ns, body, strict=True)]
+    path.write_text(header + "\n" + "\n".join(rows) + "\n")
+
+
+def _ns(t: np.ndarray) -> np.ndarray:
+    return (np.rint(t * 1e9) + EPOCH_NS).astype(np.int64)
+
+
+def test_one_rate_one_set_of_stamps_reads_as_the_one_file_log(tmp_path):
+    # The pair and the one file hold the same samples on the same stamps: every gyro interval is an
+    # accelerometer interval, so carrying the running sum onto it gives back each increment (to the
+    # rounding of a running sum of 3000 increments of 0.1 m/s: 1e-13 m/s).
+    t, w, f = _samples()
+    _write(tmp_path / "gyro.csv", "t,gx,gy,gz", _ns(t), w)
+    _write(tmp_path / "acc.csv", "t,ax,ay,az", _ns(t), f)
+    one = tmp_path / "one.csv"
+    _write(one, "time_ns,gyro_x_radps,gyro_y_radps,gyro_z_radps,accel_x_mps2,accel_y_mps2,accel_z_mps2",
+           _ns(t), np.column_stack([w, f]))  # fmt: skip
+    columns = "t=time_ns,gx=gyro_x_radps,gy=gyro_y_radps,gz=gyro_z_radps,ax=accel_x_mps2,ay=accel_y_mps2"
+    columns += ",az=accel_z_mps2"
+    pair = read_run(tmp_path / "acc.csv", gyro_path=tmp_path / "gyro.csv", columns=columns, **SITE)
+    same = read_run(one, **SITE)
+    assert "two clocks" in pair.meta["streams"]
+    assert pair.n_samples == same.n_samples
+    np.testing.assert_allclose(pair.time_s, same.time_s, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(pair.dtheta_rad, same.dtheta_rad)
+    np.testing.assert_allclose(pair.dv_mps, same.dv_mps, rtol=0, atol=1e-12)
+
+
+def test_an_accelerometer_at_half_rate_in_g_keeps_each_rests_mean_force(tmp_path):
+    # The accelerometer's pairs averaged (50 Hz) and written in g, stamped 4 ms late, the gyro in
+    # deg/s: the gyro's increments are its own (to the 12 digits written), and over the first rest
+    # (1-9 s) the mean specific force is the accelerometer's own mean there to 1e-4 m/s^2: the
+    # running sum keeps every stretch's integral, only the stretch's ends move, by 4 ms (a
+    # 0.02 m/s^2 sample noise over 8 s of 50 Hz averages to 3e-3; 4 ms of it at each end, 1e-5).
+    t, w, f = _samples()
+    _write(tmp_path / "gyro.csv", "time_ns,gyro_x_dps,gyro_y_dps,gyro_z_dps", _ns(t), np.degrees(w))
+    slow = f.reshape(-1, 2, 3).mean(axis=1)
+    _write(tmp_path / "acc.csv", "time_ns,accel_x_g,accel_y_g,accel_z_g", _ns(t[1::2] + 0.004), slow / G0)
+    run = read_run(tmp_path / "acc.csv", gyro_path=tmp_path / "gyro.csv", **SITE)
+    assert "50 Hz" in run.meta["streams"] and "100 Hz" in run.meta["streams"]
+    # The gyro's first interval, (0, 10 ms], begins before the accelerometer's first, (4, 24 ms]:
+    # left out, so the run starts at the gyro's second sample.
+    first = 1
+    np.testing.assert_allclose(run.dtheta_rad, w[first : first + run.n_samples] / 100.0, rtol=1e-10)
+    t_run = run.time_s - run.time_s[0] + t[first]
+    rest = (t_run > 1.0) & (t_run <= 9.0)
+    mean = run.dv_mps[rest].sum(axis=0) / (rest.sum() * run.dt_nominal)
+    own = slow[(t[1::2] + 0.004 > 1.0) & (t[1::2] + 0.004 <= 9.0)].mean(axis=0)
+    np.testing.assert_allclose(mean, own, rtol=0, atol=1e-4)
+
+
+@pytest.mark.parametrize(
+    ("acc_header", "gyro_header", "columns", "parts"),
+    [
+        # the accelerometer's file holds the gyro too: a one-file log given as two
+        ("time_s,accel_x_mps2,accel_y_mps2,accel_z_mps2,gyro_x_radps,gyro_y_radps,gyro_z_radps",
+         "time_s,gyro_x_radps,gyro_y_radps,gyro_z_radps", None,
+         ["acc.csv", "accelerometer file also holds the gyro", "give one file with both sensors"]),
+        # a column map naming a column neither file has (a typo)
+        ("t,ax,ay,az", "t,gx,gy,gz",
+         "t=time_s,gx=gyro_x_radps,gy=gyro_y_radps,gz=gyro_z_radps,ax=accel_x_mps2,ay=accel_y_mps2,"
+         "az=accel_z_mps2,temp=counter",
+         ["'temp'", "neither file's header has"]),
+        # a sample counter and no time
+        ("counter,accel_x_mps2,accel_y_mps2,accel_z_mps2", "counter,gyro_x_radps,gyro_y_radps,gyro_z_radps",
+         None, ["sample counter gives no time", "give each file its time column"]),
+        # the gyro's file lacks an axis
+        ("time_s,accel_x_mps2,accel_y_mps2,accel_z_mps2", "time_s,gyro_x_radps,gyro_y_radps", None,
+         ["gyro.csv", "gyro_z_radps"]),
+    ],
+)  # fmt: skip
+def test_a_pair_a_logger_got_wrong_is_refused_naming_the_file_and_the_fix(
+    tmp_path, acc_header, gyro_header, columns, parts
+):
+    n = 200
+    t = np.arange(1, n + 1) / 100.0
+    (tmp_path / "acc.csv").write_text(
+        acc_header + "\n" + "\n".join(",".join([f"{s:.2f}"] + ["0.1"] * (acc_header.count(","))) for s in t)
+    )
+    (tmp_path / "gyro.csv").write_text(
+        gyro_header + "\n" + "\n".join(",".join([f"{s:.2f}"] + ["0.0"] * (gyro_header.count(","))) for s in t)
+    )
+    args = ["calibrate", str(tmp_path / "acc.csv"), "--gyro-file", str(tmp_path / "gyro.csv")]
+    args += ["--latitude", "45", "--height", "0", "-o", str(tmp_path / "out.toml")]
+    if columns:
+        args += ["--columns", columns]
+    refused(CliRunner(), tmp_path, args, *parts)
