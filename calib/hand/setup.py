@@ -6,7 +6,8 @@ factor of 2.4 %. Two facts need no calibration to check them:
 
 * at rest the accelerometers read gravity: ``|f|`` is ``g`` to a few per cent
   whatever the unit's errors (``g`` read as m/s^2 is 1.0; m/s^2 read as g is 96;
-  gyro and accelerometer columns swapped put ``g`` in the gyro);
+  milli-g read as m/s^2 is 1000; near 0 the logger took gravity out; gyro and
+  accelerometer columns swapped put ``g`` in the gyro);
 * across a move the gyro's turn carries the gravity direction of the rest before
   onto the one of the rest after. Scaled by 57 (deg/s read as rad/s) or 1/57,
   with two axes swapped or one sign flipped, it does not;
@@ -53,6 +54,7 @@ class Mistake:
     accel: np.ndarray  # (3, 3) applied to the accelerometer's
     swap: bool = False  # gyro and accelerometer columns exchanged first
     rate_factor: float = 1.0  # the true rate over the given one
+    cannot_fix: str | None = None  # what the user must do when no relabelling puts the log right
 
 
 def _windows(x: np.ndarray, dt: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
@@ -178,31 +180,7 @@ def diagnose(run, gravity_mps2: float) -> list[Mistake]:
         ]
     ratio = f / gravity_mps2
     if abs(ratio - 1.0) > 0.15:
-        if abs(f - 1.0) < 0.1:
-            return [
-                Mistake(
-                    f"|f| at rest is {f:.3g}, not {gravity_mps2:.4g} m/s^2: the accelerometer is in g "
-                    "and read as m/s^2 (name its columns accel_<axis>_g)",
-                    eye,
-                    STANDARD_GRAVITY * eye,
-                )
-            ]
-        if abs(f / STANDARD_GRAVITY**2 - 1.0) < 0.1:
-            return [
-                Mistake(
-                    f"|f| at rest is {f:.4g} m/s^2, g times g: the accelerometer is in m/s^2 and read as "
-                    "g (name its columns accel_<axis>_mps2)",
-                    eye,
-                    eye / STANDARD_GRAVITY,
-                )
-            ]
-        return [
-            Mistake(
-                f"|f| at rest is {f:.4g} m/s^2, {ratio:.3g} g: check the accelerometer's unit or conversion",
-                eye,
-                eye / ratio,
-            )
-        ]
+        return [_force_mistake(f, gravity_mps2)]
     moves = _moves(dtheta, dv, start, end)
     if len(moves) < 3:
         return []
@@ -230,6 +208,53 @@ def diagnose(run, gravity_mps2: float) -> list[Mistake]:
             )
         ]
     return []
+
+
+# Unit mistakes of an accelerometer: (what its column holds, what it is read as, |f| at rest the
+# mistake gives in "m/s^2" over the site's gravity, the unit to name the columns by).
+_FORCE_MISTAKES = (
+    ("g", "m/s^2", 1.0 / STANDARD_GRAVITY, "g"),
+    ("m/s^2", "g", STANDARD_GRAVITY, "mps2"),
+    ("mg (milli-g)", "m/s^2", 1000.0 / STANDARD_GRAVITY, "mg"),
+    ("mg (milli-g)", "g", 1000.0, "mg"),
+)
+GRAVITY_REMOVED = 0.1  # |f| at rest below this fraction of g: the logger took gravity out
+
+
+def _force_mistake(f: float, gravity_mps2: float) -> Mistake:
+    """The mistake an accelerometer's |f| at rest (``f``, as read) names: a unit, or gravity taken out.
+
+    A known unit mistake is told by a ratio within 10 % (a unit's errors are a few per cent) and
+    undone exactly by its factor. |f| near zero is no unit: a phone's "linear" or "user"
+    acceleration has gravity subtracted, and the 21 cannot be had from it. Any other ratio is
+    no mistake we can name: scaling it to g would hide the scale factors it should show.
+    """
+    eye = np.eye(3)
+    ratio = f / gravity_mps2
+    for holds, read_as, expected, unit in _FORCE_MISTAKES:
+        if abs(ratio / expected - 1.0) < 0.1:
+            return Mistake(
+                f"|f| at rest is {f:.4g}, not {gravity_mps2:.4g} m/s^2: the accelerometer is in {holds} "
+                f"and read as {read_as} (name its columns accel_<axis>_{unit})",
+                eye,
+                eye / expected,
+            )
+    if ratio < GRAVITY_REMOVED:
+        return Mistake(
+            f"|f| at rest is {f:.3g} m/s^2, not g ({gravity_mps2:.4g}): the accelerometer reads no "
+            "gravity; the logger has taken it out (a phone's 'linear' or 'user' acceleration)",
+            eye,
+            eye,
+            cannot_fix="log the accelerometer's raw specific force, gravity included (a phone's "
+            "'accelerometer' or 'total acceleration', not its 'linear acceleration')",
+        )
+    return Mistake(
+        f"|f| at rest is {f:.4g} m/s^2, {ratio:.3g} g, which no unit mistake we know of gives",
+        eye,
+        eye,
+        cannot_fix="check the accelerometer's unit and its conversion (zero and counts per unit): "
+        "at rest it must read about g",
+    )
 
 
 def rate_mistake(gyro_scale: np.ndarray, sigma: np.ndarray, period: float) -> Mistake | None:
@@ -299,6 +324,9 @@ def check_setup(run, gravity_mps2: float, fix: bool):
     mistakes = diagnose(run, gravity_mps2)
     if not mistakes:
         return run, []
+    stuck = next((m for m in mistakes if m.cannot_fix), None)
+    if stuck is not None:
+        raise CalibError(stuck.what, run.source, stuck.cannot_fix)
     if not fix:
         raise CalibError(
             mistakes[0].what,

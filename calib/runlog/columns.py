@@ -7,7 +7,7 @@ A header names each column by quantity, axis and unit, in any order::
     counter                                 a sample counter instead of a time (needs the rate)
     gyro_{x,y,z}_{radps,dps,counts}         gyro rates, rad/s, deg/s or raw counts
     dv_{x,y,z}_mps                          velocity increments, m/s
-    accel_{x,y,z}_{mps2,g,counts}           specific force, m/s^2, g (9.80665 m/s^2) or raw counts
+    accel_{x,y,z}_{mps2,g,mg,counts}        specific force, m/s^2, g (9.80665 m/s^2), milli-g or raw counts
 
 Raw counts are turned into SI by a conversion file (:mod:`calib.runlog.conversion`), a
 counter into time by the stated rate (:mod:`calib.runlog.counter`).
@@ -50,7 +50,11 @@ QUANTITIES = {
     "dtheta": ("gyro", False, {"rad": 1.0, "deg": DEG}),
     "gyro": ("gyro", True, {"radps": 1.0, "dps": DEG, "counts": 1.0}),
     "dv": ("accel", False, {"mps": 1.0}),
-    "accel": ("accel", True, {"mps2": 1.0, "g": STANDARD_GRAVITY, "counts": 1.0}),
+    "accel": (
+        "accel",
+        True,
+        {"mps2": 1.0, "g": STANDARD_GRAVITY, "mg": STANDARD_GRAVITY / 1000.0, "counts": 1.0},
+    ),
 }
 COUNTS = "counts"  # the unit of raw converter counts: SI through a conversion file, not a factor
 COUNTER = "counter"  # a sample counter in place of the time column

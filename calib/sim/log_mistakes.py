@@ -51,6 +51,23 @@ def accel_in_g(run: Run) -> Run:
     return _with(run, dv_mps=run.dv_mps / STANDARD_GRAVITY)
 
 
+def accel_in_mg(run: Run) -> Run:
+    """The accelerometer logged in milli-g where m/s^2 is declared."""
+    return _with(run, dv_mps=run.dv_mps * 1000.0 / STANDARD_GRAVITY)
+
+
+def gravity_removed(run: Run, gravity_mps2: float) -> Run:
+    """A phone's 'linear acceleration': each sample less ``gravity_mps2`` along its own direction.
+
+    At rest, where the specific force is gravity, what is left is its few-per-cent errors and
+    noise, as a phone's fused output leaves; in a move it is the unit's own acceleration, roughly.
+    """
+    f = run.dv_mps
+    norm = np.maximum(np.linalg.norm(f, axis=1, keepdims=True), 1e-12)
+    period = np.diff(run.time_s, prepend=run.time_s[0] - (run.time_s[1] - run.time_s[0]))[:, None]
+    return _with(run, dv_mps=f - gravity_mps2 * period * f / norm)
+
+
 def gyro_in_deg(run: Run) -> Run:
     """The gyro logged in deg/s (increments in deg) where rad/s (rad) is declared."""
     return _with(run, dtheta_rad=np.degrees(run.dtheta_rad))

@@ -9,6 +9,7 @@ refused by the gimbal fit naming ``--by-hand``.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -27,8 +28,10 @@ from calib.runlog import write_run
 from calib.sequence.kinematics import SimConfig
 from calib.sim.log_mistakes import (
     accel_in_g,
+    accel_in_mg,
     axes_swapped,
     axis_flipped,
+    gravity_removed,
     gyro_accel_swapped,
     gyro_in_deg,
     rate_mislabelled,
@@ -63,6 +66,7 @@ def test_a_log_as_labelled_has_no_mistake(hand_run):
     ("mistake", "said"),
     [
         (accel_in_g, "the accelerometer is in g and read as m/s^2"),
+        (accel_in_mg, "the accelerometer is in mg (milli-g) and read as m/s^2"),
         (gyro_in_deg, "the gyro is in deg/s and read as rad/s"),
         (gyro_accel_swapped, "the gyro and accelerometer columns are swapped"),
         (lambda r: axes_swapped(r, "gyro", ("x", "y")), "x and y swapped"),
@@ -75,7 +79,7 @@ def test_each_unit_mistake_is_named(hand_run, mistake, said):
     assert len(found) == 1 and said in found[0].what, found
 
 
-@pytest.mark.parametrize("mistake", [accel_in_g, gyro_in_deg, gyro_accel_swapped])
+@pytest.mark.parametrize("mistake", [accel_in_g, accel_in_mg, gyro_in_deg, gyro_accel_swapped])
 def test_fix_units_puts_the_mistake_right(hand_run, mistake):
     run, g = hand_run
     with pytest.raises(CalibError, match="--fix-units"):
@@ -85,6 +89,28 @@ def test_fix_units_puts_the_mistake_right(hand_run, mistake):
     assert any(line.startswith("fixed: ") for line in fixed.by_hand.notes)
     # Put right exactly (a unit factor or a swap): the fit of the log as it should have been.
     assert np.max(np.abs(fixed.values - plain.values) / plain.sigma) < 1e-6
+
+
+@pytest.mark.parametrize(
+    ("mistake", "said", "advice"),
+    [
+        # A phone's 'linear acceleration': |f| at rest near 0 is no unit, and no factor brings back
+        # the gravity the 21 are read from.
+        (lambda r, g: gravity_removed(r, g), "the logger has taken it out", "gravity included"),
+        # Three times too large: no unit we know; scaling it to g would hide the scale factors.
+        (lambda r, g: dataclasses.replace(r, dv_mps=3.0 * r.dv_mps, clock=None),
+         "which no unit mistake we know of gives", "zero and counts per unit"),
+    ],
+)  # fmt: skip
+def test_an_accelerometer_no_relabelling_puts_right_is_refused_even_under_fix_units(
+    hand_run, mistake, said, advice
+):
+    run, g = hand_run
+    bad = mistake(run, g)
+    for fix in (False, True):
+        with pytest.raises(CalibError) as err:
+            calibrate(bad, "mems", by_hand=True, options=CalibrateOptions(fix_units=fix))
+        assert said in err.value.what and advice in err.value.fix and "--fix-units" not in err.value.fix
 
 
 @pytest.mark.slow
