@@ -256,7 +256,10 @@ def test_library_reads_the_same_map_as_a_dict(run, tmp_path):
             MAP.replace("gyro_x_radps", "gyro_x_degps"),
             ["unknown name 'gyro_x_degps'", "gyro_{x,y,z}_{radps,dps}"],
         ),
-        (MAP.replace("gyro_x_radps", "speed"), ["unknown name 'speed'", "time_ms", "accel_{x,y,z}_{mps2,g,mg}"]),
+        (
+            MAP.replace("gyro_x_radps", "speed"),
+            ["unknown name 'speed'", "time_ms", "accel_{x,y,z}_{mps2,g,mg}"],
+        ),
         ("t:time_s", ["'t:time_s' is not FILE_NAME=OUR_NAME"]),
         (MAP + ",t=time_ms", ["'t' twice"]),
     ],
