@@ -301,8 +301,30 @@ def parse_column_map(columns: str | dict[str, str] | None, where: str) -> dict[s
         On a pair without ``=``, a file name given twice, or an unknown name to map to
         (the message lists the accepted ones).
     """
+    mapping: dict[str, str] = {}
+    for source, target in column_map_pairs(columns, where):
+        if source in mapping:
+            raise CalibError(
+                f"column map names the file's column '{source}' twice", where, "map each column once"
+            )
+        mapping[source] = target
+    return mapping
+
+
+def sensor_of(target: str) -> str | None:
+    """``"gyro"`` or ``"accel"`` for a grammar name of that sensor's columns, else None."""
+    split = _split(target)
+    return QUANTITIES[split[0]][0] if split else None
+
+
+def column_map_pairs(columns: str | dict[str, str] | None, where: str) -> list[tuple[str, str]]:
+    """The ``(file's name, our name)`` pairs of a column map, each our name checked to be known.
+
+    A name may come twice here; :func:`parse_column_map` refuses that for one file, and
+    :mod:`calib.runlog.csvpair` allows it once per sensor (each file's ``x`` its own).
+    """
     if not columns:
-        return {}
+        return []
     if isinstance(columns, str):
         pairs = []
         for item in columns.split(","):
@@ -319,20 +341,14 @@ def parse_column_map(columns: str | dict[str, str] | None, where: str) -> dict[s
             pairs.append((source.strip(), target.strip()))
     else:
         pairs = [(str(k).strip(), str(v).strip()) for k, v in columns.items()]
-    mapping: dict[str, str] = {}
     for source, target in pairs:
-        if source in mapping:
-            raise CalibError(
-                f"column map names the file's column '{source}' twice", where, "map each column once"
-            )
         if not _known_name(target):
             raise CalibError(
                 f"column map: '{source}={target}' maps to an unknown name '{target}'",
                 where,
                 "map to one of " + accepted_names() + " (docs/logs-columns.md)",
             )
-        mapping[source] = target
-    return mapping
+    return pairs
 
 
 def apply_column_map(names: list[str], mapping: dict[str, str], where: str) -> list[str]:

@@ -29,8 +29,9 @@ from .columns import (
     TIME_UNITS,
     SensorColumns,
     apply_column_map,
-    parse_column_map,
+    column_map_pairs,
     plan_one_sensor,
+    sensor_of,
 )
 from .conversion import Conversion, sensor_si
 from .csv import (
@@ -66,6 +67,31 @@ def has_header(path: str | os.PathLike) -> bool:
                 return True
         return False
     return False
+
+
+def sensor_maps(columns: str | dict[str, str] | None, where: str) -> dict[str, dict[str, str]]:
+    """One column map split into each file's: ``{"accel": {...}, "gyro": {...}}``.
+
+    A name mapped to a sensor's column goes to that sensor's file alone, so both files may call
+    their axes ``x, y, z`` (``x=gyro_x_radps,x=accel_x_mps2``, as a phone's logger writes them);
+    the time and other names go to both. A name mapped twice for one file is refused.
+    """
+    maps: dict[str, dict[str, str]] = {"accel": {}, "gyro": {}}
+    for source, target in column_map_pairs(columns, where):
+        sensor = sensor_of(target)
+        for name in (sensor,) if sensor else ("accel", "gyro"):
+            if source in maps[name]:
+                raise CalibError(
+                    f"column map names the {_WORDS[name]} file's column '{source}' twice",
+                    where,
+                    "map each file's column once (a name may come twice only as one gyro and one "
+                    "accelerometer column)",
+                )
+            maps[name][source] = target
+    return maps
+
+
+_WORDS = {"gyro": "gyro", "accel": "accelerometer"}
 
 
 class _SensorFile:
@@ -154,10 +180,10 @@ def read_csv_pair(
         On a file that does not hold its sensor alone with a time, site keys the two
         files state differently, or files with no common time.
     """
-    mapping = parse_column_map(columns, f"{acc_path}; {gyro_path}")
-    acc = _SensorFile(acc_path, "accel", mapping, conversion)
-    gyro = _SensorFile(gyro_path, "gyro", mapping, conversion, options.get("sample_rate_hz"))
-    unused = [k for k in mapping if k not in acc.used | gyro.used]
+    maps = sensor_maps(columns, f"{acc_path}; {gyro_path}")
+    acc = _SensorFile(acc_path, "accel", maps["accel"], conversion)
+    gyro = _SensorFile(gyro_path, "gyro", maps["gyro"], conversion, options.get("sample_rate_hz"))
+    unused = sorted({*maps["accel"], *maps["gyro"]} - acc.used - gyro.used)
     if unused:
         raise CalibError(
             "column map names " + ", ".join(f"'{k}'" for k in unused) + ", which neither file's header has",

@@ -64,6 +64,24 @@ def test_one_rate_one_set_of_stamps_reads_as_the_one_file_log(tmp_path):
     np.testing.assert_allclose(pair.dv_mps, same.dv_mps, rtol=0, atol=1e-12)
 
 
+def test_a_phone_loggers_files_whose_axes_are_both_called_x_y_z(tmp_path):
+    # A phone's sensor logger writes each sensor as time (epoch ns), seconds elapsed, then z, y, x:
+    # one map names each file's x, y, z for its own sensor. The gyro read back is the gyro written,
+    # axis for axis (z, y, x reordered), the accelerometer the accelerometer (one set of stamps:
+    # exact to the running sum's rounding, 1e-13 m/s).
+    t, w, f = _samples()
+    for name, values in (("Gyroscope.csv", w), ("Accelerometer.csv", f)):
+        table = np.column_stack([t - t[0], values[:, ::-1]])
+        _write(tmp_path / name, "time,seconds_elapsed,z,y,x", _ns(t), table)
+    columns = "time=time_ns,x=gyro_x_radps,y=gyro_y_radps,z=gyro_z_radps,"
+    columns += "x=accel_x_mps2,y=accel_y_mps2,z=accel_z_mps2"
+    run = read_run(
+        tmp_path / "Accelerometer.csv", gyro_path=tmp_path / "Gyroscope.csv", columns=columns, **SITE
+    )
+    np.testing.assert_allclose(run.dtheta_rad, w / 100.0, rtol=1e-11)
+    np.testing.assert_allclose(run.dv_mps, f / 100.0, rtol=0, atol=1e-12)
+
+
 def test_an_accelerometer_at_half_rate_in_g_keeps_each_rests_mean_force(tmp_path):
     # The accelerometer's pairs averaged (50 Hz) and written in g, stamped 4 ms late, the gyro in
     # deg/s: the gyro's increments are its own (to the 12 digits written), and over the first rest
@@ -99,6 +117,11 @@ def test_an_accelerometer_at_half_rate_in_g_keeps_each_rests_mean_force(tmp_path
          "t=time_s,gx=gyro_x_radps,gy=gyro_y_radps,gz=gyro_z_radps,ax=accel_x_mps2,ay=accel_y_mps2,"
          "az=accel_z_mps2,temp=counter",
          ["'temp'", "neither file's header has"]),
+        # one file's x mapped twice (a typo for y)
+        ("t,x,y,z", "t,x,y,z",
+         "t=time_s,x=gyro_x_radps,x=gyro_y_radps,z=gyro_z_radps,x=accel_x_mps2,y=accel_y_mps2,"
+         "z=accel_z_mps2",
+         ["gyro file's column 'x' twice", "one gyro and one accelerometer column"]),
         # a sample counter and no time
         ("counter,accel_x_mps2,accel_y_mps2,accel_z_mps2", "counter,gyro_x_radps,gyro_y_radps,gyro_z_radps",
          None, ["sample counter gives no time", "give each file its time column"]),
