@@ -94,7 +94,7 @@ def read_csv(
     wanted = [plan.time, *plan.gyro.positions, *plan.accel.positions]
     if has_gimbal:
         wanted += [positions[c] for c in GIMBAL_COLUMNS]
-    all_names = [c.strip() for c in lines[header_index].split(",")]
+    all_names = header_names(lines[header_index])
     data = _parse_numbers(rows, row_lines, wanted, all_names, name)
     options = options or {}
     tname = all_names[plan.time]
@@ -191,6 +191,14 @@ def time_in_seconds(parsed: np.ndarray, rows: list[str], position: int, ticks: i
         return parsed / ticks  # decimals: one division, correctly rounded
     whole, rest = np.divmod(stamps, ticks)
     return whole.astype(np.float64) + rest / ticks
+
+
+def header_names(line: str) -> list[str]:
+    """A header row's names: split at commas, each stripped of spaces and of one pair of double
+    quotes around it (``"Time (s)"``, as phyphox and spreadsheets write names with spaces).
+    """
+    names = [field.strip() for field in line.strip().split(",")]
+    return [n[1:-1].strip() if len(n) >= 2 and n[0] == n[-1] == '"' else n for n in names]
 
 
 def _to_commas(lines: list[str], header_index: int, name: str) -> list[str]:
@@ -351,7 +359,7 @@ def _parse_header(
 ) -> tuple[ColumnPlan, bool, dict[str, int]]:
     """The columns of the header row (:mod:`calib.runlog.columns`, column map applied) and the gimbal's."""
     where = f"{name}, line {line_number}"
-    names = apply_column_map([c.strip() for c in line.split(",")], mapping, where)
+    names = apply_column_map(header_names(line), mapping, where)
     plan = plan_columns(names, where)
     positions: dict[str, int] = {}
     for position, column in enumerate(names):
@@ -452,7 +460,7 @@ def csv_chunks(path, rows: int):
         line = next(handle, "")
         while line.startswith("#"):
             line = next(handle, "")
-        header = [c.strip() for c in line.strip().split(",")]
+        header = header_names(line)
         missing = [c for c in REQUIRED_COLUMNS if c not in header]
         if missing:
             raise CalibError(

@@ -41,6 +41,7 @@ from .csv import (
     _fill_meta,
     _parse_numbers,
     _to_commas,
+    header_names,
     parse_preamble,
     time_in_seconds,
 )
@@ -106,7 +107,7 @@ class _SensorFile:
         lines = _to_commas(lines, header_index, name)
         self.header_line = header_index + 1
         where = f"{name}, line {self.header_line}"
-        own = [c.strip() for c in lines[header_index].split(",")]
+        own = header_names(lines[header_index])
         names = apply_column_map(own, {k: v for k, v in mapping.items() if k in own}, where)
         self.used = set(mapping) & set(own)
         time_at, self.time_name, columns = plan_one_sensor(names, sensor, where)

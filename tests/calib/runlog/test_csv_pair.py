@@ -82,6 +82,32 @@ def test_a_phone_loggers_files_whose_axes_are_both_called_x_y_z(tmp_path):
     np.testing.assert_allclose(run.dv_mps, f / 100.0, rtol=0, atol=1e-12)
 
 
+def test_phyphox_files_with_quoted_names_and_their_units_in_them(tmp_path):
+    # phyphox exports each sensor with its names in double quotes ("Time (s)"): a quoted name is
+    # its content, so the map names it without quotes. Same samples, same stamps: read back exactly.
+    t, w, f = _samples()
+    files = {
+        "Gyroscope.csv": ('"Time (s)","Gyroscope x (rad/s)","Gyroscope y (rad/s)","Gyroscope z (rad/s)"', w),
+        "Accelerometer.csv": (
+            '"Time (s)","Acceleration x (m/s^2)","Acceleration y (m/s^2)","Acceleration z (m/s^2)"',
+            f,
+        ),
+    }
+    for name, (header, values) in files.items():
+        body = np.char.mod("%.12g", values)
+        rows = [",".join([f"{s:.9f}", *r]) for s, r in zip(t - t[0] + 0.01, body, strict=True)]
+        (tmp_path / name).write_text(header + "\n" + "\n".join(rows) + "\n")
+    columns = "Time (s)=time_s," + ",".join(
+        [f"Gyroscope {a} (rad/s)=gyro_{a}_radps" for a in "xyz"]
+        + [f"Acceleration {a} (m/s^2)=accel_{a}_mps2" for a in "xyz"]
+    )
+    run = read_run(
+        tmp_path / "Accelerometer.csv", gyro_path=tmp_path / "Gyroscope.csv", columns=columns, **SITE
+    )
+    np.testing.assert_allclose(run.dtheta_rad, w / 100.0, rtol=1e-11)
+    np.testing.assert_allclose(run.dv_mps, f / 100.0, rtol=0, atol=1e-12)
+
+
 def test_an_accelerometer_at_half_rate_in_g_keeps_each_rests_mean_force(tmp_path):
     # The accelerometer's pairs averaged (50 Hz) and written in g, stamped 4 ms late, the gyro in
     # deg/s: the gyro's increments are its own (to the 12 digits written), and over the first rest
