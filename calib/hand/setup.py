@@ -9,7 +9,8 @@ factor of 2.4 %. Two facts need no calibration to check them:
   milli-g read as m/s^2 is 1000; near 0 the logger took gravity out; gyro and
   accelerometer columns swapped put ``g`` in the gyro);
 * across a move the gyro's turn carries the gravity direction of the rest before
-  onto the one of the rest after. Scaled by 57 (deg/s read as rad/s) or 1/57,
+  onto the one of the rest after. Scaled by 57 (deg/s read as rad/s), 1/57 or a
+  thousand (milli-degrees per second),
   with two axes swapped or one sign flipped, it does not;
 * after the fit, a rate a few per cent off shows as three gyro scale factors
   alike (`rate_mistake`).
@@ -145,6 +146,17 @@ def _describe_axes(M: np.ndarray) -> str:
     return ", ".join(parts)
 
 
+# The factors that put a gyro's unit mistake right, and what each says (the plain reading first).
+_GYRO_SCALES = {
+    1.0: "",
+    DEG: "the gyro is in deg/s and read as rad/s (name its columns gyro_<axis>_dps)",
+    1.0 / DEG: "the gyro is in rad/s and read as deg/s (name its columns gyro_<axis>_radps)",
+    DEG / 1000.0: "the gyro is in mdeg/s (milli-degrees per second) and read as rad/s (name its "
+    "columns gyro_<axis>_mdps)",
+    1.0 / 1000.0: "the gyro is in mdeg/s and read as deg/s (name its columns gyro_<axis>_mdps)",
+}
+
+
 def diagnose(run, gravity_mps2: float) -> list[Mistake]:
     """The likely setup mistakes of a hand run, none when its labels hold.
 
@@ -186,17 +198,15 @@ def diagnose(run, gravity_mps2: float) -> list[Mistake]:
         return []
     period = float(np.median(dt))
     bias = np.median([dtheta[a:b].sum(0) / dt[a:b].sum() for a, b in zip(start, end, strict=True)], axis=0)
-    candidates = [(scale, M) for scale in (1.0, DEG, 1.0 / DEG) for M in _signed_permutations()]
+    candidates = [(scale, M) for scale in _GYRO_SCALES for M in _signed_permutations()]
     misfits = carried_misfit(moves, np.array([scale * M for scale, M in candidates]), bias, period)
     plain = float(misfits[0])  # scale 1, the identity: the first of each list
     k = int(np.argmin(misfits))
     misfit, (scale, M) = float(misfits[k]), candidates[k]
     if plain > GOOD_DEG and misfit < 0.5 * plain:
         what = []
-        if scale == DEG:
-            what.append("the gyro is in deg/s and read as rad/s (name its columns gyro_<axis>_dps)")
-        elif scale != 1.0:
-            what.append("the gyro is in rad/s and read as deg/s (name its columns gyro_<axis>_radps)")
+        if scale != 1.0:
+            what.append(_GYRO_SCALES[scale])
         if not np.array_equal(M, eye):
             what.append(f"the gyro's axes do not match the accelerometer's: {_describe_axes(M)}")
         return [

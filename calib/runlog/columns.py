@@ -5,7 +5,7 @@ A header names each column by quantity, axis and unit, in any order::
     time_{s,ms,us,ns}                       sample time (end of the sample interval)
     dtheta_{x,y,z}_{rad,deg}                gyro angle increments
     counter                                 a sample counter instead of a time (needs the rate)
-    gyro_{x,y,z}_{radps,dps,counts}         gyro rates, rad/s, deg/s or raw counts
+    gyro_{x,y,z}_{radps,dps,mdps,counts}    gyro rates, rad/s, deg/s, milli-deg/s or raw counts
     dv_{x,y,z}_mps                          velocity increments, m/s
     accel_{x,y,z}_{mps2,g,mg,counts}        specific force, m/s^2, g (9.80665 m/s^2), milli-g or raw counts
 
@@ -48,7 +48,7 @@ AXES = ("x", "y", "z")
 # quantity: (sensor, is a rate, {unit: SI per unit})
 QUANTITIES = {
     "dtheta": ("gyro", False, {"rad": 1.0, "deg": DEG}),
-    "gyro": ("gyro", True, {"radps": 1.0, "dps": DEG, "counts": 1.0}),
+    "gyro": ("gyro", True, {"radps": 1.0, "dps": DEG, "mdps": DEG / 1000.0, "counts": 1.0}),
     "dv": ("accel", False, {"mps": 1.0}),
     "accel": (
         "accel",

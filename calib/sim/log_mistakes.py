@@ -73,6 +73,11 @@ def gyro_in_deg(run: Run) -> Run:
     return _with(run, dtheta_rad=np.degrees(run.dtheta_rad))
 
 
+def gyro_in_mdeg(run: Run) -> Run:
+    """The gyro logged in milli-degrees per second where rad/s is declared (ST's drivers' unit)."""
+    return _with(run, dtheta_rad=np.degrees(run.dtheta_rad) * 1000.0)
+
+
 def gyro_accel_swapped(run: Run) -> Run:
     """The gyro's and the accelerometer's columns exchanged."""
     return _with(run, dtheta_rad=np.array(run.dv_mps), dv_mps=np.array(run.dtheta_rad))

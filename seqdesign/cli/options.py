@@ -112,7 +112,7 @@ columns = click.option(
     help="Map a logger CSV's own column names to ours (docs/logs-columns.md): comma-separated "
     "FILE_NAME=OUR_NAME pairs, e.g. t=time_ms,gx=gyro_x_dps,ax=accel_x_g and so on for gy, "
     "gz, ay, az; our name's suffix gives the unit (time_s, time_ms, time_us, time_ns; radps, "
-    "dps; mps2, g, mg).",
+    "dps, mdps; mps2, g, mg).",
 )
 
 

@@ -34,6 +34,7 @@ from calib.sim.log_mistakes import (
     gravity_removed,
     gyro_accel_swapped,
     gyro_in_deg,
+    gyro_in_mdeg,
     rate_mislabelled,
 )
 from seqdesign.cli import main
@@ -68,6 +69,7 @@ def test_a_log_as_labelled_has_no_mistake(hand_run):
         (accel_in_g, "the accelerometer is in g and read as m/s^2"),
         (accel_in_mg, "the accelerometer is in mg (milli-g) and read as m/s^2"),
         (gyro_in_deg, "the gyro is in deg/s and read as rad/s"),
+        (gyro_in_mdeg, "the gyro is in mdeg/s (milli-degrees per second) and read as rad/s"),
         (gyro_accel_swapped, "the gyro and accelerometer columns are swapped"),
         (lambda r: axes_swapped(r, "gyro", ("x", "y")), "x and y swapped"),
         (lambda r: axis_flipped(r, "gyro", "z"), "z sign flipped"),
@@ -79,7 +81,7 @@ def test_each_unit_mistake_is_named(hand_run, mistake, said):
     assert len(found) == 1 and said in found[0].what, found
 
 
-@pytest.mark.parametrize("mistake", [accel_in_g, accel_in_mg, gyro_in_deg, gyro_accel_swapped])
+@pytest.mark.parametrize("mistake", [accel_in_g, accel_in_mg, gyro_in_deg, gyro_in_mdeg, gyro_accel_swapped])
 def test_fix_units_puts_the_mistake_right(hand_run, mistake):
     run, g = hand_run
     with pytest.raises(CalibError, match="--fix-units"):

@@ -254,7 +254,7 @@ def test_library_reads_the_same_map_as_a_dict(run, tmp_path):
         (MAP.replace("gx=", "gq="), ["'gq'", "header row does not have", "t, gx, gy"]),
         (
             MAP.replace("gyro_x_radps", "gyro_x_degps"),
-            ["unknown name 'gyro_x_degps'", "gyro_{x,y,z}_{radps,dps}"],
+            ["unknown name 'gyro_x_degps'", "gyro_{x,y,z}_{radps,dps,mdps}"],
         ),
         (
             MAP.replace("gyro_x_radps", "speed"),
