@@ -152,14 +152,14 @@ def plan_one_sensor(names: list[str], sensor: str, where: str) -> tuple[int, str
     if both:
         column = next(iter(found[both[0]].values()))[0]
         raise CalibError(
-            f"the {_SENSOR_WORDS[sensor]} file also holds the {_SENSOR_WORDS[other]} ('{column}')",
+            f"the {SENSOR_WORDS[sensor]} file also holds the {SENSOR_WORDS[other]} ('{column}')",
             where,
             "give one file with both sensors (no second file), or each sensor's file alone",
         )
     return _time_position(seen, names, where), _time_name(seen), _sensor(sensor, found, names, where)
 
 
-_SENSOR_WORDS = {"gyro": "gyro", "accel": "accelerometer"}
+SENSOR_WORDS = {"gyro": "gyro", "accel": "accelerometer"}
 
 
 def _scan(names: list[str], where: str) -> tuple[dict, dict[str, int]]:

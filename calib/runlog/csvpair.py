@@ -26,6 +26,7 @@ from .clipping import sensor_clipping
 from .clock import stamps_rate
 from .columns import (
     COUNTER,
+    SENSOR_WORDS,
     TIME_UNITS,
     SensorColumns,
     apply_column_map,
@@ -83,16 +84,13 @@ def sensor_maps(columns: str | dict[str, str] | None, where: str) -> dict[str, d
         for name in (sensor,) if sensor else ("accel", "gyro"):
             if source in maps[name]:
                 raise CalibError(
-                    f"column map names the {_WORDS[name]} file's column '{source}' twice",
+                    f"column map names the {SENSOR_WORDS[name]} file's column '{source}' twice",
                     where,
                     "map each file's column once (a name may come twice only as one gyro and one "
                     "accelerometer column)",
                 )
             maps[name][source] = target
     return maps
-
-
-_WORDS = {"gyro": "gyro", "accel": "accelerometer"}
 
 
 class _SensorFile:
