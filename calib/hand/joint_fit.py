@@ -46,7 +46,7 @@ from .fit_options import HAND_FIT, HandFitOptions, HandSamples
 from .moves import move_rotation, move_sensitivity, right_jacobian_inverse
 from .poses import tip_to
 from .weak import split_weak
-from .weights import Weights, component_sizes, components, redundancy, refuted, reweighted
+from .weights import Weights, component_sizes, components, profile_outliers, redundancy, refuted, reweighted
 
 N = P.N_PARAMS
 N_GS = 9  # the gyro g-sensitivity matrix, when fitted
@@ -366,7 +366,7 @@ def fit_by_hand(
         inv = scaled_inverse(Jw.T @ Jw, names=names)
         red = redundancy(Jw, inv.covariance)
         if not weights.earning and set(weights.block) <= preset and rounds == 0:
-            outliers = reweighted(weights, e, red, labels, shapes, s).block
+            outliers = profile_outliers(e, red, labels, s)
             weights = Weights(earning=refuted(e, red, labels, s, outliers))
         new = reweighted(weights, e, red, labels, shapes, s)
         done = new.settled(weights, shapes, s, labels)

@@ -10,8 +10,9 @@ chains, and through them the accelerometer estimates.
 
 So each group of observations whose residuals refute the profile's noise
 (:func:`refuted`: its whitened residual power outside the 99 % band of a chi2 on
-its redundancy) gets the noise its residuals show, as a sum of components of
-known shape and unknown size (:func:`components`):
+its redundancy, the blocks :func:`profile_outliers` names left out) gets the
+noise its residuals show, as a sum of components of known shape and unknown size
+(:func:`components`):
 
 * rest specific force: white (``1 / T``) and a floor per rest (the same
   whatever the rest's length: a bias that wanders, a placing that settles);
@@ -172,13 +173,55 @@ def redundancy(jac_w: np.ndarray, cov: np.ndarray) -> np.ndarray:
     return np.clip(1.0 - h, 0.0, 1.0)
 
 
+def _blocks(labels: list) -> dict:
+    """The rows of each block of the weighted groups, keyed by its label ``(kind, index)``."""
+    blocks: dict[tuple, list[int]] = {}
+    for i, lab in enumerate(labels):
+        if lab[0] in GROUPS:
+            blocks.setdefault(lab, []).append(i)
+    return blocks
+
+
+def _beyond(q: float, r: float, size: int, level: float) -> bool:
+    """Whether a block's whitened power ``q`` on redundancy ``r`` exceeds `OUTLIER_LEVEL` at ``level``."""
+    return r > 0.1 and q > level * chi2.ppf(OUTLIER_LEVEL, size) * r / size
+
+
+def profile_outliers(e: np.ndarray, red: np.ndarray, labels: list, s_profile: np.ndarray) -> set:
+    """The blocks beyond their group's noise at the profile's weights, that noise judged robustly.
+
+    An outlier is a minority of its group: where most of a group's blocks exceed the
+    profile's noise (a unit noisier than its profile says), the profile is what is wrong,
+    not those blocks. So each group's level is the profile's, or the median of its blocks'
+    whitened power per redundancy over that median's value for white noise (``chi2(k)/k``
+    of a block of ``k`` rows), if that is higher; a block is an outlier beyond the 99.99 %
+    quantile at that level. Judged at the profile's level alone, a unit 5x noisier than its
+    profile had 13 of its 24 moves called outliers and the 11 smallest left to say that the
+    profile held: its gyro sigmas came out 2.5x too small.
+    """
+    out: set = set()
+    by_group: dict[str, list] = {g: [] for g in GROUPS}
+    for lab, members in _blocks(labels).items():
+        r = float(red[members].sum())
+        q = float(np.sum((e[members] / s_profile[members]) ** 2))
+        by_group[lab[0]].append((lab, q, r, len(members)))
+    for items in by_group.values():
+        ratios = [q / r / (chi2.median(k) / k) for _, q, r, k in items if r > 0.1]
+        level = max(1.0, float(np.median(ratios))) if ratios else 1.0
+        out |= {lab for lab, q, r, k in items if _beyond(q, r, k, level)}
+    return out
+
+
 def refuted(e: np.ndarray, red: np.ndarray, labels: list, s_profile: np.ndarray, outliers=()) -> tuple:
     """The groups whose residuals at the profile's weights its noise cannot explain.
 
     A group keeps the profile's weights unless its whitened residual power lies outside
     the two-sided `REFUTED_LEVEL` band of a chi2 on its redundancy: a recording whose noise
     is the profile's keeps its weights (and the sigmas `analyze` predicts), one whose noise
-    is not earns its own. The blocks in ``outliers`` are left out (they earn their own).
+    is not earns its own. The blocks in ``outliers`` are left out (they earn their own):
+    name them with :func:`profile_outliers`, which judges a group noisier than the profile
+    as a whole at its own median level, so that its loudest half is not left out and its
+    quietest half left to vouch for the profile.
     """
     kinds = np.array([lab[0] for lab in labels])
     kept = np.array([lab not in outliers for lab in labels], dtype=bool)
@@ -240,13 +283,9 @@ def reweighted(
         theta[(g, "white")] = max(theta[(g, "white")], floor**2)
     new = Weights(theta, {}, weights.earning)
     base = new.sigma(shapes, s_profile, labels)
-    blocks: dict[tuple, list[int]] = {}
-    for i, lab in enumerate(labels):
-        if lab[0] in GROUPS:
-            blocks.setdefault(lab, []).append(i)
-    for lab, members in blocks.items():
+    for lab, members in _blocks(labels).items():
         r = float(red[members].sum())
         q = float(np.sum((e[members] / base[members]) ** 2))
-        if r > 0.1 and q > chi2.ppf(OUTLIER_LEVEL, len(members)) * r / len(members):
+        if _beyond(q, r, len(members), 1.0):
             new.block[lab] = math.sqrt(q / r)
     return new

@@ -204,10 +204,12 @@ def test_imucal_recording_calibrates_by_its_sample_counter(tmp_path):
         a, b = sections[name]["start"] / 102.4, sections[name]["end"] / 102.4
         assert any(lo <= a and b <= hi for lo, hi in rests), name
     # At the profile's weights its fast flips leave chi2/dof 3.4; the weights the residuals earn
-    # bring it to 1 (each group's variance over its redundancy), and the flip that fits worst
-    # (move 2, chi2 41 over 3 at the profile's weights) is weighted by its own residual.
+    # bring it to 1 (each group's variance over its redundancy). Most of its flips, not one, lie
+    # beyond the ARW (8 of 11 at the profile's weights above white noise's median), so the moves
+    # earn their noise as a group (a white factor well above 1) rather than a few being
+    # weighted out and the rest left to vouch for the profile.
     assert 0.7 <= doc["fit"]["chi2_per_dof"] <= 1.5
-    assert 2 in [o["index"] for o in doc["by_hand"]["weights"]["outliers"] if o["kind"] == "move"]
+    assert doc["by_hand"]["weights"]["white_factor"]["move"] > 2.0
     # The gyro's g-sensitivity is tested and not chosen: every element within 1.3 sigma of zero.
     assert doc["by_hand"]["model"][0] == {
         **doc["by_hand"]["model"][0],
