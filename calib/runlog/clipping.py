@@ -12,7 +12,8 @@ are wrong by an unknown amount. Three signs, each per axis:
   turns that fast; a hand does);
 - **a plateau**: ``PLATEAU_RUN`` or more consecutive gyro samples within
   ``PLATEAU_BAND`` of that largest magnitude (a sensor saturating before its
-  converter does, with its noise on top), under the same condition.
+  converter does, with its noise on top), under the same condition, entered
+  or left by a ramp steeper than a smooth peak's (:func:`steep_sided`).
 
 The mask (``Run.clipped``, ``(n, 6)``: gyro x, y, z, accel x, y, z) says
 which samples; :func:`describe_clipping` names each stretch
@@ -33,7 +34,10 @@ from .conversion import Conversion
 FLAT_TOP_RAD_S = 5.0  # rad/s (286 deg/s): beyond a calibration gimbal, within a hand's turn
 FLAT_TOP_RUN = 2  # consecutive samples exactly at the largest magnitude
 PLATEAU_BAND = 0.01  # relative to the largest magnitude
-PLATEAU_RUN = 5  # consecutive samples within the band: a smooth peak passes through it faster
+PLATEAU_RUN = 5  # consecutive samples within the band
+# A smooth peak's slope beside its band, times the band's half-width, is about 3 band depths
+# (`steep_sided`); a clipped ramp's is tens (the Xsens recording's: 30-80).
+PLATEAU_STEEPNESS = 6.0
 MERGE_S = 0.5  # clipped samples this close are one stretch
 CHANNELS = tuple(f"{sensor} {axis}" for sensor in ("gyro", "accel") for axis in "xyz")
 
@@ -93,14 +97,38 @@ def flat_top(rate: np.ndarray, threshold: float = FLAT_TOP_RAD_S) -> np.ndarray:
             peak = float(size.max()) if len(size) else 0.0
             if not peak >= threshold:
                 continue
-            for near, run in (
-                (size == peak, FLAT_TOP_RUN),
-                (size >= (1.0 - PLATEAU_BAND) * peak, PLATEAU_RUN),
-            ):
-                for a, b in zip(*runs_of(near), strict=True):
-                    if b - a >= run:
-                        mask[a:b, axis] = True
+            for a, b in zip(*runs_of(size == peak), strict=True):
+                if b - a >= FLAT_TOP_RUN:
+                    mask[a:b, axis] = True
+            for a, b in zip(*runs_of(size >= (1.0 - PLATEAU_BAND) * peak), strict=True):
+                if b - a >= PLATEAU_RUN and steep_sided(size, a, b, PLATEAU_BAND * peak):
+                    mask[a:b, axis] = True
     return mask
+
+
+def steep_sided(size: np.ndarray, a: int, b: int, depth: float) -> bool:
+    """Whether the samples ``a:b`` at the top of ``size`` are a plateau, not a smooth peak.
+
+    A smooth peak ``P - k t^2`` stays within ``depth`` of its top for a half-width
+    ``w = sqrt(depth / k)``; beside the band, over a further ``w``, it falls at a mean slope
+    ``3 k w``, so slope times ``w`` is about ``3 depth`` whatever the sample rate (counted
+    in samples both). A sensor that saturates flattens a ramp that went on rising: beside
+    its plateau the slope is the ramp's, many band depths over the plateau's half-width.
+    The larger side counts (one side of a clipped stretch may end in a turn's reversal).
+    A turn cut less than about two band depths below its true peak looks like a smooth
+    peak this way and is not flagged: its increments lose at most that cap's area, and
+    the move's residual (its weight, calib.hand.weights) is what then says so.
+    """
+    half = 0.5 * (b - a)
+    span = max(1, round(half))
+    slopes = []
+    if a - span >= 0:
+        slopes.append((size[a] - size[a - span]) / span)
+    if b - 1 + span < len(size):
+        slopes.append((size[b - 1] - size[b - 1 + span]) / span)
+    if not slopes:  # the whole record at its top: nothing beside to tell a peak by
+        return True
+    return max(slopes) * half > PLATEAU_STEEPNESS * depth
 
 
 def sensor_clipping(

@@ -402,6 +402,32 @@ def test_clipping_counts_at_the_converter_limit_and_flat_tops():
     ]
 
 
+@pytest.mark.parametrize("rate_hz", [100.0, 400.0, 1000.0])
+def test_a_smooth_fast_turn_is_no_plateau_and_the_same_turn_saturated_is_one(rate_hz):
+    # A hand's 600 deg/s turn lasting 0.6 s (rate a half sine) on a unit with 0.2 deg/s of
+    # rate noise a sample. Its top stays within 1 % of its peak for 9 % of the turn: 5-54
+    # samples at these rates, which a count of samples called clipped (the old rule set off
+    # a move's worth of "clipping" on simulated runs that had none).
+    rng = np.random.default_rng(7)
+    t = np.arange(0.0, 2.0, 1.0 / rate_hz)
+    turn = np.where((t > 0.7) & (t < 1.3), np.sin(np.pi * (t - 0.7) / 0.6), 0.0)
+    peak = math.radians(600.0)
+    rate = np.zeros((t.size, 3))
+    rate[:, 2] = peak * turn + math.radians(0.2) * rng.standard_normal(t.size)
+    assert not flat_top(rate).any()
+    # The same turn through a sensor that saturates at 500 deg/s, its noise on top: a
+    # plateau entered and left on the turn's flanks, flagged over the saturated stretch.
+    saturated = rate.copy()
+    limit = math.radians(500.0)
+    over = peak * turn > limit
+    saturated[over, 2] = limit + math.radians(0.2) * rng.standard_normal(over.sum())
+    mask = flat_top(saturated)[:, 2]
+    # Every saturated sample (its noise, 0.2 deg/s, is far inside the 5 deg/s band), and
+    # beside them only the flanks' samples already within the band of the limit.
+    assert mask[over].all()
+    assert not mask[peak * turn < 0.98 * limit].any()
+
+
 def test_the_gimbal_rate_check_is_the_callers():
     dt = np.full(10, 0.01)
     dtheta = np.zeros((10, 3))
