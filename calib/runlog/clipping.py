@@ -36,7 +36,8 @@ FLAT_TOP_RUN = 2  # consecutive samples exactly at the largest magnitude
 PLATEAU_BAND = 0.01  # relative to the largest magnitude
 PLATEAU_RUN = 5  # consecutive samples within the band
 # A smooth peak's slope beside its band, times the band's half-width, is about 3 band depths
-# (`steep_sided`); a clipped ramp's is tens (the Xsens recording's: 30-80).
+# (`steep_sided`; 0.7-3.5 measured on simulated turns, noise included); a clipped ramp's is
+# tens (the Xsens recording's: 13-183, each stretch's gentler side).
 PLATEAU_STEEPNESS = 6.0
 MERGE_S = 0.5  # clipped samples this close are one stretch
 CHANNELS = tuple(f"{sensor} {axis}" for sensor in ("gyro", "accel") for axis in "xyz")
@@ -114,7 +115,9 @@ def steep_sided(size: np.ndarray, a: int, b: int, depth: float) -> bool:
     ``3 k w``, so slope times ``w`` is about ``3 depth`` whatever the sample rate (counted
     in samples both). A sensor that saturates flattens a ramp that went on rising: beside
     its plateau the slope is the ramp's, many band depths over the plateau's half-width.
-    The larger side counts (one side of a clipped stretch may end in a turn's reversal).
+    Both sides must be steep, as a saturation's are (the true rate rises through the band
+    and later falls back through it); a side the record does not hold is not asked. Noise
+    then has to steepen both sides of a smooth peak to make a plateau of it.
     A turn cut less than about two band depths below its true peak looks like a smooth
     peak this way and is not flagged: its increments lose at most that cap's area, and
     the move's residual (its weight, calib.hand.weights) is what then says so.
@@ -128,7 +131,7 @@ def steep_sided(size: np.ndarray, a: int, b: int, depth: float) -> bool:
         slopes.append((size[b - 1] - size[b - 1 + span]) / span)
     if not slopes:  # the whole record at its top: nothing beside to tell a peak by
         return True
-    return max(slopes) * half > PLATEAU_STEEPNESS * depth
+    return min(slopes) * half > PLATEAU_STEEPNESS * depth
 
 
 def sensor_clipping(
