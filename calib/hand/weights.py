@@ -196,8 +196,8 @@ def profile_outliers(e: np.ndarray, red: np.ndarray, labels: list, s_profile: np
     whitened power per redundancy over that median's value for white noise (``chi2(k)/k``
     of a block of ``k`` rows), if that is higher; a block is an outlier beyond the 99.99 %
     quantile at that level. Judged at the profile's level alone, a unit 5x noisier than its
-    profile had 13 of its 24 moves called outliers and the 11 smallest left to say that the
-    profile held: its gyro sigmas came out 2.5x too small.
+    profile had 13 blocks (most of its moves) called outliers and the quietest moves left
+    to say that the profile held: its gyro sigmas came out 2.5x too small.
     """
     out: set = set()
     by_group: dict[str, list] = {g: [] for g in GROUPS}

@@ -13,7 +13,7 @@ are wrong by an unknown amount. Three signs, each per axis:
 - **a plateau**: ``PLATEAU_RUN`` or more consecutive gyro samples within
   ``PLATEAU_BAND`` of that largest magnitude (a sensor saturating before its
   converter does, with its noise on top), under the same condition, entered
-  or left by a ramp steeper than a smooth peak's (:func:`steep_sided`).
+  and left by ramps steeper than a smooth peak's (:func:`steep_sided`).
 
 The mask (``Run.clipped``, ``(n, 6)``: gyro x, y, z, accel x, y, z) says
 which samples; :func:`describe_clipping` names each stretch
