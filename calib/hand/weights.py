@@ -173,13 +173,16 @@ def redundancy(jac_w: np.ndarray, cov: np.ndarray) -> np.ndarray:
     return np.clip(1.0 - h, 0.0, 1.0)
 
 
-def _blocks(labels: list) -> dict:
-    """The rows of each block of the weighted groups, keyed by its label ``(kind, index)``."""
+def _block_powers(e: np.ndarray, red: np.ndarray, labels: list, sigma: np.ndarray) -> list[tuple]:
+    """Each block of the weighted groups: its label ``(kind, index)``, whitened power, redundancy, rows."""
     blocks: dict[tuple, list[int]] = {}
     for i, lab in enumerate(labels):
         if lab[0] in GROUPS:
             blocks.setdefault(lab, []).append(i)
-    return blocks
+    return [
+        (lab, float(np.sum((e[rows] / sigma[rows]) ** 2)), float(red[rows].sum()), len(rows))
+        for lab, rows in blocks.items()
+    ]
 
 
 def _beyond(q: float, r: float, size: int, level: float) -> bool:
@@ -201,10 +204,8 @@ def profile_outliers(e: np.ndarray, red: np.ndarray, labels: list, s_profile: np
     """
     out: set = set()
     by_group: dict[str, list] = {g: [] for g in GROUPS}
-    for lab, members in _blocks(labels).items():
-        r = float(red[members].sum())
-        q = float(np.sum((e[members] / s_profile[members]) ** 2))
-        by_group[lab[0]].append((lab, q, r, len(members)))
+    for block in _block_powers(e, red, labels, s_profile):
+        by_group[block[0][0]].append(block)
     for items in by_group.values():
         ratios = [q / r / (chi2.median(k) / k) for _, q, r, k in items if r > 0.1]
         level = max(1.0, float(np.median(ratios))) if ratios else 1.0
@@ -283,9 +284,7 @@ def reweighted(
         theta[(g, "white")] = max(theta[(g, "white")], floor**2)
     new = Weights(theta, {}, weights.earning)
     base = new.sigma(shapes, s_profile, labels)
-    for lab, members in _blocks(labels).items():
-        r = float(red[members].sum())
-        q = float(np.sum((e[members] / base[members]) ** 2))
-        if _beyond(q, r, len(members), 1.0):
+    for lab, q, r, k in _block_powers(e, red, labels, base):
+        if _beyond(q, r, k, 1.0):
             new.block[lab] = math.sqrt(q / r)
     return new
