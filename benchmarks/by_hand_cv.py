@@ -53,6 +53,7 @@ from calib.runlog import Run, read_run
 MIKOFF_RATE_HZ, MIKOFF_GRAVITY, MIKOFF_LATITUDE, MIKOFF_HEIGHT = 100.0, 9.81, 55.0, 100.0  # site unknown
 MIKOFF_COLUMNS = "1=accel_x_mps2,2=accel_y_mps2,3=accel_z_mps2,4=gyro_x_radps,5=gyro_y_radps,6=gyro_z_radps"
 INIT_CAP_S = 50.0  # imu_tk's test program: 5000 samples at 100 Hz
+BOOTSTRAP_DRAWS, BOOTSTRAP_SEED = 4000, 37  # 4000 draws put a 68 % interval's ends within ~1 % of the ratio
 TARGETS = {"spread": 1.0, "poses": 0.6, "mean_spread": 0.9, "mean_poses": 0.45}  # issue 37
 
 
@@ -161,17 +162,19 @@ def split_rows(rec: Recording, published) -> list[dict]:
         inside = (rests.start >= lo) & (rests.end <= hi)
         start, end = rests.start[inside], rests.end[inside]
         row = {"recording": rec.name, "held_out": held, "rests": int(inside.sum())}
+        mine = theirs = None
         try:
             c, res = ours_on(rec, part)
-            s = scored(c, rec, start, end)
-            row["ours"] = _figures(s) | {"chi2_dof": float(res.chi2_per_dof)}
+            mine = scored(c, rec, start, end)
+            row["ours"] = _figures(mine) | {"chi2_dof": float(res.chi2_per_dof)}
         except CalibError as exc:
             row["ours"] = {"refused": exc.message}
         fit, note = imutk_on(rec, part, keep)
         if fit is None:
             row["imutk"] = {"refused": note, "note": note}
         else:
-            row["imutk"] = _figures(scored(fit.correction, rec, start, end)) | {
+            theirs = scored(fit.correction, rec, start, end)
+            row["imutk"] = _figures(theirs) | {
                 "intervals": len(fit.start),
                 "multiplier": fit.multiplier,
                 "note": note,
@@ -182,8 +185,32 @@ def split_rows(rec: Recording, published) -> list[dict]:
         if "std_mm" in o and "std_mm" in m:
             row["ratio_spread"] = o["std_mm"] / m["std_mm"]
             row["ratio_poses"] = o["rms_deg"] / m["rms_deg"]
+            row["interval_spread"], row["interval_poses"] = ratio_intervals(mine, theirs)
         rows.append(row)
     return rows
+
+
+def _paired_ratio_interval(a: np.ndarray, b: np.ndarray, stat, rng: np.random.Generator) -> list[float]:
+    """The central 68 % interval of ``stat(a) / stat(b)`` over paired resamples of the entries."""
+    pick = rng.integers(0, len(a), size=(BOOTSTRAP_DRAWS, len(a)))
+    ratios = np.array([stat(a[i]) / stat(b[i]) for i in pick])
+    ratios = ratios[np.isfinite(ratios)]
+    return [float(x) for x in np.percentile(ratios, [16.0, 84.0])]
+
+
+def ratio_intervals(mine, theirs) -> tuple[list[float], list[float]]:
+    """How far each ratio could move with other held-out poses of the same kind (paired bootstrap).
+
+    The same rests (their |f|) and moves (their angles) are drawn for both tools, so what is common
+    to both (a rest's own noise) cancels in part; what is left is how much a third of ten rests can
+    say about a ratio of two spreads.
+    """
+    rng = np.random.default_rng(BOOTSTRAP_SEED)
+    spread = _paired_ratio_interval(mine.spread.magnitude, theirs.spread.magnitude, np.std, rng)
+    both = mine.poses.used & theirs.poses.used
+    a, b = mine.poses.angle_deg[both], theirs.poses.angle_deg[both]
+    poses = _paired_ratio_interval(a, b, lambda x: np.sqrt(np.mean(x**2)), rng)
+    return spread, poses
 
 
 def _figures(s) -> dict:
@@ -196,8 +223,8 @@ def _figures(s) -> dict:
 
 def table(rows: list[dict]) -> list[str]:
     out = [
-        "| recording | held out | rests | ours std\\|f\\| mm/s² | imu_tk's method | ratio | "
-        "ours pose-to-pose RMS deg | imu_tk's method | ratio | ours chi2/dof | published std / RMS |",
+        "| recording | held out | rests | ours std\\|f\\| mm/s² | imu_tk's method | ratio [68 %] | "
+        "ours pose-to-pose RMS deg | imu_tk's method | ratio [68 %] | ours chi2/dof | published std / RMS |",
         "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|",
     ]
     for r in rows:
@@ -206,7 +233,13 @@ def table(rows: list[dict]) -> list[str]:
         tk_note = f" ({m['note']})" if m["note"] else ""
         mine = ("refused", "refused") if "refused" in o else (f"{o['std_mm']:.2f}", f"{o['rms_deg']:.3f}")
         theirs = ("refused", "refused") if "refused" in m else (f"{m['std_mm']:.2f}", f"{m['rms_deg']:.3f}")
-        ratio = (f"{r['ratio_spread']:.2f}", f"{r['ratio_poses']:.2f}") if "ratio_spread" in r else ("–", "–")
+        ratio = ("–", "–")
+        if "ratio_spread" in r:
+            (s0, s1), (p0, p1) = r["interval_spread"], r["interval_poses"]
+            ratio = (
+                f"{r['ratio_spread']:.2f} [{s0:.2f}, {s1:.2f}]",
+                f"{r['ratio_poses']:.2f} [{p0:.2f}, {p1:.2f}]",
+            )
         chi2 = f"{o['chi2_dof']:.2f}" if "chi2_dof" in o else "–"
         ours = [mine[0], theirs[0] + tk_note, ratio[0], mine[1], theirs[1], ratio[1], chi2]
         out.append(

@@ -9,7 +9,10 @@ are wrong by an unknown amount. Three signs, each per axis:
   ``range_counts``);
 - **a flat top**: two or more consecutive gyro samples exactly at the axis's
   largest value (each sign apart), when that is at least ``FLAT_TOP_RAD_S`` (no gimbal
-  turns that fast; a hand does);
+  turns that fast; a hand does); from ``LOW_RANGE_RAD_S`` up (a gyro of range 125 or
+  250 deg/s clips a hand's turn), only when steep ramps enter and leave it
+  (:func:`steep_sided`): a saturated converter repeats its last count exactly, while a
+  smooth or constant-rate top in noise does not, or not with a ramp beside it;
 - **a plateau**: ``PLATEAU_RUN`` or more consecutive gyro samples within
   ``PLATEAU_BAND`` of that largest magnitude (a sensor saturating before its
   converter does, with its noise on top), under the same condition, entered
@@ -33,6 +36,9 @@ from .conversion import Conversion
 
 FLAT_TOP_RAD_S = 5.0  # rad/s (286 deg/s): beyond a calibration gimbal, within a hand's turn
 FLAT_TOP_RUN = 2  # consecutive samples exactly at the largest magnitude
+# The smallest full scale of MEMS gyros is 125 deg/s (2.18 rad/s); a hand turning 90 deg in a
+# second peaks at about 140 deg/s, a gimbal's flip at 10 deg/s (spec default).
+LOW_RANGE_RAD_S = 1.5
 PLATEAU_BAND = 0.01  # relative to the largest magnitude
 PLATEAU_RUN = 5  # consecutive samples within the band
 # A smooth peak's slope beside its band, times the band's half-width, is about 3 band depths
@@ -80,27 +86,34 @@ def at_limits(counts: np.ndarray, range_counts: tuple[float, float]) -> np.ndarr
     return (counts <= low) | (counts >= high)
 
 
-def flat_top(rate: np.ndarray, threshold: float = FLAT_TOP_RAD_S) -> np.ndarray:
+def flat_top(
+    rate: np.ndarray, threshold: float = FLAT_TOP_RAD_S, low_range: float = LOW_RANGE_RAD_S
+) -> np.ndarray:
     """``(n, 3)`` bool: gyro samples at a flat top or plateau of their axis (module docstring).
 
     Parameters
     ----------
     rate : numpy.ndarray
         ``(n, 3)`` rates, rad/s (or any values with the same zero: only
-        magnitudes relative to the axis's largest and ``threshold`` matter).
+        magnitudes relative to the axis's largest and the thresholds matter).
     threshold : float
-        The largest magnitude below which an axis is not judged, rad/s.
+        The largest magnitude from which flat tops and plateaus are judged, rad/s.
+    low_range : float
+        The largest magnitude from which a flat top with steep sides is judged, rad/s.
     """
     mask = np.zeros(rate.shape, dtype=bool)
     for axis in range(rate.shape[1]):
         for sign in (1.0, -1.0):  # each end of the range on its own: they need not be symmetric
             size = sign * rate[:, axis]
             peak = float(size.max()) if len(size) else 0.0
-            if not peak >= threshold:
+            if not peak >= min(threshold, low_range):
                 continue
+            fast = peak >= threshold
             for a, b in zip(*runs_of(size == peak), strict=True):
-                if b - a >= FLAT_TOP_RUN:
+                if b - a >= FLAT_TOP_RUN and (fast or steep_sided(size, a, b, PLATEAU_BAND * peak)):
                     mask[a:b, axis] = True
+            if not fast:
+                continue
             for a, b in zip(*runs_of(size >= (1.0 - PLATEAU_BAND) * peak), strict=True):
                 if b - a >= PLATEAU_RUN and steep_sided(size, a, b, PLATEAU_BAND * peak):
                     mask[a:b, axis] = True

@@ -388,9 +388,12 @@ def test_clipping_counts_at_the_converter_limit_and_flat_tops():
     assert mask[60:63, 1].all() and mask.sum() == 3
     rate[60:63, 1] = [6.99, 7.0, 6.98]  # a peak, not a top
     assert not flat_top(rate).any()
-    slow = rate * 0.5  # below 5 rad/s: a gimbal's turn is not judged
+    slow = rate * 0.5  # below 5 rad/s a flat top counts when ramps border it (a gyro of small range)
     slow[60:63, 1] = 3.5
-    assert not flat_top(slow).any()
+    assert flat_top(slow)[60:63, 1].all() and flat_top(slow).sum() == 3
+    gimbal = rate * 0.2  # below 1.5 rad/s (86 deg/s) no top is judged: a gimbal's flips stay there
+    gimbal[60:63, 1] = 1.4
+    assert not flat_top(gimbal).any()
     clipped = np.zeros((n, 6), dtype=bool)
     clipped[10:15, 0] = True
     clipped[100:101, 4] = True
@@ -426,6 +429,43 @@ def test_a_smooth_fast_turn_is_no_plateau_and_the_same_turn_saturated_is_one(rat
     # beside them only the flanks' samples already within the band of the limit.
     assert mask[over].all()
     assert not mask[peak * turn < 0.98 * limit].any()
+
+
+def _quantized(rate_dps: np.ndarray, lsb_per_dps: float) -> np.ndarray:
+    """A 16-bit gyro's reading in rad/s: rounded to its count, held at the range's ends."""
+    counts = np.clip(np.round(rate_dps * lsb_per_dps), -32768, 32767)
+    return np.radians(counts / lsb_per_dps)
+
+
+@pytest.mark.parametrize("rate_hz", [100.0, 400.0, 1000.0])
+def test_a_low_range_gyro_clipping_a_hand_turn_is_found_and_its_smooth_or_steady_tops_are_not(rate_hz):
+    # A hand's 200 deg/s turn (half sine, 0.6 s) read by a 16-bit gyro of range 125 deg/s
+    # (262 counts per deg/s, as BMI160-class parts at their smallest range), 0.1 deg/s of
+    # noise a sample: the converter repeats its last count over the cut top, 125 deg/s
+    # (2.18 rad/s), below the 286 deg/s from which any flat top was taken as clipping.
+    rng = np.random.default_rng(11)
+    t = np.arange(0.0, 2.0, 1.0 / rate_hz)
+    turn = np.where((t > 0.7) & (t < 1.3), np.sin(np.pi * (t - 0.7) / 0.6), 0.0)
+    true_dps = np.zeros((t.size, 3))
+    true_dps[:, 0] = 200.0 * turn + 0.1 * rng.standard_normal(t.size)
+    cut = _quantized(true_dps, 262.0)
+    over = true_dps[:, 0] * 262.0 >= 32767  # the samples the converter held at its end
+    assert over.sum() >= 2
+    assert np.array_equal(flat_top(cut)[:, 0], over)
+    # The same turn on the 250 deg/s range (131 counts per deg/s): its smooth top in noise
+    # repeats no count at its peak with a ramp on both sides.
+    assert not flat_top(_quantized(true_dps, 131.0)).any()
+    # A steady 120 deg/s turn (a rate table, entered in one sample) read coarsely (16.4
+    # counts per deg/s, its rate half-way between two counts, noise a tenth of a count): its
+    # top repeats its highest count over and over, but inside a plateau that no ramp
+    # borders on both sides. It is no clipping.
+    steady = np.zeros((t.size, 3))
+    level = (1968.5 / 16.4) * ((t > 0.5) & (t < 1.5))
+    steady[:, 1] = level + (0.1 / 16.4) * rng.standard_normal(t.size)
+    coarse = _quantized(steady, 16.4)
+    at_top = coarse[:, 1] == coarse[:, 1].max()
+    assert np.any(at_top[1:] & at_top[:-1])  # the case a bare flat top would flag
+    assert not flat_top(coarse).any()
 
 
 def test_the_gimbal_rate_check_is_the_callers():
