@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import itertools
 import os
+import re
+import warnings
 from dataclasses import replace
 
 import numpy as np
@@ -76,7 +78,7 @@ def read_csv(
     """
     name = str(path)
     mapping = parse_column_map(columns, name)
-    lines = _decode_lines(read_bytes(path), name)
+    lines = without_cut_last_row(_decode_lines(read_bytes(path), name), name)
     meta, key_lines, header_index = parse_preamble(lines, name)
     lines, added = with_header(lines, header_index, mapping, meta, options or {}, name)  # no header row
     lines = _to_commas(lines, header_index, name)
@@ -218,8 +220,6 @@ def _to_commas(lines: list[str], header_index: int, name: str) -> list[str]:
     decimal_commas = sep == ";" and any("," in row for row in body[:100])
     if decimal_commas:
         body = [row.replace(",", ".") for row in body]
-    import warnings
-
     warnings.warn(
         f"{name}: fields separated by {'tabs' if sep == chr(9) else repr(sep)}"
         f"{' with decimal commas' if decimal_commas else ''}; read as such",
@@ -311,6 +311,31 @@ def _decode_lines(data: bytes, name: str) -> list[str]:
     if "\r" in text:
         text = text.replace("\r\n", "\n")
     return text.split("\n")
+
+
+def without_cut_last_row(lines: list[str], name: str) -> list[str]:
+    """The lines less a last row a logger left unfinished, said on stderr.
+
+    A logger stopped mid-write (power cut, Ctrl-C) leaves a last row with fewer fields
+    than the row before it and no line end. Only that row, and only then, is left out:
+    a short row anywhere else, or one the file ends properly, is refused by the reader
+    as it was written. Fields are counted at commas, semicolons, tabs and spaces alike.
+    """
+    if not lines or not lines[-1].strip() or lines[-1].lstrip().startswith("#"):  # ends with a line end
+        return lines
+    before = next((line for line in reversed(lines[:-1]) if line.strip()), None)
+    if before is None or before.lstrip().startswith("#"):
+        return lines
+    count = lambda line: len([f for f in re.split(r"[,;\t ]+", line.strip()) if f])  # noqa: E731
+    have, want = count(lines[-1]), count(before)
+    if have >= want:
+        return lines
+    warnings.warn(
+        f"{name}, line {len(lines)}: the last row has {have} of {want} fields and no line end "
+        "(the logger stopped mid-row); it is left out",
+        stacklevel=3,
+    )
+    return lines[:-1]
 
 
 def parse_preamble(lines: list[str], name: str) -> tuple[dict[str, str], dict[str, int], int]:

@@ -45,6 +45,7 @@ from .csv import (
     header_names,
     parse_preamble,
     time_in_seconds,
+    without_cut_last_row,
 )
 from .paths import read_bytes
 from .run import Run
@@ -100,7 +101,7 @@ class _SensorFile:
         self, path, sensor: str, mapping: dict[str, str], conversion: Conversion | None, rate_hz=None
     ):
         self.name = name = str(path)
-        lines = _decode_lines(read_bytes(path), name)
+        lines = without_cut_last_row(_decode_lines(read_bytes(path), name), name)
         self.meta, self.key_lines, header_index = parse_preamble(lines, name)
         lines = _to_commas(lines, header_index, name)
         self.header_line = header_index + 1

@@ -270,6 +270,25 @@ def test_wrong_number_of_fields(tmp_path, bad_row):
     refusal(write_text(tmp_path, csv_text(body=body)), "line 8", "sample 2", "the header has 7")
 
 
+def test_a_last_row_the_logger_left_unfinished_is_left_out_and_said(tmp_path):
+    # A logger stopped mid-write: the last row is short and has no line end. The samples
+    # before it read exactly as from the file without it; the warning names its line.
+    body = [ROW.format(t=(i + 1) / 200.0) for i in range(6)]
+    whole = write_text(tmp_path, csv_text(body=body), "whole.csv")
+    cut = write_text(tmp_path, csv_text(body=body).rstrip("\n") + "\n0.035,1e-07,-2", "cut.csv")
+    with pytest.warns(UserWarning, match=r"cut.csv, line 12: the last row has 3 of 7 fields and no line end"):
+        got = read_run(cut)
+    want = read_run(whole)
+    assert got.n_samples == 6
+    assert np.array_equal(got.dtheta_rad, want.dtheta_rad) and np.array_equal(got.dv_mps, want.dv_mps)
+    # The same short row ended by a line end was written so: refused, as is a short row inside.
+    refusal(
+        write_text(tmp_path, csv_text(body=[*body, "0.035,1e-07,-2"]), "ended.csv"), "line 12", "has 3 fields"
+    )
+    inside = [*body[:3], "0.02,1e-07,-2", *body[3:]]
+    refusal(write_text(tmp_path, csv_text(body=inside).rstrip("\n"), "inside.csv"), "line 9", "has 3 fields")
+
+
 def test_non_numeric_field(tmp_path):
     body = [ROW.format(t=(i + 1) / 200) for i in range(6)]
     body[4] = body[4].replace("0.049", "0.0x49")
