@@ -3,7 +3,8 @@
 Some loggers write no time, only the sample's number (imucal's ``n_samples``).
 With the IMU's stated rate (``sample_rate_hz``) the counter is the time base:
 the sample counted ``c`` ends its interval at ``(c - c[0] + 1) / rate``. A
-counter must be whole numbers and increase; a jump (samples the logger
+counter must be whole numbers and increase (a fixed-width counter's rollover is
+counted on, :mod:`calib.runlog.rollover`); a jump (samples the logger
 dropped) is refused, or, when gaps are allowed, left in the time base for
 :mod:`calib.runlog.clock` to fill as it fills dropped samples.
 
@@ -20,6 +21,7 @@ import numpy as np
 from calib.errors import CalibError
 
 from .columns import COUNTER, IMU_LIKE_COUNT
+from .rollover import said_rollover
 
 RATE_FIX = (
     "give the IMU's sample rate: sample_rate_hz (the CLI's --sample-rate-hz HZ) or a line "
@@ -75,6 +77,7 @@ def counter_time(
             locate(i),
             "a counter counts samples in whole numbers; map a time column as time_s, time_ms, ...",
         )
+    whole = said_rollover(whole, column, locate)
     step = np.diff(whole)
     back = np.flatnonzero(step <= 0)
     if back.size:

@@ -33,6 +33,7 @@ from .counter import counter_suspect, counter_time
 from .format import ARRAY_COLUMNS, FORMAT, GIMBAL_COLUMNS, REQUIRED_COLUMNS, REQUIRED_META
 from .headerless import with_header
 from .paths import read_bytes
+from .rollover import said_rollover
 from .run import Run, meta_float
 
 
@@ -169,21 +170,25 @@ def _time_column(
                 rate = meta_float(meta, "sample_rate_hz", key_place)
     if plan.time_name == COUNTER:
         return counter_time(column, rate, allow_gaps, place, file_name)
-    time_s = time_in_seconds(column, rows, plan.time, plan.ticks_per_second)
+    time_s = time_in_seconds(column, rows, plan.time, plan.ticks_per_second, file_name, place)
     suspect = counter_suspect(time_s, rate, file_name) if plan.time_name == "time_s" else None
     if suspect is not None:
         raise CalibError(suspect.what, place(1), suspect.fix)
     return time_s
 
 
-def time_in_seconds(parsed: np.ndarray, rows: list[str], position: int, ticks: int) -> np.ndarray:
+def time_in_seconds(
+    parsed: np.ndarray, rows: list[str], position: int, ticks: int, column: str, locate
+) -> np.ndarray:
     """The time column in seconds.
 
     ``parsed`` is the column as floats, ``rows`` the data rows, ``position`` the
-    column's and ``ticks`` its unit's ticks per second. Seconds stay as parsed.
+    column's and ``ticks`` its unit's ticks per second; ``column`` its name and
+    ``locate(i)`` row ``i``'s place, for the rollover's warning. Seconds stay as parsed.
     Integer stamps in ms, us or ns are split into whole seconds and the rest in
     integers first, so an epoch-sized stamp is not rounded as a float of ticks
-    (to 256 ns) before the division rounds it again.
+    (to 256 ns) before the division rounds it again. A fixed-width tick clock that
+    rolls over (a 32-bit ``micros()``) is counted on (:mod:`calib.runlog.rollover`).
     """
     if ticks == 1:
         return np.ascontiguousarray(parsed)
@@ -191,6 +196,7 @@ def time_in_seconds(parsed: np.ndarray, rows: list[str], position: int, ticks: i
         stamps = np.loadtxt(rows, delimiter=",", comments=None, dtype=np.int64, usecols=[position], ndmin=1)
     except (ValueError, OverflowError):
         return parsed / ticks  # decimals: one division, correctly rounded
+    stamps = said_rollover(stamps, column, locate)
     whole, rest = np.divmod(stamps, ticks)
     return whole.astype(np.float64) + rest / ticks
 

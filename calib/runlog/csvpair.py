@@ -123,7 +123,8 @@ class _SensorFile:
         data = _parse_numbers(rows, self.row_lines, [time_at, *columns.positions], own, name)
         self.time_own_name = own[time_at]
         ticks = TIME_UNITS[self.time_name.removeprefix("time_")]
-        self.time_s = time_in_seconds(data[:, 0], rows, time_at, ticks)
+        at = lambda i: f"{name}, line {int(self.row_lines[i])}"  # noqa: E731
+        self.time_s = time_in_seconds(data[:, 0], rows, time_at, ticks, own[time_at], at)
         # The gyro's increments become rates over the rate the run is given (a stated one),
         # the accelerometer's over its stamps' own.
         period = 1.0 / (rate_hz or stamps_rate(self.time_s))

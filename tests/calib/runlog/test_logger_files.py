@@ -144,7 +144,7 @@ def test_integer_ns_stamps_are_rounded_once():
     # float spacing of its exact value in s.
     stamps = 1_700_000_000_123_456_789 + 10_000_001 * np.arange(2000, dtype=np.int64)
     rows = [f"{s},0" for s in stamps.tolist()]
-    time_s = time_in_seconds(stamps.astype(float), rows, 0, 10**9)
+    time_s = time_in_seconds(stamps.astype(float), rows, 0, 10**9, "t", str)
     exact = np.array([float(Fraction(int(s), 10**9)) for s in stamps])
     assert np.all(np.abs(time_s - exact) <= np.spacing(exact))
     through_float = stamps.astype(float) / 1e9

@@ -1,0 +1,77 @@
+"""A logger's fixed-width counter or tick clock rolling over is counted on, not refused."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from calib.errors import CalibError
+from calib.runlog import read_run
+from calib.runlog.rollover import unwrapped
+
+SITE = {"latitude_deg": 45.0, "height_m": 0.0}
+COLUMNS = "gx=gyro_x_radps,gy=gyro_y_radps,gz=gyro_z_radps,ax=accel_x_mps2,ay=accel_y_mps2,az=accel_z_mps2"
+
+
+def test_a_16_bit_packet_counter_counts_on_past_65535():
+    count = (65000 + np.arange(2000)) % 65536  # Xsens' PacketCounter near its end
+    out, bits = unwrapped(count.astype(np.int64))
+    assert bits == 16
+    assert np.array_equal(out, 65000 + np.arange(2000))
+
+
+def test_a_32_bit_microsecond_clock_counts_on_with_its_jitter():
+    rng = np.random.default_rng(3)
+    true_us = 4_294_000_000 + np.cumsum(10_000 + rng.integers(-800, 800, 5000))  # micros() at 100 Hz
+    out, bits = unwrapped((true_us % 2**32).astype(np.int64))
+    assert bits == 32
+    assert np.array_equal(out, true_us)
+
+
+@pytest.mark.parametrize(
+    "column",
+    [
+        np.r_[np.arange(40000, 45124), np.arange(0, 3000)],  # two logs spliced: restarts at 0 mid-count
+        np.r_[np.arange(65000, 65536), np.arange(10, 500)],  # a rollover that skips 10 counts
+        np.r_[np.arange(100, 200), np.arange(150, 300)],  # rows out of order
+    ],
+)
+def test_a_step_back_that_does_not_go_on_counting_is_no_rollover(column):
+    out, bits = unwrapped(column.astype(np.int64))
+    assert bits == 0 and out is not None and np.array_equal(out, column)
+
+
+def _log(path, first_column: str, stamps) -> None:
+    rows = [f"{s},0.001,-0.002,0.003,0.05,0.02,9.81" for s in stamps]
+    path.write_text(f"{first_column},gx,gy,gz,ax,ay,az\n" + "\n".join(rows) + "\n")
+
+
+def test_a_wrapping_counter_reads_as_the_same_log_counted_on(tmp_path):
+    n = 3000
+    _log(tmp_path / "wraps.csv", "n", (64000 + np.arange(n)) % 65536)
+    _log(tmp_path / "straight.csv", "n", 64000 + np.arange(n))
+    columns = "n=counter," + COLUMNS
+    with pytest.warns(UserWarning, match=r"line 1538, column n .*rolls over at 2\^16 \(1 time\)"):
+        wraps = read_run(tmp_path / "wraps.csv", columns=columns, sample_rate_hz=100.0, **SITE)
+    straight = read_run(tmp_path / "straight.csv", columns=columns, sample_rate_hz=100.0, **SITE)
+    assert np.array_equal(wraps.time_s, straight.time_s)
+    assert np.array_equal(wraps.time_s, (np.arange(n) + 1) / 100.0)
+
+
+def test_a_wrapping_microsecond_stamp_reads_as_the_same_log_counted_on(tmp_path):
+    n = 3000
+    us = 4_294_000_000 + 10_000 * np.arange(n, dtype=np.int64)
+    _log(tmp_path / "wraps.csv", "t", us % 2**32)
+    _log(tmp_path / "straight.csv", "t", us)
+    columns = "t=time_us," + COLUMNS
+    with pytest.warns(UserWarning, match=r"rolls over at 2\^32"):
+        wraps = read_run(tmp_path / "wraps.csv", columns=columns, **SITE)
+    straight = read_run(tmp_path / "straight.csv", columns=columns, **SITE)
+    assert np.array_equal(wraps.time_s, straight.time_s)
+    assert wraps.sample_rate_hz == pytest.approx(100.0)
+
+
+def test_a_counter_that_restarts_is_still_refused(tmp_path):
+    _log(tmp_path / "spliced.csv", "n", np.r_[np.arange(40000, 41000), np.arange(0, 1000)])
+    with pytest.raises(CalibError, match="does not increase: 0 follows 40999"):
+        read_run(tmp_path / "spliced.csv", columns="n=counter," + COLUMNS, sample_rate_hz=100.0, **SITE)
