@@ -10,7 +10,9 @@ The one owner of the run-log format: its name, metadata and columns
 (:mod:`~calib.runlog.columns`), the sample clock of the time column
 (:mod:`~calib.runlog.clock`), the PSINS ``.imu`` log (:mod:`~calib.runlog.psins`);
 for hand recordings, a sample counter in place of the time
-(:mod:`~calib.runlog.counter`), a text log without a header (:mod:`~calib.runlog.headerless`),
+(:mod:`~calib.runlog.counter`) and a fixed-width count's rollover
+(:mod:`~calib.runlog.rollover`), a file's bytes as lines (:mod:`~calib.runlog.text`),
+a text log without a header (:mod:`~calib.runlog.headerless`),
 raw counts and their nominal conversion
 (:mod:`~calib.runlog.conversion`), imu_tk's two files (:mod:`~calib.runlog.imutk`),
 a logger's two CSV files, one per sensor (:mod:`~calib.runlog.csvpair`),

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import itertools
 import os
-import re
 import warnings
 from dataclasses import replace
 
@@ -35,6 +34,7 @@ from .headerless import with_header
 from .paths import read_bytes
 from .rollover import said_rollover
 from .run import Run, meta_float
+from .text import decode_lines, without_cut_last_row
 
 
 class _CsvLocator:
@@ -79,7 +79,7 @@ def read_csv(
     """
     name = str(path)
     mapping = parse_column_map(columns, name)
-    lines = without_cut_last_row(_decode_lines(read_bytes(path), name), name)
+    lines = without_cut_last_row(decode_lines(read_bytes(path), name), name)
     meta, key_lines, header_index = parse_preamble(lines, name)
     lines, added = with_header(lines, header_index, mapping, meta, options or {}, name)  # no header row
     lines = _to_commas(lines, header_index, name)
@@ -293,55 +293,6 @@ def _fill_meta(
             "give " + ", ".join(options_hint[k] for k in missing) + ", or write them above the "
             "header, e.g. '# latitude_deg: 51.08', '# height_m: 1100', '# sample_rate_hz: 100'",
         )
-
-
-def _decode_lines(data: bytes, name: str) -> list[str]:
-    """UTF-8 (optional BOM) to lines split on LF; CRLF files read the same."""
-    if data.startswith(b"\xef\xbb\xbf"):
-        data = data[3:]
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
-        raise CalibError(
-            f"byte 0x{data[exc.start]:02x} is not valid UTF-8 (byte offset {exc.start})",
-            f"{name}, line {line}",
-            "save the file as UTF-8",
-        ) from None
-    if not text.strip():
-        raise CalibError(
-            "the file is empty",
-            name,
-            f"a run log starts with '# format: {FORMAT}', metadata, a header row and one row per sample",
-        )
-    if "\r" in text:
-        text = text.replace("\r\n", "\n")
-    return text.split("\n")
-
-
-def without_cut_last_row(lines: list[str], name: str) -> list[str]:
-    """The lines less a last row a logger left unfinished, said on stderr.
-
-    A logger stopped mid-write (power cut, Ctrl-C) leaves a last row with fewer fields
-    than the row before it and no line end. Only that row, and only then, is left out:
-    a short row anywhere else, or one the file ends properly, is refused by the reader
-    as it was written. Fields are counted at commas, semicolons, tabs and spaces alike.
-    """
-    if not lines or not lines[-1].strip() or lines[-1].lstrip().startswith("#"):  # ends with a line end
-        return lines
-    before = next((line for line in reversed(lines[:-1]) if line.strip()), None)
-    if before is None or before.lstrip().startswith("#"):
-        return lines
-    count = lambda line: len([f for f in re.split(r"[,;\t ]+", line.strip()) if f])  # noqa: E731
-    have, want = count(lines[-1]), count(before)
-    if have >= want:
-        return lines
-    warnings.warn(
-        f"{name}, line {len(lines)}: the last row has {have} of {want} fields and no line end "
-        "(the logger stopped mid-row); it is left out",
-        stacklevel=3,
-    )
-    return lines[:-1]
 
 
 def parse_preamble(lines: list[str], name: str) -> tuple[dict[str, str], dict[str, int], int]:

@@ -38,25 +38,24 @@ from .conversion import Conversion, sensor_si
 from .csv import (
     _check_field_counts,
     _data_rows,
-    _decode_lines,
     _fill_meta,
     _parse_numbers,
     _to_commas,
     header_names,
     parse_preamble,
     time_in_seconds,
-    without_cut_last_row,
 )
 from .paths import read_bytes
 from .run import Run
 from .streams import Stream, two_clocks
+from .text import decode_lines, without_cut_last_row
 
 _SITE = ("latitude_deg", "height_m")
 
 
 def has_header(path: str | os.PathLike) -> bool:
     """Whether a text file's first row that is no comment names its columns (a field not a number)."""
-    lines = _decode_lines(read_bytes(path), str(path))
+    lines = decode_lines(read_bytes(path), str(path))
     for line in lines:
         stripped = line.strip()
         if not stripped or stripped[0] in "#%":
@@ -101,7 +100,7 @@ class _SensorFile:
         self, path, sensor: str, mapping: dict[str, str], conversion: Conversion | None, rate_hz=None
     ):
         self.name = name = str(path)
-        lines = without_cut_last_row(_decode_lines(read_bytes(path), name), name)
+        lines = without_cut_last_row(decode_lines(read_bytes(path), name), name)
         self.meta, self.key_lines, header_index = parse_preamble(lines, name)
         lines = _to_commas(lines, header_index, name)
         self.header_line = header_index + 1

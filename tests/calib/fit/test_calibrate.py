@@ -212,15 +212,26 @@ def test_cli_refuses_run_whose_first_rest_is_too_short(short_run, tmp_path):
     assert not (tmp_path / "r.toml").exists()
 
 
-def test_cli_refuses_truncated_csv(short_run, tmp_path):
+def test_cli_reads_a_log_cut_inside_its_last_row_without_that_row_and_says_so(short_run, tmp_path):
+    # A logger stopped mid-write: the cut row is left out, named by its line, and the rows
+    # before it read as the log cut at a line end does; a row cut inside the file is refused.
     _, run_path = short_run
-    text = run_path.read_text()
-    bad = tmp_path / "trunc.csv"
-    bad.write_text(text[: len(text) // 2].rsplit("\n", 1)[0][:-3])  # cut inside a row
-    r = CliRunner().invoke(main, ["calibrate", str(bad), "-o", str(tmp_path / "r.toml")])
-    assert r.exit_code != 0
-    assert "trunc.csv" in r.output and "line" in r.output and "Traceback" not in r.output
-    assert not (tmp_path / "r.toml").exists()
+    lines = run_path.read_text().split("\n")
+    whole_rows = lines[: len(lines) // 2]
+    cut = tmp_path / "trunc.csv"
+    cut.write_text("\n".join(whole_rows) + "\n" + lines[len(lines) // 2][:-3])
+    ended = tmp_path / "ended.csv"
+    ended.write_text("\n".join(whole_rows) + "\n")
+    r = CliRunner().invoke(main, ["calibrate", str(cut), "-o", str(tmp_path / "r.toml"), "--json"])
+    assert r.exit_code == 0, r.output
+    assert f"trunc.csv, line {len(whole_rows) + 1}: the last row has" in r.stderr and "left out" in r.stderr
+    r2 = CliRunner().invoke(main, ["calibrate", str(ended), "-o", str(tmp_path / "r2.toml"), "--json"])
+    assert json.loads(r.stdout)["parameters"] == json.loads(r2.stdout)["parameters"]
+    inside = tmp_path / "inside.csv"
+    inside.write_text("\n".join([*whole_rows[:-2], whole_rows[-2][:-3], whole_rows[-1]]) + "\n")
+    r3 = CliRunner().invoke(main, ["calibrate", str(inside), "-o", str(tmp_path / "r3.toml")])
+    assert r3.exit_code != 0 and f"line {len(whole_rows) - 1}" in r3.output and "Traceback" not in r3.output
+    assert not (tmp_path / "r3.toml").exists()
 
 
 def test_cli_refuses_run_without_rotation(tmp_path):

@@ -1,0 +1,59 @@
+"""A log file's bytes as lines: UTF-8 (a BOM allowed), CRLF read as LF, a last row cut short left out."""
+
+from __future__ import annotations
+
+import re
+import warnings
+
+from calib.errors import CalibError
+
+from .format import FORMAT
+
+
+def decode_lines(data: bytes, name: str) -> list[str]:
+    """UTF-8 (optional BOM) to lines split on LF; CRLF files read the same."""
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise CalibError(
+            f"byte 0x{data[exc.start]:02x} is not valid UTF-8 (byte offset {exc.start})",
+            f"{name}, line {line}",
+            "save the file as UTF-8",
+        ) from None
+    if not text.strip():
+        raise CalibError(
+            "the file is empty",
+            name,
+            f"a run log starts with '# format: {FORMAT}', metadata, a header row and one row per sample",
+        )
+    if "\r" in text:
+        text = text.replace("\r\n", "\n")
+    return text.split("\n")
+
+
+def without_cut_last_row(lines: list[str], name: str) -> list[str]:
+    """The lines less a last row a logger left unfinished, said on stderr.
+
+    A logger stopped mid-write (power cut, Ctrl-C) leaves a last row with fewer fields
+    than the row before it and no line end. Only that row, and only then, is left out:
+    a short row anywhere else, or one the file ends properly, is refused by the reader
+    as it was written. Fields are counted at commas, semicolons, tabs and spaces alike.
+    """
+    if not lines or not lines[-1].strip() or lines[-1].lstrip().startswith("#"):  # ends with a line end
+        return lines
+    before = next((line for line in reversed(lines[:-1]) if line.strip()), None)
+    if before is None or before.lstrip().startswith("#"):
+        return lines
+    count = lambda line: len([f for f in re.split(r"[,;\t ]+", line.strip()) if f])  # noqa: E731
+    have, want = count(lines[-1]), count(before)
+    if have >= want:
+        return lines
+    warnings.warn(
+        f"{name}, line {len(lines)}: the last row has {have} of {want} fields and no line end "
+        "(the logger stopped mid-row); it is left out",
+        stacklevel=3,
+    )
+    return lines[:-1]
