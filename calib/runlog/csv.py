@@ -34,7 +34,7 @@ from .headerless import with_header
 from .paths import read_bytes
 from .rollover import said_rollover
 from .run import Run, meta_float
-from .text import decode_lines, without_cut_last_row
+from .text import decode_lines, is_comment, without_cut_last_row
 
 
 class _CsvLocator:
@@ -296,7 +296,7 @@ def _fill_meta(
 
 
 def parse_preamble(lines: list[str], name: str) -> tuple[dict[str, str], dict[str, int], int]:
-    """Collect ``# key: value`` lines up to the header row.
+    """Collect ``# key: value`` lines up to the header row (``//`` lines are comments too).
 
     Returns
     -------
@@ -313,8 +313,10 @@ def parse_preamble(lines: list[str], name: str) -> tuple[dict[str, str], dict[st
         stripped = line.strip()
         if not stripped:
             continue
-        if not stripped.startswith("#"):
+        if not is_comment(stripped):
             return meta, key_lines, index
+        if stripped.startswith("//"):
+            continue  # a C-style logger's comment: its "key: value" lines are not ours
         key, colon, value = stripped[1:].partition(":")
         if not colon:
             continue  # a plain comment line
@@ -428,7 +430,7 @@ def csv_meta(path) -> dict[str, str]:
         with open(path, encoding="utf-8") as handle:
             for line in handle:
                 lines.append(line.rstrip("\r\n"))
-                if line.strip() and not line.startswith("#"):
+                if line.strip() and not is_comment(line):
                     break  # the header row
     except (OSError, UnicodeDecodeError) as exc:
         raise CalibError(f"cannot read the file ({exc})", where, f"give a UTF-8 {FORMAT} CSV") from None
@@ -440,7 +442,7 @@ def csv_chunks(path, rows: int):
     where = str(path)
     with open(path, encoding="utf-8") as handle:
         line = next(handle, "")
-        while line.startswith("#"):
+        while is_comment(line):
             line = next(handle, "")
         header = header_names(line)
         missing = [c for c in REQUIRED_COLUMNS if c not in header]

@@ -48,7 +48,7 @@ from .csv import (
 from .paths import read_bytes
 from .run import Run
 from .streams import Stream, two_clocks
-from .text import decode_lines, without_cut_last_row
+from .text import decode_lines, is_comment, without_cut_last_row
 
 _SITE = ("latitude_deg", "height_m")
 
@@ -58,7 +58,7 @@ def has_header(path: str | os.PathLike) -> bool:
     lines = decode_lines(read_bytes(path), str(path))
     for line in lines:
         stripped = line.strip()
-        if not stripped or stripped[0] in "#%":
+        if not stripped or is_comment(stripped) or stripped[0] == "%":
             continue
         for field in stripped.replace(";", ",").replace("\t", ",").replace(" ", ",").split(","):
             if not field:

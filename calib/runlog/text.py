@@ -9,6 +9,13 @@ from calib.errors import CalibError
 
 from .format import FORMAT
 
+COMMENT_MARKS = ("#", "//")  # our logs' and C-style loggers' (Xsens MT Manager's "// Update Rate: ...")
+
+
+def is_comment(line: str) -> bool:
+    """Whether a line above (or among) the rows is a comment: ``#`` or ``//`` first."""
+    return line.lstrip().startswith(COMMENT_MARKS)
+
 
 def decode_lines(data: bytes, name: str) -> list[str]:
     """UTF-8 (optional BOM) to lines split on LF; CRLF files read the same."""
@@ -42,10 +49,10 @@ def without_cut_last_row(lines: list[str], name: str) -> list[str]:
     a short row anywhere else, or one the file ends properly, is refused by the reader
     as it was written. Fields are counted at commas, semicolons, tabs and spaces alike.
     """
-    if not lines or not lines[-1].strip() or lines[-1].lstrip().startswith("#"):  # ends with a line end
+    if not lines or not lines[-1].strip() or is_comment(lines[-1]):  # ends with a line end
         return lines
     before = next((line for line in reversed(lines[:-1]) if line.strip()), None)
-    if before is None or before.lstrip().startswith("#"):
+    if before is None or is_comment(before):
         return lines
     count = lambda line: len([f for f in re.split(r"[,;\t ]+", line.strip()) if f])  # noqa: E731
     have, want = count(lines[-1]), count(before)

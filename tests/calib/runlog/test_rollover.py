@@ -75,3 +75,25 @@ def test_a_counter_that_restarts_is_still_refused(tmp_path):
     _log(tmp_path / "spliced.csv", "n", np.r_[np.arange(40000, 41000), np.arange(0, 1000)])
     with pytest.raises(CalibError, match="does not increase: 0 follows 40999"):
         read_run(tmp_path / "spliced.csv", columns="n=counter," + COLUMNS, sample_rate_hz=100.0, **SITE)
+
+
+def test_an_mt_manager_export_reads_with_its_comment_lines_tabs_and_wrapping_counter(tmp_path):
+    # Xsens MT Manager writes '//' comment lines (one of them 'key: value' shaped), then a
+    # tab-separated header and rows each ending in a tab, counted by a 16-bit PacketCounter.
+    n = 3000
+    count = (64000 + np.arange(n)) % 65536
+    preamble = "// General information:\n//  MT Manager version: 2019.0.0\n// Update Rate: 100.0Hz\n"
+    rows = [f"{c:05d}\t0.05\t0.02\t9.81\t0.001\t-0.002\t0.003\t" for c in count]
+    header = "PacketCounter\tAcc_X\tAcc_Y\tAcc_Z\tGyr_X\tGyr_Y\tGyr_Z\t\n"
+    (tmp_path / "mtm.txt").write_text(preamble + header + "\n".join(rows) + "\n")
+    columns = (
+        "PacketCounter=counter,Gyr_X=gyro_x_radps,Gyr_Y=gyro_y_radps,Gyr_Z=gyro_z_radps,"
+        "Acc_X=accel_x_mps2,Acc_Y=accel_y_mps2,Acc_Z=accel_z_mps2"
+    )
+    with pytest.warns(UserWarning) as said:
+        run = read_run(tmp_path / "mtm.txt", columns=columns, sample_rate_hz=100.0, **SITE)
+    said = [str(w.message) for w in said]
+    assert any("separated by tabs" in m for m in said) and any("rolls over at 2^16" in m for m in said)
+    assert np.array_equal(run.time_s, (np.arange(n) + 1) / 100.0)
+    assert np.allclose(run.dv_mps / 0.01, [0.05, 0.02, 9.81], rtol=0, atol=1e-12)
+    assert np.allclose(run.dtheta_rad / 0.01, [0.001, -0.002, 0.003], rtol=0, atol=1e-15)
