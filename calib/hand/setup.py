@@ -203,6 +203,10 @@ def diagnose(run, gravity_mps2: float) -> list[Mistake]:
     plain = float(misfits[0])  # scale 1, the identity: the first of each list
     k = int(np.argmin(misfits))
     misfit, (scale, M) = float(misfits[k]), candidates[k]
+    if plain > GOOD_DEG and misfit >= 0.5 * plain:
+        spliced = _spliced(moves, bias, period)
+        if spliced is not None:
+            return [spliced]
     if plain > GOOD_DEG and misfit < 0.5 * plain:
         what = []
         if scale != 1.0:
@@ -218,6 +222,35 @@ def diagnose(run, gravity_mps2: float) -> list[Mistake]:
             )
         ]
     return []
+
+
+UNRECORDED_TURN = 0.1  # a move whose gyro turns less than this fraction of its gravity's tilt
+
+
+def _spliced(moves, bias: np.ndarray, period: float) -> Mistake | None:
+    """The log's rests joined without the turns between them, when most moves say so.
+
+    A move that tilts gravity by tens of degrees while the gyro turns by a tenth of that
+    or less was not recorded: static sections cut out and joined (a six-position log, a
+    pre-cut session). No relabelling of the gyro helps, and the rests cannot be chained.
+    """
+    tilt = np.array([math.degrees(math.acos(np.clip(u0 @ u1, -1.0, 1.0))) for u0, u1, _ in moves])
+    turn = np.array(
+        [math.degrees(np.linalg.norm(inc.sum(axis=0) - bias * period * len(inc))) for *_, inc in moves]
+    )
+    unrecorded = turn < UNRECORDED_TURN * tilt
+    if 2 * unrecorded.sum() <= len(moves):
+        return None
+    tilted, turned = np.median(tilt[unrecorded]), np.median(turn[unrecorded])
+    return Mistake(
+        f"across {unrecorded.sum()} of {len(moves)} moves gravity turns by {tilted:.0f} deg (median) while "
+        f"the gyro turns by {turned:.2g} deg: the log does not hold "
+        "the turns between its rests (static sections cut out and joined?)",
+        np.eye(3),
+        np.eye(3),
+        cannot_fix="a calibration by hand chains the rests through the turns the gyro records: log the "
+        "poses and the turns between them in one continuous recording (docs/by-hand.md)",
+    )
 
 
 # Unit mistakes of an accelerometer: (what its column holds, what it is read as, |f| at rest the

@@ -115,6 +115,31 @@ def test_an_accelerometer_no_relabelling_puts_right_is_refused_even_under_fix_un
         assert said in err.value.what and advice in err.value.fix and "--fix-units" not in err.value.fix
 
 
+def test_rests_cut_out_and_joined_without_their_turns_are_refused_naming_it(hand_run, tmp_path):
+    # The poses of a hand run kept, the moves between them cut out (as a log of six static faces
+    # recorded one by one, or imucal's pre-cut session): gravity jumps between rests while the
+    # gyro records no turn. No relabelling puts it right; the refusal says what is missing.
+    run, g = hand_run
+    from calib.hand.setup import still_stretches
+
+    start, end = still_stretches(run.dtheta_rad, run.dv_mps, np.full(run.n_samples, 1.0 / RATE_HZ))
+    keep = np.concatenate([np.arange(a, b) for a, b in zip(start, end, strict=True)])
+    spliced = dataclasses.replace(
+        run,
+        time_s=(np.arange(keep.size) + 1) / RATE_HZ,
+        dtheta_rad=run.dtheta_rad[keep],
+        dv_mps=run.dv_mps[keep],
+        clock=None,
+    )
+    for fix in (False, True):
+        with pytest.raises(CalibError) as err:
+            calibrate(spliced, "mems", by_hand=True, options=CalibrateOptions(fix_units=fix))
+        assert "the log does not hold the turns between its rests" in err.value.what
+        assert "one continuous recording" in err.value.fix
+    # The same rests with their turns left in is no mistake (the fixture's test above).
+    assert diagnose(run, g) == []
+
+
 @pytest.mark.slow
 def test_a_wrong_rate_shows_as_three_gyro_scale_factors_alike(hand_run):
     # A rate-writing logger at 102.4 Hz read as 100 Hz: every increment 2.4 % too large. The
