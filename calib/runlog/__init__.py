@@ -8,7 +8,8 @@ The one owner of the run-log format: its name, metadata and columns
 (:mod:`~calib.runlog.runfile`), reading a chunk at a time
 (:mod:`~calib.runlog.chunks`), a logger's column names
 (:mod:`~calib.runlog.columns`), the sample clock of the time column
-(:mod:`~calib.runlog.clock`), the PSINS ``.imu`` log (:mod:`~calib.runlog.psins`);
+(:mod:`~calib.runlog.clock`; a polling logger's, :mod:`~calib.runlog.polled`; samples lost at
+rest filled, :mod:`~calib.runlog.fill`), the PSINS ``.imu`` log (:mod:`~calib.runlog.psins`);
 for hand recordings, a sample counter in place of the time
 (:mod:`~calib.runlog.counter`) and a fixed-width count's rollover
 (:mod:`~calib.runlog.rollover`), a file's bytes as lines (:mod:`~calib.runlog.text`),

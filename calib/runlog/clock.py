@@ -23,7 +23,9 @@ import numpy as np
 from calib.errors import CalibError
 from calib.sequence.motion import runs_of
 
+from . import polled
 from .countrule import counted_steps
+from .fill import fill_dropped
 
 # Steps all within this of whole periods (and none zero) come from the IMU's own clock and are
 # counted step by step; a host's reception jitter goes beyond it.
@@ -37,15 +39,6 @@ ROUNDING_JITTER = 1e-9
 # time, 1.7e9 s): there a float64 resolves 2.4e-7 s, 24 ppm of a 100 Hz period, so the run's time
 # base is re-based to its first stamp. A log that counts from its start (up to a day) keeps its times.
 EPOCH_S = 1e5
-# Samples each side of a lost one whose mean increment fills it (at rest).
-FILL_NEIGHBOURS = 100
-# The longest hole filled: beyond this the fill would be mostly invented, not measured.
-MAX_FILL = 2 * FILL_NEIGHBOURS
-# A neighbourhood is at rest when its mean rate is below this: 14x the Earth rate,
-# far above any calibration-grade gyro bias, far below a flip (rad/s).
-REST_RATE = 1e-3
-# No single neighbour may turn faster than this: a flip (0.57 deg/s; the estimator's threshold).
-TURN_RATE = 1e-2
 
 
 @dataclass(frozen=True)
@@ -75,7 +68,9 @@ class SampleClock:
     rule : str
         ``"step"``: every step rounded to whole periods (stamps of the IMU's own clock);
         ``"count"``: the rows counted, a gap only where the stamps' lag stays (a host's
-        jittering stamps; the module's docstring).
+        jittering stamps; the module's docstring); ``"stamps"``: each row sampled at its
+        stamp, the stamps' deviation a random walk (a polling logger, :mod:`calib.runlog.polled`):
+        no sampling clock, each sample covers its own stamp interval.
     origin_s : float
         The time column's first stamp when it counts from an epoch
         (``|t0| > EPOCH_S``), else 0: every time here (offset, dropped,
@@ -92,13 +87,14 @@ class SampleClock:
     dropped: list
     duplicates: list
     origin_s: float = 0.0
-    rule: str = "step"  # how the rows were counted: "step" (the IMU's clock) or "count" (host stamps)
+    rule: str = "step"  # how the rows were counted: "step", "count" or "stamps"
+    step_stats: tuple = ()  # rule "stamps": the steps' min, max, mean and RMS spread, s
 
     @property
     def uniform(self) -> bool:
         """True when the time column is uniform at the nominal period up to float rounding."""
         drift = abs(self.rate_error_ppm) * 1e-6 * self.period_s * float(self.index[-1])
-        return self.jitter_max_s + drift <= ROUNDING_JITTER * self.period_s
+        return self.rule != "stamps" and self.jitter_max_s + drift <= ROUNDING_JITTER * self.period_s
 
     def summary(self) -> str:
         """One line for the user: jitter in ms, lost and repeated samples."""
@@ -113,6 +109,8 @@ class SampleClock:
             text += "; rows counted as samples (host stamps), a gap only where the stamps' lag stays"
         if self.uniform:
             text = "clock: time column uniform at the nominal period"
+        if self.rule == "stamps":
+            text = polled.summary(self.step_stats, self.jitter_rms_s)
         if self.dropped:
             text += f"; {sum(c for _, c in self.dropped)} dropped sample(s): " + describe(self.dropped)
         if self.duplicates:
@@ -211,22 +209,15 @@ def sample_clock(
     index = np.zeros(len(time_s), dtype=np.int64)
     np.cumsum(steps, out=index[1:])
     del steps
-    # In place below: the same arithmetic with three whole-run arrays alive instead of seven.
-    residual = index * period
-    if origin:  # t - t0 is exact at epoch magnitude, where t - k T would be rounded to 2.4e-7 s
-        residual -= time_s - origin
-        np.negative(residual, out=residual)
-    else:
-        np.subtract(time_s, residual, out=residual)
-    offset = float(np.mean(residual))
-    # A logger clock running at another rate than the IMU's is a trend, not jitter.
-    centred = index - index.mean()
-    slope = float(centred @ residual / (centred @ centred)) if index[-1] > 0 else 0.0
-    jitter = residual
-    jitter -= offset
-    centred *= slope
-    jitter -= centred
+    if polled.walk_ratio(_deviation(time_s, index, period, origin)[2], period) > polled.WALK_RATIO:
+        rule, dropped = "stamps", []  # no clock to count by: each row is the next sample
+        np.cumsum(~dup[1:], out=index[1:])
+    offset, slope, jitter = _deviation(time_s, index, period, origin)
     jitter_max = float(np.maximum(jitter.max(), -jitter.min()))
+    step_stats: tuple = ()
+    if rule == "stamps":
+        between = np.diff(time_s)[~dup[1:]]
+        step_stats = (float(between.min()), float(between.max()), float(between.mean()), float(between.std()))
     return SampleClock(
         index=index,
         period_s=period,
@@ -238,7 +229,40 @@ def sample_clock(
         duplicates=_runs_of(dup, time_s, origin),
         origin_s=origin,
         rule=rule,
+        step_stats=step_stats,
     )
+
+
+def _deviation(time_s: np.ndarray, index: np.ndarray, period: float, origin: float):
+    """Offset, rate trend and each row's deviation from ``offset + index * period`` (s).
+
+    In place: the same arithmetic with three whole-run arrays alive instead of seven.
+    """
+    residual = index * period
+    if origin:  # t - t0 is exact at epoch magnitude, where t - k T would be rounded to 2.4e-7 s
+        residual -= time_s - origin
+        np.negative(residual, out=residual)
+    else:
+        np.subtract(time_s, residual, out=residual)
+    offset = float(np.mean(residual))
+    # A logger clock running at another rate than the IMU's is a trend, not jitter.
+    centred = index - index.mean()
+    slope = float(centred @ residual / (centred @ centred)) if index[-1] > 0 else 0.0
+    residual -= offset
+    centred *= slope
+    residual -= centred
+    return offset, slope, residual
+
+
+def sampled_at_stamps(time_s: np.ndarray, sample_rate_hz: float) -> bool:
+    """Whether a time column's rows were sampled at their stamps (:mod:`calib.runlog.polled`).
+
+    False where the column cannot be counted at all: the reader's checks refuse it.
+    """
+    try:
+        return sample_clock(time_s, sample_rate_hz).rule == "stamps"
+    except CalibError:
+        return False
 
 
 def epoch_origin(time_s: np.ndarray) -> float:
@@ -337,81 +361,11 @@ def uniform_time(clock: SampleClock, time_s: np.ndarray) -> np.ndarray:
     stamp: at 1.7e9 s a float64 rounds each time to 2.4e-7 s, which would put
     24 ppm of noise in every 100 Hz interval.
     """
+    if clock.rule == "stamps":  # the samples' own times
+        return time_s - clock.origin_s if clock.origin_s else time_s
     if clock.uniform and not clock.dropped and not clock.duplicates and not clock.origin_s:
         return time_s
     return clock.offset_s + clock.index * clock.period_s
-
-
-def fill_dropped(clock: SampleClock, dtheta: np.ndarray, dv: np.ndarray, gimbal: np.ndarray | None = None):
-    """Put each lost sample back, at rest, as the mean increment of its neighbours.
-
-    At rest the increments are the Earth rate and gravity seen through the
-    IMU errors plus white noise; the mean of ``FILL_NEIGHBOURS`` samples each
-    side is the lost increment up to one sample's noise, so the navigation
-    error a filled sample adds is that of the noise the IMU would have added.
-    A sample lost while the IMU turns cannot be known and is refused, as is
-    a hole longer than ``MAX_FILL`` samples.
-
-    Parameters
-    ----------
-    clock : SampleClock
-        From `sample_clock`, duplicates already removed (indices increasing).
-    dtheta, dv : numpy.ndarray
-        ``(n, 3)`` increments of the rows that are present.
-    gimbal : numpy.ndarray, optional
-        ``(n, 3)`` encoder angles: the lost rows repeat the previous one.
-
-    Returns
-    -------
-    dtheta, dv, gimbal, index : numpy.ndarray
-        Full arrays over ``index[0] .. index[-1]`` and that index.
-
-    Raises
-    ------
-    CalibError
-        For a hole whose neighbourhood is not at rest (``where`` is the time).
-    """
-    index = clock.index
-    full = np.arange(index[0], index[-1] + 1)
-    pos = index - index[0]
-    out_th = np.full((len(full), 3), np.nan)
-    out_dv = np.full((len(full), 3), np.nan)
-    out_th[pos], out_dv[pos] = dtheta, dv
-    for row in np.flatnonzero(np.diff(index) > 1):
-        lo, hi = max(0, row + 1 - FILL_NEIGHBOURS), min(len(index), row + 1 + FILL_NEIGHBOURS)
-        _check_fillable(clock, row, dtheta[lo:hi])
-        hole = slice(pos[row] + 1, pos[row + 1])
-        out_th[hole] = dtheta[lo:hi].mean(axis=0)
-        out_dv[hole] = dv[lo:hi].mean(axis=0)
-    out_g = None
-    if gimbal is not None:
-        filled = np.zeros(len(full), dtype=np.int64)
-        filled[pos] = 1
-        out_g = np.asarray(gimbal)[np.cumsum(filled) - 1]
-    return out_th, out_dv, out_g, full
-
-
-def _check_fillable(clock: SampleClock, row: int | np.integer, neighbours: np.ndarray) -> None:
-    """Refuse a hole after ``row`` that is too long, or whose neighbours are not at rest."""
-    index = clock.index
-    lost = int(index[row + 1] - index[row] - 1)
-    t = clock.offset_s + (index[row] + 1) * clock.period_s
-    if lost > MAX_FILL:
-        raise CalibError(
-            f"{lost} samples lost at t = {t:.6g} s, more than the "
-            f"{MAX_FILL} that the {FILL_NEIGHBOURS} samples each side can "
-            "stand for",
-            f"t = {t:.6g} s",
-            "split the log at the hole and calibrate each part",
-        )
-    rate = np.linalg.norm(neighbours.mean(axis=0)) / clock.period_s
-    peak = np.max(np.linalg.norm(neighbours, axis=1)) / clock.period_s
-    if rate > REST_RATE or peak > TURN_RATE:
-        raise CalibError(
-            f"{lost} sample(s) lost at t = {t:.6g} s, while the IMU turns",
-            f"t = {t:.6g} s",
-            "the increments of a flip cannot be recovered; repair the log or record the run again",
-        )
 
 
 def settle(run, allow_gaps: bool):
@@ -447,17 +401,24 @@ def settle(run, allow_gaps: bool):
         if not allow_gaps:
             raise refusal(clock, run.source)
         keep = ~duplicate_rows(run.time_s, run.dtheta_rad, run.dv_mps, period)
-        clean = dataclasses.replace(clock, index=clock.index[keep])
+        present = clock.index[keep]
         gimbal = None if run.gimbal_deg is None else run.gimbal_deg[keep]
         try:
-            dtheta, dv, gimbal, index = fill_dropped(clean, run.dtheta_rad[keep], run.dv_mps[keep], gimbal)
+            dtheta, dv, gimbal, index = fill_dropped(
+                present, (clock.offset_s, clock.period_s), run.dtheta_rad[keep], run.dv_mps[keep], gimbal
+            )
         except CalibError as exc:
             raise CalibError(exc.what, f"{run.source}, {exc.where}", exc.fix) from None
-        time = clock.offset_s + index * period
+        # Sampled at its stamps (nothing lost, repeats dropped): the stamps stay the time base.
+        time = (
+            uniform_time(clock, run.time_s)[keep]
+            if clock.rule == "stamps"
+            else clock.offset_s + index * period
+        )
         clipped = run.clipped  # the mask follows its samples; a filled sample is not clipped
         if clipped is not None:
             clipped = np.zeros((len(index), clipped.shape[1]), dtype=bool)
-            clipped[clean.index - clean.index[0]] = run.clipped[keep]
+            clipped[present - present[0]] = run.clipped[keep]
         return dataclasses.replace(
             run, time_s=time, dtheta_rad=dtheta, dv_mps=dv, gimbal_deg=gimbal, clock=clock, clipped=clipped
         )

@@ -366,12 +366,13 @@ def apply_column_map(names: list[str], mapping: dict[str, str], where: str) -> l
 
 
 def to_increments(
-    values: np.ndarray, sensor: SensorColumns, time_s: np.ndarray, nominal_dt: float
+    values: np.ndarray, sensor: SensorColumns, time_s: np.ndarray, nominal_dt: float | np.ndarray
 ) -> np.ndarray:
     """A sensor's ``(n, 3)`` file values as SI increments over each sample.
 
     Rates use the rectangular rule of the module docstring: ``rate_k * nominal_dt``
-    (``time_s`` only locates the samples).
+    (``time_s`` only locates the samples). ``nominal_dt`` may be ``(n, 1)``: each
+    sample's own interval, for a log sampled at its stamps (:mod:`calib.runlog.polled`).
     """
     si = values * np.asarray(sensor.si_per_unit)
     if not sensor.is_rate:

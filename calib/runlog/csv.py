@@ -14,10 +14,11 @@ from dataclasses import replace
 import numpy as np
 
 from calib.errors import CalibError
+from calib.nav.strapdown import sample_intervals
 
 from .checks import check_meta, check_samples
 from .clipping import clip_mask, sensor_clipping
-from .clock import stamps_rate
+from .clock import sampled_at_stamps, stamps_rate
 from .columns import (
     COUNTER,
     ColumnPlan,
@@ -126,10 +127,13 @@ def read_csv(
         )
     if counts and conversion is not None:  # sensor_si refused counts without one
         meta.update(conversion.meta())
+    interval: float | np.ndarray = dt
+    if (plan.gyro.is_rate or plan.accel.is_rate) and sampled_at_stamps(time_s, 1.0 / dt):
+        interval = sample_intervals(time_s)[:, None]  # a polling logger: each rate over its own interval
     run = Run(
         time_s=time_s,
-        dtheta_rad=np.ascontiguousarray(to_increments(gyro, plan.gyro, time_s, dt)),
-        dv_mps=np.ascontiguousarray(to_increments(accel, plan.accel, time_s, dt)),
+        dtheta_rad=np.ascontiguousarray(to_increments(gyro, plan.gyro, time_s, interval)),
+        dv_mps=np.ascontiguousarray(to_increments(accel, plan.accel, time_s, interval)),
         meta=meta,
         gimbal_deg=np.ascontiguousarray(data[:, 7:10]) if has_gimbal else None,
         source=name,

@@ -23,10 +23,11 @@ import os
 import numpy as np
 
 from calib.errors import CalibError
+from calib.nav.strapdown import sample_intervals
 
 from .checks import check_meta, check_samples
 from .clipping import at_limits, clip_mask, flat_top
-from .clock import stamps_rate
+from .clock import sampled_at_stamps, stamps_rate
 from .conversion import Conversion
 from .format import FORMAT
 from .paths import read_bytes
@@ -114,7 +115,9 @@ def read_imutk(
         return run
     meta = _meta(options, acc[:, 0], acc_name, conversion)
     check_meta(meta, locate)
-    period = 1.0 / float(meta["sample_rate_hz"])
+    period: float | np.ndarray = 1.0 / float(meta["sample_rate_hz"])
+    if sampled_at_stamps(acc[:, 0], float(meta["sample_rate_hz"])):  # each row over its own stamp interval
+        period = sample_intervals(acc[:, 0])[:, None]
     rate = conversion.to_si(gyro[:, 1:], "gyro")
     clipped = clip_mask(
         at_limits(gyro[:, 1:], conversion.range_counts) | flat_top(rate),

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.errors import CalibError
+from calib.nav.strapdown import sample_intervals
 
 from . import clock
 from .checks import check_samples
@@ -79,7 +80,9 @@ def on_own_clock(stream: Stream, sensor: str, meta: dict, allow_gaps: bool) -> t
     ``sensor`` is ``"gyro"`` or ``"accel"``; the other sensor's increments are zero.
     ``meta["sample_rate_hz"]`` is this stream's rate. Returns the run and its clock.
     """
-    period = 1.0 / float(meta["sample_rate_hz"])
+    period: float | np.ndarray = 1.0 / float(meta["sample_rate_hz"])
+    if clock.sampled_at_stamps(np.asarray(stream.stamps_s, dtype=float), float(meta["sample_rate_hz"])):
+        period = sample_intervals(np.asarray(stream.stamps_s, dtype=float))[:, None]
     increments = stream.values * period
     zeros = np.zeros_like(increments)
     gyro, accel = (increments, zeros) if sensor == "gyro" else (zeros, increments)
