@@ -245,7 +245,7 @@ def _spliced(moves, bias: np.ndarray, period: float) -> Mistake | None:
     return Mistake(
         f"across {unrecorded.sum()} of {len(moves)} moves gravity turns by {tilted:.0f} deg (median) while "
         f"the gyro turns by {turned:.2g} deg: the log does not hold "
-        "the turns between its rests (static sections cut out and joined?)",
+        "the turns between its rests (static sections cut out and joined, or a gyro that reads nothing?)",
         np.eye(3),
         np.eye(3),
         cannot_fix="a calibration by hand chains the rests through the turns the gyro records: log the "

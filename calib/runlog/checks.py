@@ -179,8 +179,12 @@ def check_samples(run: Run, locate, allow_gaps: bool, time_name: str | None = No
         assert exc.where is not None  # sample_clock names the row of each refusal
         raise CalibError(exc.what, locate.sample("time_s", int(exc.where)), exc.fix) from None
     if not allow_gaps and (found.dropped or found.duplicates):
-        first = np.flatnonzero(np.diff(found.index) != 1)[0] + 1
-        raise clock.refusal(found, locate.sample("time_s", int(first)))
+        jumps = np.flatnonzero(np.diff(found.index) != 1)
+        if jumps.size:
+            first = int(jumps[0]) + 1
+        else:  # sampled at its stamps: a stall is a long step, not a jump of the count
+            first = int(np.searchsorted(time - found.origin_s, found.dropped[0][0]))
+        raise clock.refusal(found, locate.sample("time_s", first))
     return found
 
 

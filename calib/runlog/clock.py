@@ -25,7 +25,7 @@ from calib.sequence.motion import runs_of
 
 from . import polled
 from .countrule import counted_steps
-from .fill import fill_dropped
+from .fill import check_stalls_at_rest, fill_dropped
 
 # Steps all within this of whole periods (and none zero) come from the IMU's own clock and are
 # counted step by step; a host's reception jitter goes beyond it.
@@ -210,8 +210,9 @@ def sample_clock(
     np.cumsum(steps, out=index[1:])
     del steps
     if polled.walk_ratio(_deviation(time_s, index, period, origin)[2], period) > polled.WALK_RATIO:
-        rule, dropped = "stamps", []  # no clock to count by: each row is the next sample
+        rule = "stamps"  # no clock to count by: each row is the next sample
         np.cumsum(~dup[1:], out=index[1:])
+        dropped = polled.stalls(time_s, dup, origin)  # a loop that stalled: a hole, as a lost sample is
     offset, slope, jitter = _deviation(time_s, index, period, origin)
     jitter_max = float(np.maximum(jitter.max(), -jitter.min()))
     step_stats: tuple = ()
@@ -257,10 +258,12 @@ def _deviation(time_s: np.ndarray, index: np.ndarray, period: float, origin: flo
 def sampled_at_stamps(time_s: np.ndarray, sample_rate_hz: float) -> bool:
     """Whether a time column's rows were sampled at their stamps (:mod:`calib.runlog.polled`).
 
-    False where the column cannot be counted at all: the reader's checks refuse it.
+    Rows at one time are taken as repeats, as the reader's checks take them. False where the
+    column cannot be counted at all: the reader's checks refuse it.
     """
     try:
-        return sample_clock(time_s, sample_rate_hz).rule == "stamps"
+        repeat = np.concatenate([[False], np.diff(time_s) == 0])
+        return sample_clock(time_s, sample_rate_hz, repeat).rule == "stamps"
     except CalibError:
         return False
 
@@ -409,12 +412,13 @@ def settle(run, allow_gaps: bool):
             )
         except CalibError as exc:
             raise CalibError(exc.what, f"{run.source}, {exc.where}", exc.fix) from None
-        # Sampled at its stamps (nothing lost, repeats dropped): the stamps stay the time base.
-        time = (
-            uniform_time(clock, run.time_s)[keep]
-            if clock.rule == "stamps"
-            else clock.offset_s + index * period
-        )
+        time = clock.offset_s + index * period
+        if clock.rule == "stamps":  # repeats dropped, each stall's one row kept if at rest
+            time = uniform_time(clock, run.time_s)[keep]
+            try:
+                check_stalls_at_rest(dtheta, time, [t for t, _ in clock.dropped])
+            except CalibError as exc:
+                raise CalibError(exc.what, f"{run.source}, {exc.where}", exc.fix) from None
         clipped = run.clipped  # the mask follows its samples; a filled sample is not clipped
         if clipped is not None:
             clipped = np.zeros((len(index), clipped.shape[1]), dtype=bool)

@@ -14,7 +14,6 @@ from dataclasses import replace
 import numpy as np
 
 from calib.errors import CalibError
-from calib.nav.strapdown import sample_intervals
 
 from .checks import check_meta, check_samples
 from .clipping import clip_mask, sensor_clipping
@@ -33,6 +32,7 @@ from .counter import counter_suspect, counter_time
 from .format import ARRAY_COLUMNS, FORMAT, GIMBAL_COLUMNS, REQUIRED_COLUMNS, REQUIRED_META
 from .headerless import with_header
 from .paths import read_bytes
+from .polled import own_intervals
 from .rollover import said_rollover
 from .run import Run, meta_float
 from .text import decode_lines, is_comment, without_cut_last_row
@@ -129,7 +129,7 @@ def read_csv(
         meta.update(conversion.meta())
     interval: float | np.ndarray = dt
     if (plan.gyro.is_rate or plan.accel.is_rate) and sampled_at_stamps(time_s, 1.0 / dt):
-        interval = sample_intervals(time_s)[:, None]  # a polling logger: each rate over its own interval
+        interval = own_intervals(time_s)  # a polling logger: each rate over its own interval
     run = Run(
         time_s=time_s,
         dtheta_rad=np.ascontiguousarray(to_increments(gyro, plan.gyro, time_s, interval)),

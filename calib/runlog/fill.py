@@ -20,6 +20,9 @@ MAX_FILL = 2 * FILL_NEIGHBOURS
 REST_RATE = 1e-3
 # No single neighbour may turn faster than this: a flip (0.57 deg/s; the estimator's threshold).
 TURN_RATE = 1e-2
+# Around a polling loop's stall (a hand run's MEMS unit: per-sample noise to 0.03 rad/s, bias to
+# 0.005 rad/s) no row may turn faster than this (5.7 deg/s).
+STALL_REST_RATE = 0.1
 
 
 def fill_dropped(
@@ -102,3 +105,27 @@ def _check_fillable(
             f"t = {t:.6g} s",
             "the increments of a flip cannot be recovered; repair the log or record the run again",
         )
+
+
+def check_stalls_at_rest(dtheta: np.ndarray, time_s: np.ndarray, stalls_s: list) -> None:
+    """Refuse a polling loop's stall (:func:`calib.runlog.polled.stalls`) while the IMU turns.
+
+    The row after a stall holds one reading over the whole hole: at rest that is the hole's
+    increment to its noise; while turning the rate changed unseen. At rest means no row of
+    the ``FILL_NEIGHBOURS`` each side turns faster than ``STALL_REST_RATE`` (a MEMS unit's
+    noise and bias stay below it; a hand's turn passes it within its first rows).
+    ``time_s``: the rows' own ends, s.
+    """
+    dt = np.diff(np.concatenate([[2 * time_s[0] - time_s[1]], time_s]))
+    for start in stalls_s:
+        row = int(np.searchsorted(time_s, start))
+        lo, hi = max(0, row - FILL_NEIGHBOURS), min(len(time_s), row + 1 + FILL_NEIGHBOURS)
+        near = np.r_[lo:row, row + 1 : hi]  # the stall's own row is the one in doubt
+        peak = np.max(np.linalg.norm(dtheta[near], axis=1) / dt[near])
+        if peak > STALL_REST_RATE:
+            raise CalibError(
+                f"the logger stalled for {1e3 * dt[row]:.3g} ms at t = {start:.6g} s, while the IMU turns",
+                f"t = {start:.6g} s",
+                "a turn's rate over a stall cannot be recovered; log without stalls (a polling loop "
+                "that writes to a card blocks) or record the run again",
+            )

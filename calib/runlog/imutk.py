@@ -23,7 +23,6 @@ import os
 import numpy as np
 
 from calib.errors import CalibError
-from calib.nav.strapdown import sample_intervals
 
 from .checks import check_meta, check_samples
 from .clipping import at_limits, clip_mask, flat_top
@@ -31,6 +30,7 @@ from .clock import sampled_at_stamps, stamps_rate
 from .conversion import Conversion
 from .format import FORMAT
 from .paths import read_bytes
+from .polled import own_intervals
 from .run import Run
 from .streams import Stream, two_clocks
 
@@ -117,7 +117,7 @@ def read_imutk(
     check_meta(meta, locate)
     period: float | np.ndarray = 1.0 / float(meta["sample_rate_hz"])
     if sampled_at_stamps(acc[:, 0], float(meta["sample_rate_hz"])):  # each row over its own stamp interval
-        period = sample_intervals(acc[:, 0])[:, None]
+        period = own_intervals(acc[:, 0])
     rate = conversion.to_si(gyro[:, 1:], "gyro")
     clipped = clip_mask(
         at_limits(gyro[:, 1:], conversion.range_counts) | flat_top(rate),

@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from calib.nav.strapdown import sample_intervals
+
 WALK_ROWS = 100  # m: 1/m = 0.01 for jitter, 1 for a walk
 WALK_RATIO = 0.25  # above: the stamps walk, the samples were taken at them
 # Steps whose spread is below this fraction of the period are a clock's own or a host's that
@@ -39,11 +41,33 @@ def walk_ratio(deviation: np.ndarray, period: float) -> float:
     if len(e) < 3 * m:
         return 0.0
     one = np.diff(e)
-    spread = float(np.var(one))
-    if not spread > (MIN_STEP_SPREAD * period) ** 2:
+    # Robust to a host's rare stalls and the bursts that drain them (heavy tails in bounded
+    # jitter): steps beyond 4 robust sigmas are left out before the spreads are compared.
+    middle = float(np.median(one))
+    sigma = 1.4826 * float(np.median(np.abs(one - middle)))
+    if not sigma > MIN_STEP_SPREAD * period:
         return 0.0
-    far = e[m:] - e[:-m]
-    return float(np.var(far) / (m * spread))
+    one = one[np.abs(one - middle) <= 4.0 * sigma]
+    if len(one) < 3 * m:
+        return 0.0
+    walk = np.concatenate([[0.0], np.cumsum(one)])
+    far = walk[m:] - walk[:-m]
+    return float(np.var(far) / (m * np.var(one)))
+
+
+STALL_STEPS = 3.0  # a step this many times the median one: the loop stalled (a hole in the record)
+
+
+def stalls(time_s: np.ndarray, duplicate: np.ndarray, origin: float) -> list:
+    """Where a polling loop stalled: (time of the stall's start, rows its interval stands for less one).
+
+    A row after a stall holds one reading over the whole hole; at rest that is the hole's
+    increment to its noise, while turning it is not known (:func:`calib.runlog.clock.settle`).
+    """
+    step = np.diff(time_s)
+    usual = float(np.median(step[~duplicate[1:]]))
+    long = np.flatnonzero((step > STALL_STEPS * usual) & ~duplicate[1:])
+    return [(float(time_s[i] - origin + usual), int(round(step[i] / usual)) - 1) for i in long]
 
 
 def summary(step_stats: tuple, deviation_rms: float) -> str:
@@ -55,3 +79,16 @@ def summary(step_stats: tuple, deviation_rms: float) -> str:
         f"uniform clock by {1e3 * deviation_rms:.3g} ms RMS as a random walk does: a polling logger); "
         "each sample covers its own stamp interval"
     )
+
+
+def own_intervals(time_s: np.ndarray) -> np.ndarray:
+    """``(n, 1)`` each row's own interval, s; a row at its predecessor's time repeats its interval.
+
+    A repeated row then repeats its increment too, and is taken as the repeat it is.
+    """
+    dt = sample_intervals(time_s)
+    repeat = np.flatnonzero(dt == 0)
+    if repeat.size:
+        held = np.maximum.accumulate(np.where(dt > 0, np.arange(len(dt)), 0))
+        dt = dt[held]
+    return dt[:, None]

@@ -18,6 +18,7 @@ from collections.abc import Callable
 import numpy as np
 
 MIN_WIDTH_BITS = 8  # no logger counts in fewer bits
+MAX_WIDTH_BITS = 48  # beyond: epoch stamps in ns (61 bits) and the like, which do not roll over
 
 
 def unwrapped(values: np.ndarray) -> tuple[np.ndarray, int]:
@@ -36,13 +37,15 @@ def unwrapped(values: np.ndarray) -> tuple[np.ndarray, int]:
     bits : int
         The counter's width in bits; 0 when it does not roll over.
     """
-    if len(values) < 3:
+    if len(values) < 3 or not np.all(np.isfinite(values)):  # the reader refuses what is not finite
         return values, 0
     step = np.diff(values)
     back = step < 0
     if not back.any() or not (step > 0).any() or np.min(values) < 0:
         return values, 0
     bits = max(MIN_WIDTH_BITS, int(np.max(values)).bit_length())
+    if bits > MAX_WIDTH_BITS:  # no logger's counter; and 2^bits would overflow int64
+        return values, 0
     modulus = 2**bits
     longest = np.max(step[~back])
     on = step[back] + modulus

@@ -25,11 +25,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib.errors import CalibError
-from calib.nav.strapdown import sample_intervals
 
 from . import clock
 from .checks import check_samples
 from .clipping import clip_mask
+from .polled import own_intervals
 from .run import Run
 
 SENSORS = {"accel": "accelerometer", "gyro": "gyro"}
@@ -82,7 +82,7 @@ def on_own_clock(stream: Stream, sensor: str, meta: dict, allow_gaps: bool) -> t
     """
     period: float | np.ndarray = 1.0 / float(meta["sample_rate_hz"])
     if clock.sampled_at_stamps(np.asarray(stream.stamps_s, dtype=float), float(meta["sample_rate_hz"])):
-        period = sample_intervals(np.asarray(stream.stamps_s, dtype=float))[:, None]
+        period = own_intervals(np.asarray(stream.stamps_s, dtype=float))
     increments = stream.values * period
     zeros = np.zeros_like(increments)
     gyro, accel = (increments, zeros) if sensor == "gyro" else (zeros, increments)

@@ -47,14 +47,19 @@ def without_cut_last_row(lines: list[str], name: str) -> list[str]:
     A logger stopped mid-write (power cut, Ctrl-C) leaves a last row with fewer fields
     than the row before it and no line end. Only that row, and only then, is left out:
     a short row anywhere else, or one the file ends properly, is refused by the reader
-    as it was written. Fields are counted at commas, semicolons, tabs and spaces alike.
+    as it was written. Fields are counted at the separator the row before uses (a
+    semicolon, a tab, a comma, else spaces), so a decimal comma is no separator.
     """
     if not lines or not lines[-1].strip() or is_comment(lines[-1]):  # ends with a line end
         return lines
     before = next((line for line in reversed(lines[:-1]) if line.strip()), None)
     if before is None or is_comment(before):
         return lines
-    count = lambda line: len([f for f in re.split(r"[,;\t ]+", line.strip()) if f])  # noqa: E731
+    sep = next((c for c in (";", "\t", ",") if c in before), None)
+
+    def count(line: str) -> int:
+        return len([f for f in (line.split(sep) if sep else re.split(r"\s+", line.strip())) if f.strip()])
+
     have, want = count(lines[-1]), count(before)
     if have >= want:
         return lines

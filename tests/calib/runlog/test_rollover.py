@@ -97,3 +97,15 @@ def test_an_mt_manager_export_reads_with_its_comment_lines_tabs_and_wrapping_cou
     assert np.array_equal(run.time_s, (np.arange(n) + 1) / 100.0)
     assert np.allclose(run.dv_mps / 0.01, [0.05, 0.02, 9.81], rtol=0, atol=1e-12)
     assert np.allclose(run.dtheta_rad / 0.01, [0.001, -0.002, 0.003], rtol=0, atol=1e-15)
+
+
+def test_a_counter_with_a_non_finite_value_is_refused_not_a_crash(tmp_path):
+    count = np.arange(2000).astype(object)
+    count[700] = "inf"
+    _log(tmp_path / "inf.csv", "n", count)
+    with pytest.raises(CalibError):
+        read_run(tmp_path / "inf.csv", columns="n=counter," + COLUMNS, sample_rate_hz=100.0, **SITE)
+    # Epoch-sized values stepping back are no counter's rollover: left for the reader.
+    epoch = 1_700_000_000_000_000_000 + 5_000_000 * np.arange(500, dtype=np.int64)
+    epoch[300:] -= 2_000_000
+    assert unwrapped(epoch)[1] == 0

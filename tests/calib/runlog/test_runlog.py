@@ -289,6 +289,18 @@ def test_a_last_row_the_logger_left_unfinished_is_left_out_and_said(tmp_path):
     refusal(write_text(tmp_path, csv_text(body=inside).rstrip("\n"), "inside.csv"), "line 9", "has 3 fields")
 
 
+def test_a_whole_last_row_with_decimal_commas_is_kept(tmp_path):
+    # Semicolons between fields, commas in the numbers: the last row, written whole but
+    # without a line end, has as many fields as the row before (a whole number has no comma).
+    header = HEADER.replace(",", ";")
+    body = [ROW.format(t=(i + 1) / 200.0).replace(",", ";").replace(".", ",") for i in range(6)]
+    body[-1] = body[-1].replace("0,001", "1")  # a field written as a whole number
+    path = write_text(tmp_path, "\n".join([*META, header, *body]), "euro.csv")
+    with pytest.warns(UserWarning, match="decimal commas") as said:
+        run = read_run(path)
+    assert run.n_samples == 6 and not any("left out" in str(w.message) for w in said)
+
+
 def test_non_numeric_field(tmp_path):
     body = [ROW.format(t=(i + 1) / 200) for i in range(6)]
     body[4] = body[4].replace("0.049", "0.0x49")
