@@ -11,6 +11,7 @@ the comment the file opens with.
 from __future__ import annotations
 
 import tomllib
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -123,15 +124,23 @@ def read_static_log(path, latitude_deg=None, height_m=None, **read_options) -> t
     The height moves only the accelerometer bias along the vertical (0.31 ug per m), so
     a fit without it is still a fit. ``read_options`` go to :func:`calib.runlog.read_run`.
     """
-    try:
-        return read_run(path, latitude_deg=latitude_deg, height_m=height_m, **read_options), False
-    except CalibError as first:
-        if height_m is not None:
-            raise
-        try:  # the height alone was missing exactly when the log reads with one
-            return read_run(path, latitude_deg=latitude_deg, height_m=0.0, **read_options), True
-        except CalibError:
-            raise first from None
+    first: CalibError | None = None
+    with warnings.catch_warnings(record=True) as said:  # said once, by the reading that counts
+        warnings.simplefilter("always")
+        try:
+            run = read_run(path, latitude_deg=latitude_deg, height_m=height_m, **read_options)
+        except CalibError as exc:
+            first = exc
+    if first is None or height_m is not None:
+        for w in said:
+            warnings.warn(w.message, w.category, stacklevel=2)
+        if first is not None:
+            raise first
+        return run, False
+    try:  # the height alone was missing exactly when the log reads with one
+        return read_run(path, latitude_deg=latitude_deg, height_m=0.0, **read_options), True
+    except CalibError:
+        raise first from None
 
 
 def fit_log(
