@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gzip
 import os
+import warnings
 import zlib
 from pathlib import Path
 
@@ -38,11 +39,29 @@ def require_file(path: str | os.PathLike) -> None:
 
 
 def read_bytes(path: str | os.PathLike) -> bytes:
-    """Read a whole file, turning OS errors into CalibError."""
+    """Read a whole file, turning OS errors into CalibError.
+
+    A gzip file that ends early (a logger or a copy stopped mid-write) gives the whole
+    lines its stream holds before the cut, said on stderr.
+    """
     require_file(path)
     try:
         data = Path(path).read_bytes()
-        return gzip.decompress(data) if data[:2] == b"\x1f\x8b" else data
+        if data[:2] != b"\x1f\x8b":
+            return data
+        try:
+            return gzip.decompress(data)
+        except EOFError:
+            held = zlib.decompressobj(zlib.MAX_WBITS | 16).decompress(data)
+            held = held[: held.rfind(b"\n") + 1]  # the line the cut went through is not whole
+            if not held:
+                raise
+            lines = held.count(b"\n")
+            warnings.warn(
+                f"{path}: the gzip stream ends early (cut mid-write?); read the {lines} whole lines it holds",
+                stacklevel=2,
+            )
+            return held
     except (OSError, EOFError, zlib.error) as exc:  # gzip.BadGzipFile is an OSError
         raise CalibError(
             f"cannot read the file: {getattr(exc, 'strerror', None) or exc}",

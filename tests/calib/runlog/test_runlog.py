@@ -301,6 +301,27 @@ def test_a_whole_last_row_with_decimal_commas_is_kept(tmp_path):
     assert run.n_samples == 6 and not any("left out" in str(w.message) for w in said)
 
 
+def test_a_gzip_log_cut_mid_write_reads_its_whole_lines_and_says_so(tmp_path):
+    import gzip
+
+    body = [ROW.format(t=(i + 1) / 200.0) for i in range(4000)]
+    text = csv_text(body=body).encode()
+    packed = gzip.compress(text)
+    cut = tmp_path / "cut.csv.gz"
+    cut.write_bytes(packed[: len(packed) // 2])
+    with pytest.warns(UserWarning, match="gzip stream ends early"):
+        got = read_run(cut)
+    # The whole rows before the cut, in order, each as written (its stamp (i + 1) / 200).
+    n = got.n_samples
+    assert 1000 < n < 4000
+    assert np.array_equal(got.time_s, (np.arange(n) + 1) / 200.0)
+    assert np.allclose(got.dv_mps[-1], [0.001, 0.049, -0.002], rtol=0, atol=1e-15)
+    # A gzip cut within its first block holds no line: refused as unreadable, naming the file.
+    stub = tmp_path / "stub.csv.gz"
+    stub.write_bytes(packed[:12])
+    refusal(stub, "cannot read the file")
+
+
 def test_non_numeric_field(tmp_path):
     body = [ROW.format(t=(i + 1) / 200) for i in range(6)]
     body[4] = body[4].replace("0.049", "0.0x49")
