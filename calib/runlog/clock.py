@@ -209,11 +209,12 @@ def sample_clock(
     index = np.zeros(len(time_s), dtype=np.int64)
     np.cumsum(steps, out=index[1:])
     del steps
-    if polled.walk_ratio(_deviation(time_s, index, period, origin)[2], period) > polled.WALK_RATIO:
+    offset, slope, jitter = _deviation(time_s, index, period, origin)
+    if polled.walk_ratio(jitter, period) > polled.WALK_RATIO:
         rule = "stamps"  # no clock to count by: each row is the next sample
         np.cumsum(~dup[1:], out=index[1:])
         dropped = polled.stalls(time_s, dup, origin)  # a loop that stalled: a hole, as a lost sample is
-    offset, slope, jitter = _deviation(time_s, index, period, origin)
+        offset, slope, jitter = _deviation(time_s, index, period, origin)
     jitter_max = float(np.maximum(jitter.max(), -jitter.min()))
     step_stats: tuple = ()
     if rule == "stamps":
@@ -406,19 +407,18 @@ def settle(run, allow_gaps: bool):
         keep = ~duplicate_rows(run.time_s, run.dtheta_rad, run.dv_mps, period)
         present = clock.index[keep]
         gimbal = None if run.gimbal_deg is None else run.gimbal_deg[keep]
+        dtheta, dv, index = run.dtheta_rad[keep], run.dv_mps[keep], present
         try:
-            dtheta, dv, gimbal, index = fill_dropped(
-                present, (clock.offset_s, clock.period_s), run.dtheta_rad[keep], run.dv_mps[keep], gimbal
-            )
+            if clock.rule == "stamps":  # repeats dropped; a stall's one row kept if at rest, not filled
+                time = uniform_time(clock, run.time_s)[keep]
+                check_stalls_at_rest(dtheta, time, [t for t, _ in clock.dropped])
+            else:
+                dtheta, dv, gimbal, index = fill_dropped(
+                    present, (clock.offset_s, period), dtheta, dv, gimbal
+                )
+                time = clock.offset_s + index * period
         except CalibError as exc:
             raise CalibError(exc.what, f"{run.source}, {exc.where}", exc.fix) from None
-        time = clock.offset_s + index * period
-        if clock.rule == "stamps":  # repeats dropped, each stall's one row kept if at rest
-            time = uniform_time(clock, run.time_s)[keep]
-            try:
-                check_stalls_at_rest(dtheta, time, [t for t, _ in clock.dropped])
-            except CalibError as exc:
-                raise CalibError(exc.what, f"{run.source}, {exc.where}", exc.fix) from None
         clipped = run.clipped  # the mask follows its samples; a filled sample is not clipped
         if clipped is not None:
             clipped = np.zeros((len(index), clipped.shape[1]), dtype=bool)

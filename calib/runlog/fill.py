@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from calib.errors import CalibError
+from calib.nav.strapdown import sample_intervals
 
 # Samples each side of a lost one whose mean increment fills it (at rest).
 FILL_NEIGHBOURS = 100
@@ -116,7 +117,7 @@ def check_stalls_at_rest(dtheta: np.ndarray, time_s: np.ndarray, stalls_s: list)
     noise and bias stay below it; a hand's turn passes it within its first rows).
     ``time_s``: the rows' own ends, s.
     """
-    dt = np.diff(np.concatenate([[2 * time_s[0] - time_s[1]], time_s]))
+    dt = sample_intervals(time_s)
     for start in stalls_s:
         row = int(np.searchsorted(time_s, start))
         lo, hi = max(0, row - FILL_NEIGHBOURS), min(len(time_s), row + 1 + FILL_NEIGHBOURS)
