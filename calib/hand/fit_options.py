@@ -37,6 +37,9 @@ class HandFitOptions:
         is given) as they are.
     loosen : float
         Multiplies the rest finder's thresholds (poses held in the hand).
+    use_moves : bool
+        Chain the rests through the moves (off: the rests alone, each its own attitude; the
+        view that judges a rest's specific force by the other rests', :mod:`calib.hand.weights`).
     """
 
     g_sensitivity: bool = False
@@ -45,6 +48,7 @@ class HandFitOptions:
     heading_prior: bool = True
     earn_weights: bool = True
     loosen: float = 1.0
+    use_moves: bool = True
 
 
 HAND_FIT = HandFitOptions()  # the defaults

@@ -25,7 +25,7 @@ each rest on its accelerometers, until each step is below 1e-3 sigma.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -331,9 +331,32 @@ def fit_by_hand(
             "give its white part (calib.noise.profiles.white_part; calibrate does so itself)",
         )
     o = options
+    data = hand_data(samples.dtheta, samples.dv, samples.dt, profile, samples.clipped, where, o.loosen)
+    alone = replace(data, move_used=np.zeros_like(data.move_used))
+    if not o.use_moves:
+        return _fit(alone, samples, site, profile, o, weights, where)
+    force_confirmed = None
+    if o.earn_weights and data.move_used.any():
+        # The rests alone say which rests' specific force is outlying (weights.confirmed).
+        view = replace(o, use_moves=False, partial=True, g_sensitivity=False)
+        blocks = _fit(alone, samples, site, profile, view, None, where).weights.block
+        force_confirmed = frozenset(lab for lab in blocks if lab[0] == "force")
+    return _fit(data, samples, site, profile, o, weights, where, force_confirmed)
+
+
+def _fit(
+    data: HandData,
+    samples: HandSamples,
+    site: Site,
+    profile: NoiseProfile,
+    o: HandFitOptions,
+    weights: Weights | None,
+    where: str,
+    force_confirmed: frozenset | None = None,
+) -> HandFit:
+    """:func:`fit_by_hand` on the rests and moves ``data`` holds (a move not used is not chained)."""
     latitude_rad = site.latitude_rad
     dtheta, dv, dt = samples.dtheta, samples.dv, samples.dt
-    data = hand_data(dtheta, dv, dt, profile, samples.clipped, where, o.loosen)
     layout = Layout(data.count, o.g_sensitivity)
     values = np.zeros(N)
     values[P.GYRO_BIAS] = np.average(data.rest_rate, axis=0, weights=data.rest_time_s)
@@ -366,9 +389,9 @@ def fit_by_hand(
         inv = scaled_inverse(Jw.T @ Jw, names=names)
         red = redundancy(Jw, inv.covariance)
         if not weights.earning and set(weights.block) <= preset and rounds == 0:
-            outliers = profile_outliers(e, red, labels, s)
+            outliers = profile_outliers(e, red, labels, s, force_confirmed)
             weights = Weights(earning=refuted(e, red, labels, s, outliers))
-        new = reweighted(weights, e, red, labels, shapes, s)
+        new = reweighted(weights, e, red, labels, shapes, s, force_confirmed)
         done = new.settled(weights, shapes, s, labels)
         weights = new
         if done:
@@ -394,7 +417,7 @@ def fit_by_hand(
     index = np.array([g[1] for g in labels])
     at_rest = (kind == "force") | (kind == "rate")
     rest_chi2 = np.bincount(index[at_rest], z2[at_rest], minlength=data.count)
-    move_chi2 = np.bincount(index[kind == "move"], z2[kind == "move"], minlength=data.count - 1)
+    move_chi2 = np.bincount(index[kind == "move"], z2[kind == "move"], minlength=data.count - 1).astype(float)
     move_chi2[~data.move_used] = np.nan
     force_rows = np.flatnonzero(kind == "force")
     return HandFit(

@@ -11,6 +11,7 @@ Each is off by default (a run without them is the table's exact run, bit for bit
   the log holds them as increments over the nominal period, so every increment is
   ``(1 + epsilon)`` times the true one (a turn reads ``1 + epsilon`` times its angle; the
   rates at rest are right) and the written stamps follow the nominal rate;
+* a gyro scale that changes from turn to turn (:func:`scale_each_turn`, applied to a run);
 * host stamps: each sample stamped at its reception, up to ``stamp_jitter_s`` late and in
   order (:mod:`calib.hand.host_clock`), in float seconds or integer epoch milliseconds. With a rate
   error the host's stamps follow the true time (the host's clock is right, the IMU's is not).
@@ -20,11 +21,12 @@ The truth file records them in its ``[hand]`` table (:func:`troubles_to_table`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from calib.model.optional_terms import G_SENSITIVITY_SI_PER_UNIT
+from calib.nav.strapdown import sample_intervals
 
 from .host_clock import EPOCH_MS, STAMP_MODES
 from .plan import HandPlan
@@ -181,3 +183,30 @@ class TroubleSpec:
         elif self.g_sensitivity_dphg is not None:
             G = g_sensitivity_from_dphg(self.g_sensitivity_dphg)
         return HandTroubles(tremor, G, self.rate_error, self.stamp_jitter_s, self.stamps)
+
+
+TURNING_RAD_S = 0.05  # far above a MEMS gyro's noise at rest, far below a hand's turn
+
+
+def scale_each_turn(run, sd: float, rng: np.random.Generator):
+    """The run with each turn's gyro increments times its own ``1 + sd N(0, 1)``.
+
+    A gyro whose scale factor changes from one turn to the next (a response the model
+    lacks): the moves no longer fit one set of 21, the rests are untouched. A turn is a
+    stretch of samples turning faster than `TURNING_RAD_S`.
+
+    Parameters
+    ----------
+    run : calib.runlog.Run
+    sd : float
+        The scale's spread over the turns (0.005: 0.5 %).
+    rng : numpy.random.Generator
+        Draws one factor per turn, in order.
+    """
+    rate = np.linalg.norm(run.dtheta_rad, axis=1) / sample_intervals(run.time_s)
+    turning = rate > TURNING_RAD_S
+    factor = np.ones(len(rate))
+    for a in np.flatnonzero(np.diff(turning.astype(int)) == 1) + 1:
+        b = a + int(np.argmax(~turning[a:])) if not turning[a:].all() else len(rate)
+        factor[a:b] = 1.0 + sd * rng.standard_normal()
+    return replace(run, dtheta_rad=run.dtheta_rad * factor[:, None])

@@ -3,7 +3,8 @@
 Simulated hand runs whose truth is known: noise the profile states keeps the profile's
 weights and the 21 alone; noise twice the profile's earns a white factor of 2, and five
 times earns its own (most of a group beyond the profile is no outlier); a move that does
-not fit is weighted by its own residual and spoils nothing; a gyro g-sensitivity is fitted
+not fit is weighted by its own residual and spoils nothing, nor makes a good rest an
+outlier (a rest's specific force is one only where the rests alone say so); a gyro g-sensitivity is fitted
 when it is there and not when it is not.
 """
 
@@ -19,7 +20,7 @@ import pytest
 from calib.calibration.entry import calibrate
 from calib.hand.plan import HAND_POSES, random_hand_plan, xsens_like_plan
 from calib.hand.simulate import simulate_by_hand
-from calib.hand.troubles import HandTroubles, g_sensitivity_from_dphg
+from calib.hand.troubles import HandTroubles, g_sensitivity_from_dphg, scale_each_turn
 from calib.model import params as P
 from calib.model.error_model import ErrorModel
 from calib.noise.profiles import load_profile
@@ -112,6 +113,46 @@ def test_a_move_that_does_not_fit_is_weighted_by_its_own_residual_and_spoils_not
     accel = slice(12, 21)
     moved = np.abs(earned.values[accel] - clean.values[accel]) / clean.sigma[accel]
     assert moved.max() < 0.1, np.round(moved, 3)
+
+
+@pytest.mark.parametrize("seed", [9, 16])
+def test_moves_that_do_not_fit_do_not_make_a_good_rest_an_outlier(seed):
+    # Twelve rests, every one truly still (nothing was injected into them), and moves whose gyro
+    # scale is off by its own 0.5 % each. The moves bend the chained attitudes and, with so few
+    # rests, pull the accelerometer until one rest's |f| misses: judged in the joint fit, that
+    # rest was called an outlier (x15 on both seeds), its weight went and the pull grew (an
+    # accelerometer error of 3.6 sigma on seed 16). The rests alone confirm every rest's |f|, so
+    # none is an outlier now, and the moves carry their own misfit.
+    plan = random_hand_plan(12, np.random.default_rng(seed))
+    run, _ = simulate_by_hand(plan, CFG, ErrorModel(VALUES), MEMS, seed=seed + 1000)
+    bent = scale_each_turn(run, 0.005, np.random.default_rng(seed + 2000))
+    result = calibrate(bent, MEMS, by_hand=True)
+    outliers = result.by_hand.choices["weights"]["outliers"]
+    assert not [o for o in outliers if o["kind"] == "force"], outliers
+    # The nine accelerometer errors within 3 of their sigmas (nine normal draws do so with 97.6 %).
+    accel = slice(12, 21)
+    z = (result.values[accel] - VALUES[accel]) / result.sigma[accel]
+    assert np.all(np.abs(z) < 3.0), np.round(z, 2)
+
+
+def test_a_rest_whose_magnitude_is_off_is_still_an_outlier():
+    # The unit pressed down while it rests: its specific force reads 0.05 m/s^2 more along gravity
+    # there (60 of the rest's white-noise sigmas). The rests alone see that |f| is not g, so the
+    # block is an outlier, weighted by its own residual, and the accelerometer keeps to its truth.
+    run = _run(4)
+    clean = calibrate(run, MEMS, by_hand=True)
+    start, end = clean.by_hand.rest_s[7]
+    inside = (run.time_s > start - 1.0) & (run.time_s <= end + 1.0)
+    dt = np.diff(np.r_[0.0, run.time_s])
+    f = run.dv_mps[inside] / dt[inside, None]
+    up = f.mean(axis=0) / np.linalg.norm(f.mean(axis=0))
+    dv = run.dv_mps.copy()
+    dv[inside] += 0.05 * up * dt[inside, None]
+    pressed = calibrate(dataclasses.replace(run, dv_mps=dv), MEMS, by_hand=True)
+    outliers = pressed.by_hand.choices["weights"]["outliers"]
+    assert {(o["kind"], o["index"]) for o in outliers} == {("force", 8)}, outliers
+    # 21 normal draws stay within 4 sigma with 99.9 %.
+    assert np.all(np.abs(pressed.values - VALUES) < 4 * pressed.sigma)
 
 
 def test_two_recordings_spliced_leave_the_second_a_loose_block_named_in_rests_not_states():
