@@ -1,6 +1,6 @@
 """The ``seqdesign`` command line: the group and its commands, one module each.
 
-show, simulate (and simulate-stream), calibrate, correct, analyze and compare, design,
+show, simulate (and simulate-stream), calibrate, correct, score, analyze and compare, design,
 export (gimbal schedules), profile fit, view. Options shared by several commands
 are declared once (:mod:`seqdesign.cli.options`), as are the refusal and JSON
 helpers (:mod:`seqdesign.cli.tools`).
@@ -19,7 +19,7 @@ import click
 
 from seqdesign.provenance import tool_version
 
-from . import analyze, calibrate, correct, design, gimbal, profile, show, simulate, verify, view
+from . import analyze, calibrate, correct, design, gimbal, profile, score, show, simulate, verify, view
 from .tools import emit_json
 
 
@@ -52,6 +52,7 @@ for _command in (
     simulate.simulate,
     calibrate.calibrate,
     correct.correct,
+    score.score,
     analyze.analyze,
     analyze.compare,
     design.design,
