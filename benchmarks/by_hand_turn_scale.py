@@ -21,6 +21,7 @@ from calib.calibration.entry import calibrate
 from calib.hand.plan import random_hand_plan
 from calib.hand.simulate import simulate_by_hand
 from calib.hand.troubles import scale_each_turn
+from calib.model import params as P
 from calib.model.error_model import ErrorModel
 from calib.noise.profiles import load_profile
 from calib.sequence.kinematics import SimConfig
@@ -57,20 +58,25 @@ def main() -> None:
     ap.add_argument("--sd", type=float, default=0.005, help="each turn's scale spread (0.005: 0.5 %%)")
     args = ap.parse_args()
     values = errors()
-    flagged, z_accel = 0, []
+    flagged, z_runs = 0, []
     print("| seed | rest forces weighted out (rest, x) | accelerometer max \\|error\\|/sigma |")
     print("|---:|---|---:|")
     for seed in range(args.runs):
         forces, z = one_run(seed, args.sd, values)
         flagged += bool(forces)
-        z_accel.append(z[ACCEL])
+        z_runs.append(z)
         print(f"| {seed} | {forces or '-'} | {np.abs(z[ACCEL]).max():.2f} |", flush=True)
-    z_all = np.array(z_accel)
+    z_all = np.array(z_runs)[:, ACCEL]
     print()
     print(
         f"- {flagged} of {args.runs} runs weighted out a rest's specific force; the accelerometer's nine: "
         f"RMS(error/sigma) {math.sqrt(float(np.mean(z_all**2))):.2f}, largest {np.abs(z_all).max():.2f}, "
         f"runs with one beyond 3 sigma {int((np.abs(z_all).max(axis=1) > 3).sum())}"
+    )
+    rms = np.sqrt(np.mean(np.square(z_runs), axis=0))
+    print(
+        "- RMS(error/sigma) of each of the 21: "
+        + ", ".join(f"{n} {r:.2f}" for n, r in zip(P.NAMES, rms, strict=True))
     )
 
 
