@@ -29,6 +29,8 @@ from calib.nav.strapdown import sample_intervals
 
 SENSORS = ("gyro", "accel")
 SI_UNIT = {"gyro": "rad/s", "accel": "m/s^2"}
+# Raw units a correction may take besides counts (other tools' results: imucal's in deg/s), per SI.
+RAW_PER_SI = {"rad/s": 1.0, "deg/s": 180.0 / np.pi, "m/s^2": 1.0, "g": 1.0 / P.STANDARD_GRAVITY}
 
 
 @dataclass(frozen=True)
@@ -206,11 +208,19 @@ def correction_of_result(result, conversion=None, source: str = "") -> Correctio
 
 
 def raw_samples(run, correction: Correction, where: str) -> tuple[np.ndarray, np.ndarray]:
-    """The log's samples in the units ``correction`` takes: counts, or rad/s and m/s^2."""
+    """The log's samples in the units ``correction`` takes: counts, or rad/s (deg/s) and m/s^2 (g)."""
     dt = sample_intervals(run.time_s)[:, None]
     rate, force = run.dtheta_rad / dt, run.dv_mps / dt
-    if "counts" not in (correction.gyro.raw_unit, correction.accel.raw_unit):
-        return rate, force
+    units = (correction.gyro.raw_unit, correction.accel.raw_unit)
+    if "counts" not in units:
+        unknown = [u for u in units if u not in RAW_PER_SI]
+        if unknown:
+            raise CalibError(
+                f"the correction takes raw {unknown[0]!r}, a unit not read",
+                where,
+                f"give a correction whose raw units are counts or {', '.join(RAW_PER_SI)}",
+            )
+        return rate * RAW_PER_SI[units[0]], force * RAW_PER_SI[units[1]]
     if run.conversion is None:
         raise CalibError(
             "the correction takes raw counts (it was made from a log in counts), but this log was read in SI",

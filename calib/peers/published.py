@@ -117,3 +117,23 @@ def read_imucal(path: str | Path) -> Correction:
     except json.JSONDecodeError as exc:
         raise CalibError(f"is not JSON ({exc.msg})", str(path), "give imucal's result file") from None
     return imucal_correction(doc, str(path))
+
+
+def read_correction(path: str | Path) -> Correction:
+    """Any calibration a user may hold, as a :class:`Correction`: ours (``.toml``, what
+    ``calibrate --correction`` writes), imucal's result (``.json``) or imu_tk's result text
+    (anything else: ``## acc`` and ``## gyro`` sections of ``T``, ``K`` and ``b``).
+    """
+    suffix = Path(path).suffix.lower()
+    if suffix == ".toml":
+        return Correction.load(path)
+    if suffix == ".json":
+        return read_imucal(path)
+    try:
+        return read_imu_tk(path)
+    except UnicodeDecodeError:
+        raise CalibError(
+            "is neither a correction of ours (.toml), imucal's result (.json) nor imu_tk's result text",
+            str(path),
+            "give calibrate --correction's TOML, imucal's *-imucal-result.json or imu_tk's result text",
+        ) from None

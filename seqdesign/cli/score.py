@@ -16,6 +16,7 @@ and the log as read, by what physics fixes whatever the convention
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import click
 
@@ -30,7 +31,8 @@ MIN_RESTS = 3  # a spread over two rests says little, and pose to pose needs a m
 @options.file_path(
     "--correction",
     "correction_paths",
-    "Correction TOML (calibrate --correction writes it); repeat to score several side by side.",
+    "A calibration: ours (calibrate --correction's TOML), imucal's result (.json) or imu_tk's "
+    "result text; repeat to score several side by side.",
     required=True,
     multiple=True,
 )
@@ -52,11 +54,12 @@ def score(run_path, correction_paths, profile, latitude, height, reading, as_jso
     from calib.hand.rests import find_rests
     from calib.nav.strapdown import sample_intervals
     from calib.noise.profiles import load_profile
+    from calib.peers.published import read_correction
     from calib.peers.scores import RestSpans, score as score_of
     from calib.runlog import read_run
 
     prof = load_profile(profile)
-    corrections = [Correction.load(path) for path in correction_paths]
+    corrections = [read_correction(path) for path in correction_paths]
     run = read_run(run_path, latitude_deg=latitude, height_m=height, **reading.reader)
     dt = sample_intervals(run.time_s)
     rests = find_rests(run.dtheta_rad, run.dv_mps, dt, prof.arw, prof.vrw, run_path)
@@ -80,9 +83,10 @@ def score(run_path, correction_paths, profile, latitude, height, reading, as_jso
     for path, correction in zip(correction_paths, corrections, strict=True):
         rows.append((path, score_of(correction, *raw_samples(run, correction, path), spans)))
     moves = rows[0][1].poses.used
+    left_out = " (a move with a clipped sample left out)" if not moves.all() else ""
     info(
-        f"scoring on {run_path}: {len(rests.start)} rests, {int(moves.sum())} of {len(moves)} moves "
-        f"(a move with a clipped sample left out); rests found with the {prof.name} profile's noise"
+        f"scoring on {run_path}: {len(rests.start)} rests, {int(moves.sum())} of {len(moves)} moves"
+        f"{left_out}; rests found with the {prof.name} profile's noise"
     )
     doc = {
         "log": run_path,
@@ -101,7 +105,7 @@ def score(run_path, correction_paths, profile, latitude, height, reading, as_jso
     )
     for entry in doc["scores"]:
         click.echo(
-            f"{entry['correction'][-40:]:<40}{entry['mean_mps2']:16.5f}{1e3 * entry['std_mps2']:12.2f}"
+            f"{_short(entry['correction']):<40}{entry['mean_mps2']:16.5f}{1e3 * entry['std_mps2']:12.2f}"
             f"{1e3 * entry['range_mps2']:16.2f}{entry['pose_rms_deg']:14.3f}{entry['pose_max_deg']:9.3f}"
         )
     click.echo(
@@ -109,6 +113,12 @@ def score(run_path, correction_paths, profile, latitude, height, reading, as_jso
         f"from rest to rest against the next rest's (the Earth's turn, up to "
         f"{doc['earth_turn_left_out_deg']:.4f} deg a move, left out)"
     )
+
+
+def _short(path: str, width: int = 38) -> str:
+    """A correction's file name (not its folders), its end kept when too long for the column."""
+    name = Path(path).name
+    return name if len(name) <= width else "..." + name[-(width - 3) :]
 
 
 def _figures(name: str, s) -> dict:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -109,3 +110,52 @@ def test_a_correction_that_is_not_there_is_refused(unit):
     res = cli("score", unit / "b.csv", "--correction", unit / "nope.toml")
     assert res.returncode != 0 and "Traceback" not in res.stderr
     assert "nope.toml" in res.stderr
+
+
+REALDATA = Path(__file__).resolve().parents[2] / "data" / "realdata"  # copied with their licences
+FERRARIS_COLUMNS = (
+    "n_samples=counter,gyr_x=gyro_x_dps,gyr_y=gyro_y_dps,gyr_z=gyro_z_dps,"
+    "acc_x=accel_x_mps2,acc_y=accel_y_mps2,acc_z=accel_z_mps2"
+)
+
+
+def _scores(*args) -> list[dict]:
+    res = cli("score", *args, "--json")
+    assert res.returncode == 0, res.stderr
+    return json.loads(res.stdout)["scores"]
+
+
+def test_imucal_s_result_is_scored_on_its_own_recording_in_its_raw_units():
+    # imucal's correction takes the log's deg/s; it was fitted to g = 9.81 (its authors' value), so
+    # its |f| over the poses centres there, to its accelerometer's own residuals (a few mm/s^2).
+    d = REALDATA / "imucal-ferraris"
+    as_read, imucal = _scores(
+        d / "example_ferraris_session.csv", "--sample-rate-hz", "102.4", "--columns", FERRARIS_COLUMNS,
+        "--latitude", "49.6", "--height", "300",
+        "--correction", d / "example_ferraris_session-imucal-result.json",
+    )  # fmt: skip
+    assert imucal["mean_mps2"] == pytest.approx(9.81, abs=0.005)
+    # As read the unit's accelerometer is off by percents (|f| spreads by decimetres per s^2);
+    # calibrated, by millimetres: a hundredth of it at most.
+    assert imucal["std_mps2"] < 0.01 * as_read["std_mps2"]
+    assert imucal["pose_rms_deg"] < 0.25 * as_read["pose_rms_deg"]
+
+
+def test_imu_tk_s_result_is_scored_on_its_own_recording_in_counts():
+    # imu_tk's correction takes raw counts: the log is read with its conversion and told back in
+    # counts. It was fitted to the authors' local gravity, 9.81744 m/s^2.
+    d = REALDATA / "imu_tk-xsens"
+    as_read, imu_tk = _scores(
+        d / "xsens_acc.mat.gz", "--gyro-file", d / "xsens_gyro.mat.gz", "--conversion",
+        d / "xsens-nominal-values.txt", "--latitude", "45.4", "--height", "0",
+        "--correction", d / "imu_tk-result.txt",
+    )  # fmt: skip
+    assert imu_tk["mean_mps2"] == pytest.approx(9.81744, abs=0.003)
+    assert imu_tk["std_mps2"] < 0.1 * as_read["std_mps2"]
+
+
+def test_a_file_that_is_no_calibration_is_refused_saying_which_are(unit):
+    (unit / "notes.txt").write_text("calibrated on Tuesday\n")
+    res = cli("score", unit / "b.csv", "--correction", unit / "notes.txt")
+    assert res.returncode == 2 and "Traceback" not in res.stderr
+    assert "notes.txt" in res.stderr and "## acc" in res.stderr
