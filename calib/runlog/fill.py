@@ -3,9 +3,16 @@
 A sample lost while the IMU is still holds the Earth rate and gravity seen through the
 IMU's errors, plus white noise: the mean of its neighbours stands for it up to one
 sample's noise. One lost while the IMU turns cannot be known and is refused.
+
+At rest is judged two ways, either enough: by absolute rates (a calibration-grade unit,
+whose bias is far below a flip's rate), or relative to the recording's own quietest
+stretches (a MEMS unit, whose bias alone can be degrees per second): no row near the
+hole strays from the others by more than a few times the noise the log shows when still.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -24,6 +31,18 @@ TURN_RATE = 1e-2
 # Around a polling loop's stall (a hand run's MEMS unit: per-sample noise to 0.03 rad/s, bias to
 # 0.005 rad/s) no row may turn faster than this (5.7 deg/s).
 STALL_REST_RATE = 0.1
+# The relative rule. Rows each side of a hole judged and averaged: a quarter second, short
+# against a hand's pose (1-6 s) so that a turn's settling a second away is not in it.
+QUIET_WINDOW_S = 0.25
+QUIET_MIN_ROWS = 10
+# The noise the log shows when still: per axis, this percentile of the standard deviations
+# of its quarter-second blocks (a hand recording is still a good part of its time).
+QUIET_PERCENTILE = 10
+# No row near a hole strays from the rows' mean by more than this times that noise. The
+# tenth percentile of a 25-row standard deviation is about 0.8 sigma, so this is about 5 sigma:
+# beyond the largest of some fifty rows of white noise (4 sigma one time in a thousand), below
+# a hand's settling (tens of times the noise).
+QUIET_PEAK = 6.0
 
 
 def fill_dropped(
@@ -69,9 +88,24 @@ def fill_dropped(
     out_th = np.full((len(full), 3), np.nan)
     out_dv = np.full((len(full), 3), np.nan)
     out_th[pos], out_dv[pos] = dtheta, dv
-    for row in np.flatnonzero(np.diff(index) > 1):
+    holes = np.flatnonzero(np.diff(index) > 1)
+    quiet = QuietNoise.of(dtheta, dv, time_of[1]) if holes.size else None
+    for row in holes:
         lo, hi = max(0, row + 1 - FILL_NEIGHBOURS), min(len(index), row + 1 + FILL_NEIGHBOURS)
-        _check_fillable(index, time_of, row, dtheta[lo:hi])
+        _check_too_long(index, time_of, row)
+        if not _still_by_rate(dtheta[lo:hi], time_of[1]):
+            # A MEMS unit's bias alone fails the absolute rule: judged against its own noise, on
+            # the nearest rows only (a hand's pose is short), and filled from those.
+            lo, hi = quiet.near(row, len(index))
+            stray = quiet.stray(dtheta[lo:hi], dv[lo:hi])
+            if stray > QUIET_PEAK:
+                _refuse_turning(
+                    index,
+                    time_of,
+                    row,
+                    f"; within {QUIET_WINDOW_S:g} s of it the rows stray "
+                    f"{stray:.3g} times the noise the log shows when still",
+                )
         hole = slice(pos[row] + 1, pos[row + 1])
         out_th[hole] = dtheta[lo:hi].mean(axis=0)
         out_dv[hole] = dv[lo:hi].mean(axis=0)
@@ -83,13 +117,15 @@ def fill_dropped(
     return out_th, out_dv, out_g, full
 
 
-def _check_fillable(
-    index: np.ndarray, time_of: tuple[float, float], row: int | np.integer, neighbours: np.ndarray
-) -> None:
-    """Refuse a hole after ``row`` that is too long, or whose neighbours are not at rest."""
+def _lost_at(index: np.ndarray, time_of: tuple[float, float], row: int | np.integer) -> tuple[int, float]:
+    """How many samples are lost after ``row`` and the time of the first, s."""
     offset, period = time_of
-    lost = int(index[row + 1] - index[row] - 1)
-    t = offset + (index[row] + 1) * period
+    return int(index[row + 1] - index[row] - 1), offset + (index[row] + 1) * period
+
+
+def _check_too_long(index: np.ndarray, time_of: tuple[float, float], row: int | np.integer) -> None:
+    """Refuse a hole after ``row`` longer than the neighbours can stand for."""
+    lost, t = _lost_at(index, time_of, row)
     if lost > MAX_FILL:
         raise CalibError(
             f"{lost} samples lost at t = {t:.6g} s, more than the "
@@ -98,14 +134,69 @@ def _check_fillable(
             f"t = {t:.6g} s",
             "split the log at the hole and calibrate each part",
         )
+
+
+def _still_by_rate(neighbours: np.ndarray, period: float) -> bool:
+    """The absolute rule: the neighbours' mean rate and every one's below a flip's."""
     rate = np.linalg.norm(neighbours.mean(axis=0)) / period
     peak = np.max(np.linalg.norm(neighbours, axis=1)) / period
-    if rate > REST_RATE or peak > TURN_RATE:
-        raise CalibError(
-            f"{lost} sample(s) lost at t = {t:.6g} s, while the IMU turns",
-            f"t = {t:.6g} s",
-            "the increments of a flip cannot be recovered; repair the log or record the run again",
-        )
+    return bool(rate <= REST_RATE and peak <= TURN_RATE)
+
+
+def _refuse_turning(index: np.ndarray, time_of: tuple[float, float], row: int | np.integer, why: str) -> None:
+    lost, t = _lost_at(index, time_of, row)
+    raise CalibError(
+        f"{lost} sample(s) lost at t = {t:.6g} s, while the IMU turns{why}",
+        f"t = {t:.6g} s",
+        "the increments of a turn cannot be recovered; repair the log or record the run again",
+    )
+
+
+@dataclass(frozen=True)
+class QuietNoise:
+    """The noise a log shows when still, per axis of each triad, and the rows it judges by.
+
+    Attributes
+    ----------
+    gyro, accel : numpy.ndarray
+        ``(3,)`` the `QUIET_PERCENTILE` of the standard deviation of the increments over
+        blocks of ``rows`` rows (the log's own units, per row).
+    rows : int
+        Rows each side of a hole that are judged (`QUIET_WINDOW_S`).
+    """
+
+    gyro: np.ndarray
+    accel: np.ndarray
+    rows: int
+
+    @classmethod
+    def of(cls, dtheta: np.ndarray, dv: np.ndarray, period: float) -> QuietNoise:
+        rows = max(QUIET_MIN_ROWS, int(round(QUIET_WINDOW_S / period)))
+        blocks = max(1, len(dtheta) // rows)
+
+        def level(x: np.ndarray) -> np.ndarray:
+            spread = x[: blocks * rows].reshape(blocks, -1, 3).std(axis=1)
+            return np.percentile(spread, QUIET_PERCENTILE, axis=0)
+
+        return cls(level(dtheta), level(dv), rows)
+
+    def near(self, row: int | np.integer, n: int) -> tuple[int, int]:
+        """The rows judged for a hole after ``row`` (of ``n``): ``rows`` each side."""
+        return max(0, int(row) + 1 - self.rows), min(n, int(row) + 1 + self.rows)
+
+    def stray(self, dtheta: np.ndarray, dv: np.ndarray) -> float:
+        """The largest deviation of any row from the rows' mean, in units of the quiet noise.
+
+        A channel that is quiet to its last digit (no spread at all when still) counts
+        any change as a stray: nothing says how large its noise is.
+        """
+        worst = 0.0
+        for x, noise in ((dtheta, self.gyro), (dv, self.accel)):
+            dev = np.max(np.abs(x - x.mean(axis=0)), axis=0)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio = np.where(dev > 0.0, dev / noise, 0.0)
+            worst = max(worst, float(np.max(ratio)))
+        return worst
 
 
 def check_stalls_at_rest(dtheta: np.ndarray, time_s: np.ndarray, stalls_s: list) -> None:

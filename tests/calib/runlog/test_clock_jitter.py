@@ -159,3 +159,67 @@ def test_the_clock_says_which_rule_it_used():
     clock = sample_clock(jittery, RATE_HZ)
     assert clock.rule == "count" and "rows counted as samples" in clock.summary()
     assert clock.as_dict()["rule"] == "count"
+
+
+def _mems_biased_run(bias_deg_s: float):
+    """`_hand_run` with gyro biases of a consumer MEMS unit (an MPU-6050 reads 1-3 deg/s still)."""
+    run = _hand_run()
+    bias = np.radians(bias_deg_s) * np.array([1.0, -0.6, 0.4]) * PERIOD
+    return run.dtheta_rad / PERIOD + bias / PERIOD, run.dv_mps / PERIOD
+
+
+def _rows_still_around(rates: np.ndarray, seconds: float) -> np.ndarray:
+    """Rows whose neighbours within ``seconds`` all turn by less than 5 deg/s (bias removed)."""
+    bias = np.median(rates, axis=0)
+    moving = np.linalg.norm(rates - bias, axis=1) > np.radians(5.0)
+    k = int(round(seconds / PERIOD))
+    near = np.convolve(moving.astype(float), np.ones(2 * k + 1), mode="same") > 0
+    return np.flatnonzero(~near)
+
+
+def test_a_mems_unit_s_sample_lost_at_rest_is_filled_however_large_its_bias(tmp_path):
+    # A bias of 2 deg/s (35 mrad/s) is 35 times the absolute rule's rest rate: still is then
+    # judged against the noise the log shows when still. The lost sample lies 0.5 s after a
+    # turn, inside a hand's pose: the rest is a good part of the log's time, the fill is the
+    # mean of the quarter second around the hole.
+    rates, force = _mems_biased_run(2.0)
+    still = _rows_still_around(rates, 0.5)
+    after_turn = still[np.flatnonzero(np.diff(still) > 1)[2] + 1]  # the first still row 0.5 s after a turn
+    keep = np.delete(np.arange(len(rates)), after_turn)
+    stamps = PERIOD * np.arange(1, len(rates) + 1) + host_delays(len(rates), np.random.default_rng(6))
+    path = tmp_path / "lost_at_rest.csv"
+    _write(path, stamps[keep], "%.6f", rates[keep], force[keep])
+    columns = "t=time_s,gx=gyro_x_radps,gy=gyro_y_radps,gz=gyro_z_radps"
+    columns += ",ax=accel_x_mps2,ay=accel_y_mps2,az=accel_z_mps2"
+    with pytest.raises(CalibError, match="1 sample.s. dropped"):  # the shared spec: a gap is asked for
+        read_run(path, columns=columns, latitude_deg=45.0, height_m=0.0)
+    run = read_run(path, columns=columns, latitude_deg=45.0, height_m=0.0, allow_gaps=True)
+    assert run.n_samples == len(rates)
+    assert [c for _, c in run.clock.dropped] == [1]
+    # The filled increment is the mean of its still neighbours: the lost one to its own noise
+    # (the mems profile's per-sample noise, a few mrad/s and cm/s^2 at 100 Hz; 10 times that bounds
+    # it where the neighbours' mean missed the true one by their settling).
+    filled_rate = run.dtheta_rad[after_turn] / PERIOD
+    filled_force = run.dv_mps[after_turn] / PERIOD
+    mems = load_profile("mems")
+    assert np.max(np.abs(filled_rate - rates[after_turn])) < 10 * mems.arw / math.sqrt(PERIOD)
+    assert np.max(np.abs(filled_force - force[after_turn])) < 10 * mems.vrw / math.sqrt(PERIOD)
+
+
+def test_a_mems_unit_s_sample_lost_as_its_turn_settles_is_refused(tmp_path):
+    # A tenth of a second after a turn the hand still moves: the relative rule sees it.
+    rates, force = _mems_biased_run(2.0)
+    bias = np.median(rates, axis=0)
+    turning = np.linalg.norm(rates - bias, axis=1) > np.radians(20.0)
+    ends = np.flatnonzero(turning[:-1] & ~turning[1:])
+    lost = int(ends[2] + 2)  # two rows after a turn fell below 20 deg/s
+    keep = np.delete(np.arange(len(rates)), lost)
+    stamps = PERIOD * np.arange(1, len(rates) + 1) + host_delays(len(rates), np.random.default_rng(6))
+    path = tmp_path / "lost_settling.csv"
+    _write(path, stamps[keep], "%.6f", rates[keep], force[keep])
+    columns = "t=time_s,gx=gyro_x_radps,gy=gyro_y_radps,gz=gyro_z_radps"
+    columns += ",ax=accel_x_mps2,ay=accel_y_mps2,az=accel_z_mps2"
+    with pytest.raises(
+        CalibError, match="lost at t = .* while the IMU turns; within 0.25 s of it the rows stray"
+    ):
+        read_run(path, columns=columns, latitude_deg=45.0, height_m=0.0, allow_gaps=True)
