@@ -192,7 +192,8 @@ def diagnose(run, gravity_mps2: float) -> list[Mistake]:
         ]
     ratio = f / gravity_mps2
     if abs(ratio - 1.0) > 0.15:
-        return [_force_mistake(f, gravity_mps2)]
+        rests_f = np.array([dv[a:b].mean(0) / dt[a:b].mean() for a, b in zip(start, end, strict=True)])
+        return [_zero_mistake(rests_f, gravity_mps2, run.conversion) or _force_mistake(f, gravity_mps2)]
     moves = _moves(dtheta, dv, start, end)
     if len(moves) < 3:
         return []
@@ -262,6 +263,52 @@ _FORCE_MISTAKES = (
     ("mg (milli-g)", "g", 1000.0, "mg"),
 )
 GRAVITY_REMOVED = 0.1  # |f| at rest below this fraction of g: the logger took gravity out
+
+
+# |f| at rest spreading over the rests by more than this (max - min over the median) is no scale
+# error (a MEMS accelerometer's few per cent move it by less than a tenth)...
+ZERO_SPREAD = 0.2
+# ...and a sphere through the rests' specific force this close (RMS over its radius) says that the
+# accelerometer reads about its own constant, not about zero: a zero offset.
+ZERO_SPHERE_FIT = 0.03
+
+
+def _zero_mistake(f_rests: np.ndarray, gravity_mps2: float, conversion) -> Mistake | None:
+    """The accelerometer's zero, when its rests lie on a sphere of radius about g off the origin.
+
+    A wrong zero (counts read with another unit's zero, an offset left in) makes |f| depend on
+    the pose; a unit or scale mistake scales every pose alike. Gravity at every rest is a point
+    on a sphere of radius g about the reading of zero force: its centre is the offset.
+    """
+    norms = np.linalg.norm(f_rests, axis=1)
+    if len(f_rests) < 6 or np.ptp(norms) < ZERO_SPREAD * np.median(norms):
+        return None
+    # |f|^2 = 2 f.c + (R^2 - |c|^2): linear in (c, d) (an algebraic fit; its residuals judged below).
+    A = np.column_stack([2.0 * f_rests, np.ones(len(f_rests))])
+    (cx, cy, cz, d), *_ = np.linalg.lstsq(A, norms**2, rcond=None)
+    centre = np.array([cx, cy, cz])
+    radius = math.sqrt(max(d + centre @ centre, 0.0))
+    misfit = np.linalg.norm(f_rests - centre, axis=1) - radius
+    if radius == 0.0 or np.sqrt(np.mean(misfit**2)) > ZERO_SPHERE_FIT * radius:
+        return None
+    g = gravity_mps2
+    lo, hi = norms.min() / g, norms.max() / g
+    at = ", ".join(f"{c / g:+.3g}" for c in centre)
+    said = (
+        f"|f| at the {len(f_rests)} still stretches runs from {lo:.3g} g to {hi:.3g} g: no unit's mistake, "
+        f"a zero offset. A sphere through them has radius {radius / g:.4g} g and its centre, the "
+        f"accelerometer's reading of no force, at ({at}) g"
+    )
+    if conversion is not None:
+        zero = conversion.to_counts(centre[None, :], "accel")[0]
+        fix = f"set the conversion's accelerometer zero_counts to [{', '.join(f'{z:.0f}' for z in zero)}]"
+    else:
+        fix = f"subtract ({', '.join(f'{c:.4g}' for c in centre)}) m/s^2 from the accelerometer columns"
+    if abs(radius / g - 1.0) > 0.15:
+        fix += f", and check its unit (the radius is {radius / g:.3g} g, not 1)"
+    return Mistake(
+        said, np.eye(3), np.eye(3), cannot_fix=fix + "; the fit then estimates what is left as the bias"
+    )
 
 
 def _force_mistake(f: float, gravity_mps2: float) -> Mistake:

@@ -25,6 +25,7 @@ from calib.hand.simulate import simulate_by_hand
 from calib.model.error_model import ErrorModel
 from calib.noise.profiles import load_profile
 from calib.runlog import write_run
+from calib.runlog.conversion import Conversion
 from calib.sequence.kinematics import SimConfig
 from calib.sim.log_mistakes import (
     accel_in_g,
@@ -113,6 +114,40 @@ def test_an_accelerometer_no_relabelling_puts_right_is_refused_even_under_fix_un
         with pytest.raises(CalibError) as err:
             calibrate(bad, "mems", by_hand=True, options=CalibrateOptions(fix_units=fix))
         assert said in err.value.what and advice in err.value.fix and "--fix-units" not in err.value.fix
+
+
+@pytest.mark.parametrize("in_counts", [False, True])
+def test_an_accelerometer_zero_offset_is_named_with_the_zero_to_set(hand_run, in_counts):
+    # Gravity at every rest lies on a sphere of radius g about the reading of no force: an offset
+    # of (0, 0.4, 0.5) g (a real MPU-9250's log read with zero 0) puts |f| anywhere from 0.4 g to
+    # 1.6 g over the poses, which no unit or scale mistake does. The sphere's centre is the
+    # offset plus the accelerometer's own bias (0.05, -0.03, 0.08 m/s^2: under 0.01 g).
+    run, g = hand_run
+    offset = np.array([0.0, 0.4, 0.5]) * g
+    dt = np.diff(run.time_s, prepend=run.time_s[0] - 1.0 / RATE_HZ)
+    bad = dataclasses.replace(run, dv_mps=run.dv_mps + offset * dt[:, None], clock=None)
+    counts_per_unit = np.full(3, 2048.0 / g)  # a +-16 g converter's 2048 counts per g
+    if in_counts:
+        zero = np.zeros(3)
+        bad = dataclasses.replace(
+            bad,
+            conversion=Conversion(
+                {"gyro": zero, "accel": zero}, {"gyro": np.ones(3), "accel": counts_per_unit}
+            ),
+        )
+    for fix in (False, True):
+        with pytest.raises(CalibError) as err:
+            calibrate(bad, "mems", by_hand=True, options=CalibrateOptions(fix_units=fix))
+        assert "a zero offset" in err.value.what and "--fix-units" not in err.value.fix
+    centre = [float(x) for x in err.value.what.split("at (")[-1].split(")")[0].split(",")]
+    np.testing.assert_allclose(centre, offset / g, atol=0.01)
+    if in_counts:
+        said = err.value.fix.split("zero_counts to [")[1].split("]")[0]
+        np.testing.assert_allclose(
+            [float(x) for x in said.split(",")], offset * counts_per_unit, atol=0.01 * 2048
+        )
+    else:
+        assert "m/s^2 from the accelerometer columns" in err.value.fix
 
 
 def test_rests_cut_out_and_joined_without_their_turns_are_refused_naming_it(hand_run, tmp_path):
