@@ -206,7 +206,15 @@ def _time_position(seen: dict[str, int], names: list[str], where: str) -> int:
     """The one time column's position; refuses none or two."""
     times = [c for c in (*TIME_NAMES, COUNTER) if c in seen]
     if not times:
-        _missing([TIME_COLUMN], names, where)
+        lower = [c for c in names if c.lower() in TIME_NAMES]
+        if lower or not any(known_name(c) for c in names):  # a header of its own: name it all
+            _missing([lower[0].lower() if lower else TIME_COLUMN], names, where)
+        raise CalibError(
+            "the header row names no time column (" + ", ".join((*TIME_NAMES, COUNTER)) + ")",
+            where,
+            "state the IMU's rate (the CLI's --sample-rate-hz HZ) to take the rows as evenly spaced, or "
+            "map the file's time column (the CLI's --columns t=time_s,...; docs/logs-columns.md)",
+        )
     if len(times) > 1:
         raise CalibError(
             f"the time is given twice, as '{times[0]}' and as '{times[1]}'", where, "keep one time column"
@@ -276,7 +284,7 @@ def accepted_names() -> str:
     )
 
 
-def _known_name(name: str) -> bool:
+def known_name(name: str) -> bool:
     """Whether ``name`` is a column this grammar reads (time, a sensor axis with its unit, an encoder)."""
     if name in TIME_NAMES or name in GIMBAL_COLUMNS or name == COUNTER:
         return True
@@ -342,7 +350,7 @@ def column_map_pairs(columns: str | dict[str, str] | None, where: str) -> list[t
     else:
         pairs = [(str(k).strip(), str(v).strip()) for k, v in columns.items()]
     for source, target in pairs:
-        if not _known_name(target):
+        if not known_name(target):
             raise CalibError(
                 f"column map: '{source}={target}' maps to an unknown name '{target}'",
                 where,

@@ -12,14 +12,16 @@ are taken as evenly spaced at the stated rate: a counter ``0, 1, 2, ...`` is
 added, so that sample ``i`` ends its interval at ``(i + 1) / sample_rate_hz``
 (:mod:`calib.runlog.counter`). The rate must then be stated
 (``sample_rate_hz``, the CLI's ``--sample-rate-hz``, or a
-``# sample_rate_hz:`` line): a file without a time says nothing of it.
+``# sample_rate_hz:`` line): a file without a time says nothing of it. A file with
+a header row that names no time (an Arduino sketch's ``ax,ay,az,gx,gy,gz``) is read
+the same way when the rate is stated (`with_row_counter`).
 """
 
 from __future__ import annotations
 
 from calib.errors import CalibError
 
-from .columns import COUNTER, TIME_NAMES
+from .columns import COUNTER, TIME_NAMES, known_name
 from .counter import RATE_FIX
 
 EXAMPLE_MAP = "1=accel_x_mps2,2=accel_y_mps2,3=accel_z_mps2,4=gyro_x_radps,5=gyro_y_radps,6=gyro_z_radps"
@@ -150,3 +152,47 @@ def with_header(
         body.append(",".join(fields))
     header = ",".join(positions + ([] if timed else [COUNTER]))
     return lines[:header_index] + [header] + body, 1
+
+
+def with_row_counter(
+    lines: list[str], header_index: int, names: list[str], rate_stated: bool, name: str = "<memory>"
+) -> list[str]:
+    """A file whose header row names no time, with a counter field added when the rate is stated.
+
+    ``names`` are the header's names with the column map applied. Without a stated rate the
+    lines are returned as they are (the header's check then says what is missing). A column
+    left out of the map that increases row by row is a time the map forgot: refused, since
+    evenly spaced rows would hide the gaps its stamps show.
+    """
+    if not rate_stated or any(n in TIME_NAMES or n.lower() in TIME_NAMES or n == COUNTER for n in names):
+        return lines
+    _refuse_an_unmapped_time(lines, header_index, names, name)
+    body, count = [], 0
+    for line in lines[header_index + 1 :]:
+        if line.strip():
+            line = f"{line.rstrip()},{count}"
+            count += 1
+        body.append(line)
+    return lines[:header_index] + [lines[header_index].rstrip() + "," + COUNTER] + body
+
+
+ROWS_JUDGED = 1000  # rows read to tell a time column the map left out (it increases on every one)
+
+
+def _refuse_an_unmapped_time(lines: list[str], header_index: int, names: list[str], name: str) -> None:
+    unmapped = [i for i, n in enumerate(names) if not known_name(n)]
+    rows = [
+        line.split(",") for line in lines[header_index + 1 : header_index + 1 + ROWS_JUDGED] if line.strip()
+    ]
+    for i in unmapped:
+        try:
+            values = [float(r[i]) for r in rows]
+        except (ValueError, IndexError):
+            continue
+        if len(values) >= 3 and all(b > a for a, b in zip(values, values[1:], strict=False)):
+            raise CalibError(
+                f"column '{names[i]}' increases on every row like a time, and the column map names no time",
+                f"{name}, line {header_index + 1}",
+                f"map it as the time ({names[i]}=time_s, time_ms, time_us or time_ns) or as a sample counter "
+                f"({names[i]}=counter)",
+            )

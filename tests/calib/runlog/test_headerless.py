@@ -64,11 +64,53 @@ def test_gzip_and_a_header_still_read_as_before(tmp_path):
     path.write_bytes(gzip.compress(_text(" ").encode()))
     run = read_run(path, columns=MAP, sample_rate_hz=50.0, **SITE)
     assert len(run.time_s) == 4
-    # A first row that is not all numbers is a header, as before.
+    # A first row that is not all numbers is a header, as before: its names are mapped.
     named = tmp_path / "named.log"
     named.write_text("ax,ay,az,gx,gy,gz\n" + _text(","))
-    with pytest.raises(CalibError, match="lacks column 'time_s'"):  # a header: no counter is added
+    with pytest.raises(CalibError, match="header row lacks columns"):
         read_run(named, columns="ax=accel_x_mps2", sample_rate_hz=50.0, **SITE)
+
+
+NAMED_MAP = "ax=accel_x_mps2,ay=accel_y_mps2,az=accel_z_mps2,gx=gyro_x_radps,gy=gyro_y_radps,gz=gyro_z_radps"
+
+
+def test_a_header_that_names_no_time_is_read_evenly_spaced_at_the_stated_rate(tmp_path):
+    # An Arduino sketch's "ax,ay,az,gx,gy,gz": the same rows as a file without a header.
+    named = tmp_path / "named.csv"
+    named.write_text("ax,ay,az,gx,gy,gz\n" + _text(","))
+    run = read_run(named, columns=NAMED_MAP, sample_rate_hz=50.0, **SITE)
+    bare = tmp_path / "bare.csv"
+    bare.write_text(_text(","))
+    same = read_run(bare, columns=MAP, sample_rate_hz=50.0, **SITE)
+    np.testing.assert_array_equal(run.time_s, same.time_s)
+    np.testing.assert_array_equal(run.dtheta_rad, same.dtheta_rad)
+    np.testing.assert_array_equal(run.dv_mps, same.dv_mps)
+    # Without the rate nothing says when the rows were taken: the refusal asks for it.
+    with pytest.raises(CalibError, match="names no time column") as err:
+        read_run(named, columns=NAMED_MAP, **SITE)
+    assert "--sample-rate-hz" in err.value.fix
+
+
+def test_a_time_column_the_map_left_out_is_not_replaced_by_the_rate(tmp_path):
+    # Its stamps would show a gap that evenly spaced rows hide: the map must name it.
+    rows = np.column_stack([(np.arange(4) + 1) * 0.02, TABLE])
+    path = tmp_path / "timed.csv"
+    path.write_text(
+        "stamp,ax,ay,az,gx,gy,gz\n" + "".join(",".join(repr(float(x)) for x in r) + "\n" for r in rows)
+    )
+    with pytest.raises(CalibError, match="column 'stamp' increases on every row like a time") as err:
+        read_run(path, columns=NAMED_MAP, sample_rate_hz=50.0, **SITE)
+    assert "stamp=time_s" in err.value.fix and "stamp=counter" in err.value.fix
+
+
+def test_a_logger_s_preamble_above_its_header_is_told_by_line(tmp_path):
+    path = tmp_path / "logger.csv"
+    path.write_text("Fs,100\nLogging Type,0\nax,ay,az,gx,gy,gz\n" + _text(","))
+    with pytest.raises(CalibError, match="they are on line 3") as err:
+        read_run(path, columns=NAMED_MAP, sample_rate_hz=50.0, **SITE)
+    assert "put '#' before the 2 line(s) above line 3" in err.value.fix
+    path.write_text("# Fs,100\n# Logging Type,0\nax,ay,az,gx,gy,gz\n" + _text(","))
+    assert len(read_run(path, columns=NAMED_MAP, sample_rate_hz=50.0, **SITE).time_s) == 4
 
 
 @pytest.mark.parametrize(
