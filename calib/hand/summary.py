@@ -60,8 +60,8 @@ class HandSummary:
         """What ``calibrate --by-hand`` prints under the table."""
         lengths = self.rest_s[:, 1] - self.rest_s[:, 0]
         out = [
-            f"rests used: {len(lengths)} ({lengths.min():.1f}-{lengths.max():.1f} s, {lengths.sum():.0f} s "
-            f"in all); moves used: {int(self.move_used.sum())} of {len(self.move_used)}"
+            f"rests used: {len(lengths)} (each {lengths.min():.1f}-{lengths.max():.1f} s long, "
+            f"{lengths.sum():.0f} s in all); moves used: {int(self.move_used.sum())} of {len(self.move_used)}"
         ]
         for k in np.flatnonzero(~self.move_used):
             out.append(f"move {k + 1} ({self.move_s[k, 0]:.2f}-{self.move_s[k, 1]:.2f} s) left out: clipped")

@@ -68,7 +68,7 @@ def _block(direction: np.ndarray, rest_columns: list[np.ndarray]) -> tuple[int, 
     about = AXIS_WORDS[int(np.argmax(axis))] if one_axis else "an axis of their own"
     return int(members[0]) + 1, (
         f"rests {_ranges(members + 1)} turn together about {about}: no move that fits ties them to the "
-        "others (the parameters do not depend on it)"
+        "others, so their common heading is free (the 21 parameters do not depend on it)"
     )
 
 

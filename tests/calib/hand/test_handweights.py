@@ -179,8 +179,8 @@ def test_two_recordings_spliced_leave_the_second_a_loose_block_named_in_rests_no
     seam = [o["index"] for o in result.by_hand.choices["weights"]["outliers"] if o["kind"] == "move"]
     assert seam == [10]
     assert result.by_hand.choices["loose_rests"] == [
-        "rests 11-20 turn together about the vertical: no move that fits ties them to the others "
-        "(the parameters do not depend on it)"
+        "rests 11-20 turn together about the vertical: no move that fits ties them to the others, "
+        "so their common heading is free (the 21 parameters do not depend on it)"
     ]
     assert not result.null_directions and not result.not_estimable
     assert np.all(np.abs(result.values - VALUES) < 4 * result.sigma)
