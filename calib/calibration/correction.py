@@ -118,8 +118,13 @@ class Correction:
             parts[name] = SensorCorrection(
                 _matrix(table, "M", where, name),
                 np.array(f.numbers("b", length=3, fix="give x, y, z")),
-                _matrix(table, "sigma_M", where, name, allow_nan=True),
-                np.array(f.numbers("sigma_b", length=3, finite=False, fix="give x, y, z")),
+                # Optional: a correction written by hand or by another tool may know no sigmas.
+                _matrix(table, "sigma_M", where, name, allow_nan=True)
+                if "sigma_M" in table
+                else np.full((3, 3), np.nan),
+                np.array(f.numbers("sigma_b", length=3, finite=False, fix="give x, y, z"))
+                if "sigma_b" in table
+                else np.full(3, np.nan),
                 raw_unit,
             )
         G = _matrix(doc["gyro"], "G", where, "gyro") if "G" in doc["gyro"] else None

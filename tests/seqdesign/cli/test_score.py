@@ -159,3 +159,22 @@ def test_a_file_that_is_no_calibration_is_refused_saying_which_are(unit):
     res = cli("score", unit / "b.csv", "--correction", unit / "notes.txt")
     assert res.returncode == 2 and "Traceback" not in res.stderr
     assert "notes.txt" in res.stderr and "## acc" in res.stderr
+
+
+def test_a_correction_written_without_sigmas_scores_as_the_one_with_them(unit):
+    # A correction copied by hand from another tool's result knows no sigmas; the score uses
+    # M, b (and G) alone, so it is the same.
+    text = (unit / "a.correction.toml").read_text()
+    lines, skipping = [], False
+    for line in text.splitlines():  # each sigma an array over lines, "sigma_M = [" to "]"
+        skipping = skipping or line.startswith(("sigma_M", "sigma_b", "sigma_G"))
+        if not skipping:
+            lines.append(line)
+        elif line.rstrip().endswith("]") and not line.rstrip().endswith("],"):
+            skipping = False
+    assert "sigma" in text and "sigma" not in "\n".join(lines)
+    (unit / "bare.correction.toml").write_text("\n".join(lines) + "\n")
+    _, full = _scores(unit / "b.csv", "--correction", unit / "a.correction.toml")
+    _, bare = _scores(unit / "b.csv", "--correction", unit / "bare.correction.toml")
+    for key in ("mean_mps2", "std_mps2", "pose_rms_deg"):
+        assert bare[key] == full[key]
