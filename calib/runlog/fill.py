@@ -89,13 +89,14 @@ def fill_dropped(
     out_dv = np.full((len(full), 3), np.nan)
     out_th[pos], out_dv[pos] = dtheta, dv
     holes = np.flatnonzero(np.diff(index) > 1)
-    quiet = QuietNoise.of(dtheta, dv, time_of[1]) if holes.size else None
+    quiet: QuietNoise | None = None  # measured once, where the rate rule fails
     for row in holes:
         lo, hi = max(0, row + 1 - FILL_NEIGHBOURS), min(len(index), row + 1 + FILL_NEIGHBOURS)
         _check_too_long(index, time_of, row)
         if not _still_by_rate(dtheta[lo:hi], time_of[1]):
             # A MEMS unit's bias alone fails the absolute rule: judged against its own noise, on
             # the nearest rows only (a hand's pose is short), and filled from those.
+            quiet = quiet or QuietNoise.of(dtheta, dv, time_of[1])
             lo, hi = quiet.near(row, len(index))
             stray = quiet.stray(dtheta[lo:hi], dv[lo:hi])
             if stray > QUIET_PEAK:
