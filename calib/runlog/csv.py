@@ -30,12 +30,13 @@ from .columns import (
 from .conversion import Conversion, sensor_si
 from .counter import counter_suspect, counter_time
 from .format import ARRAY_COLUMNS, FORMAT, GIMBAL_COLUMNS, REQUIRED_COLUMNS, REQUIRED_META
-from .headerless import with_header, with_row_counter
+from .headerless import mapped_header, with_header, with_row_counter
 from .paths import read_bytes
 from .polled import own_intervals
 from .rollover import said_rollover
 from .run import Run, meta_float
-from .text import decode_lines, is_comment, without_cut_last_row
+from .text import decode_lines, header_names, is_comment, without_cut_last_row
+from .wallclock import with_seconds
 
 
 class _CsvLocator:
@@ -84,9 +85,10 @@ def read_csv(
     meta, key_lines, header_index = parse_preamble(lines, name)
     lines, added = with_header(lines, header_index, mapping, meta, options or {}, name)  # no header row
     lines = _to_commas(lines, header_index, name)
-    rate_stated = (options or {}).get("sample_rate_hz") is not None or "sample_rate_hz" in meta
-    names = _mapped_header(lines, header_index, mapping, name)
-    lines = with_row_counter(lines, header_index, names, rate_stated, name)  # a header that names no time
+    stated = (options or {}).get("sample_rate_hz") is not None or "sample_rate_hz" in meta
+    lines = with_row_counter(
+        lines, header_index, mapped_header(lines, header_index, mapping, name), stated, name
+    )
     plan, has_gimbal, positions = _parse_header(lines[header_index], header_index + 1, name, mapping)
     rows, row_lines = _data_rows(lines, header_index + 1)
     row_lines = row_lines - added  # the file's own line numbers
@@ -98,6 +100,8 @@ def read_csv(
         )
     n_fields = len(lines[header_index].split(","))
     _check_field_counts(rows, row_lines, n_fields, name)
+    at = lambda i: f"{name}, line {int(row_lines[i])} (sample {i})"  # noqa: E731
+    rows, plan = with_seconds(rows, plan.time, plan, at)  # a time column of HH:MM:SS.fff
     wanted = [plan.time, *plan.gyro.positions, *plan.accel.positions]
     if has_gimbal:
         wanted += [positions[c] for c in GIMBAL_COLUMNS]
@@ -206,37 +210,6 @@ def time_in_seconds(
     stamps = said_rollover(stamps, column, locate)
     whole, rest = np.divmod(stamps, ticks)
     return whole.astype(np.float64) + rest / ticks
-
-
-def header_names(line: str) -> list[str]:
-    """A header row's names: split at commas, each stripped of spaces and of one pair of double
-    quotes around it (``"Time (s)"``, as phyphox and spreadsheets write names with spaces).
-    """
-    names = [field.strip() for field in line.strip().split(",")]
-    return [n[1:-1].strip() if len(n) >= 2 and n[0] == n[-1] == '"' else n for n in names]
-
-
-def _mapped_header(lines: list[str], header_index: int, mapping: dict[str, str], name: str) -> list[str]:
-    """The header row's names with the map applied.
-
-    A map that names a later line's columns is told which line holds them (a logger's own
-    preamble, ``Fs,100``, above its header row).
-    """
-    where = f"{name}, line {header_index + 1}"
-    try:
-        return apply_column_map(header_names(lines[header_index]), mapping, where)
-    except CalibError as exc:
-        for k in range(header_index + 1, min(len(lines), header_index + 50)):
-            if mapping and all(
-                key in header_names(lines[k].replace(";", ",").replace("\t", ",")) for key in mapping
-            ):
-                raise CalibError(
-                    exc.what + f"; they are on line {k + 1}",
-                    where,
-                    f"put '#' before the {k - header_index} line(s) above line {k + 1} (the header row "
-                    "is the first line not starting with '#' or '//')",
-                ) from None
-        raise
 
 
 def _to_commas(lines: list[str], header_index: int, name: str) -> list[str]:

@@ -21,8 +21,9 @@ from __future__ import annotations
 
 from calib.errors import CalibError
 
-from .columns import COUNTER, TIME_NAMES, known_name
+from .columns import COUNTER, TIME_NAMES, apply_column_map, known_name
 from .counter import RATE_FIX
+from .text import header_names
 
 EXAMPLE_MAP = "1=accel_x_mps2,2=accel_y_mps2,3=accel_z_mps2,4=gyro_x_radps,5=gyro_y_radps,6=gyro_z_radps"
 
@@ -196,3 +197,26 @@ def _refuse_an_unmapped_time(lines: list[str], header_index: int, names: list[st
                 f"map it as the time ({names[i]}=time_s, time_ms, time_us or time_ns) or as a sample counter "
                 f"({names[i]}=counter)",
             )
+
+
+def mapped_header(lines: list[str], header_index: int, mapping: dict[str, str], name: str) -> list[str]:
+    """The header row's names with the map applied.
+
+    A map that names a later line's columns is told which line holds them (a logger's own
+    preamble, ``Fs,100``, above its header row).
+    """
+    where = f"{name}, line {header_index + 1}"
+    try:
+        return apply_column_map(header_names(lines[header_index]), mapping, where)
+    except CalibError as exc:
+        for k in range(header_index + 1, min(len(lines), header_index + 50)):
+            if mapping and all(
+                key in header_names(lines[k].replace(";", ",").replace("\t", ",")) for key in mapping
+            ):
+                raise CalibError(
+                    exc.what + f"; they are on line {k + 1}",
+                    where,
+                    f"put '#' before the {k - header_index} line(s) above line {k + 1} (the header row "
+                    "is the first line not starting with '#' or '//')",
+                ) from None
+        raise

@@ -69,3 +69,11 @@ def without_cut_last_row(lines: list[str], name: str) -> list[str]:
         stacklevel=3,
     )
     return lines[:-1]
+
+
+def header_names(line: str) -> list[str]:
+    """A header row's names: split at commas, each stripped of spaces and of one pair of double
+    quotes around it (``"Time (s)"``, as phyphox and spreadsheets write names with spaces).
+    """
+    names = [field.strip() for field in line.strip().split(",")]
+    return [n[1:-1].strip() if len(n) >= 2 and n[0] == n[-1] == '"' else n for n in names]

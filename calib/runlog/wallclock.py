@@ -1,0 +1,79 @@
+"""Time stamps written as wall-clock times: ``12:00:01.250`` or ``2023-1-1 12:00:01.250``.
+
+Some loggers (a PC tool saving what a serial IMU sends) stamp each row with the host's
+clock time instead of a number. Such a column is turned into seconds from the first
+stamp's midnight, before the numbers are parsed; the clock (:mod:`calib.runlog.clock`)
+then reads it as any host's stamps. A date, when written, carries the run over midnight;
+without one, a stamp more than 12 hours before the last is the next day.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import re
+
+from calib.errors import CalibError
+
+# [date separator] hours:minutes:seconds[.fraction]; the fraction's separator may be a
+# comma (a locale's decimal comma). The date is year-month-day with -, / or . between.
+CLOCK_TIME = re.compile(
+    r"^\s*(?:(?P<y>\d{4})[-/.](?P<mo>\d{1,2})[-/.](?P<d>\d{1,2})[ T_]+)?"
+    r"(?P<h>\d{1,2}):(?P<mi>\d{2}):(?P<s>\d{2}(?:[.,]\d+)?)\s*$"
+)
+DAY_S = 86_400.0
+
+
+def is_clock_time(text: str) -> bool:
+    """Whether a field is a wall-clock time (with or without a date)."""
+    return CLOCK_TIME.match(text) is not None
+
+
+def clock_seconds(fields: list[str], locate) -> list[float]:
+    """Seconds from the first stamp's midnight of each wall-clock field.
+
+    ``locate(i)`` names row ``i`` for a field that is no clock time.
+    """
+    out: list[float] = []
+    first_day = None
+    day_shift = 0.0
+    for i, text in enumerate(fields):
+        m = CLOCK_TIME.match(text)
+        if m is None:
+            raise CalibError(
+                f"field {text.strip()!r} is no clock time like the first rows' (HH:MM:SS.fff)",
+                locate(i),
+                "write every time stamp the same way",
+            )
+        seconds = int(m["h"]) * 3600.0 + int(m["mi"]) * 60.0 + float(m["s"].replace(",", "."))
+        if m["y"] is not None:
+            try:
+                day = datetime.date(int(m["y"]), int(m["mo"]), int(m["d"])).toordinal()
+            except ValueError:
+                raise CalibError(
+                    f"field {text.strip()!r} has no such date", locate(i), "write a real date"
+                ) from None
+            first_day = day if first_day is None else first_day
+            seconds += (day - first_day) * DAY_S
+        elif out and seconds + day_shift < out[-1] - DAY_S / 2:
+            day_shift += DAY_S  # past midnight, no date to say so
+        out.append(seconds + day_shift)
+    return out
+
+
+def with_seconds(rows: list[str], position: int, plan, locate):
+    """The rows with a wall-clock time column written in seconds, and the plan reading it so.
+
+    Rows whose first time field is a number are returned as they are. ``plan`` is the
+    header's :class:`calib.runlog.columns.ColumnPlan`; its time is then ``time_s``.
+    """
+    if not rows or plan.time_name == "counter":
+        return rows, plan
+    first = rows[0].split(",")
+    if position >= len(first) or not is_clock_time(first[position]):
+        return rows, plan
+    split = [row.split(",") for row in rows]
+    seconds = clock_seconds([f[position] for f in split], locate)
+    for fields, s in zip(split, seconds, strict=True):
+        fields[position] = repr(s)
+    return [",".join(f) for f in split], dataclasses.replace(plan, time_name="time_s")

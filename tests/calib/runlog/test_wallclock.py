@@ -1,0 +1,66 @@
+"""Time stamps written as wall-clock times (a PC tool's ``2023-1-1 12:00:01.250``): read as seconds."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from calib.errors import CalibError
+from calib.runlog import read_run
+from calib.runlog.wallclock import clock_seconds
+
+SITE = {"latitude_deg": 45.0, "height_m": 0.0}
+MAP = (
+    "t=time_s,ax=accel_x_mps2,ay=accel_y_mps2,az=accel_z_mps2,gx=gyro_x_radps,gy=gyro_y_radps,gz=gyro_z_radps"
+)
+
+
+def _where(i: int) -> str:
+    return f"row {i}"
+
+
+def test_clock_times_are_seconds_from_the_first_stamps_midnight():
+    said = clock_seconds(["12:00:00.000", "12:00:00.010", "12:01:02,5"], _where)
+    assert said == [43200.0, 43200.01, 43262.5]  # h*3600 + m*60 + s; a decimal comma read as a point
+
+
+def test_midnight_is_crossed_by_the_date_or_by_a_stamp_12_hours_back():
+    dated = clock_seconds(["2023-12-31 23:59:59.990", "2024-01-01 00:00:00.000"], _where)
+    undated = clock_seconds(["23:59:59.990", "00:00:00.000"], _where)
+    for said in (dated, undated):
+        assert said[1] - said[0] == pytest.approx(0.01, abs=1e-9)
+
+
+def test_a_stamp_written_otherwise_is_refused_naming_its_row():
+    with pytest.raises(CalibError, match="no clock time") as err:
+        clock_seconds(["12:00:00.000", "12.5"], _where)
+    assert err.value.where == "row 1"
+    with pytest.raises(CalibError, match="no such date"):
+        clock_seconds(["2023-02-30 12:00:00"], _where)
+
+
+def test_a_log_stamped_by_the_clock_reads_as_the_same_log_stamped_in_seconds(tmp_path):
+    rng = np.random.default_rng(1)
+    n = 500
+    seconds = 23 * 3600 + 59 * 60 + 58.0 + 0.01 * np.arange(n)  # crosses midnight at row 200
+    values = rng.normal(size=(n, 6)) * [0.1, 0.1, 0.1, 0.01, 0.01, 0.01] + [0, 0, 9.8, 0, 0, 0]
+
+    def clock(t: float) -> str:
+        day, t = divmod(t, 86400.0)
+        return f"2023-1-{1 + int(day)} {int(t // 3600):02d}:{int(t % 3600 // 60):02d}:{t % 60:06.3f}"
+
+    rows = [",".join(f"{x:.6f}" for x in v) for v in values]
+    wall = tmp_path / "wall.csv"
+    wall.write_text(
+        "t,ax,ay,az,gx,gy,gz\n" + "".join(f"{clock(t)},{r}\n" for t, r in zip(seconds, rows, strict=True))
+    )
+    plain = tmp_path / "plain.csv"
+    plain.write_text(
+        "t,ax,ay,az,gx,gy,gz\n" + "".join(f"{t:.3f},{r}\n" for t, r in zip(seconds, rows, strict=True))
+    )
+    a = read_run(wall, columns=MAP, **SITE)
+    b = read_run(plain, columns=MAP, **SITE)
+    np.testing.assert_array_equal(a.dv_mps, b.dv_mps)
+    np.testing.assert_array_equal(a.dtheta_rad, b.dtheta_rad)
+    np.testing.assert_allclose(a.time_s - a.time_s[0], b.time_s - b.time_s[0], atol=1e-9)
+    assert a.n_samples == n and not a.clock.dropped  # midnight is no gap
