@@ -13,6 +13,7 @@ from calib.nav.earth import HEIGHT_RANGE_M  # one source: the site limits of cal
 
 from . import clock
 from .columns import time_unit_suspect
+from .fill import holes_at_rest
 from .format import ARRAY_COLUMNS, FORMAT, REQUIRED_META
 from .run import Run, meta_float
 
@@ -127,6 +128,11 @@ def check_array_shape(array: np.ndarray, name: str, n: int, where: str) -> None:
         )
 
 
+# Holes judged still or turning for the refusal: a log with more is mis-read (a rate, a unit) or
+# broken, and what each one is tells the user nothing.
+HOLES_JUDGED = 20
+
+
 def check_samples(run: Run, locate, allow_gaps: bool, time_name: str | None = None) -> clock.SampleClock:
     """Refuse too few samples, non-finite values, non-increasing time and (unless allowed) gaps.
 
@@ -184,7 +190,13 @@ def check_samples(run: Run, locate, allow_gaps: bool, time_name: str | None = No
             first = int(jumps[0]) + 1
         else:  # sampled at its stamps: a stall is a long step, not a jump of the count
             first = int(np.searchsorted(time - found.origin_s, found.dropped[0][0]))
-        raise clock.refusal(found, locate.sample("time_s", first))
+        at_rest = None
+        if 0 < len(found.dropped) <= HOLES_JUDGED and found.rule != "stamps":
+            keep = ~duplicate
+            at_rest = holes_at_rest(
+                found.index[keep], (found.offset_s, period), run.dtheta_rad[keep], run.dv_mps[keep]
+            )
+        raise clock.refusal(found, locate.sample("time_s", first), at_rest)
     return found
 
 

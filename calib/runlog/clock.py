@@ -429,19 +429,37 @@ def settle(run, allow_gaps: bool):
     return dataclasses.replace(run, time_s=uniform_time(clock, run.time_s), clock=clock)
 
 
-def refusal(clock: SampleClock, source: str) -> CalibError:
-    """The error naming every dropped and duplicated sample."""
-    parts = []
+def refusal(clock: SampleClock, source: str, at_rest: np.ndarray | None = None) -> CalibError:
+    """The error naming every dropped and duplicated sample.
+
+    ``at_rest``, per hole in order: whether the IMU is still around it (`fill.holes_at_rest`),
+    said so that the user knows whether ``allow_gaps`` will do.
+    """
+    parts, still = [], ""
     if clock.dropped:
-        parts.append(f"{sum(c for _, c in clock.dropped)} sample(s) dropped: " + describe(clock.dropped))
+        if at_rest is not None and len(at_rest) == len(clock.dropped):
+            turning = [t for (t, _), ok in zip(clock.dropped, at_rest, strict=True) if not ok]
+            still = (
+                "; every one where the IMU is still"
+                if not turning
+                else f"; {len(turning)} of them while the IMU turns (first at t = {turning[0]:.6g} s), "
+                "which nothing fills"
+            )
+        parts.append(
+            f"{sum(c for _, c in clock.dropped)} sample(s) dropped: " + describe(clock.dropped) + still
+        )
     if clock.duplicates:
         parts.append(
             f"{sum(c for _, c in clock.duplicates)} sample(s) duplicated: " + describe(clock.duplicates)
         )
+    why = (
+        ""
+        if still.startswith("; every")
+        else " (a lost or repeated increment is a step the fit would read as IMU error)"
+    )
     return CalibError(
-        "; ".join(parts) + " (a lost or repeated increment is a velocity "
-        "step the fit would read as IMU error)",
+        "; ".join(parts) + why,
         source,
-        "repair the log, or read it with allow_gaps (the CLI's --allow-gaps) to fill samples lost "
-        "at rest and remove exact duplicates",
+        "read it with allow_gaps (the CLI's --allow-gaps) to fill samples lost at rest and drop exact "
+        "duplicates, or repair the log",
     )

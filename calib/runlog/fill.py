@@ -88,25 +88,18 @@ def fill_dropped(
     out_th = np.full((len(full), 3), np.nan)
     out_dv = np.full((len(full), 3), np.nan)
     out_th[pos], out_dv[pos] = dtheta, dv
-    holes = np.flatnonzero(np.diff(index) > 1)
-    quiet: QuietNoise | None = None  # measured once, where the rate rule fails
-    for row in holes:
-        lo, hi = max(0, row + 1 - FILL_NEIGHBOURS), min(len(index), row + 1 + FILL_NEIGHBOURS)
+    judge = _HoleJudge(index, time_of, dtheta, dv)
+    for row in np.flatnonzero(np.diff(index) > 1):
         _check_too_long(index, time_of, row)
-        if not _still_by_rate(dtheta[lo:hi], time_of[1]):
-            # A MEMS unit's bias alone fails the absolute rule: judged against its own noise, on
-            # the nearest rows only (a hand's pose is short), and filled from those.
-            quiet = quiet or QuietNoise.of(dtheta, dv, time_of[1])
-            lo, hi = quiet.near(row, len(index))
-            stray = quiet.stray(dtheta[lo:hi], dv[lo:hi])
-            if stray > QUIET_PEAK:
-                _refuse_turning(
-                    index,
-                    time_of,
-                    row,
-                    f"; within {QUIET_WINDOW_S:g} s of it the rows stray "
-                    f"{stray:.3g} times the noise the log shows when still",
-                )
+        lo, hi, stray = judge.neighbours(row)
+        if stray > QUIET_PEAK:
+            _refuse_turning(
+                index,
+                time_of,
+                row,
+                f"; within {QUIET_WINDOW_S:g} s of it the rows stray "
+                f"{stray:.3g} times the noise the log shows when still",
+            )
         hole = slice(pos[row] + 1, pos[row + 1])
         out_th[hole] = dtheta[lo:hi].mean(axis=0)
         out_dv[hole] = dv[lo:hi].mean(axis=0)
@@ -116,6 +109,34 @@ def fill_dropped(
         filled[pos] = 1
         out_g = np.asarray(gimbal)[np.cumsum(filled) - 1]
     return out_th, out_dv, out_g, full
+
+
+class _HoleJudge:
+    """Whether the IMU is still around each hole, and the rows that stand for it."""
+
+    def __init__(self, index: np.ndarray, time_of: tuple[float, float], dtheta: np.ndarray, dv: np.ndarray):
+        self.index, self.period, self.dtheta, self.dv = index, time_of[1], dtheta, dv
+        self.quiet: QuietNoise | None = None  # measured once, where the rate rule fails
+
+    def neighbours(self, row: int | np.integer) -> tuple[int, int, float]:
+        """The rows standing for the hole after ``row`` and how far they stray (0: still by rate)."""
+        n = len(self.index)
+        lo, hi = max(0, int(row) + 1 - FILL_NEIGHBOURS), min(n, int(row) + 1 + FILL_NEIGHBOURS)
+        if _still_by_rate(self.dtheta[lo:hi], self.period):
+            return lo, hi, 0.0
+        # A MEMS unit's bias alone fails the absolute rule: judged against its own noise, on
+        # the nearest rows only (a hand's pose is short), and filled from those.
+        self.quiet = self.quiet or QuietNoise.of(self.dtheta, self.dv, self.period)
+        lo, hi = self.quiet.near(row, n)
+        return lo, hi, self.quiet.stray(self.dtheta[lo:hi], self.dv[lo:hi])
+
+
+def holes_at_rest(
+    index: np.ndarray, time_of: tuple[float, float], dtheta: np.ndarray, dv: np.ndarray
+) -> np.ndarray:
+    """For each hole in ``index`` (in order), whether `fill_dropped` would fill it (the IMU still)."""
+    judge = _HoleJudge(index, time_of, dtheta, dv)
+    return np.array([judge.neighbours(row)[2] <= QUIET_PEAK for row in np.flatnonzero(np.diff(index) > 1)])
 
 
 def _lost_at(index: np.ndarray, time_of: tuple[float, float], row: int | np.integer) -> tuple[int, float]:
