@@ -167,6 +167,7 @@ def test_dropped_samples_are_refused_naming_both(dropped):
     code, out, _ = _calibrate(path)
     assert code == 2
     assert "2 sample(s) dropped" in out and "--allow-gaps" in out
+    assert "every one where the IMU is still" in out  # both lost at rest: the flag will do
     for t in lost_t:  # each named by the time of the lost sample
         assert f"1 at t = {t:.6g} s" in out
 
