@@ -271,6 +271,9 @@ ZERO_SPREAD = 0.2
 # ...and a sphere through the rests' specific force this close (RMS over its radius) says that the
 # accelerometer reads about its own constant, not about zero: a zero offset.
 ZERO_SPHERE_FIT = 0.03
+# ...and the rests must spread gravity over all three axes (RMS about their mean along the least
+# spread direction, over g) for the centre to be known in all three.
+ZERO_SPAN = 0.15
 
 
 def _zero_mistake(f_rests: np.ndarray, gravity_mps2: float, conversion) -> Mistake | None:
@@ -283,14 +286,19 @@ def _zero_mistake(f_rests: np.ndarray, gravity_mps2: float, conversion) -> Mista
     norms = np.linalg.norm(f_rests, axis=1)
     if len(f_rests) < 6 or np.ptp(norms) < ZERO_SPREAD * np.median(norms):
         return None
+    # The sphere's centre is found only along directions the rests span: rests turned about one
+    # axis leave it free along that axis (a wrong offset would be named).
+    spread = np.linalg.svd(f_rests - f_rests.mean(axis=0), compute_uv=False) / math.sqrt(len(f_rests))
+    if spread.min() < ZERO_SPAN * gravity_mps2:
+        return None
     # |f|^2 = 2 f.c + (R^2 - |c|^2): linear in (c, d) (an algebraic fit; its residuals judged below).
     A = np.column_stack([2.0 * f_rests, np.ones(len(f_rests))])
     (cx, cy, cz, d), *_ = np.linalg.lstsq(A, norms**2, rcond=None)
     centre = np.array([cx, cy, cz])
     radius = math.sqrt(max(d + centre @ centre, 0.0))
     misfit = np.linalg.norm(f_rests - centre, axis=1) - radius
-    if radius == 0.0 or np.sqrt(np.mean(misfit**2)) > ZERO_SPHERE_FIT * radius:
-        return None
+    if radius < 0.5 * gravity_mps2 or np.sqrt(np.mean(misfit**2)) > ZERO_SPHERE_FIT * radius:
+        return None  # no sphere of gravity's size: gravity taken out, or no offset
     g = gravity_mps2
     lo, hi = norms.min() / g, norms.max() / g
     at = ", ".join(f"{c / g:+.3g}" for c in centre)

@@ -429,22 +429,27 @@ def settle(run, allow_gaps: bool):
     return dataclasses.replace(run, time_s=uniform_time(clock, run.time_s), clock=clock)
 
 
-def refusal(clock: SampleClock, source: str, at_rest: np.ndarray | None = None) -> CalibError:
+def refusal(clock: SampleClock, source: str, at_rest: list[str] | None = None) -> CalibError:
     """The error naming every dropped and duplicated sample.
 
-    ``at_rest``, per hole in order: whether the IMU is still around it (`fill.holes_at_rest`),
+    ``at_rest``, per hole in order: ``"still"``, ``"turning"`` or ``"long"`` (`fill.holes_at_rest`),
     said so that the user knows whether ``allow_gaps`` will do.
     """
     parts, still = [], ""
     if clock.dropped:
         if at_rest is not None and len(at_rest) == len(clock.dropped):
-            turning = [t for (t, _), ok in zip(clock.dropped, at_rest, strict=True) if not ok]
-            still = (
-                "; every one where the IMU is still"
-                if not turning
-                else f"; {len(turning)} of them while the IMU turns (first at t = {turning[0]:.6g} s), "
-                "which nothing fills"
-            )
+            turning = [t for (t, _), state in zip(clock.dropped, at_rest, strict=True) if state == "turning"]
+            long = [t for (t, _), state in zip(clock.dropped, at_rest, strict=True) if state == "long"]
+            if not turning and not long:
+                still = "; every one where the IMU is still"
+            if turning:
+                still += (
+                    f"; {len(turning)} of them while the IMU turns (first at t = {turning[0]:.6g} s), "
+                    "which nothing fills"
+                )
+            if long:
+                first = f"first at t = {long[0]:.6g} s"
+                still += f"; {len(long)} hole(s) too long to fill ({first}): split the log there"
         parts.append(
             f"{sum(c for _, c in clock.dropped)} sample(s) dropped: " + describe(clock.dropped) + still
         )

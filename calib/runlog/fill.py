@@ -111,6 +111,20 @@ def fill_dropped(
     return out_th, out_dv, out_g, full
 
 
+def _resolution(x: np.ndarray) -> np.ndarray:
+    """Per axis, the smallest step a quantised channel takes (its 1st percentile of the non-zero
+    changes from row to row; 0 for a channel that never changes). A channel still to its last
+    digit has no spread; its quantisation's, step / sqrt(12), stands for its noise, so that a
+    one-step tick near a hole is no turn.
+    """
+    out = np.zeros(x.shape[1])
+    for axis in range(x.shape[1]):
+        steps = np.abs(np.diff(x[:, axis]))
+        steps = steps[steps > 0.0]
+        out[axis] = np.percentile(steps, 1.0) if steps.size else 0.0
+    return out
+
+
 class _HoleJudge:
     """Whether the IMU is still around each hole, and the rows that stand for it."""
 
@@ -133,10 +147,18 @@ class _HoleJudge:
 
 def holes_at_rest(
     index: np.ndarray, time_of: tuple[float, float], dtheta: np.ndarray, dv: np.ndarray
-) -> np.ndarray:
-    """For each hole in ``index`` (in order), whether `fill_dropped` would fill it (the IMU still)."""
+) -> list[str]:
+    """For each hole in ``index`` (in order), what `fill_dropped` makes of it: ``"still"`` (filled),
+    ``"turning"`` or ``"long"`` (more than `MAX_FILL` samples: refused either way).
+    """
     judge = _HoleJudge(index, time_of, dtheta, dv)
-    return np.array([judge.neighbours(row)[2] <= QUIET_PEAK for row in np.flatnonzero(np.diff(index) > 1)])
+    out = []
+    for row in np.flatnonzero(np.diff(index) > 1):
+        if index[row + 1] - index[row] - 1 > MAX_FILL:
+            out.append("long")
+        else:
+            out.append("still" if judge.neighbours(row)[2] <= QUIET_PEAK else "turning")
+    return out
 
 
 def _lost_at(index: np.ndarray, time_of: tuple[float, float], row: int | np.integer) -> tuple[int, float]:
@@ -198,7 +220,7 @@ class QuietNoise:
 
         def level(x: np.ndarray) -> np.ndarray:
             spread = x[: blocks * rows].reshape(blocks, -1, 3).std(axis=1)
-            return np.percentile(spread, QUIET_PERCENTILE, axis=0)
+            return np.maximum(np.percentile(spread, QUIET_PERCENTILE, axis=0), _resolution(x) / np.sqrt(12.0))
 
         return cls(level(dtheta), level(dv), rows)
 
@@ -209,14 +231,14 @@ class QuietNoise:
     def stray(self, dtheta: np.ndarray, dv: np.ndarray) -> float:
         """The largest deviation of any row from the rows' mean, in units of the quiet noise.
 
-        A channel that is quiet to its last digit (no spread at all when still) counts
-        any change as a stray: nothing says how large its noise is.
+        A channel that never changes at all has no noise to judge by: any change there is
+        a stray, said as 1e6 (no inf in a message).
         """
         worst = 0.0
         for x, noise in ((dtheta, self.gyro), (dv, self.accel)):
             dev = np.max(np.abs(x - x.mean(axis=0)), axis=0)
             with np.errstate(divide="ignore", invalid="ignore"):
-                ratio = np.where(dev > 0.0, dev / noise, 0.0)
+                ratio = np.where(dev > 0.0, np.minimum(dev / noise, 1e6), 0.0)
             worst = max(worst, float(np.max(ratio)))
         return worst
 

@@ -19,11 +19,14 @@ the same way when the rate is stated (`with_row_counter`).
 
 from __future__ import annotations
 
+import numpy as np
+
 from calib.errors import CalibError
 
 from .columns import COUNTER, TIME_NAMES, apply_column_map, known_name
 from .counter import RATE_FIX
 from .text import header_names
+from .wallclock import is_clock_time
 
 EXAMPLE_MAP = "1=accel_x_mps2,2=accel_y_mps2,3=accel_z_mps2,4=gyro_x_radps,5=gyro_y_radps,6=gyro_z_radps"
 
@@ -168,9 +171,15 @@ def with_row_counter(
     if not rate_stated or any(n in TIME_NAMES or n.lower() in TIME_NAMES or n == COUNTER for n in names):
         return lines
     _refuse_an_unmapped_time(lines, header_index, names, name)
-    body, count = [], 0
-    for line in lines[header_index + 1 :]:
+    body, count, width = [], 0, len(names)
+    for k, line in enumerate(lines[header_index + 1 :], start=header_index + 2):
         if line.strip():
+            if line.count(",") != width - 1:  # said before the counter adds a field of its own
+                raise CalibError(
+                    f"row has {line.count(',') + 1} fields, the header has {width}",
+                    f"{name}, line {k} (sample {count})",
+                    "every data row needs one value per header column",
+                )
             line = f"{line.rstrip()},{count}"
             count += 1
         body.append(line)
@@ -180,19 +189,47 @@ def with_row_counter(
 ROWS_JUDGED = 1000  # rows read to tell a time column the map left out (it increases on every one)
 
 
+# Names a logger gives its time column (letters only, lower case).
+TIME_WORDS = {
+    "t",
+    "time",
+    "timestamp",
+    "timestamps",
+    "stamp",
+    "ts",
+    "sec",
+    "secs",
+    "seconds",
+    "ms",
+    "millis",
+    "us",
+}
+INCREASING = 0.5  # never down and up on this share of rows: a time (a sensor's noise goes down half the time)
+
+
+def _looks_like_time(name: str, fields: list[str]) -> bool:
+    """A column named like a time, written as clock times, or counting up row by row."""
+    if "".join(c for c in name.lower() if c.isalpha()) in TIME_WORDS:
+        return True
+    if len(fields) >= 3 and all(is_clock_time(f) for f in fields):
+        return True
+    try:
+        values = np.array([float(f) for f in fields])
+    except ValueError:
+        return False
+    steps = np.diff(values)
+    return len(steps) >= 2 and bool(np.all(steps >= 0.0)) and float(np.mean(steps > 0.0)) >= INCREASING
+
+
 def _refuse_an_unmapped_time(lines: list[str], header_index: int, names: list[str], name: str) -> None:
-    unmapped = [i for i, n in enumerate(names) if not known_name(n)]
     rows = [
         line.split(",") for line in lines[header_index + 1 : header_index + 1 + ROWS_JUDGED] if line.strip()
     ]
-    for i in unmapped:
-        try:
-            values = [float(r[i]) for r in rows]
-        except (ValueError, IndexError):
-            continue
-        if len(values) >= 3 and all(b > a for a, b in zip(values, values[1:], strict=False)):
+    for i in (i for i, n in enumerate(names) if not known_name(n)):
+        fields = [r[i] for r in rows if i < len(r)]
+        if _looks_like_time(names[i], fields):
             raise CalibError(
-                f"column '{names[i]}' increases on every row like a time, and the column map names no time",
+                f"column '{names[i]}' looks like a time (by its name or its rows), and the map names no time",
                 f"{name}, line {header_index + 1}",
                 f"map it as the time ({names[i]}=time_s, time_ms, time_us or time_ns) or as a sample counter "
                 f"({names[i]}=counter)",

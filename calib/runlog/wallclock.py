@@ -37,6 +37,7 @@ def clock_seconds(fields: list[str], locate) -> list[float]:
     out: list[float] = []
     first_day = None
     day_shift = 0.0
+    was_dated = False
     for i, text in enumerate(fields):
         m = CLOCK_TIME.match(text)
         if m is None:
@@ -45,6 +46,15 @@ def clock_seconds(fields: list[str], locate) -> list[float]:
                 locate(i),
                 "write every time stamp the same way",
             )
+        dated = m["y"] is not None
+        if out and dated != was_dated:
+            raise CalibError(
+                f"field {text.strip()!r} is written {'with' if dated else 'without'} a date, the first rows "
+                f"{'with' if was_dated else 'without'}",
+                locate(i),
+                "write every time stamp the same way, with its date or without",
+            )
+        was_dated = dated
         seconds = int(m["h"]) * 3600.0 + int(m["mi"]) * 60.0 + float(m["s"].replace(",", "."))
         if m["y"] is not None:
             try:

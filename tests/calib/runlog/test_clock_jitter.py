@@ -226,3 +226,40 @@ def test_a_mems_unit_s_sample_lost_as_its_turn_settles_is_refused(tmp_path):
         read_run(path, columns=columns, latitude_deg=45.0, height_m=0.0, allow_gaps=True)
     with pytest.raises(CalibError, match="1 sample.s. dropped: .*; 1 of them while the IMU turns"):
         read_run(path, columns=columns, latitude_deg=45.0, height_m=0.0)
+
+
+def _quantised_log(path, lost: range) -> None:
+    """A still unit printed to two decimals (g, deg/s; a 1.2 deg/s gyro bias): channels that sit
+    on one count, one of them ticking by a count near the hole."""
+    rng = np.random.default_rng(3)
+    n = 3000
+    gyro = np.column_stack([1.2 + rng.normal(0, 0.1, n), rng.normal(0, 0.1, n), rng.normal(0, 0.1, n)])
+    accel = np.round(np.column_stack([rng.normal(0, 0.0015, (n, 2)), 1.0 + rng.normal(0, 0.0015, n)]), 2)
+    accel[1010, 2] = 1.01
+    with open(path, "w") as fh:
+        fh.write(
+            "# latitude_deg: 45\n# height_m: 100\n"
+            "time_s,gyro_x_dps,gyro_y_dps,gyro_z_dps,accel_x_g,accel_y_g,accel_z_g\n"
+        )
+        for i in range(n):
+            if i not in lost:
+                fh.write(",".join([repr(i / 100.0)] + [f"{x:.2f}" for x in (*gyro[i], *accel[i])]) + "\n")
+
+
+def test_a_quantised_channel_s_one_count_tick_is_no_turn(tmp_path):
+    # accel z sits on 1.00 g but for one row: its block spread is 0 most of the time; judged by
+    # its quantisation (0.01 g / sqrt(12)) the tick is 3.5 of it, below the 6 of a stray.
+    _quantised_log(tmp_path / "q.csv", range(1000, 1001))
+    with pytest.raises(CalibError, match="every one where the IMU is still"):
+        read_run(tmp_path / "q.csv")
+    assert read_run(tmp_path / "q.csv", allow_gaps=True).n_samples == 3000
+
+
+def test_a_hole_too_long_to_fill_is_said_so_before_allow_gaps_is_tried(tmp_path):
+    _quantised_log(tmp_path / "q.csv", range(1000, 1300))  # 300 samples: over the 200 a fill stands for
+    with pytest.raises(
+        CalibError, match="1 hole.s. too long to fill .first at t = 10 s.: split the log there"
+    ):
+        read_run(tmp_path / "q.csv")
+    with pytest.raises(CalibError, match="300 samples lost at t = 10 s, more than the 200"):
+        read_run(tmp_path / "q.csv", allow_gaps=True)

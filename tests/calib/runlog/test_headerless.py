@@ -98,9 +98,25 @@ def test_a_time_column_the_map_left_out_is_not_replaced_by_the_rate(tmp_path):
     path.write_text(
         "stamp,ax,ay,az,gx,gy,gz\n" + "".join(",".join(repr(float(x)) for x in r) + "\n" for r in rows)
     )
-    with pytest.raises(CalibError, match="column 'stamp' increases on every row like a time") as err:
+    with pytest.raises(CalibError, match="column 'stamp' looks like a time") as err:
         read_run(path, columns=NAMED_MAP, sample_rate_hz=50.0, **SITE)
     assert "stamp=time_s" in err.value.fix and "stamp=counter" in err.value.fix
+    # Named otherwise: host milliseconds that repeat now and then (two rows read at once), or
+    # clock times, are times too.
+    for first, stamps in (
+        ("host", ["1000", "1020", "1020", "1060"]),
+        ("when", [f"12:00:0{k}.000" for k in range(4)]),
+    ):
+        other = tmp_path / f"{first}.csv"
+        other.write_text(
+            f"{first},ax,ay,az,gx,gy,gz\n"
+            + "".join(
+                f"{s}," + ",".join(repr(float(x)) for x in r) + "\n"
+                for s, r in zip(stamps, TABLE, strict=True)
+            )
+        )
+        with pytest.raises(CalibError, match=f"column '{first}' looks like a time"):
+            read_run(other, columns=NAMED_MAP, sample_rate_hz=50.0, **SITE)
 
 
 def test_a_logger_s_preamble_above_its_header_is_told_by_line(tmp_path):

@@ -37,6 +37,10 @@ def test_a_stamp_written_otherwise_is_refused_naming_its_row():
     assert err.value.where == "row 1"
     with pytest.raises(CalibError, match="no such date"):
         clock_seconds(["2023-02-30 12:00:00"], _where)
+    # A date on some rows only would count a midnight twice (by the date and by the stamp's fall).
+    with pytest.raises(CalibError, match="without a date, the first rows with") as err:
+        clock_seconds(["2023-01-01 23:59:59.99", "00:00:00.00"], _where)
+    assert err.value.where == "row 1"
 
 
 def test_a_log_stamped_by_the_clock_reads_as_the_same_log_stamped_in_seconds(tmp_path):
