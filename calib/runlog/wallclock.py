@@ -15,11 +15,12 @@ import re
 
 from calib.errors import CalibError
 
-# [date separator] hours:minutes:seconds[.fraction]; the fraction's separator may be a
-# comma (a locale's decimal comma). The date is year-month-day with -, / or . between.
+# [date separator] hours:minutes:seconds[.fraction][zone]; the fraction's separator may be a
+# comma (a locale's decimal comma). The date is year-month-day with -, / or . between. A zone
+# (ISO 8601's Z or +01:00) must be the same on every row: a log's stamps share one clock.
 CLOCK_TIME = re.compile(
     r"^\s*(?:(?P<y>\d{4})[-/.](?P<mo>\d{1,2})[-/.](?P<d>\d{1,2})[ T_]+)?"
-    r"(?P<h>\d{1,2}):(?P<mi>\d{2}):(?P<s>\d{2}(?:[.,]\d+)?)\s*$"
+    r"(?P<h>\d{1,2}):(?P<mi>\d{2}):(?P<s>\d{2}(?:[.,]\d+)?)(?P<zone>Z|[+-]\d{2}:?\d{2})?\s*$"
 )
 DAY_S = 86_400.0
 
@@ -38,6 +39,7 @@ def clock_seconds(fields: list[str], locate) -> list[float]:
     first_day = None
     day_shift = 0.0
     was_dated = False
+    zone = None
     for i, text in enumerate(fields):
         m = CLOCK_TIME.match(text)
         if m is None:
@@ -55,6 +57,14 @@ def clock_seconds(fields: list[str], locate) -> list[float]:
                 "write every time stamp the same way, with its date or without",
             )
         was_dated = dated
+        if i == 0:
+            zone = m["zone"]
+        elif m["zone"] != zone:
+            raise CalibError(
+                f"field {text.strip()!r} is in another time zone than the first row's ({zone or 'none'})",
+                locate(i),
+                "write every time stamp in one zone",
+            )
         seconds = int(m["h"]) * 3600.0 + int(m["mi"]) * 60.0 + float(m["s"].replace(",", "."))
         if m["y"] is not None:
             try:

@@ -22,6 +22,10 @@ def _where(i: int) -> str:
 def test_clock_times_are_seconds_from_the_first_stamps_midnight():
     said = clock_seconds(["12:00:00.000", "12:00:00.010", "12:01:02,5"], _where)
     assert said == [43200.0, 43200.01, 43262.5]  # h*3600 + m*60 + s; a decimal comma read as a point
+    iso = clock_seconds(["2023-01-01T12:00:00.000Z", "2023-01-01T12:00:00.010Z"], _where)  # ISO 8601, UTC
+    assert iso == [43200.0, 43200.01]
+    with pytest.raises(CalibError, match="another time zone"):
+        clock_seconds(["12:00:00+01:00", "12:00:01+02:00"], _where)
 
 
 def test_midnight_is_crossed_by_the_date_or_by_a_stamp_12_hours_back():
