@@ -215,7 +215,7 @@ def time_in_seconds(
 def _to_commas(lines: list[str], header_index: int, name: str) -> list[str]:
     """Lines of a CSV written with ';' or tabs between fields, rewritten with commas.
 
-    A semicolon-separated file from a locale that writes decimal commas
+    A semicolon- or tab-separated file from a locale that writes decimal commas
     (``0,25;1,5``) has its decimal commas read as points. Said on stderr, so a
     user sees how the file was read.
     """
@@ -226,7 +226,7 @@ def _to_commas(lines: list[str], header_index: int, name: str) -> list[str]:
     if sep is None:
         return lines
     body = lines[header_index + 1 :]
-    decimal_commas = sep == ";" and any("," in row for row in body[:100])
+    decimal_commas = any("," in row for row in body[:100])  # no field separator: a decimal comma
     if decimal_commas:
         body = [row.replace(",", ".") for row in body]
     warnings.warn(

@@ -19,6 +19,8 @@ the same way when the rate is stated (`with_row_counter`).
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from calib.errors import CalibError
@@ -31,9 +33,13 @@ from .wallclock import is_clock_time
 EXAMPLE_MAP = "1=accel_x_mps2,2=accel_y_mps2,3=accel_z_mps2,4=gyro_x_radps,5=gyro_y_radps,6=gyro_z_radps"
 
 
+# A date and its time written with white space between (2023-1-1 12:00:00.000): one field.
+_DATE_TIME = re.compile(r"(\d{4}[-/.]\d{1,2}[-/.]\d{1,2})\s+(\d{1,2}:\d{2}:\d{2})")
+
+
 def _fields(line: str) -> list[str]:
     """The fields of a data row, split on commas, else semicolons, else white space."""
-    s = line.strip()
+    s = _DATE_TIME.sub(r"\1T\2", line.strip())
     for sep in (",", ";"):
         if sep in s:
             return [f.strip() for f in s.split(sep)]
@@ -49,9 +55,9 @@ def _is_number(text: str) -> bool:
 
 
 def is_headerless(line: str) -> bool:
-    """Whether the first non-comment row ``line`` is numbers (data), not a header."""
+    """Whether the first non-comment row ``line`` is numbers (data; a time may be a clock's), not a header."""
     fields = _fields(line)
-    return bool(fields) and all(_is_number(f) for f in fields)
+    return bool(fields) and all(_is_number(f) or is_clock_time(f) for f in fields)
 
 
 _SENSORS = {"gyro": "gyro", "dtheta": "gyro", "accel": "accelerometer", "dv": "accelerometer"}

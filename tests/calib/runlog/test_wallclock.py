@@ -72,3 +72,31 @@ def test_a_log_stamped_by_the_clock_reads_as_the_same_log_stamped_in_seconds(tmp
     np.testing.assert_array_equal(a.dtheta_rad, b.dtheta_rad)
     np.testing.assert_allclose(a.time_s - a.time_s[0], b.time_s - b.time_s[0], atol=1e-9)
     assert a.n_samples == n and not a.clock.dropped  # midnight is no gap
+
+
+def test_a_file_without_header_whose_time_is_a_date_and_a_clock_time_reads_by_position(tmp_path):
+    # White space between the date and the time, and between the fields: one time field still.
+    seconds = 12 * 3600.0 + 0.01 * np.arange(4)
+    rows = [
+        "0.1 -0.2 9.8 0.01 0.02 -0.03",
+        "0.2 -0.1 9.7 0.02 0.01 -0.02",
+        "0.0 0.3 9.9 -0.01 0.0 0.04",
+        "-0.1 0.0 9.81 0.0 -0.02 0.01",
+    ]
+    path = tmp_path / "log.txt"
+    path.write_text("".join(f"2023-1-1 12:00:00.0{k}0  {r}\n" for k, r in enumerate(rows)))
+    by_position = (
+        "1=time_s,2=accel_x_mps2,3=accel_y_mps2,4=accel_z_mps2,5=gyro_x_radps,6=gyro_y_radps,7=gyro_z_radps"
+    )
+    run = read_run(path, columns=by_position, sample_rate_hz=100.0, **SITE)
+    np.testing.assert_allclose(run.time_s - run.time_s[0], seconds - seconds[0], atol=1e-9)
+    np.testing.assert_allclose(run.dv_mps[:, 2] * 100.0, [9.8, 9.7, 9.9, 9.81], rtol=1e-12)
+
+
+def test_a_tab_separated_file_with_decimal_commas_reads_them_as_points(tmp_path):
+    path = tmp_path / "log.csv"
+    body = "".join(f"0,0{k}\t0,1\t-0,2\t9,8\t0,01\t0,02\t-0,03\n" for k in range(1, 5))
+    path.write_text("t\tax\tay\taz\tgx\tgy\tgz\n" + body)
+    with pytest.warns(UserWarning, match="tabs with decimal commas"):
+        run = read_run(path, columns=MAP, **SITE)
+    np.testing.assert_allclose(run.dv_mps[:, 2] / np.diff(run.time_s, prepend=0.0), 9.8, rtol=1e-9)
