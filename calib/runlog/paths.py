@@ -10,7 +10,7 @@ from pathlib import Path
 
 from calib.errors import CalibError
 
-TEXT = (".txt", ".log", ".dat")  # a logger's text log, read as CSV (docs/logs-columns.md)
+TEXT = (".txt", ".log", ".dat", ".tsv")  # a logger's text log, read as CSV (docs/logs-columns.md)
 
 
 def run_kind(path: str | os.PathLike) -> str:
@@ -25,7 +25,7 @@ def run_kind(path: str | os.PathLike) -> str:
             f"unknown run log type {suffix or '(no suffix)'!r}",
             str(path),
             "name run logs *.csv (interchange), *.npz (fast native) or *.imu (PSINS text, read only); "
-            "a logger's text log may be *.txt, *.log or *.dat",
+            "a logger's text log may be *.txt, *.log, *.dat or *.tsv",
         )
     return suffix
 

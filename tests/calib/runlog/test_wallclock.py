@@ -94,7 +94,7 @@ def test_a_file_without_header_whose_time_is_a_date_and_a_clock_time_reads_by_po
 
 
 def test_a_tab_separated_file_with_decimal_commas_reads_them_as_points(tmp_path):
-    path = tmp_path / "log.csv"
+    path = tmp_path / "log.tsv"  # a spreadsheet's "tab-separated values"
     body = "".join(f"0,0{k}\t0,1\t-0,2\t9,8\t0,01\t0,02\t-0,03\n" for k in range(1, 5))
     path.write_text("t\tax\tay\taz\tgx\tgy\tgz\n" + body)
     with pytest.warns(UserWarning, match="tabs with decimal commas"):
