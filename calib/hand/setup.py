@@ -175,7 +175,8 @@ def diagnose(run, gravity_mps2: float) -> list[Mistake]:
     start, end = still_stretches(dtheta, dv, dt)
     if len(start) < 2:
         return []  # the fit's rest finder says what is missing
-    f = np.median([np.linalg.norm(dv[a:b].mean(0) / dt[a:b].mean()) for a, b in zip(start, end, strict=True)])
+    rests_f = np.array([dv[a:b].mean(0) / dt[a:b].mean() for a, b in zip(start, end, strict=True)])
+    f = float(np.median(np.linalg.norm(rests_f, axis=1)))
     w = np.median(
         [np.linalg.norm(dtheta[a:b].mean(0) / dt[a:b].mean()) for a, b in zip(start, end, strict=True)]
     )
@@ -192,7 +193,6 @@ def diagnose(run, gravity_mps2: float) -> list[Mistake]:
         ]
     ratio = f / gravity_mps2
     if abs(ratio - 1.0) > 0.15:
-        rests_f = np.array([dv[a:b].mean(0) / dt[a:b].mean() for a, b in zip(start, end, strict=True)])
         return [_zero_mistake(rests_f, gravity_mps2, run.conversion) or _force_mistake(f, gravity_mps2)]
     moves = _moves(dtheta, dv, start, end)
     if len(moves) < 3:

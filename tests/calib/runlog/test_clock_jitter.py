@@ -100,6 +100,19 @@ def _write(path, stamps, fmt: str, rate_gyro, force) -> None:
             fh.write((fmt % t) + "," + ",".join(f"{x:.9e}" for x in (*w, *f)) + "\n")
 
 
+COLUMNS = (
+    "t=time_s,gx=gyro_x_radps,gy=gyro_y_radps,gz=gyro_z_radps,ax=accel_x_mps2,ay=accel_y_mps2,az=accel_z_mps2"
+)
+
+
+def _write_without(path, rates, force, lost: int, seed: int):
+    """The log with sample ``lost`` left out, its host stamps jittering (`host_delays`)."""
+    keep = np.delete(np.arange(len(rates)), lost)
+    stamps = PERIOD * np.arange(1, len(rates) + 1) + host_delays(len(rates), np.random.default_rng(seed))
+    _write(path, stamps[keep], "%.6f", rates[keep], force[keep])
+    return path
+
+
 @pytest.mark.slow
 def test_the_same_samples_under_uniform_float_and_epoch_ms_stamps_calibrate_alike(tmp_path):
     run = _hand_run()
@@ -116,9 +129,9 @@ def test_the_same_samples_under_uniform_float_and_epoch_ms_stamps_calibrate_alik
     for name, (stamps, fmt, unit) in versions.items():
         path = tmp_path / f"{name}.csv"
         _write(path, stamps, fmt, rates, force)
-        columns = f"t={unit},gx=gyro_x_radps,gy=gyro_y_radps,gz=gyro_z_radps"
-        columns += ",ax=accel_x_mps2,ay=accel_y_mps2,az=accel_z_mps2"
-        logged = read_run(path, columns=columns, latitude_deg=45.0, height_m=0.0)
+        logged = read_run(
+            path, columns=COLUMNS.replace("t=time_s", f"t={unit}"), latitude_deg=45.0, height_m=0.0
+        )
         assert not logged.clock.dropped
         results[name] = calibrate(logged, "mems", by_hand=True)
     base = results["uniform"]
@@ -139,16 +152,11 @@ def test_a_sample_lost_in_a_move_is_refused_even_with_allow_gaps(tmp_path):
     rates, force = run.dtheta_rad / PERIOD, run.dv_mps / PERIOD
     turning = np.flatnonzero(np.linalg.norm(rates, axis=1) > 1.0)  # 57 deg/s: mid-move
     lost = int(turning[len(turning) // 2])
-    keep = np.delete(np.arange(len(rates)), lost)
-    stamps = PERIOD * np.arange(1, len(rates) + 1) + host_delays(len(rates), np.random.default_rng(2))
-    path = tmp_path / "lost.csv"
-    _write(path, stamps[keep], "%.6f", rates[keep], force[keep])
-    columns = "t=time_s,gx=gyro_x_radps,gy=gyro_y_radps,gz=gyro_z_radps"
-    columns += ",ax=accel_x_mps2,ay=accel_y_mps2,az=accel_z_mps2"
+    path = _write_without(tmp_path / "lost.csv", rates, force, lost, seed=2)
     with pytest.raises(CalibError, match="1 sample.s. lost at t = .* while the IMU turns"):
-        read_run(path, columns=columns, latitude_deg=45.0, height_m=0.0, allow_gaps=True)
+        read_run(path, columns=COLUMNS, latitude_deg=45.0, height_m=0.0, allow_gaps=True)
     with pytest.raises(CalibError, match="1 sample.s. dropped"):
-        read_run(path, columns=columns, latitude_deg=45.0, height_m=0.0)
+        read_run(path, columns=COLUMNS, latitude_deg=45.0, height_m=0.0)
 
 
 def test_the_clock_says_which_rule_it_used():
@@ -185,16 +193,11 @@ def test_a_mems_unit_s_sample_lost_at_rest_is_filled_however_large_its_bias(tmp_
     rates, force = _mems_biased_run(2.0)
     still = _rows_still_around(rates, 0.5)
     after_turn = still[np.flatnonzero(np.diff(still) > 1)[2] + 1]  # the first still row 0.5 s after a turn
-    keep = np.delete(np.arange(len(rates)), after_turn)
-    stamps = PERIOD * np.arange(1, len(rates) + 1) + host_delays(len(rates), np.random.default_rng(6))
-    path = tmp_path / "lost_at_rest.csv"
-    _write(path, stamps[keep], "%.6f", rates[keep], force[keep])
-    columns = "t=time_s,gx=gyro_x_radps,gy=gyro_y_radps,gz=gyro_z_radps"
-    columns += ",ax=accel_x_mps2,ay=accel_y_mps2,az=accel_z_mps2"
+    path = _write_without(tmp_path / "lost_at_rest.csv", rates, force, after_turn, seed=6)
     # The shared spec: a gap is filled only when asked for; the refusal says that it can be.
     with pytest.raises(CalibError, match="1 sample.s. dropped: .*; every one where the IMU is still"):
-        read_run(path, columns=columns, latitude_deg=45.0, height_m=0.0)
-    run = read_run(path, columns=columns, latitude_deg=45.0, height_m=0.0, allow_gaps=True)
+        read_run(path, columns=COLUMNS, latitude_deg=45.0, height_m=0.0)
+    run = read_run(path, columns=COLUMNS, latitude_deg=45.0, height_m=0.0, allow_gaps=True)
     assert run.n_samples == len(rates)
     assert [c for _, c in run.clock.dropped] == [1]
     # The filled increment is the mean of its still neighbours: the lost one to its own noise
@@ -214,18 +217,13 @@ def test_a_mems_unit_s_sample_lost_as_its_turn_settles_is_refused(tmp_path):
     turning = np.linalg.norm(rates - bias, axis=1) > np.radians(20.0)
     ends = np.flatnonzero(turning[:-1] & ~turning[1:])
     lost = int(ends[2] + 2)  # two rows after a turn fell below 20 deg/s
-    keep = np.delete(np.arange(len(rates)), lost)
-    stamps = PERIOD * np.arange(1, len(rates) + 1) + host_delays(len(rates), np.random.default_rng(6))
-    path = tmp_path / "lost_settling.csv"
-    _write(path, stamps[keep], "%.6f", rates[keep], force[keep])
-    columns = "t=time_s,gx=gyro_x_radps,gy=gyro_y_radps,gz=gyro_z_radps"
-    columns += ",ax=accel_x_mps2,ay=accel_y_mps2,az=accel_z_mps2"
+    path = _write_without(tmp_path / "lost_settling.csv", rates, force, lost, seed=6)
     with pytest.raises(
         CalibError, match="lost at t = .* while the IMU turns; within 0.25 s of it the rows stray"
     ):
-        read_run(path, columns=columns, latitude_deg=45.0, height_m=0.0, allow_gaps=True)
+        read_run(path, columns=COLUMNS, latitude_deg=45.0, height_m=0.0, allow_gaps=True)
     with pytest.raises(CalibError, match="1 sample.s. dropped: .*; 1 of them while the IMU turns"):
-        read_run(path, columns=columns, latitude_deg=45.0, height_m=0.0)
+        read_run(path, columns=COLUMNS, latitude_deg=45.0, height_m=0.0)
 
 
 def _quantised_log(path, lost: range) -> None:
