@@ -46,7 +46,7 @@ class SensorCorrection:
     sigma_M, sigma_b : ndarray
         1-sigma of each element (nan where not known).
     raw_unit : str
-        ``counts``, ``rad/s`` or ``m/s^2``.
+        ``counts``, or a unit of ``RAW_PER_SI`` (``rad/s``, ``deg/s``, ``m/s^2``, ``g``), each sensor its own.
     """
 
     M: np.ndarray
@@ -217,22 +217,24 @@ def raw_samples(run, correction: Correction, where: str) -> tuple[np.ndarray, np
     dt = sample_intervals(run.time_s)[:, None]
     rate, force = run.dtheta_rad / dt, run.dv_mps / dt
     units = (correction.gyro.raw_unit, correction.accel.raw_unit)
-    if "counts" not in units:
-        unknown = [u for u in units if u not in RAW_PER_SI]
-        if unknown:
-            raise CalibError(
-                f"the correction takes raw {unknown[0]!r}, a unit not read",
-                where,
-                f"give a correction whose raw units are counts or {', '.join(RAW_PER_SI)}",
-            )
-        return rate * RAW_PER_SI[units[0]], force * RAW_PER_SI[units[1]]
-    if run.conversion is None:
+    unknown = [u for u in units if u != "counts" and u not in RAW_PER_SI]
+    if unknown:
+        raise CalibError(
+            f"the correction takes raw {unknown[0]!r}, a unit not read",
+            where,
+            f"give a correction whose raw units are counts or {', '.join(RAW_PER_SI)}",
+        )
+    if "counts" in units and run.conversion is None:
         raise CalibError(
             "the correction takes raw counts (it was made from a log in counts), but this log was read in SI",
             where,
             "read the log with the --conversion file it was calibrated with",
         )
-    return run.conversion.to_counts(rate, "gyro"), run.conversion.to_counts(force, "accel")
+    # Each sensor on its own: a correction written by hand may take one in counts, the other in SI.
+    raw = []
+    for si, unit, sensor in ((rate, units[0], "gyro"), (force, units[1], "accel")):
+        raw.append(run.conversion.to_counts(si, sensor) if unit == "counts" else si * RAW_PER_SI[unit])
+    return raw[0], raw[1]
 
 
 def _matrix(table: dict, key: str, where: str, name: str, allow_nan: bool = False) -> np.ndarray:

@@ -314,3 +314,29 @@ def test_a_gyro_of_range_250_dps_clipping_fast_turns_costs_those_moves_not_the_g
     sig = np.array([doc["parameters"][n]["sigma"] for n in P.NAMES])
     z = (est - P.from_si(truth.errors.values)) / sig
     assert np.max(np.abs(z)) < 3.5, dict(zip(P.NAMES, np.round(z, 2), strict=True))
+
+
+def test_a_correction_in_counts_for_one_sensor_and_g_for_the_other_reads_each_in_its_own_unit():
+    # A correction written by hand: the gyro's raw unit counts, the accelerometer's g. Each
+    # sensor's samples must reach it in its own unit: counts = si * scale + zero for the gyro,
+    # si / 9.80665 for the accelerometer (the standard g a "g" unit means).
+    from types import SimpleNamespace
+
+    from calib.calibration.correction import SensorCorrection
+    from calib.runlog.conversion import Conversion
+
+    rng = np.random.default_rng(3)
+    time_s = np.arange(1, 201) * 0.01
+    rate, force = rng.normal(0, 1, (200, 3)), rng.normal(0, 9, (200, 3))
+    zero = {"gyro": np.array([10.0, -20.0, 30.0]), "accel": np.array([1.0, 2.0, 3.0])}
+    scale = {"gyro": np.array([900.0, 950.0, 1000.0]), "accel": np.array([400.0, 410.0, 420.0])}
+    run = SimpleNamespace(
+        time_s=time_s, dtheta_rad=rate * 0.01, dv_mps=force * 0.01, conversion=Conversion(zero, scale)
+    )
+    eye, zero3 = np.eye(3), np.zeros(3)
+    mixed = Correction(
+        SensorCorrection(eye, zero3, eye, zero3, "counts"), SensorCorrection(eye, zero3, eye, zero3, "g")
+    )
+    raw_rate, raw_force = raw_samples(run, mixed, "mixed.toml")
+    assert np.allclose(raw_rate, rate * scale["gyro"] + zero["gyro"], rtol=1e-12)
+    assert np.allclose(raw_force, force / 9.80665, rtol=1e-12)
