@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import itertools
 import os
-import warnings
 from dataclasses import replace
 
 import numpy as np
@@ -29,8 +28,9 @@ from .columns import (
 )
 from .conversion import Conversion, sensor_si
 from .counter import counter_suspect, counter_time
+from .dialect import to_commas, unquoted, without_repeated_headers
 from .format import ARRAY_COLUMNS, FORMAT, GIMBAL_COLUMNS, REQUIRED_COLUMNS, REQUIRED_META
-from .headerless import mapped_header, with_header, with_row_counter
+from .headerless import by_commented_names, mapped_header, with_header, with_row_counter
 from .paths import read_bytes
 from .polled import own_intervals
 from .rollover import said_rollover
@@ -83,8 +83,10 @@ def read_csv(
     mapping = parse_column_map(columns, name)
     lines = without_cut_last_row(decode_lines(read_bytes(path), name), name)
     meta, key_lines, header_index = parse_preamble(lines, name)
+    lines = without_repeated_headers(unquoted(lines, header_index, name), header_index, name)
+    mapping = by_commented_names(lines, header_index, mapping, name)
     lines, added = with_header(lines, header_index, mapping, meta, options or {}, name)  # no header row
-    lines = _to_commas(lines, header_index, name)
+    lines = to_commas(lines, header_index, name)
     stated = (options or {}).get("sample_rate_hz") is not None or "sample_rate_hz" in meta
     lines = with_row_counter(
         lines, header_index, mapped_header(lines, header_index, mapping, name), stated, name
@@ -210,31 +212,6 @@ def time_in_seconds(
     stamps = said_rollover(stamps, column, locate)
     whole, rest = np.divmod(stamps, ticks)
     return whole.astype(np.float64) + rest / ticks
-
-
-def _to_commas(lines: list[str], header_index: int, name: str) -> list[str]:
-    """Lines of a CSV written with ';' or tabs between fields, rewritten with commas.
-
-    A semicolon- or tab-separated file from a locale that writes decimal commas
-    (``0,25;1,5``) has its decimal commas read as points. Said on stderr, so a
-    user sees how the file was read.
-    """
-    header = lines[header_index]
-    if "," in header:
-        return lines
-    sep = next((c for c in (";", "\t") if c in header), None)
-    if sep is None:
-        return lines
-    body = lines[header_index + 1 :]
-    decimal_commas = any("," in row for row in body[:100])  # no field separator: a decimal comma
-    if decimal_commas:
-        body = [row.replace(",", ".") for row in body]
-    warnings.warn(
-        f"{name}: fields separated by {'tabs' if sep == chr(9) else repr(sep)}"
-        f"{' with decimal commas' if decimal_commas else ''}; read as such",
-        stacklevel=3,
-    )
-    return lines[:header_index] + [row.replace(sep, ",") for row in [header] + body]
 
 
 def _fill_meta(

@@ -40,11 +40,11 @@ from .csv import (
     _data_rows,
     _fill_meta,
     _parse_numbers,
-    _to_commas,
     header_names,
     parse_preamble,
     time_in_seconds,
 )
+from .dialect import to_commas, unquoted, without_repeated_headers
 from .paths import read_bytes
 from .run import Run
 from .streams import Stream, two_clocks
@@ -102,7 +102,8 @@ class _SensorFile:
         self.name = name = str(path)
         lines = without_cut_last_row(decode_lines(read_bytes(path), name), name)
         self.meta, self.key_lines, header_index = parse_preamble(lines, name)
-        lines = _to_commas(lines, header_index, name)
+        lines = without_repeated_headers(unquoted(lines, header_index, name), header_index, name)
+        lines = to_commas(lines, header_index, name)
         self.header_line = header_index + 1
         where = f"{name}, line {self.header_line}"
         own = header_names(lines[header_index])

@@ -20,6 +20,7 @@ the same way when the rate is stated (`with_row_counter`).
 from __future__ import annotations
 
 import re
+import warnings
 
 import numpy as np
 
@@ -27,7 +28,7 @@ from calib.errors import CalibError
 
 from .columns import COUNTER, TIME_NAMES, apply_column_map, known_name
 from .counter import RATE_FIX
-from .text import header_names
+from .text import header_names, is_comment
 from .wallclock import is_clock_time
 
 EXAMPLE_MAP = "1=accel_x_mps2,2=accel_y_mps2,3=accel_z_mps2,4=gyro_x_radps,5=gyro_y_radps,6=gyro_z_radps"
@@ -54,10 +55,22 @@ def _is_number(text: str) -> bool:
     return True
 
 
-def is_headerless(line: str) -> bool:
-    """Whether the first non-comment row ``line`` is numbers (data; a time may be a clock's), not a header."""
+def is_headerless(line: str, following: str | None = None) -> bool:
+    """Whether the first non-comment row ``line`` is data (numbers, a time may be a clock's), not a header.
+
+    A field that is no number is a tag when ``following``, the next row, has the same text
+    in the same place: an Arduino sketch's ``a/g:`` before every row's numbers is no name.
+    """
     fields = _fields(line)
-    return bool(fields) and all(_is_number(f) or is_clock_time(f) for f in fields)
+    data = [_is_number(f) or is_clock_time(f) for f in fields]
+    if fields and all(data):
+        return True
+    after = _fields(following) if following is not None else []
+    return (
+        sum(data) >= 3
+        and len(after) == len(fields)
+        and all(d or f == a for d, f, a in zip(data, fields, after, strict=True))
+    )
 
 
 _SENSORS = {"gyro": "gyro", "dtheta": "gyro", "accel": "accelerometer", "dv": "accelerometer"}
@@ -116,7 +129,8 @@ def with_header(
         positions ``1..N``, or no time column and no stated rate.
     """
     first = lines[header_index]
-    if not is_headerless(first):
+    following = next((line for line in lines[header_index + 1 :] if line.strip()), None)
+    if not is_headerless(first, following):
         return lines, 0
     n = len(_fields(first))
     where = f"{name}, line {header_index + 1}"
@@ -162,6 +176,34 @@ def with_header(
         body.append(",".join(fields))
     header = ",".join(positions + ([] if timed else [COUNTER]))
     return lines[:header_index] + [header] + body, 1
+
+
+def by_commented_names(
+    lines: list[str], header_index: int, mapping: dict[str, str], name: str
+) -> dict[str, str]:
+    """The map by position when its names are those of a comment line right above the rows.
+
+    ``# time ax ay az gx gy gz`` (numpy's ``savetxt`` header, MATLAB's ``% t ax ...``) names the
+    columns in a comment; a map that names them is read by their positions there, said on stderr.
+    """
+    following = next((line for line in lines[header_index + 1 :] if line.strip()), None)
+    if not mapping or header_index == 0 or not is_headerless(lines[header_index], following):
+        return mapping
+    n = len(_fields(lines[header_index]))
+    if all(k in {str(i) for i in range(1, n + 1)} for k in mapping):
+        return mapping
+    above = lines[header_index - 1].strip()
+    if not is_comment(above):
+        return mapping
+    text = above.lstrip("#/% \t")
+    names = [f.strip() for f in re.split(r"[,;\t]" if re.search(r"[,;\t]", text) else r"\s+", text)]
+    if len(names) != n or not all(k in names for k in mapping):
+        return mapping
+    warnings.warn(
+        f"{name}, line {header_index}: the columns are named in this comment line; read by their positions",
+        stacklevel=4,
+    )
+    return {str(names.index(k) + 1): v for k, v in mapping.items()}
 
 
 def with_row_counter(

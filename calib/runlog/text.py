@@ -9,11 +9,13 @@ from calib.errors import CalibError
 
 from .format import FORMAT
 
-COMMENT_MARKS = ("#", "//")  # our logs' and C-style loggers' (Xsens MT Manager's "// Update Rate: ...")
+# Ours, C-style loggers' (Xsens MT Manager's "// Update Rate: ...") and MATLAB's "% " (ROS's
+# `rostopic echo -p` header, "%time,field...", has no space after its "%": it is a header row).
+COMMENT_MARKS = ("#", "//", "% ")
 
 
 def is_comment(line: str) -> bool:
-    """Whether a line above (or among) the rows is a comment: ``#`` or ``//`` first."""
+    """Whether a line above (or among) the rows is a comment: ``#``, ``//`` or ``% `` first."""
     return line.lstrip().startswith(COMMENT_MARKS)
 
 

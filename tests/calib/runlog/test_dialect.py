@@ -1,0 +1,99 @@
+"""Rows as loggers write them: tags, names in a comment, spaces, quotes, a header written again."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from calib.errors import CalibError
+from calib.runlog import read_run
+
+SITE = {"latitude_deg": 55.0, "height_m": 100.0}
+NAMES = ("ax", "ay", "az", "gx", "gy", "gz")
+BY_NAME = "ax=accel_x_mps2,ay=accel_y_mps2,az=accel_z_mps2,gx=gyro_x_radps,gy=gyro_y_radps,gz=gyro_z_radps"
+# Four samples: specific force (m/s^2) then rates (rad/s).
+TABLE = np.array(
+    [
+        [0.1, -0.2, 9.8, 0.01, 0.02, -0.03],
+        [0.2, -0.1, 9.7, 0.02, 0.01, -0.02],
+        [0.0, 0.3, 9.9, -0.01, 0.00, 0.04],
+        [-0.1, 0.0, 9.81, 0.00, -0.02, 0.01],
+    ]
+)
+TIME = (np.arange(4) + 1) * 0.02  # 50 Hz, each stamp the end of its sample's interval
+
+
+def _rows(sep: str, prefix: str = "", timed: bool = False) -> list[str]:
+    return [
+        prefix + sep.join(repr(float(x)) for x in ([t] if timed else []) + list(row)) + "\n"
+        for t, row in zip(TIME, TABLE, strict=True)
+    ]
+
+
+def _assert_the_table(run) -> None:
+    # Each row is the mean over its 20 ms interval: its increment is the row times the period.
+    np.testing.assert_allclose(run.time_s, TIME, rtol=1e-12)
+    np.testing.assert_allclose(run.dv_mps, TABLE[:, :3] * 0.02, rtol=1e-12)
+    np.testing.assert_allclose(run.dtheta_rad, TABLE[:, 3:] * 0.02, rtol=1e-12)
+
+
+def test_a_tag_before_every_row_is_no_header(tmp_path):
+    # An Arduino sketch's Serial.print("a/g:\t") before each row's numbers: the same text on
+    # every row is a tag, so the file has no header and its columns go by position.
+    path = tmp_path / "serial.txt"
+    path.write_text("".join(_rows("\t", prefix="a/g:\t")))
+    by_position = ",".join(f"{i + 2}={v.split('=')[1]}" for i, v in enumerate(BY_NAME.split(",")))
+    _assert_the_table(read_run(path, columns=by_position, sample_rate_hz=50.0, **SITE))
+
+
+@pytest.mark.parametrize("mark", ["# ", "% ", "#"])
+def test_names_in_a_comment_line_above_headerless_rows_are_mapped_by_position(tmp_path, mark):
+    # numpy's savetxt writes "# t ax ...", MATLAB "% t ax ...": the names a user maps.
+    path = tmp_path / "saved.txt"
+    path.write_text(mark + " ".join(("t",) + NAMES) + "\n" + "".join(_rows(" ", timed=True)))
+    with pytest.warns(UserWarning, match="named in this comment line"):
+        run = read_run(path, columns="t=time_s," + BY_NAME, **SITE)
+    _assert_the_table(run)
+
+
+def test_a_header_of_names_between_spaces_reads_with_its_rows(tmp_path):
+    path = tmp_path / "spaced.dat"
+    path.write_text("t   " + "  ".join(NAMES) + "\n" + "".join(_rows("   ", timed=True)))
+    with pytest.warns(UserWarning, match="separated by spaces"):
+        run = read_run(path, columns="t=time_s," + BY_NAME, **SITE)
+    _assert_the_table(run)
+
+
+def test_quoted_fields_lose_their_quotes_and_a_quoted_decimal_comma_is_a_point(tmp_path):
+    path = tmp_path / "export.csv"
+    header = ",".join(f'"{n}"' for n in ("t",) + NAMES) + "\n"
+    rows = [
+        ",".join(f'"{x!r}"'.replace(".", ",") for x in [float(t), *row]) + "\n"
+        for t, row in zip(TIME, TABLE.tolist(), strict=True)
+    ]
+    path.write_text(header + "".join(rows))
+    with pytest.warns(UserWarning, match="double quotes"):
+        run = read_run(path, columns="t=time_s," + BY_NAME, **SITE)
+    _assert_the_table(run)
+
+
+def test_a_header_written_again_among_the_rows_is_left_out_naming_its_line(tmp_path):
+    path = tmp_path / "appended.csv"
+    header = ",".join(("t",) + NAMES) + "\n"
+    rows = _rows(",", timed=True)
+    path.write_text(header + "".join(rows[:2]) + header + "".join(rows[2:]))
+    with pytest.warns(UserWarning, match=r"line\(s\) 4 repeat the header"):
+        run = read_run(path, columns="t=time_s," + BY_NAME, **SITE)
+    _assert_the_table(run)
+    # A logger that started again with its clock from zero: two sessions, refused by the clock.
+    again = tmp_path / "restarted.csv"
+    again.write_text(header + "".join(rows[:2]) + header + "".join(rows[:2]))
+    with pytest.warns(UserWarning, match="repeat the header"), pytest.raises(CalibError):
+        read_run(again, columns="t=time_s," + BY_NAME, **SITE)
+
+
+def test_a_ros_header_starting_with_a_percent_sign_is_a_header(tmp_path):
+    # rostopic echo -p writes "%time,field...": no space after the '%', so no comment.
+    path = tmp_path / "ros.csv"
+    path.write_text("%time," + ",".join(NAMES) + "\n" + "".join(_rows(",", timed=True)))
+    _assert_the_table(read_run(path, columns="%time=time_s," + BY_NAME, **SITE))
