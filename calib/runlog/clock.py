@@ -23,7 +23,7 @@ import numpy as np
 from calib.errors import CalibError
 from calib.sequence.motion import runs_of
 
-from . import polled
+from . import coarse, polled
 from .countrule import counted_steps
 from .fill import check_stalls_at_rest, fill_dropped
 
@@ -89,6 +89,7 @@ class SampleClock:
     origin_s: float = 0.0
     rule: str = "step"  # how the rows were counted: "step", "count" or "stamps"
     step_stats: tuple = ()  # rule "stamps": the steps' min, max, mean and RMS spread, s
+    resolution_s: float = 0.0  # stamps coarser than the period (:mod:`calib.runlog.coarse`): theirs, s
 
     @property
     def uniform(self) -> bool:
@@ -105,7 +106,12 @@ class SampleClock:
         )
         if abs(self.rate_error_ppm) >= 1.0:
             text += f"; its period is {self.rate_error_ppm:+.3g} ppm off the nominal"
-        if self.rule == "count":
+        if self.rule == "count" and self.resolution_s:
+            text += (
+                f"; stamps written to {1e3 * self.resolution_s:.3g} ms, coarser than the period: rows "
+                "counted as samples, a gap only where the stamps' lag stays beyond that"
+            )
+        elif self.rule == "count":
             text += "; rows counted as samples (host stamps), a gap only where the stamps' lag stays"
         if self.uniform:
             text = "clock: time column uniform at the nominal period"
@@ -134,6 +140,8 @@ class SampleClock:
         }
         if self.origin_s:  # only for epoch stamps: the times above count from it
             figures["origin_s"] = self.origin_s
+        if self.resolution_s:  # only for stamps coarser than the period
+            figures["resolution_s"] = self.resolution_s
         return figures
 
 
@@ -165,6 +173,8 @@ def duplicate_rows(time_s: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, perio
         for i in range(x.shape[1]):
             close &= x[1:, i] == x[:-1, i]
     same[1:] = close
+    if close.any() and coarse.chance_repeats(step, (dtheta, dv), close):
+        same[:] = False  # stamps coarser than the period: repeats no more than chance gives
     return same
 
 
@@ -204,6 +214,9 @@ def sample_clock(
     with np.errstate(over="ignore", invalid="ignore"):
         off = np.abs(np.diff(time_s)[~dup[1:]] / period - np.rint(np.diff(time_s)[~dup[1:]] / period))
     rule = "count" if counted.size and bool((off > STEP_RULE_FRACTION).any()) else "step"
+    resolution = coarse.stamp_resolution(np.diff(time_s)[~dup[1:]] / period)
+    if resolution > 1.0:
+        rule = "count"  # stamps coarser than the period: the rows are counted at their resolution
     origin = epoch_origin(time_s)
     dropped = [(float(time_s[i] - origin + period), int(steps[i] - 1)) for i in np.flatnonzero(steps > 1)]
     index = np.zeros(len(time_s), dtype=np.int64)
@@ -232,6 +245,7 @@ def sample_clock(
         origin_s=origin,
         rule=rule,
         step_stats=step_stats,
+        resolution_s=resolution * period if resolution > 1.0 else 0.0,
     )
 
 
@@ -297,6 +311,10 @@ def stamps_rate(time_s: np.ndarray) -> float:
     rel = time_s - time_s[0]  # exact: the stamps are within a factor 2 of each other or small
     step = np.diff(rel)
     first = float(np.median(step))
+    if coarse.coarse_stamps(step):
+        # Stamps coarser than the period (a 200 Hz IMU stamped to 10 ms): half the steps are
+        # zero and the median step is no period. The rows are the samples: span over rows.
+        first = float(rel[-1]) / (len(rel) - 1)
     if not first > 0:
         return math.nan
     try:  # the counts of `sample_clock` (the count rule for jittering stamps)
@@ -341,7 +359,13 @@ def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarr
     off[~counted] = 0.0
     if not (off > STEP_RULE_FRACTION).any():
         zero = np.flatnonzero((steps == 0) & counted)
-        if zero.size:  # a clean clock does not stamp two samples alike (a jittering host may)
+        if zero.size:  # a clean clock does not stamp two samples alike; stamps coarser than it do
+            resolution = coarse.stamp_resolution(periods)
+            if resolution > 1.0:
+                try:
+                    return counted_steps(time_s, periods, counted, period, resolution)
+                except CalibError:
+                    pass  # the stamps never make room for the extra row: said as a repeat
             i = int(zero[0]) + 1
             raise CalibError(
                 f"time_s = {float(time_s[i])!r} follows {float(time_s[i - 1])!r}: two samples at one "

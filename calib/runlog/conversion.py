@@ -174,10 +174,23 @@ def read_conversion(path: str | os.PathLike) -> Conversion:
     return _from_text(text, name)
 
 
+# The word a user gives instead of a file when imu_tk's two files already hold m/s^2 and rad/s
+# (imu_tk reads any unit; its users' files are often SI): zero 0 and one count per SI unit.
+SI_WORD = "si"
+SI_ALREADY = Conversion(
+    {s: np.zeros(3) for s in SENSORS},
+    {s: np.ones(3) for s in SENSORS},
+    range_counts=(-math.inf, math.inf),
+    source=SI_WORD,
+)
+
+
 def as_conversion(conversion: Conversion | str | os.PathLike | None) -> Conversion | None:
-    """A `Conversion` as given, or read from its file; None stays None."""
+    """A `Conversion` as given, or read from its file; the word ``si`` is `SI_ALREADY`; None stays None."""
     if conversion is None or isinstance(conversion, Conversion):
         return conversion
+    if isinstance(conversion, str) and conversion.lower() == SI_WORD:
+        return SI_ALREADY
     return read_conversion(conversion)
 
 

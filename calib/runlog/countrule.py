@@ -29,8 +29,16 @@ LAG_WINDOW_MIN = 25  # rows: a median of fewer would follow the jitter
 PERSISTENT_SHIFT = 0.45
 
 
-def counted_steps(time_s: np.ndarray, periods: np.ndarray, counted: np.ndarray, period: float) -> np.ndarray:
+def counted_steps(
+    time_s: np.ndarray, periods: np.ndarray, counted: np.ndarray, period: float, resolution: float = 1.0
+) -> np.ndarray:
     """The count rule: one sample per row, plus the gaps the stamps' lag keeps.
+
+    Stamps written coarser than the period (``resolution`` periods apart, a 200 Hz IMU
+    stamped to 10 ms: 2) place each sample only to that resolution: a step is a gap only
+    beyond it, and the lag's medians, which step with the rounding as its phase drifts,
+    may move by as much before a shift counts. A lost sample the rounding hides is not
+    seen; a longer hole is.
 
     Parameters
     ----------
@@ -65,7 +73,8 @@ def counted_steps(time_s: np.ndarray, periods: np.ndarray, counted: np.ndarray, 
         ends = min(width, len(lag))
         head, tail = float(np.median(lag[:ends])), float(np.median(lag[-ends:]))
         lag -= (index - index[ends // 2]) * (tail - head) / max(index[-1] - ends + 1, 1.0)
-    for c in np.flatnonzero((periods >= 1.5) & counted):
+    extra = max(resolution, 1.0) - 1.0  # periods the stamps' rounding adds to a step and to the lag
+    for c in np.flatnonzero((periods >= 1.5 + extra) & counted):
         row = int(c) + 1  # the first row after the step
         before = float(np.median(lag[max(0, row - width) : row]))
         after = float(np.median(lag[row : row + width]))
@@ -74,14 +83,14 @@ def counted_steps(time_s: np.ndarray, periods: np.ndarray, counted: np.ndarray, 
         if abs(shift - lost) > MAX_STEP_FRACTION:
             continue  # no whole number of samples: jitter here, or refused by the check below
         if lost > 0:
-            row = _gap_row(lag, periods, row, width, lost)
+            row = _gap_row(lag, periods, row, width, lost, 1.5 + extra)
             steps[row - 1] += lost
             lag[row:] -= lost
-    _check_lag_kept(lag, 2 * width)
+    _check_lag_kept(lag, 2 * width, PERSISTENT_SHIFT + extra)
     return steps
 
 
-def _gap_row(lag: np.ndarray, periods: np.ndarray, row: int, width: int, lost: int) -> int:
+def _gap_row(lag: np.ndarray, periods: np.ndarray, row: int, width: int, lost: int, long: float) -> int:
     """Where, near ``row``, ``lost`` samples went: the long step that splits the lag best.
 
     The medians find that the lag shifts but not to the row (they are flat over
@@ -92,7 +101,7 @@ def _gap_row(lag: np.ndarray, periods: np.ndarray, row: int, width: int, lost: i
     base = float(np.median(lag[lo:row]))
     before = np.concatenate([[0.0], np.cumsum(np.abs(lag[lo:hi] - base))])
     after = np.concatenate([[0.0], np.cumsum(np.abs(lag[lo:hi] - base - lost))])
-    rows = lo + 1 + np.flatnonzero(periods[lo : hi - 1] >= 1.5)
+    rows = lo + 1 + np.flatnonzero(periods[lo : hi - 1] >= long)
     rows = rows[rows >= row]  # the candidates before `row` were judged already
     if rows.size == 0:
         return row
@@ -100,7 +109,7 @@ def _gap_row(lag: np.ndarray, periods: np.ndarray, row: int, width: int, lost: i
     return int(rows[np.argmin(cost)])
 
 
-def _check_lag_kept(lag: np.ndarray, width: int) -> None:
+def _check_lag_kept(lag: np.ndarray, width: int, threshold: float) -> None:
     """Refuse stamps whose median lag against the count shifts and stays (in periods, detrended).
 
     Left after the gaps were counted, such a shift is a sample the stamps have no
@@ -118,7 +127,7 @@ def _check_lag_kept(lag: np.ndarray, width: int) -> None:
         view = np.lib.stride_tricks.sliding_window_view(lag, m)[::stride]
         medians = np.median(view, axis=1)
     shift = medians[m // stride :] - medians[: -(m // stride)]
-    bad = np.flatnonzero(np.abs(shift) > PERSISTENT_SHIFT)
+    bad = np.flatnonzero(np.abs(shift) > threshold)
     if bad.size:
         k = int(bad[np.argmax(np.abs(shift[bad]))])
         row = int(starts[k + m // stride])

@@ -23,11 +23,12 @@ import os
 import numpy as np
 
 from calib.errors import CalibError
+from calib.model.params import STANDARD_GRAVITY
 
 from .checks import check_meta, check_samples
 from .clipping import at_limits, clip_mask, flat_top
 from .clock import sampled_at_stamps, stamps_rate
-from .conversion import Conversion
+from .conversion import SI_ALREADY, SI_WORD, Conversion
 from .format import FORMAT
 from .paths import read_bytes
 from .polled import own_intervals
@@ -86,16 +87,18 @@ def read_imutk(
         with no common time.
     """
     acc_name, gyro_name = str(acc_path), str(gyro_path)
+    acc, acc_lines = _table(acc_name)
+    gyro, gyro_lines = _table(gyro_name)
     if conversion is None:
         raise CalibError(
             "imu_tk's files are raw counts, and counts say no rate or force without the sensor's "
-            "zero and scale",
+            "zero and scale" + _already_si(acc[:, 1:]),
             acc_name,
             "give the conversion file: conversion=FILE (the CLI's --conversion FILE), e.g. imu_tk's "
-            "nominal-values text or a TOML (docs/logs-columns.md)",
+            "nominal-values text or a TOML (docs/logs-columns.md); files already in m/s^2 and rad/s: "
+            f"the CLI's --conversion {SI_WORD}",
         )
-    acc, acc_lines = _table(acc_name)
-    gyro, gyro_lines = _table(gyro_name)
+    si = conversion is SI_ALREADY
     locate = _TwoFiles(acc_name, gyro_name, acc_lines, gyro_lines)
     if not _row_for_row(acc[:, 0], gyro[:, 0], options.get("sample_rate_hz")):
         # Each file on its own clock (another rate, other stamps, other rows): the
@@ -111,7 +114,7 @@ def read_imutk(
             meta,
             allow_gaps,
         )  # fmt: skip
-        run.conversion = conversion
+        run.conversion = None if si else conversion
         return run
     meta = _meta(options, acc[:, 0], acc_name, conversion)
     check_meta(meta, locate)
@@ -130,7 +133,7 @@ def read_imutk(
         dv_mps=conversion.to_si(acc[:, 1:], "accel") * period,
         meta=meta,
         source=acc_name,
-        conversion=conversion,
+        conversion=None if si else conversion,
         clipped=clipped,
     )
     run.clock = check_samples(run, locate, allow_gaps, "time_s")
@@ -204,4 +207,13 @@ def _meta(options: dict, time_s: np.ndarray, name: str, conversion: Conversion) 
         "sample_rate_hz": repr(float(rate)),
         "source_format": "imu_tk",
     }
-    return meta | conversion.meta()
+    return meta if conversion is SI_ALREADY else meta | conversion.meta()
+
+
+def _already_si(force: np.ndarray) -> str:
+    """What the accelerometer file's size says of its unit, when it is no count's (m/s^2 or g)."""
+    size = float(np.median(np.linalg.norm(force, axis=1)))
+    for unit, g in (("m/s^2", STANDARD_GRAVITY), ("g", 1.0)):
+        if 0.8 * g < size < 1.2 * g:
+            return f"; the accelerometer's rows are {size:.3g} in size, as if already in {unit}"
+    return ""

@@ -128,7 +128,8 @@ gyro_file = file_path(
     "gyro_file",
     "The gyro's own file: RUN is then the accelerometer's. Two CSV files with headers, each "
     "its time and its sensor (--columns maps both), or imu_tk's 't x y z' rows in raw counts "
-    "without a header (give --conversion). Each is read on its own clock (docs/logs-columns.md).",
+    "without a header (give --conversion; --conversion si for rows already in m/s^2 and rad/s). "
+    "Each is read on its own clock (docs/logs-columns.md).",
     default=None,
     metavar="FILE",
 )
@@ -138,7 +139,8 @@ conversion = file_path(
     "conversion",
     "Nominal conversion of raw counts to SI (zero and counts per unit, per sensor and axis): "
     "a TOML with [gyro] and [accel], or imu_tk's nominal-values text. Needed by columns in "
-    "counts (gyro_x_counts, accel_x_counts) and by --gyro-file.",
+    "counts (gyro_x_counts, accel_x_counts) and by --gyro-file; the word si for imu_tk files "
+    "already in m/s^2 and rad/s.",
     default=None,
     metavar="FILE",
 )
