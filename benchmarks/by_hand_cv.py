@@ -182,7 +182,7 @@ def split_rows(rec: Recording, published) -> list[dict]:
         if published is not None:
             row["published"] = _figures(scored(published[1], rec, start, end)) | {"tool": published[0]}
         o, m = row["ours"], row["imutk"]
-        if "std_mm" in o and "std_mm" in m:
+        if "std_mm" in o and "std_mm" in m and row["rests"] >= 3:  # fewer: no spread, one move
             row["ratio_spread"] = o["std_mm"] / m["std_mm"]
             row["ratio_poses"] = o["rms_deg"] / m["rms_deg"]
             row["interval_spread"], row["interval_poses"] = ratio_intervals(mine, theirs)
