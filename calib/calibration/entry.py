@@ -281,13 +281,13 @@ def _by_hand(
             raise CalibError("a run placed by hand is read whole", str(source), "leave out --stream")
         source = read_run(source, **options.reading)
     site = site_of(source, options.gravity_mps2)
-    hand, extras, choice, source, notes = fit_checked(
+    hand, extras, choices, source, notes = fit_checked(
         source, site, prof, terms, options.partial, req, options.fix_units
     )
     fit = as_fit(hand, extras)
     provenance = {**options.provenance, "samples": samples_fingerprint(source)}
     result = _checked_result(fit, source.source, options.require_convergence, prof, site, provenance, req)
-    return replace(result, by_hand=summary_of(hand, source, choice, tuple(notes)))
+    return replace(result, by_hand=summary_of(hand, source, choices, tuple(notes)))
 
 
 def rate_limit(run) -> float:

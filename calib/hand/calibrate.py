@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from functools import partial as partial_fit
+from typing import Any
 
 import numpy as np
 from scipy.stats import chi2 as chi2_distribution
@@ -21,7 +22,7 @@ from scipy.stats import chi2 as chi2_distribution
 from calib.errors import CalibError
 from calib.fit.solution import Fit
 from calib.model import params as P
-from calib.model.optional_terms import OptionalTerms
+from calib.model.optional_terms import ACCEL_BIAS_DRIFT, GROUPS, OptionalTerms
 from calib.nav.site import Site
 from calib.nav.strapdown import sample_intervals
 from calib.noise.profiles import NoiseProfile, white_part
@@ -29,12 +30,15 @@ from calib.runlog import Run
 from calib.runlog.clipping import describe_clipping
 
 from .fit_options import HandFitOptions, HandSamples
-from .joint_fit import N_GS, HandFit, fit_by_hand
+from .joint_fit import N_DRIFT, N_GS, HandFit, fit_by_hand
 from .setup import check_setup, fixed, rate_mistake
 from .summary import HandSummary
 from .weights import Weights
 
-G_SENSITIVITY = "g-sensitivity"  # the optional term a hand-placed run can fit
+G_SENSITIVITY = "g-sensitivity"
+# The optional terms a hand-placed run can fit, in the order they are tested: the fit's option
+# that switches each on, and its count of unknowns.
+TERMS = {G_SENSITIVITY: ("g_sensitivity", N_GS), ACCEL_BIAS_DRIFT: ("bias_drift", N_DRIFT)}
 # A term is chosen when its likelihood ratio passes this false-alarm rate: one recording in a
 # thousand without the effect gets it (and loses nothing but a little precision).
 CHOICE_ALPHA = 1e-3
@@ -49,7 +53,8 @@ class TermChoice:
     ``how`` is ``"forced in"`` (``--with``), ``"forced out"`` (``--without``) or ``"tested"``:
     then ``statistic`` is twice the log-likelihood the term gains, each model at the weights its
     own residuals earn, and ``p`` its chance under no such effect (a chi2 on ``dof``, the
-    term's count).
+    term's count); ``wald`` the term's own size against its covariance and ``p_wald`` its
+    chance. Both must pass `CHOICE_ALPHA`.
     """
 
     term: str
@@ -58,15 +63,19 @@ class TermChoice:
     statistic: float = float("nan")
     dof: tuple = (0,)
     p: float = float("nan")
+    wald: float = float("nan")
+    p_wald: float = float("nan")
 
     def line(self) -> str:
         verdict = "fitted" if self.chosen else "not fitted"
         if self.how != "tested":
             flag = "--with" if self.chosen else "--without"
             return f"model: {self.term} {verdict} ({self.how} by {flag})"
+        both = self.p < CHOICE_ALPHA and self.p_wald < CHOICE_ALPHA
         return (
             f"model: {self.term} {verdict}: likelihood ratio {self.statistic:.3g} for {self.dof[0]} terms, "
-            f"p = {self.p:.2g} ({'below' if self.chosen else 'not below'} {CHOICE_ALPHA:g}; "
+            f"p = {self.p:.2g}; its own size {self.wald:.3g}, p = {self.p_wald:.2g} "
+            f"({'both' if both else 'not both'} below {CHOICE_ALPHA:g}; "
             f"--with/--without {self.term} forces it)"
         )
 
@@ -77,6 +86,8 @@ class TermChoice:
                 "likelihood_ratio": self.statistic,
                 "dof": self.dof[0],
                 "p": self.p,
+                "wald": self.wald,
+                "p_wald": self.p_wald,
                 "alpha": CHOICE_ALPHA,
             }
         return doc
@@ -91,23 +102,21 @@ def hand_fit_of(
     req,
     without: tuple = (),
     earn_weights: bool = True,
-) -> tuple[HandFit, OptionalTerms, TermChoice]:
-    """The fit of a run placed by hand, read as it is, with the g-sensitivity chosen by the data.
+) -> tuple[HandFit, OptionalTerms, tuple[TermChoice, ...]]:
+    """The fit of a run placed by hand, read as it is, with its optional terms chosen by the data.
 
-    Unless ``extras`` forces it in or ``without`` out, the gyro g-sensitivity is
-    fitted when an F test at the weights of the fit without it says the data
-    need it (`CHOICE_ALPHA`). Returns the fit, the optional terms it carries and
-    the choice.
+    Unless ``extras`` forces a term in or ``without`` out, each of `TERMS` in turn (the gyro
+    g-sensitivity, then the accelerometer bias drift) is fitted when the likelihood ratio of the
+    fit with it against the fit without, each at the weights its own residuals earn, passes
+    `CHOICE_ALPHA`. Returns the fit, the optional terms it carries and the choices.
     """
-    unsupported = [g for g in (*extras.groups, *without) if g != G_SENSITIVITY]
+    unsupported = [g for g in (*extras.groups, *without) if g not in TERMS]
     if unsupported:
         raise CalibError(
             f"--with/--without {','.join(unsupported)} is not fitted on a run placed by hand",
             run.source,
-            "leave them out (g-sensitivity is the term a hand-placed run can fit)",
+            f"leave them out ({' and '.join(TERMS)} are the terms a hand-placed run can fit)",
         )
-    forced = G_SENSITIVITY in extras.groups or G_SENSITIVITY in without
-    chosen = G_SENSITIVITY in extras.groups
     samples = HandSamples.of_run(run)
     base = HandFitOptions(requirements=req)
 
@@ -115,33 +124,64 @@ def hand_fit_of(
         options = replace(base, loosen=loosen, **changes)
         return fit_by_hand(samples, site, profile, options, weights=weights, where=run.source)
 
+    flags: dict[str, Any] = {TERMS[g][0]: True for g in extras.groups}
     loosen, found = base.loosen, None
     if earn_weights:  # poses held in the hand: the rest finder's thresholds chosen by the fit
-        loosen, found = _loosening(fit_at, chosen)
+        loosen, found = _loosening(fit_at, flags)
     fit = partial_fit(fit_at, loosen)
     # The loosening's fit at its factor is this model's fit (the same inputs): not made again,
     # unless a refusal of what it leaves unestimated is owed.
     first = found if found is not None and (partial or found.estimable.all()) else None
-    if forced:
-        how = "forced in" if chosen else "forced out"
-        hand = first or fit(g_sensitivity=chosen, partial=partial, earn_weights=earn_weights)
-        return hand, extras, TermChoice(G_SENSITIVITY, chosen, how)
-    plain = first or fit(g_sensitivity=False, partial=partial, earn_weights=earn_weights)
-    # Each model with the weights its own residuals earn: a term the data need shrinks the noise
-    # the other model must call a floor, and the likelihood says so (a test at the plain fit's
-    # weights would let that floor hide the term).
-    test = fit(g_sensitivity=True, partial=True, earn_weights=earn_weights, weights=plain.weights)
-    ratio = max(2.0 * (test.log_likelihood - plain.log_likelihood), 0.0)
-    p = float(chi2_distribution.sf(ratio, N_GS))
-    choice = TermChoice(G_SENSITIVITY, p < CHOICE_ALPHA, "tested", ratio, (N_GS,), p)
-    if not choice.chosen:
-        return plain, extras, choice
-    if not partial and not test.estimable.all():
-        test = fit(g_sensitivity=True, partial=False, earn_weights=earn_weights, weights=plain.weights)
-    return test, OptionalTerms((*extras.groups, G_SENSITIVITY)), choice
+    current = first or fit(partial=partial, earn_weights=earn_weights, **flags)
+    choices = [
+        TermChoice(g, g in extras.groups, "forced in" if g in extras.groups else "forced out")
+        for g in TERMS
+        if g in extras.groups or g in without
+    ]
+    chosen = set(extras.groups)
+    for term, (flag, dof) in TERMS.items():
+        if term in extras.groups or term in without:
+            continue
+        # Each model with the weights its own residuals earn: a term the data need shrinks the
+        # noise the other model must call a floor, and the likelihood says so (a test at the
+        # plain fit's weights would let that floor hide the term).
+        trial = flags | {flag: True}
+        test = fit(partial=True, earn_weights=earn_weights, weights=current.weights, **trial)
+        ratio = max(2.0 * (test.log_likelihood - current.log_likelihood), 0.0)
+        p = float(chi2_distribution.sf(ratio, dof))
+        wald = _wald(test, term)
+        p_wald = float(chi2_distribution.sf(wald, dof))
+        fitted = p < CHOICE_ALPHA and p_wald < CHOICE_ALPHA
+        choices.append(TermChoice(term, fitted, "tested", ratio, (dof,), p, wald, p_wald))
+        if fitted:
+            if not partial and not test.estimable.all():
+                test = fit(partial=False, earn_weights=earn_weights, weights=current.weights, **trial)
+            flags, current = trial, test
+            chosen.add(term)
+    return current, OptionalTerms(tuple(g for g in GROUPS if g in chosen)), tuple(choices)
 
 
-def _loosening(fit, g_sensitivity: bool) -> tuple[float, HandFit | None]:
+def _wald(fit: HandFit, term: str) -> float:
+    """The term's own size against its covariance, ``x^T C^-1 x`` (chi2 on its count under none).
+
+    The likelihood ratio compares the two models each at the weights its residuals earn: a term
+    the run cannot pin down may still change those weights, and the ratio with them (on the
+    Ferraris session's first two thirds the drift gained 48 while no component of it was
+    beyond 1.6 sigma). So the term must also stand on its own.
+    """
+    lay = fit.layout
+    cols, x = (
+        (lay.gs, fit.g_sensitivity.reshape(9))
+        if term == G_SENSITIVITY and fit.g_sensitivity is not None
+        else (lay.drift, fit.bias_drift)
+    )
+    if x is None or x.size == 0:
+        return 0.0
+    C = fit.covariance[cols, cols]
+    return float(x @ np.linalg.pinv(C) @ x)
+
+
+def _loosening(fit, flags: dict) -> tuple[float, HandFit | None]:
     """The factor on the rest finder's thresholds (the profile's, loosened only as far as needed),
     and the fit made at it (None where no factor serves).
 
@@ -159,7 +199,7 @@ def _loosening(fit, g_sensitivity: bool) -> tuple[float, HandFit | None]:
     rest_time = 0.0
     for loosen in LOOSENINGS:
         try:
-            hand = fit(loosen, g_sensitivity=g_sensitivity, partial=True, earn_weights=True)
+            hand = fit(loosen, partial=True, earn_weights=True, **flags)
         except CalibError:  # too few rests at these thresholds
             continue
         if not hand.estimable[: P.N_PARAMS].all():
@@ -181,7 +221,7 @@ def fit_checked(
     partial: bool,
     req,
     fix_units: bool = False,
-) -> tuple[HandFit, OptionalTerms, TermChoice, Run, list]:
+) -> tuple[HandFit, OptionalTerms, tuple[TermChoice, ...], Run, list]:
     """The setup checked (:mod:`calib.hand.setup`), the fit with its model chosen, the rate checked.
 
     ``terms`` is the optional terms forced in (OptionalTerms) and out (names). Returns the fit, its
@@ -195,7 +235,7 @@ def fit_checked(
             "Gauss-Markov bias; one that wanders between rests shows as the rests' floor below)"
         )
         profile = white_part(profile)
-    hand, used, choice = hand_fit_of(run, site, profile, extras, partial, req, without)
+    hand, used, choices = hand_fit_of(run, site, profile, extras, partial, req, without)
     sigma = np.sqrt(np.diag(hand.covariance))[P.GYRO_SCALE] * math.sqrt(max(hand.chi2_per_dof, 1.0))
     period = float(np.median(sample_intervals(run.time_s)))
     mistake = rate_mistake(hand.values[P.GYRO_SCALE], sigma, period)
@@ -209,16 +249,16 @@ def fit_checked(
             )
         run = fixed(run, [mistake])
         notes.append(f"fixed: {mistake.what}")
-        hand, used, choice = hand_fit_of(run, site, profile, extras, partial, req, without)
-    return hand, used, choice, run, notes
+        hand, used, choices = hand_fit_of(run, site, profile, extras, partial, req, without)
+    return hand, used, choices, run, notes
 
 
 def as_fit(hand: HandFit, extras: OptionalTerms) -> Fit:
     """The estimator's :class:`calib.fit.solution.Fit` of a hand fit (what the result is built from)."""
     lay = hand.layout
-    n_keep = lay.gs.stop
+    n_keep = lay.drift.stop
     cov = np.zeros((P.N_PARAMS + 3 + extras.n,) * 2)
-    keep = np.r_[0 : P.N_PARAMS, lay.gs]
+    keep = np.r_[0 : P.N_PARAMS, lay.gs, lay.drift]
     out = np.r_[0 : P.N_PARAMS, P.N_PARAMS + 3 : P.N_PARAMS + 3 + extras.n]
     cov[np.ix_(out, out)] = hand.covariance[np.ix_(keep, keep)]
     tilt = lay.columns(0)[0]
@@ -237,13 +277,18 @@ def as_fit(hand: HandFit, extras: OptionalTerms) -> Fit:
         n_observations=hand.n_observations,
         history=hand.history,
         extras=extras,
-        extra_values=hand.g_sensitivity.reshape(9) if hand.g_sensitivity is not None else np.zeros(0),
+        extra_values=np.concatenate(
+            [
+                hand.g_sensitivity.reshape(9) if hand.g_sensitivity is not None else np.zeros(0),
+                hand.bias_drift if hand.bias_drift is not None else np.zeros(0),
+            ]
+        ),
         estimable=estimable,
         null_directions=hand.null_directions,
     )
 
 
-def summary_of(hand: HandFit, run: Run, choice: TermChoice | None = None, notes: tuple = ()) -> HandSummary:
+def summary_of(hand: HandFit, run: Run, choices: tuple = (), notes: tuple = ()) -> HandSummary:
     """Rests and moves in seconds from the log's start, the weights earned and the model chosen."""
     t0 = float(run.time_s[0] - sample_intervals(run.time_s)[0])
     t = np.concatenate([[t0], run.time_s]) - t0  # sample i spans t[i] .. t[i + 1]
@@ -260,10 +305,10 @@ def summary_of(hand: HandFit, run: Run, choice: TermChoice | None = None, notes:
         chi2_per_dof=hand.chi2_per_dof,
         notes=(
             *notes,
-            *(() if choice is None else (choice.line(),)),
+            *(c.line() for c in choices),
             *hand.weights.lines(hand.weight_sizes),
             *hand.loose_rests,
         ),
         choices={"weights": hand.weights.to_json(hand.weight_sizes), "loose_rests": list(hand.loose_rests)}
-        | ({} if choice is None else {"model": [choice.to_json()]}),
+        | ({"model": [c.to_json() for c in choices]} if choices else {}),
     )

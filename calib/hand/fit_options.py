@@ -40,6 +40,8 @@ class HandFitOptions:
     use_moves : bool
         Chain the rests through the moves (off: the rests alone, each its own attitude; the
         view that judges a rest's specific force by the other rests', :mod:`calib.hand.weights`).
+    bias_drift : bool
+        Also fit the accelerometers' bias drift (3 terms, linear in time over the run).
     """
 
     g_sensitivity: bool = False
@@ -49,6 +51,7 @@ class HandFitOptions:
     earn_weights: bool = True
     loosen: float = 1.0
     use_moves: bool = True
+    bias_drift: bool = False
 
 
 HAND_FIT = HandFitOptions()  # the defaults

@@ -13,6 +13,12 @@ what holds whatever the hand did:
   over the move), weighted by the ARW over the move's length. The accelerometers
   during a move (the hand's translation) are not used.
 
+Optional terms the data may ask for (:mod:`calib.hand.calibrate` chooses them): the gyros'
+g-sensitivity ``G`` (the rest rates and the moves' increments read ``+ G f``), and the
+accelerometers' bias drift ``d``: at a rest of middle time ``tau`` (from the rests' middle)
+the specific force reads ``+ d tau`` (the moves use the bias at the rests' middle: over a
+move of seconds the drift is micro-g). With a drift, the biases reported are the last rest's.
+
 The unknowns are the 21, each rest's attitude and the horizontal Earth rate in
 the first rest's heading frame (a MEMS gyro cannot see it: it carries the prior
 of an unknown heading, each component ``Omega cos(lat) / sqrt(2)``; a
@@ -50,6 +56,7 @@ from .weights import Weights, component_sizes, components, profile_outliers, red
 
 N = P.N_PARAMS
 N_GS = 9  # the gyro g-sensitivity matrix, when fitted
+N_DRIFT = 3  # the accelerometer's bias drift, per second, when fitted
 MAX_ITERATIONS = 30
 MAX_REWEIGHTS = 12  # the weights settle in 3-6 rounds on the real recordings
 STEP_TOL_SIGMA = 1e-3
@@ -89,6 +96,7 @@ class HandFit:
     weights: Weights = field(default_factory=Weights)
     log_likelihood: float = 0.0  # Gaussian, at the weights earned (up to a constant): compares models
     weight_sizes: dict = field(default_factory=dict)  # the non-white components in the user's units
+    bias_drift: np.ndarray | None = None  # (3,) accelerometer bias drift, m/s^2 per s, when fitted
 
     @property
     def chi2_per_dof(self) -> float:
@@ -101,20 +109,25 @@ class HandFit:
 
 @dataclass(frozen=True)
 class Layout:
-    """Where each unknown sits: ``[21, g-sensitivity (9 or none), h_E, h_N, rest 0's two tilts,
-    three per further rest]``.
+    """Where each unknown sits: ``[21, g-sensitivity (9 or none), accelerometer bias drift (3 or
+    none), h_E, h_N, rest 0's two tilts, three per further rest]``.
     """
 
     rests: int
     g_sensitivity: bool
+    bias_drift: bool = False
 
     @property
     def gs(self) -> slice:
         return slice(N, N + (N_GS if self.g_sensitivity else 0))
 
     @property
+    def drift(self) -> slice:
+        return slice(self.gs.stop, self.gs.stop + (N_DRIFT if self.bias_drift else 0))
+
+    @property
     def h(self) -> slice:
-        return slice(self.gs.stop, self.gs.stop + 2)
+        return slice(self.drift.stop, self.drift.stop + 2)
 
     @property
     def n(self) -> int:
@@ -130,9 +143,10 @@ class Layout:
 
     def names(self) -> tuple:
         gs = [f"gs{i}{m}" for i in "xyz" for m in "xyz"] if self.g_sensitivity else []
+        dr = [f"dba{a}" for a in "xyz"] if self.bias_drift else []
         rest = [f"rest0_tilt_{a}" for a in "EN"]
         rest += [f"rest{r}_{a}" for r in range(1, self.rests) for a in "ENU"]
-        return (*P.NAMES, *gs, "earth_rate_E", "earth_rate_N", *rest)
+        return (*P.NAMES, *gs, *dr, "earth_rate_E", "earth_rate_N", *rest)
 
 
 def _compensated(dtheta, dv, dt, sl: slice, model: ErrorModel, G: np.ndarray):
@@ -192,6 +206,7 @@ class FitState:
     G: np.ndarray  # (3, 3) gyro g-sensitivity, (rad/s)/(m/s^2)
     h: np.ndarray  # (2,)
     C: np.ndarray  # (K, 3, 3)
+    D: np.ndarray = field(default_factory=lambda: np.zeros(N_DRIFT))  # accelerometer bias drift, (m/s^2)/s
 
     def omega_n(self, latitude_rad: float) -> np.ndarray:
         return np.array([self.h[0], self.h[1], earth.RATE * math.sin(latitude_rad)])
@@ -200,6 +215,8 @@ class FitState:
         self.values = self.values + step[:N]
         if layout.g_sensitivity:
             self.G = self.G + step[layout.gs].reshape(3, 3)
+        if layout.bias_drift:
+            self.D = self.D + step[layout.drift]
         self.h = self.h + step[layout.h]
         for r in range(layout.rests):
             cols, Smap = layout.columns(r)
@@ -223,6 +240,7 @@ def linearise(
     omega_n = state.omega_n(latitude_rad)
     f_n = earth.specific_force_n(site.gravity_mps2)
     rows, res, sig, group = [], [], [], []
+    tau = rest_times(data, dt) if layout.bias_drift else np.zeros(data.count)
 
     def add(jac, r, s, grp):
         rows.append(jac)
@@ -238,10 +256,12 @@ def linearise(
         J[:, :N] = np.einsum("pjk,k->jp", _ACCEL_DA, u_f)
         J[:, P.ACCEL_BIAS] = np.eye(3)
         J[:, cols] = (A_a @ C[r].T @ skew(f_n)) @ Smap
+        if layout.bias_drift:
+            J[:, layout.drift] = np.eye(3) * tau[r]
         noise_f, noise_w = data.rest_noise[r]
         add(
             J,
-            data.rest_force[r] - (A_a @ u_f + model.accel_bias),
+            data.rest_force[r] - (A_a @ u_f + model.accel_bias + state.D[:3] * tau[r]),
             noise_f * profile.vrw / math.sqrt(T),
             ("force", r),
         )
@@ -287,11 +307,24 @@ def linearise(
     return e, s, jac, groups
 
 
+def rest_times(data: HandData, dt: np.ndarray) -> np.ndarray:
+    """Each rest's middle, s, from halfway between the first rest's and the last rest's middles.
+
+    A drifting accelerometer bias is fitted about that time (its estimate and its drift's
+    least correlated there); the result gives the bias at the last rest (`at_last_rest`).
+    """
+    ends = np.concatenate([[0.0], np.cumsum(dt)])
+    mid = 0.5 * (ends[data.rests.start] + ends[data.rests.end])
+    return mid - 0.5 * (mid[0] + mid[-1])
+
+
 def unknown_scales(layout: Layout, req: Requirements, latitude_rad: float) -> np.ndarray:
     """The size each unknown is judged at: requirements, 10 deg/h/g, the Earth rate, a milliradian."""
     scale = np.full(layout.n, ATTITUDE_SCALE)
     scale[:N] = req.si
     scale[layout.gs] = 10.0 * G_SENSITIVITY_SI_PER_UNIT
+    if layout.bias_drift:  # a bias's requirement over 100 s
+        scale[layout.drift] = req.si[P.ACCEL_BIAS] / 100.0
     scale[layout.h] = earth.RATE * max(math.cos(latitude_rad), 0.1)
     return scale
 
@@ -357,7 +390,7 @@ def _fit(
     """:func:`fit_by_hand` on the rests and moves ``data`` holds (a move not used is not chained)."""
     latitude_rad = site.latitude_rad
     dtheta, dv, dt = samples.dtheta, samples.dv, samples.dt
-    layout = Layout(data.count, o.g_sensitivity)
+    layout = Layout(data.count, o.g_sensitivity, o.bias_drift)
     values = np.zeros(N)
     values[P.GYRO_BIAS] = np.average(data.rest_rate, axis=0, weights=data.rest_time_s)
     G = np.zeros((3, 3))
@@ -420,10 +453,12 @@ def _fit(
     move_chi2 = np.bincount(index[kind == "move"], z2[kind == "move"], minlength=data.count - 1).astype(float)
     move_chi2[~data.move_used] = np.nan
     force_rows = np.flatnonzero(kind == "force")
+    covariance = scale[:, None] * inv.covariance * scale[None, :]
+    values, covariance = at_last_rest(state, covariance, layout, data, samples.dt)
     return HandFit(
-        values=state.values,
+        values=values,
         g_sensitivity=state.G if o.g_sensitivity else None,
-        covariance=scale[:, None] * inv.covariance * scale[None, :],
+        covariance=covariance,
         C_rest=state.C.copy(),
         earth_rate_h=state.h,
         converged=converged,
@@ -442,7 +477,24 @@ def _fit(
         history=history,
         weights=weights,
         weight_sizes=component_sizes(weights, shapes, labels, data.move_turn_rad),
+        bias_drift=state.D.copy() if o.bias_drift else None,
     )
+
+
+def at_last_rest(state: FitState, covariance: np.ndarray, layout: Layout, data: HandData, dt: np.ndarray):
+    """The 21 and their covariance with the accelerometer biases at the last rest (a drift fitted).
+
+    The biases are fitted about the rests' middle time; the unit leaves the run with the bias
+    of its end, which a correction applied after it needs: ``b + d tau_last``.
+    """
+    if not layout.bias_drift:
+        return state.values, covariance
+    tau_last = float(rest_times(data, dt)[-1])
+    values = state.values.copy()
+    values[P.ACCEL_BIAS] += state.D * tau_last
+    T = np.eye(layout.n)
+    T[P.ACCEL_BIAS, layout.drift] = np.eye(3) * tau_last
+    return values, T @ covariance @ T.T
 
 
 class _Problem(NamedTuple):
