@@ -47,10 +47,10 @@ from calib.nav.site import Site
 from calib.nav.transform import dcm_to_rotvec, rotvec_to_dcm, skew
 from calib.noise.profiles import NoiseProfile
 
+from .chain import chained_start, compensated
 from .data import HandData, hand_data
 from .fit_options import HAND_FIT, HandFitOptions, HandSamples
 from .moves import move_rotation, move_sensitivity, right_jacobian_inverse
-from .poses import tip_to
 from .weak import split_weak
 from .weights import Weights, component_sizes, components, profile_outliers, redundancy, refuted, reweighted
 
@@ -60,8 +60,6 @@ N_DRIFT = 3  # the accelerometer's bias drift, per second, when fitted
 MAX_ITERATIONS = 30
 MAX_REWEIGHTS = 12  # the weights settle in 3-6 rounds on the real recordings
 STEP_TOL_SIGMA = 1e-3
-GROSS_TILT_DEG = 5.0  # gross_tilt_rad: a chained move missing its next rest's gravity by more is no move
-GROSS_FRACTION = 0.1  # ... plus this fraction of the angle turned
 ATTITUDE_SCALE = 1e-3  # rad: the size an attitude unknown is judged at by the observability rule
 _ACCEL_DA = error_matrix_jacobian("accel")
 _GYRO_DA = error_matrix_jacobian("gyro")
@@ -149,55 +147,6 @@ class Layout:
         return (*P.NAMES, *gs, *dr, "earth_rate_E", "earth_rate_N", *rest)
 
 
-def _compensated(dtheta, dv, dt, sl: slice, model: ErrorModel, G: np.ndarray):
-    """A move's gyro increments less bias and g-sensitivity, through ``A_g^-1``; its specific-force
-    increments through the accelerometer errors; and the compensated sample before the move.
-    """
-    A_inv = np.linalg.inv(model.gyro_matrix)
-    idx = np.arange(sl.start - 1, sl.stop)
-    dv_true = np.linalg.solve(model.accel_matrix, (dv[idx] - model.accel_bias * dt[idx, None]).T).T
-    dth = (dtheta[idx] - model.gyro_bias * dt[idx, None] - dv_true @ G.T) @ A_inv.T
-    return dth[1:], dv_true[1:], dth[0], A_inv
-
-
-def gross_tilt_rad(turn_rad: float) -> float:
-    """The largest tilt a gyro-chained move may miss the next rest's gravity by and still be a move.
-
-    A MEMS gyro's scale and axis errors (a few per cent, `calib.hand.setup` refuses a common
-    2 %) tilt a turn's end by a few per cent of its angle; `GROSS_FRACTION` of it plus
-    `GROSS_TILT_DEG` is far beyond that. A miss beyond it is no move of this unit: two
-    recordings spliced, samples lost in a turn.
-    """
-    return math.radians(GROSS_TILT_DEG) + GROSS_FRACTION * turn_rad
-
-
-def _start(data: HandData, dtheta, dv, dt, values, G, omega_n) -> tuple[np.ndarray, dict]:
-    """Rest attitudes chained through the moves, each levelled on its accelerometers.
-
-    A move whose chained attitude misses the next rest's gravity by more than
-    :func:`gross_tilt_rad` is not chained through (the rests after it start from their
-    own gravity alone). Returns the attitudes and each such move's miss, rad.
-    """
-    model = ErrorModel(values)
-    C = np.empty((data.count, 3, 3))
-    C[0] = tip_to(np.eye(3), data.rest_force[0])
-    gross = {}
-    for r, sl in enumerate(data.move_slices):
-        prev = C[r]
-        if data.move_used[r]:
-            dth, _, before, _ = _compensated(dtheta, dv, dt, sl, model, G)
-            R, _, _ = move_rotation(dth, before)
-            chained = rotvec_to_dcm(-omega_n * dt[sl].sum()) @ C[r] @ R
-            up = data.rest_force[r + 1] / np.linalg.norm(data.rest_force[r + 1])
-            miss = math.acos(float(np.clip((chained @ up)[2], -1.0, 1.0)))
-            if miss > gross_tilt_rad(float(data.move_turn_rad[r])):
-                gross[r] = miss
-            else:
-                prev = chained
-        C[r + 1] = tip_to(prev, data.rest_force[r + 1])
-    return C, gross
-
-
 @dataclass
 class FitState:
     """The unknowns of one iteration (SI): the 21, the g-sensitivity, the Earth rate, the attitudes."""
@@ -277,7 +226,7 @@ def linearise(
     for r, sl in enumerate(data.move_slices):
         if not data.move_used[r]:
             continue
-        dth, dv_true, before, A_inv = _compensated(dtheta, dv, dt, sl, model, G)
+        dth, dv_true, before, A_inv = compensated(dtheta, dv, dt, sl, model, G)
         R, Q, phi = move_rotation(dth, before)
         T = float(dt[sl].sum())
         R_E = rotvec_to_dcm(-omega_n * T)
@@ -395,7 +344,7 @@ def _fit(
     values[P.GYRO_BIAS] = np.average(data.rest_rate, axis=0, weights=data.rest_time_s)
     G = np.zeros((3, 3))
     omega_n = np.array([0.0, 0.0, earth.RATE * math.sin(latitude_rad)])
-    C_start, gross = _start(data, dtheta, dv, dt, values, G, omega_n)
+    C_start, gross = chained_start(data, dtheta, dv, dt, values, G, omega_n)
     state = FitState(values, G, np.zeros(2), C_start)
     scale = unknown_scales(layout, o.requirements, latitude_rad)
     names = layout.names()

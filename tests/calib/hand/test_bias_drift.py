@@ -1,0 +1,81 @@
+"""An accelerometer bias that drifts over a hand run (a unit still warming up) is chosen and fitted.
+
+The drift is linear in time, ``b_a + d (t - t_last)``: the fit chooses it only when the
+likelihood ratio and the term's own size both pass 0.001 (:mod:`calib.hand.calibrate`), and
+then gives the biases at the last rest. A run without drift keeps the 21 alone.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from calib.calibration.entry import calibrate
+from calib.hand.plan import xsens_like_plan
+from calib.hand.simulate import simulate_by_hand
+from calib.model import params as P
+from calib.model.error_model import ErrorModel
+from calib.model.optional_terms import ACCEL_BIAS_DRIFT, BIAS_DRIFT_SI_PER_UNIT
+from calib.noise.profiles import load_profile
+from calib.runlog.run import Run
+from calib.sequence.kinematics import SimConfig
+
+MEMS = load_profile("mems")
+CFG = SimConfig(latitude_rad=math.radians(45.0), height_m=0.0, sample_rate_hz=100.0)
+VALUES = np.zeros(21)
+VALUES[0:3] = np.radians([0.2, -0.3, 0.1])
+VALUES[3:6] = [3e-3, -2e-3, 4e-3]
+VALUES[12:15] = [0.05, -0.03, 0.08]  # the biases at the run's end, m/s^2
+VALUES[15:18] = [2e-3, 3e-3, -1e-3]
+DRIFT_UG_MIN = np.array([-700.0, 250.0, 0.0])  # a RealSense T265's, measured (BENCHMARKS.md)
+
+
+def _run(seed: int, drift_ug_min: np.ndarray) -> tuple[Run, np.ndarray]:
+    """A hand run whose accelerometer biases move linearly, reaching VALUES at its last sample."""
+    plan = xsens_like_plan(np.random.default_rng(seed))
+    run, _ = simulate_by_hand(plan, CFG, ErrorModel(VALUES), MEMS, seed=seed + 1000)
+    drift = drift_ug_min * BIAS_DRIFT_SI_PER_UNIT
+    dt = np.diff(np.concatenate([[run.time_s[0] - 0.01], run.time_s]))
+    middle = run.time_s - 0.5 * dt  # each sample's interval's middle
+    dv = run.dv_mps + np.outer(middle - run.time_s[-1], drift) * dt[:, None]
+    return Run(run.time_s, run.dtheta_rad, dv, run.meta), drift
+
+
+def _model(result, term: str) -> dict:
+    return next(m for m in result.by_hand.choices["model"] if m["term"] == term)
+
+
+@pytest.mark.slow
+def test_a_drifting_accelerometer_bias_is_chosen_and_recovered_at_the_last_rest():
+    run, drift = _run(3, DRIFT_UG_MIN)
+    result = calibrate(run, MEMS, by_hand=True)
+    choice = _model(result, ACCEL_BIAS_DRIFT)
+    assert choice["fitted"] is True and choice["p"] < 1e-3 and choice["p_wald"] < 1e-3
+    part = result.extras.index(ACCEL_BIAS_DRIFT)
+    fitted, sigma = np.asarray(result.extra_values)[part], np.asarray(result.extra_sigma)[part]
+    # Three draws of a normal stay within 4 sigma with 99.98 %.
+    assert np.all(np.abs(fitted - drift) < 4 * sigma), (fitted / BIAS_DRIFT_SI_PER_UNIT, sigma)
+    # The biases are the last rest's: the truth there is VALUES less the drift to the run's end.
+    last_rest_middle = float(np.mean(result.by_hand.rest_s[-1])) + float(run.time_s[0] - 0.01)
+    truth = VALUES[P.ACCEL_BIAS] + drift * (last_rest_middle - float(run.time_s[-1]))
+    z = (result.values[P.ACCEL_BIAS] - truth) / result.sigma[P.ACCEL_BIAS]
+    assert np.all(np.abs(z) < 4), z
+    # The scale factors and misalignments are the drift-free truth's (the drift absorbed).
+    others = np.r_[P.ACCEL_SCALE, P.ACCEL_MISALIGNMENT]
+    assert np.all(np.abs((result.values[others] - VALUES[others]) / result.sigma[others]) < 4)
+
+
+@pytest.mark.slow
+def test_a_steady_bias_keeps_the_21_alone_and_the_drift_can_be_forced():
+    run, _ = _run(3, np.zeros(3))
+    result = calibrate(run, MEMS, by_hand=True)
+    choice = _model(result, ACCEL_BIAS_DRIFT)
+    assert choice["fitted"] is False and choice["how"] == "tested"
+    assert ACCEL_BIAS_DRIFT not in result.extras.groups
+    forced = calibrate(run, MEMS, by_hand=True, extras=ACCEL_BIAS_DRIFT)
+    assert _model(forced, ACCEL_BIAS_DRIFT)["how"] == "forced in"
+    part = forced.extras.index(ACCEL_BIAS_DRIFT)
+    # No drift in the data: the fitted one is zero within 4 sigma.
+    assert np.all(np.abs(np.asarray(forced.extra_values)[part]) < 4 * np.asarray(forced.extra_sigma)[part])
