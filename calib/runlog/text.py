@@ -15,7 +15,7 @@ COMMENT_MARKS = ("#", "//", "% ")
 
 
 def is_comment(line: str) -> bool:
-    """Whether a line above (or among) the rows is a comment: ``#``, ``//`` or ``% `` first."""
+    """Whether a line above (or among) the rows is a comment: ``#``, ``//``, or ``%`` and a space, first."""
     return line.lstrip().startswith(COMMENT_MARKS)
 
 
