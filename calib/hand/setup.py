@@ -263,6 +263,9 @@ _FORCE_MISTAKES = (
     ("mg (milli-g)", "g", 1000.0, "mg"),
 )
 GRAVITY_REMOVED = 0.1  # |f| at rest below this fraction of g: the logger took gravity out
+# The counts per g of converters' usual ranges (16-bit at +-2, 4, 8, 16 g; 10-13-bit parts): |f| at
+# rest within 10 % of one of them, read as m/s^2, is raw counts (no unit is that far from g).
+COUNTS_PER_G = (16384, 8192, 4096, 2048, 1024, 512, 256)
 
 
 # |f| at rest spreading over the rests by more than this (max - min over the median) is no scale
@@ -345,6 +348,16 @@ def _force_mistake(f: float, gravity_mps2: float) -> Mistake:
             eye,
             cannot_fix="log the accelerometer's raw specific force, gravity included (a phone's "
             "'accelerometer' or 'total acceleration', not its 'linear acceleration')",
+        )
+    counts = next((c for c in COUNTS_PER_G if abs(f / c - 1.0) < 0.1), None)
+    if counts is not None:
+        return Mistake(
+            f"|f| at rest is {f:.4g} in the log's unit, {ratio:.3g} g if it were m/s^2: raw converter "
+            f"counts, as an accelerometer of {counts} counts per g reads",
+            eye,
+            eye,
+            cannot_fix=f'read it as counts with a conversion (counts_per_unit {counts}, unit = "g"): columns '
+            "accel_<axis>_counts, or imu_tk's files with the CLI's --conversion FILE, not si",
         )
     return Mistake(
         f"|f| at rest is {f:.4g} m/s^2, {ratio:.3g} g, which no unit mistake we know of gives",

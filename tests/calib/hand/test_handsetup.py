@@ -103,6 +103,10 @@ def test_fix_units_puts_the_mistake_right(hand_run, mistake):
         # Three times too large: no unit we know; scaling it to g would hide the scale factors.
         (lambda r, g: dataclasses.replace(r, dv_mps=3.0 * r.dv_mps, clock=None),
          "which no unit mistake we know of gives", "zero and counts per unit"),
+        # A +-8 g 16-bit part's raw counts (4096 per g) read as m/s^2: named as counts, its scale
+        # the one |f| at rest is near (a unit's few per cent of error keep it within 10 %).
+        (lambda r, g: dataclasses.replace(r, dv_mps=r.dv_mps * 4096 / 9.80665, clock=None),
+         "raw converter counts, as an accelerometer of 4096 counts per g reads", "counts_per_unit 4096"),
     ],
 )  # fmt: skip
 def test_an_accelerometer_no_relabelling_puts_right_is_refused_even_under_fix_units(
