@@ -19,6 +19,7 @@ in the stamps does not enter the increments. ``#`` and ``%`` lines are comments.
 from __future__ import annotations
 
 import os
+import warnings
 
 import numpy as np
 
@@ -89,6 +90,8 @@ def read_imutk(
     acc_name, gyro_name = str(acc_path), str(gyro_path)
     acc, acc_lines = _table(acc_name)
     gyro, gyro_lines = _table(gyro_name)
+    for table, name in ((acc, acc_name), (gyro, gyro_name)):
+        table[:, 0] *= _seconds_per_stamp(table[:, 0], name)
     if conversion is None:
         raise CalibError(
             "imu_tk's files are raw counts, and counts say no rate or force without the sensor's "
@@ -138,6 +141,28 @@ def read_imutk(
     )
     run.clock = check_samples(run, locate, allow_gaps, "time_s")
     return run
+
+
+# imu_tk's time is in seconds; a logger's may count ms, us or ns (a ROS stamp): the unit that puts the
+# stamps' rate at 1 Hz or more (an IMU's), the largest such, is theirs.
+STAMP_UNITS = ((1.0, "s"), (1e-3, "ms"), (1e-6, "us"), (1e-9, "ns"))
+
+
+def _seconds_per_stamp(time: np.ndarray, name: str) -> float:
+    """Seconds per unit of a file's time column: 1, unless its rate in seconds is below 1 Hz."""
+    if len(time) < 3:
+        return 1.0
+    rate = stamps_rate(time - time[0])
+    for factor, unit in STAMP_UNITS:
+        if rate / factor >= 1.0:
+            if factor != 1.0:
+                warnings.warn(
+                    f"{name}: the time column steps by {1.0 / rate:.4g} per sample, {rate / factor:.4g} Hz "
+                    f"if it counts {unit}: read as {unit} (imu_tk's files count seconds)",
+                    stacklevel=3,
+                )
+            return factor
+    return 1.0
 
 
 def _row_for_row(acc_s: np.ndarray, gyro_s: np.ndarray, rate_hz: float | None) -> bool:

@@ -19,6 +19,7 @@ from calib.hand.plan import random_hand_plan
 from calib.hand.simulate import simulate_by_hand
 from calib.model.error_model import ErrorModel
 from calib.noise.profiles import load_profile
+from calib.runlog import read_run
 from calib.runlog.clock import duplicate_rows, sample_clock, stamps_rate
 from calib.sequence.kinematics import SimConfig
 from seqdesign.cli import main
@@ -139,3 +140,25 @@ def test_imu_tk_files_already_in_si_without_a_conversion_are_told_the_word_si(tm
     )
     assert got.exit_code != 0 and "Traceback" not in got.output
     assert "as if already in m/s^2" in got.output and "--conversion si" in got.output
+
+
+@pytest.mark.parametrize(("unit", "per_second", "written"), [("ms", 1e3, "%.3f"), ("ns", 1e9, "%.0f")])
+def test_imu_tk_files_whose_time_counts_ms_or_ns_are_read_in_seconds(tmp_path, unit, per_second, written):
+    # A ROS stamp in ns, a logger's millis(): 100 Hz is then 1e-7 or 0.1 "Hz" in seconds, no IMU's
+    # rate, and only one unit of the four puts it at 1 Hz or more.
+    rng = np.random.default_rng(2)
+    n = 2_000
+    seconds = 1.69e9 + 0.01 * np.arange(n) + rng.uniform(0.0, 2e-4, n)  # host stamps, 0.2 ms jitter
+    rate, force = rng.normal(0.0, 0.01, (n, 3)), np.tile([0.1, -0.2, 9.8], (n, 1))
+    acc, gyro = _imutk_files(tmp_path, seconds, rate, force, "%.6f")
+    base = read_run(acc, gyro_path=gyro, conversion="si", latitude_deg=45.0, height_m=0.0)
+    other = tmp_path / unit
+    other.mkdir()
+    acc, gyro = _imutk_files(other, seconds * per_second, rate, force, written)
+    with pytest.warns(UserWarning, match=f"read as {unit}"):
+        run = read_run(acc, gyro_path=gyro, conversion="si", latitude_deg=45.0, height_m=0.0)
+    # The same samples: the same increments (each over the period the stamps' rate gives, which
+    # their rounding to 1 us or 1 ns moves by parts per billion), times within that rounding.
+    np.testing.assert_allclose(run.dtheta_rad, base.dtheta_rad, rtol=1e-7)
+    np.testing.assert_allclose(run.time_s, base.time_s, atol=2e-6)
+    assert abs(run.sample_rate_hz - base.sample_rate_hz) < 1e-6 * base.sample_rate_hz
