@@ -1,9 +1,9 @@
 """Calibrate a run placed by hand: the fit of :mod:`calib.hand.joint_fit` as a calibration result.
 
 Around the fit: the setup checked (:mod:`calib.hand.setup`), the rest finder's
-thresholds loosened for poses held in the hand, the gyro g-sensitivity chosen by
-the data (or forced), and a wrong rate told by the scale factors. The result
-carries the 21 (and the g-sensitivity when fitted) with their sigmas,
+thresholds loosened for poses held in the hand, the gyro g-sensitivity and the
+accelerometer bias drift chosen by the data (or forced), and a wrong rate told by
+the scale factors. The result carries the 21 (and the optional terms fitted) with their sigmas,
 Birge-checked like a gimbal run's, the first rest's attitude, and a
 :class:`calib.hand.summary.HandSummary` of the rests and moves used, the model
 chosen and the weights earned.
@@ -107,8 +107,9 @@ def hand_fit_of(
 
     Unless ``extras`` forces a term in or ``without`` out, each of `TERMS` in turn (the gyro
     g-sensitivity, then the accelerometer bias drift) is fitted when the likelihood ratio of the
-    fit with it against the fit without, each at the weights its own residuals earn, passes
-    `CHOICE_ALPHA`. Returns the fit, the optional terms it carries and the choices.
+    fit with it against the fit without, each at the weights its own residuals earn, and the
+    term's own Wald size both pass `CHOICE_ALPHA`. Returns the fit, the optional terms
+    it carries and the choices.
     """
     unsupported = [g for g in (*extras.groups, *without) if g not in TERMS]
     if unsupported:
