@@ -22,7 +22,7 @@ from scipy.stats import chi2 as chi2_distribution
 from calib.errors import CalibError
 from calib.fit.solution import Fit
 from calib.model import params as P
-from calib.model.optional_terms import ACCEL_BIAS_DRIFT, GROUPS, OptionalTerms
+from calib.model.optional_terms import ACCEL_BIAS_DRIFT, BIAS_DRIFT_SI_PER_UNIT, GROUPS, OptionalTerms
 from calib.nav.site import Site
 from calib.nav.strapdown import sample_intervals
 from calib.noise.profiles import NoiseProfile, white_part
@@ -296,6 +296,13 @@ def summary_of(hand: HandFit, run: Run, choices: tuple = (), notes: tuple = ()) 
     rests = hand.data.rests
     rest_s = np.column_stack([t[rests.start], t[rests.end]])
     move_s = np.column_stack([t[rests.end[:-1]], t[rests.start[1:]]])
+    drift = []
+    if hand.bias_drift is not None:  # the biases are then a time's: said, with the drift
+        per_min = ", ".join(f"{d / BIAS_DRIFT_SI_PER_UNIT:+.0f}" for d in hand.bias_drift)
+        drift.append(
+            f"accelerometer biases: the last rest's, at {float(np.mean(rest_s[-1])):.1f} s; they drift by "
+            f"({per_min}) ug/min over the run, which a correction (one bias) does not carry"
+        )
     return HandSummary(
         rest_s=rest_s,
         move_s=move_s,
@@ -307,6 +314,7 @@ def summary_of(hand: HandFit, run: Run, choices: tuple = (), notes: tuple = ()) 
         notes=(
             *notes,
             *(c.line() for c in choices),
+            *drift,
             *hand.weights.lines(hand.weight_sizes),
             *hand.loose_rests,
         ),

@@ -58,7 +58,9 @@ def test_a_drifting_accelerometer_bias_is_chosen_and_recovered_at_the_last_rest(
     # Three draws of a normal stay within 4 sigma with 99.98 %.
     assert np.all(np.abs(fitted - drift) < 4 * sigma), (fitted / BIAS_DRIFT_SI_PER_UNIT, sigma)
     # The biases are the last rest's: the truth there is VALUES less the drift to the run's end.
-    last_rest_middle = float(np.mean(result.by_hand.rest_s[-1])) + float(run.time_s[0] - 0.01)
+    at = float(np.mean(result.by_hand.rest_s[-1]))
+    assert any(f"the last rest's, at {at:.1f} s" in note for note in result.by_hand.notes)
+    last_rest_middle = at + float(run.time_s[0] - 0.01)
     truth = VALUES[P.ACCEL_BIAS] + drift * (last_rest_middle - float(run.time_s[-1]))
     z = (result.values[P.ACCEL_BIAS] - truth) / result.sigma[P.ACCEL_BIAS]
     assert np.all(np.abs(z) < 4), z
