@@ -210,7 +210,7 @@ def linearise(
         noise_f, noise_w = data.rest_noise[r]
         add(
             J,
-            data.rest_force[r] - (A_a @ u_f + model.accel_bias + state.D[:3] * tau[r]),
+            data.rest_force[r] - (A_a @ u_f + model.accel_bias + state.D * tau[r]),
             noise_f * profile.vrw / math.sqrt(T),
             ("force", r),
         )

@@ -167,14 +167,14 @@ def duplicate_rows(time_s: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, perio
     """
     same = np.zeros(len(time_s), dtype=bool)
     step = np.diff(time_s)
-    close = (step >= 0.0) & (step < 0.5 * period_s)
+    alike = np.ones(len(step), dtype=bool)
     # Column by column: numpy reduces a 3-wide axis one row at a time, ten times slower.
     for x in (dtheta, dv):
         for i in range(x.shape[1]):
-            close &= x[1:, i] == x[:-1, i]
-    same[1:] = close
-    if close.any() and coarse.chance_repeats(step, (dtheta, dv), close):
-        same[:] = False  # stamps coarser than the period: repeats no more than chance gives
+            alike &= x[1:, i] == x[:-1, i]
+    close = alike & (step >= 0.0) & (step < 0.5 * period_s)
+    if close.any() and not coarse.chance_repeats(step, alike, close):
+        same[1:] = close  # (stamps coarser than the period: repeats no more than chance gives are samples)
     return same
 
 

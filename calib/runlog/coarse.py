@@ -41,20 +41,17 @@ def stamp_resolution(periods: np.ndarray) -> float:
     return max(1.0, float(np.min(periods[periods > 0.0])))
 
 
-def chance_repeats(step: np.ndarray, arrays: tuple, close: np.ndarray) -> bool:
+def chance_repeats(step: np.ndarray, alike: np.ndarray, close: np.ndarray) -> bool:
     """Whether the rows ``close`` marks as repeats (equal to the one before, at its time) are as
     many as chance gives under coarse stamps (`coarse_stamps`); False for other stamps.
 
-    The chance is the share of rows the stamps move on that equal the row before; the repeats
-    are chance when a Poisson count of that mean reaches theirs with probability `CHANCE_P` or more.
+    ``alike`` marks every row equal to the one before, whatever its stamp. The chance is the
+    share of rows the stamps move on that are alike; the repeats are chance when a Poisson
+    count of that mean reaches theirs with probability `CHANCE_P` or more.
     """
     if not coarse_stamps(step):
         return False
     moved = step > 0.0
-    alike = np.ones(len(step), dtype=bool)
-    for x in arrays:
-        for i in range(x.shape[1]):  # column by column: numpy reduces a 3-wide axis row by row
-            alike &= x[1:, i] == x[:-1, i]
     chance = (int(np.sum(alike & moved)) + 1) / max(int(moved.sum()), 1)
     return _poisson_tail(int(close.sum()), chance * float(np.sum(~moved))) >= CHANCE_P
 

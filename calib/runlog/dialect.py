@@ -66,8 +66,7 @@ def _spaces_to_commas(lines: list[str], header_index: int, name: str) -> list[st
     if len(names) < 2 or not rows or any("," in row or len(row.split()) != len(names) for row in rows):
         return lines
     warnings.warn(f"{name}: fields separated by spaces; read as such", stacklevel=4)
-    head, body = lines[: header_index + 1], lines[header_index + 1 :]
-    return lines[:header_index] + [",".join(head[-1].split())] + [_spaced(row) for row in body]
+    return lines[:header_index] + [",".join(names)] + [_spaced(row) for row in lines[header_index + 1 :]]
 
 
 def _spaced(row: str) -> str:

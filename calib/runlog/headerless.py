@@ -73,6 +73,12 @@ def is_headerless(line: str, following: str | None = None) -> bool:
     )
 
 
+def _no_header(lines: list[str], header_index: int) -> bool:
+    """`is_headerless` of the first row that is no comment, judged with the row after it."""
+    following = next((line for line in lines[header_index + 1 :] if line.strip()), None)
+    return is_headerless(lines[header_index], following)
+
+
 _SENSORS = {"gyro": "gyro", "dtheta": "gyro", "accel": "accelerometer", "dv": "accelerometer"}
 
 
@@ -129,8 +135,7 @@ def with_header(
         positions ``1..N``, or no time column and no stated rate.
     """
     first = lines[header_index]
-    following = next((line for line in lines[header_index + 1 :] if line.strip()), None)
-    if not is_headerless(first, following):
+    if not _no_header(lines, header_index):
         return lines, 0
     n = len(_fields(first))
     where = f"{name}, line {header_index + 1}"
@@ -186,8 +191,7 @@ def by_commented_names(
     ``# time ax ay az gx gy gz`` (numpy's ``savetxt`` header, MATLAB's ``% t ax ...``) names the
     columns in a comment; a map that names them is read by their positions there, said on stderr.
     """
-    following = next((line for line in lines[header_index + 1 :] if line.strip()), None)
-    if not mapping or header_index == 0 or not is_headerless(lines[header_index], following):
+    if not mapping or header_index == 0 or not _no_header(lines, header_index):
         return mapping
     n = len(_fields(lines[header_index]))
     if all(k in {str(i) for i in range(1, n + 1)} for k in mapping):

@@ -29,6 +29,7 @@ from calib.model.params import STANDARD_GRAVITY
 from .checks import check_meta, check_samples
 from .clipping import at_limits, clip_mask, flat_top
 from .clock import sampled_at_stamps, stamps_rate
+from .columns import IMPLAUSIBLE_RATES_HZ, IMU_RATES_HZ, TIME_UNITS
 from .conversion import SI_ALREADY, SI_WORD, Conversion
 from .format import FORMAT
 from .paths import read_bytes
@@ -143,26 +144,27 @@ def read_imutk(
     return run
 
 
-# imu_tk's time is in seconds; a logger's may count ms, us or ns (a ROS stamp): the unit that puts the
-# stamps' rate at 1 Hz or more (an IMU's), the largest such, is theirs.
-STAMP_UNITS = ((1.0, "s"), (1e-3, "ms"), (1e-6, "us"), (1e-9, "ns"))
-
-
 def _seconds_per_stamp(time: np.ndarray, name: str) -> float:
-    """Seconds per unit of a file's time column: 1, unless its rate in seconds is below 1 Hz."""
+    """Seconds per unit of a file's time column: 1, unless its rate in seconds is no IMU's.
+
+    imu_tk's time is in seconds; a logger's may count ms, us or ns (a ROS stamp). Below the
+    slowest plausible rate (``IMPLAUSIBLE_RATES_HZ``) the unit that puts it among an IMU's
+    (``IMU_RATES_HZ``) is the file's, as :func:`calib.runlog.columns.time_unit_suspect` judges a CSV's.
+    """
     if len(time) < 3:
         return 1.0
     rate = stamps_rate(time - time[0])
-    for factor, unit in STAMP_UNITS:
-        if rate / factor >= 1.0:
-            if factor != 1.0:
-                warnings.warn(
-                    f"{name}: the time column steps by {1.0 / rate:.4g} per sample, {rate / factor:.4g} Hz "
-                    f"if it counts {unit}: read as {unit} (imu_tk's files count seconds)",
-                    stacklevel=3,
-                )
-            return factor
-    return 1.0
+    if rate >= IMPLAUSIBLE_RATES_HZ[0]:
+        return 1.0
+    unit = next((u for u, k in TIME_UNITS.items() if IMU_RATES_HZ[0] <= rate * k < IMU_RATES_HZ[1]), None)
+    if unit is None:
+        return 1.0
+    warnings.warn(
+        f"{name}: the time column steps by {1.0 / rate:.4g} per sample, {rate * TIME_UNITS[unit]:.4g} Hz "
+        f"if it counts {unit}: read as {unit} (imu_tk's files count seconds)",
+        stacklevel=3,
+    )
+    return 1.0 / TIME_UNITS[unit]
 
 
 def _row_for_row(acc_s: np.ndarray, gyro_s: np.ndarray, rate_hz: float | None) -> bool:
