@@ -50,6 +50,8 @@ def test_noise_the_profile_states_keeps_its_weights_and_the_21_alone():
     assert 0.75 < result.chi2_per_dof < 1.25
 
 
+# Slow (tens of seconds: several hand fits, each now testing the bias drift too); run in CI.
+@pytest.mark.slow
 def test_noise_twice_the_profiles_earns_a_factor_of_two():
     loud = dataclasses.replace(
         MEMS, gyro_arw_dph=2.0 * MEMS.gyro_arw_dph, accel_vrw_ug=2.0 * MEMS.accel_vrw_ug, name="loud"
@@ -96,6 +98,8 @@ def test_noise_five_times_the_profiles_is_the_profiles_fault_not_a_majority_of_o
     assert np.all(np.abs(z) < 4), np.round(z, 2)
 
 
+# Slow (tens of seconds: several hand fits, each now testing the bias drift too); run in CI.
+@pytest.mark.slow
 def test_a_move_that_does_not_fit_is_weighted_by_its_own_residual_and_spoils_nothing():
     run = _run(3)
     clean = calibrate(run, MEMS, by_hand=True)
