@@ -216,8 +216,12 @@ class CalibrationResult:
             f"profile {self.profile}; requirements {self.requirements.name}; "
             f"{'converged' if self.converged else 'NOT converged'} "
             f"in {self.iterations} iterations; {self._residual_text()}; "
-            f"chi2/dof {self.chi2_per_dof:.3f}; worst 3 sigma/requirement "
-            f"{w['ratio']:.2f} ({w['name']})",
+            f"chi2/dof {self.chi2_per_dof:.3f}; "
+            + (
+                f"worst 3 sigma/requirement {w['ratio']:.2f} ({w['name']})"
+                if w["name"] is not None
+                else "no parameter estimable"
+            ),
         ]
         if math.isfinite(self.gravity_mps2):
             lines.append(

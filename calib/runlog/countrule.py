@@ -66,19 +66,23 @@ def counted_steps(
     np.cumsum(steps, out=index[1:])
     lag = (time_s - time_s[0]) / period - index  # in periods; exact: t - t0 at epoch magnitude
     width = max(LAG_WINDOW_MIN, int(round(LAG_WINDOW_S / period)))
+    extra = max(resolution, 1.0) - 1.0  # periods the stamps' rounding adds to a step and to the lag
+    long_steps = np.flatnonzero((periods >= 1.5 + extra) & counted)
     # A logger clock off the nominal rate is a trend in the lag, not lost samples: the lag's
     # median over the first and the last stretch (jitter aside; printed stamps rounded to ms
-    # make the median step no measure of a rate a few ppm off).
+    # make the median step no measure of a rate a few ppm off), less the jumps of its holes:
+    # a hole of 140 samples in a 600 s log is no clock 2,200 ppm slow.
     if index[-1] > 0:
         ends = min(width, len(lag))
         head, tail = float(np.median(lag[:ends])), float(np.median(lag[-ends:]))
-        lag -= (index - index[ends // 2]) * (tail - head) / max(index[-1] - ends + 1, 1.0)
-    extra = max(resolution, 1.0) - 1.0  # periods the stamps' rounding adds to a step and to the lag
-    for c in np.flatnonzero((periods >= 1.5 + extra) & counted):
+        lag -= (
+            (index - index[ends // 2])
+            * (tail - head - _jumps(lag, long_steps, width))
+            / max(index[-1] - ends + 1, 1.0)
+        )
+    for c in long_steps:
         row = int(c) + 1  # the first row after the step
-        before = float(np.median(lag[max(0, row - width) : row]))
-        after = float(np.median(lag[row : row + width]))
-        shift = after - before
+        shift = _shift(lag, row, width)
         lost = int(np.rint(shift))
         if abs(shift - lost) > MAX_STEP_FRACTION:
             continue  # no whole number of samples: jitter here, or refused by the check below
@@ -86,8 +90,25 @@ def counted_steps(
             row = _gap_row(lag, periods, row, width, lost, 1.5 + extra)
             steps[row - 1] += lost
             lag[row:] -= lost
-    _check_lag_kept(lag, 2 * width, PERSISTENT_SHIFT + extra)
+    _check_lag_kept(lag, 2 * width, PERSISTENT_SHIFT + extra, periods)
     return steps
+
+
+def _jumps(lag: np.ndarray, long_steps: np.ndarray, width: int) -> float:
+    """The lag's jumps at the long steps, summed (periods): each taken once, then levelled."""
+    level = lag.copy()
+    total = 0.0
+    for c in long_steps:
+        jump = _shift(level, int(c) + 1, width)
+        if abs(jump) > 0.5:  # a neighbour's window saw it first: levelled there, none here
+            level[int(c) + 1 :] -= jump
+            total += jump
+    return total
+
+
+def _shift(lag: np.ndarray, row: int, width: int) -> float:
+    """The lag's median over the stretch from ``row`` less that over the stretch before it."""
+    return float(np.median(lag[row : row + width]) - np.median(lag[max(0, row - width) : row]))
 
 
 def _gap_row(lag: np.ndarray, periods: np.ndarray, row: int, width: int, lost: int, long: float) -> int:
@@ -109,7 +130,7 @@ def _gap_row(lag: np.ndarray, periods: np.ndarray, row: int, width: int, lost: i
     return int(rows[np.argmin(cost)])
 
 
-def _check_lag_kept(lag: np.ndarray, width: int, threshold: float) -> None:
+def _check_lag_kept(lag: np.ndarray, width: int, threshold: float, periods: np.ndarray) -> None:
     """Refuse stamps whose median lag against the count shifts and stays (in periods, detrended).
 
     Left after the gaps were counted, such a shift is a sample the stamps have no
@@ -138,8 +159,21 @@ def _check_lag_kept(lag: np.ndarray, width: int, threshold: float) -> None:
             if not whole
             else "samples are lost where no step shows it"
             if size > 0
-            else "more rows than the stamps have room for (a repeated time with other data)"
+            else "more rows than the stamps have room for (a repeated time with other data, or a "
+            "logger whose rate changed)"
         )
+        # The shift's own step, where one stands out near it: a logger that paused and took up
+        # its samples on another phase is said at its hole, not where the medians first feel it.
+        near = slice(max(0, row - m), min(len(periods), row + m))
+        step = near.start + int(np.argmax(periods[near])) if periods[near].size else row - 1
+        if not whole and periods[step] >= max(1.5, abs(size)):
+            raise CalibError(
+                f"the time steps by {periods[step]:.2f} periods before row {step + 1}, and the later "
+                f"stamps stay {size:.2f} periods behind the count: not a whole number of samples (a "
+                "logger that paused and took up its samples on another phase of its clock)",
+                str(step + 1),
+                "split the log at that row and calibrate the parts (or cut the part after it)",
+            )
         raise CalibError(
             f"from row {row} the time stamps fall {'behind' if size > 0 else 'ahead of'} the sample "
             f"count by {abs(size):.2f} periods and stay there: {why}",

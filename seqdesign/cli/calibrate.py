@@ -189,6 +189,8 @@ def calibrate(
             ),
         ),
     )
+    # Rendered before anything is written: a report that cannot be printed leaves no file behind.
+    text = None if as_json else result.to_text(truth)
     result.save(out_path)
     if correction_path:
         from calib.calibration.correction import correction_of_result
@@ -205,7 +207,7 @@ def calibrate(
     if as_json:
         emit_json(result.to_json(truth) | doc | {"warnings": warned})
         return
-    click.echo(result.to_text(truth))
+    click.echo(text)
     click.echo(f"wrote {out_path}")
 
 

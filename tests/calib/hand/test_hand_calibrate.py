@@ -23,7 +23,7 @@ from calib.hand.plan import HandPlan, PlanShape, random_hand_plan, xsens_like_pl
 from calib.hand.simulate import draw_errors, simulate_by_hand
 from calib.model import params as P
 from calib.noise.profiles import load_profile
-from calib.runlog import Run
+from calib.runlog import Run, write_run
 from calib.sequence.kinematics import SimConfig
 from seqdesign.cli import main
 from seqdesign.verify import error_half_range
@@ -98,6 +98,21 @@ def test_too_few_poses_are_refused_naming_what_is_not_estimable():
     with pytest.raises(CalibError, match="not estimable") as err:
         calibrate(run, MEMS, by_hand=True, requirements="mems")
     assert "add poses" in str(err.value.fix)
+
+
+def test_cli_partial_with_no_parameter_estimable_says_so(tmp_path):
+    # Two rests and one move: no one of the 21 is separable (a tilt and a heading per rest take
+    # what gravity and one turn could tell). --partial asked for what is estimable: none, said
+    # as such, with the table of its n/e rows and the result file written whole.
+    run, _ = _noise_free(random_hand_plan(2, np.random.default_rng(2)), 2)
+    path = tmp_path / "two.csv"
+    write_run(run, path)
+    out = tmp_path / "two.result.toml"
+    res = CliRunner().invoke(
+        main, ["calibrate", str(path), "--by-hand", "--profile", "mems", "--partial", "-o", str(out)]
+    )
+    assert res.exit_code == 0, res.output
+    assert "no parameter estimable" in res.stdout and out.exists()
 
 
 def test_cli_calibrates_a_simulated_hand_run_and_writes_its_correction(tmp_path):

@@ -58,6 +58,12 @@ def hand_run():
     return run, cfg.gravity
 
 
+@pytest.fixture(scope="module")
+def plain_fit(hand_run):
+    """The fit of the log as it was written: what every put-right log must give."""
+    return calibrate(hand_run[0], "mems", by_hand=True)
+
+
 def test_a_log_as_labelled_has_no_mistake(hand_run):
     run, g = hand_run
     assert diagnose(run, g) == []
@@ -82,13 +88,23 @@ def test_each_unit_mistake_is_named(hand_run, mistake, said):
     assert len(found) == 1 and said in found[0].what, found
 
 
-@pytest.mark.parametrize("mistake", [accel_in_g, accel_in_mg, gyro_in_deg, gyro_in_mdeg, gyro_accel_swapped])
-def test_fix_units_puts_the_mistake_right(hand_run, mistake):
+# The milli-unit cases are the same put-right by another factor: run with the slow tests.
+@pytest.mark.parametrize(
+    "mistake",
+    [
+        accel_in_g,
+        pytest.param(accel_in_mg, marks=pytest.mark.slow),
+        gyro_in_deg,
+        pytest.param(gyro_in_mdeg, marks=pytest.mark.slow),
+        gyro_accel_swapped,
+    ],
+)
+def test_fix_units_puts_the_mistake_right(hand_run, plain_fit, mistake):
     run, g = hand_run
     with pytest.raises(CalibError, match="--fix-units"):
         calibrate(mistake(run), "mems", by_hand=True)
     fixed = calibrate(mistake(run), "mems", by_hand=True, options=CalibrateOptions(fix_units=True))
-    plain = calibrate(run, "mems", by_hand=True)
+    plain = plain_fit
     assert any(line.startswith("fixed: ") for line in fixed.by_hand.notes)
     # Put right exactly (a unit factor or a swap): the fit of the log as it should have been.
     assert np.max(np.abs(fixed.values - plain.values) / plain.sigma) < 1e-6
@@ -180,7 +196,7 @@ def test_rests_cut_out_and_joined_without_their_turns_are_refused_naming_it(hand
 
 
 @pytest.mark.slow
-def test_a_wrong_rate_shows_as_three_gyro_scale_factors_alike(hand_run):
+def test_a_wrong_rate_shows_as_three_gyro_scale_factors_alike(hand_run, plain_fit):
     # A rate-writing logger at 102.4 Hz read as 100 Hz: every increment 2.4 % too large. The
     # fit would take it for three scale factors of +2.4 %; a MEMS gyro's are below 1 % and unlike.
     run, _ = hand_run
@@ -188,7 +204,7 @@ def test_a_wrong_rate_shows_as_three_gyro_scale_factors_alike(hand_run):
     with pytest.raises(CalibError, match=r"sample rate is likely 10[01]\.\d+ Hz, not the 97\.656 Hz"):
         calibrate(wrong, "mems", by_hand=True)
     fixed = calibrate(wrong, "mems", by_hand=True, options=CalibrateOptions(fix_units=True))
-    plain = calibrate(run, "mems", by_hand=True)
+    plain = plain_fit
     # Put right at the rate the data say: a common gyro scale factor and a rate error are one
     # thing, so the fixed fit's three scale factors average zero, and their differences (the
     # unit's own, unlike) are the log's within their sigma.

@@ -79,6 +79,35 @@ def test_stamps_half_a_period_off_for_good_are_refused():
         sample_clock(stamps, RATE_HZ)
 
 
+def _phone_stamps(index: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """A phone's stamps: a 99.7369 Hz clock printed to 1 ms, with a host's reception jitter."""
+    period = 1.0 / 99.7369
+    return np.round(period * index + host_delays(len(index), rng), 3)
+
+
+def test_a_long_hole_of_whole_samples_in_a_long_jittery_log_is_counted_where_it_is():
+    # 140 samples lost 280 s into a 630 s log: a lag jump the size of a clock 2,200 ppm slow if
+    # the clock's trend were read from the log's ends; counted as a hole, the rest of the log is
+    # on one clock and nothing is refused.
+    rng = np.random.default_rng(5)
+    index = np.delete(np.arange(63_000), np.arange(28_000, 28_140))
+    clock = sample_clock(_phone_stamps(index, rng), 99.7369)
+    assert clock.dropped and [c for _, c in clock.dropped] == [140]
+    assert abs(clock.dropped[0][0] - 28_000 / 99.7369) < 0.015  # jitter (0-10 ms) and a period
+    np.testing.assert_array_equal(clock.index, index)
+
+
+def test_a_hole_of_no_whole_number_of_samples_is_refused_at_the_hole():
+    # A logger that paused 1.409 s and took up its samples on another phase of its clock (a
+    # phone's recording, 139.5 samples' time): refused naming the row after the hole, not a
+    # row the clock's trend pushed elsewhere.
+    rng = np.random.default_rng(6)
+    index = np.arange(62_000) + np.where(np.arange(62_000) >= 27_833, 139.5, 0.0)
+    with pytest.raises(CalibError) as err:
+        sample_clock(_phone_stamps(index, rng), 99.7369)
+    assert err.value.where == "27833" and "not a whole number of samples" in err.value.what
+
+
 def _hand_run(seed: int = 11):
     """A hand run with MEMS-sized errors and the mems profile's noise, 100 Hz (Xsens-like poses)."""
     rng = np.random.default_rng(seed)
