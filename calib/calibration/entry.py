@@ -239,6 +239,14 @@ def _fit_in_memory(run, site: Site, profile: NoiseProfile, sequence, options: Fi
     by hand: the gimbal's model (flips about the IMU's centre, long dwells) does not hold, and
     it is refused naming ``--by-hand``.
     """
+    if run.guessed is not None:  # the gimbal fit integrates every sample: a guess is no measurement
+        first = float(run.time_s[int(np.flatnonzero(run.guessed)[0])])
+        raise CalibError(
+            f"{int(run.guessed.sum())} sample(s) lost while the IMU turns (first at t = {first:.6g} s) "
+            "were put in as a guess, which the gimbal fit would integrate",
+            run.source,
+            "read the log without guessing turns (a hand fit's reading), repair it, or record the run again",
+        )
     if sequence is None:
         carried = carried_by_hand(run)
         if carried is not None:

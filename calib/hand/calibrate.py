@@ -289,6 +289,14 @@ def as_fit(hand: HandFit, extras: OptionalTerms) -> Fit:
     )
 
 
+def _lost_in_moves(hand: HandFit, run: Run) -> dict:
+    """Samples lost and guessed in each move, by move index (those moves are left out)."""
+    if run.guessed is None:
+        return {}
+    counts = {k: int(run.guessed[s].sum()) for k, s in enumerate(hand.data.move_slices)}
+    return {k: c for k, c in counts.items() if c}
+
+
 def summary_of(hand: HandFit, run: Run, choices: tuple = (), notes: tuple = ()) -> HandSummary:
     """Rests and moves in seconds from the log's start, the weights earned and the model chosen."""
     t0 = float(run.time_s[0] - sample_intervals(run.time_s)[0])
@@ -310,6 +318,7 @@ def summary_of(hand: HandFit, run: Run, choices: tuple = (), notes: tuple = ()) 
         rest_chi2=hand.rest_chi2,
         move_chi2=hand.move_chi2,
         clipped=tuple(describe_clipping(run)),
+        lost=_lost_in_moves(hand, run),
         chi2_per_dof=hand.chi2_per_dof,
         notes=(
             *notes,

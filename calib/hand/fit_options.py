@@ -72,7 +72,7 @@ class HandSamples:
     dt : ndarray, shape (n,)
         Each sample's interval, s.
     clipped : ndarray of bool, shape (n,), optional
-        Samples at the sensor's range: a move holding one is not used.
+        Samples at the sensor's range, or lost and guessed: a move holding one is not used.
     """
 
     dtheta: np.ndarray
@@ -82,6 +82,10 @@ class HandSamples:
 
     @classmethod
     def of_run(cls, run) -> HandSamples:
-        """The samples of a :class:`calib.runlog.Run` (a sample clipped on any axis is clipped)."""
+        """The samples of a :class:`calib.runlog.Run` (a sample clipped on any axis is clipped, as
+        is one lost amid a turn and put in as a guess: its move is no measurement).
+        """
         clipped = None if run.clipped is None else run.clipped.any(axis=1)
+        if run.guessed is not None:
+            clipped = run.guessed if clipped is None else clipped | run.guessed
         return cls(run.dtheta_rad, run.dv_mps, sample_intervals(run.time_s), clipped)

@@ -32,6 +32,9 @@ class HandSummary:
         Whitened residual power of each rest (6 scalars) and move (3; nan when unused).
     clipped : tuple of str
         The clipped stretches, described.
+    lost : dict
+        Samples lost amid each move left out for them, by move index (read with gaps
+        allowed: put in as a guess, never fitted).
     chi2_per_dof : float
     notes : tuple of str
         The model chosen and the weights earned (:mod:`calib.hand.weights`), as printed.
@@ -45,6 +48,7 @@ class HandSummary:
     rest_chi2: np.ndarray
     move_chi2: np.ndarray
     clipped: tuple = ()
+    lost: dict = field(default_factory=dict)
     chi2_per_dof: float = float("nan")
     notes: tuple = ()  # the model chosen and the weights earned, one line each
     choices: dict = field(default_factory=dict)  # the same for --json
@@ -64,7 +68,12 @@ class HandSummary:
             f"{lengths.sum():.0f} s in all); moves used: {int(self.move_used.sum())} of {len(self.move_used)}"
         ]
         for k in np.flatnonzero(~self.move_used):
-            out.append(f"move {k + 1} ({self.move_s[k, 0]:.2f}-{self.move_s[k, 1]:.2f} s) left out: clipped")
+            why = (
+                f"{self.lost[int(k)]} sample(s) lost amid its turn (put in as a guess by --allow-gaps)"
+                if int(k) in self.lost
+                else "clipped"
+            )
+            out.append(f"move {k + 1} ({self.move_s[k, 0]:.2f}-{self.move_s[k, 1]:.2f} s) left out: {why}")
         out += list(self.notes)
         out += list(self.clipped)
         if self.chi2_per_dof > CHI2_NAMED:
@@ -94,7 +103,10 @@ class HandSummary:
             ],
             "moves": [
                 {"start_s": float(a), "end_s": float(b), "used": bool(u), "chi2": float(c) if u else None}
-                for (a, b), u, c in zip(self.move_s, self.move_used, self.move_chi2, strict=True)
+                | ({"lost_samples": self.lost[k]} if k in self.lost else {})
+                for k, ((a, b), u, c) in enumerate(
+                    zip(self.move_s, self.move_used, self.move_chi2, strict=True)
+                )
             ],
             "clipped": list(self.clipped),
             **self.choices,

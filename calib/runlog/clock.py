@@ -396,7 +396,7 @@ def uniform_time(clock: SampleClock, time_s: np.ndarray) -> np.ndarray:
     return clock.offset_s + clock.index * clock.period_s
 
 
-def settle(run, allow_gaps: bool):
+def settle(run, allow_gaps: bool, guess_turns: bool = False):
     """The run on the IMU's own time base, with its clock report attached.
 
     Jitter only: the time column is replaced by ``offset + index / rate``
@@ -410,6 +410,9 @@ def settle(run, allow_gaps: bool):
         A run that passed the reader's checks; its ``clock``, when set, is the
         one they found in its time column (not searched again).
     allow_gaps : bool
+    guess_turns : bool
+        With ``allow_gaps``: a sample lost amid a turn is put in as a guess and
+        marked in ``guessed`` (a hand fit leaves its move out), not refused.
 
     Returns
     -------
@@ -432,13 +435,14 @@ def settle(run, allow_gaps: bool):
         present = clock.index[keep]
         gimbal = None if run.gimbal_deg is None else run.gimbal_deg[keep]
         dtheta, dv, index = run.dtheta_rad[keep], run.dv_mps[keep], present
+        guessed = None
         try:
             if clock.rule == "stamps":  # repeats dropped; a stall's one row kept if at rest, not filled
                 time = uniform_time(clock, run.time_s)[keep]
                 check_stalls_at_rest(dtheta, time, [t for t, _ in clock.dropped])
             else:
-                dtheta, dv, gimbal, index = fill_dropped(
-                    present, (clock.offset_s, period), dtheta, dv, gimbal
+                dtheta, dv, gimbal, index, guessed = fill_dropped(
+                    present, (clock.offset_s, period), dtheta, dv, gimbal, guess_turns
                 )
                 time = clock.offset_s + index * period
         except CalibError as exc:
@@ -447,9 +451,8 @@ def settle(run, allow_gaps: bool):
         if clipped is not None:
             clipped = np.zeros((len(index), clipped.shape[1]), dtype=bool)
             clipped[present - present[0]] = run.clipped[keep]
-        return dataclasses.replace(
-            run, time_s=time, dtheta_rad=dtheta, dv_mps=dv, gimbal_deg=gimbal, clock=clock, clipped=clipped
-        )
+        samples = dict(time_s=time, dtheta_rad=dtheta, dv_mps=dv, gimbal_deg=gimbal, clipped=clipped)
+        return dataclasses.replace(run, clock=clock, guessed=guessed, **samples)
     return dataclasses.replace(run, time_s=uniform_time(clock, run.time_s), clock=clock)
 
 
@@ -469,7 +472,7 @@ def refusal(clock: SampleClock, source: str, at_rest: list[str] | None = None) -
             if turning:
                 still += (
                     f"; {len(turning)} of them while the IMU turns (first at t = {turning[0]:.6g} s), "
-                    "which nothing fills"
+                    "which nothing fills (a hand fit with --allow-gaps leaves its move out)"
                 )
             if long:
                 first = f"first at t = {long[0]:.6g} s"

@@ -2,7 +2,8 @@
 
 A sample lost while the IMU is still holds the Earth rate and gravity seen through the
 IMU's errors, plus white noise: the mean of its neighbours stands for it up to one
-sample's noise. One lost while the IMU turns cannot be known and is refused.
+sample's noise. One lost while the IMU turns cannot be known: refused, or for a fit
+that can leave its move out (a hand fit), put in as a marked guess.
 
 At rest is judged two ways, either enough: by absolute rates (a calibration-grade unit,
 whose bias is far below a flip's rate), or relative to the recording's own quietest
@@ -51,6 +52,7 @@ def fill_dropped(
     dtheta: np.ndarray,
     dv: np.ndarray,
     gimbal: np.ndarray | None = None,
+    guess_turns: bool = False,
 ):
     """Put each lost sample back, at rest, as the mean increment of its neighbours.
 
@@ -58,8 +60,10 @@ def fill_dropped(
     IMU errors plus white noise; the mean of ``FILL_NEIGHBOURS`` samples each
     side is the lost increment up to one sample's noise, so the navigation
     error a filled sample adds is that of the noise the IMU would have added.
-    A sample lost while the IMU turns cannot be known and is refused, as is
-    a hole longer than ``MAX_FILL`` samples.
+    A sample lost while the IMU turns cannot be known and is refused (or, with
+    ``guess_turns``, put in as the straight line between its neighbours and
+    marked, for a fit that leaves its move out), as is a hole longer than
+    ``MAX_FILL`` samples.
 
     Parameters
     ----------
@@ -72,11 +76,15 @@ def fill_dropped(
         ``(n, 3)`` increments of the rows that are present.
     gimbal : numpy.ndarray, optional
         ``(n, 3)`` encoder angles: the lost rows repeat the previous one.
+    guess_turns : bool
+        Put a hole amid a turn in as a guess instead of refusing it.
 
     Returns
     -------
     dtheta, dv, gimbal, index : numpy.ndarray
         Full arrays over ``index[0] .. index[-1]`` and that index.
+    guessed : numpy.ndarray or None
+        ``(len(index),)`` bool: the samples put in amid a turn (None when none is).
 
     Raises
     ------
@@ -89,9 +97,19 @@ def fill_dropped(
     out_dv = np.full((len(full), 3), np.nan)
     out_th[pos], out_dv[pos] = dtheta, dv
     judge = _HoleJudge(index, time_of, dtheta, dv)
+    guessed = np.zeros(len(full), dtype=bool)
     for row in np.flatnonzero(np.diff(index) > 1):
         _check_too_long(index, time_of, row)
         lo, hi, stray = judge.neighbours(row)
+        hole = slice(pos[row] + 1, pos[row + 1])
+        if stray > QUIET_PEAK and guess_turns:
+            # No measurement: a line between the rows either side keeps the arrays whole for a
+            # fit that leaves this stretch out (a hand fit's move), marked so that it does.
+            share = np.linspace(0.0, 1.0, hole.stop - hole.start + 2)[1:-1, None]
+            out_th[hole] = (1 - share) * dtheta[row] + share * dtheta[row + 1]
+            out_dv[hole] = (1 - share) * dv[row] + share * dv[row + 1]
+            guessed[hole] = True
+            continue
         if stray > QUIET_PEAK:
             _refuse_turning(
                 index,
@@ -100,7 +118,6 @@ def fill_dropped(
                 f"; within {QUIET_WINDOW_S:g} s of it the rows stray "
                 f"{stray:.3g} times the noise the log shows when still",
             )
-        hole = slice(pos[row] + 1, pos[row + 1])
         out_th[hole] = dtheta[lo:hi].mean(axis=0)
         out_dv[hole] = dv[lo:hi].mean(axis=0)
     out_g = None
@@ -108,7 +125,7 @@ def fill_dropped(
         filled = np.zeros(len(full), dtype=np.int64)
         filled[pos] = 1
         out_g = np.asarray(gimbal)[np.cumsum(filled) - 1]
-    return out_th, out_dv, out_g, full
+    return out_th, out_dv, out_g, full, (guessed if guessed.any() else None)
 
 
 def _resolution(x: np.ndarray) -> np.ndarray:

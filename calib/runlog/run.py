@@ -48,6 +48,9 @@ class Run:
         samples read at or next to the end of the sensor's range
         (:mod:`calib.runlog.clipping`; ``clipped.any(axis=1)`` per sample); None
         when nothing is clipped.
+    guessed : numpy.ndarray or None
+        ``(n,)`` bool: samples lost amid a turn and put in as a guess (read with
+        gaps allowed for a hand fit, which leaves their moves out); None when none is.
     """
 
     time_s: np.ndarray
@@ -60,6 +63,7 @@ class Run:
     gyro_columns: tuple[tuple[str, str], ...] | None = None  # (file's name, read as), x y z
     conversion: Conversion | None = None  # raw counts to SI, when the log was in counts
     clipped: np.ndarray | None = None  # (n, 6) bool: gyro x y z, accel x y z at the range's end
+    guessed: np.ndarray | None = None  # (n,) bool: lost amid a turn, put in by a guess
 
     @property
     def latitude_deg(self) -> float:

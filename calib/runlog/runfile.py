@@ -39,6 +39,7 @@ def read_run(
     gyro_path: str | os.PathLike | None = None,
     conversion: Conversion | str | os.PathLike | None = None,
     sample_rate_hz: float | None = None,
+    guess_turns: bool = False,
 ) -> Run:
     """Read and check a run log, ``.csv`` (or ``.csv.gz``), ``.npz`` or PSINS ``.imu``.
 
@@ -74,6 +75,10 @@ def read_run(
         The IMU's rate (the CLI's ``--sample-rate-hz``) for a file that does not
         state it: needed by a sample counter (``counter`` column); a file that
         states another is refused.
+    guess_turns : bool
+        With ``allow_gaps``, for a hand fit: a sample lost amid a turn is put in as a
+        guess and marked in ``run.guessed`` (the fit leaves its move out) instead of
+        refused.
 
     A CSV file may be gzip-compressed (``.csv.gz``). A CSV file without a
     ``# format:`` line is a logger's file (``docs/logs-columns.md``): it is read as
@@ -96,14 +101,14 @@ def read_run(
     site = {"latitude_deg": latitude_deg, "height_m": height_m, "sample_rate_hz": sample_rate_hz}
     if gyro_path is not None and has_header(path):
         run = read_csv_pair(path, gyro_path, allow_gaps, site, columns, conversion)
-        return clock.settle(run, allow_gaps)
+        return clock.settle(run, allow_gaps, guess_turns)
     if gyro_path is not None:
         if columns:
             raise CalibError(
                 "imu_tk's files have no header for a column map to rename", str(path), "leave out columns"
             )
         run = read_imutk(path, gyro_path, allow_gaps, site, conversion)
-        return clock.settle(run, allow_gaps)
+        return clock.settle(run, allow_gaps, guess_turns)
     kind = run_kind(path)
     if kind != ".csv" and (conversion is not None or sample_rate_hz is not None):
         raise CalibError(
@@ -124,7 +129,7 @@ def read_run(
         run = read_csv(path, allow_gaps, site, columns, conversion)
     else:
         run = read_npz(path, allow_gaps)
-    return clock.settle(run, allow_gaps)  # the IMU's own time base, gaps repaired if allowed
+    return clock.settle(run, allow_gaps, guess_turns)  # the IMU's own time base, gaps repaired if allowed
 
 
 def write_run(run: Run, path: str | os.PathLike) -> None:

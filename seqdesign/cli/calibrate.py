@@ -26,7 +26,10 @@ from .tools import emit_json, guarded, hidden_alias, info, provenance, refuse_ov
 )
 @options.log_site_and_reading
 @click.option(
-    "--allow-gaps", is_flag=True, help="Remove duplicated samples and fill samples dropped at rest."
+    "--allow-gaps",
+    is_flag=True,
+    help="Remove duplicated samples and fill samples dropped at rest; by hand, also leave out a move "
+    "that lost a sample amid its turn.",
 )
 @options.with_terms(
     "Also fit a real unit's terms beyond the 21: any of lever-arm, k2, time-offset (comma-separated), or "
@@ -151,7 +154,8 @@ def calibrate(
     else:
         from calib.runlog import read_run
 
-        run = read_run(run_path, **site, **reading.reader)
+        # A hand fit leaves out a move whose turn lost a sample (--allow-gaps puts it in as a guess).
+        run = read_run(run_path, **site, **reading.reader, guess_turns=by_hand)
         info(run.clock.summary())  # jitter, dropped and duplicated samples (calib.clock)
         gravity_mps2, notes = run_notes(run, gravity_mps2)  # a conversion file's gravity, clipping
         for note in notes:

@@ -188,6 +188,30 @@ def test_a_sample_lost_in_a_move_is_refused_even_with_allow_gaps(tmp_path):
         read_run(path, columns=COLUMNS, latitude_deg=45.0, height_m=0.0)
 
 
+def test_a_hand_fit_with_allow_gaps_leaves_out_the_move_that_lost_a_sample(tmp_path):
+    # The same lost sample read for a hand fit (guess_turns): put in as a guess and marked, the
+    # move holding it left out and said, every other move used; the estimates those of the
+    # whole log within their sigmas (one move of 37 fewer). The gimbal fit refuses the guess.
+    run = _hand_run()
+    rates, force = run.dtheta_rad / PERIOD, run.dv_mps / PERIOD
+    turning = np.flatnonzero(np.linalg.norm(rates, axis=1) > 1.0)
+    lost = int(turning[len(turning) // 2])
+    path = _write_without(tmp_path / "lost.csv", rates, force, lost, seed=2)
+    read = read_run(path, columns=COLUMNS, latitude_deg=45.0, height_m=0.0, allow_gaps=True, guess_turns=True)
+    assert read.guessed is not None and np.flatnonzero(read.guessed).tolist() == [lost]
+    result = calibrate(read, "mems", by_hand=True)
+    summary = result.by_hand
+    assert list(summary.lost.values()) == [1]
+    (k,) = summary.lost
+    assert not summary.move_used[k] and summary.move_used.sum() == len(summary.move_used) - 1
+    assert summary.move_s[k, 0] <= lost * PERIOD <= summary.move_s[k, 1]
+    assert any("lost amid its turn" in line for line in summary.lines())
+    whole = calibrate(run, "mems", by_hand=True)
+    assert np.max(np.abs(result.values - whole.values) / whole.sigma) < 1.0
+    with pytest.raises(CalibError, match="put in as a guess"):
+        calibrate(read, "mems")
+
+
 def test_the_clock_says_which_rule_it_used():
     # Stamps of the IMU's own clock (jitter far below a quarter period): rounded step by step.
     clean = PERIOD * np.arange(1_000) + 1e-5 * np.random.default_rng(0).standard_normal(1_000)
