@@ -24,6 +24,11 @@ from calib.model.report import extra_entries, format_table, parameter_entries, w
 from calib.model.requirements import PAPER, Requirements, requirements_from_dict
 from calib.nav.site import ppm_per_mgal
 
+# The error model is linear in the scale factors and misalignments: an error of 1 % (0.57 deg)
+# leaves products of 1e-4 unmodelled, a tenth of a MEMS unit's 1000 ppm requirement. A sigma
+# beyond it says the linearisation the estimate and the sigma both come from no longer holds.
+LINEAR_LIMIT = 1e-2
+
 
 @dataclass(frozen=True)
 class CalibrationResult:
@@ -167,6 +172,17 @@ class CalibrationResult:
                 + "; ".join(self.null_directions)
             )
         out.extend(self.caveats)
+        loose = [
+            p.name
+            for p, sigma in zip(P.PARAMETERS, self.sigma, strict=True)
+            if p.kind != "bias" and np.isfinite(sigma) and sigma > LINEAR_LIMIT
+        ]
+        if loose:
+            out.append(
+                f"the run barely determines {', '.join(loose)}: sigma beyond 1 % (0.57 deg), where the "
+                "linear error model this fit and its sigmas rest on no longer holds; do not apply these "
+                "estimates (add poses: other faces up, turns about other axes)"
+            )
         req = min(self.requirements.values[P.ACCEL_SCALE])
         if self.gravity_source == "normal" and req <= 5 * self.ppm_per_mgal:
             out.append(

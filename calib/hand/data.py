@@ -88,3 +88,15 @@ def hand_data(
         for k, (x, density) in enumerate(((dv, profile.vrw), (dtheta, profile.arw))):
             noise[r, k] = rest_noise_factor(x[a:b], T[r], density)
     return HandData(rests, T, rate, force, slices, used, turn, noise)
+
+
+def distinct_poses(rest_force: np.ndarray, apart_deg: float = 10.0) -> int:
+    """How many gravity directions the rests hold, each at least ``apart_deg`` from the others
+    (greedy, in time order): what a user counts as the poses of a hand run.
+    """
+    up = rest_force / np.linalg.norm(rest_force, axis=1, keepdims=True)
+    kept: list[np.ndarray] = []
+    for u in up:
+        if all(float(u @ k) < math.cos(math.radians(apart_deg)) for k in kept):
+            kept.append(u)
+    return len(kept)

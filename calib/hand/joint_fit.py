@@ -48,7 +48,7 @@ from calib.nav.transform import dcm_to_rotvec, rotvec_to_dcm, skew
 from calib.noise.profiles import NoiseProfile
 
 from .chain import chained_start, compensated
-from .data import HandData, hand_data
+from .data import HandData, distinct_poses, hand_data
 from .fit_options import HAND_FIT, HandFitOptions, HandSamples
 from .moves import move_rotation, move_sensitivity, right_jacobian_inverse
 from .weak import split_weak
@@ -386,9 +386,12 @@ def _fit(
     estimable = inv.estimable[: layout.h.start]
     unobserved, loose = split_weak(inv, layout.h.start, [layout.columns(r)[0] for r in range(data.count)])
     if not estimable.all() and not o.partial:
+        missing = [n for n, ok in zip(names, estimable, strict=False) if not ok]
         raise CalibError(
-            "the poses do not separate every parameter: not estimable "
-            + ", ".join(n for n, ok in zip(names, estimable, strict=False) if not ok)
+            f"the poses do not separate every parameter ({data.count} rests in "
+            f"{distinct_poses(data.rest_force)} poses 10 deg apart, {int(data.move_used.sum())} of "
+            f"{len(data.move_used)} moves used): "
+            + ("none is estimable" if not estimable.any() else "not estimable " + ", ".join(missing))
             + "; unobserved combinations: "
             + "; ".join(unobserved),
             where,

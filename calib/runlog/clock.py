@@ -472,7 +472,8 @@ def refusal(clock: SampleClock, source: str, at_rest: list[str] | None = None) -
             if turning:
                 still += (
                     f"; {len(turning)} of them while the IMU turns (first at t = {turning[0]:.6g} s), "
-                    "which nothing fills (a hand fit with --allow-gaps leaves its move out)"
+                    "which nothing fills (a hand fit leaves its move out: guess_turns, "
+                    "the CLI's --allow-gaps by hand)"
                 )
             if long:
                 first = f"first at t = {long[0]:.6g} s"

@@ -29,6 +29,7 @@ from .run import Run
 _NOT_WRITTEN = "the PSINS .imu format is read, not written"
 
 
+# over 8 parameters: the reader's keywords, each one of the CLI's reading options
 def read_run(
     path: str | os.PathLike,
     allow_gaps: bool = False,
