@@ -193,7 +193,8 @@ def split_rows(rec: Recording, published) -> list[dict]:
 def _paired_ratio_interval(a: np.ndarray, b: np.ndarray, stat, rng: np.random.Generator) -> list[float]:
     """The central 68 % interval of ``stat(a) / stat(b)`` over paired resamples of the entries."""
     pick = rng.integers(0, len(a), size=(BOOTSTRAP_DRAWS, len(a)))
-    ratios = np.array([stat(a[i]) / stat(b[i]) for i in pick])
+    with np.errstate(divide="ignore", invalid="ignore"):  # a draw of one pose has no spread: 0/0
+        ratios = np.array([stat(a[i]) / stat(b[i]) for i in pick])
     ratios = ratios[np.isfinite(ratios)]
     return [float(x) for x in np.percentile(ratios, [16.0, 84.0])]
 

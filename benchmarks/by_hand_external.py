@@ -66,7 +66,7 @@ def whole_lines(rec: Recording):
         return [f"- {rec.name}: refused: {exc.message}"], None
     hand = res.by_hand
     lines = [
-        f"- {rec.name}: {rec.run.n_samples} samples, {float(rec.run.time_s[-1]):.1f} s; chi2/dof "
+        f"- {rec.name}: {rec.run.n_samples} samples, {rec.run.duration_s:.1f} s; chi2/dof "
         f"{res.chi2_per_dof:.3f}; {len(hand.rest_s)} rests, moves used {int(np.sum(hand.move_used))} of "
         f"{len(hand.move_used)}",
         *(f"  - {line}" for line in hand.lines() if line.startswith(SAID) or "block(s) beyond" in line),
