@@ -34,6 +34,7 @@ WINDOW_S = 0.25  # long enough to average a MEMS gyro's noise, short against a 3
 MIN_REST_S = 0.5  # a shorter still stretch is a pause within a move
 ACCEL_FLOOR = 0.02  # m/s^2: a hand's tremor is several times this, a table's vibration far less
 DRIFT_FLOOR = 0.002  # m/s^2: a change of the mean a still unit on a table does not show
+MIN_STILL_ROWS = 20  # a still stretch this many samples long is a pose, not a pause within a move
 MARGIN_S = 0.05  # trimmed from each end of a rest beyond the window: the placing's last settling
 
 
@@ -132,14 +133,32 @@ def find_rests(
     still, g_thr, a_thr = still_samples(dtheta, dv, dt, arw, vrw, loosen)
     start, end = runs_of(still)
     elapsed = np.concatenate([[0.0], np.cumsum(dt)])
-    keep = elapsed[end] - elapsed[start] >= MIN_REST_S
+    lengths = elapsed[end] - elapsed[start]
+    keep = lengths >= MIN_REST_S
     if keep.sum() < 2:
         raise CalibError(
             f"found {int(keep.sum())} rest(s) of at least {MIN_REST_S:g} s: a run placed by hand needs "
-            "the unit still in several poses",
+            "the unit still in several poses" + _too_short(lengths, end - start, elapsed),
             where,
             f"hold each pose still for a few seconds; if the unit was still, the profile's noise "
             f"(gyro threshold {math.degrees(g_thr):.3g} deg/s, accelerometer spread "
             f"{a_thr:.3g} m/s^2) is below the log's: give the unit's own profile",
         )
     return Rests(start[keep], end[keep], still, g_thr, a_thr)
+
+
+def _too_short(lengths: np.ndarray, rows: np.ndarray, elapsed_s: np.ndarray) -> str:
+    """The samples and rate the time column gives (a time in another unit shows there first) and,
+    where still stretches of many samples all come out shorter than a rest, that poses held for
+    seconds so shortened say the time is off, not that the hand never held still.
+    """
+    rate = (len(elapsed_s) - 1) / elapsed_s[-1]
+    said = f" ({len(elapsed_s) - 1} samples in {float(elapsed_s[-1]):.4g} s: {rate:.5g} Hz as the time reads)"
+    many = rows >= MIN_STILL_ROWS
+    if many.sum() < 3:
+        return said
+    return said + (
+        f"; it holds {int(many.sum())} still stretches of {MIN_STILL_ROWS} samples or more, the longest "
+        f"{float(lengths[many].max()):.3g} s: if the poses were held for seconds, the time is off (check "
+        "the time column's unit, or the sample rate)"
+    )

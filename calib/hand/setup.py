@@ -25,15 +25,15 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from calib.errors import CalibError
-from calib.model.params import STANDARD_GRAVITY
 from calib.nav.strapdown import sample_intervals
 from calib.sequence.motion import runs_of
 
+from .force_check import force_mistake, zero_mistake
+from .mistake import Mistake
 from .rests import moving_mean
 
 WINDOW_S = 0.25
@@ -44,18 +44,6 @@ GOOD_DEG = 5.0  # the gyro's carried gravity within this of the next rest's: no 
 RATE_TOLERANCE = 0.02  # three gyro scale factors alike beyond this: a wrong rate (MEMS: < 1 %, unlike)
 DEG = math.pi / 180.0
 BLOCK = 4  # increments summed before chaining: a diagnosis needs degrees, not arcseconds
-
-
-@dataclass(frozen=True)
-class Mistake:
-    """A likely setup mistake: what the data show, and how the log is put right."""
-
-    what: str
-    gyro: np.ndarray  # (3, 3) applied to the gyro's increments to put it right
-    accel: np.ndarray  # (3, 3) applied to the accelerometer's
-    swap: bool = False  # gyro and accelerometer columns exchanged first
-    rate_factor: float = 1.0  # the true rate over the given one
-    cannot_fix: str | None = None  # what the user must do when no relabelling puts the log right
 
 
 def _windows(x: np.ndarray, dt: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
@@ -193,7 +181,7 @@ def diagnose(run, gravity_mps2: float) -> list[Mistake]:
         ]
     ratio = f / gravity_mps2
     if abs(ratio - 1.0) > 0.15:
-        return [_zero_mistake(rests_f, gravity_mps2, run.conversion) or _force_mistake(f, gravity_mps2)]
+        return [zero_mistake(rests_f, gravity_mps2, run.conversion) or force_mistake(f, gravity_mps2)]
     moves = _moves(dtheta, dv, start, end)
     if len(moves) < 3:
         return []
@@ -208,6 +196,9 @@ def diagnose(run, gravity_mps2: float) -> list[Mistake]:
         spliced = _spliced(moves, bias, period)
         if spliced is not None:
             return [spliced]
+        off = _time_base(moves, bias, period, plain, len(dt) / float(dt.sum()))
+        if off is not None:
+            return [off]
     if plain > GOOD_DEG and misfit < 0.5 * plain:
         what = []
         if scale != 1.0:
@@ -223,6 +214,35 @@ def diagnose(run, gravity_mps2: float) -> list[Mistake]:
             )
         ]
     return []
+
+
+# A common factor on every turn beyond what a gyro's scale factors (a few per cent at worst)
+# or the named unit mistakes explain: the time base (a column's unit, the rate) or a gyro unit off.
+TIME_BASE_FACTORS = np.geomspace(0.02, 50.0, 81)
+TIME_BASE_SLACK = 1.25
+
+
+def _time_base(moves, bias: np.ndarray, period: float, plain: float, rate_hz: float) -> Mistake | None:
+    """The gyro's turns a common factor ``k`` off the accelerometer's change of gravity, or None."""
+    factors = TIME_BASE_FACTORS[np.abs(np.log(TIME_BASE_FACTORS)) > math.log(TIME_BASE_SLACK)]
+    misfits = carried_misfit(moves, factors[:, None, None] * np.eye(3), bias, period)
+    k = int(np.argmin(misfits))
+    if misfits[k] >= 0.5 * plain:
+        return None
+    # The grid's step is 10 %: the factor told to a per cent around its best point.
+    finer = factors[k] * np.geomspace(0.9, 1.1, 21)
+    fine = carried_misfit(moves, finer[:, None, None] * np.eye(3), bias, period)
+    factor, best = float(finer[int(np.argmin(fine))]), float(fine.min())
+    off = f"{1.0 / factor:.2g} times too long" if factor < 1.0 else f"{factor:.2g} times too short"
+    return Mistake(
+        f"the gyro's turns across the moves come out {1.0 / factor:.2g} times the change of gravity "
+        f"the accelerometer sees (the median miss of {plain:.3g} deg falls to {best:.2g} deg at "
+        f"{factor:.2g} times the turns): the time base is {off} ({rate_hz:.5g} Hz as read; likely "
+        f"{rate_hz / factor:.3g} Hz), or the gyro's unit is off by that factor",
+        np.eye(3),
+        np.eye(3),
+        cannot_fix="check the time column's unit and the sample rate, or the gyro columns' unit",
+    )
 
 
 UNRECORDED_TURN = 0.1  # a move whose gyro turns less than this fraction of its gravity's tilt
@@ -251,120 +271,6 @@ def _spliced(moves, bias: np.ndarray, period: float) -> Mistake | None:
         np.eye(3),
         cannot_fix="a calibration by hand chains the rests through the turns the gyro records: log the "
         "poses and the turns between them in one continuous recording (docs/by-hand.md)",
-    )
-
-
-# Unit mistakes of an accelerometer: (what its column holds, what it is read as, |f| at rest the
-# mistake gives in "m/s^2" over the site's gravity, the unit to name the columns by).
-_FORCE_MISTAKES = (
-    ("g", "m/s^2", 1.0 / STANDARD_GRAVITY, "g"),
-    ("m/s^2", "g", STANDARD_GRAVITY, "mps2"),
-    ("mg (milli-g)", "m/s^2", 1000.0 / STANDARD_GRAVITY, "mg"),
-    ("mg (milli-g)", "g", 1000.0, "mg"),
-)
-GRAVITY_REMOVED = 0.1  # |f| at rest below this fraction of g: the logger took gravity out
-# The counts per g of converters' usual ranges (16-bit at +-2, 4, 8, 16 g; 10-13-bit parts): |f| at
-# rest within 10 % of one of them, read as m/s^2, is raw counts (no unit is that far from g).
-COUNTS_PER_G = (16384, 8192, 4096, 2048, 1024, 512, 256)
-
-
-# |f| at rest spreading over the rests by more than this (max - min over the median) is no scale
-# error (a MEMS accelerometer's few per cent move it by less than a tenth)...
-ZERO_SPREAD = 0.2
-# ...and a sphere through the rests' specific force this close (RMS over its radius) says that the
-# accelerometer reads about its own constant, not about zero: a zero offset.
-ZERO_SPHERE_FIT = 0.03
-# ...and the rests must spread gravity over all three axes (RMS about their mean along the least
-# spread direction, over g) for the centre to be known in all three.
-ZERO_SPAN = 0.15
-
-
-def _zero_mistake(f_rests: np.ndarray, gravity_mps2: float, conversion) -> Mistake | None:
-    """The accelerometer's zero, when its rests lie on a sphere of radius about g off the origin.
-
-    A wrong zero (counts read with another unit's zero, an offset left in) makes |f| depend on
-    the pose; a unit or scale mistake scales every pose alike. Gravity at every rest is a point
-    on a sphere of radius g about the reading of zero force: its centre is the offset.
-    """
-    norms = np.linalg.norm(f_rests, axis=1)
-    if len(f_rests) < 6 or np.ptp(norms) < ZERO_SPREAD * np.median(norms):
-        return None
-    # The sphere's centre is found only along directions the rests span: rests turned about one
-    # axis leave it free along that axis (a wrong offset would be named).
-    spread = np.linalg.svd(f_rests - f_rests.mean(axis=0), compute_uv=False) / math.sqrt(len(f_rests))
-    if spread.min() < ZERO_SPAN * gravity_mps2:
-        return None
-    # |f|^2 = 2 f.c + (R^2 - |c|^2): linear in (c, d) (an algebraic fit; its residuals judged below).
-    A = np.column_stack([2.0 * f_rests, np.ones(len(f_rests))])
-    (cx, cy, cz, d), *_ = np.linalg.lstsq(A, norms**2, rcond=None)
-    centre = np.array([cx, cy, cz])
-    radius = math.sqrt(max(d + centre @ centre, 0.0))
-    misfit = np.linalg.norm(f_rests - centre, axis=1) - radius
-    if radius < 0.5 * gravity_mps2 or np.sqrt(np.mean(misfit**2)) > ZERO_SPHERE_FIT * radius:
-        return None  # no sphere of gravity's size: gravity taken out, or no offset
-    g = gravity_mps2
-    lo, hi = norms.min() / g, norms.max() / g
-    at = ", ".join(f"{c / g:+.3g}" for c in centre)
-    said = (
-        f"|f| at the {len(f_rests)} still stretches runs from {lo:.3g} g to {hi:.3g} g: no unit's mistake, "
-        f"a zero offset. A sphere through them has radius {radius / g:.4g} g and its centre, the "
-        f"accelerometer's reading of no force, at ({at}) g"
-    )
-    if conversion is not None:
-        zero = conversion.to_counts(centre[None, :], "accel")[0]
-        fix = f"set the conversion's accelerometer zero_counts to [{', '.join(f'{z:.0f}' for z in zero)}]"
-    else:
-        fix = f"subtract ({', '.join(f'{c:.4g}' for c in centre)}) m/s^2 from the accelerometer columns"
-    if abs(radius / g - 1.0) > 0.15:
-        fix += f", and check its unit (the radius is {radius / g:.3g} g, not 1)"
-    return Mistake(
-        said, np.eye(3), np.eye(3), cannot_fix=fix + "; the fit then estimates what is left as the bias"
-    )
-
-
-def _force_mistake(f: float, gravity_mps2: float) -> Mistake:
-    """The mistake an accelerometer's |f| at rest (``f``, as read) names: a unit, or gravity taken out.
-
-    A known unit mistake is told by a ratio within 10 % (a unit's errors are a few per cent) and
-    undone exactly by its factor. |f| near zero is no unit: a phone's "linear" or "user"
-    acceleration has gravity subtracted, and the 21 cannot be had from it. Any other ratio is
-    no mistake we can name: scaling it to g would hide the scale factors it should show.
-    """
-    eye = np.eye(3)
-    ratio = f / gravity_mps2
-    for holds, read_as, expected, unit in _FORCE_MISTAKES:
-        if abs(ratio / expected - 1.0) < 0.1:
-            return Mistake(
-                f"|f| at rest is {f:.4g}, not {gravity_mps2:.4g} m/s^2: the accelerometer is in {holds} "
-                f"and read as {read_as} (name its columns accel_<axis>_{unit})",
-                eye,
-                eye / expected,
-            )
-    if ratio < GRAVITY_REMOVED:
-        return Mistake(
-            f"|f| at rest is {f:.3g} m/s^2, not g ({gravity_mps2:.4g}): the accelerometer reads no "
-            "gravity; the logger has taken it out (a phone's 'linear' or 'user' acceleration)",
-            eye,
-            eye,
-            cannot_fix="log the accelerometer's raw specific force, gravity included (a phone's "
-            "'accelerometer' or 'total acceleration', not its 'linear acceleration')",
-        )
-    counts = next((c for c in COUNTS_PER_G if abs(f / c - 1.0) < 0.1), None)
-    if counts is not None:
-        return Mistake(
-            f"|f| at rest is {f:.4g} in the log's unit, {ratio:.3g} g if it were m/s^2: raw converter "
-            f"counts, as an accelerometer of {counts} counts per g reads",
-            eye,
-            eye,
-            cannot_fix=f'read it as counts with a conversion (counts_per_unit {counts}, unit = "g"): columns '
-            "accel_<axis>_counts, or imu_tk's files with the CLI's --conversion FILE, not si",
-        )
-    return Mistake(
-        f"|f| at rest is {f:.4g} m/s^2, {ratio:.3g} g, which no unit mistake we know of gives",
-        eye,
-        eye,
-        cannot_fix="check the accelerometer's unit and its conversion (zero and counts per unit): "
-        "at rest it must read about g",
     )
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 
 import numpy as np
 import pytest
@@ -212,6 +213,32 @@ def test_a_wrong_rate_shows_as_three_gyro_scale_factors_alike(hand_run, plain_fi
     spread_fixed = fixed.values[3:6] - np.mean(fixed.values[3:6])
     spread_plain = plain.values[3:6] - np.mean(plain.values[3:6])
     assert np.all(np.abs(spread_fixed - spread_plain) < 3 * plain.sigma[3:6])
+
+
+def test_a_time_base_ten_times_too_long_is_named_with_the_likely_rate(hand_run):
+    # A device's 1e-4 s ticks read as ms: every sample 10 times too long, every turn 10 times the
+    # change of gravity the accelerometer sees. No unit of the gyro's explains a factor 10; the
+    # rate it implies is the log's own (100 Hz) to the few per cent the carried gravity's median
+    # resolves (the unit's own scale factors are 0.2-0.4 %).
+    run, g = hand_run
+    found = diagnose(rate_mislabelled(run, RATE_HZ / 10.0), g)
+    assert len(found) == 1 and found[0].cannot_fix and "times too long" in found[0].what
+    likely = float(re.search(r"likely ([0-9.]+) Hz", found[0].what).group(1))
+    assert abs(likely / RATE_HZ - 1.0) < 0.05
+    with pytest.raises(CalibError, match="time base is"):
+        calibrate(rate_mislabelled(run, RATE_HZ / 10.0), "mems", by_hand=True)
+
+
+def test_a_time_base_too_short_is_named_or_said_with_the_rate_it_reads(hand_run):
+    # Read 10 times too fast the poses (5-12 s) are still 0.5-1.2 s: the turns come out a tenth
+    # of gravity's change, named. Read 50 times too fast, each 0.25 s window spans more samples
+    # than a pose has: nothing is still, and the refusal says the rate the time gives (5000 Hz)
+    # for the user to see it is not the unit's.
+    run, g = hand_run
+    found = diagnose(rate_mislabelled(run, RATE_HZ * 10.0), g)
+    assert len(found) == 1 and re.search(r"the time base is (9\.9|10|11) times too short", found[0].what)
+    with pytest.raises(CalibError, match=r"found 0 rest.* samples in [0-9.]+ s: 5000 Hz as the time reads"):
+        calibrate(rate_mislabelled(run, RATE_HZ * 50.0), "mems", by_hand=True)
 
 
 def test_a_gimbal_run_is_not_taken_for_a_hand(tmp_path):
