@@ -15,6 +15,7 @@ from . import clock
 from .columns import time_unit_suspect
 from .fill import holes_at_rest
 from .format import ARRAY_COLUMNS, FORMAT, REQUIRED_META
+from .polled import interleaved
 from .run import Run, meta_float
 
 GAP_PERIODS = 2.0  # the typical time step must lie within [0.5, 2] nominal periods
@@ -164,6 +165,17 @@ def check_samples(run: Run, locate, allow_gaps: bool, time_name: str | None = No
             + (f" ({backwards.size} such steps in all)" if backwards.size > 1 else ""),
             locate.sample("time_s", i),
             "samples must be in time order without repeats; sort the log or remove duplicates",
+        )
+    mixed = interleaved(time, np.asarray(run.dv_mps))
+    if mixed is not None:
+        m, every = mixed
+        raise CalibError(
+            f"the rows look like {m} IMUs' samples interleaved: the stamps keep a {1e3 * every:.4g} ms "
+            f"period every {m} rows but step by {1e3 * float(step.min()):.3g}-{1e3 * float(step.max()):.3g}"
+            " ms from row to row, and gravity's direction jumps from row to row (another unit's mounting)",
+            locate.sample("time_s", 1),
+            "keep one IMU's rows (one value of the log's instance column, such as ArduPilot's I) and "
+            "calibrate each IMU on its own",
         )
     # The nominal period must describe the time stamps (gaps and jitter aside), or
     # gap detection, durations and the first sample's interval are all wrong.

@@ -257,14 +257,14 @@ def _missing(missing: list[str], names: list[str], where: str) -> None:
     lower = {c.lower(): c for c in names}
     hints = [f"'{lower[c.lower()]}' should be '{c}'" for c in missing if c.lower() in lower]
     hint = f"; column names are case-sensitive: {', '.join(hints)}" if hints else ""
+    shown = ", ".join(names[:5]) + (", ..." if len(names) > 5 else "")
+    # The file's own names first: a logger's header is read by mapping them, said before the grammar.
     raise CalibError(
         f"header row lacks column{'s' if len(missing) > 1 else ''} "
-        f"{', '.join(repr(c) for c in missing)}{hint}",
+        f"{', '.join(repr(c) for c in missing)}{hint} (it has {shown})",
         where,
-        "the header row (first line not starting with '#') names the time (time_s, time_ms, time_us or "
-        "time_ns) and the gyro and accelerometer on x, y, z as quantity_axis_unit, e.g. "
-        f"{EXAMPLE_HEADER}; a file that names them its own way is read with a column map, e.g. "
-        "columns='t=time_s,gx=gyro_x_dps,...' (the CLI's --columns; see docs/logs-columns.md)",
+        "map the file's names with a column map, e.g. columns='t=time_s,gx=gyro_x_dps,...' "
+        "(the CLI's --columns): time_s, _ms, _us or _ns, and quantity_axis_unit (docs/logs-columns.md)",
     )
 
 

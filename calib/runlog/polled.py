@@ -92,3 +92,56 @@ def own_intervals(time_s: np.ndarray) -> np.ndarray:
         held = np.maximum.accumulate(np.where(dt > 0, np.arange(len(dt)), 0))
         dt = dt[held]
     return dt[:, None]
+
+
+# Rows of several IMUs in one log, one after the other (a flight controller's IMU instances):
+# every m-th stamp keeps the sensors' period to this fraction...
+INTERLEAVE_REGULAR = 0.05
+# ...while the single steps spread beyond this fraction of their median (the sensors' phases)...
+INTERLEAVE_IRREGULAR = 0.3
+# ...and the specific force's direction differs from a row to the next steadily, by this many
+# times more than from a row to the m-th: neighbours are other units (their biases and mounting
+# differ by tenths of a degree, which stay; noise and motion average out).
+INTERLEAVE_ALTERNATION = 2.0
+
+
+def interleaved(time_s: np.ndarray, dv: np.ndarray) -> tuple[int, float] | None:
+    """``(m, period)`` when the rows look like ``m`` sensors' samples interleaved, else None.
+
+    A host that reads two samples at once stamps them alike too (steps of 0 and two periods,
+    every second stamp regular); its rows are one sensor's, whose specific force changes from
+    a row to the next no more than over two rows: told apart by the force's direction.
+    """
+    step = np.diff(time_s)
+    if len(step) < 100 or not np.median(step) > 0.0:
+        return None
+    if np.std(step) < INTERLEAVE_IRREGULAR * np.median(step):
+        return None
+    norm = np.linalg.norm(dv, axis=1, keepdims=True)
+    up = dv / np.where(norm > 0.0, norm, 1.0)
+    for m in (2, 3, 4):
+        lag = time_s[m:] - time_s[:-m]
+        period = float(np.median(lag))
+        if not period > 0.0 or np.std(lag) > INTERLEAVE_REGULAR * period:
+            continue
+        first, second = up[0::m], up[1::m]
+        n = min(len(first), len(second)) // 2 * 2
+        if n < 2 * INTERLEAVE_SMOOTH:
+            continue
+        # Another unit's offset stays from row pair to row pair; noise and motion average out.
+        # The first unit against itself a period on, in disjoint pairs (a running mean of
+        # consecutive differences would telescope to nothing).
+        own = first[1:n:2] - first[0:n:2]
+        if _steady(second[:n] - first[:n]) > INTERLEAVE_ALTERNATION * _steady(own):
+            return m, period
+    return None
+
+
+INTERLEAVE_SMOOTH = 50  # row pairs averaged: a MEMS sample's direction noise falls seven-fold
+
+
+def _steady(d: np.ndarray) -> float:
+    """The median size of ``d``'s running mean over `INTERLEAVE_SMOOTH` rows: what stays."""
+    run = np.cumsum(np.vstack([np.zeros((1, d.shape[1])), d]), axis=0)
+    mean = (run[INTERLEAVE_SMOOTH:] - run[:-INTERLEAVE_SMOOTH]) / INTERLEAVE_SMOOTH
+    return float(np.median(np.linalg.norm(mean, axis=1)))

@@ -20,9 +20,11 @@ from calib.errors import CalibError
 from calib.hand.plan import xsens_like_plan
 from calib.hand.simulate import simulate_by_hand
 from calib.model.error_model import ErrorModel
+from calib.nav.transform import rotvec_to_dcm
 from calib.noise.profiles import load_profile
 from calib.runlog import read_run
 from calib.runlog.clock import sample_clock
+from calib.runlog.polled import interleaved
 from calib.sequence.kinematics import SimConfig
 from seqdesign.repeatability import Repeatability
 
@@ -209,6 +211,30 @@ def test_a_hand_fit_with_allow_gaps_leaves_out_the_move_that_lost_a_sample(tmp_p
     assert 0.7 < result.chi2_per_dof < 1.3  # the band the hand fits of this simulator keep
     with pytest.raises(CalibError, match="put in as a guess"):
         calibrate(read, "mems")
+
+
+def test_two_imus_interleaved_in_one_log_are_refused_naming_it(tmp_path):
+    # A flight controller's log: two IMUs at 100 Hz, 0.25 ms apart, their rows one after the
+    # other. Read as one unit, the stamps look like a polling loop (steps of 0.25 and 9.75 ms)
+    # and gravity jumps by the second unit's mounting (0.5 deg) and biases from row to row.
+    run = _hand_run()
+    rates, force = run.dtheta_rad / PERIOD, run.dv_mps / PERIOD
+    other = force @ rotvec_to_dcm(np.radians([0.5, -0.3, 0.0])).T + np.array([0.08, -0.05, 0.1])
+    stamps = PERIOD * np.arange(1, len(rates) + 1)
+    rows = np.empty((2 * len(rates), 7))
+    rows[0::2] = np.column_stack([stamps, rates, force])
+    rows[1::2] = np.column_stack([stamps + 0.00025, rates, other])
+    path = tmp_path / "two_imus.csv"
+    _write(path, rows[:, 0], "%.6f", rows[:, 1:4], rows[:, 4:])
+    with pytest.raises(
+        CalibError, match="2 IMUs. samples interleaved: the stamps keep a 10 ms period"
+    ):
+        read_run(path, columns=COLUMNS, latitude_deg=45.0, height_m=0.0)
+    # One unit read by a host two samples at a time (stamps 0.25 ms apart in pairs, the same
+    # steps) is no two units: its gravity moves no more from a row to the next than over two.
+    one = np.column_stack([stamps[0::2].repeat(2) + np.tile([0.0, 0.00025], len(stamps) // 2), rates, force])
+    _write(path, one[:, 0], "%.6f", one[:, 1:4], one[:, 4:])
+    assert interleaved(one[:, 0], one[:, 4:]) is None
 
 
 def test_the_clock_says_which_rule_it_used():
