@@ -226,9 +226,7 @@ def test_two_imus_interleaved_in_one_log_are_refused_naming_it(tmp_path):
     rows[1::2] = np.column_stack([stamps + 0.00025, rates, other])
     path = tmp_path / "two_imus.csv"
     _write(path, rows[:, 0], "%.6f", rows[:, 1:4], rows[:, 4:])
-    with pytest.raises(
-        CalibError, match="2 IMUs. samples interleaved: the stamps keep a 10 ms period"
-    ):
+    with pytest.raises(CalibError, match="2 IMUs. samples interleaved: the stamps keep a 10 ms period"):
         read_run(path, columns=COLUMNS, latitude_deg=45.0, height_m=0.0)
     # One unit read by a host two samples at a time (stamps 0.25 ms apart in pairs, the same
     # steps) is no two units: its gravity moves no more from a row to the next than over two.
