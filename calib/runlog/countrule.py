@@ -169,8 +169,9 @@ def _check_lag_kept(lag: np.ndarray, width: int, threshold: float, periods: np.n
         if not whole and periods[step] >= max(1.5, abs(size)):
             raise CalibError(
                 f"the time steps by {periods[step]:.2f} periods before row {step + 1}, and the later "
-                f"stamps stay {size:.2f} periods behind the count: not a whole number of samples (a "
-                "logger that paused and took up its samples on another phase of its clock)",
+                f"stamps stay {abs(size):.2f} periods {'behind' if size > 0 else 'ahead of'} the count: "
+                "not a whole number of samples (a logger that paused and took up its samples on "
+                "another phase of its clock)",
                 str(step + 1),
                 "split the log at that row and calibrate the parts (or cut the part after it)",
             )
