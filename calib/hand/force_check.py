@@ -44,7 +44,7 @@ ZERO_SPAN = 0.15
 def zero_mistake(f_rests: np.ndarray, gravity_mps2: float, conversion) -> Mistake | None:
     """The accelerometer's zero, when its rests lie on a sphere of radius about g off the origin.
 
-    A wrong zero (counts read with another unit's zero, an offset left in) makes |f| depend on
+    A wrong zero (counts read with another unit's zero, an offset left in) makes ``|f|`` depend on
     the pose; a unit or scale mistake scales every pose alike. Gravity at every rest is a point
     on a sphere of radius g about the reading of zero force: its centre is the offset.
     """
@@ -85,10 +85,10 @@ def zero_mistake(f_rests: np.ndarray, gravity_mps2: float, conversion) -> Mistak
 
 
 def force_mistake(f: float, gravity_mps2: float) -> Mistake:
-    """The mistake an accelerometer's |f| at rest (``f``, as read) names: a unit, or gravity taken out.
+    """The mistake an accelerometer's ``|f|`` at rest (``f``, as read) names: a unit, or gravity taken out.
 
     A known unit mistake is told by a ratio within 10 % (a unit's errors are a few per cent) and
-    undone exactly by its factor. |f| near zero is no unit: a phone's "linear" or "user"
+    undone exactly by its factor. ``|f|`` near zero is no unit: a phone's "linear" or "user"
     acceleration has gravity subtracted, and the 21 cannot be had from it. Any other ratio is
     no mistake we can name: scaling it to g would hide the scale factors it should show.
     """
