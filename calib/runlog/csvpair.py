@@ -49,6 +49,7 @@ from .paths import read_bytes
 from .run import Run
 from .streams import Stream, two_clocks
 from .text import decode_lines, is_comment, without_cut_last_row
+from .wallclock import fields_in_seconds
 
 _SITE = ("latitude_deg", "height_m")
 
@@ -120,10 +121,13 @@ class _SensorFile:
         if len(rows) < 2:
             raise CalibError("the file has fewer than two data rows", where, "give the sensor's samples")
         _check_field_counts(rows, self.row_lines, len(own), name)
+        at = lambda i: f"{name}, line {int(self.row_lines[i])}"  # noqa: E731
+        in_seconds = fields_in_seconds(rows, time_at, at)  # a time column of clock times
+        if in_seconds is not None:
+            rows, self.time_name = in_seconds, "time_s"
         data = _parse_numbers(rows, self.row_lines, [time_at, *columns.positions], own, name)
         self.time_own_name = own[time_at]
         ticks = TIME_UNITS[self.time_name.removeprefix("time_")]
-        at = lambda i: f"{name}, line {int(self.row_lines[i])}"  # noqa: E731
         self.time_s = time_in_seconds(data[:, 0], rows, time_at, ticks, own[time_at], at)
         # The gyro's increments become rates over the rate the run is given (a stated one),
         # the accelerometer's over its stamps' own.

@@ -1,4 +1,5 @@
-"""Time stamps written as wall-clock times: ``12:00:01.250`` or ``2023-1-1 12:00:01.250``.
+"""Time stamps written as wall-clock times: ``12:00:01.250``, ``2023-1-1 12:00:01.250`` or
+``14-Nov-2023 12:00:01.250``.
 
 Some loggers (a PC tool saving what a serial IMU sends) stamp each row with the host's
 clock time instead of a number. Such a column is turned into seconds from the first
@@ -18,10 +19,13 @@ from calib.errors import CalibError
 # [date separator] hours:minutes:seconds[.fraction][zone]; the fraction's separator may be a
 # comma (a locale's decimal comma). The date is year-month-day with -, / or . between. A zone
 # (ISO 8601's Z or +01:00) must be the same on every row: a log's stamps share one clock.
+# Or day-month's name-year, as MATLAB's datetime writes by default (14-Nov-2023 22:13:20.030).
 CLOCK_TIME = re.compile(
-    r"^\s*(?:(?P<y>\d{4})[-/.](?P<mo>\d{1,2})[-/.](?P<d>\d{1,2})[ T_]+)?"
+    r"^\s*(?:(?:(?P<y>\d{4})[-/.](?P<mo>\d{1,2})[-/.](?P<d>\d{1,2})"
+    r"|(?P<d2>\d{1,2})[- ](?P<mon>[A-Za-z]{3})[- ](?P<y2>\d{4}))[ T_]+)?"
     r"(?P<h>\d{1,2}):(?P<mi>\d{2}):(?P<s>\d{2}(?:[.,]\d+)?)(?P<zone>Z|[+-]\d{2}:?\d{2})?\s*$"
 )
+MONTHS = ("jan", "feb", "mar", "apr", "may", "jun", "jul", "aug", "sep", "oct", "nov", "dec")
 DAY_S = 86_400.0
 
 
@@ -48,7 +52,7 @@ def clock_seconds(fields: list[str], locate) -> list[float]:
                 locate(i),
                 "write every time stamp the same way",
             )
-        dated = m["y"] is not None
+        dated = m["y"] is not None or m["y2"] is not None
         if out and dated != was_dated:
             raise CalibError(
                 f"field {text.strip()!r} is written {'with' if dated else 'without'} a date, the first rows "
@@ -66,9 +70,9 @@ def clock_seconds(fields: list[str], locate) -> list[float]:
                 "write every time stamp in one zone",
             )
         seconds = int(m["h"]) * 3600.0 + int(m["mi"]) * 60.0 + float(m["s"].replace(",", "."))
-        if m["y"] is not None:
+        if dated:
             try:
-                day = datetime.date(int(m["y"]), int(m["mo"]), int(m["d"])).toordinal()
+                day = _date(m).toordinal()
             except ValueError:
                 raise CalibError(
                     f"field {text.strip()!r} has no such date", locate(i), "write a real date"
@@ -81,6 +85,25 @@ def clock_seconds(fields: list[str], locate) -> list[float]:
     return out
 
 
+def _date(m: re.Match) -> datetime.date:
+    """The date of a matched stamp, either form (ValueError for no such date or month)."""
+    if m["y"] is not None:
+        return datetime.date(int(m["y"]), int(m["mo"]), int(m["d"]))
+    return datetime.date(int(m["y2"]), MONTHS.index(m["mon"].lower()) + 1, int(m["d2"]))
+
+
+def fields_in_seconds(rows: list[str], position: int, locate) -> list[str] | None:
+    """The rows with their wall-clock field at ``position`` written in seconds (None: no clock)."""
+    first = rows[0].split(",") if rows else []
+    if position >= len(first) or not is_clock_time(first[position]):
+        return None
+    split = [row.split(",") for row in rows]
+    seconds = clock_seconds([f[position] for f in split], locate)
+    for fields, s in zip(split, seconds, strict=True):
+        fields[position] = repr(s)
+    return [",".join(f) for f in split]
+
+
 def with_seconds(rows: list[str], position: int, plan, locate):
     """The rows with a wall-clock time column written in seconds, and the plan reading it so.
 
@@ -89,11 +112,7 @@ def with_seconds(rows: list[str], position: int, plan, locate):
     """
     if not rows or plan.time_name == "counter":
         return rows, plan
-    first = rows[0].split(",")
-    if position >= len(first) or not is_clock_time(first[position]):
+    in_seconds = fields_in_seconds(rows, position, locate)
+    if in_seconds is None:
         return rows, plan
-    split = [row.split(",") for row in rows]
-    seconds = clock_seconds([f[position] for f in split], locate)
-    for fields, s in zip(split, seconds, strict=True):
-        fields[position] = repr(s)
-    return [",".join(f) for f in split], dataclasses.replace(plan, time_name="time_s")
+    return in_seconds, dataclasses.replace(plan, time_name="time_s")

@@ -64,6 +64,37 @@ def test_one_rate_one_set_of_stamps_reads_as_the_one_file_log(tmp_path):
     np.testing.assert_allclose(pair.dv_mps, same.dv_mps, rtol=0, atol=1e-12)
 
 
+def test_a_pair_stamped_with_clock_times_reads_as_the_pair_stamped_in_seconds(tmp_path):
+    # MATLAB Mobile's sensors written with writetimetable: 'Timestamp' as 14-Nov-2023 22:13:20.030.
+    # The same stamps in seconds from that midnight give the same samples.
+    t, w, f = _samples()
+    t0 = 22 * 3600 + 13 * 60 + 20.0
+    clock = [
+        f"14-Nov-2023 {int((t0 + x) // 3600):02d}:{int((t0 + x) % 3600 // 60):02d}:{(t0 + x) % 60:06.3f}"
+        for x in t
+    ]
+    for name, values in (("gyro", w), ("acc", f)):
+        body = np.char.mod("%.12g", values)
+        (tmp_path / f"{name}_clock.csv").write_text(
+            "Timestamp,X,Y,Z\n"
+            + "\n".join(",".join([c, *r]) for c, r in zip(clock, body, strict=True))
+            + "\n"
+        )
+        secs = np.char.mod("%.3f", t0 + t)
+        (tmp_path / f"{name}_s.csv").write_text(
+            "Timestamp,X,Y,Z\n" + "\n".join(",".join([c, *r]) for c, r in zip(secs, body, strict=True)) + "\n"
+        )
+    columns = "Timestamp=time_s,X=gyro_x_radps,Y=gyro_y_radps,Z=gyro_z_radps,X=accel_x_mps2,Y=accel_y_mps2"
+    columns += ",Z=accel_z_mps2"
+    by_clock = read_run(
+        tmp_path / "acc_clock.csv", gyro_path=tmp_path / "gyro_clock.csv", columns=columns, **SITE
+    )
+    by_secs = read_run(tmp_path / "acc_s.csv", gyro_path=tmp_path / "gyro_s.csv", columns=columns, **SITE)
+    np.testing.assert_allclose(by_clock.time_s, by_secs.time_s, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(by_clock.dtheta_rad, by_secs.dtheta_rad)
+    np.testing.assert_allclose(by_clock.dv_mps, by_secs.dv_mps, rtol=0, atol=1e-12)
+
+
 def test_a_phone_loggers_files_whose_axes_are_both_called_x_y_z(tmp_path):
     # A phone's sensor logger writes each sensor as time (epoch ns), seconds elapsed, then z, y, x:
     # one map names each file's x, y, z for its own sensor. The gyro read back is the gyro written,

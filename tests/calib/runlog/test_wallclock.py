@@ -35,6 +35,18 @@ def test_midnight_is_crossed_by_the_date_or_by_a_stamp_12_hours_back():
         assert said[1] - said[0] == pytest.approx(0.01, abs=1e-9)
 
 
+def test_matlab_s_day_month_name_year_stamps_are_the_same_clock_times():
+    # MATLAB's datetime default (writetimetable): 14-Nov-2023 22:13:20.030. The same instants as
+    # the ISO dates; over a month's end the day count carries on (30 Nov -> 1 Dec: one day).
+    named = clock_seconds(["14-Nov-2023 22:13:20.030", "14-Nov-2023 22:13:20.040"], _where)
+    iso = clock_seconds(["2023-11-14 22:13:20.030", "2023-11-14 22:13:20.040"], _where)
+    assert named == iso == [22 * 3600 + 13 * 60 + 20.03, 22 * 3600 + 13 * 60 + 20.04]
+    over = clock_seconds(["30-Nov-2023 23:59:59.990", "01-Dec-2023 00:00:00.000"], _where)
+    assert over[1] - over[0] == pytest.approx(0.01, abs=1e-9)
+    with pytest.raises(CalibError, match="no such date"):
+        clock_seconds(["14-Nox-2023 22:13:20.030"], _where)
+
+
 def test_a_stamp_written_otherwise_is_refused_naming_its_row():
     with pytest.raises(CalibError, match="no clock time") as err:
         clock_seconds(["12:00:00.000", "12.5"], _where)
