@@ -90,7 +90,10 @@ def hand_data(
     return HandData(rests, T, rate, force, slices, used, turn, noise)
 
 
-def distinct_poses(rest_force: np.ndarray, apart_deg: float = 10.0) -> int:
+POSE_APART_DEG = 10.0  # gravity directions this far apart are another pose to a user
+
+
+def distinct_poses(rest_force: np.ndarray, apart_deg: float = POSE_APART_DEG) -> int:
     """How many gravity directions the rests hold, each at least ``apart_deg`` from the others
     (greedy, in time order): what a user counts as the poses of a hand run.
     """

@@ -48,7 +48,7 @@ from calib.nav.transform import dcm_to_rotvec, rotvec_to_dcm, skew
 from calib.noise.profiles import NoiseProfile
 
 from .chain import chained_start, compensated
-from .data import HandData, distinct_poses, hand_data
+from .data import POSE_APART_DEG, HandData, distinct_poses, hand_data
 from .fit_options import HAND_FIT, HandFitOptions, HandSamples
 from .moves import move_rotation, move_sensitivity, right_jacobian_inverse
 from .weak import split_weak
@@ -389,8 +389,8 @@ def _fit(
         missing = [n for n, ok in zip(names, estimable, strict=False) if not ok]
         raise CalibError(
             f"the poses do not separate every parameter ({data.count} rests in "
-            f"{distinct_poses(data.rest_force)} poses 10 deg apart, {int(data.move_used.sum())} of "
-            f"{len(data.move_used)} moves used): "
+            f"{distinct_poses(data.rest_force)} poses {POSE_APART_DEG:g} deg apart, "
+            f"{int(data.move_used.sum())} of {len(data.move_used)} moves used): "
             + ("none is estimable" if not estimable.any() else "not estimable " + ", ".join(missing))
             + "; unobserved combinations: "
             + "; ".join(unobserved),

@@ -138,7 +138,7 @@ def find_rests(
     if keep.sum() < 2:
         raise CalibError(
             f"found {int(keep.sum())} rest(s) of at least {MIN_REST_S:g} s: a run placed by hand needs "
-            "the unit still in several poses" + _too_short(lengths, end - start, elapsed),
+            "the unit still in several poses" + _time_said(lengths, end - start, elapsed),
             where,
             f"hold each pose still for a few seconds; if the unit was still, the profile's noise "
             f"(gyro threshold {math.degrees(g_thr):.3g} deg/s, accelerometer spread "
@@ -147,7 +147,7 @@ def find_rests(
     return Rests(start[keep], end[keep], still, g_thr, a_thr)
 
 
-def _too_short(lengths: np.ndarray, rows: np.ndarray, elapsed_s: np.ndarray) -> str:
+def _time_said(lengths: np.ndarray, rows: np.ndarray, elapsed_s: np.ndarray) -> str:
     """The samples and rate the time column gives (a time in another unit shows there first) and,
     where still stretches of many samples all come out shorter than a rest, that poses held for
     seconds so shortened say the time is off, not that the hand never held still.

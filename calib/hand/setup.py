@@ -196,7 +196,7 @@ def diagnose(run, gravity_mps2: float) -> list[Mistake]:
         spliced = _spliced(moves, bias, period)
         if spliced is not None:
             return [spliced]
-        off = _time_base(moves, bias, period, plain, len(dt) / float(dt.sum()))
+        off = _time_base(moves, bias, period, plain)
         if off is not None:
             return [off]
     if plain > GOOD_DEG and misfit < 0.5 * plain:
@@ -222,7 +222,7 @@ TIME_BASE_FACTORS = np.geomspace(0.02, 50.0, 81)
 TIME_BASE_SLACK = 1.25
 
 
-def _time_base(moves, bias: np.ndarray, period: float, plain: float, rate_hz: float) -> Mistake | None:
+def _time_base(moves, bias: np.ndarray, period: float, plain: float) -> Mistake | None:
     """The gyro's turns a common factor ``k`` off the accelerometer's change of gravity, or None."""
     factors = TIME_BASE_FACTORS[np.abs(np.log(TIME_BASE_FACTORS)) > math.log(TIME_BASE_SLACK)]
     misfits = carried_misfit(moves, factors[:, None, None] * np.eye(3), bias, period)
@@ -233,6 +233,7 @@ def _time_base(moves, bias: np.ndarray, period: float, plain: float, rate_hz: fl
     finer = factors[k] * np.geomspace(0.9, 1.1, 21)
     fine = carried_misfit(moves, finer[:, None, None] * np.eye(3), bias, period)
     factor, best = float(finer[int(np.argmin(fine))]), float(fine.min())
+    rate_hz = 1.0 / period  # as the time column reads
     off = f"{1.0 / factor:.2g} times too long" if factor < 1.0 else f"{factor:.2g} times too short"
     return Mistake(
         f"the gyro's turns across the moves come out {1.0 / factor:.2g} times the change of gravity "

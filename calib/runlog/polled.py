@@ -103,6 +103,7 @@ INTERLEAVE_IRREGULAR = 0.3
 # times more than from a row to the m-th: neighbours are other units (their biases and mounting
 # differ by tenths of a degree, which stay; noise and motion average out).
 INTERLEAVE_ALTERNATION = 2.0
+INTERLEAVE_SMOOTH = 50  # row pairs averaged: a MEMS sample's direction noise falls seven-fold
 
 
 def interleaved(time_s: np.ndarray, dv: np.ndarray) -> tuple[int, float] | None:
@@ -135,9 +136,6 @@ def interleaved(time_s: np.ndarray, dv: np.ndarray) -> tuple[int, float] | None:
         if _steady(second[:n] - first[:n]) > INTERLEAVE_ALTERNATION * _steady(own):
             return m, period
     return None
-
-
-INTERLEAVE_SMOOTH = 50  # row pairs averaged: a MEMS sample's direction noise falls seven-fold
 
 
 def _steady(d: np.ndarray) -> float:
