@@ -152,6 +152,7 @@ def _designs(report) -> list[dict]:
     return [without(d, "search_seconds") for d in as_json(report.to_json())["designs"]]
 
 
+@pytest.mark.slow  # three designs of tens of seconds: run with the slow tests (CI runs both)
 def test_design_is_the_cli_design(keyword_design, tmp_path):
     doc = cli_json(
         "design",
@@ -175,6 +176,7 @@ def test_design_is_the_cli_design(keyword_design, tmp_path):
     assert sd.show(seq, gimbal="cable-wrap").playable
 
 
+@pytest.mark.slow  # three designs of tens of seconds: run with the slow tests (CI runs both)
 def test_design_keywords_equal_the_dict_and_the_typed_constraints(keyword_design):
     from calib.gimbal.description import load_gimbal
 
