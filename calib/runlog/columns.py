@@ -62,7 +62,9 @@ _CLASSIC = {"gyro": "dtheta", "accel": "dv"}  # the quantity docs/formats.md nam
 _CLASSIC_UNIT = {"dtheta": "rad", "dv": "mps"}
 EXAMPLE_HEADER = "time_s,gyro_x_dps,gyro_y_dps,gyro_z_dps,accel_x_g,accel_y_g,accel_z_g"
 # Time units: ticks per second, exact integers (an integer stamp converts without rounding twice).
-TIME_UNITS = {"s": 1, "ms": 1_000, "us": 1_000_000, "ns": 1_000_000_000}
+# 100us: a 10 kHz tick clock (Xsens' SampleTimeFine); last, so a unit guessed from the steps is
+# one of the usual four first.
+TIME_UNITS = {"s": 1, "ms": 1_000, "us": 1_000_000, "ns": 1_000_000_000, "100us": 10_000}
 TIME_NAMES = tuple(f"time_{unit}" for unit in TIME_UNITS)
 
 
@@ -92,7 +94,7 @@ class ColumnPlan:
     time: int
     gyro: SensorColumns
     accel: SensorColumns
-    time_name: str = TIME_COLUMN  # time_s, time_ms, time_us, time_ns or counter
+    time_name: str = TIME_COLUMN  # time_s, time_ms, time_us, time_ns, time_100us or counter
 
     @property
     def ticks_per_second(self) -> int:
@@ -394,7 +396,13 @@ IMU_RATES_HZ = (5.0, 5000.0)
 IMPLAUSIBLE_RATES_HZ = (1.0, 20000.0)
 # ... when it has at least this many samples (a handful of rows says nothing).
 IMU_LIKE_COUNT = 1000
-_UNIT_WORDS = {"s": "seconds", "ms": "milliseconds", "us": "microseconds", "ns": "nanoseconds"}
+_UNIT_WORDS = {
+    "s": "seconds",
+    "ms": "milliseconds",
+    "us": "microseconds",
+    "ns": "nanoseconds",
+    "100us": "100-microsecond ticks",
+}
 
 
 def time_unit_suspect(

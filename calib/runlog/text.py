@@ -14,6 +14,23 @@ from .format import FORMAT
 COMMENT_MARKS = ("#", "//", "% ")
 
 
+# Xsens MT Manager's export states its output rate among its preamble's comments.
+_UPDATE_RATE = re.compile(r"^//\s*update rate\s*:\s*([0-9]+(?:\.[0-9]*)?)\s*hz\s*$", re.IGNORECASE)
+
+
+def logger_rate(lines: list[str], header_index: int) -> tuple[float, int] | None:
+    """The output rate a logger's preamble states, and its 1-based line; None if none does.
+
+    Xsens MT Manager writes ``// Update Rate: 100.0Hz`` above its header row (its
+    older exports; the 2022 ones state no rate).
+    """
+    for index, line in enumerate(lines[:header_index]):
+        found = _UPDATE_RATE.match(line.strip())
+        if found and float(found.group(1)) > 0.0:
+            return float(found.group(1)), index + 1
+    return None
+
+
 def is_comment(line: str) -> bool:
     """Whether a line above (or among) the rows is a comment: ``#``, ``//``, or ``%`` and a space, first."""
     return line.lstrip().startswith(COMMENT_MARKS)

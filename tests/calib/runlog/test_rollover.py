@@ -109,3 +109,47 @@ def test_a_counter_with_a_non_finite_value_is_refused_not_a_crash(tmp_path):
     epoch = 1_700_000_000_000_000_000 + 5_000_000 * np.arange(500, dtype=np.int64)
     epoch[300:] -= 2_000_000
     assert unwrapped(epoch)[1] == 0
+
+
+def _mt_export(path, preamble: str, n: int = 3000, rate_hz: float = 100.0) -> None:
+    """An MT Manager export: '//' preamble, tabs, PacketCounter and SampleTimeFine (10 kHz ticks)."""
+    fine = 35_412_700 + np.rint(np.arange(n) * 10_000 / rate_hz).astype(np.int64)
+    rows = [f"{(23456 + i) % 65536}\t{f}\t0.05\t0.02\t9.81\t0.001\t-0.002\t0.003" for i, f in enumerate(fine)]
+    header = "PacketCounter\tSampleTimeFine\tAcc_X\tAcc_Y\tAcc_Z\tGyr_X\tGyr_Y\tGyr_Z\n"
+    path.write_text(preamble + header + "\n".join(rows) + "\n")
+
+
+_MT_SENSORS = (
+    "Gyr_X=gyro_x_radps,Gyr_Y=gyro_y_radps,Gyr_Z=gyro_z_radps,"
+    "Acc_X=accel_x_mps2,Acc_Y=accel_y_mps2,Acc_Z=accel_z_mps2"
+)
+
+
+def test_an_mt_manager_update_rate_line_times_its_counter(tmp_path):
+    # The older export states its output rate, '// Update Rate: 200.0Hz': the counter needs no option.
+    _mt_export(tmp_path / "old.txt", "// Start Time: Unknown\n// Update Rate: 200.0Hz\n", rate_hz=200.0)
+    with pytest.warns(UserWarning, match=r"line 2: the sample counter is timed at the 200 Hz this line"):
+        run = read_run(tmp_path / "old.txt", columns="PacketCounter=counter," + _MT_SENSORS, **SITE)
+    assert np.array_equal(run.time_s, (np.arange(3000) + 1) / 200.0)
+    assert run.sample_rate_hz == 200.0
+    # A rate given by the user wins over the line.
+    run = read_run(
+        tmp_path / "old.txt", columns="PacketCounter=counter," + _MT_SENSORS, sample_rate_hz=100.0, **SITE
+    )
+    assert run.sample_rate_hz == 100.0
+
+
+def test_sample_time_fine_in_10_khz_ticks_reads_as_seconds(tmp_path):
+    # SampleTimeFine counts a 10 kHz clock: 100 ticks a sample at 100 Hz, 0.01 s.
+    _mt_export(tmp_path / "new.txt", "// General information:\n//  MT Manager version: 2022.2.0\n")
+    run = read_run(tmp_path / "new.txt", columns="SampleTimeFine=time_100us," + _MT_SENSORS, **SITE)
+    assert run.sample_rate_hz == pytest.approx(100.0, rel=1e-12)
+    assert np.allclose(np.diff(run.time_s), 0.01, rtol=0, atol=1e-12)
+    assert run.time_s[0] == pytest.approx(3541.27, abs=1e-9)  # 35,412,700 ticks of 0.1 ms
+
+
+def test_an_mt_manager_export_without_a_rate_names_its_own_clock(tmp_path):
+    _mt_export(tmp_path / "new.txt", "// General information:\n//  MT Manager version: 2022.2.0\n")
+    with pytest.raises(CalibError, match=r"line 3: .*map SampleTimeFine=time_100us") as err:
+        read_run(tmp_path / "new.txt", columns="PacketCounter=counter," + _MT_SENSORS, **SITE)
+    assert "--sample-rate-hz" in err.value.fix
