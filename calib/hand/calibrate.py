@@ -239,14 +239,17 @@ def fit_checked(
     hand, used, choices = hand_fit_of(run, site, profile, extras, partial, req, without)
     sigma = np.sqrt(np.diag(hand.covariance))[P.GYRO_SCALE] * math.sqrt(max(hand.chi2_per_dof, 1.0))
     period = float(np.median(sample_intervals(run.time_s)))
-    mistake = rate_mistake(hand.values[P.GYRO_SCALE], sigma, period)
+    at_stamps = run.clock is not None and run.clock.rule == "stamps"
+    counts = run.conversion is not None
+    mistake = rate_mistake(hand.values[P.GYRO_SCALE], sigma, period, at_stamps, counts)
     if mistake is not None:
         if not fix_units:
+            put_right = "correct the gyro's conversion or unit" if at_stamps else "give the IMU's own rate"
             raise CalibError(
                 mistake.what,
                 run.source,
-                "give the IMU's own rate (--sample-rate-hz), or --fix-units to calibrate at the rate the "
-                "data say (a gyro whose three scale factors are truly this alike cannot be told from it)",
+                f"{put_right}, or --fix-units to calibrate it as the data say (three scale factors truly "
+                "this alike cannot be told from it)",
             )
         run = fixed(run, [mistake])
         notes.append(f"fixed: {mistake.what}")

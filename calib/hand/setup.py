@@ -275,12 +275,17 @@ def _spliced(moves, bias: np.ndarray, period: float) -> Mistake | None:
     )
 
 
-def rate_mistake(gyro_scale: np.ndarray, sigma: np.ndarray, period: float) -> Mistake | None:
-    """A wrong sample rate, told by a fit's three gyro scale factors (``1 + s`` each) being alike.
+def rate_mistake(
+    gyro_scale: np.ndarray, sigma: np.ndarray, period: float, at_stamps: bool = False, counts: bool = False
+) -> Mistake | None:
+    """A wrong sample rate or gyro conversion, told by a fit's three gyro scale factors being alike.
 
     The gyro's increments are its rates times the period: a rate given 2.4 % low turns
     every axis 2.4 % too far, which the fit reads as three equal scale factors. A MEMS
-    gyro's own scale errors are below a per cent and differ axis to axis.
+    gyro's own scale errors are below a per cent and differ axis to axis. A gyro in raw
+    counts converted at the wrong sensitivity (another part's, another full-scale range's)
+    does the same; where each sample is timed by its own stamp (``at_stamps``: a polling
+    logger's) no rate was given, and that is the likely cause.
     """
     common = float(np.mean(gyro_scale))
     alike = np.ptp(gyro_scale) < 0.5 * abs(common) and np.all(np.abs(gyro_scale) > 3.0 * sigma)
@@ -289,9 +294,21 @@ def rate_mistake(gyro_scale: np.ndarray, sigma: np.ndarray, period: float) -> Mi
     rate = 1.0 / period
     factor = 1.0 / (1.0 + common)
     shown = ", ".join(f"{100 * s:+.2f} %" for s in gyro_scale)
+    conversion = (
+        f"the gyro's counts per unit are {factor:.4g} times what they should be (another part's or "
+        "full-scale range's sensitivity?)"
+        if counts
+        else f"the gyro's unit is off by {factor:.4g}"
+    )
+    if at_stamps:
+        return Mistake(
+            f"the three gyro scale factors are alike ({shown}) in a log timed by its stamps: " + conversion,
+            factor * np.eye(3),
+            np.eye(3),
+        )
     return Mistake(
         f"the three gyro scale factors are alike ({shown}): the sample rate is likely "
-        f"{rate / factor:.5g} Hz, not the {rate:.5g} Hz given",
+        f"{rate / factor:.5g} Hz, not the {rate:.5g} Hz given, or " + conversion,
         factor * np.eye(3),
         factor * np.eye(3),
         rate_factor=1.0 / factor,

@@ -209,7 +209,13 @@ def sample_clock(
     """
     period = 1.0 / sample_rate_hz
     dup = np.zeros(len(time_s), dtype=bool) if duplicate is None else duplicate
-    steps = _whole_steps(time_s, period, dup)
+    try:
+        steps = _whole_steps(time_s, period, dup)
+        loop = False
+    except CalibError:
+        if not polled.loop_wanders(time_s, period, dup):
+            raise
+        steps, loop = (~dup[1:]).astype(np.int64), True  # each row the next sample
     counted = steps[~dup[1:]]
     with np.errstate(over="ignore", invalid="ignore"):
         off = np.abs(np.diff(time_s)[~dup[1:]] / period - np.rint(np.diff(time_s)[~dup[1:]] / period))
@@ -223,7 +229,7 @@ def sample_clock(
     np.cumsum(steps, out=index[1:])
     del steps
     offset, slope, jitter = _deviation(time_s, index, period, origin)
-    if polled.walk_ratio(jitter, period) > polled.WALK_RATIO:
+    if loop or polled.walk_ratio(jitter, period) > polled.WALK_RATIO or polled.wanders(jitter, period):
         rule = "stamps"  # no clock to count by: each row is the next sample
         np.cumsum(~dup[1:], out=index[1:])
         dropped = polled.stalls(time_s, dup, origin)  # a loop that stalled: a hole, as a lost sample is
@@ -439,7 +445,7 @@ def settle(run, allow_gaps: bool, guess_turns: bool = False):
         try:
             if clock.rule == "stamps":  # repeats dropped; a stall's one row kept if at rest, not filled
                 time = uniform_time(clock, run.time_s)[keep]
-                check_stalls_at_rest(dtheta, time, [t for t, _ in clock.dropped])
+                guessed = check_stalls_at_rest(dtheta, time, [t for t, _ in clock.dropped], guess_turns)
             else:
                 dtheta, dv, gimbal, index, guessed = fill_dropped(
                     present, (clock.offset_s, period), dtheta, dv, gimbal, guess_turns

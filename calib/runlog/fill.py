@@ -260,25 +260,36 @@ class QuietNoise:
         return worst
 
 
-def check_stalls_at_rest(dtheta: np.ndarray, time_s: np.ndarray, stalls_s: list) -> None:
+def check_stalls_at_rest(
+    dtheta: np.ndarray, time_s: np.ndarray, stalls_s: list, guess_turns: bool = False
+) -> np.ndarray | None:
     """Refuse a polling loop's stall (:func:`calib.runlog.polled.stalls`) while the IMU turns.
 
     The row after a stall holds one reading over the whole hole: at rest that is the hole's
     increment to its noise; while turning the rate changed unseen. At rest means no row of
     the ``FILL_NEIGHBOURS`` each side turns faster than ``STALL_REST_RATE`` (a MEMS unit's
     noise and bias stay below it; a hand's turn passes it within its first rows).
-    ``time_s``: the rows' own ends, s.
+    ``time_s``: the rows' own ends, s. With ``guess_turns`` a stall amid a turn is not
+    refused: its row is returned marked (``(n,)`` bool, None if none), as a sample
+    :func:`fill_dropped` guesses is, so that a hand fit leaves its move out.
     """
     dt = sample_intervals(time_s)
+    guessed = np.zeros(len(time_s), dtype=bool)
     for start in stalls_s:
         row = int(np.searchsorted(time_s, start))
         lo, hi = max(0, row - FILL_NEIGHBOURS), min(len(time_s), row + 1 + FILL_NEIGHBOURS)
         near = np.r_[lo:row, row + 1 : hi]  # the stall's own row is the one in doubt
         peak = np.max(np.linalg.norm(dtheta[near], axis=1) / dt[near])
-        if peak > STALL_REST_RATE:
-            raise CalibError(
-                f"the logger stalled for {1e3 * dt[row]:.3g} ms at t = {start:.6g} s, while the IMU turns",
-                f"t = {start:.6g} s",
-                "a turn's rate over a stall cannot be recovered; log without stalls (a polling loop "
-                "that writes to a card blocks) or record the run again",
-            )
+        if peak <= STALL_REST_RATE:
+            continue
+        if guess_turns:
+            guessed[row] = True
+            continue
+        raise CalibError(
+            f"the logger stalled for {1e3 * dt[row]:.3g} ms at t = {start:.6g} s, while the IMU turns",
+            f"t = {start:.6g} s",
+            "a turn's rate over a stall cannot be recovered; log without stalls (a polling loop "
+            "that writes to a card blocks) or record the run again; by hand, allow_gaps with "
+            "guess_turns (the CLI's --allow-gaps, by hand) leaves its move out",
+        )
+    return guessed if guessed.any() else None

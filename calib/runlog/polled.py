@@ -30,11 +30,11 @@ WALK_RATIO = 0.25  # above: the stamps walk, the samples were taken at them
 MIN_STEP_SPREAD = 0.02
 
 
-def walk_ratio(deviation: np.ndarray, period: float) -> float:
+def walk_ratio(deviation: np.ndarray, period: float, min_spread: float = MIN_STEP_SPREAD) -> float:
     """How the deviation of the stamps from a uniform clock grows with the rows, ``(n,)`` s.
 
     Returns 0 when the log is too short to tell (fewer than ``3 * WALK_ROWS`` rows) or its
-    steps vary by less than ``MIN_STEP_SPREAD`` periods.
+    steps vary by less than ``min_spread`` periods.
     """
     e = np.asarray(deviation, dtype=float)
     m = WALK_ROWS
@@ -45,7 +45,7 @@ def walk_ratio(deviation: np.ndarray, period: float) -> float:
     # jitter): steps beyond 4 robust sigmas are left out before the spreads are compared.
     middle = float(np.median(one))
     sigma = 1.4826 * float(np.median(np.abs(one - middle)))
-    if not sigma > MIN_STEP_SPREAD * period:
+    if not sigma > min_spread * period:
         return 0.0
     one = one[np.abs(one - middle) <= 4.0 * sigma]
     if len(one) < 3 * m:
@@ -53,6 +53,36 @@ def walk_ratio(deviation: np.ndarray, period: float) -> float:
     walk = np.concatenate([[0.0], np.cumsum(one)])
     far = walk[m:] - walk[:-m]
     return float(np.var(far) / (m * np.var(one)))
+
+
+# Steps spread by less than this (a tenth of a per cent of the period) say nothing of a walk: most
+# of them equal (stamps printed coarser than their jitter), the robust spread is not the steps'.
+WANDER_MIN_SPREAD = 1e-3
+
+
+def wanders(deviation: np.ndarray, period: float) -> bool:
+    """Whether stamps too even for ``MIN_STEP_SPREAD`` are still a loop's, each row at its stamp.
+
+    A loop whose period drifts (its work slowly changing: a real 154 Hz logger's
+    6.42-6.51 ms over four minutes, each step within 24 us of its neighbours) runs periods
+    away from any uniform count, which no crystal does under a host's bounded delays: its
+    deviation ``(n,)`` s from the row count's straight line exceeds a period RMS and grows
+    as a walk does. (The Xsens recording's host stamps walk too, by 0.26 ms RMS.)
+    """
+    e = np.asarray(deviation, dtype=float)
+    if not float(np.sqrt(np.mean(np.square(e)))) > period:
+        return False
+    return walk_ratio(e, period, min_spread=WANDER_MIN_SPREAD) > WALK_RATIO
+
+
+def loop_wanders(time_s: np.ndarray, period: float, duplicate: np.ndarray) -> bool:
+    """:func:`wanders`, of stamps no sample clock could count (each row taken as the next sample)."""
+    t = time_s[~duplicate]
+    if len(t) < 3 * WALK_ROWS:
+        return False
+    count = np.arange(len(t), dtype=np.float64)
+    slope, offset = np.polyfit(count, t - t[0], 1)
+    return wanders(t - t[0] - (offset + slope * count), period)
 
 
 STALL_STEPS = 3.0  # a step this many times the median one: the loop stalled (a hole in the record)

@@ -21,7 +21,7 @@ from realdata import REPO
 from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.errors import CalibError
 from calib.hand.plan import xsens_like_plan
-from calib.hand.setup import carried_by_hand, diagnose
+from calib.hand.setup import carried_by_hand, diagnose, rate_mistake
 from calib.hand.simulate import simulate_by_hand
 from calib.model.error_model import ErrorModel
 from calib.noise.profiles import load_profile
@@ -322,3 +322,22 @@ def test_a_long_refusal_is_printed_within_400_characters(tmp_path):
     line = refusal_line(exc)
     assert len(line) <= MAX_MESSAGE and line.startswith("run.csv, line 4")
     assert line.endswith("(--sample-rate-hz))")
+
+
+def test_alike_gyro_scale_factors_in_a_log_timed_by_its_stamps_blame_the_conversion():
+    # A polling logger times each row by its own stamp: no rate was given to be wrong. A gyro in
+    # counts read 12.5 % low is its sensitivity (an LSM6's 57.1 counts per deg/s taken for an
+    # MPU's 65.5): every turn 1/0.875 = 1.143 times too short, said as such and put right by it.
+    scale = np.array([-0.126, -0.124, -0.125])
+    sigma = np.full(3, 0.002)
+    stamped = rate_mistake(scale, sigma, 1 / 154.0, at_stamps=True, counts=True)
+    assert stamped is not None and "timed by its stamps" in stamped.what
+    assert "counts per unit are 1.143 times" in stamped.what and "sample rate" not in stamped.what
+    assert np.allclose(stamped.gyro, np.eye(3) / 0.875) and np.allclose(stamped.accel, np.eye(3))
+    assert stamped.rate_factor == 1.0
+    # On a uniform clock both causes are named, and the rate is what --fix-units puts right.
+    clocked = rate_mistake(scale, sigma, 1 / 154.0, counts=True)
+    assert clocked is not None and "sample rate is likely 134.75 Hz, not the 154 Hz given" in clocked.what
+    assert "counts per unit" in clocked.what and clocked.rate_factor == pytest.approx(0.875)
+    # Unlike scale factors (a unit's own) are no such mistake.
+    assert rate_mistake(np.array([-0.006, 0.004, 0.001]), sigma, 1 / 154.0, at_stamps=True) is None

@@ -14,6 +14,7 @@ from calib.hand.simulate import draw_errors, simulate_by_hand
 from calib.model import params as P
 from calib.noise.profiles import load_profile
 from calib.runlog import read_run
+from calib.runlog.clock import sample_clock, stamps_rate
 from calib.runlog.polled import walk_ratio
 from calib.sequence.kinematics import SimConfig
 from seqdesign.cli import main
@@ -157,3 +158,33 @@ def test_a_polling_loop_that_stalls_is_refused_while_turning_and_kept_at_rest(tm
     else:
         got = read_run(path, columns=COLUMNS, latitude_deg=45.0, height_m=0.0, allow_gaps=True)
         assert got.clock.rule == "stamps" and got.n_samples == len(ends)
+
+
+def test_a_loop_whose_period_drifts_is_read_at_its_stamps_not_refused():
+    # A real 154 Hz logger's loop took 6.42 ms at the start and 6.51 ms four minutes later, each
+    # step within 24 us of its neighbours: too even for the polled test's 2 % gate, yet its time
+    # runs periods ahead of any uniform count, which no crystal does. Each row is the next sample.
+    rng = np.random.default_rng(5)
+    n = 37_000
+    steps = np.linspace(6.42e-3, 6.51e-3, n - 1) + rng.normal(0.0, 24e-6, n - 1)
+    stamps = np.round(np.r_[0.0, np.cumsum(steps)] + 2314.9, 6)  # micros() printed to 1 us
+    clock = sample_clock(stamps, stamps_rate(stamps))
+    assert clock.rule == "stamps" and clock.dropped == []
+    assert np.array_equal(clock.index, np.arange(n))
+    # The same steps on a crystal (bounded jitter, the same spread) stay counted on its clock.
+    crystal = 2314.9 + 6.465e-3 * np.arange(n) + rng.uniform(0.0, 1e-3, n)
+    assert sample_clock(crystal, stamps_rate(crystal)).rule != "stamps"
+
+
+def test_a_stall_amid_a_turn_is_a_guess_by_hand_with_gaps_allowed(tmp_path):
+    # Refused unless asked; by hand with gaps allowed its row is marked, for the fit to leave
+    # its move out (as a sample lost amid a turn is).
+    path = tmp_path / "polled.csv"
+    run, _, ends = _polled_log(path, 3)
+    rate = np.linalg.norm(run.dtheta_rad, axis=1)[ends] / 1e-3
+    row = int(np.flatnonzero(rate > 1.0)[50])
+    _rewrite(path, stall_at=row, stall_us=60_000)
+    site = dict(columns=COLUMNS, latitude_deg=45.0, height_m=0.0, allow_gaps=True)
+    got = read_run(path, guess_turns=True, **site)
+    assert got.clock.rule == "stamps" and got.guessed is not None
+    assert np.flatnonzero(got.guessed).tolist() == [row]
