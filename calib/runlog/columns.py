@@ -102,9 +102,12 @@ class ColumnPlan:
         return TIME_UNITS.get(self.time_name.removeprefix("time_"), 1)
 
 
+NEGATED = "-"  # before a sensor name: the column holds that axis with its sign reversed
+
+
 def _split(name: str) -> tuple[str, str, str] | None:
-    """``(quantity, axis, unit)`` of a grammar name; unit '' when it has none."""
-    parts = name.split("_")
+    """``(quantity, axis, unit)`` of a grammar name (negated or not); unit '' when it has none."""
+    parts = name.removeprefix(NEGATED).split("_")
     if parts[0] not in QUANTITIES or len(parts) < 2 or parts[1] not in AXES:
         return None
     return parts[0], parts[1], "_".join(parts[2:])
@@ -196,7 +199,15 @@ def _scan(names: list[str], where: str) -> tuple[dict, dict[str, int]]:
                 + ", ".join(units)
                 + f", e.g. {EXAMPLE_HEADER}",
             )
-        found.setdefault(quantity, {})[axis] = (column, position, units[unit])
+        if axis in found.get(quantity, {}):
+            raise CalibError(
+                f"{quantity}_{axis} is given twice: columns {found[quantity][axis][1] + 1} and "
+                f"{position + 1}",
+                where,
+                "keep one of the two columns",
+            )
+        sign = -1.0 if column.startswith(NEGATED) else 1.0  # iOS's accelerometer, a flipped axis
+        found.setdefault(quantity, {})[axis] = (column.removeprefix(NEGATED), position, sign * units[unit])
     return found, seen
 
 
@@ -282,7 +293,8 @@ def accepted_names() -> str:
         + sensors
         + "; "
         + ", ".join(GIMBAL_COLUMNS)
-        + f"; a sample counter: {COUNTER}; raw counts: gyro_{{x,y,z}}_{COUNTS}, accel_{{x,y,z}}_{COUNTS}"
+        + f"; a sample counter: {COUNTER}; raw counts: gyro_{{x,y,z}}_{COUNTS}, accel_{{x,y,z}}_{COUNTS}; "
+        f"a sensor axis negated: {NEGATED}accel_x_g"
     )
 
 

@@ -32,6 +32,7 @@ from .counter import RATE_FIX, counter_suspect, counter_time
 from .dialect import to_commas, unquoted, without_repeated_headers
 from .format import ARRAY_COLUMNS, FORMAT, GIMBAL_COLUMNS, REQUIRED_COLUMNS, REQUIRED_META
 from .headerless import by_commented_names, mapped_header, with_header, with_row_counter
+from .loggers import apple_sign_warning
 from .paths import read_bytes
 from .polled import own_intervals
 from .rollover import said_rollover
@@ -82,6 +83,9 @@ def read_csv(
     """
     name = str(path)
     mapping = parse_column_map(columns, name)
+    apple = apple_sign_warning(mapping, name)
+    if apple is not None:
+        warnings.warn(apple, stacklevel=2)
     lines = without_cut_last_row(decode_lines(read_bytes(path), name), name)
     meta, key_lines, header_index = parse_preamble(lines, name)
     lines = without_repeated_headers(unquoted(lines, header_index, name), header_index, name)

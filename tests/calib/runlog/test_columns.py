@@ -123,3 +123,27 @@ def test_declared_run_logs_keep_their_contract(tmp_path):
     path.write_text(logger_text(preamble="# format: imu-run/1\n# latitude_deg: 40\n# height_m: 0\n"))
     with pytest.raises(CalibError, match="'sample_rate_hz' is missing"):
         read_run(path, allow_gaps=True)
+
+
+def test_a_negated_name_reverses_the_axis_and_an_ios_logger_s_acceleration_is_warned_of(tmp_path):
+    # iOS gives the acceleration as -1 g on z lying face up (Apple's sign); mapped negated it is
+    # the specific force, +1 g up. Rates in counts and in units negate alike.
+    names = ["t", "accelerometerAccelerationX(G)", "accelerometerAccelerationY(G)"]
+    names += ["accelerometerAccelerationZ(G)", "gx", "gy", "gz"]
+    rows = [
+        f"{t},{-f[0]},{-f[1]},{-f[2]},{w[0]},{w[1]},{w[2]}"
+        for t, f, w in zip(TIMES, FORCE, RATE, strict=True)
+    ]
+    (tmp_path / "ios.csv").write_text(",".join(names) + "\n" + "\n".join(rows) + "\n")
+    gyro = "gx=gyro_x_dps,gy=gyro_y_dps,gz=-gyro_z_dps"
+    negated = "t=time_s," + ",".join(f"{n}=-accel_{a}_g" for n, a in zip(names[1:4], "xyz", strict=True))
+    run = read_run(tmp_path / "ios.csv", columns=negated + "," + gyro, latitude_deg=45.0, height_m=0.0)
+    assert np.allclose(run.dv_mps / 0.01, FORCE * STANDARD_GRAVITY, rtol=1e-12, atol=0)
+    assert np.allclose(run.dtheta_rad / 0.01, np.radians(RATE) * [1, 1, -1], rtol=1e-12, atol=0)
+    plain = negated.replace("=-accel", "=accel")
+    with pytest.warns(UserWarning, match=r"iOS logger's acceleration.*=-accel_x_g"):
+        read_run(tmp_path / "ios.csv", columns=plain + "," + gyro, latitude_deg=45.0, height_m=0.0)
+    # One axis given twice, once negated, is refused by column.
+    twice = negated.replace("=-accel_y_g", "=accel_x_g")
+    with pytest.raises(CalibError, match="accel_x is given twice: columns 2 and 3"):
+        read_run(tmp_path / "ios.csv", columns=twice + "," + gyro, latitude_deg=45.0, height_m=0.0)
