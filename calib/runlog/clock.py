@@ -204,14 +204,13 @@ def sample_clock(
     Raises
     ------
     CalibError
-        When a step is not close to a whole number of periods (``where`` is
-        the row index, to be located by the caller).
+        When a step is not close to a whole number of periods and the rows are no polling
+        loop's (``where`` is the row index, to be located by the caller).
     """
     period = 1.0 / sample_rate_hz
     dup = np.zeros(len(time_s), dtype=bool) if duplicate is None else duplicate
     try:
-        steps = _whole_steps(time_s, period, dup)
-        loop = False
+        steps, loop = _whole_steps(time_s, period, dup), False
     except CalibError:
         if not polled.loop_wanders(time_s, period, dup):
             raise
@@ -247,7 +246,7 @@ def sample_clock(
         jitter_rms_s=float(np.sqrt(np.mean(np.square(jitter, out=jitter)))),
         jitter_max_s=jitter_max,
         dropped=dropped,
-        duplicates=_runs_of(dup, time_s, origin),
+        duplicates=[(float(time_s[a - 1] - origin), int(b - a)) for a, b in zip(*runs_of(dup), strict=True)],
         origin_s=origin,
         rule=rule,
         step_stats=step_stats,
@@ -381,11 +380,6 @@ def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarr
             )
         return steps
     return counted_steps(time_s, periods, counted, period)
-
-
-def _runs_of(dup: np.ndarray, time_s: np.ndarray, origin: float = 0.0) -> list:
-    """(time of the repeated sample, number of extra copies) for each run of duplicates."""
-    return [(float(time_s[a - 1] - origin), int(b - a)) for a, b in zip(*runs_of(dup), strict=True)]
 
 
 def uniform_time(clock: SampleClock, time_s: np.ndarray) -> np.ndarray:
