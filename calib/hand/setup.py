@@ -180,6 +180,9 @@ def diagnose(run, gravity_mps2: float) -> list[Mistake]:
             )
         ]
     ratio = f / gravity_mps2
+    offset = zero_mistake(rests_f, gravity_mps2, run.conversion) if abs(ratio - 1.0) <= 0.15 else None
+    if offset is not None:  # |f| spread over the poses, about g in the median: a zero offset
+        return [offset]
     if abs(ratio - 1.0) > 0.15:
         return [zero_mistake(rests_f, gravity_mps2, run.conversion) or force_mistake(f, gravity_mps2)]
     moves = _moves(dtheta, dv, start, end)
@@ -222,6 +225,16 @@ TIME_BASE_FACTORS = np.geomspace(0.02, 50.0, 81)
 TIME_BASE_SLACK = 1.25
 
 
+RANGE_SLACK = 1.06  # a factor this close to 2, 4, 1/2...: a full-scale range, beyond a gyro's own scale
+
+
+def _times(factor: float) -> str:
+    """``'2 times'``, ``'half'``, ``'a quarter of'``... for a power of two."""
+    if factor >= 1.0:
+        return f"{factor:g} times"
+    return {0.5: "half", 0.25: "a quarter of"}.get(factor, f"1/{1.0 / factor:g} of")
+
+
 def _time_base(moves, bias: np.ndarray, period: float, plain: float) -> Mistake | None:
     """The gyro's turns a common factor ``k`` off the accelerometer's change of gravity, or None."""
     factors = TIME_BASE_FACTORS[np.abs(np.log(TIME_BASE_FACTORS)) > math.log(TIME_BASE_SLACK)]
@@ -234,6 +247,19 @@ def _time_base(moves, bias: np.ndarray, period: float, plain: float) -> Mistake 
     fine = carried_misfit(moves, finer[:, None, None] * np.eye(3), bias, period)
     factor, best = float(finer[int(np.argmin(fine))]), float(fine.min())
     rate_hz = 1.0 / period  # as the time column reads
+    octave = round(math.log2(factor))
+    if abs(math.log2(factor) - octave) < math.log2(RANGE_SLACK):
+        # Twice or half: a MEMS gyro's full-scale range set to another step than its conversion's
+        # (its sensitivity halves as the range doubles); no time base is off by just that.
+        ranged = 2.0**octave
+        return Mistake(
+            f"the gyro's turns across the moves come out {1.0 / factor:.2g} times the change of gravity the "
+            f"accelerometer sees (the median miss of {plain:.3g} deg falls to {best:.2g} deg at {factor:.2g} "
+            f"times the turns): the gyro's full-scale range is likely {_times(ranged)} the one its "
+            "readings were converted at",
+            ranged * np.eye(3),
+            np.eye(3),
+        )
     off = f"{1.0 / factor:.2g} times too long" if factor < 1.0 else f"{factor:.2g} times too short"
     return Mistake(
         f"the gyro's turns across the moves come out {1.0 / factor:.2g} times the change of gravity "

@@ -21,7 +21,7 @@ from realdata import REPO
 from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.errors import CalibError
 from calib.hand.plan import xsens_like_plan
-from calib.hand.setup import carried_by_hand, diagnose, rate_mistake
+from calib.hand.setup import carried_by_hand, diagnose, rate_mistake, still_stretches
 from calib.hand.simulate import simulate_by_hand
 from calib.model.error_model import ErrorModel
 from calib.noise.profiles import load_profile
@@ -341,3 +341,39 @@ def test_alike_gyro_scale_factors_in_a_log_timed_by_its_stamps_blame_the_convers
     assert "counts per unit" in clocked.what and clocked.rate_factor == pytest.approx(0.875)
     # Unlike scale factors (a unit's own) are no such mistake.
     assert rate_mistake(np.array([-0.006, 0.004, 0.001]), sigma, 1 / 154.0, at_stamps=True) is None
+
+
+def test_a_zero_offset_is_named_when_the_median_rest_still_reads_about_g(hand_run):
+    # An offset of 0.48 g on z (a real flight computer's, read as m/s^2): its poses read |f| from
+    # about 0.5 g to 1.5 g, the median within 15 % of g, so no unit mistake is in question; the
+    # spread is the offset's, named with the zero to subtract (not left to the fit, which
+    # converged on a bias of 480,000 ug, or to a pose count).
+    run, g = hand_run
+    offset = np.array([0.0, 0.0, 0.48]) * g
+    dt = np.diff(run.time_s, prepend=run.time_s[0] - 1.0 / RATE_HZ)
+    bad = dataclasses.replace(run, dv_mps=run.dv_mps + offset * dt[:, None], clock=None)
+    still = diagnose(bad, g)
+    assert len(still) == 1 and "a zero offset" in still[0].what
+    centre = [float(x) for x in still[0].what.split("at (")[-1].split(")")[0].split(",")]
+    np.testing.assert_allclose(centre, offset / g, atol=0.01)  # the bias (< 0.01 g) on top
+    low, high = (float(x) for x in re.findall(r"runs from ([\d.]+) g to ([\d.]+) g", still[0].what)[0])
+    assert low < 0.7 and high > 1.3
+    start, end = still_stretches(bad.dtheta_rad, bad.dv_mps, dt)
+    f = [np.linalg.norm(bad.dv_mps[a:b].sum(0) / dt[a:b].sum()) for a, b in zip(start, end, strict=True)]
+    assert abs(np.median(f) / g - 1.0) < 0.15  # the case a unit mistake's test let through
+
+
+@pytest.mark.parametrize("reads", [0.5, 2.0])
+def test_a_gyro_off_by_a_power_of_two_is_its_full_scale_range_and_put_right(hand_run, plain_fit, reads):
+    # A gyro set to +-500 deg/s converted at the +-250 sensitivity reads half its turns (and the
+    # converse twice): a factor no time base is off by and every full-scale step is. Named as the
+    # range; --fix-units multiplies the gyro back, and the fit is the plain one's (the same
+    # samples, the same numbers: to rounding).
+    run, g = hand_run
+    bad = dataclasses.replace(run, dtheta_rad=run.dtheta_rad * reads, clock=None)
+    found = diagnose(bad, g)
+    said = "2 times" if reads == 0.5 else "half"
+    assert len(found) == 1 and f"full-scale range is likely {said} the one" in found[0].what
+    assert not found[0].cannot_fix and np.allclose(found[0].gyro, np.eye(3) / reads)
+    fixed = calibrate(bad, "mems", by_hand=True, options=CalibrateOptions(fix_units=True))
+    np.testing.assert_allclose(fixed.values, plain_fit.values, rtol=0, atol=1e-3 * plain_fit.sigma.min())
