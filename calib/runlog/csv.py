@@ -29,7 +29,7 @@ from .columns import (
 )
 from .conversion import Conversion, sensor_si
 from .counter import RATE_FIX, counter_suspect, counter_time
-from .dialect import to_commas, unquoted, without_repeated_headers
+from .dialect import past_preamble, to_commas, unquoted, without_repeated_headers, without_units_row
 from .format import ARRAY_COLUMNS, FORMAT, GIMBAL_COLUMNS, REQUIRED_COLUMNS, REQUIRED_META
 from .headerless import by_commented_names, mapped_header, with_header, with_row_counter
 from .loggers import apple_sign_warning
@@ -88,6 +88,8 @@ def read_csv(
         warnings.warn(apple, stacklevel=2)
     lines = without_cut_last_row(decode_lines(read_bytes(path), name), name)
     meta, key_lines, header_index = parse_preamble(lines, name)
+    header_index = past_preamble(lines, header_index, mapping, name)
+    lines = without_units_row(lines, header_index, name)
     lines = without_repeated_headers(unquoted(lines, header_index, name), header_index, name)
     mapping = by_commented_names(lines, header_index, mapping, name)
     lines, added = with_header(lines, header_index, mapping, meta, options or {}, name)  # no header row

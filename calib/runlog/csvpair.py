@@ -44,7 +44,7 @@ from .csv import (
     parse_preamble,
     time_in_seconds,
 )
-from .dialect import to_commas, unquoted, without_repeated_headers
+from .dialect import past_preamble, to_commas, unquoted, without_repeated_headers, without_units_row
 from .paths import read_bytes
 from .run import Run
 from .streams import Stream, two_clocks
@@ -103,6 +103,8 @@ class _SensorFile:
         self.name = name = str(path)
         lines = without_cut_last_row(decode_lines(read_bytes(path), name), name)
         self.meta, self.key_lines, header_index = parse_preamble(lines, name)
+        header_index = past_preamble(lines, header_index, {}, name)  # a sep= line
+        lines = without_units_row(lines, header_index, name)
         lines = without_repeated_headers(unquoted(lines, header_index, name), header_index, name)
         lines = to_commas(lines, header_index, name)
         self.header_line = header_index + 1

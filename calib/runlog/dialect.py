@@ -10,6 +10,11 @@ quotes, decimal points.
 - Fields in double quotes (``"0.010","-8.42"``, as spreadsheets export) lose
   their quotes; a quoted decimal comma (``"0,25"``) is read as a point
   (`unquoted`).
+- Lines above the header row that hold no samples (Excel's ``sep=,`` declaration, a
+  logger's ``DeviceTag:,Xsens DOT`` or ``Fs,100`` lines) when the column map's names are on
+  a later line are that logger's preamble, said on stderr (`past_preamble`); a row of
+  units right under the header (Shimmer's ``ms,m/(s^2),...``) is left out, said
+  (`without_units_row`).
 - A row that repeats the header (a logger restarted and appended to its
   file) is not a sample: it is read as a blank line, said on stderr
   (`without_repeated_headers`). Rows after it go on as they are; a clock
@@ -113,3 +118,87 @@ def without_repeated_headers(lines: list[str], header_index: int, name: str) -> 
 
 def _normal(line: str) -> str:
     return re.sub(r"\s+", " ", line.strip())
+
+
+# Excel's declaration of the separator, a file's first line: sep=, or "sep=\t" (Shimmer, Movella DOT).
+_SEP_LINE = re.compile(r'^"?sep=.?"?$')
+PREAMBLE_LINES = 50  # lines searched below the first for the one the column map names
+
+
+def _names(line: str) -> list[str]:
+    """A line's fields as names, at commas, semicolons or tabs (else spaces), each without quotes."""
+    text = line.strip()
+    fields = re.split(r"[,;\t]", text) if re.search(r"[,;\t]", text) else text.split()
+    return [f.strip().strip('"').strip() for f in fields]
+
+
+def _holds_numbers(line: str) -> bool:
+    """Whether a line is a row of numbers (a sample), not a preamble's text."""
+    fields = [f for f in _names(line) if f]
+    return bool(fields) and all(_is_number(f) for f in fields)
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text.replace(",", "."))
+    except ValueError:
+        return False
+    return True
+
+
+def past_preamble(lines: list[str], header_index: int, mapping: dict[str, str], name: str) -> int:
+    """The header row's index past a logger's own preamble lines, said on stderr.
+
+    Excel's ``sep=`` line is always one. Other lines are when the column map names columns the
+    first line lacks and a later line has, and no line between them is a row of numbers (a
+    sample above a header is no preamble: the reader then says which line holds the names).
+    """
+    first = header_index
+    if _SEP_LINE.match(lines[header_index].strip()):
+        later = [
+            k for k in range(header_index + 1, len(lines)) if lines[k].strip() and not is_comment(lines[k])
+        ]
+        if not later:
+            return header_index
+        header_index = later[0]
+    named = [k for k in mapping if not k.isdigit()]
+    if (
+        named
+        and not _holds_numbers(lines[header_index])
+        and not all(k in _names(lines[header_index]) for k in named)
+    ):
+        for k in range(header_index + 1, min(len(lines), header_index + PREAMBLE_LINES)):
+            if _holds_numbers(lines[k]):
+                break
+            if all(key in _names(lines[k]) for key in named):
+                header_index = k
+                break
+    if header_index != first:
+        said = f"line {first + 1}" if header_index == first + 1 else f"lines {first + 1}-{header_index}"
+        warnings.warn(
+            f"{name}: {said} above the header row (line {header_index + 1}) read as the logger's preamble",
+            stacklevel=3,
+        )
+    return header_index
+
+
+def without_units_row(lines: list[str], header_index: int, name: str) -> list[str]:
+    """The lines with a row of units right under the header blanked (``ms,m/(s^2),deg/s``), said.
+
+    Only that row, and only when none of its fields is a number and it has as many as the
+    header: text anywhere else among the rows is refused by the reader, at its line.
+    """
+    k = next((k for k in range(header_index + 1, len(lines)) if lines[k].strip()), None)
+    if k is None:
+        return lines
+    fields, header = _names(lines[k]), _names(lines[header_index])
+    if _holds_numbers(lines[header_index]) or len(fields) != len(header) or not any(fields):
+        return lines  # rows without a header, or a row unlike the header's
+    if any(_is_number(f) for f in fields if f):
+        return lines
+    warnings.warn(
+        f"{name}, line {k + 1}: a row of no numbers under the header ({', '.join(f for f in fields[:4] if f)}"
+        f"{', ...' if len(fields) > 4 else ''}: its units?); left out",
+        stacklevel=3,
+    )
+    return lines[:k] + [""] + lines[k + 1 :]

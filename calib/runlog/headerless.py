@@ -148,6 +148,22 @@ def with_header(
     positions = [str(i) for i in range(1, n + 1)]
     wrong = [k for k in mapping if k not in positions]
     if wrong:
+        later = next(
+            (
+                k
+                for k in range(header_index + 1, min(len(lines), header_index + 50))
+                if set(wrong) <= set(_fields(lines[k]))
+            ),
+            None,
+        )
+        if later is not None:  # rows of numbers above the names: samples before a header?
+            raise CalibError(
+                "column map names " + ", ".join(f"'{k}'" for k in wrong) + f", which line {header_index + 1} "
+                f"(a row of numbers) does not have; they are on line {later + 1}",
+                where,
+                f"put '#' before the {later - header_index} line(s) above line {later + 1} (the header row "
+                "is the first line not starting with '#' or '//')",
+            )
         raise CalibError(
             "column map names " + ", ".join(f"'{k}'" for k in wrong) + f", and the file has no header row: "
             f"its columns are named by position, 1 to {n}",
@@ -201,6 +217,11 @@ def by_commented_names(
         return mapping
     text = above.lstrip("#/% \t")
     names = [f.strip() for f in re.split(r"[,;\t]" if re.search(r"[,;\t]", text) else r"\s+", text)]
+    # A map may name the first column as the file writes it, mark and all ("#timestamp [ns]": EuRoC).
+    mapping = {
+        (k.lstrip("#/% ") if k not in names and k.lstrip("#/% ") in names else k): v
+        for k, v in mapping.items()
+    }
     if len(names) != n or not all(k in names for k in mapping):
         return mapping
     warnings.warn(

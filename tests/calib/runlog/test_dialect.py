@@ -97,3 +97,37 @@ def test_a_ros_header_starting_with_a_percent_sign_is_a_header(tmp_path):
     path = tmp_path / "ros.csv"
     path.write_text("%time," + ",".join(NAMES) + "\n" + "".join(_rows(",", timed=True)))
     _assert_the_table(read_run(path, columns="%time=time_s," + BY_NAME, **SITE))
+
+
+def test_a_sep_line_a_device_preamble_and_a_units_row_are_read_as_such(tmp_path):
+    # Shimmer's Consensys export: Excel's "sep=\t" first, the names, then a row of units. Movella
+    # DOT's: "sep=," and "Key:,value" lines, a blank line, then the names (and a trailing comma).
+    shimmer = tmp_path / "shimmer.csv"
+    header = "\t".join(("t", *NAMES))
+    units = "\t".join(("s", "m/(s^2)", "m/(s^2)", "m/(s^2)", "rad/s", "rad/s", "rad/s"))
+    shimmer.write_text(f'"sep=\\t"\n{header}\n{units}\n' + "".join(_rows("\t", timed=True)))
+    with pytest.warns(UserWarning) as said:
+        run = read_run(shimmer, columns="t=time_s," + BY_NAME, **SITE)
+    said = [str(w.message) for w in said]
+    assert any("line 1 above the header row (line 2) read as the logger's preamble" in m for m in said)
+    assert any("line 3: a row of no numbers under the header (s, m/(s^2)" in m for m in said)
+    _assert_the_table(run)
+    dot = tmp_path / "dot.csv"
+    preamble = "sep=,\nDeviceTag:,Xsens DOT,,,,,,\nStartTime:,2023-11-14 23:13:20.030 +0100,,,,,,\n\n"
+    dot.write_text(
+        preamble
+        + ",".join(("t", *NAMES))
+        + ",\n"
+        + "".join(r.rstrip("\n") + ",\n" for r in _rows(",", timed=True))
+    )
+    with pytest.warns(UserWarning, match=r"lines 1-4 above the header row \(line 5\)"):
+        _assert_the_table(read_run(dot, columns="t=time_s," + BY_NAME, **SITE))
+
+
+def test_a_name_in_a_comment_line_may_be_mapped_with_its_mark(tmp_path):
+    # EuRoC's "#timestamp [ns],w_RS_S_x [rad s^-1],...": its first name carries the comment's '#'.
+    path = tmp_path / "data.csv"
+    path.write_text("#t [s]," + ",".join(NAMES) + "\n" + "".join(_rows(",", timed=True)))
+    for first in ("#t [s]", "t [s]"):
+        with pytest.warns(UserWarning, match="named in this comment line"):
+            _assert_the_table(read_run(path, columns=f"{first}=time_s," + BY_NAME, **SITE))

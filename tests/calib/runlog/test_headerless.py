@@ -119,14 +119,21 @@ def test_a_time_column_the_map_left_out_is_not_replaced_by_the_rate(tmp_path):
             read_run(other, columns=NAMED_MAP, sample_rate_hz=50.0, **SITE)
 
 
-def test_a_logger_s_preamble_above_its_header_is_told_by_line(tmp_path):
+def test_a_logger_s_preamble_above_its_header_is_read_as_such_and_samples_above_it_are_told(tmp_path):
+    # Lines of text above the line the map names (tomisuarez2/ImuCalibration's "Fs,100") are the
+    # logger's preamble: said, and the rows read as if they were commented out.
     path = tmp_path / "logger.csv"
     path.write_text("Fs,100\nLogging Type,0\nax,ay,az,gx,gy,gz\n" + _text(","))
-    with pytest.raises(CalibError, match="they are on line 3") as err:
-        read_run(path, columns=NAMED_MAP, sample_rate_hz=50.0, **SITE)
-    assert "put '#' before the 2 line(s) above line 3" in err.value.fix
+    with pytest.warns(UserWarning, match=r"lines 1-2 above the header row \(line 3\) read as the logger's"):
+        run = read_run(path, columns=NAMED_MAP, sample_rate_hz=50.0, **SITE)
     path.write_text("# Fs,100\n# Logging Type,0\nax,ay,az,gx,gy,gz\n" + _text(","))
-    assert len(read_run(path, columns=NAMED_MAP, sample_rate_hz=50.0, **SITE).time_s) == 4
+    commented = read_run(path, columns=NAMED_MAP, sample_rate_hz=50.0, **SITE)
+    np.testing.assert_array_equal(run.dv_mps, commented.dv_mps)
+    # A row of numbers above the names is no preamble (samples before a header?): told, not skipped.
+    path.write_text("1,2,3,4,5,6\nax,ay,az,gx,gy,gz\n" + _text(","))
+    with pytest.raises(CalibError, match="they are on line 2") as err:
+        read_run(path, columns=NAMED_MAP, sample_rate_hz=50.0, **SITE)
+    assert "put '#' before the 1 line(s) above line 2" in err.value.fix
 
 
 @pytest.mark.parametrize(
