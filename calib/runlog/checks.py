@@ -17,6 +17,7 @@ from .fill import holes_at_rest
 from .format import ARRAY_COLUMNS, FORMAT, REQUIRED_META
 from .polled import interleaved
 from .run import Run, meta_float
+from .wallclock import SPLIT_FIX, split_stamp_suspect
 
 GAP_PERIODS = 2.0  # the typical time step must lie within [0.5, 2] nominal periods
 
@@ -156,6 +157,11 @@ def check_samples(run: Run, locate, allow_gaps: bool, time_name: str | None = No
     duplicate = clock.duplicate_rows(time, np.asarray(run.dtheta_rad), np.asarray(run.dv_mps), period)
     # Equal stamps with other data may be a host that read two samples at once: the clock's
     # count rule places them, or refuses them where the stamps never make room for the extra row.
+    half = split_stamp_suspect(time) if time_name is not None else None
+    if half is not None:
+        raise CalibError(
+            half + ": one half of a stamp written in two columns?", locate.sample("time_s", 1), SPLIT_FIX
+        )
     backwards = np.flatnonzero((step < 0.0) & ~duplicate[1:])
     if backwards.size:
         i = int(backwards[0]) + 1

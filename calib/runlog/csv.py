@@ -38,7 +38,7 @@ from .polled import own_intervals
 from .rollover import said_rollover
 from .run import Run, meta_float
 from .text import decode_lines, header_names, is_comment, logger_rate, without_cut_last_row
-from .wallclock import with_seconds
+from .wallclock import with_seconds, with_split_stamp
 
 
 class _CsvLocator:
@@ -94,6 +94,7 @@ def read_csv(
     mapping = by_commented_names(lines, header_index, mapping, name)
     lines, added = with_header(lines, header_index, mapping, meta, options or {}, name)  # no header row
     lines = to_commas(lines, header_index, name)
+    lines, mapping = with_split_stamp(lines, header_index, mapping, name, added)  # ROS 2's sec,nanosec
     stated = (options or {}).get("sample_rate_hz") is not None or "sample_rate_hz" in meta
     lines = with_row_counter(
         lines, header_index, mapped_header(lines, header_index, mapping, name), stated, name

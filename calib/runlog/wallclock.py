@@ -13,6 +13,9 @@ from __future__ import annotations
 import dataclasses
 import datetime
 import re
+import warnings
+
+import numpy as np
 
 from calib.errors import CalibError
 
@@ -116,3 +119,75 @@ def with_seconds(rows: list[str], position: int, plan, locate):
     if in_seconds is None:
         return rows, plan
     return in_seconds, dataclasses.replace(plan, time_name="time_s")
+
+
+# A stamp in two columns: whole seconds and the part of the second in ns, us or ms (ROS 2's
+# builtin_interfaces/Time, as `ros2 topic echo --csv` writes a header's stamp: sec,nanosec).
+SUB_SECOND = {"time_ns": 1_000_000_000, "time_us": 1_000_000, "time_ms": 1_000}
+SPLIT_FIX = (
+    "map both columns, the seconds and their fraction: e.g. sec=time_s,nanosec=time_ns (1=time_s,2=time_ns)"
+)
+
+
+def split_stamp_suspect(time_s: np.ndarray) -> str | None:
+    """Why a time column looks like one half of a stamp written in two columns, or None.
+
+    Whole seconds alone step by 0 most rows and 1 once a second; the fraction alone restarts
+    every second (a step back of nearly 1 s).
+    """
+    if len(time_s) < 3:
+        return None
+    step = np.diff(time_s)
+    if np.all(time_s == np.rint(time_s)) and np.median(step) == 0.0 and np.all((step == 0.0) | (step == 1.0)):
+        return (
+            f"the time column holds whole seconds only ({len(time_s)} rows in {time_s[-1] - time_s[0]:.0f} s)"
+        )
+    back = step < 0.0
+    if back.sum() >= 2 and np.all(time_s >= 0.0) and np.all(time_s < 1.0) and np.all(step[back] < -0.5):
+        return f"the time column stays below 1 s and restarts every second ({int(back.sum())} times)"
+
+
+def with_split_stamp(lines: list[str], header_index: int, mapping: dict[str, str], name: str, added: int = 0):
+    """The rows with a stamp written in two columns put into one, and the map reading it so.
+
+    ``mapping`` maps one column to ``time_s`` (whole seconds) and another to ``time_ns``,
+    ``time_us`` or ``time_ms`` (the part of the second): each row's seconds field becomes the
+    whole stamp in that unit, an exact integer, and the fraction's column is left unread.
+    Lines are comma-separated, the header at ``header_index``; ``added`` lines were put in above
+    the rows (a header for a file without one). Returns ``(lines, mapping)``.
+    """
+    seconds = [k for k, v in mapping.items() if v == "time_s"]
+    parts = [(k, v) for k, v in mapping.items() if v in SUB_SECOND]
+    if len(seconds) != 1 or len(parts) != 1:
+        return lines, mapping
+    (part, unit), names = parts[0], [n.strip().strip('"') for n in lines[header_index].split(",")]
+    if seconds[0] not in names or part not in names:
+        return lines, mapping
+    i, j, ticks = names.index(seconds[0]), names.index(part), SUB_SECOND[unit]
+    out = list(lines[: header_index + 1])
+    for k in range(header_index + 1, len(lines)):
+        row = lines[k]
+        if not row.strip() or row.lstrip().startswith(("#", "//")):
+            out.append(row)
+            continue
+        fields = row.split(",")
+        try:
+            whole, sub = int(fields[i]), int(fields[j])
+        except (ValueError, IndexError):
+            whole, sub = None, -1
+        if whole is None or not 0 <= sub < ticks:
+            raise CalibError(
+                f"a stamp in two columns ('{seconds[0]}' seconds, '{part}' {unit.removeprefix('time_')}) "
+                f"needs whole numbers, the second below {ticks}: the row has "
+                f"{fields[i] if i < len(fields) else ''!r}, {fields[j] if j < len(fields) else ''!r}",
+                f"{name}, line {k + 1 - added}",
+                "map the stamp's two columns as its seconds and their fraction, or one time column",
+            )
+        fields[i] = str(whole * ticks + sub)
+        out.append(",".join(fields))
+    warnings.warn(
+        f"{name}: the time from two columns, '{seconds[0]}' (s) and '{part}' ({unit.removeprefix('time_')}), "
+        "read as one stamp",
+        stacklevel=3,
+    )
+    return out, {k: (unit if k == seconds[0] else v) for k, v in mapping.items() if k != part}

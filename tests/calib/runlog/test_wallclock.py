@@ -112,3 +112,32 @@ def test_a_tab_separated_file_with_decimal_commas_reads_them_as_points(tmp_path)
     with pytest.warns(UserWarning, match="tabs with decimal commas"):
         run = read_run(path, columns=MAP, **SITE)
     np.testing.assert_allclose(run.dv_mps[:, 2] / np.diff(run.time_s, prepend=0.0), 9.8, rtol=1e-9)
+
+
+def test_a_stamp_in_two_columns_reads_as_one_and_either_half_alone_is_named(tmp_path):
+    # ROS 2's `ros2 topic echo --csv` writes a header's stamp as sec,nanosec. Read as one stamp:
+    # exact integers, ns; either half alone is named as such, not taken for a wrong rate or a
+    # clock that goes back.
+    ns = 1_700_000_000_153_296_000 + 9_999_000 * np.arange(400, dtype=np.int64)
+    rows = [f"{t // 10**9},{t % 10**9},imu_link,0.01,-0.02,0.03,0.1,0.2,9.8" for t in ns]
+    path = tmp_path / "ros2.csv"
+    path.write_text("\n".join(rows) + "\n")
+    sensors = "4=gyro_x_radps,5=gyro_y_radps,6=gyro_z_radps,7=accel_x_mps2,8=accel_y_mps2,9=accel_z_mps2"
+    site = {"latitude_deg": 45.0, "height_m": 0.0}
+    with pytest.warns(UserWarning, match=r"the time from two columns, '1' \(s\) and '2' \(ns\), read as one"):
+        run = read_run(path, columns="1=time_s,2=time_ns," + sensors, **site)
+    # To the stamps' own 1 ns (the run is put on its fitted clock, period to 1e-12).
+    np.testing.assert_allclose(run.time_s - run.time_s[0], (ns - ns[0]) * 1e-9, rtol=0, atol=1e-9)
+    # A float64 at 1.7e9 s resolves 2.4e-7 s: over these 4 s, the rate to 1e-7.
+    assert run.sample_rate_hz == pytest.approx(1e9 / 9_999_000, rel=1e-7)
+    for half, said in (("1=time_s", "holds whole seconds only"), ("2=time_ns", "restarts every second")):
+        with pytest.raises(CalibError, match=said) as err:
+            read_run(path, columns=f"{half}," + sensors, **site)
+        assert "sec=time_s,nanosec=time_ns" in err.value.fix
+    # A fraction of a second beyond one second is no such stamp: refused at its line.
+    path.write_text(
+        rows[0] + "\n" + rows[1].replace(",163295000,", ",1163295000,") + "\n" + "\n".join(rows[2:])
+    )
+    with pytest.raises(CalibError, match="needs whole numbers, the second below 1000000000") as err:
+        read_run(path, columns="1=time_s,2=time_ns," + sensors, **site)
+    assert err.value.where.endswith("line 2")
