@@ -29,7 +29,14 @@ from .columns import (
 )
 from .conversion import Conversion, sensor_si
 from .counter import RATE_FIX, counter_suspect, counter_time
-from .dialect import past_preamble, to_commas, unquoted, without_repeated_headers, without_units_row
+from .dialect import (
+    labelled_rows,
+    past_preamble,
+    to_commas,
+    unquoted,
+    without_repeated_headers,
+    without_units_row,
+)
 from .format import ARRAY_COLUMNS, FORMAT, GIMBAL_COLUMNS, REQUIRED_COLUMNS, REQUIRED_META
 from .headerless import by_commented_names, mapped_header, with_header, with_row_counter
 from .loggers import apple_sign_warning
@@ -89,10 +96,12 @@ def read_csv(
     lines = without_cut_last_row(decode_lines(read_bytes(path), name), name)
     meta, key_lines, header_index = parse_preamble(lines, name)
     header_index = past_preamble(lines, header_index, mapping, name)
+    lines, labelled = labelled_rows(lines, header_index, name)
     lines = without_units_row(lines, header_index, name)
     lines = without_repeated_headers(unquoted(lines, header_index, name), header_index, name)
     mapping = by_commented_names(lines, header_index, mapping, name)
     lines, added = with_header(lines, header_index, mapping, meta, options or {}, name)  # no header row
+    added += labelled
     lines = to_commas(lines, header_index, name)
     lines, mapping = with_split_stamp(lines, header_index, mapping, name, added)  # ROS 2's sec,nanosec
     stated = (options or {}).get("sample_rate_hz") is not None or "sample_rate_hz" in meta

@@ -15,6 +15,8 @@ quotes, decimal points.
   a later line are that logger's preamble, said on stderr (`past_preamble`); a row of
   units right under the header (Shimmer's ``ms,m/(s^2),...``) is left out, said
   (`without_units_row`).
+- Rows of ``label:value`` pairs (an Arduino's Serial Plotter lines, ``t:3456789,ax:-0.03,...``)
+  the same labels on every row, are read with the labels as the header (`labelled_rows`).
 - A row that repeats the header (a logger restarted and appended to its
   file) is not a sample: it is read as a blank line, said on stderr
   (`without_repeated_headers`). Rows after it go on as they are; a clock
@@ -202,3 +204,42 @@ def without_units_row(lines: list[str], header_index: int, name: str) -> list[st
         stacklevel=3,
     )
     return lines[:k] + [""] + lines[k + 1 :]
+
+
+_PAIR = re.compile(r"^\s*([A-Za-z_][\w.\[\]()/-]*)\s*:\s*([-+]?[\d.]+(?:[eE][-+]?\d+)?)\s*$")
+
+
+def _pairs(line: str) -> list[tuple[str, str]] | None:
+    """A row's ``(label, value)`` pairs, or None when it is not a row of them."""
+    text = line.strip()
+    fields = re.split(r"[,\t]", text) if re.search(r"[,\t]", text) else text.split()
+    found = [_PAIR.match(f) for f in fields if f.strip()]
+    if len(found) < 2 or not all(found):
+        return None
+    return [(m.group(1), m.group(2)) for m in found if m]
+
+
+def labelled_rows(lines: list[str], header_index: int, name: str) -> tuple[list[str], int]:
+    """Rows of ``label:value`` pairs as a header of their labels and rows of their values.
+
+    Only when every row holds the first row's labels in its order (an Arduino's Serial Plotter
+    protocol); a row that does not is left as it is, for the reader to refuse at its line.
+    Returns the lines and the number put in above the rows (1 with the header, else 0).
+    """
+    first = _pairs(lines[header_index])
+    if first is None:
+        return lines, 0
+    labels = [label for label, _ in first]
+    out = lines[:header_index] + [",".join(labels)]
+    for row in lines[header_index:]:
+        pairs = _pairs(row) if row.strip() and not is_comment(row) else None
+        if pairs is not None and [label for label, _ in pairs] == labels:
+            out.append(",".join(value for _, value in pairs))
+        else:
+            out.append(row)
+    warnings.warn(
+        f"{name}: rows of label:value pairs ({', '.join(labels[:3])}{', ...' if len(labels) > 3 else ''}); "
+        "read with the labels as the header",
+        stacklevel=3,
+    )
+    return out, 1

@@ -1,5 +1,5 @@
 """Time stamps written as wall-clock times: ``12:00:01.250``, ``2023-1-1 12:00:01.250`` or
-``14-Nov-2023 12:00:01.250``.
+``14-Nov-2023 12:00:01.250``, ``12:00:01:250``.
 
 Some loggers (a PC tool saving what a serial IMU sends) stamp each row with the host's
 clock time instead of a number. Such a column is turned into seconds from the first
@@ -21,12 +21,14 @@ from calib.errors import CalibError
 
 # [date separator] hours:minutes:seconds[.fraction][zone]; the fraction's separator may be a
 # comma (a locale's decimal comma). The date is year-month-day with -, / or . between. A zone
-# (ISO 8601's Z or +01:00) must be the same on every row: a log's stamps share one clock.
+# (ISO 8601's Z or +01:00) must be the same on every row: a log's stamps share one clock. Three
+# digits after a third colon are milliseconds (Physics Toolbox's 23:13:20:030; a video
+# timecode's frames are two).
 # Or day-month's name-year, as MATLAB's datetime writes by default (14-Nov-2023 22:13:20.030).
 CLOCK_TIME = re.compile(
     r"^\s*(?:(?:(?P<y>\d{4})[-/.](?P<mo>\d{1,2})[-/.](?P<d>\d{1,2})"
     r"|(?P<d2>\d{1,2})[- ](?P<mon>[A-Za-z]{3})[- ](?P<y2>\d{4}))[ T_]+)?"
-    r"(?P<h>\d{1,2}):(?P<mi>\d{2}):(?P<s>\d{2}(?:[.,]\d+)?)(?P<zone>Z|[+-]\d{2}:?\d{2})?\s*$"
+    r"(?P<h>\d{1,2}):(?P<mi>\d{2}):(?P<s>\d{2}(?:[.,]\d+|:\d{3})?)(?P<zone>Z|[+-]\d{2}:?\d{2})?\s*$"
 )
 MONTHS = ("jan", "feb", "mar", "apr", "may", "jun", "jul", "aug", "sep", "oct", "nov", "dec")
 DAY_S = 86_400.0
@@ -72,7 +74,8 @@ def clock_seconds(fields: list[str], locate) -> list[float]:
                 locate(i),
                 "write every time stamp in one zone",
             )
-        seconds = int(m["h"]) * 3600.0 + int(m["mi"]) * 60.0 + float(m["s"].replace(",", "."))
+        fraction = m["s"].replace(",", ".").replace(":", ".")
+        seconds = int(m["h"]) * 3600.0 + int(m["mi"]) * 60.0 + float(fraction)
         if dated:
             try:
                 day = _date(m).toordinal()

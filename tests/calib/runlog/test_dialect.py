@@ -131,3 +131,22 @@ def test_a_name_in_a_comment_line_may_be_mapped_with_its_mark(tmp_path):
     for first in ("#t [s]", "t [s]"):
         with pytest.warns(UserWarning, match="named in this comment line"):
             _assert_the_table(read_run(path, columns=f"{first}=time_s," + BY_NAME, **SITE))
+
+
+def test_rows_of_label_value_pairs_read_with_their_labels_as_the_header(tmp_path):
+    # An Arduino's Serial Plotter lines: "t:20000,ax:0.1,...". A row that breaks the pattern is
+    # refused at the file's own line.
+    path = tmp_path / "plotter.txt"
+    labels = ("t", *NAMES)
+    rows = [
+        ",".join(f"{k}:{v!r}" for k, v in zip(labels, (round(t * 1e6), *map(float, row)), strict=True))
+        for t, row in zip(TIME, TABLE, strict=True)
+    ]
+    path.write_text("\n".join(rows) + "\n")
+    columns = "t=time_us," + BY_NAME
+    with pytest.warns(UserWarning, match=r"rows of label:value pairs \(t, ax, ay, \.\.\.\)"):
+        _assert_the_table(read_run(path, columns=columns, **SITE))
+    path.write_text("\n".join(rows[:2] + [rows[2].replace("ay:", "ay=")] + rows[3:]) + "\n")
+    with pytest.raises(CalibError) as err:
+        read_run(path, columns=columns, **SITE)
+    assert "line 3" in err.value.where

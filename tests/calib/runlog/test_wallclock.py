@@ -141,3 +141,9 @@ def test_a_stamp_in_two_columns_reads_as_one_and_either_half_alone_is_named(tmp_
     with pytest.raises(CalibError, match="needs whole numbers, the second below 1000000000") as err:
         read_run(path, columns="1=time_s,2=time_ns," + sensors, **site)
     assert err.value.where.endswith("line 2")
+
+
+def test_milliseconds_after_a_third_colon_are_read_as_such():
+    # Physics Toolbox writes 23:13:20:030; three digits after the colon are milliseconds.
+    got = clock_seconds(["23:13:20:030", "23:13:20:040", "23:13:21:005"], str)
+    np.testing.assert_allclose(got, [83600.03, 83600.04, 83601.005], rtol=0, atol=1e-9)
