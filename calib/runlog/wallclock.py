@@ -148,6 +148,7 @@ def split_stamp_suspect(time_s: np.ndarray) -> str | None:
     back = step < 0.0
     if back.sum() >= 2 and np.all(time_s >= 0.0) and np.all(time_s < 1.0) and np.all(step[back] < -0.5):
         return f"the time column stays below 1 s and restarts every second ({int(back.sum())} times)"
+    return None
 
 
 def with_split_stamp(lines: list[str], header_index: int, mapping: dict[str, str], name: str, added: int = 0):
