@@ -28,6 +28,10 @@ from calib.nav.site import ppm_per_mgal
 # leaves products of 1e-4 unmodelled, a tenth of a MEMS unit's 1000 ppm requirement. A sigma
 # beyond it says the linearisation the estimate and the sigma both come from no longer holds.
 LINEAR_LIMIT = 1e-2
+# An estimate this large (5 %, 2.9 deg) leaves products of 2.5e-3 unmodelled, beyond a MEMS unit's
+# requirement: the linear model no longer describes the unit, and no triad is built this far off
+# (a MEMS part's scale factors and cross-axis terms are within 2-3 %).
+VALUE_LIMIT = 5e-2
 
 
 @dataclass(frozen=True)
@@ -182,6 +186,17 @@ class CalibrationResult:
                 f"the run barely determines {', '.join(loose)}: sigma beyond 1 % (0.57 deg), where the "
                 "linear error model this fit and its sigmas rest on no longer holds; do not apply these "
                 "estimates (add poses: other faces up, turns about other axes)"
+            )
+        far = [
+            f"{p.name} {100 * v:+.3g} %" if p.kind == "scale" else f"{p.name} {np.degrees(v):+.3g} deg"
+            for p, v, sigma in zip(P.PARAMETERS, self.values, self.sigma, strict=True)
+            if p.kind != "bias" and np.isfinite(sigma) and abs(v) > VALUE_LIMIT
+        ]
+        if far:
+            out.append(
+                f"{', '.join(far)}: beyond 5 % (2.9 deg), where the linear error model this fit rests on no "
+                "longer describes the unit and no triad is built; do not apply these estimates (check the "
+                "axes' labels and units, and the moves the fit used)"
             )
         req = min(self.requirements.values[P.ACCEL_SCALE])
         if self.gravity_source == "normal" and req <= 5 * self.ppm_per_mgal:

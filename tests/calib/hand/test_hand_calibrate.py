@@ -22,6 +22,7 @@ from calib.errors import CalibError
 from calib.hand.plan import HandPlan, PlanShape, random_hand_plan, xsens_like_plan
 from calib.hand.simulate import draw_errors, simulate_by_hand
 from calib.model import params as P
+from calib.model.error_model import ErrorModel
 from calib.noise.profiles import load_profile
 from calib.runlog import Run, write_run
 from calib.sequence.kinematics import SimConfig
@@ -373,3 +374,19 @@ def test_a_correction_in_counts_for_one_sensor_and_g_for_the_other_reads_each_in
     raw_rate, raw_force = raw_samples(run, mixed, "mixed.toml")
     assert np.allclose(raw_rate, rate * scale["gyro"] + zero["gyro"], rtol=1e-12)
     assert np.allclose(raw_force, force / 9.80665, rtol=1e-12)
+
+
+def test_estimates_beyond_what_the_linear_model_describes_are_not_to_be_applied():
+    # A gyro z scale factor of -10 % (a unit read at the wrong sensitivity, or moves the fit
+    # cannot trust) is recovered, noise-free, and said not to apply: its products with the other
+    # terms (1e-2) pass any MEMS requirement. A misalignment of 1.7 deg (3e-2 rad) is a real
+    # triad's and is not named.
+    errors = draw_errors(error_half_range("mems"), np.random.default_rng(5))
+    values = errors.values.copy()
+    values[P.INDEX["sgz"]], values[P.INDEX["mgxy"]] = -0.10, 0.03
+    plan = xsens_like_plan(np.random.default_rng(5))
+    run, _ = simulate_by_hand(plan, CONFIG, ErrorModel(values), None, oversample=10)
+    result = calibrate(run, MEMS, by_hand=True, requirements="mems")
+    assert abs(result.values[P.INDEX["sgz"]] + 0.10) < 1e-4
+    (said,) = [w for w in result.warnings() if "beyond 5 %" in w]
+    assert "sgz -10 %" in said and "mgxy" not in said and "do not apply" in said
