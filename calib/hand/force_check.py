@@ -41,8 +41,12 @@ ZERO_SPHERE_FIT = 0.03
 ZERO_SPAN = 0.15
 
 
-def zero_mistake(f_rests: np.ndarray, gravity_mps2: float, conversion) -> Mistake | None:
+def zero_mistake(
+    f_rests: np.ndarray, gravity_mps2: float, conversion, least_g: float = 0.0
+) -> Mistake | None:
     """The accelerometer's zero, when its rests lie on a sphere of radius about g off the origin.
+
+    ``least_g`` is the least offset named, in g (0: any the spread of ``|f|`` shows).
 
     A wrong zero (counts read with another unit's zero, an offset left in) makes ``|f|`` depend on
     the pose; a unit or scale mistake scales every pose alike. Gravity at every rest is a point
@@ -64,6 +68,8 @@ def zero_mistake(f_rests: np.ndarray, gravity_mps2: float, conversion) -> Mistak
     misfit = np.linalg.norm(f_rests - centre, axis=1) - radius
     if radius < 0.5 * gravity_mps2 or np.sqrt(np.mean(misfit**2)) > ZERO_SPHERE_FIT * radius:
         return None  # no sphere of gravity's size: gravity taken out, or no offset
+    if np.linalg.norm(centre) < least_g * gravity_mps2:
+        return None  # a bias the fit estimates (a cheap part's 50-150 mg), not a zero to set
     g = gravity_mps2
     lo, hi = norms.min() / g, norms.max() / g
     at = ", ".join(f"{c / g:+.3g}" for c in centre)

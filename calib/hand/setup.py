@@ -180,7 +180,9 @@ def diagnose(run, gravity_mps2: float) -> list[Mistake]:
             )
         ]
     ratio = f / gravity_mps2
-    offset = zero_mistake(rests_f, gravity_mps2, run.conversion) if abs(ratio - 1.0) <= 0.15 else None
+    offset = None
+    if abs(ratio - 1.0) <= 0.15:
+        offset = zero_mistake(rests_f, gravity_mps2, run.conversion, ZERO_BEYOND_BIAS)
     if offset is not None:  # |f| spread over the poses, about g in the median: a zero offset
         return [offset]
     if abs(ratio - 1.0) > 0.15:
@@ -199,7 +201,10 @@ def diagnose(run, gravity_mps2: float) -> list[Mistake]:
         spliced = _spliced(moves, bias, period)
         if spliced is not None:
             return [spliced]
-        off = _time_base(moves, bias, period, plain)
+        # Stamps that jitter are a clock's readings: they cannot be off by a factor. A time
+        # uniform to rounding may be a stated rate's (a counter, evenly spaced rows), which can.
+        stated = run.clock is None or run.clock.uniform
+        off = _time_base(moves, bias, period, plain, stated)
         if off is not None:
             return [off]
     if plain > GOOD_DEG and misfit < 0.5 * plain:
@@ -225,6 +230,10 @@ TIME_BASE_FACTORS = np.geomspace(0.02, 50.0, 81)
 TIME_BASE_SLACK = 1.25
 
 
+# With |f| about g in the median, an offset this large (in g) or more is a zero left in (a flight
+# computer's 0.48 g); below it, a cheap part's own bias (datasheets' zero-g offsets: 50-150 mg),
+# which the fit estimates.
+ZERO_BEYOND_BIAS = 0.25
 RANGE_SLACK = 1.06  # a factor this close to 2, 4, 1/2...: a full-scale range, beyond a gyro's own scale
 
 
@@ -235,8 +244,13 @@ def _times(factor: float) -> str:
     return {0.5: "half", 0.25: "a quarter of"}.get(factor, f"1/{1.0 / factor:g} of")
 
 
-def _time_base(moves, bias: np.ndarray, period: float, plain: float) -> Mistake | None:
-    """The gyro's turns a common factor ``k`` off the accelerometer's change of gravity, or None."""
+def _time_base(moves, bias: np.ndarray, period: float, plain: float, stated: bool = True) -> Mistake | None:
+    """The gyro's turns a common factor ``k`` off the accelerometer's change of gravity, or None.
+
+    ``stated``: the time may come from a stated rate (uniform to rounding), so a power of two
+    may be the rate's (InvenSense parts run at 1 or 8 kHz over a divider, Bosch at 25 * 2^n Hz)
+    as well as the gyro's full-scale range: both are named and neither is put right.
+    """
     factors = TIME_BASE_FACTORS[np.abs(np.log(TIME_BASE_FACTORS)) > math.log(TIME_BASE_SLACK)]
     misfits = carried_misfit(moves, factors[:, None, None] * np.eye(3), bias, period)
     k = int(np.argmin(misfits))
@@ -248,27 +262,31 @@ def _time_base(moves, bias: np.ndarray, period: float, plain: float) -> Mistake 
     factor, best = float(finer[int(np.argmin(fine))]), float(fine.min())
     rate_hz = 1.0 / period  # as the time column reads
     octave = round(math.log2(factor))
-    if abs(math.log2(factor) - octave) < math.log2(RANGE_SLACK):
-        # Twice or half: a MEMS gyro's full-scale range set to another step than its conversion's
-        # (its sensitivity halves as the range doubles); no time base is off by just that.
-        ranged = 2.0**octave
+    # Twice or half: a MEMS gyro's full-scale range set to another step than its conversion's
+    # (its sensitivity halves as the range doubles).
+    ranged = bool(octave) and abs(math.log2(factor) - octave) < math.log2(RANGE_SLACK)
+    if ranged and not stated:
         return Mistake(
             f"the gyro's turns across the moves come out {1.0 / factor:.2g} times the change of gravity the "
             f"accelerometer sees (the median miss of {plain:.3g} deg falls to {best:.2g} deg at {factor:.2g} "
-            f"times the turns): the gyro's full-scale range is likely {_times(ranged)} the one its "
+            f"times the turns): the gyro's full-scale range is likely {_times(2.0**octave)} the one its "
             "readings were converted at",
-            ranged * np.eye(3),
+            2.0**octave * np.eye(3),
             np.eye(3),
         )
     off = f"{1.0 / factor:.2g} times too long" if factor < 1.0 else f"{factor:.2g} times too short"
     return Mistake(
         f"the gyro's turns across the moves come out {1.0 / factor:.2g} times the change of gravity "
-        f"the accelerometer sees (the median miss of {plain:.3g} deg falls to {best:.2g} deg at "
-        f"{factor:.2g} times the turns): the time base is {off} ({rate_hz:.5g} Hz as read; likely "
-        f"{rate_hz / factor:.3g} Hz), or the gyro's unit is off by that factor",
+        f"the accelerometer sees (median miss {plain:.3g} deg; {best:.2g} deg at {factor:.2g} times the "
+        f"turns): the time base is {off} ({rate_hz:.5g} Hz as read; likely {rate_hz / factor:.3g} Hz), "
+        + (
+            "or the gyro's unit or full-scale range is off by as much"
+            if ranged
+            else "or the gyro's unit is off by as much"
+        ),
         np.eye(3),
         np.eye(3),
-        cannot_fix="check the time column's unit and the sample rate, or the gyro columns' unit",
+        cannot_fix="check the time column's unit and the sample rate, or the gyro's unit and range",
     )
 
 

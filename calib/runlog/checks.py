@@ -160,7 +160,7 @@ def check_samples(run: Run, locate, allow_gaps: bool, time_name: str | None = No
     half = split_stamp_suspect(time) if time_name is not None else None
     if half is not None:
         raise CalibError(
-            half + ": one half of a stamp written in two columns?", locate.sample("time_s", 1), SPLIT_FIX
+            half + ": part of a stamp, too coarse to time the samples", locate.sample("time_s", 1), SPLIT_FIX
         )
     backwards = np.flatnonzero((step < 0.0) & ~duplicate[1:])
     if backwards.size:

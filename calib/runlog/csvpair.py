@@ -61,14 +61,19 @@ def has_header(path: str | os.PathLike) -> bool:
         stripped = line.strip()
         if not stripped or is_comment(stripped) or stripped[0] == "%":
             continue
-        for field in stripped.replace(";", ",").replace("\t", ",").replace(" ", ",").split(","):
-            if not field:
-                continue
-            try:
-                float(field)
-            except ValueError:
-                return True
-        return False
+        return has_header_text(stripped)
+    return False
+
+
+def has_header_text(row: str) -> bool:
+    """Whether a row names columns: a field of it is not a number."""
+    for field in row.replace(";", ",").replace("\t", ",").replace(" ", ",").split(","):
+        if not field:
+            continue
+        try:
+            float(field)
+        except ValueError:
+            return True
     return False
 
 
@@ -94,6 +99,18 @@ def sensor_maps(columns: str | dict[str, str] | None, where: str) -> dict[str, d
     return maps
 
 
+def _positions_header(lines: list[str], header_index: int, mapping: dict[str, str]) -> tuple[list[str], int]:
+    """A file without a header, mapped by position (OpenCamera's ``x,y,z,timestamp_ns`` rows),
+    with a header of its positions put in: ``(lines, 1)``; else ``(lines, 0)``.
+    """
+    first = lines[header_index].strip() if header_index < len(lines) else ""
+    if not mapping or not all(k.isdigit() for k in mapping) or not first or has_header_text(first):
+        return lines, 0
+    sep = next((c for c in (",", ";", "\t") if c in first), " ")
+    n = len(first.split(sep)) if sep != " " else len(first.split())
+    return lines[:header_index] + [sep.join(str(i) for i in range(1, n + 1))] + lines[header_index:], 1
+
+
 class _SensorFile:
     """One sensor's file as read: its metadata and where its keys are, the stream, its rate."""
 
@@ -104,6 +121,7 @@ class _SensorFile:
         lines = without_cut_last_row(decode_lines(read_bytes(path), name), name)
         self.meta, self.key_lines, header_index = parse_preamble(lines, name)
         header_index = past_preamble(lines, header_index, {}, name)  # a sep= line
+        lines, added = _positions_header(lines, header_index, mapping)
         lines = without_units_row(lines, header_index, name)
         lines = without_repeated_headers(unquoted(lines, header_index, name), header_index, name)
         lines = to_commas(lines, header_index, name)
@@ -120,6 +138,7 @@ class _SensorFile:
                 "give each file its time column (time_s, time_ms, time_us or time_ns)",
             )
         rows, self.row_lines = _data_rows(lines, header_index + 1)
+        self.row_lines = self.row_lines - added  # the file's own line numbers
         if len(rows) < 2:
             raise CalibError("the file has fewer than two data rows", where, "give the sensor's samples")
         _check_field_counts(rows, self.row_lines, len(own), name)
@@ -138,9 +157,11 @@ class _SensorFile:
         self.values = _si_rate(sensor_si(raw, columns, conversion, where), columns, period)
         self.clipped = sensor_clipping(raw, columns, conversion, period)
         self.counts = columns.is_counts
+        x, y, z = (own[i] for i in columns.positions)
+        self.own_columns = (own[time_at], x, y, z)
 
     def stream(self) -> Stream:
-        return Stream(self.name, self.time_s, self.row_lines, self.values, self.clipped)
+        return Stream(self.name, self.time_s, self.row_lines, self.values, self.clipped, self.own_columns)
 
 
 def _si_rate(values: np.ndarray, columns: SensorColumns, period: float) -> np.ndarray:

@@ -28,6 +28,7 @@ are kept: a message about a row names the file's own line.
 
 from __future__ import annotations
 
+import collections
 import csv
 import re
 import warnings
@@ -191,8 +192,8 @@ def without_units_row(lines: list[str], header_index: int, name: str) -> list[st
     header: text anywhere else among the rows is refused by the reader, at its line.
     """
     k = next((k for k in range(header_index + 1, len(lines)) if lines[k].strip()), None)
-    if k is None:
-        return lines
+    if k is None or is_comment(lines[k]) or _names(lines[k]) == _names(lines[header_index]):
+        return lines  # a comment, or the header again (the repeated-header rule says it)
     fields, header = _names(lines[k]), _names(lines[header_index])
     if _holds_numbers(lines[header_index]) or len(fields) != len(header) or not any(fields):
         return lines  # rows without a header, or a row unlike the header's
@@ -229,9 +230,20 @@ def labelled_rows(lines: list[str], header_index: int, name: str) -> tuple[list[
     first = _pairs(lines[header_index])
     if first is None:
         return lines, 0
-    labels = [label for label, _ in first]
-    out = lines[:header_index] + [",".join(labels)]
-    for row in lines[header_index:]:
+    # The labels most rows carry: a serial capture's first line is often cut mid-row.
+    seen = [_pairs(row) for row in lines[header_index : header_index + ROWS_LOOKED_AT] if row.strip()]
+    runs = [tuple(label for label, _ in p) for p in seen if p is not None]
+    labels = list(collections.Counter(runs).most_common(1)[0][0])
+    head = [label for label, _ in first]
+    cut = head != labels and labels[-len(head) :] == head
+    out = lines[:header_index] + [",".join(labels)] + ([""] if cut else [])
+    if cut:
+        warnings.warn(
+            f"{name}, line {header_index + 1}: the first row holds the last {len(head)} of the {len(labels)} "
+            "labels (a capture cut mid-row); left out",
+            stacklevel=3,
+        )
+    for row in lines[header_index + (1 if cut else 0) :]:
         pairs = _pairs(row) if row.strip() and not is_comment(row) else None
         if pairs is not None and [label for label, _ in pairs] == labels:
             out.append(",".join(value for _, value in pairs))

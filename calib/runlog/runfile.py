@@ -100,14 +100,11 @@ def read_run(
     expect(path, "run")
     conversion = as_conversion(conversion)
     site = {"latitude_deg": latitude_deg, "height_m": height_m, "sample_rate_hz": sample_rate_hz}
-    if gyro_path is not None and has_header(path):
+    if gyro_path is not None and (has_header(path) or columns):
+        # Files with a header, or without one and mapped by position (OpenCamera's x,y,z,t rows).
         run = read_csv_pair(path, gyro_path, allow_gaps, site, columns, conversion)
         return clock.settle(run, allow_gaps, guess_turns)
     if gyro_path is not None:
-        if columns:
-            raise CalibError(
-                "imu_tk's files have no header for a column map to rename", str(path), "leave out columns"
-            )
         run = read_imutk(path, gyro_path, allow_gaps, site, conversion)
         return clock.settle(run, allow_gaps, guess_turns)
     kind = run_kind(path)

@@ -51,6 +51,8 @@ class Stream:
         Rates (rad/s) or specific force (m/s^2).
     clipped : ndarray of bool, shape (n, 3)
         Samples at the sensor's range.
+    columns : tuple of str
+        The file's own names of its time and three axes, for messages (imu_tk's ``t x y z``).
     """
 
     name: str
@@ -58,6 +60,7 @@ class Stream:
     lines: np.ndarray
     values: np.ndarray
     clipped: np.ndarray
+    columns: tuple[str, str, str, str] = ("t", "x", "y", "z")
 
 
 class _OneFile:
@@ -70,7 +73,7 @@ class _OneFile:
         return f"{self.stream.name} (metadata '{key}')"
 
     def sample(self, array: str, index: int, component: int | None = None) -> str:
-        column = "t" if component is None else "xyz"[component]
+        column = self.stream.columns[0 if component is None else 1 + component]
         return f"{self.stream.name}, line {int(self.stream.lines[index])}, column {column} (sample {index})"
 
 

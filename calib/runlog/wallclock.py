@@ -128,7 +128,8 @@ def with_seconds(rows: list[str], position: int, plan, locate):
 # builtin_interfaces/Time, as `ros2 topic echo --csv` writes a header's stamp: sec,nanosec).
 SUB_SECOND = {"time_ns": 1_000_000_000, "time_us": 1_000_000, "time_ms": 1_000}
 SPLIT_FIX = (
-    "map both columns, the seconds and their fraction: e.g. sec=time_s,nanosec=time_ns (1=time_s,2=time_ns)"
+    "where the fraction is in another column, map both (sec=time_s,nanosec=time_ns, ROS 2's); where it "
+    "is not written, leave the time out of the map and state the rate (the CLI's --sample-rate-hz)"
 )
 
 

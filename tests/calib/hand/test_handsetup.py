@@ -26,6 +26,7 @@ from calib.hand.simulate import simulate_by_hand
 from calib.model.error_model import ErrorModel
 from calib.noise.profiles import load_profile
 from calib.runlog import write_run
+from calib.runlog.clock import sample_clock
 from calib.runlog.conversion import Conversion
 from calib.sequence.kinematics import SimConfig
 from calib.sim.log_mistakes import (
@@ -364,16 +365,36 @@ def test_a_zero_offset_is_named_when_the_median_rest_still_reads_about_g(hand_ru
 
 
 @pytest.mark.parametrize("reads", [0.5, 2.0])
-def test_a_gyro_off_by_a_power_of_two_is_its_full_scale_range_and_put_right(hand_run, plain_fit, reads):
+def test_a_gyro_off_by_a_power_of_two_is_its_full_scale_range_where_stamps_time_the_samples(hand_run, reads):
     # A gyro set to +-500 deg/s converted at the +-250 sensitivity reads half its turns (and the
-    # converse twice): a factor no time base is off by and every full-scale step is. Named as the
-    # range; --fix-units multiplies the gyro back, and the fit is the plain one's (the same
-    # samples, the same numbers: to rounding).
+    # converse twice). Where a host's jittering stamps time the samples, the time base cannot be
+    # off by a factor: named as the range and put right under --fix-units (the same samples and
+    # numbers as the log's own: to rounding). Where the time is uniform (a stated rate, a
+    # counter: InvenSense and Bosch rates step by powers of two too) both are named, neither fixed.
     run, g = hand_run
-    bad = dataclasses.replace(run, dtheta_rad=run.dtheta_rad * reads, clock=None)
+    rng = np.random.default_rng(8)
+    stamps = run.time_s + rng.uniform(0.0, 5e-4, len(run.time_s))  # a host's reception delays
+    stamped = dataclasses.replace(run, time_s=stamps, clock=sample_clock(stamps, RATE_HZ))
+    bad = dataclasses.replace(stamped, dtheta_rad=run.dtheta_rad * reads)
     found = diagnose(bad, g)
     said = "2 times" if reads == 0.5 else "half"
     assert len(found) == 1 and f"full-scale range is likely {said} the one" in found[0].what
     assert not found[0].cannot_fix and np.allclose(found[0].gyro, np.eye(3) / reads)
     fixed = calibrate(bad, "mems", by_hand=True, options=CalibrateOptions(fix_units=True))
-    np.testing.assert_allclose(fixed.values, plain_fit.values, rtol=0, atol=1e-3 * plain_fit.sigma.min())
+    plain = calibrate(stamped, "mems", by_hand=True)
+    np.testing.assert_allclose(fixed.values, plain.values, rtol=0, atol=1e-3 * plain.sigma.min())
+    (uniform,) = diagnose(dataclasses.replace(run, dtheta_rad=run.dtheta_rad * reads, clock=None), g)
+    assert "the time base is" in uniform.what and "or the gyro's unit or full-scale range" in uniform.what
+    assert uniform.cannot_fix
+
+
+def test_a_cheap_part_s_large_bias_is_the_fit_s_not_a_zero_offset(hand_run):
+    # An ADXL345's z zero-g offset may reach 150 mg by its datasheet: |f| then spreads by 0.3 g
+    # over the poses, as an offset left in does, but it is the part's bias, for the fit to
+    # estimate (named only from a quarter of g on).
+    run, g = hand_run
+    dt = np.diff(run.time_s, prepend=run.time_s[0] - 1.0 / RATE_HZ)
+    biased = dataclasses.replace(
+        run, dv_mps=run.dv_mps + np.array([0.0, 0.0, 0.15 * g]) * dt[:, None], clock=None
+    )
+    assert diagnose(biased, g) == []

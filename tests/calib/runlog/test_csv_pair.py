@@ -203,3 +203,24 @@ def test_a_pair_a_logger_got_wrong_is_refused_naming_the_file_and_the_fix(
     if columns:
         args += ["--columns", columns]
     refused(CliRunner(), tmp_path, args, *parts)
+
+
+def test_a_pair_without_headers_mapped_by_position_reads_as_with_them(tmp_path):
+    # OpenCamera-Sensors writes each sensor's rows as x,y,z,timestamp_ns and no header: mapped by
+    # position, the pair is the same samples as the same files with names.
+    t, w, f = _samples()
+    for name, values in (("gyro", w), ("acc", f)):
+        body = np.char.mod("%.12g", values)
+        rows = [",".join([*r, str(s)]) for s, r in zip(_ns(t), body, strict=True)]
+        (tmp_path / f"{name}.csv").write_text("\n".join(rows) + "\n")
+        (tmp_path / f"{name}_named.csv").write_text("x,y,z,t\n" + "\n".join(rows) + "\n")
+    by_position = (
+        "4=time_ns,1=gyro_x_radps,2=gyro_y_radps,3=gyro_z_radps,1=accel_x_mps2,2=accel_y_mps2,3=accel_z_mps2"
+    )
+    pair = read_run(tmp_path / "acc.csv", gyro_path=tmp_path / "gyro.csv", columns=by_position, **SITE)
+    by_name = by_position.replace("4=", "t=").replace("1=", "x=").replace("2=", "y=").replace("3=", "z=")
+    named = read_run(
+        tmp_path / "acc_named.csv", gyro_path=tmp_path / "gyro_named.csv", columns=by_name, **SITE
+    )
+    np.testing.assert_array_equal(pair.dtheta_rad, named.dtheta_rad)
+    np.testing.assert_array_equal(pair.dv_mps, named.dv_mps)

@@ -146,6 +146,10 @@ def test_rows_of_label_value_pairs_read_with_their_labels_as_the_header(tmp_path
     columns = "t=time_us," + BY_NAME
     with pytest.warns(UserWarning, match=r"rows of label:value pairs \(t, ax, ay, \.\.\.\)"):
         _assert_the_table(read_run(path, columns=columns, **SITE))
+    # A capture that begins mid-row: its cut first line is left out, said; the rest read.
+    path.write_text("gx:0.5,gy:0.1,gz:0.2\n" + "\n".join(rows) + "\n")
+    with pytest.warns(UserWarning, match=r"line 1: the first row holds the last 3 of the 7 labels"):
+        _assert_the_table(read_run(path, columns=columns, **SITE))
     path.write_text("\n".join(rows[:2] + [rows[2].replace("ay:", "ay=")] + rows[3:]) + "\n")
     with pytest.raises(CalibError) as err:
         read_run(path, columns=columns, **SITE)
