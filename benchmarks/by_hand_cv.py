@@ -62,7 +62,7 @@ def slice_run(run: Run, t0: float, t1: float) -> Run:
 
     Stamps mark each sample's end (``calib.nav.strapdown.sample_intervals``), so a part's
     first sample began one period before its stamp: no sample is shared between
-    two parts cut at the same time. The clock and the clipping go with the samples.
+    two parts cut at the same time. The clock, the clipping and the guesses go with the samples.
     """
     keep = (run.time_s > t0) & (run.time_s <= t1)
     clipped = None if run.clipped is None else run.clipped[keep]
@@ -74,6 +74,7 @@ def slice_run(run: Run, t0: float, t1: float) -> Run:
         gimbal_deg=None if run.gimbal_deg is None else run.gimbal_deg[keep],
         source=f"{run.source}[{t0:.1f}-{t1:.1f} s]",
         clipped=clipped,
+        guessed=None if run.guessed is None else run.guessed[keep],
     )
 
 

@@ -48,6 +48,8 @@ def recording(path: str, args) -> Recording:
         sample_rate_hz=args.sample_rate_hz,
         latitude_deg=args.latitude,
         height_m=args.height,
+        allow_gaps=args.allow_gaps,
+        guess_turns=args.allow_gaps,
     )
     gravity = args.gravity or Site.at(math.radians(args.latitude), args.height).gravity_mps2
     run.meta["gravity_mps2"] = repr(gravity)
@@ -111,6 +113,7 @@ def main() -> None:
     ap.add_argument("--height", type=float, required=True)
     ap.add_argument("--gravity", type=float, default=None, help="local gravity, m/s^2 (default: normal)")
     ap.add_argument("--sample-rate-hz", type=float, default=None)
+    ap.add_argument("--allow-gaps", action="store_true", help="as calibrate's --allow-gaps, by hand")
     args = ap.parse_args()
     recs = [recording(p, args) for p in args.logs]
     results = {}
