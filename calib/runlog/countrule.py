@@ -27,6 +27,11 @@ LAG_WINDOW_MIN = 25  # rows: a median of fewer would follow the jitter
 # period less a margin for the medians' own scatter under a host's jitter of a period or more)
 # is no jitter.
 PERSISTENT_SHIFT = 0.45
+# Gaps in more than this share of the rows (past the first GAPS_COUNTED) are no crystal's samples
+# lost here and there (a lossy radio link drops a few per cent): rows interleaved from two sensors
+# put one every other row, and counting them all took tens of seconds.
+GAP_SHARE = 0.2
+GAPS_COUNTED = 1000
 
 
 def counted_steps(
@@ -80,16 +85,28 @@ def counted_steps(
             * (tail - head - _jumps(lag, long_steps, width))
             / max(index[-1] - ends + 1, 1.0)
         )
-    for c in long_steps:
-        row = int(c) + 1  # the first row after the step
-        shift = _shift(lag, row, width)
+    rows = long_steps + 1  # the first row after each long step
+    shifts = _shifts(lag, rows, width)
+    moved = -width  # the last row from which the lag was moved: windows near it are taken again
+    gaps = 0
+    for i, first in enumerate(rows):
+        shift = shifts[i] if first >= moved + width else _shift(lag, int(first), width)
         lost = int(np.rint(shift))
         if abs(shift - lost) > MAX_STEP_FRACTION:
             continue  # no whole number of samples: jitter here, or refused by the check below
         if lost > 0:
-            row = _gap_row(lag, periods, row, width, lost, 1.5 + extra)
-            steps[row - 1] += lost
-            lag[row:] -= lost
+            moved = _gap_row(lag, periods, int(first), width, lost, 1.5 + extra)
+            steps[moved - 1] += lost
+            lag[moved:] -= lost
+            gaps += 1
+            if gaps > max(GAPS_COUNTED, GAP_SHARE * first):
+                raise CalibError(
+                    f"the stamps leave a gap in {gaps} of their first {first} rows: no sample clock with "
+                    "samples lost here and there counts them",
+                    str(first),
+                    "the time column must locate samples taken at sample_rate_hz; check whether the log "
+                    "mixes sensors or clocks",
+                )
     _check_lag_kept(lag, 2 * width, PERSISTENT_SHIFT + extra, periods)
     return steps
 
@@ -98,17 +115,47 @@ def _jumps(lag: np.ndarray, long_steps: np.ndarray, width: int) -> float:
     """The lag's jumps at the long steps, summed (periods): each taken once, then levelled."""
     level = lag.copy()
     total = 0.0
-    for c in long_steps:
-        jump = _shift(level, int(c) + 1, width)
+    rows = long_steps + 1
+    jumps = _shifts(level, rows, width)
+    moved = -width
+    for i, row in enumerate(rows):
+        jump = float(jumps[i]) if row >= moved + width else _shift(level, int(row), width)
         if abs(jump) > 0.5:  # a neighbour's window saw it first: levelled there, none here
-            level[int(c) + 1 :] -= jump
+            level[int(row) :] -= jump
             total += jump
+            moved = int(row)
     return total
 
 
 def _shift(lag: np.ndarray, row: int, width: int) -> float:
     """The lag's median over the stretch from ``row`` less that over the stretch before it."""
     return float(np.median(lag[row : row + width]) - np.median(lag[max(0, row - width) : row]))
+
+
+SHIFT_BATCH = 4_000_000  # values gathered at once for the medians of many windows (32 MB)
+
+
+def _shifts(lag: np.ndarray, rows: np.ndarray, width: int) -> np.ndarray:
+    """:func:`_shift` at each of ``rows``, the whole windows' medians taken together.
+
+    A host that stamps two samples at a time has a long step every other row: one median
+    at a time, a 10-minute log took tens of seconds. A lag moved from a row on keeps the
+    shift of a row whose windows both lie on one side: only those within a window of a
+    move are taken again, one at a time, by the callers.
+    """
+    out = np.empty(len(rows))
+    whole = (rows >= width) & (rows + width <= len(lag))
+    for i in np.flatnonzero(~whole):
+        out[i] = _shift(lag, int(rows[i]), width)
+    inner = np.flatnonzero(whole)
+    offsets = np.arange(width)
+    batch = max(1, SHIFT_BATCH // width)
+    for k in range(0, len(inner), batch):
+        at = rows[inner[k : k + batch]]
+        after = np.median(lag[at[:, None] + offsets], axis=1)
+        before = np.median(lag[at[:, None] - width + offsets], axis=1)
+        out[inner[k : k + batch]] = after - before
+    return out
 
 
 def _gap_row(lag: np.ndarray, periods: np.ndarray, row: int, width: int, lost: int, long: float) -> int:
