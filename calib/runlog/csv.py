@@ -443,10 +443,16 @@ def _parse_numbers_slowly(
             try:
                 data[i, j] = float(fields[position])
             except ValueError:
+                field = fields[position].strip()
+                clockish = j == 0 and ":" in field and any(c.isdigit() for c in field)
                 raise CalibError(
-                    f"field {fields[position].strip()!r} is not a number",
+                    f"field {field!r} is not a number"
+                    + (" nor a clock time this tool reads" if clockish else ""),
                     f"{name}, line {int(row_lines[i])}, column {names[position]} (sample {i})",
-                    "write plain decimal numbers such as 1.5e-07",
+                    "write clock times as HH:MM:SS.fff or HH:MM:SS:fff (two digits each, a date as "
+                    "YYYY-MM-DD before them), or seconds"
+                    if clockish
+                    else "write plain decimal numbers such as 1.5e-07",
                 ) from None
     return data
 

@@ -147,3 +147,15 @@ def test_milliseconds_after_a_third_colon_are_read_as_such():
     # Physics Toolbox writes 23:13:20:030; three digits after the colon are milliseconds.
     got = clock_seconds(["23:13:20:030", "23:13:20:040", "23:13:21:005"], str)
     np.testing.assert_allclose(got, [83600.03, 83600.04, 83601.005], rtol=0, atol=1e-9)
+
+
+def test_a_clock_time_in_no_form_read_is_refused_naming_the_forms(tmp_path):
+    # WitMotion's software writes "2023-11-4 8:5:9:30" (unpadded; are the 30 ms or 300 ms?): not
+    # guessed, refused with the forms that are read.
+    path = tmp_path / "wit.csv"
+    rows = [f"2023-11-4 8:5:{s}:30,0.01,0.02,0.03,0.0,0.0,1.0" for s in range(1, 9)]
+    path.write_text("time,gx,gy,gz,ax,ay,az\n" + "\n".join(rows) + "\n")
+    columns = "time=time_s,gx=gyro_x_dps,gy=gyro_y_dps,gz=gyro_z_dps,ax=accel_x_g,ay=accel_y_g,az=accel_z_g"
+    with pytest.raises(CalibError, match="nor a clock time this tool reads") as err:
+        read_run(path, columns=columns, latitude_deg=45.0, height_m=0.0)
+    assert "HH:MM:SS.fff or HH:MM:SS:fff" in err.value.fix
