@@ -112,8 +112,9 @@ def without_repeated_headers(lines: list[str], header_index: int, name: str) -> 
         out[k] = ""
     at = ", ".join(str(k + 1) for k in again[:5]) + (f" and {len(again) - 5} more" if len(again) > 5 else "")
     warnings.warn(
-        f"{name}: line(s) {at} repeat the header row (a logger that started again and appended?); "
-        "left out, the rows around them read as samples",
+        f"{name}: line(s) {at} repeat the header row (a logger that started again and appended, or one "
+        "block per sensor as RealSense's rs-convert writes: split the file there?); left out, the rows "
+        "around them read as samples",
         stacklevel=3,
     )
     return out
