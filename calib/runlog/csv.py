@@ -32,6 +32,7 @@ from .counter import RATE_FIX, counter_suspect, counter_time
 from .dialect import (
     labelled_rows,
     past_preamble,
+    templated_rows,
     to_commas,
     unquoted,
     without_repeated_headers,
@@ -97,6 +98,7 @@ def read_csv(
     meta, key_lines, header_index = parse_preamble(lines, name)
     header_index = past_preamble(lines, header_index, mapping, name)
     lines, labelled = labelled_rows(lines, header_index, name)
+    lines, header_index = templated_rows(lines, header_index, name)  # a sketch's serial prints
     lines = without_units_row(lines, header_index, name)
     lines = without_repeated_headers(unquoted(lines, header_index, name), header_index, name)
     mapping = by_commented_names(lines, header_index, mapping, name)

@@ -17,6 +17,8 @@ quotes, decimal points.
   (`without_units_row`).
 - Rows of ``label:value`` pairs (an Arduino's Serial Plotter lines, ``t:3456789,ax:-0.03,...``)
   the same labels on every row, are read with the labels as the header (`labelled_rows`).
+- Rows of numbers among fixed text (an example sketch's ``Scaled. Acc (mg) [ -00003.69, ... ]``)
+  are read as their numbers, by position, when the rows share that text (`templated_rows`).
 - A row that repeats the header (a logger restarted and appended to its
   file) is not a sample: it is read as a blank line, said on stderr
   (`without_repeated_headers`). Rows after it go on as they are; a clock
@@ -256,3 +258,62 @@ def labelled_rows(lines: list[str], header_index: int, name: str) -> tuple[list[
         stacklevel=3,
     )
     return out, 1
+
+
+# A number standing alone (not part of a name such as MPU6050 or accel_x), nan and inf included;
+# a clock time (an Arduino IDE's "23:13:20.030 -> " before each line) is one field.
+_NUMBER = re.compile(
+    r"(?<![\w.])[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?![\w.])|(?<!\w)(?:nan|inf)(?!\w)", re.I
+)
+_CLOCK = re.compile(r"\b\d{1,2}:\d{2}:\d{2}(?:[.,:]\d+)?\b")
+TEMPLATE_SHARE = 0.9  # of the rows looked at, that share one text around their numbers
+
+
+def _template(row: str) -> str:
+    """The row's text with each number as ``{}`` and no white space (numbers print padded to a sign)."""
+    return re.sub(r"\s+", "", _NUMBER.sub("{}", _CLOCK.sub("{t}", row)))
+
+
+def _texted(row: str) -> bool:
+    """Whether a field of the row holds text and a number together (no table's cell does)."""
+    fields = re.split(r"[,;\t]", _CLOCK.sub("", row))
+    return any(re.search(r"[A-Za-z]", _NUMBER.sub("", f)) and _NUMBER.search(f) for f in fields)
+
+
+def templated_rows(lines: list[str], header_index: int, name: str) -> tuple[list[str], int]:
+    """Rows of numbers among the same text, as comma-separated numbers (and clock times).
+
+    A sketch's serial prints (``Scaled. Acc (mg) [ -00003.69,  00013.09, ... ], Gyr (DPS) [ ...``)
+    hold the same text in every row, the numbers between. When most of the rows looked at share
+    one such text, those rows become their fields by position (``1`` ... ``N``, as a file without
+    a header) and the lines above the first of them are left out, said. Returns the lines and the
+    index of the first row.
+    """
+    rows = [k for k in range(header_index, len(lines)) if lines[k].strip() and not is_comment(lines[k])]
+    looked = rows[:ROWS_LOOKED_AT]
+    if len(looked) < 3 or not _texted(lines[looked[-1]]):
+        return lines, header_index
+    templates = collections.Counter(_template(lines[k]) for k in looked)
+    text, count = templates.most_common(1)[0]
+    first = next(k for k in rows if _template(lines[k]) == text)  # a status line may come before
+    if first > header_index and len(_names(lines[header_index])) == len(_names(lines[first])) > 1:
+        return lines, header_index  # a table whose header names as many columns: a cell of text
+    bare = text.replace("{}", "").replace("{t}", "")
+    shared = count >= TEMPLATE_SHARE * sum(k >= first for k in looked)
+    if not shared or not re.search(r"[A-Za-z]", bare) or text.count("{}") + text.count("{t}") < 3:
+        return lines, header_index
+    out = list(lines)
+    for k in range(header_index, first):
+        out[k] = ""
+    for k in rows:
+        if k >= first and _template(lines[k]) == text:
+            fields = [m.group(0) for m in re.finditer(f"{_CLOCK.pattern}|{_NUMBER.pattern}", lines[k], re.I)]
+            out[k] = ",".join(fields)
+    above = f"line {first}" if first == header_index + 1 else f"lines {header_index + 1}-{first}"
+    preamble = f"; {above} above them left out" if first > header_index else ""
+    warnings.warn(
+        f"{name}: rows of numbers among the same text ({text[:60]}{'...' if len(text) > 60 else ''}); "
+        f"read as {text.count('{}') + text.count('{t}')} columns by position{preamble}",
+        stacklevel=3,
+    )
+    return out, first

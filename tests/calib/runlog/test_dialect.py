@@ -11,6 +11,10 @@ from calib.runlog import read_run
 SITE = {"latitude_deg": 55.0, "height_m": 100.0}
 NAMES = ("ax", "ay", "az", "gx", "gy", "gz")
 BY_NAME = "ax=accel_x_mps2,ay=accel_y_mps2,az=accel_z_mps2,gx=gyro_x_radps,gy=gyro_y_radps,gz=gyro_z_radps"
+BY_POSITION = "1=accel_x_mps2,2=accel_y_mps2,3=accel_z_mps2,4=gyro_x_radps,5=gyro_y_radps,6=gyro_z_radps"
+BY_POSITION_AFTER_TIME = (
+    "2=accel_x_mps2,3=accel_y_mps2,4=accel_z_mps2,5=gyro_x_radps,6=gyro_y_radps,7=gyro_z_radps"
+)
 # Four samples: specific force (m/s^2) then rates (rad/s).
 TABLE = np.array(
     [
@@ -154,3 +158,35 @@ def test_rows_of_label_value_pairs_read_with_their_labels_as_the_header(tmp_path
     with pytest.raises(CalibError) as err:
         read_run(path, columns=columns, **SITE)
     assert "line 3" in err.value.where
+
+
+def test_rows_of_numbers_among_the_same_text_read_by_position(tmp_path):
+    # A sketch's serial prints: "Scaled. Acc (mg) [ -00003.69,  00013.09, ... ], Gyr (DPS) [ ...",
+    # numbers padded to a sign, a status line above; an Arduino IDE's clock before each row.
+    def printed(row):
+        a, w = ", ".join(f"{x:+010.2f}" for x in row[:3]), ", ".join(f"{x:+010.4f}" for x in row[3:])
+        return f"Scaled. Acc (mps2) [ {a} ], Gyr (rad/s) [ {w} ], Tmp (C) [ 00027.31 ]"
+
+    path = tmp_path / "capture.txt"
+    path.write_text(
+        "Initialization of the sensor returned: All is well.\n" + "\n".join(map(printed, TABLE)) + "\n"
+    )
+    with pytest.warns(UserWarning, match=r"read as 7 columns by position; line 1 above them left out"):
+        run = read_run(path, columns=BY_POSITION, sample_rate_hz=50.0, **SITE)
+    _assert_the_table(run)
+    clocks = [f"00:00:{t:06.3f} -> {printed(row)}" for t, row in zip(TIME, TABLE, strict=True)]
+    path.write_text("\n".join(clocks) + "\n")
+    with pytest.warns(UserWarning, match="read as 8 columns by position"):
+        _assert_the_table(read_run(path, columns="1=time_s," + BY_POSITION_AFTER_TIME, **SITE))
+    # A table with a text column (ROS 2's frame_id) is no such print: read as its fields.
+    table = tmp_path / "ros.csv"
+    table.write_text(
+        "".join(
+            f"{float(t)!r},imu_link," + ",".join(repr(float(x)) for x in row) + "\n"
+            for t, row in zip(TIME, TABLE, strict=True)
+        )
+    )
+    columns = (
+        "1=time_s,3=accel_x_mps2,4=accel_y_mps2,5=accel_z_mps2,6=gyro_x_radps,7=gyro_y_radps,8=gyro_z_radps"
+    )
+    _assert_the_table(read_run(table, columns=columns, **SITE))
