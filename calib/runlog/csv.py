@@ -28,7 +28,7 @@ from .columns import (
     to_increments,
 )
 from .conversion import Conversion, sensor_si
-from .counter import RATE_FIX, counter_suspect, counter_time
+from .counter import counter_suspect, counter_time
 from .dialect import (
     labelled_rows,
     past_preamble,
@@ -40,12 +40,12 @@ from .dialect import (
 )
 from .format import ARRAY_COLUMNS, FORMAT, GIMBAL_COLUMNS, REQUIRED_COLUMNS, REQUIRED_META
 from .headerless import by_commented_names, mapped_header, with_header, with_row_counter
-from .loggers import apple_sign_warning
+from .loggers import apple_sign_warning, with_logger_rate
 from .paths import read_bytes
 from .polled import own_intervals
 from .rollover import said_rollover
 from .run import Run, meta_float
-from .text import decode_lines, header_names, is_comment, logger_rate, without_cut_last_row
+from .text import decode_lines, header_names, is_comment, without_cut_last_row
 from .wallclock import with_seconds, with_split_stamp
 
 
@@ -111,7 +111,7 @@ def read_csv(
         lines, header_index, mapped_header(lines, header_index, mapping, name), stated, name
     )
     plan, has_gimbal, positions = _parse_header(lines[header_index], header_index + 1, name, mapping)
-    options = _with_logger_rate(options or {}, plan, stated, lines, header_index, name)
+    options = with_logger_rate(options or {}, plan, stated, lines, header_index, name)
     rows, row_lines = _data_rows(lines, header_index + 1)
     row_lines = row_lines - added  # the file's own line numbers
     if not rows:
@@ -176,38 +176,6 @@ def read_csv(
     # The clock the checks found goes with the run: clock.settle does not find it again.
     time_name = None if plan.time_name == COUNTER else plan.time_name
     return replace(run, clock=check_samples(run, locate, allow_gaps, time_name))
-
-
-XSENS_FINE_TIME = "SampleTimeFine"  # Xsens' sample time, in ticks of its 10 kHz clock
-
-
-def _with_logger_rate(
-    options: dict, plan: ColumnPlan, stated: bool, lines, header_index: int, name: str
-) -> dict:
-    """The options with the rate a logger's preamble states, for a counter no other rate times.
-
-    Only a counter takes it: a time column's stamps carry their own rate (docs/logs.md),
-    which a rounded "100.0Hz" would contradict by the crystal's ppm.
-    """
-    if plan.time_name != COUNTER or stated:
-        return options
-    found = logger_rate(lines, header_index)
-    if found is None:
-        if XSENS_FINE_TIME in header_names(lines[header_index]):
-            raise CalibError(
-                "the sample counter says no time without the rate, and this Xsens export states none",
-                f"{name}, line {header_index + 1}",
-                f"time the samples by the sensor's own clock: map {XSENS_FINE_TIME}=time_100us "
-                "(its 10 kHz ticks) in place of the counter; or " + RATE_FIX,
-            )
-        return options
-    rate, line = found
-    warnings.warn(
-        f"{name}, line {line}: the sample counter is timed at the {rate:g} Hz this line states "
-        f"({lines[line - 1].strip()!r}); give the CLI's --sample-rate-hz for another rate",
-        stacklevel=3,
-    )
-    return {**options, "sample_rate_hz": rate}
 
 
 _G, _A = slice(1, 4), slice(4, 7)  # the gyro's and the accelerometer's columns in the parsed table

@@ -226,8 +226,9 @@ def _pairs(line: str) -> list[tuple[str, str]] | None:
 def labelled_rows(lines: list[str], header_index: int, name: str) -> tuple[list[str], int]:
     """Rows of ``label:value`` pairs as a header of their labels and rows of their values.
 
-    Only when every row holds the first row's labels in its order (an Arduino's Serial Plotter
-    protocol); a row that does not is left as it is, for the reader to refuse at its line.
+    The labels are those most rows carry in one order (an Arduino's Serial Plotter protocol); a
+    first row holding only their last few (a capture cut mid-row) is left out, said, and any
+    other row that does not carry them is left as it is, for the reader to refuse at its line.
     Returns the lines and the number put in above the rows (1 with the header, else 0).
     """
     first = _pairs(lines[header_index])

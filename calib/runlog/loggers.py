@@ -7,11 +7,21 @@ A calibration by hand cannot see it: the three axes reversed together turn as th
 and every bias and g-sensitivity term comes out with its sign reversed. So the map must
 negate them (``accelerometerAccelerationX(G)=-accel_x_g``, docs/logs-columns.md), and a map
 that does not is warned of by name.
+
+Xsens MT Manager's older exports state their output rate in a ``//`` line of the preamble
+(``// Update Rate: 100.0Hz``): a sample counter no other rate times takes it, said
+(`with_logger_rate`); a 2022 export states none, and is pointed to its own clock.
 """
 
 from __future__ import annotations
 
-from .columns import NEGATED, sensor_of
+import warnings
+
+from calib.errors import CalibError
+
+from .columns import COUNTER, NEGATED, ColumnPlan, sensor_of
+from .counter import RATE_FIX
+from .text import header_names, logger_rate
 
 # Prefixes of the accelerometer columns of iOS loggers (Apple's sign): SensorLog.
 APPLE_SIGN_PREFIXES = ("accelerometerAcceleration",)
@@ -34,3 +44,35 @@ def apple_sign_warning(mapping: dict[str, str], where: str) -> str | None:
         f"(-1 g on z lying face up); map it negated, {source}={NEGATED}{target} (and the other axes "
         "alike), or every accelerometer bias comes out with its sign reversed"
     )
+
+
+XSENS_FINE_TIME = "SampleTimeFine"  # Xsens' sample time, in ticks of its 10 kHz clock
+
+
+def with_logger_rate(
+    options: dict, plan: ColumnPlan, stated: bool, lines, header_index: int, name: str
+) -> dict:
+    """The options with the rate a logger's preamble states, for a counter no other rate times.
+
+    Only a counter takes it: a time column's stamps carry their own rate (docs/logs.md),
+    which a rounded "100.0Hz" would contradict by the crystal's ppm.
+    """
+    if plan.time_name != COUNTER or stated:
+        return options
+    found = logger_rate(lines, header_index)
+    if found is None:
+        if XSENS_FINE_TIME in header_names(lines[header_index]):
+            raise CalibError(
+                "the sample counter says no time without the rate, and this Xsens export states none",
+                f"{name}, line {header_index + 1}",
+                f"time the samples by the sensor's own clock: map {XSENS_FINE_TIME}=time_100us "
+                "(its 10 kHz ticks) in place of the counter; or " + RATE_FIX,
+            )
+        return options
+    rate, line = found
+    warnings.warn(
+        f"{name}, line {line}: the sample counter is timed at the {rate:g} Hz this line states "
+        f"({lines[line - 1].strip()!r}); give the CLI's --sample-rate-hz for another rate",
+        stacklevel=3,
+    )
+    return {**options, "sample_rate_hz": rate}
