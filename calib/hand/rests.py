@@ -34,6 +34,7 @@ WINDOW_S = 0.25  # long enough to average a MEMS gyro's noise, short against a 3
 MIN_REST_S = 0.5  # a shorter still stretch is a pause within a move
 ACCEL_FLOOR = 0.02  # m/s^2: a hand's tremor is several times this, a table's vibration far less
 DRIFT_FLOOR = 0.002  # m/s^2: a change of the mean a still unit on a table does not show
+FASTEST_HAND_RATE_HZ = 5000.0  # an IMU's output rate above which a time column's unit is in doubt
 MIN_STILL_ROWS = 20  # a still stretch this many samples long is a pose, not a pause within a move
 MARGIN_S = 0.05  # trimmed from each end of a rest beyond the window: the placing's last settling
 
@@ -153,7 +154,9 @@ def _time_said(lengths: np.ndarray, rows: np.ndarray, elapsed_s: np.ndarray) -> 
     seconds so shortened say the time is off, not that the hand never held still.
     """
     rate = (len(elapsed_s) - 1) / elapsed_s[-1]
-    said = f" ({len(elapsed_s) - 1} samples in {float(elapsed_s[-1]):.4g} s: {rate:.5g} Hz as the time reads)"
+    fast = ", faster than IMUs output: check the time column's unit" if rate > FASTEST_HAND_RATE_HZ else ""
+    n, span = len(elapsed_s) - 1, float(elapsed_s[-1])
+    said = f" ({n} samples in {span:.4g} s: {rate:.5g} Hz as the time reads{fast})"
     many = rows >= MIN_STILL_ROWS
     if many.sum() < 3:
         return said

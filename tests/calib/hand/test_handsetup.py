@@ -240,6 +240,11 @@ def test_a_time_base_too_short_is_named_or_said_with_the_rate_it_reads(hand_run)
     assert len(found) == 1 and re.search(r"the time base is (9\.9|10|11) times too short", found[0].what)
     with pytest.raises(CalibError, match=r"found 0 rest.* samples in [0-9.]+ s: 5000 Hz as the time reads"):
         calibrate(rate_mislabelled(run, RATE_HZ * 50.0), "mems", by_hand=True)
+    # 100 times (Xsens' 0.1 ms ticks read as us): beyond any IMU's output rate, said so.
+    with pytest.raises(
+        CalibError, match=r"10000 Hz as the time reads, faster than IMUs output: check the time"
+    ):
+        calibrate(rate_mislabelled(run, RATE_HZ * 100.0), "mems", by_hand=True)
 
 
 def test_a_gimbal_run_is_not_taken_for_a_hand(tmp_path):
