@@ -90,7 +90,9 @@ def counted_steps(
     moved = -width  # the last row from which the lag was moved: windows near it are taken again
     gaps = 0
     for i, first in enumerate(rows):
-        shift = shifts[i] if first >= moved + width else _shift(lag, int(first), width)
+        shift = shifts[i]
+        if first < moved + width or _tied(shift, (0.5, MAX_STEP_FRACTION)):
+            shift = _shift(lag, int(first), width)
         lost = int(np.rint(shift))
         if abs(shift - lost) > MAX_STEP_FRACTION:
             continue  # no whole number of samples: jitter here, or refused by the check below
@@ -99,16 +101,21 @@ def counted_steps(
             steps[moved - 1] += lost
             lag[moved:] -= lost
             gaps += 1
-            if gaps > max(GAPS_COUNTED, GAP_SHARE * first):
-                raise CalibError(
-                    f"the stamps leave a gap in {gaps} of their first {first} rows: no sample clock with "
-                    "samples lost here and there counts them",
-                    str(first),
-                    "the time column must locate samples taken at sample_rate_hz; check whether the log "
-                    "mixes sensors or clocks",
-                )
+            _check_gap_share(gaps, int(first))
     _check_lag_kept(lag, 2 * width, PERSISTENT_SHIFT + extra, periods)
     return steps
+
+
+def _check_gap_share(gaps: int, row: int) -> None:
+    """Refuse stamps that leave a gap in more than GAP_SHARE of their rows up to ``row``."""
+    if gaps > max(GAPS_COUNTED, GAP_SHARE * row):
+        raise CalibError(
+            f"the stamps leave a gap in {gaps} of their first {row} rows: no sample clock with "
+            "samples lost here and there counts them",
+            str(row),
+            "the time column must locate samples taken at sample_rate_hz; check whether the log "
+            "mixes sensors or clocks",
+        )
 
 
 def _jumps(lag: np.ndarray, long_steps: np.ndarray, width: int) -> float:
@@ -117,19 +124,35 @@ def _jumps(lag: np.ndarray, long_steps: np.ndarray, width: int) -> float:
     total = 0.0
     rows = long_steps + 1
     jumps = _shifts(level, rows, width)
-    moved = -width
+    moved, levelled = -width, 0
     for i, row in enumerate(rows):
-        jump = float(jumps[i]) if row >= moved + width else _shift(level, int(row), width)
+        jump = float(jumps[i])
+        if row < moved + width or abs(jump) > 0.5 - TIE:
+            jump = _shift(level, int(row), width)  # a jump levelled is the one taken alone, to the bit
         if abs(jump) > 0.5:  # a neighbour's window saw it first: levelled there, none here
             level[int(row) :] -= jump
             total += jump
             moved = int(row)
+            levelled += 1
+            _check_gap_share(levelled, int(row))
     return total
 
 
 def _shift(lag: np.ndarray, row: int, width: int) -> float:
     """The lag's median over the stretch from ``row`` less that over the stretch before it."""
     return float(np.median(lag[row : row + width]) - np.median(lag[max(0, row - width) : row]))
+
+
+# A shift taken with the others lies within float rounding (1e-14) of the one taken alone on the
+# moved lag; at a decision's edge (stamps rounded to ms put medians on exact halves) it is taken
+# alone, so that the count is the one-at-a-time rule's to the last row.
+TIE = 1e-9
+
+
+def _tied(shift: float, edges: tuple[float, ...]) -> bool:
+    """Whether a shift's distance from its nearest whole number lies within TIE of an edge."""
+    off = abs(shift - round(shift))
+    return any(abs(off - edge) < TIE for edge in edges)
 
 
 SHIFT_BATCH = 4_000_000  # values gathered at once for the medians of many windows (32 MB)

@@ -232,8 +232,10 @@ def labelled_rows(lines: list[str], header_index: int, name: str) -> tuple[list[
     Returns the lines and the number put in above the rows (1 with the header, else 0).
     """
     first = _pairs(lines[header_index])
-    if first is None:
-        return lines, 0
+    if first is None:  # a capture cut mid-value ("6409,gx:0.41,..."): its pairs after the cut field
+        first = _pairs(",".join(re.split(r"[,\t]", lines[header_index].strip())[1:]))
+        if first is None or header_index + 1 >= len(lines) or _pairs(lines[header_index + 1]) is None:
+            return lines, 0
     # The labels most rows carry: a serial capture's first line is often cut mid-row.
     seen = [_pairs(row) for row in lines[header_index : header_index + ROWS_LOOKED_AT] if row.strip()]
     runs = [tuple(label for label, _ in p) for p in seen if p is not None]
@@ -266,7 +268,10 @@ def labelled_rows(lines: list[str], header_index: int, name: str) -> tuple[list[
 _NUMBER = re.compile(
     r"(?<![\w.])[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?![\w.])|(?<!\w)(?:nan|inf)(?!\w)", re.I
 )
-_CLOCK = re.compile(r"\b\d{1,2}:\d{2}:\d{2}(?:[.,:]\d+)?\b")
+_CLOCK = re.compile(
+    r"(?:\d{4}[-/.]\d{1,2}[-/.]\d{1,2}[ T_]+|\d{1,2}[- ][A-Za-z]{3}[- ]\d{4}[ T_]+)?"
+    r"\b\d{1,2}:\d{2}:\d{2}(?:[.,:]\d+)?(?:Z|[+-]\d{2}:?\d{2})?"
+)  # with its date, as wallclock reads them (ISO, MATLAB's 14-Nov-2023): one field
 TEMPLATE_SHARE = 0.9  # of the rows looked at, that share one text around their numbers
 
 
@@ -297,7 +302,10 @@ def templated_rows(lines: list[str], header_index: int, name: str) -> tuple[list
     templates = collections.Counter(_template(lines[k]) for k in looked)
     text, count = templates.most_common(1)[0]
     first = next(k for k in rows if _template(lines[k]) == text)  # a status line may come before
-    if first > header_index and len(_names(lines[header_index])) == len(_names(lines[first])) > 1:
+    width = len(_names(lines[first]))
+    if width > 1 and any(
+        len(_names(lines[k])) == width for k in range(header_index, first) if lines[k].strip()
+    ):
         return lines, header_index  # a table whose header names as many columns: a cell of text
     bare = text.replace("{}", "").replace("{t}", "")
     shared = count >= TEMPLATE_SHARE * sum(k >= first for k in looked)

@@ -337,3 +337,35 @@ def test_a_hole_too_long_to_fill_is_said_so_before_allow_gaps_is_tried(tmp_path)
         read_run(tmp_path / "q.csv")
     with pytest.raises(CalibError, match="300 samples lost at t = 10 s, more than the 200"):
         read_run(tmp_path / "q.csv", allow_gaps=True)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_count_rule_taken_together_counts_as_one_median_at_a_time(monkeypatch, seed):
+    # The long steps' medians are taken together, each re-taken alone near a moved lag or a
+    # decision's edge; with every one taken alone (TIE beyond any shift) the rule is the plain
+    # loop. Stamps printed to 1 ms put medians on exact halves: the two must count alike, row
+    # for row (a phone's jittering host stamps, 20 bursts of 1-5 samples lost).
+    from calib.runlog import countrule
+
+    rng = np.random.default_rng(seed)
+    keep = np.ones(20_000, dtype=bool)
+    for start in rng.choice(np.arange(200, 19_800), 20, replace=False):
+        keep[start : start + rng.integers(1, 6)] = False
+    index = np.flatnonzero(keep)
+    stamps = _phone_stamps(index, rng)
+    period = 1.0 / 99.7369
+    periods = np.diff(stamps) / period
+    counted = np.diff(stamps) > 0
+
+    def count():
+        try:
+            return countrule.counted_steps(stamps, periods, counted, period)
+        except CalibError as exc:  # refused alike, at the same row, with the same figures
+            return str(exc)
+
+    together = count()
+    monkeypatch.setattr(countrule, "TIE", 1.0)  # every shift taken alone on the lag as it stands
+    alone = count()
+    assert isinstance(together, np.ndarray), together  # the case holds what it is meant to
+    np.testing.assert_array_equal(together, alone)
+    assert together.sum() == index[-1] - index[0]  # and each lost sample is counted

@@ -190,3 +190,28 @@ def test_rows_of_numbers_among_the_same_text_read_by_position(tmp_path):
         "1=time_s,3=accel_x_mps2,4=accel_y_mps2,5=accel_z_mps2,6=gyro_x_radps,7=gyro_y_radps,8=gyro_z_radps"
     )
     _assert_the_table(read_run(table, columns=columns, **SITE))
+
+
+def test_clock_times_with_their_dates_are_no_text_around_numbers(tmp_path):
+    # MATLAB's "14-Nov-2023 23:13:20.040" (a month's name among digits) before numbers: a table's
+    # time column, not a sketch's print; read as it was before the prints were.
+    path = tmp_path / "matlab.csv"
+    rows = [
+        f"14-Nov-2023 00:00:{t:06.3f}," + ",".join(repr(float(x)) for x in row)
+        for t, row in zip(TIME, TABLE, strict=True)
+    ]
+    path.write_text("\n".join(rows) + "\n")
+    _assert_the_table(read_run(path, columns="1=time_s," + BY_POSITION_AFTER_TIME, **SITE))
+
+
+def test_a_serial_capture_cut_mid_value_keeps_its_labels(tmp_path):
+    # A capture that begins inside a value ("6409,gx:0.5,...": the rest of some "t:..." field).
+    path = tmp_path / "plotter.txt"
+    labels = ("t", *NAMES)
+    rows = [
+        ",".join(f"{k}:{v!r}" for k, v in zip(labels, (round(t * 1e6), *map(float, row)), strict=True))
+        for t, row in zip(TIME, TABLE, strict=True)
+    ]
+    path.write_text("6409,gx:0.5,gy:0.1,gz:0.2\n" + "\n".join(rows) + "\n")
+    with pytest.warns(UserWarning, match=r"line 1: the first row holds the last 3 of the 7 labels"):
+        _assert_the_table(read_run(path, columns="t=time_us," + BY_NAME, **SITE))
