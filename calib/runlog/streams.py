@@ -201,13 +201,19 @@ def carry_onto(
     return np.diff(at_edges, axis=0)
 
 
+COVER_SLACK = 1e-3  # of a period uncovered at a span's end: a thousandth of one sample's increment
+
+
 def inside(source_end_s: np.ndarray, source_period_s: float, target_end_s: np.ndarray) -> np.ndarray:
     """Which target intervals (one target period each, ending at ``target_end_s``) the source covers.
 
-    The source's span is ``[source_end_s[0] - source_period_s, source_end_s[-1]]``.
+    The source's span is ``[source_end_s[0] - source_period_s, source_end_s[-1]]``, to
+    ``COVER_SLACK`` of a target period: two files of one logger on the same stamps, each put on
+    its own fitted clock, end a few ns apart (their rates differ in the 12th digit), and the
+    first and last samples were left out for it.
     """
     step = float(target_end_s[1] - target_end_s[0]) if len(target_end_s) > 1 else 0.0
     first = float(source_end_s[0]) - source_period_s
-    return (target_end_s - step >= first - 1e-9 * step) & (
-        target_end_s <= float(source_end_s[-1]) + 1e-9 * step
+    return (target_end_s - step >= first - COVER_SLACK * step) & (
+        target_end_s <= float(source_end_s[-1]) + COVER_SLACK * step
     )

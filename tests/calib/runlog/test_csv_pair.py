@@ -224,3 +224,16 @@ def test_a_pair_without_headers_mapped_by_position_reads_as_with_them(tmp_path):
     )
     np.testing.assert_array_equal(pair.dtheta_rad, named.dtheta_rad)
     np.testing.assert_array_equal(pair.dv_mps, named.dv_mps)
+
+
+def test_a_span_covers_its_ends_to_a_thousandth_of_a_period():
+    # phyphox's two files on one host clock, each put on its own fitted clock, came out 1.2e-8 of
+    # a period apart (measured on imu_tk's Xsens recording written so): the first and the last
+    # gyro samples were left out for it. Within a thousandth of a period they are covered; half
+    # a period later (earlier), the first (last) gyro sample is not.
+    from calib.runlog.streams import inside
+
+    period = 1.0 / 100.0099963
+    gyro = 0.0173 + period * np.arange(51_175)
+    for apart, kept in ((1.2e-8, 51_175), (-1.2e-8, 51_175), (0.5, 51_174), (-0.5, 51_174)):
+        assert inside(gyro + apart * period, period, gyro).sum() == kept
