@@ -137,15 +137,20 @@ def test_a_name_in_a_comment_line_may_be_mapped_with_its_mark(tmp_path):
             _assert_the_table(read_run(path, columns=f"{first}=time_s," + BY_NAME, **SITE))
 
 
+def _plotter_rows() -> list[str]:
+    """The table as an Arduino's Serial Plotter prints it: t:20000,ax:0.1,... (time in us)."""
+    labels = ("t", *NAMES)
+    return [
+        ",".join(f"{k}:{v!r}" for k, v in zip(labels, (round(t * 1e6), *map(float, row)), strict=True))
+        for t, row in zip(TIME, TABLE, strict=True)
+    ]
+
+
 def test_rows_of_label_value_pairs_read_with_their_labels_as_the_header(tmp_path):
     # An Arduino's Serial Plotter lines: "t:20000,ax:0.1,...". A row that breaks the pattern is
     # refused at the file's own line.
     path = tmp_path / "plotter.txt"
-    labels = ("t", *NAMES)
-    rows = [
-        ",".join(f"{k}:{v!r}" for k, v in zip(labels, (round(t * 1e6), *map(float, row)), strict=True))
-        for t, row in zip(TIME, TABLE, strict=True)
-    ]
+    rows = _plotter_rows()
     path.write_text("\n".join(rows) + "\n")
     columns = "t=time_us," + BY_NAME
     with pytest.warns(UserWarning, match=r"rows of label:value pairs \(t, ax, ay, \.\.\.\)"):
@@ -207,11 +212,7 @@ def test_clock_times_with_their_dates_are_no_text_around_numbers(tmp_path):
 def test_a_serial_capture_cut_mid_value_keeps_its_labels(tmp_path):
     # A capture that begins inside a value ("6409,gx:0.5,...": the rest of some "t:..." field).
     path = tmp_path / "plotter.txt"
-    labels = ("t", *NAMES)
-    rows = [
-        ",".join(f"{k}:{v!r}" for k, v in zip(labels, (round(t * 1e6), *map(float, row)), strict=True))
-        for t, row in zip(TIME, TABLE, strict=True)
-    ]
+    rows = _plotter_rows()
     path.write_text("6409,gx:0.5,gy:0.1,gz:0.2\n" + "\n".join(rows) + "\n")
     with pytest.warns(UserWarning, match=r"line 1: the first row holds the last 3 of the 7 labels"):
         _assert_the_table(read_run(path, columns="t=time_us," + BY_NAME, **SITE))
