@@ -36,6 +36,7 @@ import re
 import warnings
 
 from .text import is_comment
+from .wallclock import CLOCK_FORM
 
 ROWS_LOOKED_AT = 100  # rows read to judge how a file writes its fields
 
@@ -268,10 +269,8 @@ def labelled_rows(lines: list[str], header_index: int, name: str) -> tuple[list[
 _NUMBER = re.compile(
     r"(?<![\w.])[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?![\w.])|(?<!\w)(?:nan|inf)(?!\w)", re.I
 )
-_CLOCK = re.compile(
-    r"(?:\d{4}[-/.]\d{1,2}[-/.]\d{1,2}[ T_]+|\d{1,2}[- ][A-Za-z]{3}[- ]\d{4}[ T_]+)?"
-    r"\b\d{1,2}:\d{2}:\d{2}(?:[.,:]\d+)?(?:Z|[+-]\d{2}:?\d{2})?"
-)  # with its date, as wallclock reads them (ISO, MATLAB's 14-Nov-2023): one field
+# A clock time with its date, in the forms wallclock reads (ISO, MATLAB's 14-Nov-2023): one field.
+_CLOCK = re.compile(r"(?<![\w.:])" + CLOCK_FORM)
 TEMPLATE_SHARE = 0.9  # of the rows looked at, that share one text around their numbers
 
 
@@ -302,10 +301,12 @@ def templated_rows(lines: list[str], header_index: int, name: str) -> tuple[list
     templates = collections.Counter(_template(lines[k]) for k in looked)
     text, count = templates.most_common(1)[0]
     first = next(k for k in rows if _template(lines[k]) == text)  # a status line may come before
-    width = len(_names(lines[first]))
-    if width > 1 and any(
-        len(_names(lines[k])) == width for k in range(header_index, first) if lines[k].strip()
-    ):
+    # Fields counted at the rows' own separator: a status line of words is no header of as many.
+    sep = next((c for c in (",", ";", "\t") if c in lines[first]), None)
+    fields_of = lambda line: len(line.split(sep)) if sep else len(line.split())  # noqa: E731
+    width = fields_of(lines[first])
+    above = (k for k in range(header_index, first) if lines[k].strip())
+    if width > 1 and any(fields_of(lines[k]) == width for k in above):
         return lines, header_index  # a table whose header names as many columns: a cell of text
     bare = text.replace("{}", "").replace("{t}", "")
     shared = count >= TEMPLATE_SHARE * sum(k >= first for k in looked)

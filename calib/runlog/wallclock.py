@@ -25,11 +25,12 @@ from calib.errors import CalibError
 # digits after a third colon are milliseconds (Physics Toolbox's 23:13:20:030; a video
 # timecode's frames are two).
 # Or day-month's name-year, as MATLAB's datetime writes by default (14-Nov-2023 22:13:20.030).
-CLOCK_TIME = re.compile(
-    r"^\s*(?:(?:(?P<y>\d{4})[-/.](?P<mo>\d{1,2})[-/.](?P<d>\d{1,2})"
+CLOCK_FORM = (
+    r"(?:(?:(?P<y>\d{4})[-/.](?P<mo>\d{1,2})[-/.](?P<d>\d{1,2})"
     r"|(?P<d2>\d{1,2})[- ](?P<mon>[A-Za-z]{3})[- ](?P<y2>\d{4}))[ T_]+)?"
-    r"(?P<h>\d{1,2}):(?P<mi>\d{2}):(?P<s>\d{2}(?:[.,]\d+|:\d{3})?)(?P<zone>Z|[+-]\d{2}:?\d{2})?\s*$"
-)
+    r"(?P<h>\d{1,2}):(?P<mi>\d{2}):(?P<s>\d{2}(?:[.,]\d+|:\d{3})?)(?P<zone>Z|[+-]\d{2}:?\d{2})?"
+)  # a clock time as it stands in a field (dialect finds it among a print's text)
+CLOCK_TIME = re.compile(r"^\s*" + CLOCK_FORM + r"\s*$")
 MONTHS = ("jan", "feb", "mar", "apr", "may", "jun", "jul", "aug", "sep", "oct", "nov", "dec")
 DAY_S = 86_400.0
 

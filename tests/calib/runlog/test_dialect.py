@@ -180,7 +180,8 @@ def test_rows_of_numbers_among_the_same_text_read_by_position(tmp_path):
         run = read_run(path, columns=BY_POSITION, sample_rate_hz=50.0, **SITE)
     _assert_the_table(run)
     clocks = [f"00:00:{t:06.3f} -> {printed(row)}" for t, row in zip(TIME, TABLE, strict=True)]
-    path.write_text("\n".join(clocks) + "\n")
+    # A status line of as many words as the rows have fields is no header of them.
+    path.write_text("00:00:00.000 -> Sensor found: All is well.\n" + "\n".join(clocks) + "\n")
     with pytest.warns(UserWarning, match="read as 8 columns by position"):
         _assert_the_table(read_run(path, columns="1=time_s," + BY_POSITION_AFTER_TIME, **SITE))
     # A table with a text column (ROS 2's frame_id) is no such print: read as its fields.
