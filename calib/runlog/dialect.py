@@ -305,8 +305,8 @@ def templated_rows(lines: list[str], header_index: int, name: str) -> tuple[list
     sep = next((c for c in (",", ";", "\t") if c in lines[first]), None)
     fields_of = lambda line: len(line.split(sep)) if sep else len(line.split())  # noqa: E731
     width = fields_of(lines[first])
-    above = (k for k in range(header_index, first) if lines[k].strip())
-    if width > 1 and any(fields_of(lines[k]) == width for k in above):
+    before = (k for k in range(header_index, first) if lines[k].strip())
+    if width > 1 and any(fields_of(lines[k]) == width for k in before):
         return lines, header_index  # a table whose header names as many columns: a cell of text
     bare = text.replace("{}", "").replace("{t}", "")
     shared = count >= TEMPLATE_SHARE * sum(k >= first for k in looked)
