@@ -17,7 +17,10 @@ A sample is still when, over a short window about it, both
 Still stretches shorter than :data:`MIN_REST_S` (a pause mid-move) are part of
 the move; a bump while placing splits a rest into two, the shorter of which
 drops out when too short, and the rest of the pose is kept. Each rest is
-trimmed by the window either side, so that its samples are still ones.
+trimmed so that its samples are still ones: by the window either side beyond
+where the rate or the spread sees motion (their windows are centred), and by
+:data:`MARGIN_S` beyond where the means before and after disagree (their
+windows already reach a window and a half from the sample).
 """
 
 from __future__ import annotations
@@ -98,8 +101,14 @@ def still_samples(
     drift = np.zeros(len(force))
     drift[window:-window] = np.max(np.abs(mean[2 * window :] - mean[: -2 * window]), axis=1)
     drift_threshold = loosen * max(DRIFT_FLOOR, 5.0 * vrw / math.sqrt(period) * math.sqrt(2.0 / window))
-    accel_moving = (np.max(spread, axis=1) > accel_threshold) | (drift > drift_threshold)
-    moving = grow(gyro_moving | accel_moving, window + int(round(MARGIN_S / period)))
+    accel_moving = np.max(spread, axis=1) > accel_threshold
+    # Each verdict is widened until a motion it sees surely lies outside the rest: a centred
+    # window's (rate, spread) by a window, the drift's by nothing more, its windows already
+    # reaching a window and a half either side. A window more there trimmed 0.25 s more from
+    # each end: a pose had to be held 1.85 s to give a 0.5 s rest, now 1.35 s (imu_tk's, at
+    # 150 Hz), and the brief poses of a quick hand were lost.
+    margin = int(round(MARGIN_S / period))
+    moving = grow(gyro_moving | accel_moving, window + margin) | grow(drift > drift_threshold, margin)
     return ~moving, gyro_threshold, accel_threshold
 
 
