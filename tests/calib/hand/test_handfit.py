@@ -39,8 +39,10 @@ def _random_rotation(rng) -> np.ndarray:
     return rotvec_to_dcm(rng.normal(size=3) * 2.0)
 
 
-def synthetic_hand_run(rng, errors: ErrorModel, n_poses: int = 14, g_sens=None, carry: bool = True):
-    """Rests of 4 s at random attitudes, joined by constant-rate turns about fixed body axes.
+def synthetic_hand_run(
+    rng, errors: ErrorModel, n_poses: int = 14, g_sens=None, carry: bool = True, rest_s: float = 4.0
+):
+    """Rests of ``rest_s`` at random attitudes, joined by constant-rate turns about fixed body axes.
 
     Returns time, dtheta, dv, dt and the true rest attitudes (Earth-fixed: the turn
     is relative to the Earth, the gyros sense it plus the Earth rate).
@@ -51,7 +53,7 @@ def synthetic_hand_run(rng, errors: ErrorModel, n_poses: int = 14, g_sens=None, 
     C = _random_rotation(rng)
     dth, dvs, Cs = [], [], [C]
     for k in range(n_poses):
-        n_rest = int(4.0 * RATE_HZ)
+        n_rest = int(round(rest_s * RATE_HZ))
         dth.append(np.tile(C.T @ omega_n * h, (n_rest, 1)))
         dvs.append(np.tile(C.T @ f_n * h, (n_rest, 1)))
         if k == n_poses - 1:
@@ -214,11 +216,30 @@ def test_rests_are_found_with_a_bump_and_short_poses():
     i = 2 * (400 + 50) + 200
     dv[i : i + 10] += np.array([1.0, 0.0, 0.0]) * dt[0]
     rests = find_rests(dtheta, dv, dt, PROFILE.arw, PROFILE.vrw)
-    # Six poses, the third split by the bump into two rests of ~0.8 s each (each side of a
-    # disturbance loses the detector's reach, about 0.6 s), both kept.
+    # Six poses, the third split by the bump into two rests of ~1.1 s each (each side of a
+    # disturbance loses the detector's reach, about 0.4 s), both kept.
     assert rests.count == 7
     lengths = (rests.end - rests.start) * dt[0]
     assert np.all(lengths > 0.5) and np.all(lengths <= 4.0)
+
+
+def test_poses_held_a_second_and_a_half_are_each_a_rest_of_still_samples():
+    # A quick hand holds each pose 1.5 s. Every verdict of the finder clears a motion it sees by
+    # at most half its 0.25 s window (centred, or the drift's windows a window and a half out
+    # less the window they average) plus a window and the 0.05 s margin: 0.43 s each side,
+    # leaving 0.65 s of each pose, above the 0.5 s a rest needs. No turning sample may be in one.
+    rng = np.random.default_rng(5)
+    n_poses, rest_s = 8, 1.5
+    _, dtheta, dv, dt, _ = synthetic_hand_run(rng, ErrorModel.zero(), n_poses=n_poses, rest_s=rest_s)
+    dtheta = dtheta + PROFILE.arw * np.sqrt(dt)[:, None] * rng.normal(size=dtheta.shape)
+    dv = dv + PROFILE.vrw * np.sqrt(dt)[:, None] * rng.normal(size=dv.shape)
+    rests = find_rests(dtheta, dv, dt, PROFILE.arw, PROFILE.vrw)
+    assert rests.count == n_poses
+    pose, turn = int(round(rest_s * RATE_HZ)), 50  # samples, as synthetic_hand_run lays them
+    for k, (a, b) in enumerate(zip(rests.start, rests.end, strict=True)):
+        first = k * (pose + turn)
+        assert first <= a and b <= first + pose  # wholly inside its own pose
+        assert (b - a) * dt[0] >= 0.5
 
 
 def test_too_few_rests_are_refused_saying_why():
