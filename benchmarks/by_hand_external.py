@@ -105,7 +105,7 @@ def cross_lines(recs: list[Recording]) -> list[str]:
     return out
 
 
-def main() -> None:
+def main() -> int | None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("logs", nargs="+", metavar="LOG")
     ap.add_argument("--columns", required=True, help="the column map, as calibrate's --columns")
@@ -115,7 +115,11 @@ def main() -> None:
     ap.add_argument("--sample-rate-hz", type=float, default=None)
     ap.add_argument("--allow-gaps", action="store_true", help="as calibrate's --allow-gaps, by hand")
     args = ap.parse_args()
-    recs = [recording(p, args) for p in args.logs]
+    try:
+        recs = [recording(p, args) for p in args.logs]
+    except CalibError as exc:  # a log the reader refuses: said as the CLI says it, no traceback
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     results = {}
     print("## Each recording, calibrated as its owner would\n")
     for rec in recs:

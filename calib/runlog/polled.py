@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from calib.nav.strapdown import sample_intervals
+from calib.runlog.countrule import MAX_STEP_FRACTION
 
 WALK_ROWS = 100  # m: 1/m = 0.01 for jitter, 1 for a walk
 WALK_RATIO = 0.25  # above: the stamps walk, the samples were taken at them
@@ -85,6 +86,49 @@ def loop_wanders(time_s: np.ndarray, period: float, duplicate: np.ndarray) -> bo
     return wanders(t - t[0] - (offset + slope * count), period)
 
 
+# A loop delayed now and then (a slow read every few seconds) and never making the delay up: each
+# long step shifts every later stamp by its excess over the loop's cadence, for good. A crystal's
+# stamps shift by whole periods (samples lost) or not at all (a host's delay, caught up).
+DELAY_STEP = (1.3, 3.0)  # periods: a long step, short of a stall
+DELAY_ROWS = 50  # rows each side that tell the cadence before and the shift after
+DELAY_MATCH = 0.2  # periods: the shift kept is the step's excess to this
+DELAYS_KEPT = 3  # such delays, and most of the long steps, before the rows are taken at their stamps
+
+
+def delays_kept(time_s: np.ndarray, period: float, duplicate: np.ndarray) -> bool:
+    """Whether a loop's long steps shift the later stamps for good, by no whole number of periods.
+
+    Each long step (:data:`DELAY_STEP`) with no other within :data:`DELAY_ROWS` rows: the
+    cadence ``c`` of the rows before it, and the shift of the stamp ``DELAY_ROWS`` rows after
+    it against that cadence, ``(t[i + W] - t[i] - W c) / c``. A host's delay the next rows
+    make good shifts nothing, a lost sample a whole period; a polling loop's delay shifts by
+    the step's excess over ``c``, which stamps printed to 1 ms at 88 Hz, steps of 11 and 12 ms
+    with delays of 18 ms, hide from the spread of the steps that :func:`walk_ratio` judges.
+    """
+    t = time_s[~duplicate]
+    step = np.diff(t)
+    w = DELAY_ROWS
+    if len(step) < 2 * w + 1:
+        return False
+    usual = float(np.median(step))
+    if not usual > 0.0:
+        return False
+    low, high = DELAY_STEP
+    long = np.flatnonzero(step > low * usual)
+    kept = 0
+    for i in long:
+        if i < w or i + w >= len(t) or np.count_nonzero(step[i - w : i + w] > low * usual) > 1:
+            continue  # near an end, or among other long steps: no cadence to judge it by
+        cadence = (t[i] - t[i - w]) / w
+        size = step[i] / cadence
+        if size >= high:
+            continue
+        shift = (t[i + w] - t[i] - w * cadence) / cadence
+        if abs(shift - (size - 1.0)) <= DELAY_MATCH and abs(shift - round(shift)) > MAX_STEP_FRACTION:
+            kept += 1
+    return kept >= DELAYS_KEPT and 2 * kept >= len(long)
+
+
 STALL_STEPS = 3.0  # a step this many times the median one: the loop stalled (a hole in the record)
 
 
@@ -106,7 +150,7 @@ def summary(step_stats: tuple, deviation_rms: float) -> str:
     return (
         f"clock: samples taken at their stamps (steps {1e3 * low:.3g}-{1e3 * high:.3g} ms, "
         f"{1e3 * rms:.3g} ms RMS about {1e3 * mean:.4g} ms, the time wandering from a "
-        f"uniform clock by {1e3 * deviation_rms:.3g} ms RMS as a random walk does: a polling logger); "
+        f"uniform clock by {1e3 * deviation_rms:.3g} ms RMS, its delays never made up: a polling logger); "
         "each sample covers its own stamp interval"
     )
 

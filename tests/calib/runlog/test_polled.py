@@ -176,6 +176,42 @@ def test_a_loop_whose_period_drifts_is_read_at_its_stamps_not_refused():
     assert sample_clock(crystal, stamps_rate(crystal)).rule != "stamps"
 
 
+def _loop_stamps(rng, n: int, delayed_every: float, delay_s: float, caught_up: bool) -> np.ndarray:
+    """An 88 Hz loop (11.33 ms, 0.1 ms of jitter) printed to 1 ms: steps of 11 and 12 ms. Every
+    ``delayed_every`` rows one row comes ``delay_s`` late; a crystal's next rows make it up."""
+    k = np.arange(n)
+    late = (np.floor(k / delayed_every) > np.floor((k - 1) / delayed_every)) & (k > 0)
+    if caught_up:  # the IMU's clock: only the late row's stamp moves
+        t = 11.33e-3 * k + delay_s * late
+    else:  # the loop's own time: every later row moves with it
+        t = 11.33e-3 * k + delay_s * np.cumsum(late)
+    return np.round(107.539 + t + rng.uniform(0.0, 1e-4, n), 3)
+
+
+def test_a_loop_delayed_now_and_then_is_read_at_its_stamps_not_as_lost_samples():
+    # A pen IMU's Arduino loop (a real log: both its clocks agree): steps of 11 and 12 ms and one
+    # of 18 ms every 466.5 rows that the loop never makes up. Each such step shifts every later
+    # stamp by 0.59 period, no whole number: no crystal's lost sample (1) nor caught-up delay (0).
+    # The steps' robust spread is 0 (most are 11 ms), so the walk test cannot see it.
+    rng = np.random.default_rng(3)
+    n = 18_917
+    polled = _loop_stamps(rng, n, 466.5, 6.67e-3, caught_up=False)
+    clock = sample_clock(polled, stamps_rate(polled))
+    assert clock.rule == "stamps" and clock.dropped == []
+    assert np.array_equal(clock.index, np.arange(n))
+    # The same late rows on a crystal, each caught up by the next: the count's, nothing lost.
+    crystal = _loop_stamps(rng, n, 466.5, 6.67e-3, caught_up=True)
+    clock = sample_clock(crystal, stamps_rate(crystal))
+    assert clock.rule != "stamps" and clock.dropped == []
+    # A crystal that loses a sample every 466.5 rows: its 1-period shifts are whole, so each is
+    # a sample lost, not a loop's delay.
+    k = np.arange(n)
+    lost = 11.33e-3 * (k + np.floor(k / 466.5))
+    lossy = np.round(107.539 + lost + rng.uniform(0.0, 1e-4, n), 3)
+    clock = sample_clock(lossy, 1.0 / 11.33e-3)
+    assert clock.rule != "stamps" and sum(c for _, c in clock.dropped) == int(np.floor((n - 1) / 466.5))
+
+
 def test_a_stall_amid_a_turn_is_a_guess_by_hand_with_gaps_allowed(tmp_path):
     # Refused unless asked; by hand with gaps allowed its row is marked, for the fit to leave
     # its move out (as a sample lost amid a turn is).
