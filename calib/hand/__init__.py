@@ -23,6 +23,8 @@ Modules:
   simulated run
 - :mod:`calib.hand.rests`: Where a run placed by hand rests: the still stretches between a person's
   moves
+- :mod:`calib.hand.rounding`: Readings written coarser than their noise: what a rest's mean can and
+  cannot tell
 - :mod:`calib.hand.setup`: Before a hand fit: is the log what its labels say? Units, axes and rate,
   checked by physics
 - :mod:`calib.hand.simulate`: Simulator of calibration runs placed by hand: exact IMU increments of

@@ -31,6 +31,7 @@ from calib.runlog.clipping import describe_clipping
 
 from .fit_options import HandFitOptions, HandSamples
 from .joint_fit import N_DRIFT, N_GS, HandFit, fit_by_hand
+from .rounding import rounding_lines
 from .setup import check_setup, fixed, rate_mistake
 from .summary import HandSummary
 from .weights import Weights
@@ -325,6 +326,7 @@ def summary_of(hand: HandFit, run: Run, choices: tuple = (), notes: tuple = ()) 
         chi2_per_dof=hand.chi2_per_dof,
         notes=(
             *notes,
+            *rounding_lines(hand.data.reading_steps, hand.data.rest_rate_rounding),
             *(c.line() for c in choices),
             *drift,
             *hand.weights.lines(hand.weight_sizes),

@@ -9,13 +9,14 @@ and the samples between two rests are a move.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from calib.noise.profiles import NoiseProfile
 
 from .rests import Rests, find_rests
+from .rounding import reading_step, rest_floors, rest_rate_rounding
 
 
 @dataclass(frozen=True)
@@ -37,7 +38,13 @@ class HandData:
         The angle the gyro turned through over each move (the sum of its increments' norms).
     rest_noise : ndarray, shape (K, 2)
         Each rest mean's own noise over the profile's white noise (accelerometer, gyro), at
-        least 1 (`rest_noise_factor`: a pose held in the hand trembles).
+        least 1 (`rest_noise_factor`: a pose held in the hand trembles; an accelerometer
+        written coarser than its noise, :mod:`calib.hand.rounding`).
+    reading_steps : ndarray, shape (2, 3)
+        The step each axis' readings are written in (accelerometer m/s^2, gyro rad/s; 0: none).
+    rest_rate_rounding : ndarray, shape (K, 3)
+        Each rest's rounding error on its mean rate, rad/s, one offset shared by every rest
+        (0 where the noise dithers it; :func:`calib.hand.rounding.consider_rounding`).
     """
 
     rests: Rests
@@ -48,6 +55,8 @@ class HandData:
     move_used: np.ndarray
     move_turn_rad: np.ndarray
     rest_noise: np.ndarray
+    reading_steps: np.ndarray = field(default_factory=lambda: np.zeros((2, 3)))
+    rest_rate_rounding: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     @property
     def count(self) -> int:
@@ -87,7 +96,17 @@ def hand_data(
     for r, (a, b) in enumerate(zip(rests.start, rests.end, strict=True)):
         for k, (x, density) in enumerate(((dv, profile.vrw), (dtheta, profile.arw))):
             noise[r, k] = rest_noise_factor(x[a:b], T[r], density)
-    return HandData(rests, T, rate, force, slices, used, turn, noise)
+    # Readings written coarser than their noise (:mod:`calib.hand.rounding`): an accelerometer's
+    # rounding differs from pose to pose, a floor on each rest's mean; a gyro's is the same at
+    # every rest (bias and Earth rate within a step), considered in the covariance instead.
+    f, w = dv / dt[:, None], dtheta / dt[:, None]
+    steps = np.array([[reading_step(x[:, i]) for i in range(3)] for x in (f, w)])
+    floor = rest_floors(f, rests.start, rests.end, steps[0]) if steps[0].any() else np.zeros(len(T))
+    noise[:, 0] = np.sqrt(noise[:, 0] ** 2 + floor**2 * T / profile.vrw**2)
+    shared = (
+        rest_rate_rounding(w, rests.start, rests.end, steps[1]) if steps[1].any() else np.zeros((len(T), 3))
+    )
+    return HandData(rests, T, rate, force, slices, used, turn, noise, steps, shared)
 
 
 POSE_APART_DEG = 10.0  # gravity directions this far apart are another pose to a user

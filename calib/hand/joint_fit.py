@@ -51,6 +51,7 @@ from .chain import chained_start, compensated
 from .data import POSE_APART_DEG, HandData, distinct_poses, hand_data
 from .fit_options import HAND_FIT, HandFitOptions, HandSamples
 from .moves import move_rotation, move_sensitivity, right_jacobian_inverse
+from .rounding import consider_rounding
 from .weak import split_weak
 from .weights import Weights, component_sizes, components, profile_outliers, redundancy, refuted, reweighted
 
@@ -405,7 +406,8 @@ def _fit(
     move_chi2 = np.bincount(index[kind == "move"], z2[kind == "move"], minlength=data.count - 1).astype(float)
     move_chi2[~data.move_used] = np.nan
     force_rows = np.flatnonzero(kind == "force")
-    covariance = scale[:, None] * inv.covariance * scale[None, :]
+    inv_cov = consider_rounding(inv.covariance, Jw, s, labels, data.rest_rate_rounding)
+    covariance = scale[:, None] * inv_cov * scale[None, :]
     values, covariance = at_last_rest(state, covariance, layout, data, samples.dt)
     return HandFit(
         values=values,

@@ -20,6 +20,7 @@ from calib.hand.fit_options import HandFitOptions, HandSamples
 from calib.hand.joint_fit import FitState, Layout, fit_by_hand, hand_data, linearise
 from calib.hand.moves import move_rotation, move_sensitivity
 from calib.hand.rests import find_rests
+from calib.hand.rounding import reading_step, rounding_floor
 from calib.model import params as P
 from calib.model.error_model import ErrorModel
 from calib.model.requirements import load_requirements
@@ -278,3 +279,54 @@ def test_poses_that_never_tip_x_are_refused_naming_parameters_not_states():
     combinations = said.split("unobserved combinations: ")[1]
     assert "sax" in combinations and "sgy" in combinations and "sgz" in combinations, said
     assert "rest" not in combinations and "earth_rate" not in combinations, said
+
+
+def test_reading_steps_are_found_on_any_grid_and_not_in_floats():
+    rng = np.random.default_rng(8)
+    whole_dps = np.radians(rng.integers(-300, 300, 5000).astype(float))  # a gyro printed in whole deg/s
+    assert reading_step(whole_dps) == pytest.approx(math.radians(1.0), rel=1e-9)
+    counts = (rng.integers(0, 65536, 5000) - 32768.4) * 0.061e-3 * 9.80665  # counts less a zero, scaled
+    assert reading_step(counts) == pytest.approx(0.061e-3 * 9.80665, rel=1e-9)
+    assert reading_step(rng.normal(size=5000)) == 0.0  # full floats: no grid
+
+
+def test_a_rest_mean_s_rounding_error_is_bounded_by_the_floor():
+    # The RMS over true values spread across a step (2000 of them) of a rest mean's rounding
+    # error. No noise: uniform over a step, q / sqrt(12), which the floor is (to 3 %: the
+    # sampling error of 2000 values). Some noise (0.3 step): the floor, taken at the noise's
+    # lower bound from the rounded scatter, is no smaller at any true value. A step of noise
+    # dithers it: the floor is below a fiftieth of the rest's own white noise (1 / sqrt(400)),
+    # 0.02 % of it in quadrature.
+    q = 1.0
+    rng = np.random.default_rng(9)
+    x = rng.uniform(0.0, q, 2000)
+    assert np.sqrt(np.mean((np.round(x) - x) ** 2)) == pytest.approx(
+        rounding_floor(np.zeros(400), q), rel=0.03
+    )
+    noisy = [np.round(v + 0.3 * rng.normal(size=400)) for v in x]
+    rms = np.sqrt(np.mean([(r.mean() - v) ** 2 for r, v in zip(noisy, x, strict=True)]))
+    assert min(rounding_floor(r, q) for r in noisy[:200]) >= rms
+    assert rounding_floor(np.round(0.3 + rng.normal(size=400)), q) < 0.02 * (q / np.sqrt(400))
+
+
+def test_a_gyro_printed_coarser_than_its_noise_reports_a_bias_sigma_its_rests_can_back():
+    # A quiet gyro (a tenth of the profile's noise) printed in whole deg/s: at every rest it
+    # reads its bias and the Earth's rate rounded, the same value, whatever the bias within half
+    # a step. The fit's bias sigmas must cover their errors (within 3 sigma), where the rests'
+    # 400 samples alone would claim a few deg/h, and need not exceed the rounding's own bound.
+    rng = np.random.default_rng(12)
+    values = np.zeros(P.N_PARAMS)
+    values[P.GYRO_BIAS] = np.radians([0.31, -0.22, 0.12])  # deg/s, within half a step
+    _, dtheta, dv, dt, _ = synthetic_hand_run(rng, ErrorModel(values), n_poses=14)
+    quiet = NoiseProfile("quiet", 0.26, 46.0)  # a tenth of PROFILE's ARW and VRW
+    dtheta = dtheta + quiet.arw * np.sqrt(dt)[:, None] * rng.normal(size=dtheta.shape)
+    dv = dv + quiet.vrw * np.sqrt(dt)[:, None] * rng.normal(size=dv.shape)
+    step = math.radians(1.0)
+    dtheta = np.round(dtheta / dt[:, None] / step) * step * dt[:, None]
+    options = HandFitOptions(requirements=MEMS_REQUIREMENTS)
+    fit = fit_by_hand(HandSamples(dtheta, dv, dt), Site(LAT, G), PROFILE, options, where="rounded")
+    assert fit.data.reading_steps[1] == pytest.approx([step] * 3, rel=1e-9)
+    sigma = np.sqrt(np.diag(fit.covariance))[P.GYRO_BIAS]
+    error = fit.values[P.GYRO_BIAS] - values[P.GYRO_BIAS]
+    assert np.all(np.abs(error) < 3.0 * sigma)
+    assert np.all(sigma < 1.1 * step / math.sqrt(12.0))
