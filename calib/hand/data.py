@@ -14,9 +14,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib.noise.profiles import NoiseProfile
+from calib.runlog.coarse import reading_step
 
 from .rests import Rests, find_rests
-from .rounding import reading_step, rest_floors, rest_rate_rounding
+from .rounding import rest_floors, rest_rate_rounding
 
 
 @dataclass(frozen=True)

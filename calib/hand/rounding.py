@@ -27,36 +27,9 @@ import math
 
 import numpy as np
 
-STEP_TOLERANCE = 1e-6  # steps: how far a gap may sit off a whole number of steps (float conversion)
-MIN_VALUES = 2  # a channel needs this many distinct values for a step to mean anything
 HARMONICS = 200  # of the rounding's sawtooth: at no noise their powers sum to q^2 / 12 within 0.3 %
 DITHERED = 0.6  # steps of rounded scatter from which the noise is known to dither the rounding
 SAID_FLOOR = 0.01  # of a step: a rounding error on a rest's mean below this goes unsaid
-SAME_VALUE = 1e-9  # of the largest reading: values closer than this are one value written twice
-
-
-def reading_step(x: np.ndarray) -> float:
-    """The step a channel's readings ``(n,)`` are written in, 0 where they keep no grid.
-
-    The smallest gap between its distinct values, kept where every gap is a whole number
-    of it (a grid with any offset: counts less a zero, times a scale).
-    """
-    values = np.unique(np.asarray(x, dtype=float))
-    if len(values) < MIN_VALUES:
-        return 0.0
-    gaps = np.diff(values)
-    # One written value may come back as several a few ulps apart (units converted, a rate
-    # taken from an increment over its interval): gaps that small are no gaps.
-    gaps = gaps[gaps > SAME_VALUE * float(np.max(np.abs(values)))]
-    if not gaps.size:
-        return 0.0
-    q = float(gaps.min())
-    if not q > 0.0:
-        return 0.0
-    ratio = gaps / q
-    if np.max(np.abs(ratio - np.rint(ratio))) > STEP_TOLERANCE:
-        return 0.0
-    return q
 
 
 def rounding_floor(samples: np.ndarray, q: float) -> float:

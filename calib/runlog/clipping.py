@@ -12,7 +12,9 @@ are wrong by an unknown amount. Three signs, each per axis:
   turns that fast; a hand does); from ``LOW_RANGE_RAD_S`` up (a gyro of range 125 or
   250 deg/s clips a hand's turn), only when steep ramps enter and leave it
   (:func:`steep_sided`): a saturated converter repeats its last count exactly, while a
-  smooth or constant-rate top in noise does not, or not with a ramp beside it;
+  smooth or constant-rate top in noise does not, or not with a ramp beside it; readings
+  printed in coarse steps (:data:`COARSE_STEP`) repeat a smooth top by their rounding, so
+  there too only with steep sides, judged a step deep;
 - **a plateau**: ``PLATEAU_RUN`` or more consecutive gyro samples within
   ``PLATEAU_BAND`` of that largest magnitude (a sensor saturating before its
   converter does, with its noise on top), under the same condition, entered
@@ -31,6 +33,7 @@ import numpy as np
 
 from calib.sequence.motion import runs_of
 
+from .coarse import reading_step
 from .columns import QUANTITIES, SensorColumns
 from .conversion import Conversion
 
@@ -39,6 +42,10 @@ FLAT_TOP_RUN = 2  # consecutive samples exactly at the largest magnitude
 # The smallest full scale of MEMS gyros is 125 deg/s (2.18 rad/s); a hand turning 90 deg in a
 # second peaks at about 140 deg/s, a gimbal's flip at 10 deg/s (spec default).
 LOW_RANGE_RAD_S = 1.5
+# Readings printed in steps this coarse against the top (a gyro in whole deg/s at 361 deg/s: 0.0028)
+# repeat at a smooth peak by their rounding: a flat top there is clipping only with steep sides
+# too, judged a step deep. A 16-bit converter's count is 3e-5 of its range.
+COARSE_STEP = 1e-3
 PLATEAU_BAND = 0.01  # relative to the largest magnitude
 PLATEAU_RUN = 5  # consecutive samples within the band
 # A smooth peak's slope beside its band, times the band's half-width, is about 3 band depths
@@ -103,19 +110,21 @@ def flat_top(
     """
     mask = np.zeros(rate.shape, dtype=bool)
     for axis in range(rate.shape[1]):
+        step = reading_step(rate[:, axis]) if len(rate) else 0.0
         for sign in (1.0, -1.0):  # each end of the range on its own: they need not be symmetric
             size = sign * rate[:, axis]
             peak = float(size.max()) if len(size) else 0.0
             if not peak >= min(threshold, low_range):
                 continue
-            fast = peak >= threshold
+            fast = peak >= threshold and step < COARSE_STEP * peak
+            depth = max(PLATEAU_BAND * peak, step)
             for a, b in zip(*runs_of(size == peak), strict=True):
-                if b - a >= FLAT_TOP_RUN and (fast or steep_sided(size, a, b, PLATEAU_BAND * peak)):
+                if b - a >= FLAT_TOP_RUN and (fast or steep_sided(size, a, b, depth)):
                     mask[a:b, axis] = True
-            if not fast:
+            if peak < threshold:
                 continue
             for a, b in zip(*runs_of(size >= (1.0 - PLATEAU_BAND) * peak), strict=True):
-                if b - a >= PLATEAU_RUN and steep_sided(size, a, b, PLATEAU_BAND * peak):
+                if b - a >= PLATEAU_RUN and steep_sided(size, a, b, depth):
                     mask[a:b, axis] = True
     return mask
 

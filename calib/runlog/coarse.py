@@ -1,4 +1,5 @@
-"""Time stamps written coarser than the samples come: a 200 Hz IMU stamped to 10 ms.
+"""Values written coarser than they vary: time stamps coarser than the samples come (a 200 Hz
+IMU stamped to 10 ms), and readings printed in steps (a gyro in whole deg/s, `reading_step`).
 
 Such stamps put half the samples at the time of the one before: zero steps on many
 rows, and steps of two periods between. Each is no repeated sample and no lost one:
@@ -19,6 +20,9 @@ import numpy as np
 COARSE_SHARE = 0.1
 # Repeated rows as many as chance gives this often or more are samples.
 CHANCE_P = 1e-3
+STEP_TOLERANCE = 1e-6  # steps: how far a gap may sit off a whole number of steps (float conversion)
+MIN_VALUES = 2  # a channel needs this many distinct values for a step to mean anything
+SAME_VALUE = 1e-9  # of the largest reading: values closer than this are one value written twice
 
 
 def coarse_stamps(step: np.ndarray) -> bool:
@@ -63,3 +67,27 @@ def _poisson_tail(k: int, mean: float) -> float:
         below += term
         term *= mean / (j + 1)
     return max(0.0, 1.0 - below)
+
+
+def reading_step(x: np.ndarray) -> float:
+    """The step a channel's readings ``(n,)`` are written in, 0 where they keep no grid.
+
+    The smallest gap between its distinct values, kept where every gap is a whole number
+    of it (a grid with any offset: counts less a zero, times a scale).
+    """
+    values = np.unique(np.asarray(x, dtype=float))
+    if len(values) < MIN_VALUES:
+        return 0.0
+    gaps = np.diff(values)
+    # One written value may come back as several a few ulps apart (units converted, a rate
+    # taken from an increment over its interval): gaps that small are no gaps.
+    gaps = gaps[gaps > SAME_VALUE * float(np.max(np.abs(values)))]
+    if not gaps.size:
+        return 0.0
+    q = float(gaps.min())
+    if not q > 0.0:
+        return 0.0
+    ratio = gaps / q
+    if np.max(np.abs(ratio - np.rint(ratio))) > STEP_TOLERANCE:
+        return 0.0
+    return q

@@ -405,6 +405,24 @@ def test_clipping_counts_at_the_converter_limit_and_flat_tops():
     ]
 
 
+def test_a_smooth_peak_printed_in_whole_deg_per_s_is_no_flat_top_and_a_saturated_one_is():
+    # A hand's 361 deg/s turn (a half sine over T = 0.5 s, 200 Hz) printed in whole deg/s stays
+    # within a step of its top for 2 sqrt(q / k) = 24 ms (k = P pi^2 / (2 T^2), its curvature
+    # there), so its rounding repeats the peak over 3-5 samples, as a real gesture-calibration
+    # log does (360, 361, 361, 361, 361, 359): not the converter, whose neighbours would climb.
+    # The same turn saturating at 300 deg/s repeats 300 while the ramps beside it climb by
+    # 4-5 deg/s a sample: clipped (with the ramp's samples within 1 % of the top, the plateau's).
+    t = np.arange(0.0, 1.5, 1.0 / 200.0)
+    turn = np.where((t > 0.5) & (t < 1.0), np.sin(np.pi * (t - 0.5) / 0.5), 0.0)
+    dps = np.zeros((t.size, 3))
+    dps[:, 0] = np.round(361.4 * turn)
+    assert (dps[:, 0] == 361).sum() >= 3  # the rounding repeats the top
+    assert not flat_top(np.radians(dps)).any()
+    dps[:, 0] = np.round(np.minimum(361.4 * turn, 300.0))
+    mask = flat_top(np.radians(dps))
+    assert np.all(mask[dps[:, 0] == 300, 0]) and np.all(dps[mask[:, 0], 0] >= 297) and not mask[:, 1:].any()
+
+
 @pytest.mark.parametrize("rate_hz", [100.0, 400.0, 1000.0])
 def test_a_smooth_fast_turn_is_no_plateau_and_the_same_turn_saturated_is_one(rate_hz):
     # A hand's 600 deg/s turn lasting 0.6 s (rate a half sine) on a unit with 0.2 deg/s of

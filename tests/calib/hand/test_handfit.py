@@ -20,7 +20,7 @@ from calib.hand.fit_options import HandFitOptions, HandSamples
 from calib.hand.joint_fit import FitState, Layout, fit_by_hand, hand_data, linearise
 from calib.hand.moves import move_rotation, move_sensitivity
 from calib.hand.rests import find_rests
-from calib.hand.rounding import reading_step, rounding_floor
+from calib.hand.rounding import rounding_floor
 from calib.model import params as P
 from calib.model.error_model import ErrorModel
 from calib.model.requirements import load_requirements
@@ -28,6 +28,7 @@ from calib.nav import earth
 from calib.nav.site import Site
 from calib.nav.transform import dcm_to_rotvec, rotvec_to_dcm
 from calib.noise.profiles import NoiseProfile
+from calib.runlog.coarse import reading_step
 
 LAT = math.radians(45.0)
 G = 9.80
