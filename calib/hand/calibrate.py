@@ -308,6 +308,7 @@ def summary_of(hand: HandFit, run: Run, choices: tuple = (), notes: tuple = ()) 
     rests = hand.data.rests
     rest_s = np.column_stack([t[rests.start], t[rests.end]])
     move_s = np.column_stack([t[rests.end[:-1]], t[rests.start[1:]]])
+    rounded = rounding_lines(hand.data.reading_steps, hand.data.rest_rate_rounding)
     drift = []
     if hand.bias_drift is not None:  # the biases are then a time's: said, with the drift
         per_min = ", ".join(f"{d / BIAS_DRIFT_SI_PER_UNIT:+.0f}" for d in hand.bias_drift)
@@ -326,12 +327,13 @@ def summary_of(hand: HandFit, run: Run, choices: tuple = (), notes: tuple = ()) 
         chi2_per_dof=hand.chi2_per_dof,
         notes=(
             *notes,
-            *rounding_lines(hand.data.reading_steps, hand.data.rest_rate_rounding),
+            *rounded,
             *(c.line() for c in choices),
             *drift,
             *hand.weights.lines(hand.weight_sizes),
             *hand.loose_rests,
         ),
         choices={"weights": hand.weights.to_json(hand.weight_sizes), "loose_rests": list(hand.loose_rests)}
-        | ({"model": [c.to_json() for c in choices]} if choices else {}),
+        | ({"model": [c.to_json() for c in choices]} if choices else {})
+        | ({"rounding": rounded} if rounded else {}),
     )

@@ -10,10 +10,12 @@ increments and the specific force during a move set by a carried translation.
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
 import pytest
+from click.testing import CliRunner
 
 from calib.errors import CalibError
 from calib.hand.fit_options import HandFitOptions, HandSamples
@@ -29,6 +31,7 @@ from calib.nav.site import Site
 from calib.nav.transform import dcm_to_rotvec, rotvec_to_dcm
 from calib.noise.profiles import NoiseProfile
 from calib.runlog.coarse import reading_step
+from seqdesign.cli import main
 
 LAT = math.radians(45.0)
 G = 9.80
@@ -310,7 +313,7 @@ def test_a_rest_mean_s_rounding_error_is_bounded_by_the_floor():
     assert rounding_floor(np.round(0.3 + rng.normal(size=400)), q) < 0.02 * (q / np.sqrt(400))
 
 
-def test_a_gyro_printed_coarser_than_its_noise_reports_a_bias_sigma_its_rests_can_back():
+def test_a_gyro_printed_coarser_than_its_noise_reports_a_bias_sigma_its_rests_can_back(tmp_path):
     # A quiet gyro (a tenth of the profile's noise) printed in whole deg/s: at every rest it
     # reads its bias and the Earth's rate rounded, the same value, whatever the bias within half
     # a step. The fit's bias sigmas must cover their errors (within 3 sigma), where the rests'
@@ -331,3 +334,19 @@ def test_a_gyro_printed_coarser_than_its_noise_reports_a_bias_sigma_its_rests_ca
     error = fit.values[P.GYRO_BIAS] - values[P.GYRO_BIAS]
     assert np.all(np.abs(error) < 3.0 * sigma)
     assert np.all(sigma < 1.1 * step / math.sqrt(12.0))
+    # Through the CLI, as its logger wrote it (whole deg/s), the same is said in --json.
+    log = tmp_path / "rounded.csv"
+    rows = np.column_stack([np.cumsum(dt), np.degrees(dtheta / dt[:, None]), dv / dt[:, None]])
+    np.savetxt(log, rows, delimiter=",", fmt=["%.2f", "%.0f", "%.0f", "%.0f", "%.6f", "%.6f", "%.6f"],
+               header="t,gx,gy,gz,ax,ay,az", comments="")  # fmt: skip
+    columns = (
+        "t=time_s,gx=gyro_x_dps,gy=gyro_y_dps,gz=gyro_z_dps,ax=accel_x_mps2,ay=accel_y_mps2,az=accel_z_mps2"
+    )
+    done = CliRunner().invoke(
+        main,
+        ["calibrate", str(log), "--by-hand", "--profile", "mems", "--latitude", "45", "--height", "0",
+         "--columns", columns, "-o", str(tmp_path / "r.toml"), "--json"],
+    )  # fmt: skip
+    assert done.exit_code == 0, done.output
+    said = json.loads(done.stdout)["by_hand"]["rounding"]
+    assert len(said) == 1 and "steps of 1, 1, 1 deg/s" in said[0]
