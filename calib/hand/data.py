@@ -17,7 +17,7 @@ from calib.noise.profiles import NoiseProfile
 from calib.runlog.coarse import reading_step
 
 from .rests import Rests, find_rests
-from .rounding import rest_floors, rest_rate_rounding
+from .rounding import rest_rounding
 
 
 @dataclass(frozen=True)
@@ -102,11 +102,9 @@ def hand_data(
     # every rest (bias and Earth rate within a step), considered in the covariance instead.
     f, w = dv / dt[:, None], dtheta / dt[:, None]
     steps = np.array([[reading_step(x[:, i]) for i in range(3)] for x in (f, w)])
-    floor = rest_floors(f, rests.start, rests.end, steps[0]) if steps[0].any() else np.zeros(len(T))
+    floor = rest_rounding(f, rests.start, rests.end, steps[0]).max(axis=1, initial=0.0)
     noise[:, 0] = np.sqrt(noise[:, 0] ** 2 + floor**2 * T / profile.vrw**2)
-    shared = (
-        rest_rate_rounding(w, rests.start, rests.end, steps[1]) if steps[1].any() else np.zeros((len(T), 3))
-    )
+    shared = rest_rounding(w, rests.start, rests.end, steps[1])
     return HandData(rests, T, rate, force, slices, used, turn, noise, steps, shared)
 
 

@@ -46,24 +46,16 @@ def rounding_floor(samples: np.ndarray, q: float) -> float:
     return float(math.sqrt(power.sum()))
 
 
-def rest_floors(rate: np.ndarray, starts: np.ndarray, ends: np.ndarray, steps: np.ndarray) -> np.ndarray:
-    """Each rest's largest rounding floor over the three axes, ``(K,)``, in the readings' unit.
-
-    ``rate`` ``(n, 3)`` the readings, ``steps`` ``(3,)`` each axis' step (0: none).
-    """
-    out = np.zeros(len(starts))
-    for r, (a, b) in enumerate(zip(starts, ends, strict=True)):
-        out[r] = max(rounding_floor(rate[a:b, i], steps[i]) for i in range(3))
-    return out
-
-
-def rest_rate_rounding(
-    rate: np.ndarray, starts: np.ndarray, ends: np.ndarray, steps: np.ndarray
+def rest_rounding(
+    readings: np.ndarray, starts: np.ndarray, ends: np.ndarray, steps: np.ndarray
 ) -> np.ndarray:
-    """Each rest's rounding error on each gyro axis' mean rate, ``(K, 3)`` rad/s (0: dithered)."""
+    """Each rest's rounding error on each axis' mean, ``(K, 3)``, in the readings' unit (0: dithered).
+
+    ``readings`` ``(n, 3)``, ``steps`` ``(3,)`` each axis' step (0: none).
+    """
     out = np.zeros((len(starts), 3))
     for r, (a, b) in enumerate(zip(starts, ends, strict=True)):
-        out[r] = [rounding_floor(rate[a:b, i], steps[i]) for i in range(3)]
+        out[r] = [rounding_floor(readings[a:b, i], steps[i]) for i in range(3)]
     return out
 
 
