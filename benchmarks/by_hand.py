@@ -43,6 +43,10 @@ XSENS_ZERO_A = np.array([33123.0, 33276.0, 32360.0])
 XSENS_K_A = np.array([415.0, 413.0, 415.0])  # counts per m/s^2
 XSENS_GRAVITY, XSENS_LATITUDE = 9.81744, 45.4  # the authors' gravity; Padova
 FERRARIS_RATE_HZ, FERRARIS_GRAVITY, FERRARIS_LATITUDE = 102.4, 9.81, 49.6  # imucal's g; Erlangen
+# The held-out poses are scored where held long enough that a pose's own noise does not rule the
+# score, and the same poses whatever the shortest rest the fit takes: scores compare across changes
+# of the rest finder (the fit itself keeps rests from 0.15 s, calib.hand.rests.MIN_REST_S).
+SCORED_REST_S = 0.5
 CLIP_FRACTION = 0.95  # of the range: a sample beyond is taken as clipped
 BMI160_RANGE_DEG_S = 2000.0
 DEG_PER_RAD_H = 180.0 / math.pi * 3600.0
@@ -159,11 +163,12 @@ def ours(rec: Recording, partial: bool = False) -> tuple[Correction, object]:
 
 
 def rests_of(rec: Recording):
-    """The rests every tool is scored on: found on the whole log with the mems profile."""
+    """The rests every tool is scored on: found on the whole log with the mems profile, each at
+    least :data:`SCORED_REST_S` long."""
     p = load_profile("mems")
-    return find_rests(
-        rec.run.dtheta_rad, rec.run.dv_mps, sample_intervals(rec.run.time_s), p.arw, p.vrw, rec.name
-    )
+    run = rec.run
+    dt = sample_intervals(run.time_s)
+    return find_rests(run.dtheta_rad, run.dv_mps, dt, p.arw, p.vrw, rec.name, min_rest_s=SCORED_REST_S)
 
 
 def scored(c: Correction, rec: Recording, start, end) -> HandScore:

@@ -31,6 +31,7 @@ from calib.runlog.clipping import describe_clipping
 
 from .fit_options import HandFitOptions, HandSamples
 from .joint_fit import N_DRIFT, N_GS, HandFit, fit_by_hand
+from .rests import brief_pose_lines
 from .rounding import rounding_lines
 from .setup import check_setup, fixed, rate_mistake
 from .summary import HandSummary
@@ -309,6 +310,8 @@ def summary_of(hand: HandFit, run: Run, choices: tuple = (), notes: tuple = ()) 
     rest_s = np.column_stack([t[rests.start], t[rests.end]])
     move_s = np.column_stack([t[rests.end[:-1]], t[rests.start[1:]]])
     rounded = rounding_lines(hand.data.reading_steps, hand.data.rest_rate_rounding)
+    brief = brief_pose_lines(rests, t[:-1])
+    brief_s = np.column_stack([t[rests.brief_start], t[rests.brief_end]]).tolist()
     drift = []
     if hand.bias_drift is not None:  # the biases are then a time's: said, with the drift
         per_min = ", ".join(f"{d / BIAS_DRIFT_SI_PER_UNIT:+.0f}" for d in hand.bias_drift)
@@ -332,8 +335,10 @@ def summary_of(hand: HandFit, run: Run, choices: tuple = (), notes: tuple = ()) 
             *drift,
             *hand.weights.lines(hand.weight_sizes),
             *hand.loose_rests,
+            *brief,
         ),
         choices={"weights": hand.weights.to_json(hand.weight_sizes), "loose_rests": list(hand.loose_rests)}
         | ({"model": [c.to_json() for c in choices]} if choices else {})
-        | ({"rounding": rounded} if rounded else {}),
+        | ({"rounding": rounded} if rounded else {})
+        | ({"brief_poses_s": brief_s} if brief else {}),
     )

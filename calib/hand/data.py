@@ -16,7 +16,7 @@ import numpy as np
 from calib.noise.profiles import NoiseProfile
 from calib.runlog.coarse import reading_step
 
-from .rests import Rests, find_rests
+from .rests import POSE_APART_DEG, Rests, find_rests
 from .rounding import rest_rounding
 
 
@@ -108,7 +108,6 @@ def hand_data(
     return HandData(rests, T, rate, force, slices, used, turn, noise, steps, shared)
 
 
-POSE_APART_DEG = 10.0  # gravity directions this far apart are another pose to a user
 
 
 def distinct_poses(rest_force: np.ndarray, apart_deg: float = POSE_APART_DEG) -> int:

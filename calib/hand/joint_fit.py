@@ -51,6 +51,7 @@ from .chain import chained_start, compensated
 from .data import POSE_APART_DEG, HandData, distinct_poses, hand_data
 from .fit_options import HAND_FIT, HandFitOptions, HandSamples
 from .moves import move_rotation, move_sensitivity, right_jacobian_inverse
+from .rests import brief_pose_lines
 from .rounding import consider_rounding
 from .weak import split_weak
 from .weights import Weights, component_sizes, components, profile_outliers, redundancy, refuted, reweighted
@@ -396,7 +397,10 @@ def _fit(
             + "; unobserved combinations: "
             + "; ".join(unobserved),
             where,
-            "add poses that excite them (other faces up, turns about other axes), or --partial",
+            # Brief poses may hold the faces missing: then they are to be held longer, not added.
+            brief_pose_lines(data.rests, np.concatenate([[0.0], np.cumsum(samples.dt)]))[0]
+            if len(data.rests.brief_start)
+            else "add poses that excite them (other faces up, turns about other axes), or --partial",
         )
     z2 = (e / s) ** 2
     kind = np.array([g[0] for g in labels])

@@ -14,9 +14,12 @@ A sample is still when, over a short window about it, both
   five times the noise of their difference: a carried unit's acceleration may
   rise too smoothly for the spread within one window to show it.
 
-Still stretches shorter than :data:`MIN_REST_S` (a pause mid-move) are part of
-the move; a bump while placing splits a rest into two, the shorter of which
-drops out when too short, and the rest of the pose is kept. Each rest is
+Still stretches shorter than :data:`MIN_REST_S` are part of the move; a bump
+while placing splits a rest into two, the shorter of which drops out when too
+short, and the rest of the pose is kept. A pose quiet for a window or more that
+gives no rest is a brief pose: not used, but said (:func:`brief_pose_lines`),
+so that a log whose poses were held too briefly is not told to add faces it
+holds. Each rest is
 trimmed so that its samples are still ones: by the window either side beyond
 where the rate or the spread sees motion (their windows are centred), and by
 :data:`MARGIN_S` beyond where the means before and after disagree (their
@@ -26,7 +29,7 @@ windows already reach a window and a half from the sample).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -34,12 +37,23 @@ from calib.errors import CalibError
 from calib.sequence.motion import MOTION_THRESHOLD, grow, runs_of, steady_rate
 
 WINDOW_S = 0.25  # long enough to average a MEMS gyro's noise, short against a 3 s pose
-MIN_REST_S = 0.5  # a shorter still stretch is a pause within a move
+# The finder keeps REACH_S (0.43 s) clear of each move, so a pose held 1 s, the shortest static
+# interval imu_tk's detector takes (100 samples at 100 Hz), leaves 0.15 s of still samples. Kept
+# as a rest: the verdict is already sure they are still, and a brief pose is often the one face a
+# quick hand turned up (BENCHMARKS.md: out of sample, the same or better on every log tried).
+MIN_REST_S = 0.15
+FULL_REST_S = 0.5  # a rest this long is kept wherever it lies; a shorter one at an attitude of its own
 ACCEL_FLOOR = 0.02  # m/s^2: a hand's tremor is several times this, a table's vibration far less
 DRIFT_FLOOR = 0.002  # m/s^2: a change of the mean a still unit on a table does not show
 FASTEST_HAND_RATE_HZ = 5000.0  # an IMU's output rate above which a time column's unit is in doubt
+SHOWN_BRIEF = 6  # brief poses named by their times; the rest counted
 MIN_STILL_ROWS = 20  # a still stretch this many samples long is a pose, not a pause within a move
+POSE_APART_DEG = 10.0  # gravity directions this far apart are another pose to a user
 MARGIN_S = 0.05  # trimmed from each end of a rest beyond the window: the placing's last settling
+# How far each verdict keeps a rest from a move it sees (see still_samples): half a window,
+# a window, and the margin; a pose gives a rest when held this twice over and MIN_REST_S more.
+REACH_S = 1.5 * WINDOW_S + MARGIN_S
+SHORTEST_POSE_S = MIN_REST_S + 2.0 * REACH_S
 
 
 @dataclass(frozen=True)
@@ -54,6 +68,9 @@ class Rests:
         The per-sample verdict before stretches were kept or dropped.
     gyro_threshold_rad_s, accel_threshold_mps2 : float
         The thresholds the verdict used (what a user tunes the profile against).
+    brief_start, brief_end : ndarray of int
+        Poses too brief for a rest: stretches whose windows see no motion for a window or more
+        (a pose held about half a second or more), holding no rest.
     """
 
     start: np.ndarray
@@ -61,6 +78,8 @@ class Rests:
     still: np.ndarray
     gyro_threshold_rad_s: float
     accel_threshold_mps2: float
+    brief_start: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    brief_end: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
 
     @property
     def count(self) -> int:
@@ -85,6 +104,16 @@ def still_samples(
     ``loosen`` multiplies every threshold (a pose held in the hand trembles beyond the
     profile's noise; :func:`calib.hand.calibrate.hand_fit_of` chooses it by the fit).
     """
+    still, _, gyro_threshold, accel_threshold = _verdicts(dtheta, dv, dt, arw, vrw, loosen)
+    return still, gyro_threshold, accel_threshold
+
+
+def _verdicts(
+    dtheta: np.ndarray, dv: np.ndarray, dt: np.ndarray, arw: float, vrw: float, loosen: float
+) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """The still verdict (see :func:`still_samples`), the quiet one its windows give before it is
+    widened clear of the moves, and the gyro and accelerometer thresholds.
+    """
     period = float(np.median(dt))
     window = max(3, int(round(WINDOW_S / period)))
     rate = dtheta / dt[:, None] - steady_rate(dtheta, dt)
@@ -94,6 +123,7 @@ def still_samples(
     mean = moving_mean(force, window)
     spread = np.sqrt(np.maximum(moving_mean(force**2, window) - mean**2, 0.0))
     accel_threshold = loosen * max(ACCEL_FLOOR, 4.0 * vrw / math.sqrt(period))
+    thresholds = (gyro_threshold, accel_threshold)
     # A carried unit's acceleration can rise too smoothly for the spread within a window to
     # show it: the windows either side (not overlapping) then disagree on the mean.
     # (The windows centred a window either side of each sample: a change of the mean within
@@ -105,11 +135,14 @@ def still_samples(
     # Each verdict is widened until a motion it sees surely lies outside the rest: a centred
     # window's (rate, spread) by a window, the drift's by nothing more, its windows already
     # reaching a window and a half either side. A window more there trimmed 0.25 s more from
-    # each end: a pose had to be held 1.85 s to give a 0.5 s rest, now 1.35 s (imu_tk's, at
-    # 150 Hz), and the brief poses of a quick hand were lost.
+    # each end, and the brief poses of a quick hand were lost.
     margin = int(round(MARGIN_S / period))
     moving = grow(gyro_moving | accel_moving, window + margin) | grow(drift > drift_threshold, margin)
-    return ~moving, gyro_threshold, accel_threshold
+    quiet = ~(gyro_moving | accel_moving)
+    q_start, q_end = runs_of(quiet)
+    for a, b in zip(q_start, q_end, strict=True):
+        quiet[a:b] = b - a >= window  # shorter: a hand slowing within a move
+    return ~moving, quiet, *thresholds
 
 
 def find_rests(
@@ -120,6 +153,7 @@ def find_rests(
     vrw: float,
     where: str = "run",
     loosen: float = 1.0,
+    min_rest_s: float = MIN_REST_S,
 ) -> Rests:
     """The rests of a run placed by hand (see the module's rule).
 
@@ -135,26 +169,73 @@ def find_rests(
         The run's name, for the refusal.
     loosen : float
         Multiplies every threshold (poses held in the hand).
+    min_rest_s : float
+        The shortest still stretch kept as a rest.
 
     Returns
     -------
     Rests
     """
-    still, g_thr, a_thr = still_samples(dtheta, dv, dt, arw, vrw, loosen)
+    still, quiet, g_thr, a_thr = _verdicts(dtheta, dv, dt, arw, vrw, loosen)
     start, end = runs_of(still)
     elapsed = np.concatenate([[0.0], np.cumsum(dt)])
     lengths = elapsed[end] - elapsed[start]
-    keep = lengths >= MIN_REST_S
+    force = dv / dt[:, None]
+    full = lengths >= max(FULL_REST_S, min_rest_s)
+    keep = full | (lengths >= min_rest_s) & np.array(
+        [_own_attitude(force, a, b, start[full], end[full]) for a, b in zip(start, end, strict=True)], bool
+    )
+    brief_start, brief_end = _brief_poses(quiet, force, start[keep], end[keep])
     if keep.sum() < 2:
         raise CalibError(
-            f"found {int(keep.sum())} rest(s) of at least {MIN_REST_S:g} s: a run placed by hand needs "
-            "the unit still in several poses" + _time_said(lengths, end - start, elapsed),
+            f"found {int(keep.sum())} rest(s) of at least {min_rest_s:g} s: a run placed by hand needs "
+            "the unit still in several poses"
+            + _time_said(lengths, end - start, elapsed)
+            + (f"; {len(brief_start)} pose(s) held too briefly for a rest" if len(brief_start) else ""),
             where,
-            f"hold each pose still for a few seconds; if the unit was still, the profile's noise "
-            f"(gyro threshold {math.degrees(g_thr):.3g} deg/s, accelerometer spread "
-            f"{a_thr:.3g} m/s^2) is below the log's: give the unit's own profile",
+            f"hold each pose still for {SHORTEST_POSE_S:.1f} s or more (a few seconds is better); if the "
+            f"unit was still, the profile's noise (gyro threshold {math.degrees(g_thr):.3g} deg/s, "
+            f"accelerometer spread {a_thr:.3g} m/s^2) is below the log's: give the unit's own profile",
         )
-    return Rests(start[keep], end[keep], still, g_thr, a_thr)
+    return Rests(start[keep], end[keep], still, g_thr, a_thr, brief_start, brief_end)
+
+
+def _brief_poses(
+    quiet: np.ndarray, force: np.ndarray, start: np.ndarray, end: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The quiet stretches (a window long or more) that hold no rest and an attitude of their own:
+    poses held too briefly. (A window's worth of quiet samples is a pose held about two windows:
+    the windows are centred.)
+    """
+    q_start, q_end = runs_of(quiet)
+    in_rest = np.zeros(len(quiet), bool)
+    for a, b in zip(start, end, strict=True):
+        in_rest[a:b] = True
+    covered = np.concatenate([[0], np.cumsum(in_rest)])
+    brief = [
+        (a, b)
+        for a, b in zip(q_start, q_end, strict=True)
+        if covered[b] == covered[a] and _own_attitude(force, a, b, start, end)
+    ]
+    return np.array([a for a, _ in brief], int), np.array([b for _, b in brief], int)
+
+
+def _own_attitude(force: np.ndarray, a: int, b: int, start: np.ndarray, end: np.ndarray) -> bool:
+    """Whether samples ``a:b`` hold another gravity direction than the rests either side of them.
+
+    A brief still moment at the attitude of the pose before or after it is that pose as the unit
+    is lifted, carried or set down: it adds no direction, and may carry a little acceleration.
+    """
+    apart = math.cos(math.radians(POSE_APART_DEG))
+    here = _direction(force[a:b])
+    before, after = np.flatnonzero(end <= a), np.flatnonzero(start >= b)
+    beside = ([before[-1]] if before.size else []) + ([after[0]] if after.size else [])
+    return all(here @ _direction(force[start[r] : end[r]]) < apart for r in beside)
+
+
+def _direction(force: np.ndarray) -> np.ndarray:
+    mean = force.mean(axis=0)
+    return mean / np.linalg.norm(mean)
 
 
 def _time_said(lengths: np.ndarray, rows: np.ndarray, elapsed_s: np.ndarray) -> str:
@@ -174,3 +255,19 @@ def _time_said(lengths: np.ndarray, rows: np.ndarray, elapsed_s: np.ndarray) -> 
         f"{float(lengths[many].max()):.3g} s: if the poses were held for seconds, the time is off (check "
         "the time column's unit, or the sample rate)"
     )
+
+
+def brief_pose_lines(rests: Rests, time_s: np.ndarray) -> list[str]:
+    """What a user is told of poses held too briefly for a rest (none: nothing).
+
+    ``time_s`` is each sample's time from the log's start.
+    """
+    if len(rests.brief_start) == 0:
+        return []
+    at = ", ".join(f"{time_s[a]:.1f}" for a in rests.brief_start[:SHOWN_BRIEF])
+    more = f" and {len(rests.brief_start) - SHOWN_BRIEF} more" if len(rests.brief_start) > SHOWN_BRIEF else ""
+    return [
+        f"{len(rests.brief_start)} pose(s) held too briefly for a rest, not used (from {at} s{more}): "
+        f"a pose gives a rest when held {SHORTEST_POSE_S:.1f} s or more, the rest finder keeping "
+        f"{REACH_S:.3g} s clear of each move; hold each pose longer"
+    ]

@@ -10,6 +10,7 @@ two-sample coning correction) is good enough at the hand's rates.
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -390,3 +391,35 @@ def test_estimates_beyond_what_the_linear_model_describes_are_not_to_be_applied(
     assert abs(result.values[P.INDEX["sgz"]] + 0.10) < 1e-4
     (said,) = [w for w in result.warnings() if "beyond 5 %" in w]
     assert "sgz -10 %" in said and "mgxy" not in said and "do not apply" in said
+
+
+def test_poses_held_too_briefly_for_a_rest_are_said_with_their_times(tmp_path):
+    # Two of fourteen poses held 0.7 s, under the 1.0 s a pose needs to give a rest (the finder
+    # keeps 0.425 s clear of each move, and a rest is 0.15 s or more). They are left in the moves,
+    # and a user is told so, with their times, in the lines and in --json: not told to add faces.
+    plan = random_hand_plan(14, np.random.default_rng(3), PlanShape(peak_rate_dps=300.0))
+    rest_s = plan.rest_s.copy()
+    rest_s[[4, 9]] = 0.7
+    plan = replace(plan, rest_s=rest_s)
+    errors = draw_errors(error_half_range("mems"), np.random.default_rng(3))
+    run, _ = simulate_by_hand(plan, CONFIG, errors, MEMS, seed=3)
+    path = tmp_path / "brief.csv"
+    write_run(run, path)
+    done = CliRunner().invoke(main, ["calibrate", str(path), "--by-hand", "--profile", "mems", "--json"])
+    assert done.exit_code == 0, done.output
+    hand = json.loads(done.stdout)["by_hand"]
+    assert len(hand["rests"]) == 12
+    # Each is found about its own pose: overlapping it, and holding none of the turns either side
+    # (the unit is quiet too while lifted and set down, before and after a turn).
+    begins = np.concatenate([[0.0], np.cumsum(plan.rest_s[:-1] + plan.move_s)])
+    brief = np.array(hand["brief_poses_s"])
+    assert brief.shape == (2, 2)
+    for (a, b), k in zip(brief, [4, 9], strict=True):
+        assert a < begins[k] + 0.7 and b > begins[k]
+        assert plan.turn_start_s[k - 1] + plan.turn_s[k - 1] <= a and b <= plan.turn_start_s[k]
+    done = CliRunner().invoke(main, ["calibrate", str(path), "--by-hand", "--profile", "mems"])
+    said = [line for line in done.output.splitlines() if "held too briefly" in line]
+    assert (
+        len(said) == 1
+        and f"2 pose(s) held too briefly for a rest, not used (from {brief[0, 0]:.1f}, " in said[0]
+    )
