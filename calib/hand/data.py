@@ -108,8 +108,6 @@ def hand_data(
     return HandData(rests, T, rate, force, slices, used, turn, noise, steps, shared)
 
 
-
-
 def distinct_poses(rest_force: np.ndarray, apart_deg: float = POSE_APART_DEG) -> int:
     """How many gravity directions the rests hold, each at least ``apart_deg`` from the others
     (greedy, in time order): what a user counts as the poses of a hand run.

@@ -205,18 +205,25 @@ def _brief_poses(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The quiet stretches (a window long or more) that hold no rest and an attitude of their own:
     poses held too briefly. (A window's worth of quiet samples is a pose held about two windows:
-    the windows are centred.)
+    the windows are centred.) Two with no rest between them at one attitude are one pose, a
+    tremor or bump splitting it.
     """
     q_start, q_end = runs_of(quiet)
     in_rest = np.zeros(len(quiet), bool)
     for a, b in zip(start, end, strict=True):
         in_rest[a:b] = True
     covered = np.concatenate([[0], np.cumsum(in_rest)])
-    brief = [
-        (a, b)
-        for a, b in zip(q_start, q_end, strict=True)
-        if covered[b] == covered[a] and _own_attitude(force, a, b, start, end)
-    ]
+    apart = math.cos(math.radians(POSE_APART_DEG))
+    brief: list[list[int]] = []
+    for a, b in zip(q_start, q_end, strict=True):
+        if covered[b] > covered[a] or not _own_attitude(force, a, b, start, end):
+            continue
+        if brief and covered[a] == covered[brief[-1][1]]:
+            p, q = brief[-1]
+            if _direction(force[a:b]) @ _direction(force[p:q]) >= apart:
+                brief[-1][1] = b
+                continue
+        brief.append([a, b])
     return np.array([a for a, _ in brief], int), np.array([b for _, b in brief], int)
 
 
