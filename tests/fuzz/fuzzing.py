@@ -118,6 +118,8 @@ def check_reader(read, path: Path, validate) -> CalibError | None:
         with warnings.catch_warnings():
             # A random key is the tool's notice of a key it does not read, meant: not a leak.
             warnings.filterwarnings("ignore", r"(?s).*: key .* is not a \w+ key; it is ignored", UserWarning)
+            # So is a notice of how the file was read (quotes, a cut last row, ...): it names the file.
+            warnings.filterwarnings("ignore", re.escape(str(path)), UserWarning)
             obj = read(path)
     except CalibError as exc:
         message = str(exc)
