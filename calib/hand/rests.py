@@ -182,9 +182,9 @@ def find_rests(
     lengths = elapsed[end] - elapsed[start]
     force = dv / dt[:, None]
     full = lengths >= max(FULL_REST_S, min_rest_s)
-    keep = full | (lengths >= min_rest_s) & np.array(
-        [_own_attitude(force, a, b, start[full], end[full]) for a, b in zip(start, end, strict=True)], bool
-    )
+    keep = full.copy()
+    for i in np.flatnonzero(~full & (lengths >= min_rest_s)):
+        keep[i] = _own_attitude(force, start[i], end[i], start[full], end[full])
     brief_start, brief_end = _brief_poses(quiet, force, start[keep], end[keep])
     if keep.sum() < 2:
         raise CalibError(
