@@ -14,16 +14,17 @@ A sample is still when, over a short window about it, both
   five times the noise of their difference: a carried unit's acceleration may
   rise too smoothly for the spread within one window to show it.
 
-Still stretches shorter than :data:`MIN_REST_S` are part of the move; a bump
-while placing splits a rest into two, the shorter of which drops out when too
-short, and the rest of the pose is kept. A pose quiet for a window or more that
-gives no rest is a brief pose: not used, but said (:func:`brief_pose_lines`),
-so that a log whose poses were held too briefly is not told to add faces it
-holds. Each rest is
-trimmed so that its samples are still ones: by the window either side beyond
-where the rate or the spread sees motion (their windows are centred), and by
-:data:`MARGIN_S` beyond where the means before and after disagree (their
-windows already reach a window and a half from the sample).
+Still stretches shorter than :data:`MIN_REST_S` are part of the move, and so are
+those shorter than :data:`FULL_REST_S` at the attitude of a rest beside them (the
+pose as it is lifted, carried or set down); a bump while placing splits a rest
+into two, the shorter of which drops out when too short, and the rest of the pose
+is kept. A pose quiet for a window or more that gives no rest is a brief pose:
+not used, but said (:func:`brief_pose_lines`), so that a log whose poses were
+held too briefly is not told to add faces it holds. Each rest is trimmed so that
+its samples are still ones: by the window either side beyond where the rate or
+the spread sees motion (their windows are centred), and by :data:`MARGIN_S`
+beyond where the means before and after disagree (their windows already reach a
+window and a half from the sample).
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ from calib.errors import CalibError
 from calib.sequence.motion import MOTION_THRESHOLD, grow, runs_of, steady_rate
 
 WINDOW_S = 0.25  # long enough to average a MEMS gyro's noise, short against a 3 s pose
-# The finder keeps REACH_S (0.43 s) clear of each move, so a pose held 1 s, the shortest static
+# The finder keeps REACH_S (0.425 s) clear of each move, so a pose held 1 s, the shortest static
 # interval imu_tk's detector takes (100 samples at 100 Hz), leaves 0.15 s of still samples. Kept
 # as a rest: the verdict is already sure they are still, and a brief pose is often the one face a
 # quick hand turned up (BENCHMARKS.md: out of sample, the same or better on every log tried).
