@@ -51,7 +51,7 @@ from .chain import chained_start, compensated
 from .data import POSE_APART_DEG, HandData, distinct_poses, hand_data
 from .fit_options import HAND_FIT, HandFitOptions, HandSamples
 from .moves import move_rotation, move_sensitivity, right_jacobian_inverse
-from .rests import brief_pose_lines
+from .rests import brief_new_faces, brief_pose_lines
 from .rounding import consider_rounding
 from .weak import split_weak
 from .weights import Weights, component_sizes, components, profile_outliers, redundancy, refuted, reweighted
@@ -328,6 +328,13 @@ def fit_by_hand(
     return _fit(data, samples, site, profile, o, weights, where, force_confirmed)
 
 
+def _held_too_briefly(data: HandData, samples: HandSamples) -> str:
+    """The brief poses said where one holds a face no rest does: held longer, not added."""
+    if not brief_new_faces(data.rests, samples.dv / samples.dt[:, None]):
+        return ""
+    return "; " + brief_pose_lines(data.rests, np.concatenate([[0.0], np.cumsum(samples.dt)]))[0]
+
+
 def _fit(
     data: HandData,
     samples: HandSamples,
@@ -397,10 +404,8 @@ def _fit(
             + "; unobserved combinations: "
             + "; ".join(unobserved),
             where,
-            # Brief poses may hold the faces missing: then they are to be held longer, not added.
-            brief_pose_lines(data.rests, np.concatenate([[0.0], np.cumsum(samples.dt)]))[0]
-            if len(data.rests.brief_start)
-            else "add poses that excite them (other faces up, turns about other axes), or --partial",
+            "add poses that excite them (other faces up, turns about other axes), or --partial"
+            + _held_too_briefly(data, samples),
         )
     z2 = (e / s) ** 2
     kind = np.array([g[0] for g in labels])

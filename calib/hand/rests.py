@@ -52,9 +52,9 @@ MIN_STILL_ROWS = 20  # a still stretch this many samples long is a pose, not a p
 POSE_APART_DEG = 10.0  # gravity directions this far apart are another pose to a user
 MARGIN_S = 0.05  # trimmed from each end of a rest beyond the window: the placing's last settling
 # How far each verdict keeps a rest from a move it sees (see still_samples): half a window,
-# a window, and the margin; a pose gives a rest when held this twice over and MIN_REST_S more.
+# a window, and the margin (at rates above 12 Hz; below, the window is three samples, longer);
+# a pose gives a rest when held this twice over and MIN_REST_S more.
 REACH_S = 1.5 * WINDOW_S + MARGIN_S
-SHORTEST_POSE_S = MIN_REST_S + 2.0 * REACH_S
 
 
 @dataclass(frozen=True)
@@ -72,6 +72,8 @@ class Rests:
     brief_start, brief_end : ndarray of int
         Poses too brief for a rest: stretches whose windows see no motion for a window or more
         (a pose held about half a second or more), holding no rest.
+    reach_s : float
+        How far the finder kept each rest from a move it saw, at this log's rate.
     """
 
     start: np.ndarray
@@ -81,6 +83,12 @@ class Rests:
     accel_threshold_mps2: float
     brief_start: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     brief_end: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    reach_s: float = REACH_S
+
+    @property
+    def shortest_pose_s(self) -> float:
+        """How long a pose must be held to give a rest."""
+        return MIN_REST_S + 2.0 * self.reach_s
 
     @property
     def count(self) -> int:
@@ -105,15 +113,15 @@ def still_samples(
     ``loosen`` multiplies every threshold (a pose held in the hand trembles beyond the
     profile's noise; :func:`calib.hand.calibrate.hand_fit_of` chooses it by the fit).
     """
-    still, _, gyro_threshold, accel_threshold = _verdicts(dtheta, dv, dt, arw, vrw, loosen)
+    still, _, gyro_threshold, accel_threshold, _ = _verdicts(dtheta, dv, dt, arw, vrw, loosen)
     return still, gyro_threshold, accel_threshold
 
 
 def _verdicts(
     dtheta: np.ndarray, dv: np.ndarray, dt: np.ndarray, arw: float, vrw: float, loosen: float
-) -> tuple[np.ndarray, np.ndarray, float, float]:
+) -> tuple[np.ndarray, np.ndarray, float, float, float]:
     """The still verdict (see :func:`still_samples`), the quiet one its windows give before it is
-    widened clear of the moves, and the gyro and accelerometer thresholds.
+    widened clear of the moves, the gyro and accelerometer thresholds, and the verdict's reach (s).
     """
     period = float(np.median(dt))
     window = max(3, int(round(WINDOW_S / period)))
@@ -143,7 +151,7 @@ def _verdicts(
     q_start, q_end = runs_of(quiet)
     for a, b in zip(q_start, q_end, strict=True):
         quiet[a:b] = b - a >= window  # shorter: a hand slowing within a move
-    return ~moving, quiet, *thresholds
+    return ~moving, quiet, *thresholds, (1.5 * window + margin) * period
 
 
 def find_rests(
@@ -177,7 +185,7 @@ def find_rests(
     -------
     Rests
     """
-    still, quiet, g_thr, a_thr = _verdicts(dtheta, dv, dt, arw, vrw, loosen)
+    still, quiet, g_thr, a_thr, reach_s = _verdicts(dtheta, dv, dt, arw, vrw, loosen)
     start, end = runs_of(still)
     elapsed = np.concatenate([[0.0], np.cumsum(dt)])
     lengths = elapsed[end] - elapsed[start]
@@ -194,11 +202,12 @@ def find_rests(
             + _time_said(lengths, end - start, elapsed)
             + (f"; {len(brief_start)} pose(s) held too briefly for a rest" if len(brief_start) else ""),
             where,
-            f"hold each pose still for {SHORTEST_POSE_S:.1f} s or more (a few seconds is better); if the "
-            f"unit was still, the profile's noise (gyro threshold {math.degrees(g_thr):.3g} deg/s, "
-            f"accelerometer spread {a_thr:.3g} m/s^2) is below the log's: give the unit's own profile",
+            f"hold each pose still for {min_rest_s + 2.0 * reach_s:.1f} s or more (a few seconds is "
+            f"better); if the unit was still, the profile's noise (gyro threshold "
+            f"{math.degrees(g_thr):.3g} deg/s, accelerometer spread {a_thr:.3g} m/s^2) is below the "
+            "log's: give the unit's own profile",
         )
-    return Rests(start[keep], end[keep], still, g_thr, a_thr, brief_start, brief_end)
+    return Rests(start[keep], end[keep], still, g_thr, a_thr, brief_start, brief_end, reach_s)
 
 
 def _brief_poses(
@@ -276,6 +285,16 @@ def brief_pose_lines(rests: Rests, time_s: np.ndarray) -> list[str]:
     more = f" and {len(rests.brief_start) - SHOWN_BRIEF} more" if len(rests.brief_start) > SHOWN_BRIEF else ""
     return [
         f"{len(rests.brief_start)} pose(s) held too briefly for a rest, not used (from {at} s{more}): "
-        f"a pose gives a rest when held {SHORTEST_POSE_S:.1f} s or more, the rest finder keeping "
-        f"{REACH_S:.3g} s clear of each move; hold each pose longer"
+        f"a pose gives a rest when held {rests.shortest_pose_s:.1f} s or more, the rest finder keeping "
+        f"{rests.reach_s:.3g} s clear of each move; hold each pose longer"
     ]
+
+
+def brief_new_faces(rests: Rests, force: np.ndarray) -> int:
+    """How many brief poses hold a gravity direction no rest holds (10 deg or more from each):
+    the poses that, held longer, would add what a fit lacks. ``force`` ``(n, 3)`` per sample.
+    """
+    apart = math.cos(math.radians(POSE_APART_DEG))
+    held = np.array([_direction(force[a:b]) for a, b in zip(rests.start, rests.end, strict=True)])
+    brief = [_direction(force[a:b]) for a, b in zip(rests.brief_start, rests.brief_end, strict=True)]
+    return sum(bool(np.all(held @ d < apart)) for d in brief)

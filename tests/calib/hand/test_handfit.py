@@ -277,6 +277,20 @@ def test_poses_held_under_a_second_give_no_rest_and_are_said_to_be_brief():
     assert "hold each pose still for 1.0 s or more" in str(refused.value)
 
 
+def test_how_long_a_pose_must_be_held_follows_the_log_s_rate():
+    # At 4 Hz the finder's window is three samples (0.75 s, not 0.25 s) and the 0.05 s margin no
+    # sample: each rest is kept 1.5 windows, 1.125 s, clear of a move, and a pose must be held
+    # 0.15 + 2 x 1.125 = 2.4 s to give a rest. What a user is told says so, not 100 Hz's 1.0 s.
+    rng = np.random.default_rng(5)
+    _, dtheta, dv, dt, _ = synthetic_hand_run(rng, ErrorModel.zero(), n_poses=6)
+    block = 25  # 100 Hz summed to 4 Hz
+    n = len(dt) // block * block
+    dtheta, dv, dt = (x[:n].reshape(n // block, block, *x.shape[1:]).sum(axis=1) for x in (dtheta, dv, dt))
+    rests = find_rests(dtheta, dv, dt, PROFILE.arw, PROFILE.vrw)
+    assert rests.reach_s == pytest.approx(1.125, rel=1e-9)
+    assert rests.shortest_pose_s == pytest.approx(2.4, rel=1e-9)
+
+
 def test_too_few_rests_are_refused_saying_why():
     h = 0.01
     n = 3000
