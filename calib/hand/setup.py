@@ -207,6 +207,9 @@ def diagnose(run, gravity_mps2: float) -> list[Mistake]:
         off = _time_base(moves, bias, period, plain, stated)
         if off is not None:
             return [off]
+        coarse = _coarsely_sampled(moves, bias, period, plain)
+        if coarse is not None:
+            return [coarse]
     if plain > GOOD_DEG and misfit < 0.5 * plain:
         what = []
         if scale != 1.0:
@@ -222,6 +225,30 @@ def diagnose(run, gravity_mps2: float) -> list[Mistake]:
             )
         ]
     return []
+
+
+# The fit's integration rule is checked to 10 deg a sample (1000 deg/s at 100 Hz) on increments, a
+# rate's mean over its interval; a logger printing the rate at that instant, as most do, strays far
+# sooner. Turns this coarsely sampled that miss the gravity's change are put down to the sampling.
+COARSE_TURN_DEG = 10.0
+
+
+def _coarsely_sampled(moves, bias: np.ndarray, period: float, plain: float) -> Mistake | None:
+    """The turns the log samples too seldom to integrate, when that is what their misfit shows."""
+    step = max(float(np.linalg.norm(inc - bias * period, axis=1).max()) for _, _, inc in moves)
+    if math.degrees(step) < COARSE_TURN_DEG:
+        return None
+    eye = np.eye(3)
+    return Mistake(
+        f"the gyro's turn across the moves misses the accelerometer's change of gravity by {plain:.3g} "
+        f"deg (median over {len(moves)} moves), and no unit or axis mistake explains it: at "
+        f"{1.0 / period:.3g} Hz the unit turns up to {math.degrees(step):.3g} deg between samples, too "
+        "far apart for its rates to be integrated into the turn",
+        eye,
+        eye,
+        cannot_fix="log the gyro at a higher rate (100 Hz or more for a hand's turns), or turn the unit "
+        "more slowly",
+    )
 
 
 # A common factor on every turn beyond what a gyro's scale factors (a few per cent at worst)

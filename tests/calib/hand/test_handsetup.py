@@ -20,7 +20,7 @@ from realdata import REPO
 
 from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.errors import CalibError
-from calib.hand.plan import xsens_like_plan
+from calib.hand.plan import PlanShape, xsens_like_plan
 from calib.hand.rests import _time_said
 from calib.hand.setup import carried_by_hand, diagnose, rate_mistake, still_stretches
 from calib.hand.simulate import simulate_by_hand
@@ -89,6 +89,28 @@ def test_each_unit_mistake_is_named(hand_run, mistake, said):
     run, g = hand_run
     found = diagnose(mistake(run), g)
     assert len(found) == 1 and said in found[0].what, found
+
+
+def test_turns_sampled_too_seldom_to_integrate_are_refused_saying_so():
+    # A logger that prints the rate as it is at every 20th sample (5 Hz), not its mean over the
+    # interval, while a hand turns at up to 1000 deg/s: the turns move up to ~180 deg between
+    # samples, and the turn integrated from them misses the gravity's change by degrees (smooth
+    # simulated turns: 6.5 deg median; at 10 Hz 3.7 deg, within what a unit's errors may leave),
+    # which no unit or axis mistake explains. Refused, naming the rate and the angle.
+    rng = np.random.default_rng(21)
+    cfg = SimConfig(latitude_rad=LAT, height_m=0.0, sample_rate_hz=RATE_HZ)
+    plan = xsens_like_plan(rng, PlanShape(peak_rate_dps=1000.0))
+    run, _ = simulate_by_hand(plan, cfg, ErrorModel.zero(), load_profile("mems"), seed=4)
+    pick, period = slice(0, None, 20), 20.0 / RATE_HZ
+    rate, force = run.dtheta_rad[pick] * RATE_HZ, run.dv_mps[pick] * RATE_HZ
+    sparse = dataclasses.replace(
+        run, time_s=run.time_s[pick], dtheta_rad=rate * period, dv_mps=force * period
+    )
+    found = diagnose(sparse, cfg.gravity)
+    assert len(found) == 1 and found[0].cannot_fix, found
+    assert re.search(r"at 5 Hz the unit turns up to [\d.]+ deg between samples", found[0].what), found[0].what
+    with pytest.raises(CalibError, match="log the gyro at a higher rate"):
+        calibrate(sparse, "mems", by_hand=True)
 
 
 # The milli-unit cases are the same put-right by another factor: run with the slow tests.
