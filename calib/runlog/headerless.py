@@ -281,14 +281,20 @@ INCREASING = 0.5  # never down and up on this share of rows: a time (a sensor's 
 
 
 def _looks_like_time(name: str, fields: list[str]) -> bool:
-    """A column named like a time, written as clock times, or counting up row by row."""
+    """A column named like a time, written as clock times, or counting up row by row; not one
+    that never changes (a sensor not fitted, all zeros: `uS1`, an ultrasonic one, reads "us").
+    """
+    try:
+        values = np.array([float(f) for f in fields])
+    except ValueError:
+        values = None
+    if values is not None and len(values) >= 2 and np.all(values == values[0]):
+        return False
     if "".join(c for c in name.lower() if c.isalpha()) in TIME_WORDS:
         return True
     if len(fields) >= 3 and all(is_clock_time(f) for f in fields):
         return True
-    try:
-        values = np.array([float(f) for f in fields])
-    except ValueError:
+    if values is None:
         return False
     steps = np.diff(values)
     return len(steps) >= 2 and bool(np.all(steps >= 0.0)) and float(np.mean(steps > 0.0)) >= INCREASING

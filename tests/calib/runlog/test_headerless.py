@@ -119,6 +119,17 @@ def test_a_time_column_the_map_left_out_is_not_replaced_by_the_rate(tmp_path):
             read_run(other, columns=NAMED_MAP, sample_rate_hz=50.0, **SITE)
 
 
+def test_a_column_that_never_changes_is_no_time_whatever_its_name(tmp_path):
+    # A board's ultrasonic sensors, not fitted, log zeros as uS1, uS2 ...: "us" is a time word, but
+    # a time that never moves times nothing. The rows are read at the rate stated, as without them.
+    path = tmp_path / "board.csv"
+    path.write_text(
+        "uS1,ax,ay,az,gx,gy,gz\n" + "".join("0," + ",".join(repr(float(x)) for x in r) + "\n" for r in TABLE)
+    )
+    run = read_run(path, columns=NAMED_MAP, sample_rate_hz=50.0, **SITE)
+    assert np.allclose(np.diff(run.time_s), 0.02)
+
+
 def test_a_logger_s_preamble_above_its_header_is_read_as_such_and_samples_above_it_are_told(tmp_path):
     # Lines of text above the line the map names (tomisuarez2/ImuCalibration's "Fs,100") are the
     # logger's preamble: said, and the rows read as if they were commented out.
