@@ -147,10 +147,17 @@ def _verdicts(
     # each end, and the brief poses of a quick hand were lost.
     margin = int(round(MARGIN_S / period))
     moving = grow(gyro_moving | accel_moving, window + margin) | grow(drift > drift_threshold, margin)
+    # A brief pose lies between two turns: quiet for a window or more (shorter: a hand slowing
+    # within a move), the gyro turning within a window either side. A quiet stretch cut short by
+    # the accelerometer's spread alone is a long pose noisier than the profile, not a brief one.
     quiet = ~(gyro_moving | accel_moving)
+    turning = np.concatenate([[0], np.cumsum(gyro_moving)])
+    n = len(quiet)
     q_start, q_end = runs_of(quiet)
     for a, b in zip(q_start, q_end, strict=True):
-        quiet[a:b] = b - a >= window  # shorter: a hand slowing within a move
+        turned_before = turning[a] > turning[max(a - window, 0)]
+        turned_after = turning[min(b + window, n)] > turning[b]
+        quiet[a:b] = b - a >= window and turned_before and turned_after
     return ~moving, quiet, *thresholds, (1.5 * window + margin) * period
 
 
