@@ -50,6 +50,7 @@ FASTEST_HAND_RATE_HZ = 5000.0  # an IMU's output rate above which a time column'
 SHOWN_BRIEF = 6  # brief poses named by their times; the rest counted
 MIN_STILL_ROWS = 20  # a still stretch this many samples long is a pose, not a pause within a move
 POSE_APART_DEG = 10.0  # gravity directions this far apart are another pose to a user
+_COS_APART = math.cos(math.radians(POSE_APART_DEG))
 MARGIN_S = 0.05  # trimmed from each end of a rest beyond the window: the placing's last settling
 # How far each verdict keeps a rest from a move it sees (see still_samples): half a window,
 # a window, and the margin (at rates above 12 Hz; below, the window is three samples, longer);
@@ -230,14 +231,13 @@ def _brief_poses(
     for a, b in zip(start, end, strict=True):
         in_rest[a:b] = True
     covered = np.concatenate([[0], np.cumsum(in_rest)])
-    apart = math.cos(math.radians(POSE_APART_DEG))
     brief: list[list[int]] = []
     for a, b in zip(q_start, q_end, strict=True):
         if covered[b] > covered[a] or not _own_attitude(force, a, b, start, end):
             continue
         if brief and covered[a] == covered[brief[-1][1]]:
             p, q = brief[-1]
-            if _direction(force[a:b]) @ _direction(force[p:q]) >= apart:
+            if not _apart(_direction(force[a:b]), _direction(force[p:q])[None]):
                 brief[-1][1] = b
                 continue
         brief.append([a, b])
@@ -250,11 +250,14 @@ def _own_attitude(force: np.ndarray, a: int, b: int, start: np.ndarray, end: np.
     A brief still moment at the attitude of the pose before or after it is that pose as the unit
     is lifted, carried or set down: it adds no direction, and may carry a little acceleration.
     """
-    apart = math.cos(math.radians(POSE_APART_DEG))
-    here = _direction(force[a:b])
     before, after = np.flatnonzero(end <= a), np.flatnonzero(start >= b)
     beside = ([before[-1]] if before.size else []) + ([after[0]] if after.size else [])
-    return all(here @ _direction(force[start[r] : end[r]]) < apart for r in beside)
+    return _apart(_direction(force[a:b]), np.array([_direction(force[start[r] : end[r]]) for r in beside]))
+
+
+def _apart(direction: np.ndarray, others: np.ndarray) -> bool:
+    """Whether a unit vector lies :data:`POSE_APART_DEG` or more from each of ``others`` ``(m, 3)``."""
+    return bool(np.all(others.reshape(-1, 3) @ direction < _COS_APART))
 
 
 def _direction(force: np.ndarray) -> np.ndarray:
@@ -301,7 +304,6 @@ def brief_new_faces(rests: Rests, force: np.ndarray) -> int:
     """How many brief poses hold a gravity direction no rest holds (10 deg or more from each):
     the poses that, held longer, would add what a fit lacks. ``force`` ``(n, 3)`` per sample.
     """
-    apart = math.cos(math.radians(POSE_APART_DEG))
     held = np.array([_direction(force[a:b]) for a, b in zip(rests.start, rests.end, strict=True)])
     brief = [_direction(force[a:b]) for a, b in zip(rests.brief_start, rests.brief_end, strict=True)]
-    return sum(bool(np.all(held @ d < apart)) for d in brief)
+    return sum(_apart(d, held) for d in brief)
