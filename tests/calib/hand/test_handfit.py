@@ -211,12 +211,16 @@ def test_a_noise_free_hand_run_is_recovered_exactly(g_sensitivity):
     assert max(tilt) < 1e-3
 
 
-def test_rests_are_found_with_a_bump_and_short_poses():
-    rng = np.random.default_rng(2)
-    time_s, dtheta, dv, dt, C_true = synthetic_hand_run(rng, ErrorModel.zero(), n_poses=6)
-    noise = PROFILE.arw * np.sqrt(dt)[:, None] * rng.normal(size=dtheta.shape)
-    dtheta = dtheta + noise
+def _noisy_poses(rng, n_poses: int, rest_s: float):
+    """A synthetic hand run of error-free sensors with the profile's white noise: dtheta, dv, dt."""
+    _, dtheta, dv, dt, _ = synthetic_hand_run(rng, ErrorModel.zero(), n_poses=n_poses, rest_s=rest_s)
+    dtheta = dtheta + PROFILE.arw * np.sqrt(dt)[:, None] * rng.normal(size=dtheta.shape)
     dv = dv + PROFILE.vrw * np.sqrt(dt)[:, None] * rng.normal(size=dv.shape)
+    return dtheta, dv, dt
+
+
+def test_rests_are_found_with_a_bump_and_short_poses():
+    dtheta, dv, dt = _noisy_poses(np.random.default_rng(2), n_poses=6, rest_s=4.0)
     # A bump (0.1 s tap of 1 m/s^2) in the middle of the third rest.
     i = 2 * (400 + 50) + 200
     dv[i : i + 10] += np.array([1.0, 0.0, 0.0]) * dt[0]
@@ -233,11 +237,8 @@ def test_poses_held_a_second_and_a_fifth_are_each_a_rest_of_still_samples():
     # at most half its 0.25 s window (centred, or the drift's windows a window and a half out
     # less the window they average) plus a window and the 0.05 s margin: 0.425 s each side,
     # leaving 0.35 s of each pose, above the 0.15 s a rest needs. No turning sample may be in one.
-    rng = np.random.default_rng(5)
     n_poses, rest_s = 8, 1.2
-    _, dtheta, dv, dt, _ = synthetic_hand_run(rng, ErrorModel.zero(), n_poses=n_poses, rest_s=rest_s)
-    dtheta = dtheta + PROFILE.arw * np.sqrt(dt)[:, None] * rng.normal(size=dtheta.shape)
-    dv = dv + PROFILE.vrw * np.sqrt(dt)[:, None] * rng.normal(size=dv.shape)
+    dtheta, dv, dt = _noisy_poses(np.random.default_rng(5), n_poses, rest_s)
     rests = find_rests(dtheta, dv, dt, PROFILE.arw, PROFILE.vrw)
     assert rests.count == n_poses and len(rests.brief_start) == 0
     pose, turn = int(round(rest_s * RATE_HZ)), 50  # samples, as synthetic_hand_run lays them
@@ -252,11 +253,8 @@ def test_poses_held_under_a_second_give_no_rest_and_are_said_to_be_brief():
     # them, so none may give a rest; but their windows see no motion for 0.45 s (the pose less
     # half a window each side), so each is a brief pose, named at its own time. The first and
     # last poses meet a move on one side only and keep a rest (0.7 - 0.425 s).
-    rng = np.random.default_rng(5)
     n_poses, rest_s = 8, 0.7
-    _, dtheta, dv, dt, _ = synthetic_hand_run(rng, ErrorModel.zero(), n_poses=n_poses, rest_s=rest_s)
-    dtheta = dtheta + PROFILE.arw * np.sqrt(dt)[:, None] * rng.normal(size=dtheta.shape)
-    dv = dv + PROFILE.vrw * np.sqrt(dt)[:, None] * rng.normal(size=dv.shape)
+    dtheta, dv, dt = _noisy_poses(np.random.default_rng(5), n_poses, rest_s)
     rests = find_rests(dtheta, dv, dt, PROFILE.arw, PROFILE.vrw)
     pose, turn = int(round(rest_s * RATE_HZ)), 50
     first = np.arange(n_poses) * (pose + turn)
