@@ -28,9 +28,11 @@ from calib.nav.site import ppm_per_mgal
 # leaves products of 1e-4 unmodelled, a tenth of a MEMS unit's 1000 ppm requirement. A sigma
 # beyond it says the linearisation the estimate and the sigma both come from no longer holds.
 LINEAR_LIMIT = 1e-2
-# An estimate this large (5 %, 2.9 deg) leaves products of 2.5e-3 unmodelled, beyond a MEMS unit's
-# requirement: the linear model no longer describes the unit, and no triad is built this far off
-# (a MEMS part's scale factors and cross-axis terms are within 2-3 %).
+# No triad is built this far off (a MEMS part's scale factors and cross-axis terms are within
+# 2-3 %): an estimate beyond it is a conversion off by as much, or moves the fit should not have
+# trusted (clipped, sampled too seldom: a flight computer's 20 Hz log gave 12-14 deg). The model
+# (I + S + M, inverted exactly) describes any linear triad, so the first is corrected as fitted
+# (a real BMI160 read 5.3 % high, imu_tk's fit the same): said, for the user to tell which.
 VALUE_LIMIT = 5e-2
 
 
@@ -194,9 +196,10 @@ class CalibrationResult:
         ]
         if far:
             out.append(
-                f"{', '.join(far)}: beyond 5 % (2.9 deg), where the linear error model this fit rests on no "
-                "longer describes the unit and no triad is built; do not apply these estimates (check the "
-                "axes' labels and units, and the moves the fit used)"
+                f"{', '.join(far)}: beyond 5 % (2.9 deg), further than any triad is built: the log's "
+                "conversion to units is off by as much, or the moves the fit used cannot be trusted; apply "
+                "these estimates only once you know which (check the conversion, the axes' labels and "
+                "units, and the moves: clipped or sampled too seldom)"
             )
         req = min(self.requirements.values[P.ACCEL_SCALE])
         if self.gravity_source == "normal" and req <= 5 * self.ppm_per_mgal:

@@ -47,6 +47,7 @@ from calib.nav.site import Site
 from calib.nav.transform import dcm_to_rotvec, rotvec_to_dcm, skew
 from calib.noise.profiles import NoiseProfile
 
+from . import weights as W
 from .chain import chained_start, compensated
 from .data import POSE_APART_DEG, HandData, distinct_poses, hand_data
 from .fit_options import HAND_FIT, HandFitOptions, HandSamples
@@ -384,8 +385,9 @@ def _fit(
             weights = Weights(earning=refuted(e, red, labels, s, outliers))
         new = reweighted(weights, e, red, labels, shapes, s, force_confirmed)
         done = new.settled(weights, shapes, s, labels)
-        weights = new
-        if done:
+        # Settled: a group the others' misfit hid from the first look is judged again.
+        weights = (W.refuted_later(new, e, red, labels, s) if done else None) or new
+        if done and weights is new:
             break
     e, s, jac, labels = problem.linearised(state)
     shapes = components(labels, s, data.move_turn_rad)

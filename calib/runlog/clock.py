@@ -39,6 +39,9 @@ ROUNDING_JITTER = 1e-9
 # time, 1.7e9 s): there a float64 resolves 2.4e-7 s, 24 ppm of a 100 Hz period, so the run's time
 # base is re-based to its first stamp. A log that counts from its start (up to a day) keeps its times.
 EPOCH_S = 1e5
+# Steps shorter than half the median one in more than this share of the rows: the host receives
+# the samples in bursts (one row in nine, a Bluetooth link's), not a rare catch-up after a stall.
+BURST_SHARE = 0.05
 
 
 @dataclass(frozen=True)
@@ -301,7 +304,12 @@ def stamps_rate(time_s: np.ndarray) -> float:
     periods (a dropped sample is a step of 2); the period is then the slope
     of ``t - t[0]`` against that count, fitted over the whole run, so neither
     the rounding of printed stamps nor that of a float64 at epoch magnitude
-    (2.4e-7 s at 1.7e9 s) moves it: both average out over the run.
+    (2.4e-7 s at 1.7e9 s) moves it: both average out over the run. Where more
+    than `BURST_SHARE` of the steps are shorter than half the median one, the
+    span over the rows is the guess: a host that receives the samples in bursts
+    (a Bluetooth link's eight steps of 11.2 ms and one of 0.6 ms, every 10 ms
+    sample there) makes the median step no period, and the count at it more
+    rows than the stamps have room for.
 
     Parameters
     ----------
@@ -322,6 +330,8 @@ def stamps_rate(time_s: np.ndarray) -> float:
         first = float(rel[-1]) / (len(rel) - 1)
     if not first > 0:
         return math.nan
+    elif np.mean((step > 0.0) & (step < 0.5 * first)) > BURST_SHARE:
+        first = float(rel[-1]) / (len(rel) - 1)  # samples received in bursts: span over rows
     try:  # the counts of `sample_clock` (the count rule for jittering stamps)
         counts = _whole_steps(rel, first, np.zeros(len(rel), dtype=bool)).astype(float)
     except CalibError:
@@ -364,6 +374,8 @@ def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarr
     off[~counted] = 0.0
     if not (off > STEP_RULE_FRACTION).any():
         zero = np.flatnonzero((steps == 0) & counted)
+        if zero.size and (periods[zero] > 0.0).any():
+            return counted_steps(time_s, periods, counted, period)  # a host's burst: jitter
         if zero.size:  # a clean clock does not stamp two samples alike; stamps coarser than it do
             resolution = coarse.stamp_resolution(periods)
             if resolution > 1.0:

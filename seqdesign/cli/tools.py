@@ -31,12 +31,17 @@ MAX_MESSAGE = 400
 
 
 def bounded(text: str) -> str:
-    """``text`` cut in the middle to `MAX_MESSAGE` characters: what is wrong and the fix (its ends) stay."""
+    """``text`` cut in the middle to `MAX_MESSAGE` characters: what is wrong and the fix (its ends)
+    stay, each cut at a space so that no word is left in part.
+    """
     if len(text) <= MAX_MESSAGE:
         return text
     head = MAX_MESSAGE * 2 // 3
     tail = MAX_MESSAGE - head - 5
-    return text[:head] + " ... " + text[-tail:]
+    first, last = text[:head], text[-tail:]
+    first = first.rsplit(" ", 1)[0] if " " in first else first
+    last = last.split(" ", 1)[1] if " " in last else last
+    return first + " ... " + last
 
 
 def refusal_line(exc: CalibError) -> str:

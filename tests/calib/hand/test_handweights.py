@@ -23,6 +23,7 @@ from calib.hand.simulate import simulate_by_hand
 from calib.hand.troubles import HandTroubles, g_sensitivity_from_dphg, scale_each_turn
 from calib.model import params as P
 from calib.model.error_model import ErrorModel
+from calib.nav.strapdown import sample_intervals
 from calib.noise.profiles import load_profile
 from calib.sequence.kinematics import SimConfig
 
@@ -259,3 +260,30 @@ def test_monte_carlo_of_trembling_jittering_g_sensitive_hand_runs_is_honest():
     assert doc["converged"] == 8 and not doc["refused"]
     lo, hi = chi2.ppf([0.005, 0.995], 8 * 21) / 8
     assert lo < doc["nees"]["mean"] < hi, doc["nees"]
+
+
+def _turning_bias(run, rate_dps: float):
+    """The run with a constant rate about x added while the unit turns (a response the model lacks)."""
+    dt = sample_intervals(run.time_s)
+    turning = np.linalg.norm(run.dtheta_rad, axis=1) / dt > 0.1
+    dtheta = run.dtheta_rad.copy()
+    dtheta[turning, 0] += math.radians(rate_dps) * dt[turning]
+    return dataclasses.replace(run, dtheta_rad=dtheta)
+
+
+def test_a_quiet_gyro_earns_its_weights_once_the_moves_that_hid_it_are_weighted():
+    # A gyro five times quieter than the profile, whose turns carry 0.2 deg/s the model lacks.
+    # At the profile's weights those moves drag the gyro biases, and the rests' rates then
+    # look as noisy as the profile says; weighted by their own, they no longer do. Judged at
+    # the first look only, the rates kept the profile's weights: chi2/dof 0.47 and gyro bias
+    # sigmas five times what the rests show (measured). Judged again once the moves are
+    # weighted, they earn theirs.
+    quiet = dataclasses.replace(MEMS, gyro_arw_dph=MEMS.gyro_arw_dph / 5.0, name="quiet")
+    result = calibrate(_turning_bias(_run(4, profile=quiet), 0.2), MEMS, by_hand=True)
+    white = result.by_hand.choices["weights"]["white_factor"]
+    # The rests' rates share their 1/5 with a floor per rest, so less than half is theirs to show.
+    assert white["rate"] < 0.5 and white["move"] > 2.0, white
+    assert 0.75 < result.chi2_per_dof < 1.25  # as for white noise, above
+    # The gyro biases come from the rests, their sigmas now the rests' own: within 4 of them.
+    bias = slice(0, 3)
+    assert np.all(np.abs(result.values[bias] - VALUES[bias]) < 4 * result.sigma[bias])

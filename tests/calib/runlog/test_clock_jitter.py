@@ -23,7 +23,7 @@ from calib.model.error_model import ErrorModel
 from calib.nav.transform import rotvec_to_dcm
 from calib.noise.profiles import load_profile
 from calib.runlog import read_run
-from calib.runlog.clock import sample_clock
+from calib.runlog.clock import sample_clock, stamps_rate
 from calib.runlog.polled import interleaved
 from calib.sequence.kinematics import SimConfig
 from seqdesign.repeatability import Repeatability
@@ -59,6 +59,25 @@ def test_jittering_host_stamps_are_counted_not_read_as_gaps():
     # The jitter is the delays about the fitted line: never more than their range.
     assert 1e-3 < clock.jitter_rms_s < PERIOD
     assert clock.jitter_max_s <= np.ptp(delays) + 1e-9
+
+
+def test_samples_received_in_bursts_are_timed_at_their_rate_not_their_median_step():
+    # A Bluetooth link hands the host its 10 ms samples nine at a time: eight stamps 11.2 ms
+    # apart and one 0.4 ms after (a real wireless IMU's log: 23,725 samples, every one there by
+    # its counter). The median step, 11.2 ms, is no period: counted at it the rows overflowed
+    # the stamps ("more rows than the stamps have room for", the rate taken as 88.9 Hz).
+    rng = np.random.default_rng(8)
+    n = 20_007
+    burst = np.tile(np.r_[np.full(8, 0.0112), 0.0004], n // 9 + 1)[: n - 1]
+    stamps = 30.0 + np.concatenate([[0.0], np.cumsum(burst)]) + rng.uniform(0.0, 3e-4, n)
+    assert np.median(np.diff(stamps)) > 1.1 * PERIOD
+    rate = stamps_rate(stamps)
+    # The bursts' 90 ms repeat exactly, so the rate comes out within the jitter over the run
+    # (0.3 ms over 200 s: 2 ppm); 10 ppm is ample.
+    assert rate == pytest.approx(RATE_HZ, rel=1e-5)
+    clock = sample_clock(stamps, rate)
+    assert not clock.dropped and not clock.duplicates
+    np.testing.assert_array_equal(clock.index, np.arange(n))
 
 
 def test_a_lost_sample_amid_the_jitter_is_still_found():

@@ -169,3 +169,13 @@ def test_correct_keeps_the_epoch_of_a_log_stamped_in_unix_time(logged, tmp_path)
     # A log without epoch stamps gets no origin (its time_s is already what it says).
     res = cli("correct", logged / "run.npz", "--correction", logged / "c.toml", "-o", tmp_path / "o.csv")
     assert res.returncode == 0 and "time_origin_s" not in (tmp_path / "o.csv").read_text()
+
+
+def test_a_long_message_is_cut_in_the_middle_between_words():
+    from seqdesign.cli.tools import bounded
+
+    text = " ".join(f"word{i:03d}" for i in range(100))  # 799 characters
+    out = bounded(text)
+    assert len(out) <= MAX_MESSAGE and out.startswith("word000") and out.endswith("word099")
+    first, last = out.split(" ... ")
+    assert set(first.split() + last.split()) <= set(text.split())  # no word left in part
