@@ -8,6 +8,8 @@ Modules:
   :mod:`calib.hand.joint_fit` as a calibration result
 - :mod:`calib.hand.data`: What a fit of a run placed by hand reads of it: its rests, their means and
   noise, its moves
+- :mod:`calib.hand.drift`: Biases that drift over a run placed by hand: the times they are fitted
+  about, and the biases at its end
 - :mod:`calib.hand.fit_options`: The hand fit's inputs as values: the samples it reads and the options
   it is fitted with
 - :mod:`calib.hand.host_clock`: The time stamps a host writes: reception times of samples the IMU

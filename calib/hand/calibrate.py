@@ -2,7 +2,7 @@
 
 Around the fit: the setup checked (:mod:`calib.hand.setup`), the rest finder's
 thresholds loosened for poses held in the hand, the gyro g-sensitivity and the
-accelerometer bias drift chosen by the data (or forced), and a wrong rate told by
+accelerometers' and gyros' bias drifts chosen by the data (or forced), and a wrong rate told by
 the scale factors. The result carries the 21 (and the optional terms fitted) with their sigmas,
 Birge-checked like a gimbal run's, the first rest's attitude, and a
 :class:`calib.hand.summary.HandSummary` of the rests and moves used, the model
@@ -22,7 +22,14 @@ from scipy.stats import chi2 as chi2_distribution
 from calib.errors import CalibError
 from calib.fit.solution import Fit
 from calib.model import params as P
-from calib.model.optional_terms import ACCEL_BIAS_DRIFT, BIAS_DRIFT_SI_PER_UNIT, GROUPS, OptionalTerms
+from calib.model.optional_terms import (
+    ACCEL_BIAS_DRIFT,
+    BIAS_DRIFT_SI_PER_UNIT,
+    GROUPS,
+    GYRO_BIAS_DRIFT,
+    GYRO_DRIFT_SI_PER_UNIT,
+    OptionalTerms,
+)
 from calib.nav.site import Site
 from calib.nav.strapdown import sample_intervals
 from calib.noise.profiles import NoiseProfile, white_part
@@ -40,7 +47,11 @@ from .weights import Weights
 G_SENSITIVITY = "g-sensitivity"
 # The optional terms a hand-placed run can fit, in the order they are tested: the fit's option
 # that switches each on, and its count of unknowns.
-TERMS = {G_SENSITIVITY: ("g_sensitivity", N_GS), ACCEL_BIAS_DRIFT: ("bias_drift", N_DRIFT)}
+TERMS = {
+    G_SENSITIVITY: ("g_sensitivity", N_GS),
+    ACCEL_BIAS_DRIFT: ("bias_drift", N_DRIFT),
+    GYRO_BIAS_DRIFT: ("gyro_drift", N_DRIFT),
+}
 # A term is chosen when its likelihood ratio passes this false-alarm rate: one recording in a
 # thousand without the effect gets it (and loses nothing but a little precision).
 CHOICE_ALPHA = 1e-3
@@ -108,9 +119,9 @@ def hand_fit_of(
     """The fit of a run placed by hand, read as it is, with its optional terms chosen by the data.
 
     Unless ``extras`` forces a term in or ``without`` out, each of `TERMS` in turn (the gyro
-    g-sensitivity, then the accelerometer bias drift) is fitted when the likelihood ratio of the
-    fit with it against the fit without, each at the weights its own residuals earn, and the
-    term's own Wald size both pass `CHOICE_ALPHA`. Returns the fit, the optional terms
+    g-sensitivity, then the accelerometers' bias drift, then the gyros') is fitted when the
+    likelihood ratio of the fit with it against the fit without, each at the weights its own
+    residuals earn, and the term's own Wald size both pass `CHOICE_ALPHA`. Returns the fit, the optional terms
     it carries and the choices.
     """
     unsupported = [g for g in (*extras.groups, *without) if g not in TERMS]
@@ -173,13 +184,14 @@ def _wald(fit: HandFit, term: str) -> float:
     beyond 1.6 sigma). So the term must also stand on its own.
     """
     lay = fit.layout
-    cols, x = (
-        (lay.gs, fit.g_sensitivity.reshape(9))
-        if term == G_SENSITIVITY and fit.g_sensitivity is not None
-        else (lay.drift, fit.bias_drift)
-    )
+    cols, x = {
+        G_SENSITIVITY: (lay.gs, fit.g_sensitivity),
+        ACCEL_BIAS_DRIFT: (lay.drift, fit.bias_drift),
+        GYRO_BIAS_DRIFT: (lay.gdrift, fit.gyro_drift),
+    }[term]
     if x is None or x.size == 0:
         return 0.0
+    x = x.reshape(-1)
     C = fit.covariance[cols, cols]
     return float(x @ np.linalg.pinv(C) @ x)
 
@@ -262,9 +274,9 @@ def fit_checked(
 def as_fit(hand: HandFit, extras: OptionalTerms) -> Fit:
     """The estimator's :class:`calib.fit.solution.Fit` of a hand fit (what the result is built from)."""
     lay = hand.layout
-    n_keep = lay.drift.stop
+    n_keep = lay.gdrift.stop
     cov = np.zeros((P.N_PARAMS + 3 + extras.n,) * 2)
-    keep = np.r_[0 : P.N_PARAMS, lay.gs, lay.drift]
+    keep = np.r_[0 : P.N_PARAMS, lay.gs, lay.drift, lay.gdrift]
     out = np.r_[0 : P.N_PARAMS, P.N_PARAMS + 3 : P.N_PARAMS + 3 + extras.n]
     cov[np.ix_(out, out)] = hand.covariance[np.ix_(keep, keep)]
     tilt = lay.columns(0)[0]
@@ -287,6 +299,7 @@ def as_fit(hand: HandFit, extras: OptionalTerms) -> Fit:
             [
                 hand.g_sensitivity.reshape(9) if hand.g_sensitivity is not None else np.zeros(0),
                 hand.bias_drift if hand.bias_drift is not None else np.zeros(0),
+                hand.gyro_drift if hand.gyro_drift is not None else np.zeros(0),
             ]
         ),
         estimable=estimable,
@@ -313,12 +326,16 @@ def summary_of(hand: HandFit, run: Run, choices: tuple = (), notes: tuple = ()) 
     brief = brief_pose_lines(rests, t[:-1])
     brief_s = np.column_stack([t[rests.brief_start], t[rests.brief_end]]).tolist()
     drift = []
-    if hand.bias_drift is not None:  # the biases are then a time's: said, with the drift
-        per_min = ", ".join(f"{d / BIAS_DRIFT_SI_PER_UNIT:+.0f}" for d in hand.bias_drift)
-        drift.append(
-            f"accelerometer biases: the last rest's, at {float(np.mean(rest_s[-1])):.1f} s; they drift by "
-            f"({per_min}) ug/min over the run, which a correction (one bias) does not carry"
-        )
+    for sensor, rate, unit, per_unit in (
+        ("accelerometer", hand.bias_drift, "ug/min", BIAS_DRIFT_SI_PER_UNIT),
+        ("gyro", hand.gyro_drift, "deg/h/min", GYRO_DRIFT_SI_PER_UNIT),
+    ):
+        if rate is not None:  # the biases are then a time's: said, with the drift
+            per_min = ", ".join(f"{d / per_unit:+.3g}" for d in rate)
+            drift.append(
+                f"{sensor} biases: the last rest's, at {float(np.mean(rest_s[-1])):.1f} s; they drift by "
+                f"({per_min}) {unit} over the run, which a correction (one bias) does not carry"
+            )
     return HandSummary(
         rest_s=rest_s,
         move_s=move_s,

@@ -42,6 +42,8 @@ class HandFitOptions:
         view that judges a rest's specific force by the other rests', :mod:`calib.hand.weights`).
     bias_drift : bool
         Also fit the accelerometers' bias drift (3 terms, linear in time over the run).
+    gyro_drift : bool
+        Also fit the gyros' bias drift (3 terms, linear in time over the run).
     """
 
     g_sensitivity: bool = False
@@ -52,6 +54,7 @@ class HandFitOptions:
     loosen: float = 1.0
     use_moves: bool = True
     bias_drift: bool = False
+    gyro_drift: bool = False
 
 
 HAND_FIT = HandFitOptions()  # the defaults

@@ -17,7 +17,9 @@ Optional terms the data may ask for (:mod:`calib.hand.calibrate` chooses them): 
 g-sensitivity ``G`` (the rest rates and the moves' increments read ``+ G f``), and the
 accelerometers' bias drift ``d``: at a rest of middle time ``tau`` (from the rests' middle)
 the specific force reads ``+ d tau`` (the moves use the bias at the rests' middle: over a
-move of seconds the drift is micro-g). With a drift, the biases reported are the last rest's.
+move of seconds the drift is micro-g); and the gyros' bias drift ``d_g``: the rest rates read
+``+ d_g tau`` and each move's increments lose the bias at the move's middle
+(:mod:`calib.hand.drift`). With a drift, the biases reported are the last rest's.
 
 The unknowns are the 21, each rest's attitude and the horizontal Earth rate in
 the first rest's heading frame (a MEMS gyro cannot see it: it carries the prior
@@ -50,6 +52,7 @@ from calib.noise.profiles import NoiseProfile
 from . import weights as W
 from .chain import chained_start, compensated
 from .data import POSE_APART_DEG, HandData, distinct_poses, hand_data
+from .drift import at_last_rest, move_times, rest_times
 from .fit_options import HAND_FIT, HandFitOptions, HandSamples
 from .moves import move_rotation, move_sensitivity, right_jacobian_inverse
 from .rests import brief_new_faces, brief_pose_lines
@@ -98,6 +101,7 @@ class HandFit:
     log_likelihood: float = 0.0  # Gaussian, at the weights earned (up to a constant): compares models
     weight_sizes: dict = field(default_factory=dict)  # the non-white components in the user's units
     bias_drift: np.ndarray | None = None  # (3,) accelerometer bias drift, m/s^2 per s, when fitted
+    gyro_drift: np.ndarray | None = None  # (3,) gyro bias drift, rad/s per s, when fitted
 
     @property
     def chi2_per_dof(self) -> float:
@@ -111,12 +115,13 @@ class HandFit:
 @dataclass(frozen=True)
 class Layout:
     """Where each unknown sits: ``[21, g-sensitivity (9 or none), accelerometer bias drift (3 or
-    none), h_E, h_N, rest 0's two tilts, three per further rest]``.
+    none), gyro bias drift (3 or none), h_E, h_N, rest 0's two tilts, three per further rest]``.
     """
 
     rests: int
     g_sensitivity: bool
     bias_drift: bool = False
+    gyro_drift: bool = False
 
     @property
     def gs(self) -> slice:
@@ -127,8 +132,12 @@ class Layout:
         return slice(self.gs.stop, self.gs.stop + (N_DRIFT if self.bias_drift else 0))
 
     @property
+    def gdrift(self) -> slice:
+        return slice(self.drift.stop, self.drift.stop + (N_DRIFT if self.gyro_drift else 0))
+
+    @property
     def h(self) -> slice:
-        return slice(self.drift.stop, self.drift.stop + 2)
+        return slice(self.gdrift.stop, self.gdrift.stop + 2)
 
     @property
     def n(self) -> int:
@@ -145,6 +154,7 @@ class Layout:
     def names(self) -> tuple:
         gs = [f"gs{i}{m}" for i in "xyz" for m in "xyz"] if self.g_sensitivity else []
         dr = [f"dba{a}" for a in "xyz"] if self.bias_drift else []
+        dr += [f"dbg{a}" for a in "xyz"] if self.gyro_drift else []
         rest = [f"rest0_tilt_{a}" for a in "EN"]
         rest += [f"rest{r}_{a}" for r in range(1, self.rests) for a in "ENU"]
         return (*P.NAMES, *gs, *dr, "earth_rate_E", "earth_rate_N", *rest)
@@ -159,6 +169,7 @@ class FitState:
     h: np.ndarray  # (2,)
     C: np.ndarray  # (K, 3, 3)
     D: np.ndarray = field(default_factory=lambda: np.zeros(N_DRIFT))  # accelerometer bias drift, (m/s^2)/s
+    Dg: np.ndarray = field(default_factory=lambda: np.zeros(N_DRIFT))  # gyro bias drift, (rad/s)/s
 
     def omega_n(self, latitude_rad: float) -> np.ndarray:
         return np.array([self.h[0], self.h[1], earth.RATE * math.sin(latitude_rad)])
@@ -169,6 +180,8 @@ class FitState:
             self.G = self.G + step[layout.gs].reshape(3, 3)
         if layout.bias_drift:
             self.D = self.D + step[layout.drift]
+        if layout.gyro_drift:
+            self.Dg = self.Dg + step[layout.gdrift]
         self.h = self.h + step[layout.h]
         for r in range(layout.rests):
             cols, Smap = layout.columns(r)
@@ -192,7 +205,9 @@ def linearise(
     omega_n = state.omega_n(latitude_rad)
     f_n = earth.specific_force_n(site.gravity_mps2)
     rows, res, sig, group = [], [], [], []
-    tau = rest_times(data, dt) if layout.bias_drift else np.zeros(data.count)
+    drifts = layout.bias_drift or layout.gyro_drift
+    tau = rest_times(data, dt) if drifts else np.zeros(data.count)
+    tau_move = move_times(data, dt) if layout.gyro_drift else np.zeros(data.count - 1)
 
     def add(jac, r, s, grp):
         rows.append(jac)
@@ -224,12 +239,19 @@ def linearise(
             J[:, layout.gs] = np.kron(np.eye(3), u_f)
         J[:, layout.h] = A_g @ C[r].T[:, :2]
         J[:, cols] = (A_g @ C[r].T @ skew(omega_n) + G @ C[r].T @ skew(f_n)) @ Smap
-        pred = A_g @ u_w + model.gyro_bias + G @ u_f
+        if layout.gyro_drift:
+            J[:, layout.gdrift] = np.eye(3) * tau[r]
+        pred = A_g @ u_w + model.gyro_bias + state.Dg * tau[r] + G @ u_f
         add(J, data.rest_rate[r] - pred, noise_w * profile.arw / math.sqrt(T), ("rate", r))
     for r, sl in enumerate(data.move_slices):
         if not data.move_used[r]:
             continue
-        dth, dv_true, before, A_inv = compensated(dtheta, dv, dt, sl, model, G)
+        at_move = model
+        if layout.gyro_drift:  # the gyro's bias at the move's middle
+            values = state.values.copy()
+            values[P.GYRO_BIAS] += state.Dg * tau_move[r]
+            at_move = ErrorModel(values)
+        dth, dv_true, before, A_inv = compensated(dtheta, dv, dt, sl, at_move, G)
         R, Q, phi = move_rotation(dth, before)
         T = float(dt[sl].sum())
         R_E = rotvec_to_dcm(-omega_n * T)
@@ -238,6 +260,8 @@ def linearise(
         J = np.zeros((3, layout.n))
         J[:, :N] = E.T @ np.einsum("ajk,pjk->ap", G_A, _GYRO_DA)
         J[:, P.GYRO_BIAS] = E.T @ G_b
+        if layout.gyro_drift:
+            J[:, layout.gdrift] = E.T @ G_b * tau_move[r]
         if layout.g_sensitivity:
             J[:, layout.gs] = E.T @ G_G.reshape(3, 9)
         J[:, layout.h] = T * C[r + 1].T[:, :2]
@@ -259,17 +283,6 @@ def linearise(
     return e, s, jac, groups
 
 
-def rest_times(data: HandData, dt: np.ndarray) -> np.ndarray:
-    """Each rest's middle, s, from halfway between the first rest's and the last rest's middles.
-
-    A drifting accelerometer bias is fitted about that time (its estimate and its drift's
-    least correlated there); the result gives the bias at the last rest (`at_last_rest`).
-    """
-    ends = np.concatenate([[0.0], np.cumsum(dt)])
-    mid = 0.5 * (ends[data.rests.start] + ends[data.rests.end])
-    return mid - 0.5 * (mid[0] + mid[-1])
-
-
 def unknown_scales(layout: Layout, req: Requirements, latitude_rad: float) -> np.ndarray:
     """The size each unknown is judged at: requirements, 10 deg/h/g, the Earth rate, a milliradian."""
     scale = np.full(layout.n, ATTITUDE_SCALE)
@@ -277,6 +290,8 @@ def unknown_scales(layout: Layout, req: Requirements, latitude_rad: float) -> np
     scale[layout.gs] = 10.0 * G_SENSITIVITY_SI_PER_UNIT
     if layout.bias_drift:  # a bias's requirement over 100 s
         scale[layout.drift] = req.si[P.ACCEL_BIAS] / 100.0
+    if layout.gyro_drift:
+        scale[layout.gdrift] = req.si[P.GYRO_BIAS] / 100.0
     scale[layout.h] = earth.RATE * max(math.cos(latitude_rad), 0.1)
     return scale
 
@@ -349,7 +364,7 @@ def _fit(
     """:func:`fit_by_hand` on the rests and moves ``data`` holds (a move not used is not chained)."""
     latitude_rad = site.latitude_rad
     dtheta, dv, dt = samples.dtheta, samples.dv, samples.dt
-    layout = Layout(data.count, o.g_sensitivity, o.bias_drift)
+    layout = Layout(data.count, o.g_sensitivity, o.bias_drift, o.gyro_drift)
     values = np.zeros(N)
     values[P.GYRO_BIAS] = np.average(data.rest_rate, axis=0, weights=data.rest_time_s)
     G = np.zeros((3, 3))
@@ -443,23 +458,8 @@ def _fit(
         weights=weights,
         weight_sizes=component_sizes(weights, shapes, labels, data.move_turn_rad),
         bias_drift=state.D.copy() if o.bias_drift else None,
+        gyro_drift=state.Dg.copy() if o.gyro_drift else None,
     )
-
-
-def at_last_rest(state: FitState, covariance: np.ndarray, layout: Layout, data: HandData, dt: np.ndarray):
-    """The 21 and their covariance with the accelerometer biases at the last rest (a drift fitted).
-
-    The biases are fitted about the rests' middle time; the unit leaves the run with the bias
-    of its end, which a correction applied after it needs: ``b + d tau_last``.
-    """
-    if not layout.bias_drift:
-        return state.values, covariance
-    tau_last = float(rest_times(data, dt)[-1])
-    values = state.values.copy()
-    values[P.ACCEL_BIAS] += state.D * tau_last
-    T = np.eye(layout.n)
-    T[P.ACCEL_BIAS, layout.drift] = np.eye(3) * tau_last
-    return values, T @ covariance @ T.T
 
 
 class _Problem(NamedTuple):

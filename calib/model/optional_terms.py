@@ -93,6 +93,8 @@ K2_SI_PER_UG_PER_G2 = MICRO_G / STANDARD_GRAVITY**2  # 1 ug/g^2 in 1/(m/s^2)
 G_SENSITIVITY_SI_PER_UNIT = DEG_PER_HOUR / STANDARD_GRAVITY  # 1 deg/h/g in (rad/s)/(m/s^2)
 BIAS_DRIFT_SI_PER_UNIT = MICRO_G / 60.0  # 1 ug/min in (m/s^2)/s
 ACCEL_BIAS_DRIFT = "accel-bias-drift"
+GYRO_DRIFT_SI_PER_UNIT = DEG_PER_HOUR / 60.0  # 1 deg/h/min in (rad/s)/s
+GYRO_BIAS_DRIFT = "gyro-bias-drift"
 
 
 def _table() -> dict[str, tuple[OptionalParameter, ...]]:
@@ -166,12 +168,27 @@ def _table() -> dict[str, tuple[OptionalParameter, ...]]:
         )
         for i in range(3)
     )
+    gyro_drift = tuple(
+        OptionalParameter(
+            f"dbg{axes[i]}",
+            GYRO_BIAS_DRIFT,
+            "deg/h/min",
+            GYRO_DRIFT_SI_PER_UNIT,
+            10.0,
+            f"change of the {axes[i]}-gyro's bias per minute over the run (a unit warming up)",
+            1e5,
+            i,
+            -1,
+        )
+        for i in range(3)
+    )
     return {
         "lever-arm": lever,
         "k2": k2,
         "time-offset": offset,
         "g-sensitivity": g_sensitivity,
         ACCEL_BIAS_DRIFT: drift,
+        GYRO_BIAS_DRIFT: gyro_drift,
     }
 
 
@@ -180,9 +197,10 @@ GROUPS: dict[str, tuple[OptionalParameter, ...]] = _table()
 GROUP_NAMES: tuple[str, ...] = ("lever-arm", "k2", "time-offset")
 # Fitted on runs placed by hand only: a MEMS gyro's rate per g of specific force
 # (``w_meas = A_g w + b_g + G f``), which real hand-placed logs show at hundreds of deg/h; and the
-# accelerometers' biases changing linearly over the run (``b_a + d (t - t_last)``, a unit
-# still warming up: a RealSense T265's x bias moves 700 ug/min).
-HAND_GROUP_NAMES: tuple[str, ...] = ("g-sensitivity", ACCEL_BIAS_DRIFT)
+# accelerometers' and the gyros' biases changing linearly over the run (``b + d (t - t_last)``, a
+# unit still warming up: a RealSense T265's x accelerometer bias moves 700 ug/min, a wireless IMU's
+# x gyro bias about 50 deg/h/min).
+HAND_GROUP_NAMES: tuple[str, ...] = ("g-sensitivity", ACCEL_BIAS_DRIFT, GYRO_BIAS_DRIFT)
 
 
 def parse_groups(

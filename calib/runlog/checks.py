@@ -11,7 +11,7 @@ import numpy as np
 from calib.errors import CalibError
 from calib.nav.earth import HEIGHT_RANGE_M  # one source: the site limits of calib.nav.earth
 
-from . import clock
+from . import clock, coarse
 from .columns import time_unit_suspect
 from .fill import holes_at_rest
 from .format import ARRAY_COLUMNS, FORMAT, REQUIRED_META
@@ -154,7 +154,7 @@ def check_samples(run: Run, locate, allow_gaps: bool, time_name: str | None = No
     step = np.diff(time)
     period = 1.0 / run.sample_rate_hz
     # A row repeating the previous one is a duplicated sample, named below with the gaps.
-    duplicate = clock.duplicate_rows(time, np.asarray(run.dtheta_rad), np.asarray(run.dv_mps), period)
+    duplicate = coarse.duplicate_rows(time, np.asarray(run.dtheta_rad), np.asarray(run.dv_mps), period)
     # Equal stamps with other data may be a host that read two samples at once: the clock's
     # count rule places them, or refuses them where the stamps never make room for the extra row.
     half = split_stamp_suspect(time) if time_name is not None else None

@@ -40,7 +40,8 @@ ROUNDING_JITTER = 1e-9
 # base is re-based to its first stamp. A log that counts from its start (up to a day) keeps its times.
 EPOCH_S = 1e5
 # Steps shorter than half the median one in more than this share of the rows: the host receives
-# the samples in bursts (one row in nine, a Bluetooth link's), not a rare catch-up after a stall.
+# the samples in bursts (a Bluetooth link: eight steps of 11.2 ms, then one of 0.4 ms, every 10 ms
+# sample there), not a rare catch-up after a stall; the median step is then no period.
 BURST_SHARE = 0.05
 
 
@@ -160,27 +161,6 @@ def describe(events: list, first: int = 3) -> str:
     return f"in {len(events)} places, the first {first}: {named}, ..."
 
 
-def duplicate_rows(time_s: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, period_s: float) -> np.ndarray:
-    """Rows that repeat the previous row: same increments, at most half a period later.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``(n,)`` bool, True for each extra copy.
-    """
-    same = np.zeros(len(time_s), dtype=bool)
-    step = np.diff(time_s)
-    alike = np.ones(len(step), dtype=bool)
-    # Column by column: numpy reduces a 3-wide axis one row at a time, ten times slower.
-    for x in (dtheta, dv):
-        for i in range(x.shape[1]):
-            alike &= x[1:, i] == x[:-1, i]
-    close = alike & (step >= 0.0) & (step < 0.5 * period_s)
-    if close.any() and not coarse.chance_repeats(step, alike, close):
-        same[1:] = close  # (stamps coarser than the period: repeats no more than chance gives are samples)
-    return same
-
-
 def sample_clock(
     time_s: np.ndarray, sample_rate_hz: float, duplicate: np.ndarray | None = None
 ) -> SampleClock:
@@ -198,7 +178,7 @@ def sample_clock(
     sample_rate_hz : float
         Nominal IMU output rate.
     duplicate : numpy.ndarray of bool, optional
-        Rows that repeat the previous one (`duplicate_rows`).
+        Rows that repeat the previous one (:func:`calib.runlog.coarse.duplicate_rows`).
 
     Returns
     -------
@@ -304,12 +284,10 @@ def stamps_rate(time_s: np.ndarray) -> float:
     periods (a dropped sample is a step of 2); the period is then the slope
     of ``t - t[0]`` against that count, fitted over the whole run, so neither
     the rounding of printed stamps nor that of a float64 at epoch magnitude
-    (2.4e-7 s at 1.7e9 s) moves it: both average out over the run. Where more
-    than `BURST_SHARE` of the steps are shorter than half the median one, the
-    span over the rows is the guess: a host that receives the samples in bursts
-    (a Bluetooth link's eight steps of 11.2 ms and one of 0.6 ms, every 10 ms
-    sample there) makes the median step no period, and the count at it more
-    rows than the stamps have room for.
+    (2.4e-7 s at 1.7e9 s) moves it: both average out over the run. Where the
+    median step is no period, the span over the rows is the guess: stamps
+    coarser than the samples (:func:`calib.runlog.coarse.coarse_stamps`) and
+    samples a host receives in bursts (`BURST_SHARE`).
 
     Parameters
     ----------
@@ -324,14 +302,10 @@ def stamps_rate(time_s: np.ndarray) -> float:
     rel = time_s - time_s[0]  # exact: the stamps are within a factor 2 of each other or small
     step = np.diff(rel)
     first = float(np.median(step))
-    if coarse.coarse_stamps(step):
-        # Stamps coarser than the period (a 200 Hz IMU stamped to 10 ms): half the steps are
-        # zero and the median step is no period. The rows are the samples: span over rows.
-        first = float(rel[-1]) / (len(rel) - 1)
+    if coarse.coarse_stamps(step) or np.mean((step > 0.0) & (step < 0.5 * first)) > BURST_SHARE:
+        first = float(rel[-1]) / (len(rel) - 1)  # the rows are the samples: span over rows
     if not first > 0:
         return math.nan
-    elif np.mean((step > 0.0) & (step < 0.5 * first)) > BURST_SHARE:
-        first = float(rel[-1]) / (len(rel) - 1)  # samples received in bursts: span over rows
     try:  # the counts of `sample_clock` (the count rule for jittering stamps)
         counts = _whole_steps(rel, first, np.zeros(len(rel), dtype=bool)).astype(float)
     except CalibError:
@@ -435,15 +409,14 @@ def settle(run, allow_gaps: bool, guess_turns: bool = False):
     clock = run.clock  # found by the reader's checks on this time column, else found here
     if clock is None:
         try:
-            clock = sample_clock(
-                run.time_s, run.sample_rate_hz, duplicate_rows(run.time_s, run.dtheta_rad, run.dv_mps, period)
-            )
+            repeats = coarse.duplicate_rows(run.time_s, run.dtheta_rad, run.dv_mps, period)
+            clock = sample_clock(run.time_s, run.sample_rate_hz, repeats)
         except CalibError as exc:
             raise CalibError(exc.what, f"{run.source}, sample {exc.where}", exc.fix) from None
     if clock.dropped or clock.duplicates:
         if not allow_gaps:
             raise refusal(clock, run.source)
-        keep = ~duplicate_rows(run.time_s, run.dtheta_rad, run.dv_mps, period)
+        keep = ~coarse.duplicate_rows(run.time_s, run.dtheta_rad, run.dv_mps, period)
         present = clock.index[keep]
         gimbal = None if run.gimbal_deg is None else run.gimbal_deg[keep]
         dtheta, dv, index = run.dtheta_rad[keep], run.dv_mps[keep], present

@@ -33,15 +33,16 @@ from .tools import emit_json, guarded, hidden_alias, info, provenance, refuse_ov
 )
 @options.with_terms(
     "Also fit a real unit's terms beyond the 21: any of lever-arm, k2, time-offset (comma-separated), or "
-    "all; by hand: g-sensitivity, accel-bias-drift (each fitted anyway when the data need it)."
+    "all; by hand: g-sensitivity, accel-bias-drift, gyro-bias-drift (each fitted anyway when the data "
+    "need it)."
 )
 @click.option(
     "--without",
     "without_terms",
     default=None,
     metavar="TERMS",
-    help="By hand: never fit these optional terms (g-sensitivity, accel-bias-drift), even when the data "
-    "would choose them.",
+    help="By hand: never fit these optional terms (g-sensitivity, accel-bias-drift, gyro-bias-drift), even "
+    "when the data would choose them.",
 )
 @options.requirements
 @options.gravity(

@@ -20,7 +20,8 @@ from calib.hand.simulate import simulate_by_hand
 from calib.model.error_model import ErrorModel
 from calib.noise.profiles import load_profile
 from calib.runlog import read_run
-from calib.runlog.clock import duplicate_rows, sample_clock, stamps_rate
+from calib.runlog.clock import sample_clock, stamps_rate
+from calib.runlog.coarse import duplicate_rows
 from calib.sequence.kinematics import SimConfig
 from seqdesign.cli import main
 
