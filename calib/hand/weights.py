@@ -236,8 +236,11 @@ def profile_outliers(
     return confirmed(out, force_confirmed)
 
 
-def refuted(e: np.ndarray, red: np.ndarray, labels: list, s_profile: np.ndarray, outliers=()) -> tuple:
-    """The groups whose residuals at the profile's weights its noise cannot explain.
+def refuted(
+    e: np.ndarray, red: np.ndarray, labels: list, s_profile: np.ndarray, outliers=(), quieter_only=False
+) -> tuple:
+    """The groups whose residuals at the profile's weights its noise cannot explain (with
+    ``quieter_only``, only those whose residuals are too small for it).
 
     A group keeps the profile's weights unless its whitened residual power lies outside
     the two-sided `REFUTED_LEVEL` band of a chi2 on its redundancy: a recording whose noise
@@ -257,7 +260,7 @@ def refuted(e: np.ndarray, red: np.ndarray, labels: list, s_profile: np.ndarray,
             continue
         power = float(np.sum((e[rows] / s_profile[rows]) ** 2))
         p = float(chi2.cdf(power, r))
-        if min(p, 1.0 - p) < 0.5 * (1.0 - REFUTED_LEVEL):
+        if min(p, 1.0 if quieter_only else 1.0 - p) < 0.5 * (1.0 - REFUTED_LEVEL):
             out.append(g)
     return tuple(out)
 
@@ -270,12 +273,15 @@ def refuted_later(weights: Weights, e: np.ndarray, red: np.ndarray, labels: list
     missed by x12 their noise, the rests' rates, bent by those moves, showed a power of 103 on
     a redundancy of 114, and 23 on 114 once the moves were weighted by their own (a gyro five
     times quieter than its profile). Judged again when the weights settle, such a group
-    earns its weights too: its sigmas are what its residuals show, not the profile's.
+    earns its weights too: its sigmas are what its residuals show, not the profile's. A misfit
+    elsewhere only adds to a group's power, so it can hide only a group quieter than its
+    profile: the second look judges that side alone (half the first look's false alarms).
     """
     rest = tuple(g for g in GROUPS if g not in weights.earning)
     if not rest:
         return None
-    later = tuple(g for g in refuted(e, red, labels, s_profile, tuple(weights.block)) if g in rest)
+    quieter = refuted(e, red, labels, s_profile, tuple(weights.block), quieter_only=True)
+    later = tuple(g for g in quieter if g in rest)
     if not later:
         return None
     return Weights(dict(weights.theta), dict(weights.block), weights.earning + later)
