@@ -15,23 +15,15 @@ import numpy as np
 from calib.model import params as P
 
 
-def _sample_ends(dt: np.ndarray) -> np.ndarray:
-    return np.concatenate([[0.0], np.cumsum(dt)])
-
-
-def rest_times(data, dt: np.ndarray) -> np.ndarray:
-    """Each rest's middle, s, from halfway between the first rest's and the last rest's middles."""
-    ends = _sample_ends(dt)
-    mid = 0.5 * (ends[data.rests.start] + ends[data.rests.end])
-    return mid - 0.5 * (mid[0] + mid[-1])
-
-
-def move_times(data, dt: np.ndarray) -> np.ndarray:
-    """Each move's middle, s, on the time of :func:`rest_times`."""
-    ends = _sample_ends(dt)
+def drift_times(data, dt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each rest's middle and each move's middle, s, from halfway between the first rest's and the
+    last rest's middles: the time the drifts are fitted about.
+    """
+    ends = np.concatenate([[0.0], np.cumsum(dt)])
     rest_mid = 0.5 * (ends[data.rests.start] + ends[data.rests.end])
-    mid = np.array([0.5 * (ends[sl.start] + ends[sl.stop]) for sl in data.move_slices])
-    return mid - 0.5 * (rest_mid[0] + rest_mid[-1])
+    move_mid = np.array([0.5 * (ends[sl.start] + ends[sl.stop]) for sl in data.move_slices])
+    origin = 0.5 * (rest_mid[0] + rest_mid[-1])
+    return rest_mid - origin, move_mid - origin
 
 
 def at_last_rest(state, covariance: np.ndarray, layout, data, dt: np.ndarray):
@@ -42,7 +34,7 @@ def at_last_rest(state, covariance: np.ndarray, layout, data, dt: np.ndarray):
     """
     if not (layout.bias_drift or layout.gyro_drift):
         return state.values, covariance
-    tau_last = float(rest_times(data, dt)[-1])
+    tau_last = float(drift_times(data, dt)[0][-1])
     values = state.values.copy()
     T = np.eye(layout.n)
     for fitted, bias, drift, rate in (

@@ -52,7 +52,7 @@ from calib.noise.profiles import NoiseProfile
 from . import weights as W
 from .chain import chained_start, compensated
 from .data import POSE_APART_DEG, HandData, distinct_poses, hand_data
-from .drift import at_last_rest, move_times, rest_times
+from .drift import at_last_rest, drift_times
 from .fit_options import HAND_FIT, HandFitOptions, HandSamples
 from .moves import move_rotation, move_sensitivity, right_jacobian_inverse
 from .rests import brief_new_faces, brief_pose_lines
@@ -206,8 +206,7 @@ def linearise(
     f_n = earth.specific_force_n(site.gravity_mps2)
     rows, res, sig, group = [], [], [], []
     drifts = layout.bias_drift or layout.gyro_drift
-    tau = rest_times(data, dt) if drifts else np.zeros(data.count)
-    tau_move = move_times(data, dt) if layout.gyro_drift else np.zeros(data.count - 1)
+    tau, tau_move = drift_times(data, dt) if drifts else (np.zeros(data.count), np.zeros(data.count - 1))
 
     def add(jac, r, s, grp):
         rows.append(jac)
