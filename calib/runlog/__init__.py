@@ -16,7 +16,8 @@ for hand recordings, a sample counter in place of the time
 a text log without a header (:mod:`~calib.runlog.headerless`),
 raw counts and their nominal conversion
 (:mod:`~calib.runlog.conversion`), imu_tk's two files (:mod:`~calib.runlog.imutk`),
-a logger's two CSV files, one per sensor (:mod:`~calib.runlog.csvpair`),
+a logger's two CSV files, one per sensor (:mod:`~calib.runlog.csvpair`), a RealSense
+camera's motion streams in one file of blocks (:mod:`~calib.runlog.realsense`),
 two files on two clocks (:mod:`~calib.runlog.streams`) and clipped stretches
 (:mod:`~calib.runlog.clipping`). CSV writing is
 :mod:`~calib.runlog.csvwrite`.

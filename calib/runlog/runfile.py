@@ -24,6 +24,7 @@ from .imutk import read_imutk
 from .npz import read_npz, write_npz
 from .paths import run_kind
 from .psins import read_psins
+from .realsense import is_realsense, read_realsense
 from .run import Run
 
 _NOT_WRITTEN = "the PSINS .imu format is read, not written"
@@ -123,6 +124,8 @@ def read_run(
         )
     if kind == ".imu":
         run = read_psins(path, allow_gaps)
+    elif kind == ".csv" and is_realsense(path):
+        run = read_realsense(path, allow_gaps, site, columns)
     elif kind == ".csv":
         run = read_csv(path, allow_gaps, site, columns, conversion)
     else:

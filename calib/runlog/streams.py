@@ -142,7 +142,7 @@ def two_clocks(accel: Stream, gyro: Stream, meta: dict, allow_gaps: bool) -> Run
         share = carry_onto(a_end, a.clipped[:, 3:].astype(float), a_period, g_end[sel])
         clipped = clipped.copy()
         clipped[:, 3:] |= share > 0.0
-    g_period = float(g_end[1] - g_end[0])
+    g_period = float(g_end[-1] - g_end[0]) / (len(g_end) - 1)  # the mean step: stamps may jitter
     left_out = (first + len(g_end) - 1 - last) * g_period
     note = (
         f"two clocks: the accelerometer's {len(a_end)} samples at {accel_rate:.6g} Hz carried onto the "
