@@ -63,6 +63,17 @@ def test_compare_refuses_a_result_mixed_with_a_sequence(results):
     assert res.exit_code == 2 and "exactly two result files" in res.stderr
 
 
+def test_weighted_chi2_sf_far_in_the_tail_is_chi2_not_the_integrals_rounding():
+    # Two days of one phone differ by chi2 561 and 665 on 21: by chi2(21) p = 1e-105 and 1e-127.
+    # The integral's absolute error (1e-10) gave 9e-12 for the first and 0 for the second.
+    from seqdesign.repeatability import weighted_chi2_sf
+
+    for x in (561.0, 665.0):
+        assert weighted_chi2_sf(x, np.ones(21)) == pytest.approx(chi2.sf(x, 21), rel=1e-6)
+    p = [weighted_chi2_sf(x, np.linspace(0.5, 2.0, 21)) for x in (200.0, 561.0, 665.0)]
+    assert p[0] > p[1] > p[2] > 0.0  # monotone, never rounded to nothing
+
+
 def test_weighted_chi2_sf_is_chi2_where_it_must_be():
     from seqdesign.repeatability import weighted_chi2_sf
 
