@@ -195,7 +195,11 @@ def sample_clock(
     try:
         steps, loop = _whole_steps(time_s, period, dup), False
     except CalibError:
-        if not (polled.loop_wanders(time_s, period, dup) or polled.delays_kept(time_s, period, dup)):
+        if not (
+            polled.loop_wanders(time_s, period, dup)
+            or polled.delays_kept(time_s, period, dup)
+            or polled.rephased(time_s, dup)
+        ):
             raise
         steps, loop = (~dup[1:]).astype(np.int64), True  # each row the next sample
     counted = steps[~dup[1:]]

@@ -102,24 +102,18 @@ DELAY_MATCH = 0.2  # periods: the shift kept is the step's excess to this
 DELAYS_KEPT = 3  # such delays, and most of the long steps, before the rows are taken at their stamps
 
 
-def delays_kept(time_s: np.ndarray, period: float, duplicate: np.ndarray) -> bool:
-    """Whether a loop's long steps shift the later stamps for good, by no whole number of periods.
-
-    Each long step (:data:`DELAY_STEP`) with no other within :data:`DELAY_ROWS` rows: the
-    cadence ``c`` of the rows before it, and the shift of the stamp ``DELAY_ROWS`` rows after
-    it against that cadence, ``(t[i + W] - t[i] - W c) / c``. A host's delay the next rows
-    make good shifts nothing, a lost sample a whole period; a polling loop's delay shifts by
-    the step's excess over ``c``, which stamps printed to 1 ms at 88 Hz, steps of 11 and 12 ms
-    with delays of 18 ms, hide from the spread of the steps that :func:`walk_ratio` judges.
+def _delays(time_s: np.ndarray, duplicate: np.ndarray) -> tuple[int, int]:
+    """``(kept, long)``: the long steps that shift the later stamps for good by no whole number of
+    periods, and all the long steps (:func:`delays_kept`).
     """
     t = time_s[~duplicate]
     step = np.diff(t)
     w = DELAY_ROWS
     if len(step) < 2 * w + 1:
-        return False
+        return 0, 0
     usual = float(np.median(step))
     if not usual > 0.0:
-        return False
+        return 0, 0
     low, high = DELAY_STEP
     long = np.flatnonzero(step > low * usual)
     kept = 0
@@ -133,7 +127,45 @@ def delays_kept(time_s: np.ndarray, period: float, duplicate: np.ndarray) -> boo
         shift = (t[i + w] - t[i] - w * cadence) / cadence
         if abs(shift - (size - 1.0)) <= DELAY_MATCH and abs(shift - round(shift)) > MAX_STEP_FRACTION:
             kept += 1
-    return kept >= DELAYS_KEPT and 2 * kept >= len(long)
+    return kept, len(long)
+
+
+def delays_kept(time_s: np.ndarray, period: float, duplicate: np.ndarray) -> bool:
+    """Whether a loop's long steps shift the later stamps for good, by no whole number of periods.
+
+    Each long step (:data:`DELAY_STEP`) with no other within :data:`DELAY_ROWS` rows: the
+    cadence ``c`` of the rows before it, and the shift of the stamp ``DELAY_ROWS`` rows after
+    it against that cadence, ``(t[i + W] - t[i] - W c) / c``. A host's delay the next rows
+    make good shifts nothing, a lost sample a whole period; a polling loop's delay shifts by
+    the step's excess over ``c``, which stamps printed to 1 ms at 88 Hz, steps of 11 and 12 ms
+    with delays of 18 ms, hide from the spread of the steps that :func:`walk_ratio` judges.
+    """
+    kept, long = _delays(time_s, duplicate)
+    return kept >= DELAYS_KEPT and 2 * kept >= long
+
+
+# Steps whose robust spread is below this fraction of the period locate each sample to a small
+# part of it: a phone's gyro stamped to 0.1 ms at 94 Hz, steps of 10.5 and 10.6 ms (0.5 %).
+PRECISE_SPREAD = 0.01
+
+
+def rephased(time_s: np.ndarray, duplicate: np.ndarray) -> bool:
+    """Whether precise stamps shift for good, by no whole number of periods, at every long step.
+
+    A sensor whose sampling took up another phase (a phone's gyro: one step of 1.49 periods
+    among steps within 1 % of the period, and every later stamp 0.49 periods on) has samples
+    no count of one clock places, and that neither a host's delay (made good) nor a lost
+    sample (a whole period) explains. Its stamps, precise, place each at its time: read there,
+    the one longer interval is the sample's own.
+    """
+    kept, long = _delays(time_s, duplicate)
+    if not kept or kept != long:
+        return False
+    step = np.diff(time_s[~duplicate])
+    usual = float(np.median(step))
+    steady = step[step <= DELAY_STEP[0] * usual]
+    spread = 1.4826 * float(np.median(np.abs(steady - np.median(steady))))
+    return spread <= PRECISE_SPREAD * usual
 
 
 STALL_STEPS = 3.0  # a step this many times the median one: the loop stalled (a hole in the record)
@@ -157,7 +189,8 @@ def summary(step_stats: tuple, deviation_rms: float) -> str:
     return (
         f"clock: samples taken at their stamps (steps {1e3 * low:.3g}-{1e3 * high:.3g} ms, "
         f"{1e3 * rms:.3g} ms RMS about {1e3 * mean:.4g} ms, the time wandering from a "
-        f"uniform clock by {1e3 * deviation_rms:.3g} ms RMS, its delays never made up: a polling logger); "
+        f"uniform clock by {1e3 * deviation_rms:.3g} ms RMS, its delays never made up: a polling logger, "
+        "or a sensor that took up another phase); "
         "each sample covers its own stamp interval"
     )
 

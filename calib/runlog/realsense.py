@@ -158,7 +158,7 @@ def read_realsense(path: str | os.PathLike, allow_gaps: bool, options: dict, col
             "a column map renames a header, and a RealSense motion log names its columns itself "
             "(3DOF_x,3DOF_y,3DOF_z in rad/s and m/s^2)",
             name,
-            "leave out --columns for this file",
+            "leave out the column map (the CLI's --columns) for this file",
         )
     lines = decode_lines(read_bytes(path), name)
     blocks = _blocks(lines, name)

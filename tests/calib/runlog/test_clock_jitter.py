@@ -100,6 +100,19 @@ def test_stamps_half_a_period_off_for_good_are_refused():
         sample_clock(stamps, RATE_HZ)
 
 
+def test_precise_stamps_that_take_up_another_phase_once_are_read_at_their_stamps():
+    # A phone's gyro stamped to 0.1 ms at 94.77 Hz (steps of 10.5 and 10.6 ms) whose sampling took
+    # up another phase once: one step of 1.5 periods, every later stamp half a period on. No count
+    # of one clock places those samples; the stamps do, each row the next sample, the one long
+    # interval the sample's own. With jittering host stamps the same shift is refused (above).
+    period = 1.0 / 94.7663
+    n = 7_000
+    stamps = np.round(period * (np.arange(n) + np.where(np.arange(n) >= 2_065, 0.5, 0.0)), 4)
+    clock = sample_clock(stamps, 1.0 / period)
+    assert clock.rule == "stamps" and not clock.dropped
+    np.testing.assert_array_equal(clock.index, np.arange(n))
+
+
 def _phone_stamps(index: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """A phone's stamps: a 99.7369 Hz clock printed to 1 ms, with a host's reception jitter."""
     period = 1.0 / 99.7369

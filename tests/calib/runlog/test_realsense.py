@@ -127,4 +127,4 @@ def test_a_column_map_for_a_realsense_file_is_refused_by_the_cli(tmp_path):
     _collect_file(tmp_path / "rs.csv", _streams())
     args = ["calibrate", str(tmp_path / "rs.csv"), "--by-hand", "--profile", "mems", "--latitude", "45",
             "--height", "0", "--columns", "3DOF_x=gyro_x_radps", "-o", "out.toml"]  # fmt: skip
-    refused(CliRunner(), tmp_path, args, "names its columns itself", "leave out --columns")
+    refused(CliRunner(), tmp_path, args, "names its columns itself", "the CLI's --columns")
