@@ -15,7 +15,9 @@ is the strictest held-out set: other poses, another power-up), with the repeatab
     PYTHONPATH=. .venv/bin/python benchmarks/by_hand_external.py LOG [LOG ...] \\
         --columns 1=time_s,2=accel_x_mps2,...,7=gyro_z_radps --latitude 37.46 --height 100 [--gravity G]
 
-Logs in SI (rates or increments in any unit of the column grammar); counts are not read here.
+Logs in SI (rates or increments in any unit of the column grammar); counts are not read here. A
+logger's two files, one per sensor, are one LOG written ``ACCEL_FILE::GYRO_FILE`` (as calibrate's
+RUN and ``--gyro-file``).
 """
 
 from __future__ import annotations
@@ -42,8 +44,10 @@ SAID = ("noise", "model")  # the lines of our summary that say what the data cho
 
 def recording(path: str, args) -> Recording:
     """The log read as its owner would, its samples in SI as the raw units of the scores."""
+    path, _, gyro_path = path.partition("::")
     run = read_run(
         path,
+        gyro_path=gyro_path or None,
         columns=args.columns,
         sample_rate_hz=args.sample_rate_hz,
         latitude_deg=args.latitude,
