@@ -40,7 +40,7 @@ from .dialect import (
 )
 from .format import ARRAY_COLUMNS, FORMAT, GIMBAL_COLUMNS, REQUIRED_COLUMNS, REQUIRED_META
 from .headerless import by_commented_names, mapped_header, with_header, with_row_counter
-from .loggers import apple_sign_warning, with_logger_rate
+from .loggers import apple_sign_warning, known_header_map, with_logger_rate
 from .paths import read_bytes
 from .polled import own_intervals
 from .rollover import said_rollover
@@ -101,6 +101,7 @@ def read_csv(
     lines, header_index = templated_rows(lines, header_index, name)  # a sketch's serial prints
     lines = without_units_row(lines, header_index, name)
     lines = without_repeated_headers(unquoted(lines, header_index, name), header_index, name)
+    mapping = mapping or known_header_map(lines, header_index, name)  # EuRoC's, ROS's
     mapping = by_commented_names(lines, header_index, mapping, name)
     lines, added = with_header(lines, header_index, mapping, meta, options or {}, name)  # no header row
     added += labelled

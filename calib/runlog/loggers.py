@@ -8,6 +8,11 @@ and every bias and g-sensitivity term comes out with its sign reversed. So the m
 negate them (``accelerometerAccelerationX(G)=-accel_x_g``, docs/logs-columns.md), and a map
 that does not is warned of by name.
 
+Some loggers write their IMU's columns under names fixed by their own convention, in fixed units
+(`KNOWN_HEADERS`): EuRoC's (and Kalibr's, TUM-VI's) ``imu0.csv``, ROS's ``rostopic echo -p`` and
+a ROS bag's IMU topic exported to CSV. Given no column map, such a header is read as its
+convention says (rad/s, m/s^2, stamps in ns), said on stderr (`known_header_map`).
+
 Xsens MT Manager's older exports state their output rate in a ``//`` line of the preamble
 (``// Update Rate: 100.0Hz``): a sample counter no other rate times takes it, said
 (`with_logger_rate`); a 2022 export states none, and is pointed to its own clock.
@@ -21,7 +26,7 @@ from calib.errors import CalibError
 
 from .columns import COUNTER, NEGATED, ColumnPlan, sensor_of
 from .counter import RATE_FIX
-from .text import header_names, logger_rate
+from .text import header_names, is_comment, logger_rate
 
 # Prefixes of the accelerometer columns of iOS loggers (Apple's sign): SensorLog.
 APPLE_SIGN_PREFIXES = ("accelerometerAcceleration",)
@@ -44,6 +49,61 @@ def apple_sign_warning(mapping: dict[str, str], where: str) -> str | None:
         f"(-1 g on z lying face up); map it negated, {source}={NEGATED}{target} (and the other axes "
         "alike), or every accelerometer bias comes out with its sign reversed"
     )
+
+
+def _axes(prefix: str, suffix: str, target: str) -> dict[str, str]:
+    return {f"{prefix}{a}{suffix}": f"{target}_{a}" for a in "xyz"}
+
+
+# The loggers whose IMU headers are known, each its names mapped to the grammar's: the sensor's
+# own stamp where the file has one (a ROS message's header.stamp, not the time it was logged).
+KNOWN_HEADERS = (
+    (
+        "EuRoC's imu0.csv (Kalibr, TUM-VI)",
+        {"timestamp [ns]": "time_ns"}
+        | {k: v + "_radps" for k, v in _axes("w_RS_S_", " [rad s^-1]", "gyro").items()}
+        | {k: v + "_mps2" for k, v in _axes("a_RS_S_", " [m s^-2]", "accel").items()},
+    ),
+    (
+        "ROS's rostopic echo -p of a sensor_msgs/Imu topic",
+        {"field.header.stamp": "time_ns"}
+        | {k: v + "_radps" for k, v in _axes("field.angular_velocity.", "", "gyro").items()}
+        | {k: v + "_mps2" for k, v in _axes("field.linear_acceleration.", "", "accel").items()},
+    ),
+    (
+        "a ROS bag's sensor_msgs/Imu topic exported to CSV",
+        {"header.stamp.secs": "time_s", "header.stamp.nsecs": "time_ns"}
+        | {k: v + "_radps" for k, v in _axes("angular_velocity.", "", "gyro").items()}
+        | {k: v + "_mps2" for k, v in _axes("linear_acceleration.", "", "accel").items()},
+    ),
+    (
+        "a ROS 2 bag's sensor_msgs/Imu topic exported to CSV",
+        {"header.stamp.sec": "time_s", "header.stamp.nanosec": "time_ns"}
+        | {k: v + "_radps" for k, v in _axes("angular_velocity.", "", "gyro").items()}
+        | {k: v + "_mps2" for k, v in _axes("linear_acceleration.", "", "accel").items()},
+    ),
+)
+
+
+def known_header_map(lines: list[str], header_index: int, name: str) -> dict[str, str]:
+    """The column map of a known logger's header (`KNOWN_HEADERS`), said on stderr; else empty.
+
+    The header is the row at ``header_index``, or a comment line right above it (EuRoC's
+    ``#timestamp [ns],w_RS_S_x [rad s^-1],...``).
+    """
+    candidates = [header_names(lines[header_index])] if header_index < len(lines) else []
+    if header_index > 0 and is_comment(lines[header_index - 1]):
+        candidates.append(header_names(lines[header_index - 1].lstrip().lstrip("#/% \t")))
+    for names in candidates:
+        for logger, mapping in KNOWN_HEADERS:
+            if all(k in names for k in mapping):
+                warnings.warn(
+                    f"{name}: the columns of {logger}, read as its convention says (rad/s, m/s^2, "
+                    "stamps in ns); give the CLI's --columns to map them otherwise",
+                    stacklevel=3,
+                )
+                return dict(mapping)
+    return {}
 
 
 XSENS_FINE_TIME = "SampleTimeFine"  # Xsens' sample time, in ticks of its 10 kHz clock
