@@ -118,9 +118,7 @@ def _stream(key: str, rows: list[str], numbers: list[int], header: str, name: st
         TIME,
         lambda i: f"{name}, line {numbers[i]}",
     )
-    plan = plan_one_sensor(
-        ["time_s", *(f"{sensor}_{a}_{UNITS[sensor]}" for a in "xyz")], sensor, where
-    )[2]
+    plan = plan_one_sensor(["time_s", *(f"{sensor}_{a}_{UNITS[sensor]}" for a in "xyz")], sensor, where)[2]
     period = 1.0 / stamps_rate(stamps)
     clipped = sensor_clipping(values[:, 1:], plan, None, period)
     own = (TIME, *AXES)
