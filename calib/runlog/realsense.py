@@ -125,7 +125,7 @@ def _stream(key: str, rows: list[str], numbers: list[int], header: str, name: st
     return Stream(name, stamps, np.asarray(numbers), values[:, 1:], clipped, own), unit
 
 
-def read_realsense(path: str | os.PathLike, allow_gaps: bool, options: dict, columns) -> Run:
+def read_realsense(path: str | os.PathLike, allow_gaps: bool, options: dict, columns, conversion=None) -> Run:
     """Read a librealsense motion log (module docstring) into one run on the gyro's clock.
 
     Parameters
@@ -139,6 +139,8 @@ def read_realsense(path: str | os.PathLike, allow_gaps: bool, options: dict, col
         stamps' rate).
     columns : str or dict, optional
         Must be empty: the file names its columns itself.
+    conversion : Conversion, optional
+        Must be None: the file is in SI.
 
     Returns
     -------
@@ -148,7 +150,8 @@ def read_realsense(path: str | os.PathLike, allow_gaps: bool, options: dict, col
     Raises
     ------
     CalibError
-        On a column map, a file without both motion streams, or a row that is not whole.
+        On a column map or a conversion, a file without both motion streams, or a row that is
+        not whole.
     """
     name = str(path)
     if columns:
@@ -157,6 +160,13 @@ def read_realsense(path: str | os.PathLike, allow_gaps: bool, options: dict, col
             "(3DOF_x,3DOF_y,3DOF_z in rad/s and m/s^2)",
             name,
             "leave out the column map (the CLI's --columns) for this file",
+        )
+    if conversion is not None:
+        raise CalibError(
+            "a conversion turns raw counts into SI, and a RealSense motion log is in SI already "
+            "(rad/s and m/s^2)",
+            name,
+            "leave out the conversion (the CLI's --conversion) for this file",
         )
     lines = decode_lines(read_bytes(path), name)
     blocks = _blocks(lines, name)

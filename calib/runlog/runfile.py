@@ -125,7 +125,7 @@ def read_run(
     if kind == ".imu":
         run = read_psins(path, allow_gaps)
     elif kind == ".csv" and is_realsense(path):
-        run = read_realsense(path, allow_gaps, site, columns)
+        run = read_realsense(path, allow_gaps, site, columns, conversion)
     elif kind == ".csv":
         run = read_csv(path, allow_gaps, site, columns, conversion)
     else:

@@ -128,3 +128,11 @@ def test_a_column_map_for_a_realsense_file_is_refused_by_the_cli(tmp_path):
     args = ["calibrate", str(tmp_path / "rs.csv"), "--by-hand", "--profile", "mems", "--latitude", "45",
             "--height", "0", "--columns", "3DOF_x=gyro_x_radps", "-o", "out.toml"]  # fmt: skip
     refused(CliRunner(), tmp_path, args, "names its columns itself", "the CLI's --columns")
+
+
+def test_a_conversion_for_a_realsense_file_is_refused(tmp_path):
+    # Its values are the SDK's, in SI: a conversion of counts given with it is a mistake, not ignored.
+    _collect_file(tmp_path / "rs.csv", _streams())
+    args = ["calibrate", str(tmp_path / "rs.csv"), "--by-hand", "--profile", "mems", "--latitude", "45",
+            "--height", "0", "--conversion", "si", "-o", "out.toml"]  # fmt: skip
+    refused(CliRunner(), tmp_path, args, "in SI already", "leave out the conversion")
