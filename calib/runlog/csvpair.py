@@ -99,6 +99,11 @@ def sensor_maps(columns: str | dict[str, str] | None, where: str) -> dict[str, d
     return maps
 
 
+def sensor_of_any(names: list[str], sensor: str) -> bool:
+    """Whether any of a header's (mapped) names is one of ``sensor``'s columns."""
+    return any(sensor_of(n) == sensor for n in names)
+
+
 def _positions_header(lines: list[str], header_index: int, mapping: dict[str, str]) -> tuple[list[str], int]:
     """A file without a header, mapped by position (OpenCamera's ``x,y,z,timestamp_ns`` rows),
     with a header of its positions put in: ``(lines, 1)``; else ``(lines, 0)``.
@@ -130,7 +135,23 @@ class _SensorFile:
         own = header_names(lines[header_index])
         names = apply_column_map(own, {k: v for k, v in mapping.items() if k in own}, where)
         self.used = set(mapping) & set(own)
-        time_at, self.time_name, columns = plan_one_sensor(names, sensor, where)
+        try:
+            time_at, self.time_name, columns = plan_one_sensor(names, sensor, where)
+        except CalibError as exc:
+            if not added or sensor_of_any(names, sensor):
+                raise
+            n = len(own)
+            raise CalibError(  # a map by position names each file's positions: this one's are not
+                f"the {SENSOR_WORDS[sensor]}'s file has no header row and the column map names none of "
+                f"its {n} positions as the {SENSOR_WORDS[sensor]}'s",
+                where,
+                "map its positions too: one map serves both files, a position for each "
+                + (
+                    "(e.g. 2=gyro_x_radps,3=gyro_y_radps,4=gyro_z_radps beside 2=accel_x_mps2,...)"
+                    if sensor == "gyro"
+                    else "(e.g. 2=accel_x_mps2,3=accel_y_mps2,4=accel_z_mps2 beside 2=gyro_x_radps,...)"
+                ),
+            ) from exc
         if self.time_name == COUNTER:
             raise CalibError(
                 "a sample counter gives no time, and two files are put on one time by their stamps",

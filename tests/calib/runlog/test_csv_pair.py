@@ -14,6 +14,7 @@ import pytest
 from click.testing import CliRunner
 from refusals import refused
 
+from calib.errors import CalibError
 from calib.runlog import read_run
 
 SITE = {"latitude_deg": 45.4, "height_m": 0.0}
@@ -237,3 +238,17 @@ def test_a_span_covers_its_ends_to_a_thousandth_of_a_period():
     gyro = 0.0173 + period * np.arange(51_175)
     for apart, kept in ((1.2e-8, 51_175), (-1.2e-8, 51_175), (0.5, 51_174), (-0.5, 51_174)):
         assert inside(gyro + apart * period, period, gyro).sum() == kept
+
+
+def test_a_pair_without_headers_mapped_for_one_file_only_is_told_to_map_the_others_positions(tmp_path):
+    # imu_tk-style text files in SI (t x y z each): a map naming positions 2-4 for the
+    # accelerometer alone leaves the gyro's file with no column of its own; said so, with the fix.
+    t, w, f = _samples()
+    for name, values in (("acc.txt", f), ("gyro.txt", w)):
+        body = np.char.mod("%.9g", np.column_stack([t, values]))
+        (tmp_path / name).write_text("\n".join(" ".join(r) for r in body) + "\n")
+    columns = "1=time_s,2=accel_x_mps2,3=accel_y_mps2,4=accel_z_mps2,5=gyro_x_radps"
+    with pytest.raises(CalibError) as err:
+        read_run(tmp_path / "acc.txt", gyro_path=tmp_path / "gyro.txt", columns=columns, **SITE)
+    assert "gyro's file has no header row" in str(err.value)
+    assert "2=gyro_x_radps,3=gyro_y_radps,4=gyro_z_radps" in str(err.value)
