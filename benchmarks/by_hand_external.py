@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 from by_hand import Recording, scored
-from by_hand_cv import imutk_on, ours_on, rests_of, split_rows, table
+from by_hand_cv import carried_lines, imutk_on, ours_on, rests_of, split_rows, table
 
 from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.errors import CalibError
@@ -136,7 +136,7 @@ def main() -> int | None:
             rows += split_rows(rec, None)
         except CalibError as exc:  # no rests to score on (the tool's own refusal): said, no traceback
             print(f"- {rec.name}: not scored: {exc}")
-    print("\n".join(table(rows)))
+    print("\n".join(table(rows) + [""] + carried_lines(rows)))
     if len(recs) < 2:
         return
     print("\n## Fitted on one recording, scored on another\n")
