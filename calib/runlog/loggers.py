@@ -52,35 +52,37 @@ def apple_sign_warning(mapping: dict[str, str], where: str) -> str | None:
 
 
 def _axes(prefix: str, suffix: str, target: str) -> dict[str, str]:
-    return {f"{prefix}{a}{suffix}": f"{target}_{a}" for a in "xyz"}
+    """A logger's three axis names (``prefix`` x/y/z ``suffix``) mapped to the grammar's ``target``."""
+    return {f"{prefix}{a}{suffix}": target.format(a) for a in "xyz"}
 
 
+GYRO, ACCEL = "gyro_{}_radps", "accel_{}_mps2"
 # The loggers whose IMU headers are known, each its names mapped to the grammar's: the sensor's
 # own stamp where the file has one (a ROS message's header.stamp, not the time it was logged).
 KNOWN_HEADERS = (
     (
         "EuRoC's imu0.csv (Kalibr, TUM-VI)",
         {"timestamp [ns]": "time_ns"}
-        | {k: v + "_radps" for k, v in _axes("w_RS_S_", " [rad s^-1]", "gyro").items()}
-        | {k: v + "_mps2" for k, v in _axes("a_RS_S_", " [m s^-2]", "accel").items()},
+        | _axes("w_RS_S_", " [rad s^-1]", GYRO)
+        | _axes("a_RS_S_", " [m s^-2]", ACCEL),
     ),
     (
         "ROS's rostopic echo -p of a sensor_msgs/Imu topic",
         {"field.header.stamp": "time_ns"}
-        | {k: v + "_radps" for k, v in _axes("field.angular_velocity.", "", "gyro").items()}
-        | {k: v + "_mps2" for k, v in _axes("field.linear_acceleration.", "", "accel").items()},
+        | _axes("field.angular_velocity.", "", GYRO)
+        | _axes("field.linear_acceleration.", "", ACCEL),
     ),
     (
         "a ROS bag's sensor_msgs/Imu topic exported to CSV",
         {"header.stamp.secs": "time_s", "header.stamp.nsecs": "time_ns"}
-        | {k: v + "_radps" for k, v in _axes("angular_velocity.", "", "gyro").items()}
-        | {k: v + "_mps2" for k, v in _axes("linear_acceleration.", "", "accel").items()},
+        | _axes("angular_velocity.", "", GYRO)
+        | _axes("linear_acceleration.", "", ACCEL),
     ),
     (
         "a ROS 2 bag's sensor_msgs/Imu topic exported to CSV",
         {"header.stamp.sec": "time_s", "header.stamp.nanosec": "time_ns"}
-        | {k: v + "_radps" for k, v in _axes("angular_velocity.", "", "gyro").items()}
-        | {k: v + "_mps2" for k, v in _axes("linear_acceleration.", "", "accel").items()},
+        | _axes("angular_velocity.", "", GYRO)
+        | _axes("linear_acceleration.", "", ACCEL),
     ),
 )
 
