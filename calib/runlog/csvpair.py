@@ -45,6 +45,7 @@ from .csv import (
     time_in_seconds,
 )
 from .dialect import past_preamble, to_commas, unquoted, without_repeated_headers, without_units_row
+from .loggers import known_sensor_map
 from .paths import read_bytes
 from .run import Run
 from .streams import Stream, two_clocks
@@ -133,6 +134,7 @@ class _SensorFile:
         self.header_line = header_index + 1
         where = f"{name}, line {self.header_line}"
         own = header_names(lines[header_index])
+        mapping = mapping or known_sensor_map(own, sensor, name)  # phyphox's
         names = apply_column_map(own, {k: v for k, v in mapping.items() if k in own}, where)
         self.used = set(mapping) & set(own)
         try:

@@ -87,6 +87,35 @@ KNOWN_HEADERS = (
 )
 
 
+# A sensor's own file whose header is known: phyphox's export of its accelerometer ("Acceleration
+# with g"; its "Linear Acceleration" leaves gravity out and is not read) and of its gyroscope.
+KNOWN_SENSOR_HEADERS = (
+    (
+        "phyphox's export",
+        {
+            "accel": {"Time (s)": "time_s"} | _axes("Acceleration ", " (m/s^2)", ACCEL),
+            "gyro": {"Time (s)": "time_s"} | _axes("Gyroscope ", " (rad/s)", GYRO),
+        },
+    ),
+)
+
+
+def known_sensor_map(names: list[str], sensor: str, name: str) -> dict[str, str]:
+    """The column map of one sensor's file under a known header (`KNOWN_SENSOR_HEADERS`), said on
+    stderr; else empty.
+    """
+    for logger, maps in KNOWN_SENSOR_HEADERS:
+        mapping = maps[sensor]
+        if all(k in names for k in mapping):
+            warnings.warn(
+                f"{name}: the columns of {logger}, read as its names say (s, rad/s, m/s^2); give the "
+                "CLI's --columns to map them otherwise",
+                stacklevel=4,
+            )
+            return dict(mapping)
+    return {}
+
+
 def known_header_map(lines: list[str], header_index: int, name: str) -> dict[str, str]:
     """The column map of a known logger's header (`KNOWN_HEADERS`), said on stderr; else empty.
 

@@ -98,3 +98,29 @@ def test_a_map_given_for_a_known_header_is_the_users(tmp_path):
         warnings.simplefilter("error")
         run = read_run(files["rostopic"], columns=columns, **SITE)
     assert run.n_samples == N
+
+
+def test_phyphoxs_two_files_read_as_the_same_samples_under_our_names(tmp_path):
+    # phyphox exports each sensor to its own file, names in quotes, times in s, values in E notation.
+    t, w, f = _samples()
+    seconds = (t - STAMP0_NS) / 1e9 + 0.0031
+    files = {}
+    for sensor, head, values in (
+        ("acc", '"Acceleration {} (m/s^2)"', f),
+        ("gyro", '"Gyroscope {} (rad/s)"', w),
+    ):
+        header = '"Time (s)",' + ",".join(head.format(a) for a in "xyz")
+        rows = [",".join(f"{v:.9E}" for v in (s, *r)) for s, r in zip(seconds, values, strict=True)]
+        files[sensor] = tmp_path / f"{sensor}.csv"
+        _write(files[sensor], header, rows)
+        ours = "t," + ",".join(f"{sensor}_{a}" for a in "xyz")
+        _write(tmp_path / f"{sensor}_ours.csv", ours, rows)
+    columns = "t=time_s," + ",".join(
+        [f"gyro_{a}=gyro_{a}_radps" for a in "xyz"] + [f"acc_{a}=accel_{a}_mps2" for a in "xyz"]
+    )
+    same = read_run(tmp_path / "acc_ours.csv", gyro_path=tmp_path / "gyro_ours.csv", columns=columns, **SITE)
+    with pytest.warns(UserWarning, match="phyphox's export"):
+        run = read_run(files["acc"], gyro_path=files["gyro"], **SITE)
+    np.testing.assert_array_equal(run.time_s, same.time_s)
+    np.testing.assert_array_equal(run.dtheta_rad, same.dtheta_rad)
+    np.testing.assert_array_equal(run.dv_mps, same.dv_mps)
