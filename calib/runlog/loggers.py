@@ -108,8 +108,8 @@ def known_sensor_map(names: list[str], sensor: str, name: str) -> dict[str, str]
         mapping = maps[sensor]
         if all(k in names for k in mapping):
             warnings.warn(
-                f"{name}: the columns of {logger}, read as its names say (s, rad/s, m/s^2); give the "
-                "CLI's --columns to map them otherwise",
+                f"{name}: the columns of {logger}, read as its names say (s, rad/s, m/s^2); "
+                "give the CLI's --columns to map them otherwise",
                 stacklevel=4,
             )
             return dict(mapping)
