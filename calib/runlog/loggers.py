@@ -100,20 +100,28 @@ KNOWN_SENSOR_HEADERS = (
 )
 
 
+def _first_known(headers: list[list[str]], known, said: str, name: str, stacklevel: int) -> dict[str, str]:
+    """The map of the first ``(logger, mapping)`` in ``known`` whose names a header holds, said on
+    stderr (``said``: how its units are read); else empty.
+    """
+    for names in headers:
+        for logger, mapping in known:
+            if all(k in names for k in mapping):
+                warnings.warn(
+                    f"{name}: the columns of {logger}, {said}; "
+                    "give the CLI's --columns to map them otherwise",
+                    stacklevel=stacklevel + 1,
+                )
+                return dict(mapping)
+    return {}
+
+
 def known_sensor_map(names: list[str], sensor: str, name: str) -> dict[str, str]:
     """The column map of one sensor's file under a known header (`KNOWN_SENSOR_HEADERS`), said on
     stderr; else empty.
     """
-    for logger, maps in KNOWN_SENSOR_HEADERS:
-        mapping = maps[sensor]
-        if all(k in names for k in mapping):
-            warnings.warn(
-                f"{name}: the columns of {logger}, read as its names say (s, rad/s, m/s^2); "
-                "give the CLI's --columns to map them otherwise",
-                stacklevel=4,
-            )
-            return dict(mapping)
-    return {}
+    known = [(logger, maps[sensor]) for logger, maps in KNOWN_SENSOR_HEADERS]
+    return _first_known([names], known, "read as its names say (s, rad/s, m/s^2)", name, 4)
 
 
 def known_header_map(lines: list[str], header_index: int, name: str) -> dict[str, str]:
@@ -125,16 +133,8 @@ def known_header_map(lines: list[str], header_index: int, name: str) -> dict[str
     candidates = [header_names(lines[header_index])] if header_index < len(lines) else []
     if header_index > 0 and is_comment(lines[header_index - 1]):
         candidates.append(header_names(lines[header_index - 1].lstrip().lstrip("#/% \t")))
-    for names in candidates:
-        for logger, mapping in KNOWN_HEADERS:
-            if all(k in names for k in mapping):
-                warnings.warn(
-                    f"{name}: the columns of {logger}, read as its convention says (rad/s, m/s^2, "
-                    "stamps in ns); give the CLI's --columns to map them otherwise",
-                    stacklevel=3,
-                )
-                return dict(mapping)
-    return {}
+    said = "read as its convention says (rad/s, m/s^2, stamps in ns)"
+    return _first_known(candidates, KNOWN_HEADERS, said, name, 3)
 
 
 XSENS_FINE_TIME = "SampleTimeFine"  # Xsens' sample time, in ticks of its 10 kHz clock
