@@ -11,11 +11,16 @@ g-sensitivity, when fitted, is removed with the calibrated specific force::
 From the 21-parameter model (``w_meas = A_g w + b_g + G_si f``, with the log's
 per-axis nominal conversion ``raw = k * w_meas + z``): ``M_g = A_g^-1 diag(1/k)``,
 ``b_g = z + k * b_g_si``, ``G = diag(k) G_si``; the accelerometer alike without G.
+
+A hand fit that chose a bias drift gives the biases of the calibrated log's last rest and the drift
+``d`` (raw units per s) beside them: ``b(t) = b + d (t - bias_time_s)``, on the log's own time axis.
+It is carried only when asked (:meth:`Correction.apply` given the samples' times) and only over the
+log it was fitted on (``drift_span_s``): a linear drift is a fact of that run, not of the next one.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +52,8 @@ class SensorCorrection:
         1-sigma of each element (nan where not known).
     raw_unit : str
         ``counts``, or a unit of ``RAW_PER_SI`` (``rad/s``, ``deg/s``, ``m/s^2``, ``g``), each sensor its own.
+    drift, sigma_drift : ndarray, shape (3,), or None
+        The bias's fitted drift, raw units per s, and its 1-sigma; None when none was fitted.
     """
 
     M: np.ndarray
@@ -54,28 +61,60 @@ class SensorCorrection:
     sigma_M: np.ndarray
     sigma_b: np.ndarray
     raw_unit: str
+    drift: np.ndarray | None = None
+    sigma_drift: np.ndarray | None = None
+
+    def bias_at(self, dt_s: np.ndarray | None) -> np.ndarray:
+        """The bias at ``dt_s`` (s from the biases' time, ``(n,)``), or the one bias for None."""
+        if dt_s is None or self.drift is None:
+            return self.b
+        return self.b + np.asarray(dt_s, dtype=float)[:, None] * self.drift
 
 
 @dataclass(frozen=True)
 class Correction:
-    """Both triads' corrections and the gyro's g-sensitivity (raw gyro units per m/s^2), or None."""
+    """Both triads' corrections and the gyro's g-sensitivity (raw gyro units per m/s^2), or None.
+
+    With a drift fitted, ``bias_time_s`` is the absolute time the biases ``b`` are of (the
+    calibrated log's last rest) and ``drift_span_s`` the span of that log, both on its own time
+    axis (``time_origin_s + time_s``, :attr:`calib.runlog.run.Run.time_origin_s`).
+    """
 
     gyro: SensorCorrection
     accel: SensorCorrection
     g_sensitivity: np.ndarray | None = None
     sigma_g_sensitivity: np.ndarray | None = None
     source: str = ""
+    bias_time_s: float | None = None
+    drift_span_s: tuple[float, float] | None = None
 
-    def apply(self, raw_gyro: np.ndarray, raw_accel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Calibrated rates (rad/s) and specific force (m/s^2) of ``(n, 3)`` raw samples."""
-        f = (np.asarray(raw_accel, dtype=float) - self.accel.b) @ self.accel.M.T
-        g = np.asarray(raw_gyro, dtype=float) - self.gyro.b
+    @property
+    def has_drift(self) -> bool:
+        """Whether either sensor's bias carries a fitted drift."""
+        return self.gyro.drift is not None or self.accel.drift is not None
+
+    def apply(
+        self, raw_gyro: np.ndarray, raw_accel: np.ndarray, time_s: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Calibrated rates (rad/s) and specific force (m/s^2) of ``(n, 3)`` raw samples.
+
+        ``time_s`` (``(n,)``, absolute s, each sample's middle) carries a fitted drift to each
+        sample's time; without it, or without a drift, the one bias ``b`` is taken out.
+        """
+        dt_s = None
+        if time_s is not None and self.bias_time_s is not None:
+            dt_s = np.asarray(time_s, dtype=float) - self.bias_time_s
+        f = (np.asarray(raw_accel, dtype=float) - self.accel.bias_at(dt_s)) @ self.accel.M.T
+        g = np.asarray(raw_gyro, dtype=float) - self.gyro.bias_at(dt_s)
         if self.g_sensitivity is not None:
             g = g - f @ self.g_sensitivity.T
         return g @ self.gyro.M.T, f
 
     def to_dict(self) -> dict:
         doc: dict = {"format_version": FORMAT_VERSION, "kind": "correction", "source": self.source}
+        if self.bias_time_s is not None and self.drift_span_s is not None:
+            doc["bias_time_s"] = float(self.bias_time_s)
+            doc["drift_span_s"] = [float(x) for x in self.drift_span_s]
         for name, c in (("gyro", self.gyro), ("accel", self.accel)):
             doc[name] = {
                 "raw_unit": c.raw_unit,
@@ -85,6 +124,9 @@ class Correction:
                 "sigma_M": [[float(x) for x in row] for row in c.sigma_M],
                 "sigma_b": [float(x) for x in c.sigma_b],
             }
+            if c.drift is not None:
+                sd = c.sigma_drift if c.sigma_drift is not None else np.full(3, np.nan)
+                doc[name] |= {"drift": [float(x) for x in c.drift], "sigma_drift": [float(x) for x in sd]}
         if self.g_sensitivity is not None:
             doc["gyro"]["G"] = [[float(x) for x in row] for row in self.g_sensitivity]
             sg = self.sigma_g_sensitivity if self.sigma_g_sensitivity is not None else np.full((3, 3), np.nan)
@@ -126,6 +168,12 @@ class Correction:
                 if "sigma_b" in table
                 else np.full(3, np.nan),
                 raw_unit,
+                np.array(f.numbers("drift", length=3, fix="give x, y, z in raw units per s"))
+                if "drift" in table
+                else None,
+                np.array(f.numbers("sigma_drift", length=3, finite=False, fix="give x, y, z"))
+                if "sigma_drift" in table
+                else None,
             )
         G = _matrix(doc["gyro"], "G", where, "gyro") if "G" in doc["gyro"] else None
         sG = (
@@ -133,7 +181,8 @@ class Correction:
             if "sigma_G" in doc["gyro"]
             else None
         )
-        return cls(parts["gyro"], parts["accel"], G, sG, str(doc.get("source", "")))
+        bias_time, span = _drift_time(doc, where, any(p.drift is not None for p in parts.values()))
+        return cls(parts["gyro"], parts["accel"], G, sG, str(doc.get("source", "")), bias_time, span)
 
 
 def correction_from_parameters(
@@ -197,9 +246,12 @@ def correction_from_parameters(
     return Correction(parts[0], parts[1], G, sG, source)
 
 
-def correction_of_result(result, conversion=None, source: str = "") -> Correction:
+def correction_of_result(result, conversion=None, source: str = "", run=None) -> Correction:
     """The correction of a :class:`~calib.calibration.result.CalibrationResult`; in counts when read
     through a nominal ``conversion`` (:class:`calib.runlog.conversion.Conversion`).
+
+    A hand fit's chosen bias drifts come with it when ``run`` (the calibrated
+    :class:`calib.runlog.run.Run`) gives their times: the biases are its last rest's.
     """
     G = sG = None
     if "g-sensitivity" in result.extras.groups:
@@ -209,7 +261,50 @@ def correction_of_result(result, conversion=None, source: str = "") -> Correctio
     convs: list[tuple[np.ndarray, np.ndarray] | None] = [None, None]
     if conversion is not None:
         convs = [(conversion.zero_counts[s], conversion.counts_per_unit[s]) for s in SENSORS]
-    return correction_from_parameters(result.values, result.covariance, G, sG, convs[0], convs[1], source)
+    correction = correction_from_parameters(
+        result.values, result.covariance, G, sG, convs[0], convs[1], source
+    )
+    drifts = {"gyro": "gyro-bias-drift", "accel": "accel-bias-drift"}
+    if run is None or result.by_hand is None or not any(g in result.extras.groups for g in drifts.values()):
+        return correction
+    parts = {"gyro": correction.gyro, "accel": correction.accel}
+    for (sensor, group), conv in zip(drifts.items(), convs, strict=True):
+        if group in result.extras.groups:
+            part = result.extras.index(group)
+            k = conv[1] if conv is not None else np.ones(3)  # raw units per SI
+            value, sigma = np.asarray(result.extra_values)[part], np.asarray(result.extra_sigma)[part]
+            parts[sensor] = replace(parts[sensor], drift=k * value, sigma_drift=k * sigma)
+    # The summary's seconds count from the start of the first sample's interval.
+    start = run.time_origin_s + float(run.time_s[0] - sample_intervals(run.time_s)[0])
+    return replace(
+        correction,
+        gyro=parts["gyro"],
+        accel=parts["accel"],
+        bias_time_s=start + float(np.mean(result.by_hand.rest_s[-1])),
+        drift_span_s=(start, run.time_origin_s + float(run.time_s[-1])),
+    )
+
+
+def sample_middles(run) -> np.ndarray:
+    """Each sample's middle on the log's own time axis, s (``time_origin_s + time_s - dt / 2``)."""
+    return run.time_origin_s + run.time_s - 0.5 * sample_intervals(run.time_s)
+
+
+def _drift_time(doc: dict, where: str, drift: bool) -> tuple[float | None, tuple[float, float] | None]:
+    """``bias_time_s`` and ``drift_span_s`` of a correction with a drift, checked; None without one."""
+    if not drift:
+        return None, None
+    f = Fields(doc, where)
+    fix = "give the file calibrate --correction wrote, or remove the drift keys"
+    bias_time = f.number("bias_time_s", fix=fix)
+    start, end = f.numbers("drift_span_s", length=2, fix=fix)
+    if not start <= bias_time <= end:
+        raise CalibError(
+            f"bias_time_s = {bias_time} is outside drift_span_s = [{start}, {end}]",
+            where,
+            "give the time of the biases within the span of the log the drift was fitted on",
+        )
+    return bias_time, (start, end)
 
 
 def raw_samples(run, correction: Correction, where: str) -> tuple[np.ndarray, np.ndarray]:

@@ -334,7 +334,8 @@ def summary_of(hand: HandFit, run: Run, choices: tuple = (), notes: tuple = ()) 
             per_min = ", ".join(f"{d / per_unit:+.3g}" for d in rate)
             drift.append(
                 f"{sensor} biases: the last rest's, at {float(np.mean(rest_s[-1])):.1f} s; they drift by "
-                f"({per_min}) {unit} over the run, which a correction (one bias) does not carry"
+                f"({per_min}) {unit} over the run (a correction applies the last rest's; "
+                "correct --carry-drift carries the drift over this log)"
             )
     return HandSummary(
         rest_s=rest_s,

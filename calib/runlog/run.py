@@ -104,6 +104,15 @@ class Run:
         return 1.0 / self.sample_rate_hz
 
     @property
+    def time_origin_s(self) -> float:
+        """The absolute time of ``time_s = 0``, s: the origin the log states, plus its first stamp when
+        its stamps counted from an epoch (UNIX or ROS time; ``calib.runlog.clock.epoch_origin``: a float64
+        at 1.7e9 s rounds each interval, so such a log is read from its first stamp).
+        """
+        stated = meta_float(self.meta, "time_origin_s", self.source) if "time_origin_s" in self.meta else 0.0
+        return stated + (self.clock.origin_s if self.clock is not None else 0.0)
+
+    @property
     def duration_s(self) -> float:
         """Time the samples cover, s.
 

@@ -200,7 +200,7 @@ def calibrate(
     if correction_path:
         from calib.calibration.correction import correction_of_result
 
-        correction_of_result(result, run.conversion if run is not None else None, run_path).save(
+        correction_of_result(result, run.conversion if run is not None else None, run_path, run).save(
             correction_path
         )
         info(f"wrote {correction_path}")

@@ -6,11 +6,16 @@ that format: see ``docs/by-hand.md``). The log is read as ``calibrate`` reads it
 sample counter); the output is a CSV of calibrated rates and specific force
 in the tool's own run format (``imu-run/1``, CSV or NPZ by the suffix), which every
 command reads back.
+
+A correction with a fitted bias drift is applied as one bias (the calibrated log's
+last rest's) unless ``--carry-drift`` asks for the drift, which is carried only over
+the log it was fitted on.
 """
 
 from __future__ import annotations
 
 import click
+import numpy as np
 
 from . import options
 from .tools import emit_json, guarded, info, refuse_overwrite
@@ -22,6 +27,12 @@ from .tools import emit_json, guarded, info, refuse_overwrite
     "--correction", "correction_path", "Correction TOML (calibrate --correction writes it).", required=True
 )
 @click.option("-o", "--output", required=True, help="Calibrated log to write (imu-run/1, .csv or .npz).")
+@click.option(
+    "--carry-drift",
+    is_flag=True,
+    help="Carry the correction's fitted bias drift to each sample's time, b + d (t - t_last rest): only "
+    "on the log it was calibrated from (default: the one bias, the last rest's).",
+)
 @options.log_site_and_reading
 @options.as_json
 @guarded
@@ -30,15 +41,14 @@ def correct(
     run_path,
     correction_path,
     output,
+    carry_drift,
     latitude,
     height,
     reading,
     as_json,
 ):
     """Apply the correction to every sample of LOG and write the calibrated log."""
-    import numpy as np
-
-    from calib.calibration.correction import Correction, raw_samples
+    from calib.calibration.correction import Correction, raw_samples, sample_middles
     from calib.nav.strapdown import sample_intervals
     from calib.runlog import Run, read_run, write_run
 
@@ -54,12 +64,14 @@ def correct(
     correction = Correction.load(correction_path)
     run = read_run(run_path, latitude_deg=latitude, height_m=height, **reading.reader)
     raw_gyro, raw_accel = raw_samples(run, correction, run_path)
-    rate, force = correction.apply(raw_gyro, raw_accel)
+    times = sample_middles(run)
+    _check_drift(correction, carry_drift, times, run, correction_path)
+    rate, force = correction.apply(raw_gyro, raw_accel, times if carry_drift else None)
     dt = sample_intervals(run.time_s)[:, None]
     # The calibrated log is in SI: the raw reading's keys (its conversion, its source format) go.
     meta = {k: v for k, v in run.meta.items() if not k.startswith(("conversion", "source_format"))}
     meta["calibrated_with"] = str(correction_path)
-    origin = _time_origin(run)
+    origin = run.time_origin_s
     if origin:  # epoch stamps were re-based to their first: the absolute time is kept beside them
         meta["time_origin_s"] = repr(origin)
     write_run(Run(run.time_s, rate * dt, force * dt, meta, source=output), output)
@@ -69,6 +81,7 @@ def correct(
     doc = {
         "output": output,
         "samples": run.n_samples,
+        "drift_carried": bool(carry_drift),
         "mean_rate_radps": np.mean(rate, axis=0).tolist(),
         "mean_specific_force_mps2": np.mean(force, axis=0).tolist(),
     }
@@ -78,15 +91,36 @@ def correct(
     click.echo(f"wrote {output}")
 
 
-def _time_origin(run) -> float:
-    """The absolute time of ``time_s = 0``: epoch stamps' first, on top of any origin the log states.
+def _check_drift(correction, carry_drift: bool, times, run, correction_path: str) -> None:
+    """Refuse ``--carry-drift`` without a drift or outside the log it was fitted on; say a drift left."""
+    from calib.errors import CalibError
+    from calib.nav.strapdown import sample_intervals
 
-    A log whose time column counts from an epoch (UNIX or ROS time) is read from
-    its first stamp (``calib.runlog.clock.epoch_origin``: a float64 at 1.7e9 s
-    rounds each interval); the calibrated log writes its stamps the same way and
-    states that first stamp as ``time_origin_s``, so no absolute time is lost.
-    """
-    from calib.runlog.run import meta_float
-
-    stated = meta_float(run.meta, "time_origin_s", run.source) if "time_origin_s" in run.meta else 0.0
-    return stated + (run.clock.origin_s if run.clock is not None else 0.0)
+    if not correction.has_drift:
+        if carry_drift:
+            raise CalibError(
+                "--carry-drift: the correction carries no bias drift (none was fitted)",
+                correction_path,
+                "leave --carry-drift out",
+            )
+        return
+    # Said on this log's own time_s (an epoch's 1.7e9 s would hide the figures).
+    origin = run.time_origin_s
+    start, end = (t - origin for t in correction.drift_span_s)
+    if not carry_drift:
+        info(
+            f"the correction's biases drift (fitted over {start:.1f} to {end:.1f} s of this log's time); "
+            f"applied as one bias, the calibrated log's last rest's at {correction.bias_time_s - origin:.1f}"
+            " s: the CLI's --carry-drift carries the drift over that log"
+        )
+        return
+    # The same log read again gives the same times; half a sample allows for the first one's interval.
+    slack = 0.5 * float(np.median(sample_intervals(run.time_s)))
+    first, last = times[0] - origin, times[-1] - origin
+    if first < start - slack or last > end + slack:
+        raise CalibError(
+            f"runs from {first:.3f} to {last:.3f} s, outside the span the drift was fitted over "
+            f"({start:.3f} to {end:.3f} s): a linear drift is a fact of that log, not carried beyond it",
+            run.source,
+            "apply the correction without --carry-drift (one bias, the last rest's), or calibrate this log",
+        )

@@ -14,6 +14,7 @@ import math
 import numpy as np
 import pytest
 
+from calib.calibration.correction import correction_of_result
 from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.hand.plan import xsens_like_plan
 from calib.hand.simulate import simulate_by_hand
@@ -79,6 +80,17 @@ def test_a_drifting_accelerometer_bias_is_chosen_and_recovered_at_the_last_rest(
     # The scale factors and misalignments are the drift-free truth's (the drift absorbed).
     others = np.r_[P.ACCEL_SCALE, P.ACCEL_MISALIGNMENT]
     assert np.all(np.abs((result.values[others] - VALUES[others]) / result.sigma[others]) < 4)
+    # The correction carries the drift on the run's own time: at the first rest, five minutes
+    # before the last, its bias is the truth there within 4 sigma (the last rest's sigma and the
+    # drift's times the lag, added as if independent: their positive correlation only makes
+    # the true sigma smaller), where the one bias is 3.5 mg (tens of sigma) away.
+    c = correction_of_result(result, run=run)
+    first = float(np.mean(result.by_hand.rest_s[0])) + float(run.time_s[0] - 0.01)
+    lag = first - (c.bias_time_s - run.time_origin_s)
+    truth_first = VALUES[P.ACCEL_BIAS] + drift * (first - float(run.time_s[-1]))
+    sigma_first = np.hypot(c.accel.sigma_b, c.accel.sigma_drift * lag)
+    assert np.all(np.abs(c.accel.bias_at(np.array([lag]))[0] - truth_first) < 4 * sigma_first)
+    assert np.abs(c.accel.b[0] - truth_first[0]) > 10 * sigma_first[0]
 
 
 @pytest.mark.slow
