@@ -414,7 +414,7 @@ def _fit(
         missing = [n for n, ok in zip(names, estimable, strict=False) if not ok]
         raise CalibError(
             f"the poses do not separate every parameter ({data.count} rests in "
-            f"{distinct_poses(data.rest_force)} poses {POSE_APART_DEG:g} deg apart, "
+            f"{(n := distinct_poses(data.rest_force))} pose{'s' * (n != 1)} {POSE_APART_DEG:g} deg apart, "
             f"{int(data.move_used.sum())} of {len(data.move_used)} moves used): "
             + ("none is estimable" if not estimable.any() else "not estimable " + ", ".join(missing))
             + "; unobserved combinations: "

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from calib.errors import CalibError
 from calib.sequence.motion import runs_of
 
 from .coarse import reading_step
@@ -87,9 +88,25 @@ class ClipStretch:
         )
 
 
-def at_limits(counts: np.ndarray, range_counts: tuple[float, float]) -> np.ndarray:
-    """``(n, 3)`` bool: raw counts at or beyond the converter's lowest or highest count."""
+def at_limits(counts: np.ndarray, range_counts: tuple[float, float], where: str, sensor: str) -> np.ndarray:
+    """``(n, 3)`` bool: raw counts at the converter's lowest or highest count.
+
+    A count beyond them cannot come from that converter: the range is wrong (most often a signed
+    converter's negative counts under the unsigned default), and every such sample would pass
+    for clipped. Refused, naming the first.
+    """
     low, high = range_counts
+    beyond = (counts < low) | (counts > high)
+    if beyond.any():
+        k, axis = (int(i) for i in np.argwhere(beyond)[0])
+        signed = "; a signed converter reads below 0" if counts[k, axis] < 0 <= low else ""
+        raise CalibError(
+            f"{sensor} {'xyz'[axis]} reads {counts[k, axis]:g} counts at sample {k + 1}, beyond the "
+            f"conversion's range_counts [{low:g}, {high:g}] ({int(beyond.sum())} such counts){signed}",
+            where,
+            "give the converter's limits as range_counts at the conversion file's top, above [gyro] "
+            "(e.g. range_counts = [-32768, 32767] for a signed 16-bit one)",
+        )
     return (counts <= low) | (counts >= high)
 
 
@@ -157,7 +174,7 @@ def steep_sided(size: np.ndarray, a: int, b: int, depth: float) -> bool:
 
 
 def sensor_clipping(
-    raw: np.ndarray, sensor: SensorColumns, conversion: Conversion | None, dt: float
+    raw: np.ndarray, sensor: SensorColumns, conversion: Conversion | None, dt: float, where: str = ""
 ) -> np.ndarray:
     """``(n, 3)`` bool: a sensor's samples clipped, from its columns as the file gives them.
 
@@ -168,7 +185,7 @@ def sensor_clipping(
     kind = QUANTITIES[sensor.quantity][0]
     mask = np.zeros(raw.shape, dtype=bool)
     if sensor.is_counts and conversion is not None:
-        mask |= at_limits(raw, conversion.range_counts)
+        mask |= at_limits(raw, conversion.range_counts, where, kind)
         si = conversion.to_si(raw, kind)
     else:
         with np.errstate(over="ignore"):  # a value near 1e308: inf here, refused as not finite later

@@ -128,7 +128,10 @@ class SampleClock:
                 self.duplicates
             )
         if self.origin_s:
-            text += f"; epoch stamps re-based: t = 0 at the first stamp, {self.origin_s:.6f} s"
+            text += (
+                "; stamps counting from an epoch or a long-running clock re-based: t = 0 at the first "
+                f"stamp, {self.origin_s:.6f} s"
+            )
         return text
 
     def as_dict(self) -> dict:

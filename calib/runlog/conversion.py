@@ -201,6 +201,7 @@ def _from_toml(text: str, name: str) -> Conversion:
         raise CalibError(f"not valid TOML ({exc})", name, "fix the TOML syntax") from None
     check_format_version(doc, "conversion", name)
     top = Fields(doc, name)
+    _misplaced(doc, name)
     top.check_keys(_KEYS, "conversion")  # near misses refused; other extra keys allowed (ignored)
     zero, scale, misal = {}, {}, {}
     for sensor in SENSORS:
@@ -225,6 +226,29 @@ def _from_toml(text: str, name: str) -> Conversion:
         )
     gravity = top.number("gravity_mps2", None, low=9.7, high=9.9, unit=" m/s^2")
     return Conversion(zero, scale, (low, high), gravity, misal, name)
+
+
+def _misplaced(doc: dict, name: str) -> None:
+    """Refuse a key written in the other level: a file-wide key inside [gyro] or [accel] (where it
+    would be ignored and its default taken: an unsigned range for a signed converter's counts), or
+    a sensor's key above the tables.
+    """
+    for sensor in SENSORS:
+        table = doc.get(sensor)
+        for key in table if isinstance(table, dict) else ():
+            if key in _KEYS:
+                raise CalibError(
+                    f"{key} is written inside [{sensor}]: it is the whole file's, read only above the tables",
+                    f"{name}: [{sensor}]",
+                    f"move {key} to the top of the file, above [gyro]",
+                )
+    for key in doc:
+        if key in _SENSOR_KEYS:
+            raise CalibError(
+                f"{key} is written above the tables: it is each sensor's, read only in [gyro] and [accel]",
+                name,
+                f"write {key} inside [gyro] and inside [accel]",
+            )
 
 
 def _matrix(raw, where: str) -> np.ndarray:

@@ -169,8 +169,8 @@ def read_csv(
         gyro_columns=tuple(zip(own["dtheta_rad"], plan.gyro.names, strict=True)),
         conversion=conversion if counts else None,
         clipped=clip_mask(
-            sensor_clipping(data[:, _G], plan.gyro, conversion, dt),
-            sensor_clipping(data[:, _A], plan.accel, conversion, dt),
+            sensor_clipping(data[:, _G], plan.gyro, conversion, dt, name),
+            sensor_clipping(data[:, _A], plan.accel, conversion, dt, name),
             len(time_s),
         ),
     )

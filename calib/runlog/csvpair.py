@@ -126,7 +126,10 @@ class _SensorFile:
         self.name = name = str(path)
         lines = without_cut_last_row(decode_lines(read_bytes(path), name), name)
         self.meta, self.key_lines, header_index = parse_preamble(lines, name)
-        header_index = past_preamble(lines, header_index, {}, name)  # a sep= line
+        # A sep= line, or a logger's preamble above the header: found by this sensor's own mapped
+        # names (the time's and other names may be another file's spelling).
+        own_names = {k: v for k, v in mapping.items() if sensor_of(v) == sensor}
+        header_index = past_preamble(lines, header_index, own_names, name)
         lines, added = _positions_header(lines, header_index, mapping)
         lines = without_units_row(lines, header_index, name)
         lines = without_repeated_headers(unquoted(lines, header_index, name), header_index, name)
@@ -178,7 +181,7 @@ class _SensorFile:
         period = 1.0 / (rate_hz or stamps_rate(self.time_s))
         raw = data[:, 1:]
         self.values = _si_rate(sensor_si(raw, columns, conversion, where), columns, period)
-        self.clipped = sensor_clipping(raw, columns, conversion, period)
+        self.clipped = sensor_clipping(raw, columns, conversion, period, name)
         self.counts = columns.is_counts
         x, y, z = (own[i] for i in columns.positions)
         self.own_columns = (own[time_at], x, y, z)

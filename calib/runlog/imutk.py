@@ -110,10 +110,10 @@ def read_imutk(
         meta = _meta(options, gyro[:, 0], acc_name, conversion)
         check_meta(meta, locate)
         rate = conversion.to_si(gyro[:, 1:], "gyro")
-        gyro_clipped = at_limits(gyro[:, 1:], conversion.range_counts) | flat_top(rate)
+        gyro_clipped = at_limits(gyro[:, 1:], conversion.range_counts, gyro_name, "gyro") | flat_top(rate)
         run = two_clocks(
             Stream(acc_name, acc[:, 0], acc_lines, conversion.to_si(acc[:, 1:], "accel"),
-                   at_limits(acc[:, 1:], conversion.range_counts)),
+                   at_limits(acc[:, 1:], conversion.range_counts, acc_name, "accel")),
             Stream(gyro_name, gyro[:, 0], gyro_lines, rate, gyro_clipped),
             meta,
             allow_gaps,
@@ -127,8 +127,8 @@ def read_imutk(
         period = own_intervals(acc[:, 0])
     rate = conversion.to_si(gyro[:, 1:], "gyro")
     clipped = clip_mask(
-        at_limits(gyro[:, 1:], conversion.range_counts) | flat_top(rate),
-        at_limits(acc[:, 1:], conversion.range_counts),
+        at_limits(gyro[:, 1:], conversion.range_counts, gyro_name, "gyro") | flat_top(rate),
+        at_limits(acc[:, 1:], conversion.range_counts, acc_name, "accel"),
         len(acc),
     )
     run = Run(

@@ -215,6 +215,14 @@ def test_a_toml_may_state_its_scale_in_deg_per_s(tmp_path):
         ("c.toml", CONVERSION_TOML.replace("[4778, 4758, 4766]", "[4778, 4758]"), "counts_per_unit"),
         ("c.toml", CONVERSION_TOML.replace("zero_counts = [33123", "zero_count = [33123"), "did you mean"),
         ("c.toml", CONVERSION_TOML.replace("[4778, 4758, 4766]", "[4778, 0, 4766]"), "zero"),
+        # A file-wide key inside a sensor's table would be ignored (its default taken), and the
+        # reverse: each refused, saying where it belongs.
+        (
+            "c.toml",
+            CONVERSION_TOML.replace('unit = "rad/s"', 'unit = "rad/s"\nrange_counts = [-32768, 32767]'),
+            "range_counts is written inside [gyro]",
+        ),
+        ("c.toml", 'unit = "rad/s"\n' + CONVERSION_TOML, "unit is written above the tables"),
     ],
 )
 def test_a_bad_conversion_file_is_refused_naming_the_place(tmp_path, kind, text, said):
@@ -255,6 +263,34 @@ def test_counts_read_back_to_the_si_values_they_were_made_of(tmp_path):
     np.testing.assert_allclose(
         conversion.to_counts(run.dv_mps * rate, "accel"), np.rint(f * SCALE["accel"] + ZERO["accel"])
     )
+
+
+def test_counts_beyond_the_converters_range_are_refused_as_a_signed_converter_not_clipped(tmp_path):
+    # A signed converter's counts (zero at 0) read under the unsigned default range [0, 65535]:
+    # every negative count would pass for clipped. A count beyond the range cannot be the
+    # converter's: refused, naming the first and the signed range to give.
+    rate = 100.0
+    w, f = _si_signals(500, rate)
+    text = CONVERSION_TOML.replace("[32768, 32466, 32485]", "[0, 0, 0]").replace(
+        "[33123, 33276, 32360]", "[0, 0, 0]"
+    )
+    conversion = read_conversion(_write(tmp_path / "c.toml", text))
+    assert not conversion.zero_counts["gyro"].any() and not conversion.zero_counts["accel"].any()
+    counts = {"gyro": np.rint(w * SCALE["gyro"]), "accel": np.rint(f * SCALE["accel"])}
+    rows = [
+        f"{k},{','.join(f'{x:.0f}' for x in g)},{','.join(f'{x:.0f}' for x in a)}"
+        for k, (g, a) in enumerate(zip(counts["gyro"], counts["accel"], strict=True))
+    ]
+    path = _write(tmp_path / "log.csv", "c,gx,gy,gz,ax,ay,az\n" + "\n".join(rows) + "\n")
+    assert min(counts["gyro"].min(), counts["accel"].min()) < 0  # the premise: negative counts
+    with pytest.raises(CalibError) as info:
+        read_run(path, columns=COUNTS_MAP, sample_rate_hz=rate, conversion=conversion, **SITE)
+    assert "beyond the conversion's range_counts [0, 65535]" in info.value.message
+    assert "signed" in info.value.message and "range_counts = [-32768, 32767]" in info.value.fix
+    # Given the signed range at the file's top, the same log reads.
+    wide = read_conversion(_write(tmp_path / "s.toml", "range_counts = [-32768, 32767]\n" + text))
+    run = read_run(path, columns=COUNTS_MAP, sample_rate_hz=rate, conversion=wide, **SITE)
+    assert run.clipped is None or not run.clipped[:, 3:].any()
 
 
 def test_counts_without_a_conversion_and_a_conversion_without_counts_are_refused(tmp_path):

@@ -114,6 +114,27 @@ def test_a_phone_loggers_files_whose_axes_are_both_called_x_y_z(tmp_path):
     np.testing.assert_allclose(run.dv_mps, f / 100.0, rtol=0, atol=1e-12)
 
 
+def test_a_pair_under_a_loggers_preamble_line_reads_as_without_it(tmp_path):
+    # An Android logger's files (Navigation_HW's): a line naming the sensor above each header, and
+    # the map naming each file's own columns. Found by those names, as the one-file reader does.
+    t, w, f = _samples()
+    _write(tmp_path / "g.csv", "timestamp,gx,gy,gz", _ns(t), w)
+    _write(tmp_path / "a.csv", "timestamp,ax,ay,az", _ns(t), f)
+    for name, sensor in (("g", "gyroscope-icm20690"), ("a", "accelerometer-icm20690")):
+        text = (tmp_path / f"{name}.csv").read_text()
+        (tmp_path / f"{name}_pre.csv").write_text(f"{sensor},invensense,2020-02-18_14-18-28.815\n" + text)
+    columns = "timestamp=time_ns,gx=gyro_x_radps,gy=gyro_y_radps,gz=gyro_z_radps,ax=accel_x_mps2"
+    columns += ",ay=accel_y_mps2,az=accel_z_mps2"
+    plain = read_run(tmp_path / "a.csv", gyro_path=tmp_path / "g.csv", columns=columns, **SITE)
+    with pytest.warns(
+        UserWarning, match="line 1 above the header row .line 2. read as the logger's preamble"
+    ):
+        pre = read_run(tmp_path / "a_pre.csv", gyro_path=tmp_path / "g_pre.csv", columns=columns, **SITE)
+    np.testing.assert_array_equal(pre.time_s, plain.time_s)
+    np.testing.assert_array_equal(pre.dtheta_rad, plain.dtheta_rad)
+    np.testing.assert_array_equal(pre.dv_mps, plain.dv_mps)
+
+
 def test_phyphox_files_with_quoted_names_and_their_units_in_them(tmp_path):
     # phyphox exports each sensor with its names in double quotes ("Time (s)"): a quoted name is
     # its content, so the map names it without quotes. Same samples, same stamps: read back exactly.
@@ -240,6 +261,7 @@ def test_a_span_covers_its_ends_to_a_thousandth_of_a_period():
         assert inside(gyro + apart * period, period, gyro).sum() == kept
 
 
+@pytest.mark.filterwarnings("ignore:.*fields separated by spaces")  # said on stderr, not the point here
 def test_a_pair_without_headers_mapped_for_one_file_only_is_told_to_map_the_others_positions(tmp_path):
     # imu_tk-style text files in SI (t x y z each): a map naming positions 2-4 for the
     # accelerometer alone leaves the gyro's file with no column of its own; said so, with the fix.
