@@ -103,13 +103,14 @@ def read_csv(
     lines = without_repeated_headers(unquoted(lines, header_index, name), header_index, name)
     mapping = mapping or known_header_map(lines, header_index, name)  # EuRoC's, ROS's
     mapping = by_commented_names(lines, header_index, mapping, name)
-    lines, added = with_header(lines, header_index, mapping, meta, options or {}, name)  # no header row
+    # A file without a header row gets one of positions.
+    lines, added = with_header(lines, header_index, mapping, meta, options or {}, name, allow_gaps)
     added += labelled
     lines = to_commas(lines, header_index, name)
     lines, mapping = with_split_stamp(lines, header_index, mapping, name, added)  # ROS 2's sec,nanosec
     stated = (options or {}).get("sample_rate_hz") is not None or "sample_rate_hz" in meta
     lines = with_row_counter(
-        lines, header_index, mapped_header(lines, header_index, mapping, name), stated, name
+        lines, header_index, mapped_header(lines, header_index, mapping, name), stated, name, allow_gaps
     )
     plan, has_gimbal, positions = _parse_header(lines[header_index], header_index + 1, name, mapping)
     options = with_logger_rate(options or {}, plan, stated, lines, header_index, name)

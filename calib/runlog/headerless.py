@@ -100,7 +100,13 @@ def _check_sensors(mapping: dict[str, str], n: int, where: str) -> None:
 
 
 def with_header(
-    lines: list[str], header_index: int, mapping: dict[str, str], meta: dict, options: dict, name: str
+    lines: list[str],
+    header_index: int,
+    mapping: dict[str, str],
+    meta: dict,
+    options: dict,
+    name: str,
+    allow_gaps: bool = False,
 ) -> tuple[list[str], int]:
     """The file's lines with a header row of positions put in, when it has none.
 
@@ -117,6 +123,8 @@ def with_header(
         The reader's options (``sample_rate_hz``).
     name : str
         The file, for messages.
+    allow_gaps : bool
+        Leave out a row of the wrong width as lost samples (:func:`garbled_row`), else refuse it.
 
     Returns
     -------
@@ -179,24 +187,59 @@ def with_header(
             where,
             RATE_FIX,
         )
-    body, count = [], 0
+    body, count, garbled = [], 0, Garbled(name, allow_gaps)
     for index, line in enumerate(lines[header_index:], start=header_index):
         if not line.strip():
             body.append(line)
             continue
         fields = _fields(line)
         if len(fields) != n:
-            raise CalibError(
-                f"row has {len(fields)} fields, the first row has {n}",
-                f"{name}, line {index + 1} (sample {count})",
-                "every row needs one value per column",
-            )
+            count += garbled.row(len(fields), n, "the first row", index + 1, count)
+            body.append("")  # the line kept blank: every later row keeps its line number
+            continue
         if not timed:
             fields.append(str(count))
             count += 1
         body.append(",".join(fields))
+    garbled.said(timed)
     header = ",".join(positions + ([] if timed else [COUNTER]))
     return lines[:header_index] + [header] + body, 1
+
+
+class Garbled:
+    """Rows of the wrong width in a serial logger's file (bytes lost on the wire), left out as lost
+    samples under ``allow_gaps`` and said once; refused otherwise.
+
+    A short row is one sample lost; a long one (a line end lost, two rows run together) as many as
+    its fields fill rows. Where the rows are counted (no time column), the count steps over them,
+    so that the gap is one the clock's rules see: filled at rest, the move it falls in left out.
+    """
+
+    def __init__(self, name: str, allow_gaps: bool):
+        self.name, self.allow_gaps = name, allow_gaps
+        self.lines: list[int] = []
+
+    def row(self, have: int, want: int, what: str, line: int, sample: int) -> int:
+        """Samples the row at ``line`` stands for (it is left out); refused without ``allow_gaps``."""
+        if not self.allow_gaps:
+            raise CalibError(
+                f"row has {have} fields, {what} has {want}",
+                f"{self.name}, line {line} (sample {sample})",
+                "every row needs one value per column; a logger that lost bytes mid-row: allow_gaps "
+                "(the CLI's --allow-gaps) leaves such rows out as lost samples",
+            )
+        self.lines.append(line)
+        return max(1, -(-have // want))
+
+    def said(self, timed: bool) -> None:
+        if not self.lines:
+            return
+        shown = ", ".join(str(k) for k in self.lines[:5]) + (", ..." if len(self.lines) > 5 else "")
+        warnings.warn(
+            f"{self.name}: {len(self.lines)} row(s) of the wrong width (line(s) {shown}) left out as lost "
+            + ("samples (their stamps show the gap)" if timed else "samples (the count steps over them)"),
+            stacklevel=3,
+        )
 
 
 def by_commented_names(
@@ -232,7 +275,12 @@ def by_commented_names(
 
 
 def with_row_counter(
-    lines: list[str], header_index: int, names: list[str], rate_stated: bool, name: str = "<memory>"
+    lines: list[str],
+    header_index: int,
+    names: list[str],
+    rate_stated: bool,
+    name: str = "<memory>",
+    allow_gaps: bool = False,
 ) -> list[str]:
     """A file whose header row names no time, with a counter field added when the rate is stated.
 
@@ -244,18 +292,17 @@ def with_row_counter(
     if not rate_stated or any(n in TIME_NAMES or n.lower() in TIME_NAMES or n == COUNTER for n in names):
         return lines
     _refuse_an_unmapped_time(lines, header_index, names, name)
-    body, count, width = [], 0, len(names)
+    body, count, width, garbled = [], 0, len(names), Garbled(name, allow_gaps)
     for k, line in enumerate(lines[header_index + 1 :], start=header_index + 2):
         if line.strip():
             if line.count(",") != width - 1:  # said before the counter adds a field of its own
-                raise CalibError(
-                    f"row has {line.count(',') + 1} fields, the header has {width}",
-                    f"{name}, line {k} (sample {count})",
-                    "every data row needs one value per header column",
-                )
+                count += garbled.row(line.count(",") + 1, width, "the header", k, count)
+                body.append("")
+                continue
             line = f"{line.rstrip()},{count}"
             count += 1
         body.append(line)
+    garbled.said(False)
     return lines[:header_index] + [lines[header_index].rstrip() + "," + COUNTER] + body
 
 

@@ -206,3 +206,35 @@ def test_the_cli_calibrates_a_headerless_log_and_refuses_in_one_line(tmp_path):
     assert "Traceback" not in r.output
     assert "no header" not in r.output and "no time column" not in r.output
     assert "2000 samples, 20.0 s" in r.output
+
+
+def test_rows_a_serial_link_garbled_are_lost_samples_under_allow_gaps(tmp_path):
+    # A serial logger that lost bytes: row 100 cut short, rows 200 and 201 run together (a line end
+    # lost: 6 + 3 fields). Refused as they are; with allow_gaps each is left out as the samples
+    # it stood for (one, and two), so the count steps over them and every other row keeps its
+    # place on the rate's clock (a unit at rest: the gaps are filled there).
+    rng = np.random.default_rng(3)
+    rows = np.array([0.1, -0.2, 9.8, 0.0, 0.0, 0.0]) + rng.normal(0.0, 1e-3, (300, 6))
+    text = [" ".join(repr(float(x)) for x in r) for r in rows]
+    lines = text[:99] + [" ".join(text[99].split()[:4])] + text[100:199]
+    lines += [text[199] + " " + " ".join(text[200].split()[:3])] + text[201:]
+    path = tmp_path / "serial.log"
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(CalibError) as err:
+        read_run(path, columns=MAP, sample_rate_hz=100.0, **SITE)
+    assert "line 100 (sample 99): row has 4 fields" in err.value.message
+    assert "the CLI's --allow-gaps" in err.value.fix
+    with pytest.warns(UserWarning, match=r"2 row\(s\) of the wrong width \(line\(s\) 100, 200\) left out"):
+        run = read_run(path, columns=MAP, sample_rate_hz=100.0, allow_gaps=True, **SITE)
+    assert run.n_samples == 300
+    np.testing.assert_allclose(run.time_s, (np.arange(300) + 1) / 100.0, rtol=0, atol=1e-12)  # filled: k T
+    kept = np.setdiff1d(np.arange(300), [99, 199, 200])
+    np.testing.assert_allclose(run.dv_mps[kept], rows[kept, :3] / 100.0, rtol=1e-15)
+    assert [count for _, count in run.clock.dropped] == [1, 2]
+    # The same rows under a header that names no time (an Arduino sketch's): read alike.
+    named = tmp_path / "named.csv"
+    named.write_text("ax,ay,az,gx,gy,gz\n" + "\n".join(line.replace(" ", ",") for line in lines) + "\n")
+    names = "ax=accel_x_mps2,ay=accel_y_mps2,az=accel_z_mps2,gx=gyro_x_radps,gy=gyro_y_radps,gz=gyro_z_radps"
+    with pytest.warns(UserWarning, match=r"line\(s\) 101, 201\) left out"):  # below the header
+        same = read_run(named, columns=names, sample_rate_hz=100.0, allow_gaps=True, **SITE)
+    np.testing.assert_array_equal(same.dv_mps, run.dv_mps)
