@@ -66,6 +66,12 @@ def _block(direction: np.ndarray, rest_columns: list[np.ndarray]) -> tuple[int, 
     axis = np.sum(turn[members] ** 2, axis=0)
     one_axis = axis.max() >= ONE_AXIS * axis.sum()
     about = AXIS_WORDS[int(np.argmax(axis))] if one_axis else "an axis of their own"
+    if len(members) == 1:  # a pose whose moves on both sides were left out
+        about = about.replace("their own", "its own")
+        return int(members[0]) + 1, (
+            f"rest {members[0] + 1} turns alone about {about}: no move that fits ties it to the "
+            "others, so its heading is free (the 21 parameters do not depend on it)"
+        )
     return int(members[0]) + 1, (
         f"rests {_ranges(members + 1)} turn together about {about}: no move that fits ties them to the "
         "others, so their common heading is free (the 21 parameters do not depend on it)"

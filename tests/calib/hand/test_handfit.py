@@ -434,3 +434,22 @@ def test_an_accelerometer_printed_coarser_than_its_noise_reports_sigmas_its_rest
     assert np.all(np.abs(error) < 3.0 * sigma), dict(
         zip(np.array(P.NAMES)[accel], error / sigma, strict=True)
     )
+
+
+def test_a_rest_loose_alone_is_named_as_one_rest_and_a_block_as_rests():
+    # Two parameters and three rests (the first rest's two tilts, the others' three angles), every
+    # unknown tied down by its own row but the listed vertical turns: those alone are free.
+    from calib.hand.weak import split_weak
+    from calib.model.information import scaled_inverse
+
+    names = ["p1", "p2", "r1e", "r1n", "r2e", "r2n", "r2u", "r3e", "r3n", "r3u"]
+    columns = [np.array([2, 3]), np.array([4, 5, 6]), np.array([7, 8, 9])]
+    for free, said in (
+        ([6], "rest 2 turns alone about the vertical: no move that fits ties it to the others"),
+        ([6, 9], "rests 2-3 turn together about the vertical: no move that fits ties them to the others"),
+    ):
+        tied = np.eye(len(names))[[k for k in range(len(names)) if k not in free]]
+        if len(free) == 2:  # the two turn as one: only their difference is seen
+            tied = np.vstack([tied, np.eye(len(names))[6] - np.eye(len(names))[9]])
+        parameters, rests = split_weak(scaled_inverse(tied.T @ tied, names=names), 2, columns)
+        assert parameters == [] and len(rests) == 1 and rests[0].startswith(said), rests
