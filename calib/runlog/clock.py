@@ -1,15 +1,12 @@
 """The sample clock of a run log: which IMU sample each row is, and what the time column adds.
 
-An IMU samples on its own crystal: every increment covers one nominal period
-``1 / sample_rate_hz``. The time column is written by whatever logged the
-samples (often a host clock) and only locates them; it can jitter, and a
-logger can drop or repeat samples. Here the time column is turned into a
-sample count, the jitter is measured against that count, and lost and
-repeated samples are named. Pure functions over arrays; :mod:`calib.runlog`
-applies them when it reads a run.
-
-Stamps that jitter beyond a quarter period (a host's reception times) are
-counted by the count rule of :mod:`calib.runlog.countrule`.
+An IMU samples on its own crystal: every increment covers one nominal period ``1 / sample_rate_hz``.
+The time column is written by whatever logged the samples (often a host clock) and only locates
+them; it can jitter, and a logger can drop or repeat samples. Here the time column is turned into a
+sample count, the jitter is measured against that count, and lost and repeated samples are named.
+Pure functions over arrays; :mod:`calib.runlog` applies them when it reads a run. Stamps that
+jitter beyond a quarter period (a host's reception times) are counted by the count rule of
+:mod:`calib.runlog.countrule`; a polling loop's rows are read at their stamps (:mod:`.polled`).
 """
 
 from __future__ import annotations
@@ -70,11 +67,9 @@ class SampleClock:
     duplicates : list of (float, int)
         Each repeated sample: its time and how many extra copies follow it.
     rule : str
-        ``"step"``: every step rounded to whole periods (stamps of the IMU's own clock);
-        ``"count"``: the rows counted, a gap only where the stamps' lag stays (a host's
-        jittering stamps; the module's docstring); ``"stamps"``: each row sampled at its
-        stamp, the stamps' deviation a random walk (a polling logger, :mod:`calib.runlog.polled`):
-        no sampling clock, each sample covers its own stamp interval.
+        ``"step"``: every step rounded to whole periods (the IMU's own clock); ``"count"``: the
+        rows counted, a gap only where the stamps' lag stays (a host's jittering stamps);
+        ``"stamps"``: each row sampled at its stamp (a polling logger, :mod:`calib.runlog.polled`).
     origin_s : float
         The time column's first stamp when it counts from an epoch
         (``|t0| > EPOCH_S``), else 0: every time here (offset, dropped,
@@ -94,6 +89,7 @@ class SampleClock:
     rule: str = "step"  # how the rows were counted: "step", "count" or "stamps"
     step_stats: tuple = ()  # rule "stamps": the steps' min, max, mean and RMS spread, s
     resolution_s: float = 0.0  # stamps coarser than the period (:mod:`calib.runlog.coarse`): theirs, s
+    told: bool = False  # rule "stamps" because the reading was told so (:func:`polled.told_at_stamps`)
 
     @property
     def uniform(self) -> bool:
@@ -120,7 +116,7 @@ class SampleClock:
         if self.uniform:
             text = "clock: time column uniform at the nominal period"
         if self.rule == "stamps":
-            text = polled.summary(self.step_stats, self.jitter_rms_s)
+            text = polled.summary(self.step_stats, self.jitter_rms_s, self.told)
         if self.dropped:
             text += f"; {sum(c for _, c in self.dropped)} dropped sample(s): " + describe(self.dropped)
         if self.duplicates:
@@ -145,10 +141,10 @@ class SampleClock:
             "duplicates": [{"time_s": t, "count": c} for t, c in self.duplicates],
             "rule": self.rule,
         }
-        if self.origin_s:  # only for epoch stamps: the times above count from it
-            figures["origin_s"] = self.origin_s
-        if self.resolution_s:  # only for stamps coarser than the period
-            figures["resolution_s"] = self.resolution_s
+        # Only where they apply: epoch stamps (the times above count from it), coarse stamps, told.
+        figures |= {"origin_s": self.origin_s} if self.origin_s else {}
+        figures |= {"resolution_s": self.resolution_s} if self.resolution_s else {}
+        figures |= {"told_at_stamps": True} if self.told else {}
         return figures
 
 
@@ -196,7 +192,7 @@ def sample_clock(
     period = 1.0 / sample_rate_hz
     dup = np.zeros(len(time_s), dtype=bool) if duplicate is None else duplicate
     try:
-        steps, loop = _whole_steps(time_s, period, dup), False
+        steps = _whole_steps(time_s, period, dup)  # None: told the rows were sampled at their stamps
     except CalibError:
         if not (
             polled.loop_wanders(time_s, period, dup)
@@ -204,7 +200,10 @@ def sample_clock(
             or polled.rephased(time_s, dup)
         ):
             raise
-        steps, loop = (~dup[1:]).astype(np.int64), True  # each row the next sample
+        steps = None
+    loop = steps is None
+    if steps is None:
+        steps = (~dup[1:]).astype(np.int64)  # each row the next sample
     counted = steps[~dup[1:]]
     with np.errstate(over="ignore", invalid="ignore"):
         off = np.abs(np.diff(time_s)[~dup[1:]] / period - np.rint(np.diff(time_s)[~dup[1:]] / period))
@@ -241,6 +240,7 @@ def sample_clock(
         rule=rule,
         step_stats=step_stats,
         resolution_s=resolution * period if resolution > 1.0 else 0.0,
+        told=polled.told(),
     )
 
 
@@ -313,8 +313,9 @@ def stamps_rate(time_s: np.ndarray) -> float:
         first = float(rel[-1]) / (len(rel) - 1)  # the rows are the samples: span over rows
     if not first > 0:
         return math.nan
-    try:  # the counts of `sample_clock` (the count rule for jittering stamps)
-        counts = _whole_steps(rel, first, np.zeros(len(rel), dtype=bool)).astype(float)
+    try:  # the counts of `sample_clock` (the count rule for jittering stamps; told: each row one)
+        whole = _whole_steps(rel, first, np.zeros(len(rel), dtype=bool))
+        counts = np.ones(len(step)) if whole is None else whole.astype(float)
     except CalibError:
         counts = np.rint(np.maximum(step, 0.0) / first)
     index = np.zeros(len(rel))
@@ -326,15 +327,8 @@ def stamps_rate(time_s: np.ndarray) -> float:
     return float((index @ index) / (index @ rel))
 
 
-def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarray:
-    """Each time step in samples (0 for a duplicate); refuse jumps and shifts that are not whole.
-
-    Stamps from the IMU's own clock (every step within a quarter period of a
-    whole number of periods, none zero) are counted step by step: the step
-    rule, exact for a lost sample and for a logger clock that drifts slowly.
-    Otherwise the stamps jitter (a host's reception times) and the count rule
-    of the module's docstring applies.
-    """
+def _periods(time_s: np.ndarray, period: float) -> np.ndarray:
+    """Each time step in nominal periods; a clock jump (beyond ``MAX_STEP_PERIODS``) refused."""
     periods = np.diff(time_s)
     with np.errstate(over="ignore"):  # a step of 1e308 s overflows to inf: refused as a jump below
         periods /= period
@@ -348,6 +342,22 @@ def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarr
             "the time column must locate samples taken at sample_rate_hz; split the log where its "
             "clock jumps",
         )
+    return periods
+
+
+def _whole_steps(time_s: np.ndarray, period: float, dup: np.ndarray) -> np.ndarray | None:
+    """Each time step in samples (0 for a duplicate); refuse jumps and shifts that are not whole.
+    None when the reading was told the rows were sampled at their stamps (no count is tried).
+
+    Stamps from the IMU's own clock (every step within a quarter period of a
+    whole number of periods, none zero) are counted step by step: the step
+    rule, exact for a lost sample and for a logger clock that drifts slowly.
+    Otherwise the stamps jitter (a host's reception times) and the count rule
+    of the module's docstring applies.
+    """
+    periods = _periods(time_s, period)
+    if polled.told():
+        return None
     counted = ~dup[1:]
     steps = np.rint(periods).astype(np.int64)
     steps[~counted] = 0

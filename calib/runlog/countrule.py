@@ -250,5 +250,6 @@ def _check_lag_kept(lag: np.ndarray, width: int, threshold: float, periods: np.n
             f"count by {abs(size):.2f} periods and stay there: {why}",
             str(row),
             "the time column must locate samples taken at sample_rate_hz; check the rate, or whether "
-            "the log mixes clocks or repeats rows",
+            "the log mixes clocks or repeats rows; a logger that reads the sensor when its loop comes "
+            "round: at_stamps (the CLI's --at-stamps) reads each row at its stamp",
         )

@@ -17,10 +17,36 @@ walk, ``1/m`` for bounded jitter.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
+
 import numpy as np
 
 from calib.nav.strapdown import sample_intervals
 from calib.runlog.countrule import MAX_STEP_FRACTION
+
+# The reader told that the rows were sampled at their stamps (the CLI's --at-stamps): a loop whose
+# stamps no rule here tells from a crystal's under a host's jitter (an RTOS task's steps of 4 and 6
+# ms about 5 ms, its stalls in bursts). Set for one reading by `told_at_stamps`; every time column
+# read inside it takes the stamps rule, and its clock says it was told.
+_TOLD: ContextVar[bool] = ContextVar("at_stamps", default=False)
+
+
+@contextmanager
+def told_at_stamps(told: bool) -> Iterator[None]:
+    """Read every time column inside the block at its stamps when ``told`` (:data:`_TOLD`)."""
+    token = _TOLD.set(told)
+    try:
+        yield
+    finally:
+        _TOLD.reset(token)
+
+
+def told() -> bool:
+    """Whether the reading in progress was told that the rows were sampled at their stamps."""
+    return _TOLD.get()
+
 
 WALK_ROWS = 100  # m: 1/m = 0.01 for jitter, 1 for a walk
 WALK_RATIO = 0.25  # above: the stamps walk, the samples were taken at them
@@ -183,14 +209,18 @@ def stalls(time_s: np.ndarray, duplicate: np.ndarray, origin: float) -> list:
     return [(float(time_s[i] - origin + usual), int(round(step[i] / usual)) - 1) for i in long]
 
 
-def summary(step_stats: tuple, deviation_rms: float) -> str:
+def summary(step_stats: tuple, deviation_rms: float, was_told: bool = False) -> str:
     """The clock line of a log sampled at its stamps; ``step_stats`` (min, max, mean, RMS), s."""
     low, high, mean, rms = step_stats
+    why = (
+        "as the reading was told (the CLI's --at-stamps)"
+        if was_told
+        else "its delays never made up: a polling logger, or a sensor that took up another phase"
+    )
     return (
         f"clock: samples taken at their stamps (steps {1e3 * low:.3g}-{1e3 * high:.3g} ms, "
         f"{1e3 * rms:.3g} ms RMS about {1e3 * mean:.4g} ms, the time wandering from a "
-        f"uniform clock by {1e3 * deviation_rms:.3g} ms RMS, its delays never made up: a polling logger, "
-        "or a sensor that took up another phase); "
+        f"uniform clock by {1e3 * deviation_rms:.3g} ms RMS, {why}); "
         "each sample covers its own stamp interval"
     )
 

@@ -14,7 +14,7 @@ from calib.errors import CalibError
 from calib.io.files import atomic_write_file
 from calib.io.kinds import expect
 
-from . import clock
+from . import clock, polled
 from .checks import check_run
 from .conversion import Conversion, as_conversion
 from .csv import read_csv
@@ -42,6 +42,7 @@ def read_run(
     conversion: Conversion | str | os.PathLike | None = None,
     sample_rate_hz: float | None = None,
     guess_turns: bool = False,
+    at_stamps: bool = False,
 ) -> Run:
     """Read and check a run log, ``.csv`` (or ``.csv.gz``), ``.npz`` or PSINS ``.imu``.
 
@@ -81,6 +82,11 @@ def read_run(
         With ``allow_gaps``, for a hand fit: a sample lost amid a turn is put in as a
         guess and marked in ``run.guessed`` (the fit leaves its move out) instead of
         refused.
+    at_stamps : bool
+        The rows were sampled at their stamps (the CLI's ``--at-stamps``): a logger that
+        reads the sensor whenever its loop comes round, whose stamps no rule of
+        :mod:`calib.runlog.polled` tells from a crystal's under a host's jitter. Every row
+        is then the next sample over its own stamp interval; a stall is a hole.
 
     A CSV file may be gzip-compressed (``.csv.gz``). A CSV file without a
     ``# format:`` line is a logger's file (``docs/logs-columns.md``): it is read as
@@ -98,6 +104,15 @@ def read_run(
         On any unreadable or invalid content, naming the file and the line,
         key or sample.
     """
+    with polled.told_at_stamps(at_stamps):
+        return _read_run(path, allow_gaps, latitude_deg, height_m, columns, gyro_path, conversion,
+                         sample_rate_hz, guess_turns)  # fmt: skip
+
+
+# over 8 parameters: read_run's own, passed on
+def _read_run(
+    path, allow_gaps, latitude_deg, height_m, columns, gyro_path, conversion, sample_rate_hz, guess_turns
+) -> Run:
     expect(path, "run")
     conversion = as_conversion(conversion)
     site = {"latitude_deg": latitude_deg, "height_m": height_m, "sample_rate_hz": sample_rate_hz}

@@ -174,21 +174,23 @@ def together(*decorators):
 @dataclass(frozen=True)
 class LogReading:
     """How a logger's file is read: ``--columns``, ``--gyro-file``, ``--conversion``,
-    ``--sample-rate-hz`` (None: not given).
+    ``--sample-rate-hz`` (None: not given), ``--at-stamps``.
     """
 
     columns: str | None = None
     gyro_file: str | None = None
     conversion: str | None = None
     sample_rate_hz: float | None = None
+    at_stamps: bool = False
 
     @property
     def by_hand(self) -> dict:
-        """The reader's keyword arguments of the last three options (empty when none is given)."""
+        """The reader's keyword arguments of the options but the columns (empty when none is given)."""
         given = {
             "gyro_path": self.gyro_file,
             "conversion": self.conversion,
             "sample_rate_hz": self.sample_rate_hz,
+            "at_stamps": self.at_stamps or None,
         }
         return {key: value for key, value in given.items() if value is not None}
 
@@ -203,9 +205,17 @@ class LogReading:
         return bool(self.columns or self.by_hand)
 
 
+at_stamps = click.option(
+    "--at-stamps",
+    is_flag=True,
+    help="The rows were sampled at their stamps (a logger that reads the sensor when its loop comes "
+    "round): read each over its own stamp interval, whatever pattern its stamps keep.",
+)
+
+
 def log_reading(command):
-    """``--columns``, ``--gyro-file``, ``--conversion`` and ``--sample-rate-hz``, given to the
-    command as one parameter ``reading`` (a :class:`LogReading`).
+    """``--columns``, ``--gyro-file``, ``--conversion``, ``--sample-rate-hz`` and ``--at-stamps``,
+    given to the command as one parameter ``reading`` (a :class:`LogReading`).
     """
     names = [f.name for f in fields(LogReading)]
 
@@ -214,7 +224,7 @@ def log_reading(command):
         kwargs["reading"] = LogReading(**{name: kwargs.pop(name) for name in names})
         return command(*args, **kwargs)
 
-    return together(columns, gyro_file, conversion, log_sample_rate())(run)
+    return together(columns, gyro_file, conversion, log_sample_rate(), at_stamps)(run)
 
 
 # The site of a logger's CSV that does not carry it, and how the file is read (calibrate, correct).

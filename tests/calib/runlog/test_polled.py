@@ -15,7 +15,7 @@ from calib.model import params as P
 from calib.noise.profiles import load_profile
 from calib.runlog import read_run
 from calib.runlog.clock import sample_clock, stamps_rate
-from calib.runlog.polled import walk_ratio
+from calib.runlog.polled import told_at_stamps, walk_ratio
 from calib.sequence.kinematics import SimConfig
 from seqdesign.cli import main
 from seqdesign.verify import error_half_range
@@ -251,3 +251,35 @@ def test_a_stall_amid_a_turn_is_a_guess_by_hand_with_gaps_allowed(tmp_path):
     got = read_run(path, guess_turns=True, **site)
     assert got.clock.rule == "stamps" and got.guessed is not None
     assert np.flatnonzero(got.guessed).tolist() == [row]
+
+
+def test_a_reading_told_the_rows_were_sampled_at_their_stamps_reads_them_there():
+    # Stamps alternating 0.3 periods late with every later one half a period on (a loop's steps
+    # of 4 and 6 ms and a delay it kept, or a host's jitter and a sample clock that slipped): no
+    # rule here tells them apart, so they are refused. Told they were sampled at their stamps
+    # (the CLI's --at-stamps), each row is the next sample and the clock says it was told.
+    n = 10_000
+    stamps = PERIOD * np.arange(n) + np.where(np.arange(n) >= 5_000, 0.5 * PERIOD, 0.0)
+    stamps += 0.3 * PERIOD * (np.arange(n) % 2)
+    with pytest.raises(CalibError, match="not a whole number"):
+        sample_clock(stamps, 1.0 / PERIOD)
+    with told_at_stamps(True):
+        clock = sample_clock(stamps, 1.0 / PERIOD)
+    assert clock.rule == "stamps" and clock.told and clock.dropped == []
+    np.testing.assert_array_equal(clock.index, np.arange(n))
+    assert "as the reading was told (the CLI's --at-stamps)" in clock.summary()
+    assert not sample_clock(PERIOD * np.arange(n), 1.0 / PERIOD).told  # the flag lasts one reading
+    # A clock that jumps by years is still no sample's interval.
+    with told_at_stamps(True), pytest.raises(CalibError, match="the time jumps by"):
+        sample_clock(np.r_[stamps, stamps[-1] + 1e8], 1.0 / PERIOD)
+
+
+def test_cli_at_stamps_reads_a_logger_file_at_its_stamps_and_says_so(tmp_path):
+    _polled_log(tmp_path / "polled.csv", 3)
+    args = ["--columns", COLUMNS, "--latitude", "45", "--height", "0", "--at-stamps"]
+    out = CliRunner().invoke(
+        main, ["calibrate", str(tmp_path / "polled.csv"), "--by-hand", "--profile", "mems", *args, "--json"]
+    )
+    assert out.exit_code == 0, out.output
+    assert "as the reading was told (the CLI's --at-stamps)" in out.stderr
+    assert json.loads(out.stdout)["clock"]["rule"] == "stamps"
