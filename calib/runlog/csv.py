@@ -43,7 +43,7 @@ from .headerless import by_commented_names, mapped_header, with_header, with_row
 from .loggers import apple_sign_warning, known_header_map, with_logger_rate
 from .paths import read_bytes
 from .polled import own_intervals
-from .rollover import said_rollover
+from .rollover import mended, said_rollover
 from .run import Run, meta_float
 from .text import decode_lines, header_names, is_comment, without_cut_last_row
 from .wallclock import with_seconds, with_split_stamp
@@ -204,7 +204,7 @@ def _time_column(
                 rate = meta_float(meta, "sample_rate_hz", key_place)
     if plan.time_name == COUNTER:
         return counter_time(column, rate, allow_gaps, place, file_name)
-    time_s = time_in_seconds(column, rows, plan.time, plan.ticks_per_second, file_name, place)
+    time_s = time_in_seconds(column, rows, plan.time, plan.ticks_per_second, file_name, place, allow_gaps)
     suspect = counter_suspect(time_s, rate, file_name) if plan.time_name == "time_s" else None
     if suspect is not None:
         raise CalibError(suspect.what, place(1), suspect.fix)
@@ -212,7 +212,7 @@ def _time_column(
 
 
 def time_in_seconds(
-    parsed: np.ndarray, rows: list[str], position: int, ticks: int, column: str, locate
+    parsed: np.ndarray, rows: list[str], position: int, ticks: int, column: str, locate, allow_gaps=False
 ) -> np.ndarray:
     """The time column in seconds.
 
@@ -222,15 +222,16 @@ def time_in_seconds(
     Integer stamps in ms, us or ns are split into whole seconds and the rest in
     integers first, so an epoch-sized stamp is not rounded as a float of ticks
     (to 256 ns) before the division rounds it again. A fixed-width tick clock that
-    rolls over (a 32-bit ``micros()``) is counted on (:mod:`calib.runlog.rollover`).
+    rolls over (a 32-bit ``micros()``) is counted on, a stamp garbled on the way mended under
+    ``allow_gaps`` and refused otherwise (:mod:`calib.runlog.rollover`).
     """
     if ticks == 1:
-        return np.ascontiguousarray(parsed)
+        return np.ascontiguousarray(mended(parsed, allow_gaps, column, locate))
     try:
         stamps = np.loadtxt(rows, delimiter=",", comments=None, dtype=np.int64, usecols=[position], ndmin=1)
     except (ValueError, OverflowError):
-        return parsed / ticks  # decimals: one division, correctly rounded
-    stamps = said_rollover(stamps, column, locate)
+        return mended(parsed, allow_gaps, column, locate) / ticks  # decimals: one division, correctly rounded
+    stamps = said_rollover(mended(stamps, allow_gaps, column, locate), column, locate)
     whole, rest = np.divmod(stamps, ticks)
     return whole.astype(np.float64) + rest / ticks
 

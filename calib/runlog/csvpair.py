@@ -121,7 +121,13 @@ class _SensorFile:
     """One sensor's file as read: its metadata and where its keys are, the stream, its rate."""
 
     def __init__(
-        self, path, sensor: str, mapping: dict[str, str], conversion: Conversion | None, rate_hz=None
+        self,
+        path,
+        sensor: str,
+        mapping: dict[str, str],
+        conversion: Conversion | None,
+        rate_hz=None,
+        allow_gaps: bool = False,
     ):
         self.name = name = str(path)
         lines = without_cut_last_row(decode_lines(read_bytes(path), name), name)
@@ -175,7 +181,7 @@ class _SensorFile:
         data = _parse_numbers(rows, self.row_lines, [time_at, *columns.positions], own, name)
         self.time_own_name = own[time_at]
         ticks = TIME_UNITS[self.time_name.removeprefix("time_")]
-        self.time_s = time_in_seconds(data[:, 0], rows, time_at, ticks, own[time_at], at)
+        self.time_s = time_in_seconds(data[:, 0], rows, time_at, ticks, own[time_at], at, allow_gaps)
         # The gyro's increments become rates over the rate the run is given (a stated one),
         # the accelerometer's over its stamps' own.
         period = 1.0 / (rate_hz or stamps_rate(self.time_s))
@@ -235,8 +241,8 @@ def read_csv_pair(
         files state differently, or files with no common time.
     """
     maps = sensor_maps(columns, f"{acc_path}; {gyro_path}")
-    acc = _SensorFile(acc_path, "accel", maps["accel"], conversion)
-    gyro = _SensorFile(gyro_path, "gyro", maps["gyro"], conversion, options.get("sample_rate_hz"))
+    acc = _SensorFile(acc_path, "accel", maps["accel"], conversion, allow_gaps=allow_gaps)
+    gyro = _SensorFile(gyro_path, "gyro", maps["gyro"], conversion, options.get("sample_rate_hz"), allow_gaps)
     unused = sorted({*maps["accel"], *maps["gyro"]} - acc.used - gyro.used)
     if unused:
         raise CalibError(
