@@ -33,6 +33,12 @@ from .tools import emit_json, guarded, info, refuse_overwrite
     help="Carry the correction's fitted bias drift to each sample's time, b + d (t - t_last rest): only "
     "on the log it was calibrated from (default: the one bias, the last rest's).",
 )
+@click.option(
+    "--allow-gaps",
+    is_flag=True,
+    help="Fill samples the log lost at rest and drop exact duplicates (said); a sample lost amid a "
+    "turn is still refused.",
+)
 @options.log_site_and_reading
 @options.as_json
 @guarded
@@ -42,6 +48,7 @@ def correct(
     correction_path,
     output,
     carry_drift,
+    allow_gaps,
     latitude,
     height,
     reading,
@@ -62,7 +69,10 @@ def correct(
         },
     )
     correction = Correction.load(correction_path)
-    run = read_run(run_path, latitude_deg=latitude, height_m=height, **reading.reader)
+    run = read_run(run_path, allow_gaps, latitude_deg=latitude, height_m=height, **reading.reader)
+    filled = sum(count for _, count in run.clock.dropped) if run.clock is not None else 0
+    if filled:  # the calibrated log holds them: said, as the reader filled them (at rest)
+        info(f"{filled} sample(s) the log lost at rest filled before the correction (--allow-gaps)")
     raw_gyro, raw_accel = raw_samples(run, correction, run_path)
     times = sample_middles(run)
     _check_drift(correction, carry_drift, times, run, correction_path)

@@ -137,3 +137,21 @@ def test_cli_refuses_to_carry_a_drift_it_has_not_or_beyond_its_log(tmp_path, ori
     assert res.exit_code != 0
     assert message in res.output and "Traceback" not in res.output
     assert not out.exists()
+
+
+def test_cli_correct_fills_a_sample_lost_at_rest_only_when_told(tmp_path):
+    # A still log that lost one sample: refused as the readers refuse it, naming --allow-gaps, and
+    # with it filled (at rest, from its neighbours) and said before the correction is applied.
+    run = _raw_run()
+    keep = np.r_[0:500, 501:N]
+    lost = Run(run.time_s[keep], run.dtheta_rad[keep], run.dv_mps[keep], run.meta)
+    res, out = _correct(tmp_path, lost, _correction(drift=False))
+    assert res.exit_code != 0 and "--allow-gaps" in res.output and not out.exists()
+    res, out = _correct(tmp_path, lost, _correction(drift=False), "--allow-gaps")
+    assert res.exit_code == 0, res.output
+    assert "1 sample(s) the log lost at rest filled" in res.stderr
+    back = read_run(out)
+    assert back.n_samples == N
+    # The still unit's force comes back at every sample, the filled one too (its neighbours'): the
+    # one bias leaves the raw log's drift, d (t - bias_time_s), at most 1.5e-3 m/s^2 over its 20 s.
+    assert np.allclose(back.dv_mps * RATE_HZ, TRUE_FORCE, rtol=0, atol=1.6e-3)
