@@ -18,7 +18,7 @@ import click
 import numpy as np
 
 from . import options
-from .tools import emit_json, guarded, info, refuse_overwrite
+from .tools import emit_json, guarded, info, refuse_overwrite, say_filled
 
 
 @click.command(short_help="Apply a calibration (calibrated = M (raw - b)) to a log.")
@@ -33,12 +33,7 @@ from .tools import emit_json, guarded, info, refuse_overwrite
     help="Carry the correction's fitted bias drift to each sample's time, b + d (t - t_last rest): only "
     "on the log it was calibrated from (default: the one bias, the last rest's).",
 )
-@click.option(
-    "--allow-gaps",
-    is_flag=True,
-    help="Fill samples the log lost at rest and drop exact duplicates (said); a sample lost amid a "
-    "turn is still refused.",
-)
+@options.fill_gaps
 @options.log_site_and_reading
 @options.as_json
 @guarded
@@ -70,9 +65,7 @@ def correct(
     )
     correction = Correction.load(correction_path)
     run = read_run(run_path, allow_gaps, latitude_deg=latitude, height_m=height, **reading.reader)
-    filled = sum(count for _, count in run.clock.dropped) if run.clock is not None else 0
-    if filled:  # the calibrated log holds them: said, as the reader filled them (at rest)
-        info(f"{filled} sample(s) the log lost at rest filled before the correction (--allow-gaps)")
+    say_filled(run, "before the correction")
     raw_gyro, raw_accel = raw_samples(run, correction, run_path)
     times = sample_middles(run)
     _check_drift(correction, carry_drift, times, run, correction_path)

@@ -205,6 +205,15 @@ class LogReading:
         return bool(self.columns or self.by_hand)
 
 
+# correct and score: the log's lost samples filled where it is still, as the readers' refusals say.
+fill_gaps = click.option(
+    "--allow-gaps",
+    is_flag=True,
+    help="Fill samples the log lost at rest and drop exact duplicates (said); a sample lost amid a "
+    "turn is still refused.",
+)
+
+
 at_stamps = click.option(
     "--at-stamps",
     is_flag=True,

@@ -21,7 +21,7 @@ from pathlib import Path
 import click
 
 from . import options
-from .tools import emit_json, guarded, info
+from .tools import emit_json, guarded, info, say_filled
 
 MIN_RESTS = 3  # a spread over two rests says little, and pose to pose needs a move between two
 
@@ -42,10 +42,12 @@ MIN_RESTS = 3  # a spread over two rests says little, and pose to pose needs a m
     show_default=True,
     help="Noise profile whose white noise finds the rests: built-in name or TOML file.",
 )
+@options.fill_gaps
 @options.log_site_and_reading
 @options.as_json
 @guarded
-def score(run_path, correction_paths, profile, latitude, height, reading, as_json):
+# over 8 parameters: a click command takes one parameter per option it declares
+def score(run_path, correction_paths, profile, allow_gaps, latitude, height, reading, as_json):
     """Score each correction (and the log as read) on the rests and moves of LOG."""
     import numpy as np
 
@@ -60,7 +62,8 @@ def score(run_path, correction_paths, profile, latitude, height, reading, as_jso
 
     prof = load_profile(profile)
     corrections = [read_correction(path) for path in correction_paths]
-    run = read_run(run_path, latitude_deg=latitude, height_m=height, **reading.reader)
+    run = read_run(run_path, allow_gaps, latitude_deg=latitude, height_m=height, **reading.reader)
+    say_filled(run, "before the scores")
     dt = sample_intervals(run.time_s)
     rests = find_rests(run.dtheta_rad, run.dv_mps, dt, prof.arw, prof.vrw, run_path)
     if len(rests.start) < MIN_RESTS:

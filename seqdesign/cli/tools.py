@@ -201,5 +201,12 @@ def info(msg: str) -> None:
     click.echo(bounded(msg) if "\n" not in msg else msg, err=True)
 
 
+def say_filled(run, before: str) -> None:
+    """Say how many samples the reader filled where the log lost them at rest (``--allow-gaps``)."""
+    filled = sum(count for _, count in run.clock.dropped) if run.clock is not None else 0
+    if filled:
+        info(f"{filled} sample(s) the log lost at rest filled {before} (--allow-gaps)")
+
+
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
     click.echo(bounded(f"warning: {message}"), err=True)
