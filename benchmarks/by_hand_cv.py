@@ -176,7 +176,7 @@ def carried_lines(rows: list[dict]) -> list[str]:
     out = []
     for r in rows:
         c, m = r.get("ours_carried"), r["imutk"]
-        if c is None:
+        if c is None or r["rests"] < 3:  # fewer: no spread, one move (as the table's ratios)
             continue
         ratio = f" ({c['std_mm'] / m['std_mm']:.2f}x imu_tk's method)" if "std_mm" in m else ""
         out.append(
