@@ -249,7 +249,6 @@ def _check_lag_kept(lag: np.ndarray, width: int, threshold: float, periods: np.n
             f"from row {row} the time stamps fall {'behind' if size > 0 else 'ahead of'} the sample "
             f"count by {abs(size):.2f} periods and stay there: {why}",
             str(row),
-            "the time column must locate samples taken at sample_rate_hz; check the rate, or whether "
-            "the log mixes clocks or repeats rows; a logger that reads the sensor when its loop comes "
-            "round: at_stamps (the CLI's --at-stamps) reads each row at its stamp",
+            "check the rate, or whether the log mixes clocks or repeats rows; rows a loop polled "
+            "when it came round: at_stamps (the CLI's --at-stamps) reads each at its stamp",
         )
