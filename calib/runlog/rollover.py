@@ -115,8 +115,12 @@ def mended(time: np.ndarray, allow_gaps: bool, column: str, locate: Callable[[in
             "between its neighbours",
         )
     out = time.copy()
-    middle = time[rows - 1] + (time[rows + 1] - time[rows - 1]) / 2
-    out[rows] = np.rint(middle) if out.dtype.kind == "i" else middle  # ticks stay whole
+    half = (
+        (time[rows + 1] - time[rows - 1]) // 2
+        if time.dtype.kind == "i"
+        else (time[rows + 1] - time[rows - 1]) / 2
+    )
+    out[rows] = time[rows - 1] + half  # ticks stay whole integers: an epoch's ns are not rounded
     warnings.warn(
         f"{locate(i)}: {len(rows)} stamp(s) of column '{column}' out of line with their neighbours "
         f"(the first {seen}: garbled on the way) put midway between them",

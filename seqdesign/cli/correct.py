@@ -77,8 +77,10 @@ def correct(
     origin = run.time_origin_s
     if origin:  # epoch stamps were re-based to their first: the absolute time is kept beside them
         meta["time_origin_s"] = repr(origin)
-    write_run(Run(run.time_s, rate * dt, force * dt, meta, source=output), output)
+    write_run(Run(run.time_s, rate * dt, force * dt, meta, source=output, clock=run.clock), output)
     info(f"applied {correction_path} to {run.n_samples} samples of {run_path}")
+    if run.clock is not None and run.clock.told:
+        info(f"{output} keeps the stamps its rows were read at: read it again with --at-stamps")
     if origin:
         info(f"time_s counts from {origin:.6f} s, the log's first stamp (time_origin_s in {output})")
     doc = {

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from calib.calibration.correction import Correction, SensorCorrection
 from calib.errors import CalibError
 from calib.hand.plan import PlanShape, random_hand_plan
 from calib.hand.simulate import draw_errors, simulate_by_hand
@@ -44,18 +45,24 @@ def test_a_walk_a_jitter_and_a_clock_are_told_apart():
     assert walk_ratio(line(printed), PERIOD) == 0.0
 
 
-def _polled_log(path, seed: int):
+def _polled_log(path, seed: int, rtos: bool = False):
     """A hand run at 1 kHz, read by a loop that comes round every 4-6 ms, stamped in us.
 
     Each row holds the mean rate and force since the loop's last pass (what a sensor's
     decimation filter gives), so integrated over the stamps' own intervals it is exact.
+    ``rtos``: the loop's steps are 3 and 7 ms in turn, and once it is delayed 3 ms for good
+    (an RTOS task's; its stamps do not walk, and no rule tells them from a crystal's).
     """
     rng = np.random.default_rng(seed)
     errors = draw_errors(error_half_range("mems"), rng)
     plan = random_hand_plan(16, rng, PlanShape(peak_rate_dps=300.0))
     cfg = SimConfig(latitude_rad=np.radians(45.0), height_m=0.0, sample_rate_hz=1000.0)
     run, truth = simulate_by_hand(plan, cfg, errors, load_profile("mems"), seed=seed, oversample=2)
-    ends = np.cumsum(rng.integers(4, 7, run.n_samples // 4))
+    steps = rng.integers(4, 7, run.n_samples // 4)
+    if rtos:
+        steps = np.where(np.arange(len(steps)) % 2 == 0, 3, 7)
+        steps[len(steps) // 2] += 3
+    ends = np.cumsum(steps)
     ends = ends[ends <= run.n_samples] - 1
     starts = np.r_[0, ends[:-1] + 1]
     dt = run.time_s[ends] - np.r_[run.time_s[0] - 1e-3, run.time_s[ends[:-1]]]
@@ -282,4 +289,34 @@ def test_cli_at_stamps_reads_a_logger_file_at_its_stamps_and_says_so(tmp_path):
     )
     assert out.exit_code == 0, out.output
     assert "as the reading was told (the CLI's --at-stamps)" in out.stderr
-    assert json.loads(out.stdout)["clock"]["rule"] == "stamps"
+    doc = json.loads(out.stdout)
+    assert doc["clock"]["rule"] == "stamps" and doc["clock"]["told_at_stamps"] is True
+
+
+def test_cli_corrects_a_log_told_read_at_its_stamps_and_keeps_them(tmp_path):
+    # The stamps of the refusal above (0.3 periods late every other row, half a period on for
+    # good from the middle), a still unit's rows: refused untold; told, corrected, the calibrated
+    # log keeping its stamps (checked as they were read, read again when told again).
+    n = 10_000  # 50 s: the logger-clock trend fitted over the run takes little of the shift
+    stamps = PERIOD * (
+        np.arange(n) + 1 + np.where(np.arange(n) >= n // 2, 0.5, 0.0) + 0.3 * (np.arange(n) % 2)
+    )
+    rows = [f"{round(t * 1e6)},0.001,-0.002,0.003,0.05,0.02,9.81" for t in stamps]
+    log = tmp_path / "still.csv"
+    log.write_text("t,gx,gy,gz,ax,ay,az\n" + "\n".join(rows) + "\n")
+    corr = tmp_path / "c.toml"
+    one = np.eye(3), np.zeros(3), np.full((3, 3), np.nan), np.full(3, np.nan)
+    Correction(SensorCorrection(*one, "rad/s"), SensorCorrection(*one, "m/s^2")).save(corr)
+    out = tmp_path / "calibrated.csv"
+    args = ["correct", str(log), "--columns", COLUMNS, "--latitude", "45", "--height", "0"]
+    args += ["--correction", str(corr), "-o", str(out)]
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code != 0 and "the CLI's --at-stamps" in res.output and not out.exists()
+    res = CliRunner().invoke(main, [*args, "--at-stamps"])
+    assert res.exit_code == 0, res.output
+    assert "read it again with --at-stamps" in res.stderr
+    back = read_run(out, at_stamps=True)
+    np.testing.assert_allclose(back.time_s, stamps, rtol=0, atol=1e-6)  # the stamps, to their 1 us
+    # Each row's force over its own stamp interval is the still unit's, to float rounding.
+    force = back.dv_mps[1:] / np.diff(back.time_s)[:, None]
+    assert np.allclose(force, [0.05, 0.02, 9.81], rtol=1e-9, atol=0)
