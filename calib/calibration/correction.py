@@ -30,7 +30,7 @@ from calib.io.fields import FORMAT_VERSION, Fields, check_format_version
 from calib.io.files import atomic_write_text, load_toml
 from calib.model import params as P
 from calib.model.error_model import ErrorModel
-from calib.nav.strapdown import sample_intervals
+from calib.nav.strapdown import sample_intervals, start_time
 
 SENSORS = ("gyro", "accel")
 SI_UNIT = {"gyro": "rad/s", "accel": "m/s^2"}
@@ -87,6 +87,7 @@ class Correction:
     source: str = ""
     bias_time_s: float | None = None
     drift_span_s: tuple[float, float] | None = None
+    drift_samples: int | None = None  # the calibrated log's samples: with its span, which log it was
 
     @property
     def has_drift(self) -> bool:
@@ -115,6 +116,8 @@ class Correction:
         if self.bias_time_s is not None and self.drift_span_s is not None:
             doc["bias_time_s"] = float(self.bias_time_s)
             doc["drift_span_s"] = [float(x) for x in self.drift_span_s]
+            if self.drift_samples is not None:
+                doc["drift_samples"] = int(self.drift_samples)
         for name, c in (("gyro", self.gyro), ("accel", self.accel)):
             doc[name] = {
                 "raw_unit": c.raw_unit,
@@ -182,7 +185,8 @@ class Correction:
             else None
         )
         bias_time, span = _drift_time(doc, where, any(p.drift is not None for p in parts.values()))
-        return cls(parts["gyro"], parts["accel"], G, sG, str(doc.get("source", "")), bias_time, span)
+        samples = Fields(doc, where).integer("drift_samples", None, low=1) if span is not None else None
+        return cls(parts["gyro"], parts["accel"], G, sG, str(doc.get("source", "")), bias_time, span, samples)
 
 
 def correction_from_parameters(
@@ -275,13 +279,70 @@ def correction_of_result(result, conversion=None, source: str = "", run=None) ->
             value, sigma = np.asarray(result.extra_values)[part], np.asarray(result.extra_sigma)[part]
             parts[sensor] = replace(parts[sensor], drift=k * value, sigma_drift=k * sigma)
     # The summary's seconds count from the start of the first sample's interval.
-    start = run.time_origin_s + float(run.time_s[0] - sample_intervals(run.time_s)[0])
+    start = run.time_origin_s + start_time(run.time_s)
     return replace(
         correction,
         gyro=parts["gyro"],
         accel=parts["accel"],
         bias_time_s=start + float(np.mean(result.by_hand.rest_s[-1])),
         drift_span_s=(start, run.time_origin_s + float(run.time_s[-1])),
+        drift_samples=run.n_samples,
+    )
+
+
+def drift_carried_times(correction: Correction, run) -> np.ndarray:
+    """Each sample's middle on ``run``'s own time axis, to carry ``correction``'s drift over it.
+
+    Refused unless ``run`` is the log the drift was fitted on (:func:`fitted_on`): a linear
+    drift is a fact of that run, not of the next one.
+    """
+    if not correction.has_drift or correction.drift_span_s is None:
+        raise CalibError(
+            "the correction carries no bias drift (none was fitted) to carry",
+            correction.source or run.source,
+            "apply it as one bias (leave out carrying the drift, the CLI's --carry-drift)",
+        )
+    if not fitted_on(correction, run):
+        origin = run.time_origin_s
+        start, end = correction.drift_span_s
+        times = sample_middles(run)
+        raise CalibError(
+            f"runs from {times[0] - origin:.3f} to {times[-1] - origin:.3f} s in {run.n_samples} samples, "
+            f"not the log the drift was fitted on ({start - origin:.3f} to {end - origin:.3f} s, "
+            f"{correction.drift_samples} samples): a linear drift is a fact of that log, not of another",
+            run.source,
+            "apply the correction as one bias (the last rest's), or calibrate this log",
+        )
+    return sample_middles(run)
+
+
+def fitted_on(correction: Correction, run) -> bool:
+    """Whether ``run`` is the log ``correction``'s drift was fitted on: its samples inside the
+    span (half a sample's slack for the first interval) and as many of them (two logs whose
+    time starts near zero share a span).
+    """
+    if correction.drift_span_s is None:
+        return False
+    times = sample_middles(run)
+    start, end = correction.drift_span_s
+    slack = 0.5 * float(np.median(sample_intervals(run.time_s)))
+    inside = bool(times[0] >= start - slack and times[-1] <= end + slack)
+    return inside and correction.drift_samples in (None, run.n_samples)
+
+
+def drift_note(correction: Correction, run) -> str | None:
+    """What a correction applied as one bias leaves of its drift, for the user; None without one."""
+    if not correction.has_drift or correction.drift_span_s is None or correction.bias_time_s is None:
+        return None
+    if not fitted_on(correction, run):
+        return (
+            "the correction's biases drift over the log it was fitted on, not this one: applied as one bias"
+        )
+    origin = run.time_origin_s
+    start, end = (t - origin for t in correction.drift_span_s)
+    return (
+        f"the correction's biases drift over this log ({start:.1f} to {end:.1f} s): applied as one bias, "
+        f"the last rest's at {correction.bias_time_s - origin:.1f} s"
     )
 
 

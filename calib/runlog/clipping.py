@@ -101,11 +101,11 @@ def at_limits(counts: np.ndarray, range_counts: tuple[float, float], where: str,
         k, axis = (int(i) for i in np.argwhere(beyond)[0])
         signed = "; a signed converter reads below 0" if counts[k, axis] < 0 <= low else ""
         raise CalibError(
-            f"{sensor} {'xyz'[axis]} reads {counts[k, axis]:g} counts at sample {k + 1}, beyond the "
+            f"{sensor} {'xyz'[axis]} reads {counts[k, axis]:g} counts at sample {k}, beyond the "
             f"conversion's range_counts [{low:g}, {high:g}] ({int(beyond.sum())} such counts){signed}",
             where,
-            "give the converter's limits as range_counts at the conversion file's top, above [gyro] "
-            "(e.g. range_counts = [-32768, 32767] for a signed 16-bit one)",
+            "give the converter's limits as range_counts at the top of a TOML conversion (imu_tk's text "
+            "states none), e.g. range_counts = [-32768, 32767] for a signed 16-bit one",
         )
     return (counts <= low) | (counts >= high)
 

@@ -315,7 +315,7 @@ def stamps_rate(time_s: np.ndarray) -> float:
         return math.nan
     try:  # the counts of `sample_clock` (the count rule for jittering stamps; told: each row one)
         whole = _whole_steps(rel, first, np.zeros(len(rel), dtype=bool))
-        counts = np.ones(len(step)) if whole is None else whole.astype(float)
+        counts = polled.loop_counts(step) if whole is None else whole.astype(float)
     except CalibError:
         counts = np.rint(np.maximum(step, 0.0) / first)
     index = np.zeros(len(rel))

@@ -39,7 +39,7 @@ from .dialect import (
     without_units_row,
 )
 from .format import ARRAY_COLUMNS, FORMAT, GIMBAL_COLUMNS, REQUIRED_COLUMNS, REQUIRED_META
-from .headerless import by_commented_names, mapped_header, with_header, with_row_counter
+from .headerless import Garbled, by_commented_names, mapped_header, with_header, with_row_counter
 from .loggers import apple_sign_warning, known_header_map, with_logger_rate
 from .paths import read_bytes
 from .polled import own_intervals
@@ -109,9 +109,8 @@ def read_csv(
     lines = to_commas(lines, header_index, name)
     lines, mapping = with_split_stamp(lines, header_index, mapping, name, added)  # ROS 2's sec,nanosec
     stated = (options or {}).get("sample_rate_hz") is not None or "sample_rate_hz" in meta
-    lines = with_row_counter(
-        lines, header_index, mapped_header(lines, header_index, mapping, name), stated, name, allow_gaps
-    )
+    names = mapped_header(lines, header_index, mapping, name)
+    lines = with_row_counter(lines, header_index, names, stated, name, allow_gaps, added)
     plan, has_gimbal, positions = _parse_header(lines[header_index], header_index + 1, name, mapping)
     options = with_logger_rate(options or {}, plan, stated, lines, header_index, name)
     rows, row_lines = _data_rows(lines, header_index + 1)
@@ -123,7 +122,7 @@ def read_csv(
             "a run log needs one row per sample",
         )
     n_fields = len(lines[header_index].split(","))
-    _check_field_counts(rows, row_lines, n_fields, name)
+    rows, row_lines = _check_field_counts(rows, row_lines, n_fields, name, allow_gaps)
     at = lambda i: f"{name}, line {int(row_lines[i])} (sample {i})"  # noqa: E731
     rows, plan = with_seconds(rows, plan.time, plan, at)  # a time column of HH:MM:SS.fff
     wanted = [plan.time, *plan.gyro.positions, *plan.accel.positions]
@@ -378,18 +377,23 @@ def _data_rows(lines: list[str], first: int) -> tuple[list[str], np.ndarray]:
     return [line for line, k in zip(body, keep.tolist(), strict=True) if k], numbers
 
 
-def _check_field_counts(rows: list[str], row_lines: np.ndarray, n_fields: int, name: str) -> None:
-    """Refuse rows whose field count differs from the header's."""
+def _check_field_counts(
+    rows: list[str], row_lines: np.ndarray, n_fields: int, name: str, allow_gaps: bool
+) -> tuple[list[str], np.ndarray]:
+    """The rows whose field count is the header's: others refused, or left out under ``allow_gaps``
+    (a serial link's garbled rows; the time or counter column then shows the gap), said.
+    """
     commas = np.fromiter((row.count(",") for row in rows), dtype=np.int64, count=len(rows))
     bad = np.flatnonzero(commas != n_fields - 1)
-    if bad.size:
-        i = int(bad[0])
-        more = f" ({bad.size} such rows in all)" if bad.size > 1 else ""
-        raise CalibError(
-            f"row has {commas[i] + 1} fields, the header has {n_fields}{more}",
-            f"{name}, line {int(row_lines[i])} (sample {i})",
-            "every data row needs one value per header column",
-        )
+    if not bad.size:
+        return rows, row_lines
+    garbled = Garbled(name, allow_gaps)
+    for i in bad:
+        garbled.row(int(commas[i]) + 1, n_fields, "the header", int(row_lines[i]), int(i))
+    garbled.said(True)
+    keep = np.ones(len(rows), dtype=bool)
+    keep[bad] = False
+    return [row for row, kept in zip(rows, keep, strict=True) if kept], row_lines[keep]
 
 
 def _parse_numbers(

@@ -173,7 +173,7 @@ class _SensorFile:
         self.row_lines = self.row_lines - added  # the file's own line numbers
         if len(rows) < 2:
             raise CalibError("the file has fewer than two data rows", where, "give the sensor's samples")
-        _check_field_counts(rows, self.row_lines, len(own), name)
+        rows, self.row_lines = _check_field_counts(rows, self.row_lines, len(own), name, allow_gaps)
         at = lambda i: f"{name}, line {int(self.row_lines[i])}"  # noqa: E731
         in_seconds = fields_in_seconds(rows, time_at, at)  # a time column of clock times
         if in_seconds is not None:

@@ -281,19 +281,21 @@ def with_row_counter(
     rate_stated: bool,
     name: str = "<memory>",
     allow_gaps: bool = False,
+    inserted: int = 0,
 ) -> list[str]:
     """A file whose header row names no time, with a counter field added when the rate is stated.
 
     ``names`` are the header's names with the column map applied. Without a stated rate the
     lines are returned as they are (the header's check then says what is missing). A column
     left out of the map that increases row by row is a time the map forgot: refused, since
-    evenly spaced rows would hide the gaps its stamps show.
+    evenly spaced rows would hide the gaps its stamps show. ``inserted`` lines were put in above
+    the rows (a header made for ``label:value`` rows): the file's line numbers are that many less.
     """
     if not rate_stated or any(n in TIME_NAMES or n.lower() in TIME_NAMES or n == COUNTER for n in names):
         return lines
     _refuse_an_unmapped_time(lines, header_index, names, name)
     body, count, width, garbled = [], 0, len(names), Garbled(name, allow_gaps)
-    for k, line in enumerate(lines[header_index + 1 :], start=header_index + 2):
+    for k, line in enumerate(lines[header_index + 1 :], start=header_index + 2 - inserted):
         if line.strip():
             if line.count(",") != width - 1:  # said before the counter adds a field of its own
                 count += garbled.row(line.count(",") + 1, width, "the header", k, count)

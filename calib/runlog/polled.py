@@ -209,6 +209,18 @@ def stalls(time_s: np.ndarray, duplicate: np.ndarray, origin: float) -> list:
     return [(float(time_s[i] - origin + usual), int(round(step[i] / usual)) - 1) for i in long]
 
 
+def loop_counts(step: np.ndarray) -> np.ndarray:
+    """Samples each step of a loop's stamps stands for: one, and a stall's hole as :func:`stalls`
+    counts it, so that a rate from the stamps is the loop's own, not lowered by its stalls.
+    """
+    moving = step[step > 0]
+    if not moving.size:
+        return np.zeros(len(step))
+    holes = step > STALL_STEPS * float(np.median(moving))
+    usual = float(np.mean(moving[moving <= STALL_STEPS * float(np.median(moving))]))  # the loop's mean
+    return np.where(holes, np.rint(step / usual), (step > 0).astype(float))
+
+
 def summary(step_stats: tuple, deviation_rms: float, was_told: bool = False) -> str:
     """The clock line of a log sampled at its stamps; ``step_stats`` (min, max, mean, RMS), s."""
     low, high, mean, rms = step_stats

@@ -142,8 +142,8 @@ def calibrate(
 
     if reading.logger and stream:
         raise CalibError(
-            "--columns, --gyro-file, --conversion and --sample-rate-hz read a logger's file, which is "
-            "read whole",
+            "--columns, --gyro-file, --conversion, --sample-rate-hz and --at-stamps read a logger's file, "
+            "which is read whole",
             run_path,
             "calibrate it without --stream",
         )

@@ -50,7 +50,13 @@ def correct(
     as_json,
 ):
     """Apply the correction to every sample of LOG and write the calibrated log."""
-    from calib.calibration.correction import Correction, raw_samples, sample_middles
+    from calib.calibration.correction import (
+        Correction,
+        drift_carried_times,
+        drift_note,
+        fitted_on,
+        raw_samples,
+    )
     from calib.nav.strapdown import sample_intervals
     from calib.runlog import Run, read_run, write_run
 
@@ -67,9 +73,11 @@ def correct(
     run = read_run(run_path, allow_gaps, latitude_deg=latitude, height_m=height, **reading.reader)
     say_filled(run, "before the correction")
     raw_gyro, raw_accel = raw_samples(run, correction, run_path)
-    times = sample_middles(run)
-    _check_drift(correction, carry_drift, times, run, correction_path)
-    rate, force = correction.apply(raw_gyro, raw_accel, times if carry_drift else None)
+    times = drift_carried_times(correction, run) if carry_drift else None
+    note = None if carry_drift else drift_note(correction, run)
+    if note:
+        info(note + ("; --carry-drift carries the drift over it" if fitted_on(correction, run) else ""))
+    rate, force = correction.apply(raw_gyro, raw_accel, times)
     dt = sample_intervals(run.time_s)[:, None]
     # The calibrated log is in SI: the raw reading's keys (its conversion, its source format) go.
     meta = {k: v for k, v in run.meta.items() if not k.startswith(("conversion", "source_format"))}
@@ -94,38 +102,3 @@ def correct(
         emit_json(doc)
         return
     click.echo(f"wrote {output}")
-
-
-def _check_drift(correction, carry_drift: bool, times, run, correction_path: str) -> None:
-    """Refuse ``--carry-drift`` without a drift or outside the log it was fitted on; say a drift left."""
-    from calib.errors import CalibError
-    from calib.nav.strapdown import sample_intervals
-
-    if not correction.has_drift:
-        if carry_drift:
-            raise CalibError(
-                "--carry-drift: the correction carries no bias drift (none was fitted)",
-                correction_path,
-                "leave --carry-drift out",
-            )
-        return
-    # Said on this log's own time_s (an epoch's 1.7e9 s would hide the figures).
-    origin = run.time_origin_s
-    start, end = (t - origin for t in correction.drift_span_s)
-    if not carry_drift:
-        info(
-            f"the correction's biases drift (fitted over {start:.1f} to {end:.1f} s of this log's time); "
-            f"applied as one bias, the calibrated log's last rest's at {correction.bias_time_s - origin:.1f}"
-            " s: the CLI's --carry-drift carries the drift over that log"
-        )
-        return
-    # The same log read again gives the same times; half a sample allows for the first one's interval.
-    slack = 0.5 * float(np.median(sample_intervals(run.time_s)))
-    first, last = times[0] - origin, times[-1] - origin
-    if first < start - slack or last > end + slack:
-        raise CalibError(
-            f"runs from {first:.3f} to {last:.3f} s, outside the span the drift was fitted over "
-            f"({start:.3f} to {end:.3f} s): a linear drift is a fact of that log, not carried beyond it",
-            run.source,
-            "apply the correction without --carry-drift (one bias, the last rest's), or calibrate this log",
-        )

@@ -209,7 +209,7 @@ class LogReading:
 fill_gaps = click.option(
     "--allow-gaps",
     is_flag=True,
-    help="Fill samples the log lost at rest and drop exact duplicates (said); a sample lost amid a "
+    help="Fill samples the log lost at rest (said) and drop exact duplicates; a sample lost amid a "
     "turn is still refused.",
 )
 

@@ -37,13 +37,16 @@ def _sensor(b, drift, unit: str) -> SensorCorrection:
     return SensorCorrection(np.eye(3), np.asarray(b), np.full((3, 3), np.nan), nan, unit, drift, sigma_drift)
 
 
-def _correction(span=(ORIGIN_S, ORIGIN_S + N / RATE_HZ), drift: bool = True) -> Correction:
+def _correction(
+    span=(ORIGIN_S, ORIGIN_S + N / RATE_HZ), drift: bool = True, samples: int | None = N
+) -> Correction:
     return Correction(
         _sensor(GYRO_BIAS, GYRO_DRIFT if drift else None, "rad/s"),
         _sensor(ACCEL_BIAS, ACCEL_DRIFT if drift else None, "m/s^2"),
         source="test",
         bias_time_s=BIAS_TIME if drift else None,
         drift_span_s=span if drift else None,
+        drift_samples=samples if drift else None,
     )
 
 
@@ -84,7 +87,7 @@ def test_a_correction_with_a_drift_reads_back_as_written_and_refuses_a_time_outs
     path = tmp_path / "c.toml"
     c.save(path)
     back = Correction.load(path)
-    assert back.bias_time_s == BIAS_TIME and back.drift_span_s == c.drift_span_s
+    assert back.bias_time_s == BIAS_TIME and back.drift_span_s == c.drift_span_s and back.drift_samples == N
     assert np.array_equal(back.accel.drift, ACCEL_DRIFT) and np.array_equal(back.gyro.drift, GYRO_DRIFT)
     text = path.read_text()
     bad = tmp_path / "bad.toml"
@@ -126,14 +129,19 @@ def test_cli_carries_the_drift_on_the_logs_own_time_axis_only_when_asked(tmp_pat
 
 
 @pytest.mark.parametrize(
-    ("origin_s", "drift", "message"),
+    ("origin_s", "drift", "samples", "message"),
     [
-        (ORIGIN_S + 60.0, True, "outside the span the drift was fitted over"),  # a later log
-        (ORIGIN_S, False, "carries no bias drift"),
+        (ORIGIN_S + 60.0, True, N, "not the log the drift was fitted on"),  # a later log
+        (ORIGIN_S, True, N + 100, "not the log the drift was fitted on"),  # another log, the same span
+        (ORIGIN_S, False, N, "carries no bias drift"),
     ],
 )
-def test_cli_refuses_to_carry_a_drift_it_has_not_or_beyond_its_log(tmp_path, origin_s, drift, message):
-    res, out = _correct(tmp_path, _raw_run(origin_s), _correction(drift=drift), "--carry-drift")
+def test_cli_refuses_to_carry_a_drift_it_has_not_or_beyond_its_log(
+    tmp_path, origin_s, drift, samples, message
+):
+    res, out = _correct(
+        tmp_path, _raw_run(origin_s), _correction(drift=drift, samples=samples), "--carry-drift"
+    )
     assert res.exit_code != 0
     assert message in res.output and "Traceback" not in res.output
     assert not out.exists()

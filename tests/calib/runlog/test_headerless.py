@@ -238,3 +238,22 @@ def test_rows_a_serial_link_garbled_are_lost_samples_under_allow_gaps(tmp_path):
     with pytest.warns(UserWarning, match=r"line\(s\) 101, 201\) left out"):  # below the header
         same = read_run(named, columns=names, sample_rate_hz=100.0, allow_gaps=True, **SITE)
     np.testing.assert_array_equal(same.dv_mps, run.dv_mps)
+
+
+def test_a_garbled_row_under_a_header_with_a_time_is_left_out_under_allow_gaps(tmp_path):
+    # A logger's file with a header and stamps: a row cut short on the wire is refused naming
+    # allow_gaps, and left out with it, its stamp's absence a lost sample the clock counts.
+    noise = np.random.default_rng(2).normal(0.0, 1e-3, (400, 6))  # a still unit's, as a sensor shows it
+    still = np.array([0.001, -0.002, 0.003, 0.05, 0.02, 9.81]) + noise
+    rows = [f"{10 * (k + 1)}," + ",".join(repr(float(x)) for x in r) for k, r in enumerate(still)]
+    rows[200] = "2010,0.001,-0.0"
+    path = tmp_path / "logger.csv"
+    path.write_text("t,gx,gy,gz,ax,ay,az\n" + "\n".join(rows) + "\n")
+    names = "t=time_ms,gx=gyro_x_radps,gy=gyro_y_radps,gz=gyro_z_radps,"
+    names += "ax=accel_x_mps2,ay=accel_y_mps2,az=accel_z_mps2"
+    with pytest.raises(CalibError) as err:
+        read_run(path, columns=names, **SITE)
+    assert "line 202 (sample 200)" in err.value.where and "the CLI's --allow-gaps" in err.value.fix
+    with pytest.warns(UserWarning, match=r"1 row\(s\) of the wrong width \(line\(s\) 202\) left out"):
+        run = read_run(path, columns=names, allow_gaps=True, **SITE)
+    assert run.n_samples == 400 and [count for _, count in run.clock.dropped] == [1]  # filled at rest

@@ -276,6 +276,11 @@ def test_a_reading_told_the_rows_were_sampled_at_their_stamps_reads_them_there()
     np.testing.assert_array_equal(clock.index, np.arange(n))
     assert "as the reading was told (the CLI's --at-stamps)" in clock.summary()
     assert not sample_clock(PERIOD * np.arange(n), 1.0 / PERIOD).told  # the flag lasts one reading
+    # Its rate from the stamps is the loop's, a stall of 200 periods counted as its hole (not one
+    # row: 2 % low); to the 0.3-period alternation over the span (1e-4).
+    stalled = np.r_[stamps[:5000], stamps[5000:] + 200 * PERIOD]
+    with told_at_stamps(True):
+        assert stamps_rate(stalled) == pytest.approx(1.0 / PERIOD, rel=1e-4)
     # A clock that jumps by years is still no sample's interval.
     with told_at_stamps(True), pytest.raises(CalibError, match="the time jumps by"):
         sample_clock(np.r_[stamps, stamps[-1] + 1e8], 1.0 / PERIOD)
