@@ -339,7 +339,7 @@ def drift_note(correction: Correction, run) -> str | None:
             "the correction's biases drift over the log it was fitted on, not this one: applied as one bias"
         )
     origin = run.time_origin_s
-    start, end = (t - origin for t in correction.drift_span_s)
+    start, end = (round(t - origin, 1) + 0.0 for t in correction.drift_span_s)  # + 0.0: no "-0.0"
     return (
         f"the correction's biases drift over this log ({start:.1f} to {end:.1f} s): applied as one bias, "
         f"the last rest's at {correction.bias_time_s - origin:.1f} s"
