@@ -124,7 +124,7 @@ def with_header(
     name : str
         The file, for messages.
     allow_gaps : bool
-        Leave out a row of the wrong width as lost samples (:func:`garbled_row`), else refuse it.
+        Leave out a row of the wrong width as lost samples (:class:`Garbled`), else refuse it.
 
     Returns
     -------
