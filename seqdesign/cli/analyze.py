@@ -9,7 +9,7 @@ import click
 from calib.errors import CalibError
 
 from . import options
-from .tools import emit_json, guarded, info, rerun_command
+from .tools import emit_json, guarded, info, rerun_command, say_filled
 
 TOLERANCE = click.FloatRange(0.0, 10.0)
 
@@ -56,6 +56,7 @@ TOLERANCE = click.FloatRange(0.0, 10.0)
 )
 @options.height("--by-hand LOG: site height, m, for a logger's file that does not carry it.")
 @options.gravity("--by-hand LOG: surveyed site gravity, m/s^2.")
+@options.fill_gaps
 @options.log_reading
 @options.as_json
 @guarded
@@ -73,6 +74,7 @@ def analyze(
     placements,
     height,
     gravity_mps2,
+    allow_gaps,
     reading,
     as_json,
 ):
@@ -82,7 +84,7 @@ def analyze(
     worst case over the +-tolerance mounting box.
     """
     if by_hand:
-        site = dict(latitude_deg=latitude, height_m=height, gravity_mps2=gravity_mps2)
+        site = dict(latitude_deg=latitude, height_m=height, gravity_mps2=gravity_mps2, allow_gaps=allow_gaps)
         from seqdesign.hand.prediction import Placement
 
         placement = Placement(placement_deg, placements)
@@ -161,7 +163,9 @@ def _analyze_by_hand(path, profile, requirements, with_terms, placement, view_pa
 
         from .reading import run_notes
 
-        run = read_run(path, latitude_deg=site["latitude_deg"], height_m=site["height_m"], **reading.reader)
+        where = {"latitude_deg": site["latitude_deg"], "height_m": site["height_m"]}
+        run = read_run(path, site["allow_gaps"], **where, **reading.reader)
+        say_filled(run, "before the analysis")
         gravity, notes = run_notes(run, site["gravity_mps2"])
         for note in notes:
             info(note)

@@ -183,3 +183,25 @@ def test_cli_design_by_hand_refuses_a_budget_too_short(tmp_path):
     )
     assert res.exit_code != 0 and "Traceback" not in res.output and "fewer than" in res.output
     assert not (tmp_path / "h.toml").exists()
+
+
+def test_analyze_of_a_recording_that_lost_a_sample_at_rest_fills_it_only_when_told(tmp_path):
+    # The analysis of a recording reads it as calibrate does: a sample lost in the first rest is
+    # refused naming --allow-gaps, and with it filled and said.
+    runner = CliRunner()
+    whole = tmp_path / "hand.csv"
+    res = runner.invoke(
+        main, ["simulate", "--by-hand", "--poses", "12", "--profile", "mems", "--seed", "3", "-o", str(whole)]
+    )
+    assert res.exit_code == 0, res.output
+    lines = whole.read_text().splitlines()
+    first_row = next(i for i, line in enumerate(lines) if line[:1].isdigit())
+    lost = tmp_path / "lost.csv"
+    lost.write_text("\n".join(lines[: first_row + 200] + lines[first_row + 201 :]) + "\n")  # 2 s in: still
+    args = ["analyze", str(lost), "--by-hand", "--profile", "mems", "--json"]
+    res = runner.invoke(main, args)
+    assert res.exit_code != 0 and "--allow-gaps" in res.output
+    res = runner.invoke(main, [*args, "--allow-gaps"])
+    assert res.exit_code == 0, res.output
+    assert "1 sample(s) the log lost at rest filled before the analysis" in res.stderr
+    assert json.loads(res.stdout)["recorded"]
