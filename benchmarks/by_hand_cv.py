@@ -40,7 +40,7 @@ from by_hand import (
     xsens,
 )
 
-from calib.calibration.correction import correction_from_parameters
+from calib.calibration.correction import correction_from_parameters, correction_of_result, sample_middles
 from calib.calibration.entry import CalibrateOptions, calibrate
 from calib.errors import CalibError
 from calib.hand.rests import find_rests
@@ -151,22 +151,24 @@ def drift_carried(rec: Recording, part: Run, res) -> Recording | None:
 
     A fit that chose a bias drift reports the biases of the part's last rest, and its correction
     carries one bias; a held-out third before that rest is then scored at a bias the model itself
-    says was elsewhere. Taking ``d (t - t_last)`` out of each raw sample scores the model as fitted
-    (its bias at each held-out rest's time, the drift carried there linearly), beside the
-    correction as a user applies it.
+    says was elsewhere. Taking ``d (t - bias_time_s)`` out of each raw sample, at the times
+    ``correct --carry-drift`` takes (each sample's middle; the part's last rest, from
+    :func:`calib.calibration.correction.correction_of_result`), scores the model as fitted (its
+    bias at each held-out rest's time, the drift carried there linearly), beside the correction as
+    a user applies it.
     """
     drifts = {"accel-bias-drift": "raw_accel", "gyro-bias-drift": "raw_gyro"}
     chosen = [g for g in drifts if g in res.extras.groups]
     if not chosen or res.by_hand is None:
         return None
-    t0 = float(part.time_s[0] - sample_intervals(part.time_s)[0])
-    t_last = t0 + float(np.mean(res.by_hand.rest_s[-1]))
+    carried = correction_of_result(res, run=part)  # in SI: its drifts are the fit's, per s
+    since = sample_middles(rec.run) - carried.bias_time_s
     out = rec
     for group in chosen:
-        rate_si = np.asarray(res.extra_values)[res.extras.index(group)]  # per s
+        sensor = carried.accel if group == "accel-bias-drift" else carried.gyro
         conversion = rec.accel_conversion if group == "accel-bias-drift" else rec.gyro_conversion
         counts_per_si = np.asarray(conversion[1], dtype=float)
-        raw = getattr(out, drifts[group]) - (rec.run.time_s - t_last)[:, None] * rate_si * counts_per_si
+        raw = getattr(out, drifts[group]) - since[:, None] * sensor.drift * counts_per_si
         out = replace(out, **{drifts[group]: raw})
     return out
 

@@ -216,8 +216,9 @@ def loop_counts(step: np.ndarray) -> np.ndarray:
     moving = step[step > 0]
     if not moving.size:
         return np.zeros(len(step))
-    holes = step > STALL_STEPS * float(np.median(moving))
-    usual = float(np.mean(moving[moving <= STALL_STEPS * float(np.median(moving))]))  # the loop's mean
+    stall = STALL_STEPS * float(np.median(moving))
+    holes = step > stall
+    usual = float(np.mean(moving[moving <= stall]))  # the loop's mean step
     return np.where(holes, np.rint(step / usual), (step > 0).astype(float))
 
 
