@@ -342,7 +342,8 @@ def drift_note(correction: Correction, run) -> str | None:
     start, end = (round(t - origin, 1) + 0.0 for t in correction.drift_span_s)  # + 0.0: no "-0.0"
     return (
         f"the correction's biases drift over this log ({start:.1f} to {end:.1f} s): applied as one bias, "
-        f"the last rest's at {correction.bias_time_s - origin:.1f} s"
+        f"the last rest's at {correction.bias_time_s - origin:.1f} s; the CLI's --carry-drift carries "
+        "the drift over it"
     )
 
 

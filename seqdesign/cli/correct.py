@@ -54,7 +54,6 @@ def correct(
         Correction,
         drift_carried_times,
         drift_note,
-        fitted_on,
         raw_samples,
     )
     from calib.nav.strapdown import sample_intervals
@@ -76,7 +75,7 @@ def correct(
     times = drift_carried_times(correction, run) if carry_drift else None
     note = None if carry_drift else drift_note(correction, run)
     if note:
-        info(note + ("; --carry-drift carries the drift over it" if fitted_on(correction, run) else ""))
+        info(note)
     rate, force = correction.apply(raw_gyro, raw_accel, times)
     dt = sample_intervals(run.time_s)[:, None]
     # The calibrated log is in SI: the raw reading's keys (its conversion, its source format) go.

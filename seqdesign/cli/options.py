@@ -205,7 +205,8 @@ class LogReading:
         return bool(self.columns or self.by_hand)
 
 
-# correct and score: the log's lost samples filled where it is still, as the readers' refusals say.
+# correct, score and analyze LOG: the log's lost samples filled where it is still, as the readers'
+# refusals say (calibrate's own --allow-gaps also guesses a sample lost amid a turn, by hand).
 fill_gaps = click.option(
     "--allow-gaps",
     is_flag=True,

@@ -202,10 +202,18 @@ def info(msg: str) -> None:
 
 
 def say_filled(run, before: str) -> None:
-    """Say how many samples the reader filled where the log lost them at rest (``--allow-gaps``)."""
-    filled = sum(count for _, count in run.clock.dropped) if run.clock is not None else 0
-    if filled:
-        info(f"{filled} sample(s) the log lost at rest filled {before} (--allow-gaps)")
+    """Say what the reader did with the samples the log lost at rest and repeated (``--allow-gaps``):
+    filled, or, rows read at their stamps, left in the stalled row's own interval; repeats dropped.
+    """
+    if run.clock is None:
+        return
+    lost = sum(count for _, count in run.clock.dropped)
+    repeated = sum(count for _, count in run.clock.duplicates)
+    if lost:
+        how = "left in their stalled rows' intervals" if run.clock.rule == "stamps" else "filled"
+        info(f"{lost} sample(s) the log lost at rest {how} {before} (--allow-gaps)")
+    if repeated:
+        info(f"{repeated} repeated sample(s) dropped {before} (--allow-gaps)")
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
